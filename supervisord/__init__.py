@@ -1,0 +1,1 @@
+"""SRCS safety supervisor: protocol codecs, safety core, daemon, simulator and tools."""
