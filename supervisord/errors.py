@@ -15,3 +15,20 @@ class SrcsError(Exception):
 class UnsafeCommandError(SrcsError, ValueError):
     """Our own code asked to send something the protocol notes forbid (e.g. switching off the
     VSC heartbeat, notes §2 "Other messages"). Nothing was sent."""
+
+
+class ConfigError(SrcsError, ValueError):
+    """A configuration value is missing, of the wrong kind or out of range.
+
+    The message names the file (when known), the key, the value and the fix; the daemon
+    prints it and refuses to start.
+    """
+
+    def __init__(self, key: str, value: object, fix: str, file: str | None = None) -> None:
+        self.key, self.value, self.fix, self.file = key, value, fix, file
+        where = f"{file}: " if file else ""
+        super().__init__(f"{where}{key} = {value!r}: {fix}")
+
+    def in_file(self, file: str) -> ConfigError:
+        """The same error, naming ``file``."""
+        return ConfigError(self.key, self.value, self.fix, file)
