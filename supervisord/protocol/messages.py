@@ -113,12 +113,7 @@ class Axis:
         )
 
     def to_word(self) -> int:
-        low = (
-            self.neutral
-            | self.negative << 2
-            | self.positive << 4
-            | (self.magnitude & 3) << 6
-        )
+        low = self.neutral | self.negative << 2 | self.positive << 4 | (self.magnitude & 3) << 6
         return (self.magnitude >> 2) << 8 | low
 
 

@@ -89,10 +89,17 @@ def decode_payload(message_type: MessageType, payload: bytes) -> Message:
     """The message in ``payload``, whose length ``payload_length_ok`` has accepted."""
     match message_type:
         case MessageType.JOYSTICK:
-            *words, left, right = _JOYSTICK.unpack(payload)
-            axes = [Axis.from_word(word) for word in words]
+            lx, ly, lz, rx, ry, rz, left, right = _JOYSTICK.unpack(payload)
+            word = Axis.from_word
             return Joystick(
-                *axes, left_buttons=DPad.from_byte(left), right_buttons=NumberedButtons.from_byte(right)
+                word(lx),
+                word(ly),
+                word(lz),
+                word(rx),
+                word(ry),
+                word(rz),
+                DPad.from_byte(left),
+                NumberedButtons.from_byte(right),
             )
         case MessageType.GPS:
             return Gps(payload[0], payload[1:].decode("latin-1"))

@@ -1,0 +1,1 @@
+"""Console entry points: ``srcsctl`` (operator and integrator tool); ``srcsd``, ``srcs-sim``."""
