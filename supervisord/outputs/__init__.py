@@ -1,0 +1,41 @@
+"""Outputs: the enable lines of the motion controllers (safety-rules §6, ``docs/outputs.md``).
+
+This package imports no plugin: ``sim``, ``gpio`` (``gpiod``) and ``can`` (``python-can``) are
+imported by :func:`output_class` only when a config names them.
+"""
+
+from supervisord.outputs.base import (
+    NS_PER_MS,
+    ConfigTable,
+    Output,
+    OutputError,
+    OutputFault,
+    OutputKind,
+    OutputRole,
+    OutputSpec,
+    OutputUsageError,
+    Periodic,
+    ReadBack,
+    create_output,
+    output_class,
+    parse_output_spec,
+    spec_class,
+)
+
+__all__ = [
+    "NS_PER_MS",
+    "ConfigTable",
+    "Output",
+    "OutputError",
+    "OutputFault",
+    "OutputKind",
+    "OutputRole",
+    "OutputSpec",
+    "OutputUsageError",
+    "Periodic",
+    "ReadBack",
+    "create_output",
+    "output_class",
+    "parse_output_spec",
+    "spec_class",
+]

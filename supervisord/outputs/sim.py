@@ -1,0 +1,133 @@
+"""The simulated output: a first-class output kind for the demo, for tests and for bench work.
+
+It models one enable line whose physical level is kept in memory. When the config gives it a
+``path``, every change of that level rewrites the file with ``1\\n`` (on) or ``0\\n`` (off),
+so a script, a test or an operator can watch it from outside. The file is replaced atomically
+(a temporary file in the same directory, then ``os.replace``): an outside reader never sees a
+half-written file.
+
+Fault injection is a real behaviour of the simulated device, not a test hook: a line can be
+*stuck* at a level (``stuck_at = "on"`` or ``"off"`` in the config, or :meth:`SimOutput.stick`
+at run time), as a welded relay contact or a shorted driver would be. A stuck line ignores
+writes; the read-back then differs from what was written and :meth:`SimOutput.set` reports a
+``MISMATCH``, which the daemon turns into ``output_fault:NAME``. A ``path`` that can no longer
+be written (its directory removed, a full disk) is reported as ``IO_ERROR``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import os
+from pathlib import Path
+from typing import Any, ClassVar
+
+from supervisord.outputs.base import (
+    ConfigTable,
+    Output,
+    OutputError,
+    OutputFault,
+    OutputKind,
+    OutputSpec,
+    ReadBack,
+)
+
+
+class Level(enum.StrEnum):
+    """A line level as the config spells it."""
+
+    ON = "on"
+    OFF = "off"
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class SimSpec(OutputSpec):
+    """Options of a ``kind = "sim"`` output.
+
+    ``path``: the file to mirror the level into (``None``: memory only). Its directory must
+    exist. ``stuck_at``: a fault to simulate from the start (``None``: a healthy line).
+    """
+
+    kind: ClassVar[OutputKind] = OutputKind.SIM
+    path: Path | None = None
+    stuck_at: bool | None = None
+
+    @classmethod
+    def _read(cls, t: ConfigTable) -> dict[str, Any]:
+        path = Path(t.string("path")) if t.has("path") else None
+        stuck: bool | None = None
+        if t.has("stuck_at"):
+            stuck = t.choice("stuck_at", Level, None) is Level.ON
+        return {"path": path, "stuck_at": stuck}
+
+
+class SimOutput(Output):
+    """A simulated enable line (see the module docstring for the file and the stuck fault)."""
+
+    kind: ClassVar[OutputKind] = OutputKind.SIM
+    spec_type: ClassVar[type[OutputSpec]] = SimSpec
+
+    def __init__(self, spec: SimSpec) -> None:
+        super().__init__(spec)
+        self.spec = spec
+        self._stuck = spec.stuck_at
+        self._device = False  # the simulated physical level
+        self._mirrored: bool | None = None  # the level the file last showed
+
+    @property
+    def device_level(self) -> bool:
+        """The simulated physical level of the line (what a load wired to it would see)."""
+        return self._device
+
+    def stick(self, level: bool | None) -> None:
+        """Simulate a line stuck at ``level`` from now on (``None`` heals it). Takes effect at
+        once: a stuck line's physical level is the stuck level, whatever was written, and the
+        file (if any) shows it. Raises ``OSError`` if the file cannot be rewritten."""
+        self._stuck = level
+        if level is not None and self.is_open:
+            self._device = level
+            self._mirror()
+
+    def _open(self, now: int) -> ReadBack:
+        self._mirrored = None
+        try:
+            return self._drive(False, False)
+        except OSError as e:
+            raise OutputError(self.name, f"cannot write {self.spec.path}: {e}") from e
+
+    def _write(self, on: bool, now: int) -> ReadBack:
+        try:
+            return self._drive(on, on)
+        except OSError as e:
+            return ReadBack(self.name, on, on, None, OutputFault.IO_ERROR, str(e))
+
+    def _close(self) -> ReadBack:
+        return self._write(False, 0)
+
+    def _drive(self, requested: bool, level: bool) -> ReadBack:
+        self._device = level if self._stuck is None else self._stuck
+        self._mirror()
+        observed = self._device
+        if observed != level:
+            return ReadBack(
+                self.name, requested, level, observed, OutputFault.MISMATCH, "line stuck"
+            )
+        return ReadBack(self.name, requested, level, observed)
+
+    def _mirror(self) -> None:
+        """Rewrite the file if the level changed since it was last written (atomic replace)."""
+        path = self.spec.path
+        if path is None or self._mirrored == self._device:
+            return
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o644)
+        try:
+            try:
+                os.write(fd, b"1\n" if self._device else b"0\n")
+            finally:
+                os.close(fd)
+            os.replace(tmp, path)
+        except OSError:
+            tmp.unlink(missing_ok=True)
+            raise
+        self._mirrored = self._device
