@@ -126,7 +126,7 @@ class CanRejection:
     length: int
 
 
-_BASIC = struct.Struct("<HHxB")
+_BASIC = struct.Struct("<HHBB")  # X, Y, unused (FF), buttons
 _FEEDBACK = struct.Struct("<Bi")
 _HEARTBEAT = struct.Struct("<BBI")
 # Bytes each message needs; the rest of an 8-byte frame is padding.
@@ -151,7 +151,9 @@ def encode_can(message: CanMessage) -> CanFrame:
     match message:
         case JoystickBasic(hand=hand, x=x, y=y, buttons=buttons):
             ident = CanId.LEFT_BASIC if hand is Hand.LEFT else CanId.RIGHT_BASIC
-            return CanFrame(ident, _pad(_BASIC.pack(x.to_word(), y.to_word(), buttons.to_byte())))
+            return CanFrame(
+                ident, _pad(_BASIC.pack(x.to_word(), y.to_word(), PAD, buttons.to_byte()))
+            )
         case JoystickExtended(hand=hand, z=z):
             ident = CanId.LEFT_EXTENDED if hand is Hand.LEFT else CanId.RIGHT_EXTENDED
             return CanFrame(ident, _pad(struct.pack("<H", z.to_word())))
@@ -197,7 +199,7 @@ def decode_can(frame: CanFrame) -> CanMessage | CanRejection:
         return CanRejection(CanRejectReason.WRONG_LENGTH, ident, len(data))
     match key:
         case CanId.LEFT_BASIC | CanId.RIGHT_BASIC:
-            x, y, buttons = _BASIC.unpack_from(data)
+            x, y, _, buttons = _BASIC.unpack_from(data)
             if key == CanId.LEFT_BASIC:
                 return JoystickBasic(
                     Hand.LEFT, Axis.from_word(x), Axis.from_word(y), DPad.from_byte(buttons)

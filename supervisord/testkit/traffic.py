@@ -14,7 +14,7 @@ from supervisord.protocol.framing import encode_frame
 from supervisord.protocol.messages import Axis, Gps, Joystick, Message, VscHeartbeat
 
 TICK_MS = 10
-SAMPLE_GGA = "$GPGGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,*5C"
+SAMPLE_GGA = "$GPGGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,*69"
 
 
 def vsc_messages(seconds: float, seed: int = 0) -> Iterator[Message]:
