@@ -9,6 +9,7 @@ from supervisord.protocol.codes import FieldStatus, VscMode
 from supervisord.protocol.j1939 import (
     CanFrame,
     CanId,
+    CanMessage,
     CanRejection,
     CanRejectReason,
     FeedbackStringSegment,
@@ -98,7 +99,7 @@ def test_right_hand_must_carry_numbered_buttons() -> None:
 
 def test_frames_cross_a_real_python_can_bus() -> None:
     """Encoded frames sent through python-can's virtual interface decode on the other end."""
-    sent = [
+    sent: list[CanMessage] = [
         VscHeartbeat(9),
         JoystickExtended(Hand.LEFT, Axis.from_value(-300)),
         FeedbackSet(99, 1),

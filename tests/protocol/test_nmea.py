@@ -39,7 +39,8 @@ def test_gll_position() -> None:
     """GLL carries position, then time and status."""
     fix = parse_nmea("$GPGLL,4916.45,N,12311.12,W,225444,A")
     assert fix is not None
-    assert (fix.latitude, fix.longitude) == (pytest.approx(49.274167), pytest.approx(-123.185333))
+    assert fix.latitude == pytest.approx(49.274167)
+    assert fix.longitude == pytest.approx(-123.185333)
 
 
 def test_wrong_checksum_gives_nothing() -> None:
