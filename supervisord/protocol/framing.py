@@ -30,19 +30,19 @@ class RejectReason(enum.Enum):
 
     BAD_CHECKSUM = "bad_checksum"  # the candidate frame's checksum did not match
     BAD_LENGTH = "bad_length"  # the length byte is over 248: no peer sends that
-    WRONG_LENGTH = "wrong_length"  # a checksummed frame of a known type, wrong payload length
+    WRONG_LENGTH = "wrong_length"  # a known type with a length byte it never has
     UNKNOWN_TYPE = "unknown_type"  # a checksummed frame of a type the manual does not define
     NOISE = "noise"  # bytes outside any frame, before the next header
-    TRUNCATED = "truncated"  # the stream ended inside a frame (only from ``end``)
+    TRUNCATED = "truncated"  # the stream ended inside this frame (only from ``end``)
 
 
 @dataclass(frozen=True, slots=True)
 class Rejection:
     """Bytes that were not a valid message; ``byte_count`` says how many were consumed.
 
-    After a bad checksum or a bad length only the first header byte is consumed: the decoder
-    looks for the next header one byte on (notes §1), so a corrupt length byte cannot swallow
-    the good frames behind it.
+    Unless the frame's checksum held (an unknown type), only the first header byte is
+    consumed: the decoder looks for the next header one byte on (notes §1), so a corrupt
+    length byte cannot swallow the good frames behind it.
     """
 
     reason: RejectReason
@@ -94,55 +94,49 @@ class FrameDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         """Take ``data`` and return the events it completes, in stream order."""
+        self._buffer += data
+        return self._parse(final=False)
+
+    def end(self) -> list[Event]:
+        """Close the stream. Each header whose frame never completed is one TRUNCATED event
+        (one byte), and the bytes behind it are scanned again, so a frame hidden behind a
+        bogus length byte still comes out."""
+        return self._parse(final=True)
+
+    def _parse(self, *, final: bool) -> list[Event]:
         buf = self._buffer
-        buf += data
         events: list[Event] = []
         pos, end = 0, len(buf)
-        while True:
+        while pos < end:
             start = buf.find(HEADER, pos)
             if start < 0:
-                # A last 0x10 may be the first half of a header: keep it.
-                keep = 1 if end > pos and buf[end - 1] == HEADER[0] else 0
+                # A last 0x10 may be the first half of a header: keep it unless the stream ended.
+                keep = 1 if not final and buf[end - 1] == HEADER[0] else 0
                 self._noise += end - keep - pos
                 pos = end - keep
                 break
             self._noise += start - pos
             pos = start
+            rejection: Rejection | None = None
+            frame_end = pos + HEADER_SIZE
             if end - pos < HEADER_SIZE:
-                break
-            message_type, length = buf[pos + 2], buf[pos + 3]
-            if length > MAX_PAYLOAD:
-                self._take_noise(events)
-                events.append(
-                    Rejection(RejectReason.BAD_LENGTH, 1, message_type, length, "over 248")
-                )
-                pos += 1
-                continue
-            frame_end = pos + HEADER_SIZE + length + CHECKSUM_SIZE
-            if end < frame_end:
-                break
+                if not final:
+                    break
+                rejection = Rejection(RejectReason.TRUNCATED, 1)
+            else:
+                message_type, length = buf[pos + 2], buf[pos + 3]
+                rejection = _header_rejection(message_type, length)
+                frame_end += length + CHECKSUM_SIZE
+                if rejection is None and end < frame_end:
+                    if not final:
+                        break
+                    rejection = Rejection(RejectReason.TRUNCATED, 1, message_type, length)
             self._take_noise(events)
-            event = _decode_frame(bytes(buf[pos:frame_end]))
+            event = rejection or _decode_frame(bytes(buf[pos:frame_end]))
             events.append(event)
             pos += event.byte_count if isinstance(event, Rejection) else frame_end - pos
         del buf[:pos]
         self._take_noise(events)
-        return events
-
-    def end(self) -> list[Event]:
-        """Close the stream: a partial frame left in the buffer becomes a TRUNCATED event."""
-        events: list[Event] = []
-        if self._buffer:
-            head = self._buffer
-            events.append(
-                Rejection(
-                    RejectReason.TRUNCATED,
-                    len(head),
-                    head[2] if len(head) > 2 else None,
-                    head[3] if len(head) > 3 else None,
-                )
-            )
-            self._buffer = bytearray()
         return events
 
     @property
@@ -156,6 +150,17 @@ class FrameDecoder:
             self._noise = 0
 
 
+def _header_rejection(message_type: int, length: int) -> Rejection | None:
+    """A rejection decided by the header alone, so the decoder never waits for bytes that a
+    corrupt length byte claims: a length over 248, or a known type's impossible length."""
+    if length > MAX_PAYLOAD:
+        return Rejection(RejectReason.BAD_LENGTH, 1, message_type, length, "over 248")
+    known = MessageType.parse(message_type)
+    if known is not None and not payload_length_ok(known, length):
+        return Rejection(RejectReason.WRONG_LENGTH, 1, message_type, length)
+    return None
+
+
 def _decode_frame(frame: bytes) -> Event:
     """One candidate frame whose length byte fits the bytes given."""
     message_type, length = frame[2], frame[3]
@@ -167,6 +172,4 @@ def _decode_frame(frame: bytes) -> Event:
     known = MessageType.parse(message_type)
     if known is None:
         return Rejection(RejectReason.UNKNOWN_TYPE, len(frame), message_type, length)
-    if not payload_length_ok(known, length):
-        return Rejection(RejectReason.WRONG_LENGTH, len(frame), message_type, length)
     return decode_payload(known, frame[HEADER_SIZE:-CHECKSUM_SIZE])

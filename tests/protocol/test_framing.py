@@ -56,40 +56,71 @@ def test_impossible_length_is_rejected_at_once(length: int) -> None:
 
 
 def test_corrupt_length_does_not_swallow_following_heartbeats() -> None:
-    """A length byte corrupted upwards costs its own frame only: the resync is one byte on,
-    so every good heartbeat inside the claimed span still decodes (notes §1)."""
+    """A length byte corrupted upwards costs its own frame only: every good heartbeat inside
+    the claimed span still decodes (notes §1)."""
     corrupt = bytearray(HB)
     corrupt[3] = 40  # claims 40 payload bytes: the next three heartbeats lie inside
     events = decode_all(bytes(corrupt) + HB * 4)
+    assert events.count(HEARTBEAT) == 4
+    assert reasons(events)[0] is RejectReason.WRONG_LENGTH  # a heartbeat is never 40 bytes
+
+
+def test_bogus_header_of_unknown_type_delays_but_loses_nothing() -> None:
+    """Noise that looks like a header of an unknown type with a long length delays the frames
+    behind it until the claimed bytes arrive, then they all decode."""
+    bogus = bytes((0x10, 0x01, 0x82, 40))
+    events = decode_all(bogus + HB * 4)
     assert events.count(HEARTBEAT) == 4
     assert reasons(events)[0] is RejectReason.BAD_CHECKSUM
 
 
 @pytest.mark.parametrize(
-    ("frame", "reason"),
-    [
-        (build_frame(0x20, bytes(5)), RejectReason.WRONG_LENGTH),  # heartbeat is 6 bytes
-        (build_frame(0x10, bytes(15)), RejectReason.WRONG_LENGTH),  # joystick is 14
-        (build_frame(0x12, b""), RejectReason.WRONG_LENGTH),  # GPS needs its source byte
-        (build_frame(0x31, bytes(20)), RejectReason.WRONG_LENGTH),  # name string is 21
-        (build_frame(0xA2, bytes(3)), RejectReason.UNKNOWN_TYPE),  # setup protocol
-        (build_frame(0x25, b""), RejectReason.UNKNOWN_TYPE),
-    ],
+    ("kind", "length"),
+    [(0x20, 5), (0x20, 40), (0x10, 15), (0x12, 0), (0x31, 20), (0x21, 0)],
 )
-def test_checksummed_frame_of_wrong_length_or_unknown_type(
-    frame: bytes, reason: RejectReason
-) -> None:
-    """A frame with a good checksum but a wrong length or unknown type is dropped whole,
-    never half-decoded, and the heartbeat after it decodes."""
-    events = decode_all(frame + HB)
-    assert events == [Rejection(reason, len(frame), frame[2], frame[3]), HEARTBEAT]
+def test_known_type_with_impossible_length_is_rejected_at_once(kind: int, length: int) -> None:
+    """A known type with a length byte it never has is WRONG_LENGTH from its header alone,
+    never half-decoded, and the decoder does not wait for the bytes it claims."""
+    frame = build_frame(kind, bytes(length))
+    decoder = FrameDecoder()
+    assert decoder.feed(frame[:4])[0] == Rejection(RejectReason.WRONG_LENGTH, 1, kind, length)
+    events = [*decoder.feed(frame[4:] + HB), *decoder.end()]
+    assert events[-1] == HEARTBEAT
+    assert all(isinstance(event, Rejection) for event in events[:-1])
+
+
+@pytest.mark.parametrize("kind", [0xA2, 0x25, 0x90, 0xF9])
+def test_unknown_type_is_skipped_whole(kind: int) -> None:
+    """A checksummed frame of a type the manual does not define (the setup protocol among
+    them) is one UNKNOWN_TYPE covering the frame, then decoding goes on."""
+    frame = build_frame(kind, bytes(3))
+    assert decode_all(frame + HB) == [
+        Rejection(RejectReason.UNKNOWN_TYPE, len(frame), kind, 3),
+        HEARTBEAT,
+    ]
+
+
+def test_end_recovers_a_frame_behind_a_bogus_length() -> None:
+    """At the end of a capture, a header that claims more bytes than follow is one TRUNCATED
+    byte and the heartbeat behind it still decodes."""
+    bogus = bytes((0x10, 0x01, 0x82, 0xB7, 0xFF))
+    decoder = FrameDecoder()
+    assert decoder.feed(bogus + HB) == []
+    assert decoder.end() == [
+        Rejection(RejectReason.TRUNCATED, 1, 0x82, 0xB7),
+        Rejection(RejectReason.NOISE, 4),
+        HEARTBEAT,
+    ]
 
 
 def test_truncated_tail_is_reported_by_end() -> None:
     """A stream ending inside a frame gives a TRUNCATED event from end(), not a message."""
     decoder = FrameDecoder()
     assert decoder.feed(HB[:-1]) == []
-    assert decoder.end() == [Rejection(RejectReason.TRUNCATED, len(HB) - 1, 0x20, 6)]
+    assert decoder.end() == [
+        Rejection(RejectReason.TRUNCATED, 1, 0x20, 6),
+        Rejection(RejectReason.NOISE, len(HB) - 2),
+    ]
 
 
 def test_trailing_header_byte_waits_for_the_next_chunk() -> None:
