@@ -1,0 +1,100 @@
+"""The safety core: a pure state machine deciding STOPPED, HOLD or RUN (``docs/safety.md``).
+
+No module of this package opens a file or port, reads a clock, sleeps or starts a thread
+(``tests/safety/test_purity.py`` proves it); the one exception is the documentation tool
+:mod:`supervisord.safety.diagram`, which only its command line runs and nothing imports.
+"""
+
+from __future__ import annotations
+
+from supervisord.safety.causes import Cause, CauseKind, CauseState, Details, Severity
+from supervisord.safety.config import (
+    ClientSpec,
+    OutputClass,
+    OutputSpec,
+    SafetyConfig,
+    Transport,
+)
+from supervisord.safety.core import SafetyCore
+from supervisord.safety.decision import (
+    CauseChange,
+    ChangeKind,
+    Decision,
+    Rearm,
+    RearmKind,
+    Record,
+    Refusal,
+    RefusalReason,
+)
+from supervisord.safety.events import (
+    Caller,
+    ClientConnected,
+    ClientDisconnected,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientHold,
+    ClientRelease,
+    DisplayUpdate,
+    Event,
+    InternalFault,
+    LinkBroken,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    LocalRelease,
+    OutputReadback,
+    Request,
+    ResetRequest,
+    Tick,
+    VscReceived,
+)
+from supervisord.safety.transitions import TABLE, IllegalTransition, Situation, State, Transition
+
+__all__ = [
+    "TABLE",
+    "Caller",
+    "Cause",
+    "CauseChange",
+    "CauseKind",
+    "CauseState",
+    "ChangeKind",
+    "ClientConnected",
+    "ClientDisconnected",
+    "ClientEstop",
+    "ClientHeartbeat",
+    "ClientHello",
+    "ClientHold",
+    "ClientRelease",
+    "ClientSpec",
+    "Decision",
+    "Details",
+    "DisplayUpdate",
+    "Event",
+    "IllegalTransition",
+    "InternalFault",
+    "LinkBroken",
+    "LinkClosed",
+    "LinkOpened",
+    "LocalEstop",
+    "LocalRelease",
+    "OutputClass",
+    "OutputReadback",
+    "OutputSpec",
+    "Rearm",
+    "RearmKind",
+    "Record",
+    "Refusal",
+    "RefusalReason",
+    "Request",
+    "ResetRequest",
+    "SafetyConfig",
+    "SafetyCore",
+    "Severity",
+    "Situation",
+    "State",
+    "Tick",
+    "Transition",
+    "Transport",
+    "VscReceived",
+]

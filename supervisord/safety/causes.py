@@ -1,0 +1,154 @@
+"""The closed vocabulary of causes: why the supervisor is not in RUN (safety-rules.md §2, §3).
+
+A *stop* cause (§2) forces STOPPED and latches: once raised it stays in the record of active
+causes until a valid re-arm (§4), even after its condition has cleared. A *hold* cause (§3)
+forces HOLD and clears by itself. Each cause kind is an enum member; a cause that belongs to a
+client, an output or a VSC mode carries that name as its ``subject``.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+Details = tuple[tuple[str, str], ...]
+"""What the record says about a cause: sorted ``(key, value)`` text pairs."""
+
+
+def make_details(pairs: Iterable[tuple[str, str]]) -> Details:
+    """Details in a canonical (sorted) order, so equal details compare equal."""
+    return tuple(sorted(pairs))
+
+
+class Severity(enum.Enum):
+    """Which rule a cause falls under."""
+
+    STOP = "stop"  # safety-rules.md §2: stop category 0, outputs off at once, latches
+    HOLD = "hold"  # safety-rules.md §3: controlled stop, clears by itself
+
+
+class CauseKind(enum.Enum):
+    """Every cause the supervisor can name (safety-rules.md §1-3). Values are the record names."""
+
+    STARTUP = "startup"  # §1: the supervisor starts STOPPED with this cause
+    VSC_ESTOP = "vsc_estop"
+    VSC_LINK_LOST = "vsc_link_lost"
+    TRANSPORT_FAULT = "transport_fault"
+    CLIENT_LOST = "client_lost"
+    CLIENT_ESTOP = "client_estop"
+    LOCAL_ESTOP = "local_estop"
+    OUTPUT_FAULT = "output_fault"
+    VSC_WATCHDOG_OFF = "vsc_watchdog_off"
+    INTERNAL = "internal"
+    VSC_MODE = "vsc_mode"  # §3 hold
+    CLIENT_HOLD = "client_hold"  # §3 hold
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.HOLD if self in _HOLD_KINDS else Severity.STOP
+
+    @property
+    def has_subject(self) -> bool:
+        """Whether the cause name carries ``:NAME`` (a client, an output or a mode)."""
+        return self in _SUBJECT_KINDS
+
+    @property
+    def momentary(self) -> bool:
+        """A cause whose condition is an instant, not a lasting state: it fires and is clear
+        at once, and only its latch remains (``startup``, ``internal``)."""
+        return self in _MOMENTARY_KINDS
+
+    @property
+    def sets_user_estop(self) -> bool:
+        """Whether an active condition of this kind sets the user heartbeat's e-stop byte.
+
+        safety-rules.md §5: every supervisor-side stop condition does. ``vsc_estop`` does not:
+        our own byte makes the VSC raise its user e-stop bits, which would then hold the byte
+        at 1 for ever. ``startup`` is never an active condition.
+        """
+        return self.severity is Severity.STOP and self not in _NOT_USER_ESTOP_KINDS
+
+
+_HOLD_KINDS = frozenset({CauseKind.VSC_MODE, CauseKind.CLIENT_HOLD})
+_SUBJECT_KINDS = frozenset(
+    {
+        CauseKind.CLIENT_LOST,
+        CauseKind.CLIENT_ESTOP,
+        CauseKind.OUTPUT_FAULT,
+        CauseKind.VSC_MODE,
+        CauseKind.CLIENT_HOLD,
+    }
+)
+_MOMENTARY_KINDS = frozenset({CauseKind.STARTUP, CauseKind.INTERNAL})
+_NOT_USER_ESTOP_KINDS = frozenset({CauseKind.VSC_ESTOP, CauseKind.STARTUP})
+
+
+@dataclass(frozen=True, slots=True)
+class Cause:
+    """One named cause, e.g. ``client_lost:planner`` or ``vsc_estop``.
+
+    Raises ``ValueError`` when a kind that needs a subject has none, or the reverse.
+    """
+
+    kind: CauseKind
+    subject: str | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.kind, CauseKind):
+            raise ValueError("cause kind must be a CauseKind")
+        if self.kind.has_subject != (self.subject is not None):
+            raise ValueError(f"cause {self.kind.value} subject mismatch: {self.subject!r}")
+        if self.subject is not None and (not isinstance(self.subject, str) or not self.subject):
+            raise ValueError("cause subject must be non-empty text")
+
+    def __lt__(self, other: object) -> bool:
+        if not isinstance(other, Cause):
+            return NotImplemented
+        return self.name < other.name
+
+    @property
+    def name(self) -> str:
+        """The name used in records and by ``srcsctl``, as in safety-rules.md §2/§3."""
+        if self.subject is None:
+            return self.kind.value
+        return f"{self.kind.value}:{self.subject}"
+
+    @property
+    def severity(self) -> Severity:
+        return self.kind.severity
+
+    def __str__(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True, slots=True)
+class CauseState:
+    """A cause as the core sees it at one moment.
+
+    ``active``: its condition holds now. ``latched``: a stop cause raised since the last
+    re-arm (always false for holds). ``raised_ns``/``cleared_ns``: monotonic times of the
+    latest raise and of the clearing that followed it (``None`` while active).
+    """
+
+    cause: Cause
+    active: bool
+    latched: bool
+    raised_ns: int
+    cleared_ns: int | None
+    details: Details = ()
+
+    @property
+    def name(self) -> str:
+        return self.cause.name
+
+    @property
+    def severity(self) -> Severity:
+        return self.cause.severity
+
+    def detail(self, key: str) -> str | None:
+        """The value of one detail, or ``None``."""
+        for k, v in self.details:
+            if k == key:
+                return v
+        return None

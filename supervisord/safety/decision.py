@@ -1,0 +1,147 @@
+"""What the safety core answers: a frozen :class:`Decision` for every input.
+
+The daemon acts on a decision in this order (safety-rules.md §6): set the outputs, send the
+frames, then write the records and report the refusals.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from supervisord.protocol.messages import Message
+from supervisord.safety.causes import Cause, CauseState, Severity
+from supervisord.safety.events import Caller, Event
+from supervisord.safety.transitions import State
+
+
+class ChangeKind(enum.Enum):
+    """How a cause changed in one step (safety-rules.md §7: every raise and clear is recorded)."""
+
+    RAISED = "raised"  # its condition became active (a momentary cause fired)
+    CLEARED = "cleared"  # its condition became clear; a stop cause stays latched
+    RELEASED = "released"  # a re-arm released the latch of a clear stop cause (§4)
+    UPDATED = "updated"  # an active cause's details changed (e.g. more e-stop sources)
+
+
+@dataclass(frozen=True, slots=True)
+class CauseChange:
+    cause: Cause
+    kind: ChangeKind
+
+
+class RearmKind(enum.Enum):
+    """The two re-arm paths of safety-rules.md §4."""
+
+    TAKEOVER = "takeover"  # the operator's takeover on the remote: not Operational -> Operational
+    LOCAL_RESET = "local_reset"  # ``srcsctl reset`` by an admin, when the config allows it
+
+
+@dataclass(frozen=True, slots=True)
+class Rearm:
+    """A re-arm that ended STOPPED, and who gave it (``None`` for a takeover)."""
+
+    kind: RearmKind
+    caller: Caller | None = None
+
+
+class RefusalReason(enum.Enum):
+    """Why the core did not do what an input asked. The value is the text ``srcsctl`` prints."""
+
+    # Re-arm refusals (safety-rules.md §4).
+    LOCAL_RESET_DISABLED = "local reset is not allowed by the config (local_reset = false)"
+    NOT_ADMIN = "the caller is not in the admin group"
+    NOT_STOPPED = "nothing to re-arm: the supervisor is not STOPPED"
+    CONDITIONS_ACTIVE = "stop conditions are still active"
+    NEW_CAUSE_DURING_REARM = "a new stop cause arrived during the takeover"
+    HOLD_TIME_NOT_ELAPSED = "stop conditions have not been clear for the whole re-arm hold time"
+    # Inputs that make no sense; each is ignored, never an exception.
+    UNKNOWN_CONNECTION = "no such client connection"
+    DUPLICATE_CONNECTION = "the connection number is already in use"
+    ALREADY_NAMED = "this connection has already said hello"
+    NAME_IN_USE = "another connection already uses this name"
+    BAD_NAME = "client names are 1-32 letters, digits, '_', '.' or '-'"
+    NO_HELLO = "the client has not said hello"
+    NOTHING_TO_RELEASE = "this client has no such request active"
+    LINK_NOT_OPEN = "a VSC message arrived while the link is not open"
+    UNKNOWN_OUTPUT = "no output of that name is configured"
+    DISPLAY_KEY_NOT_ALLOWED = "clients may only set display keys 1-12 and 99, names 1-9, 90-93"
+    DISPLAY_VALUE_OUT_OF_RANGE = "the display value is out of range for its key"
+    NOT_AN_EVENT = "the input is not a safety event"
+    INTERNAL_ERROR = "the core failed on this input and stopped"
+
+
+@dataclass(frozen=True, slots=True)
+class Refusal:
+    """An input the core ignored or declined, and why (``detail`` adds the specifics)."""
+
+    reason: RefusalReason
+    detail: str
+    trigger: object
+
+    @property
+    def message(self) -> str:
+        return f"{self.reason.value}: {self.detail}" if self.detail else self.reason.value
+
+
+@dataclass(frozen=True, slots=True)
+class Record:
+    """One entry of the stop record (safety-rules.md §7) for a step that changed the state or
+    a cause. UTC time is stamped later by the daemon: the core has no wall clock."""
+
+    sequence: int
+    monotonic_ns: int
+    previous: State
+    state: State
+    causes: tuple[CauseState, ...]
+    changes: tuple[CauseChange, ...]
+    trigger: Event
+    rearm: Rearm | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """Everything the daemon must do after one input.
+
+    - ``state`` and ``causes`` (every active or latched cause, sorted by name).
+    - ``outputs``: the level each configured output must have now (name -> on).
+    - ``heartbeat_estop``: the e-stop byte for user heartbeats (safety-rules.md §5).
+    - ``next_deadline``: call ``tick`` at this monotonic time at the latest (always later
+      than ``now``).
+    - ``frames``: messages to send to the VSC now, in order.
+    - ``records``: stop-record entries (at most one per input).
+    - ``refusals``: inputs declined, with the reason (e.g. for ``srcsctl reset``).
+    """
+
+    now: int
+    state: State
+    causes: tuple[CauseState, ...]
+    outputs: Mapping[str, bool]
+    heartbeat_estop: int
+    next_deadline: int
+    frames: tuple[Message, ...] = ()
+    records: tuple[Record, ...] = ()
+    refusals: tuple[Refusal, ...] = ()
+    rearm: Rearm | None = None
+
+    def cause(self, name: str) -> CauseState | None:
+        """The cause of that name (e.g. ``"client_lost:planner"``), or ``None``."""
+        for state in self.causes:
+            if state.name == name:
+                return state
+        return None
+
+    @property
+    def active_names(self) -> frozenset[str]:
+        """Names of the causes whose condition holds now."""
+        return frozenset(c.name for c in self.causes if c.active)
+
+    @property
+    def latched_names(self) -> frozenset[str]:
+        """Names of the stop causes waiting for a re-arm."""
+        return frozenset(c.name for c in self.causes if c.latched)
+
+    @property
+    def stop_active(self) -> bool:
+        return any(c.active and c.severity is Severity.STOP for c in self.causes)

@@ -1,0 +1,97 @@
+"""The remote's display content, kept so it can be sent again after the remote re-links.
+
+Protocol notes §2: labels and the display mode are lost when the remote restarts or re-links;
+values go at most at 20 Hz and strings at most at 4 Hz (manual §6.5: a text row every 250 ms).
+The limits are applied per class of message, across all keys: one value frame per 50 ms and
+one string frame per 250 ms. Internal to the core.
+"""
+
+from __future__ import annotations
+
+from supervisord.protocol.codes import DisplayMode, FeedbackKey, StringKey
+from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+from supervisord.safety.decision import RefusalReason
+
+VALUE_PERIOD_NS = 50_000_000  # values at most 20 Hz
+STRING_PERIOD_NS = 250_000_000  # strings at most 4 Hz
+
+_KEPT_VALUE_KEYS = frozenset(range(1, 10)) | {FeedbackKey.DISPLAY_MODE.value}
+_VIBRATE_KEYS = frozenset(
+    {FeedbackKey.VIBRATE_LEFT, FeedbackKey.VIBRATE_RIGHT, FeedbackKey.VIBRATE_BOTH}
+)
+_NAME_KEYS = frozenset(k.value for k in StringKey)
+_DISPLAY_MODES = frozenset(m.value for m in DisplayMode)
+
+
+class DisplayStore:
+    """Latest display content per key, and the frames still waiting for their rate slot."""
+
+    def __init__(self) -> None:
+        self._values: dict[int, FeedbackSet] = {}
+        self._names: dict[int, FeedbackName] = {}
+        self._pending_values: dict[int, FeedbackSet] = {}
+        self._pending_names: dict[int, FeedbackName] = {}
+        self._next_value_ns: int | None = None
+        self._next_name_ns: int | None = None
+
+    def accept(self, message: FeedbackSet | FeedbackName) -> RefusalReason | None:
+        """Keep and queue a client's display content; the refusal reason if it is not allowed.
+
+        Keys 80-85 are VSC settings (85 is the permanent user watchdog): clients never set them.
+        """
+        if isinstance(message, FeedbackName):
+            if message.key not in _NAME_KEYS:
+                return RefusalReason.DISPLAY_KEY_NOT_ALLOWED
+            self._names[message.key] = message
+            self._pending_names[message.key] = message
+            return None
+        if message.key in _VIBRATE_KEYS:
+            if message.value != 1:  # notes §2: vibrate takes the value 1
+                return RefusalReason.DISPLAY_VALUE_OUT_OF_RANGE
+            self._pending_values[message.key] = message  # momentary: not kept for re-links
+            return None
+        if message.key not in _KEPT_VALUE_KEYS:
+            return RefusalReason.DISPLAY_KEY_NOT_ALLOWED
+        if message.key == FeedbackKey.DISPLAY_MODE and message.value not in _DISPLAY_MODES:
+            return RefusalReason.DISPLAY_VALUE_OUT_OF_RANGE
+        self._values[message.key] = message
+        self._pending_values[message.key] = message
+        return None
+
+    def edited_on_remote(self, message: FeedbackSet) -> None:
+        """The operator changed a user value in the remote's menu: keep it, so a re-link does
+        not overwrite it with an older value."""
+        if message.key in self._values:
+            self._values[message.key] = message
+            self._pending_values.pop(message.key, None)
+
+    def relink(self) -> None:
+        """The remote re-linked and forgot its display: queue everything kept, labels first."""
+        self._pending_names.update(self._names)
+        self._pending_values.update(self._values)
+
+    def due(self, now: int) -> list[Message]:
+        """At most one string and one value frame whose rate slot has come."""
+        frames: list[Message] = []
+        if self._pending_names and (self._next_name_ns is None or now >= self._next_name_ns):
+            key = next(iter(self._pending_names))
+            frames.append(self._pending_names.pop(key))
+            self._next_name_ns = now + STRING_PERIOD_NS
+        if self._pending_values and (self._next_value_ns is None or now >= self._next_value_ns):
+            key = next(iter(self._pending_values))
+            frames.append(self._pending_values.pop(key))
+            self._next_value_ns = now + VALUE_PERIOD_NS
+        return frames
+
+    def next_due(self) -> int | None:
+        """When the next waiting frame may go, or ``None`` when nothing waits."""
+        times = []
+        if self._pending_names and self._next_name_ns is not None:
+            times.append(self._next_name_ns)
+        if self._pending_values and self._next_value_ns is not None:
+            times.append(self._next_value_ns)
+        return min(times) if times else None
+
+    @property
+    def pending(self) -> bool:
+        return bool(self._pending_names or self._pending_values)

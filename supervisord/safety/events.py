@@ -1,0 +1,211 @@
+"""What the daemon tells the safety core: every input is a frozen event carrying ``now``.
+
+``now`` is the monotonic clock in integer nanoseconds (``time.monotonic_ns()`` in the daemon),
+taken when the input arrived: safety-rules.md §2 measures every deadline "from the moment the
+frame was received". The core never reads a clock of its own.
+
+Clients are named by the daemon's connection number (``connection``) until they say hello;
+``Caller`` carries the identity the daemon read from a local command's peer credentials.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import TypeGuard, get_args
+
+from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+
+
+def _check_int(name: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{name} must be an integer, not {value!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class _Event:
+    now: int
+
+    def __post_init__(self) -> None:
+        _check_int("now", self.now)
+
+
+@dataclass(frozen=True, slots=True)
+class Tick(_Event):
+    """No input: the deadline the core asked for has come (``SafetyCore.tick``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class VscReceived(_Event):
+    """A decoded message from the VSC that passed the checksum and length checks (§2)."""
+
+    message: Message
+
+
+@dataclass(frozen=True, slots=True)
+class LinkOpened(_Event):
+    """The port or bus to the VSC is open: a new start (safety-rules.md §4)."""
+
+
+@dataclass(frozen=True, slots=True)
+class LinkBroken(_Event):
+    """The world broke the link: I/O error, device gone (USB unplug) -> ``transport_fault``."""
+
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class LinkClosed(_Event):
+    """We closed the link (e.g. to reopen it) -> ``transport_fault`` until it opens again."""
+
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class ClientConnected(_Event):
+    """A client opened a connection on the local socket (safety-rules.md §8)."""
+
+    connection: int
+
+
+@dataclass(frozen=True, slots=True)
+class ClientHello(_Event):
+    """A connected client named itself."""
+
+    connection: int
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class ClientHeartbeat(_Event):
+    """A named client's heartbeat."""
+
+    connection: int
+
+
+@dataclass(frozen=True, slots=True)
+class ClientEstop(_Event):
+    """A client asked for an e-stop -> ``client_estop:NAME`` until that client releases it."""
+
+    connection: int
+
+
+@dataclass(frozen=True, slots=True)
+class ClientHold(_Event):
+    """A client asked for a hold -> ``client_hold:NAME`` until that client releases it."""
+
+    connection: int
+
+
+class Request(enum.Enum):
+    """What a client's release ends."""
+
+    ESTOP = "estop"
+    HOLD = "hold"
+
+
+@dataclass(frozen=True, slots=True)
+class ClientRelease(_Event):
+    """A client ended its own e-stop or hold request (a stop stays latched until re-armed)."""
+
+    connection: int
+    request: Request
+
+
+@dataclass(frozen=True, slots=True)
+class ClientDisconnected(_Event):
+    """A client's connection ended; a required client is then lost at once."""
+
+    connection: int
+
+
+@dataclass(frozen=True, slots=True)
+class Caller:
+    """Who sent a local command, from the socket peer's credentials (safety-rules.md §8).
+
+    ``admin`` is decided by the daemon (membership of the admin group).
+    """
+
+    uid: int
+    pid: int
+    name: str
+    admin: bool
+
+
+@dataclass(frozen=True, slots=True)
+class LocalEstop(_Event):
+    """``srcsctl estop``: ``local_estop`` until a local release."""
+
+    caller: Caller
+
+
+@dataclass(frozen=True, slots=True)
+class LocalRelease(_Event):
+    """``srcsctl release``: ends ``local_estop``'s condition (the stop stays latched)."""
+
+    caller: Caller
+
+
+@dataclass(frozen=True, slots=True)
+class ResetRequest(_Event):
+    """``srcsctl reset``: a local re-arm, honoured only when the config allows it and the caller
+    is an admin (safety-rules.md §4)."""
+
+    caller: Caller
+
+
+@dataclass(frozen=True, slots=True)
+class OutputReadback(_Event):
+    """The result of setting an output: what was requested and what was read back.
+
+    ``read_back`` is ``None`` when the output could not be set or read at all.
+    """
+
+    output: str
+    requested: bool
+    read_back: bool | None
+
+
+@dataclass(frozen=True, slots=True)
+class InternalFault(_Event):
+    """The daemon's own loop failed or overran its deadline -> ``internal``."""
+
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayUpdate(_Event):
+    """A client's display content for the remote: a value (keys 1-12, 99) or a label or text
+    row (keys 1-9, 90-93). The core forwards it within the manual's rate limits and sends it
+    again after the remote re-links."""
+
+    message: FeedbackSet | FeedbackName
+
+
+Event = (
+    Tick
+    | VscReceived
+    | LinkOpened
+    | LinkBroken
+    | LinkClosed
+    | ClientConnected
+    | ClientHello
+    | ClientHeartbeat
+    | ClientEstop
+    | ClientHold
+    | ClientRelease
+    | ClientDisconnected
+    | LocalEstop
+    | LocalRelease
+    | ResetRequest
+    | OutputReadback
+    | InternalFault
+    | DisplayUpdate
+)
+
+EVENT_TYPES: tuple[type, ...] = get_args(Event)
+
+
+def is_event(value: object) -> TypeGuard[Event]:
+    """Whether ``value`` is one of the safety core's input events."""
+    return isinstance(value, EVENT_TYPES)
