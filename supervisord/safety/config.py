@@ -115,7 +115,7 @@ class SafetyConfig:
     """Everything the safety core needs to know about the robot (safety-rules.md §2-5, §8).
 
     ``vsc_timeout_ms`` left as ``None`` takes the transport's default (200 ms serial, 300 ms
-    CAN). A CAN-connected VSC has no user watchdog, so ``require_watchdog`` must be set to
+    CAN; see ``effective_vsc_timeout_ms``). A CAN-connected VSC has no user watchdog, so ``require_watchdog`` must be set to
     false explicitly there: the integrator has to acknowledge that the supervisor's own outputs
     carry the duty alone (safety-rules.md §5).
     """
@@ -132,9 +132,7 @@ class SafetyConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
             raise ConfigError("transport", self.transport, 'use "serial", "can" or "hid"')
-        if self.vsc_timeout_ms is None:
-            object.__setattr__(self, "vsc_timeout_ms", DEFAULT_VSC_TIMEOUT_MS[self.transport])
-        _whole_number("vsc_timeout_ms", self.vsc_timeout_ms, VSC_TIMEOUT_RANGE_MS)
+        _whole_number("vsc_timeout_ms", self.effective_vsc_timeout_ms, VSC_TIMEOUT_RANGE_MS)
         _whole_number("heartbeat_hz", self.heartbeat_hz, HEARTBEAT_HZ_RANGE)
         _whole_number("rearm_hold_ms", self.rearm_hold_ms, REARM_HOLD_RANGE_MS)
         _flag("local_reset", self.local_reset)
@@ -158,11 +156,19 @@ class SafetyConfig:
         _unique("outputs.name", [o.name for o in self.outputs])
 
     @property
+    def effective_vsc_timeout_ms(self) -> int:
+        """``vsc_timeout_ms``, or the transport's default when it is left as ``None``.
+
+        The default is resolved here rather than stored, so that ``dataclasses.replace`` with
+        another transport picks that transport's default.
+        """
+        if self.vsc_timeout_ms is None:
+            return DEFAULT_VSC_TIMEOUT_MS[self.transport]
+        return self.vsc_timeout_ms
+
+    @property
     def vsc_timeout_ns(self) -> int:
-        timeout = self.vsc_timeout_ms
-        if timeout is None:  # resolved in __post_init__; kept total for the type checker
-            timeout = DEFAULT_VSC_TIMEOUT_MS[self.transport]
-        return timeout * NS_PER_MS
+        return self.effective_vsc_timeout_ms * NS_PER_MS
 
     @property
     def heartbeat_period_ns(self) -> int:

@@ -1,0 +1,181 @@
+"""Every cause of safety-rules.md §2 and §3 is raised, cleared, and (for stops) latched."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import pytest
+
+from supervisord.safety import (
+    ChangeKind,
+    Decision,
+    InternalFault,
+    LinkBroken,
+    LocalEstop,
+    LocalRelease,
+    OutputReadback,
+    RearmKind,
+    Request,
+    State,
+)
+from tests.safety.rig import ADMIN, LOCAL, OPERATIONAL, PAUSE, Rig
+
+
+@dataclass(frozen=True)
+class Scenario:
+    cause: str
+    raise_: Callable[[Rig], Decision]
+    clear: Callable[[Rig], Decision]
+
+    def __str__(self) -> str:
+        return self.cause
+
+
+def _reopen(rig: Rig) -> Decision:
+    rig.open_link()
+    rig.key85(1)
+    return rig.vsc(LOCAL)
+
+
+def _lose_vsc(rig: Rig) -> Decision:
+    rig.advance(200)
+    return rig.tick()
+
+
+def _reconnect(rig: Rig) -> Decision:
+    rig.connect()
+    return rig.beat()
+
+
+STOPS = [
+    Scenario("vsc_estop", lambda r: r.vsc(LOCAL, estop=0b11), lambda r: r.vsc(LOCAL)),
+    Scenario("vsc_link_lost", _lose_vsc, lambda r: r.vsc(LOCAL)),
+    Scenario("transport_fault", lambda r: r.feed(LinkBroken(r.now, "unplugged")), _reopen),
+    Scenario("client_lost:planner", lambda r: r.disconnect(), _reconnect),
+    Scenario("client_estop:planner", lambda r: r.estop(), lambda r: r.release()),
+    Scenario(
+        "local_estop",
+        lambda r: r.feed(LocalEstop(r.now, ADMIN)),
+        lambda r: r.feed(LocalRelease(r.now, ADMIN)),
+    ),
+    Scenario(
+        "output_fault:drive",
+        lambda r: r.feed(OutputReadback(r.now, "drive", True, False)),
+        lambda r: r.feed(OutputReadback(r.now, "drive", False, False)),
+    ),
+    Scenario("vsc_watchdog_off", lambda r: r.key85(0), lambda r: r.key85(1)),
+]
+
+
+@pytest.mark.parametrize("scenario", STOPS, ids=str)
+def test_stop_cause_is_raised_latched_cleared_and_rearmed(scenario: Scenario) -> None:
+    """Each stop cause stops at once, stays latched after its condition clears, and only a
+    takeover after the hold time ends STOPPED."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    raised = scenario.raise_(rig)
+    state = raised.cause(scenario.cause)
+    assert state is not None and state.active and state.latched
+    assert raised.state is State.STOPPED
+    assert not any(raised.outputs.values())
+    (record,) = raised.records
+    assert record.previous is State.RUN and record.state is State.STOPPED
+    assert any(
+        c.cause.name == scenario.cause and c.kind is ChangeKind.RAISED for c in record.changes
+    )
+
+    rig.advance(10)
+    cleared = scenario.clear(rig)
+    state = cleared.cause(scenario.cause)
+    assert state is not None and not state.active and state.latched
+    assert cleared.state is State.STOPPED
+
+    rig.run_for(600, LOCAL)
+    assert rig.state is State.STOPPED  # never leaves STOPPED on its own (§1)
+    rig.advance(50)
+    rearmed = rig.vsc(OPERATIONAL)
+    assert rearmed.state is State.RUN
+    assert rearmed.cause(scenario.cause) is None
+    assert rearmed.rearm is not None and rearmed.rearm.kind is RearmKind.TAKEOVER
+
+
+def test_internal_fault_is_momentary_but_latches() -> None:
+    """The ``internal`` cause fires and is clear at once, yet keeps the supervisor STOPPED
+    until a re-arm."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    decision = rig.feed(InternalFault(rig.now, "loop overran by 30 ms"))
+    state = decision.cause("internal")
+    assert state is not None and not state.active and state.latched
+    assert state.detail("reason") == "loop overran by 30 ms"
+    assert decision.state is State.STOPPED
+    rig.run_for(600, LOCAL)
+    rig.advance(50)
+    assert rig.vsc(OPERATIONAL).state is State.RUN
+
+
+HOLDS = [
+    Scenario("vsc_mode:pause", lambda r: r.vsc(PAUSE), lambda r: r.vsc(OPERATIONAL)),
+    Scenario("client_hold:planner", lambda r: r.hold(), lambda r: r.release(request=Request.HOLD)),
+]
+
+
+@pytest.mark.parametrize("scenario", HOLDS, ids=str)
+def test_hold_cause_is_raised_and_clears_by_itself(scenario: Scenario) -> None:
+    """Each hold cause moves RUN to HOLD (motion off, power on) and back to RUN when it clears,
+    without a re-arm."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    held = scenario.raise_(rig)
+    state = held.cause(scenario.cause)
+    assert state is not None and state.active and not state.latched
+    assert held.state is State.HOLD
+    assert dict(held.outputs) == {"drive": False, "lights": True}
+    rig.advance(10)
+    released = scenario.clear(rig)
+    assert released.state is State.RUN
+    assert released.cause(scenario.cause) is None
+    assert dict(released.outputs) == {"drive": True, "lights": True}
+
+
+def test_startup_is_stopped_with_cause_startup() -> None:
+    """The core starts STOPPED with the latched cause ``startup`` and every output off."""
+    rig = Rig()
+    first = rig.last
+    assert first.state is State.STOPPED
+    startup = first.cause("startup")
+    assert startup is not None and startup.latched and not startup.active
+    assert not any(first.outputs.values())
+    assert first.records and first.records[0].sequence == 1
+
+
+def test_vsc_estop_record_names_the_sources() -> None:
+    """A VSC e-stop's details name every source in the e-stop word, and a new source while
+    active is recorded as an update."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    first = rig.vsc(LOCAL, estop=0b0000_0001)
+    state = first.cause("vsc_estop")
+    assert state is not None and state.detail("sources") == "remote"
+    assert state.detail("word") == "0x00000001"
+    rig.advance(10)
+    second = rig.vsc(LOCAL, estop=0b0000_0101)
+    state = second.cause("vsc_estop")
+    assert state is not None and state.detail("sources") == "remote,wired"
+    (record,) = second.records
+    assert [c.kind for c in record.changes] == [ChangeKind.UPDATED]
+
+
+def test_every_record_has_a_rising_sequence_number() -> None:
+    """Records are numbered 1, 2, 3... in the order the core produced them."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    rig.estop()
+    numbers = [r.sequence for d in rig.decisions for r in d.records]
+    assert numbers == list(range(1, len(numbers) + 1))
