@@ -1,0 +1,464 @@
+"""The record of stops as an append-only JSON Lines file (safety-rules §7, ``docs/record.md``).
+
+Writing (:class:`RecordWriter`):
+
+- one JSON object per line, written with a single ``write`` and made durable with ``fsync``
+  before :meth:`RecordWriter.append` returns. A record is *acknowledged* when ``append``
+  returns; an acknowledged record survives a crash and a power cut.
+- bounded rotation: when a record would take the file past ``max_bytes``, the files move up
+  one number (``stops.jsonl`` -> ``stops.jsonl.1`` -> ... -> ``stops.jsonl.KEEP``, the oldest
+  dropped) and a new file starts. Rotation uses renames only, oldest first, and fsyncs the
+  directory before any record goes into the new file: a crash at any step leaves every
+  acknowledged record in exactly one file, and the numbering still sorts the files by age
+  (a crash can leave a gap in the numbers, never a wrong order).
+- a torn tail (a last line without its newline, left by a crash in the middle of a write) was
+  never acknowledged. On open the writer **truncates** it, so the next record starts on a line
+  of its own. A failed write is cut off the same way before the next append.
+- every OS error (``ENOSPC`` for a full disk, ``EIO``, ``EACCES``) raises :class:`RecordError`
+  with its ``errno``; the record was then **not** acknowledged. Nothing is swallowed.
+
+Reading (:func:`read_records`): across the rotated files, oldest first, yielding
+:class:`Record` and :class:`BadLine` items; a torn or undecodable last line of a file is
+reported as ``TORN_TAIL``, never misread; a bad line elsewhere as ``NOT_JSON`` or
+``NOT_A_RECORD``. Filters: time (``since <= utc < until``) and cause name.
+
+The store checks only what it needs to file and filter a record: the fields in
+:data:`REQUIRED_FIELDS`, ``utc`` an ISO 8601 time with a zone, and ``causes`` a list of objects
+that each have a ``name``. Everything else in a record is the daemon's business.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import datetime as dt
+import enum
+import errno as errno_codes
+import json
+import os
+import re
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+from typing import Final, Self
+
+from supervisord.errors import SrcsError
+
+REQUIRED_FIELDS: Final = ("seq", "mono_ns", "utc", "from", "to", "causes", "trigger")
+"""Fields every record has (``docs/record.md`` describes each)."""
+
+DEFAULT_MAX_BYTES: Final = 4 * 1024 * 1024
+MAX_BYTES_RANGE: Final = (4096, 1 << 30)
+DEFAULT_KEEP: Final = 4
+KEEP_RANGE: Final = (1, 99)
+
+_CHUNK = 4096
+
+
+class RecordError(SrcsError):
+    """The record file could not be written: the record was **not** acknowledged.
+
+    ``errno`` is the OS error number (``errno.ENOSPC`` for a full disk); the daemon turns this
+    into a cause and keeps the outputs where the safety core says."""
+
+    def __init__(self, path: Path, action: str, error: OSError) -> None:
+        self.path, self.action, self.errno = path, action, error.errno
+        super().__init__(f"cannot {action} {path}: {error.strerror or error}")
+
+    @property
+    def disk_full(self) -> bool:
+        """True when the file system is out of space (or quota)."""
+        return self.errno in (errno_codes.ENOSPC, errno_codes.EDQUOT)
+
+
+class RecordUsageError(SrcsError, ValueError):
+    """Our own code passed a record the store cannot file (a field missing or of the wrong
+    type, a value JSON cannot hold), or used a closed writer. Nothing was written."""
+
+
+def _check_record(record: Mapping[str, object]) -> None:
+    missing = [f for f in REQUIRED_FIELDS if f not in record]
+    if missing:
+        raise RecordUsageError(f"record lacks {', '.join(missing)}")
+    for key in ("seq", "mono_ns"):
+        value = record[key]
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise RecordUsageError(f"record field {key!r} must be an integer, not {value!r}")
+    if parse_utc(record["utc"]) is None:
+        raise RecordUsageError(
+            f"record field 'utc' must be ISO 8601 with a zone: {record['utc']!r}"
+        )
+    if cause_names(record) is None:
+        raise RecordUsageError("record field 'causes' must be a list of objects with a 'name'")
+
+
+def parse_utc(value: object) -> dt.datetime | None:
+    """``value`` as an aware datetime, or ``None`` if it is not ISO 8601 text with a zone."""
+    if not isinstance(value, str):
+        return None
+    try:
+        when = dt.datetime.fromisoformat(value)
+    except ValueError:
+        return None
+    return when if when.tzinfo is not None else None
+
+
+def format_utc(when: dt.datetime) -> str:
+    """``when`` (aware) as the ISO 8601 text records carry, in UTC with microseconds."""
+    return when.astimezone(dt.UTC).isoformat(timespec="microseconds")
+
+
+def cause_names(record: Mapping[str, object]) -> tuple[str, ...] | None:
+    """The names in a record's ``causes``, or ``None`` if ``causes`` is malformed."""
+    causes = record.get("causes")
+    if not isinstance(causes, list):
+        return None
+    names = []
+    for cause in causes:
+        if not isinstance(cause, dict) or not isinstance(cause.get("name"), str):
+            return None
+        names.append(cause["name"])
+    return tuple(names)
+
+
+def encode(record: Mapping[str, object]) -> bytes:
+    """One record as its line in the file: compact UTF-8 JSON and a newline.
+
+    Raises :class:`RecordUsageError` for a record the store cannot file."""
+    _check_record(record)
+    try:
+        text = json.dumps(record, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+    except (TypeError, ValueError) as e:
+        raise RecordUsageError(f"record is not plain JSON: {e}") from e
+    return text.encode() + b"\n"  # json.dumps escapes newlines: one record, one line
+
+
+def rotated(path: Path, n: int) -> Path:
+    """The ``n``-th rotated file of ``path`` (``n`` = 0 is ``path`` itself)."""
+    return path if n == 0 else path.with_name(f"{path.name}.{n}")
+
+
+def record_files(path: Path) -> list[Path]:
+    """The record files of ``path`` that exist, oldest first (``path.N`` ... ``path.1``,
+    ``path``). Gaps in the numbering (left by a crash during rotation) are skipped."""
+    path = Path(path)
+    pattern = re.compile(re.escape(path.name) + r"\.([1-9][0-9]*)")
+    numbered = []
+    try:
+        names = os.listdir(path.parent)
+    except FileNotFoundError:
+        return []
+    for name in names:
+        m = pattern.fullmatch(name)
+        if m:
+            numbered.append((int(m.group(1)), path.with_name(name)))
+    files = [p for _, p in sorted(numbered, reverse=True)]
+    if path.exists():
+        files.append(path)
+    return files
+
+
+def fsync_dir(folder: Path) -> None:
+    """Make the directory entries of ``folder`` (creations, renames) durable."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class RecordWriter:
+    """Appends records to ``path`` with fsync per record and bounded, crash-safe rotation.
+
+    Opening creates the file if needed (mode 0640; the directory must exist) and truncates a
+    torn tail; ``repaired_bytes`` says how many bytes that removed. ``max_bytes`` bounds each
+    file (a single record larger than that gets a file of its own); ``keep`` rotated files are
+    kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``.
+    Raises :class:`RecordError` if the file cannot be opened.
+
+    One writer per path: the daemon's main loop is the only writer.
+    """
+
+    def __init__(
+        self, path: Path | str, max_bytes: int = DEFAULT_MAX_BYTES, keep: int = DEFAULT_KEEP
+    ) -> None:
+        low, high = MAX_BYTES_RANGE
+        if not low <= max_bytes <= high:
+            raise RecordUsageError(f"max_bytes must be {low} to {high}, not {max_bytes}")
+        if not KEEP_RANGE[0] <= keep <= KEEP_RANGE[1]:
+            raise RecordUsageError(f"keep must be {KEEP_RANGE[0]} to {KEEP_RANGE[1]}, not {keep}")
+        self.path = Path(path)
+        self.max_bytes, self.keep = max_bytes, keep
+        self.repaired_bytes = 0
+        self._fd: int | None = None
+        self._size = 0  # bytes of acknowledged records in the current file
+        self._dirty = False  # a failed write may have left bytes past _size
+        self._closed = False
+        self._guard("open", self._open_current)
+
+    # -- public ---------------------------------------------------------------------------
+
+    def append(self, record: Mapping[str, object]) -> None:
+        """Write ``record`` as one line and fsync it; it is acknowledged when this returns.
+
+        Raises :class:`RecordUsageError` (nothing written) for a record the store cannot file,
+        :class:`RecordError` for an OS error (not acknowledged; the next append first cuts
+        off whatever part of it reached the file)."""
+        if self._closed:
+            raise RecordUsageError(f"record writer for {self.path} is closed")
+        line = encode(record)
+        self._guard("append to", lambda: self._append(line))
+
+    def close(self) -> None:
+        """Close the file. Every acknowledged record is already on disk. Idempotent."""
+        self._closed = True
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)
+
+    @property
+    def size(self) -> int:
+        """Bytes of acknowledged records in the current file."""
+        return self._size
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _guard(self, action: str, step: Callable[[], None]) -> None:
+        try:
+            step()
+        except OSError as e:
+            self._dirty = True
+            raise RecordError(self.path, action, e) from e
+
+    def _append(self, line: bytes) -> None:
+        if self._fd is None:
+            self._open_current()
+        elif self._dirty:
+            self._cut_back()
+        if self._size > 0 and self._size + len(line) > self.max_bytes:
+            self._rotate()
+        fd = self._fd
+        assert fd is not None
+        view = memoryview(line)
+        while view:
+            written = os.write(fd, view)
+            view = view[written:]
+        os.fsync(fd)
+        self._size += len(line)
+
+    def _open_current(self) -> None:
+        """Open (creating if needed) the current file and truncate a torn tail."""
+        fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o640)
+        try:
+            # The file's name (new, or renamed by an interrupted rotation) must be durable
+            # before any record goes into it; once per open, so cheap.
+            fsync_dir(self.path.parent)
+            self.repaired_bytes += self._truncate_torn_tail(fd)
+            self._size = os.fstat(fd).st_size
+        except OSError:
+            os.close(fd)
+            raise
+        self._fd, self._dirty = fd, False
+
+    @staticmethod
+    def _truncate_torn_tail(fd: int) -> int:
+        """Cut the file after its last newline; return how many bytes that removed."""
+        size = os.fstat(fd).st_size
+        if size == 0 or os.pread(fd, 1, size - 1) == b"\n":
+            return 0
+        end = size
+        keep = 0
+        while end > 0:
+            start = max(0, end - _CHUNK)
+            chunk = os.pread(fd, end - start, start)
+            nl = chunk.rfind(b"\n")
+            if nl >= 0:
+                keep = start + nl + 1
+                break
+            end = start
+        os.ftruncate(fd, keep)
+        os.fsync(fd)
+        return size - keep
+
+    def _cut_back(self) -> None:
+        """After a failed append: drop any bytes past the last acknowledged record."""
+        assert self._fd is not None
+        if os.fstat(self._fd).st_size != self._size:
+            os.ftruncate(self._fd, self._size)
+            os.fsync(self._fd)
+        self._dirty = False
+
+    def _rotate(self) -> None:
+        """Shift the files up one number (renames only, oldest first), then start a new file.
+
+        The current file's records are already fsynced, so it is closed first. A crash between
+        any two steps leaves each record in one file, in age order (see the module docstring);
+        if a step fails, the next append reopens ``path`` and tries again.
+        """
+        assert self._fd is not None
+        os.close(self._fd)
+        self._fd = None
+        for n in range(self.keep - 1, 0, -1):
+            # A missing file is a gap left by an earlier crash, or fewer files than keep.
+            with contextlib.suppress(FileNotFoundError):
+                os.replace(rotated(self.path, n), rotated(self.path, n + 1))
+        os.replace(self.path, rotated(self.path, 1))
+        fsync_dir(self.path.parent)
+        self._open_current()
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+
+
+class BadLineReason(enum.StrEnum):
+    """Why a line of a record file is not a record."""
+
+    TORN_TAIL = "torn_tail"
+    """The last line of a file is unterminated or undecodable: a write cut short by a crash.
+    It was never acknowledged; it is reported so that the crash is visible, never misread."""
+    NOT_JSON = "not_json"
+    """A line that is not a JSON object, not at the end of a file (damage)."""
+    NOT_A_RECORD = "not_a_record"
+    """A JSON object that lacks the fields the store needs."""
+
+
+@dataclasses.dataclass(frozen=True)
+class BadLine:
+    """A line that is not a record: where it is, why, and its start (at most 200 chars)."""
+
+    file: Path
+    line: int
+    reason: BadLineReason
+    text: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Record:
+    """One record as read back: the JSON object, and where it was found.
+
+    ``data`` is the object as written; the properties give the fields the store knows."""
+
+    data: Mapping[str, object]
+    file: Path
+    line: int
+
+    @property
+    def seq(self) -> int:
+        """The record's sequence number."""
+        value = self.data["seq"]
+        assert isinstance(value, int)
+        return value
+
+    @property
+    def utc(self) -> dt.datetime:
+        """The record's wall-clock time (aware)."""
+        when = parse_utc(self.data["utc"])
+        assert when is not None
+        return when
+
+    @property
+    def cause_names(self) -> tuple[str, ...]:
+        """The names of the record's causes."""
+        names = cause_names(self.data)
+        assert names is not None
+        return names
+
+    def matches_cause(self, cause: str) -> bool:
+        """Whether a cause of the record is ``cause`` or a cause under it: ``client_lost``
+        matches ``client_lost`` and ``client_lost:autonomy``, not ``client_lost_x``."""
+        return any(n == cause or n.startswith(cause + ":") for n in self.cause_names)
+
+
+def _is_record(obj: object) -> bool:
+    if not isinstance(obj, dict) or any(f not in obj for f in REQUIRED_FIELDS):
+        return False
+    seq, mono = obj["seq"], obj["mono_ns"]
+    return (
+        isinstance(seq, int)
+        and isinstance(mono, int)
+        and parse_utc(obj["utc"]) is not None
+        and cause_names(obj) is not None
+    )
+
+
+def scan_file(file: Path) -> Iterator[Record | BadLine]:
+    """Every line of one record file, as a :class:`Record` or a :class:`BadLine`, unfiltered.
+    A file that does not exist (rotated away meanwhile) has no lines."""
+    try:
+        handle = file.open("rb")
+    except FileNotFoundError:
+        return  # rotated away while we listed: the next listing shows it under a new name
+    with handle:
+        lines = iter(handle)
+        current = next(lines, None)
+        number = 0
+        while current is not None:
+            number += 1
+            following = next(lines, None)
+            last = following is None
+            yield _parse_line(file, number, current, last)
+            current = following
+
+
+def _parse_line(file: Path, number: int, raw: bytes, last: bool) -> Record | BadLine:
+    def bad(reason: BadLineReason) -> BadLine:
+        return BadLine(file, number, reason, raw[:200].decode(errors="replace"))
+
+    try:
+        obj = json.loads(raw)
+    except ValueError:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        obj = None
+    if last and (not raw.endswith(b"\n") or not isinstance(obj, dict)):
+        return bad(BadLineReason.TORN_TAIL)
+    if not isinstance(obj, dict):
+        return bad(BadLineReason.NOT_JSON)
+    if not _is_record(obj):
+        return bad(BadLineReason.NOT_A_RECORD)
+    return Record(obj, file, number)
+
+
+def read_records(
+    path: Path | str,
+    since: dt.datetime | None = None,
+    until: dt.datetime | None = None,
+    cause: str | None = None,
+) -> Iterator[Record | BadLine]:
+    """The records of ``path`` and its rotated files, oldest first, with the bad lines met.
+
+    Only records with ``since <= utc < until`` (aware datetimes) and, when ``cause`` is given,
+    a matching cause (:meth:`Record.matches_cause`) are yielded; bad lines are always yielded,
+    so that the caller can report them. Safe to run while the writer appends or rotates: a
+    file rotated away between listing and opening is skipped.
+    """
+    for file in record_files(Path(path)):
+        for item in scan_file(file):
+            if isinstance(item, BadLine):
+                yield item
+                continue
+            if since is not None and item.utc < since:
+                continue
+            if until is not None and item.utc >= until:
+                continue
+            if cause is not None and not item.matches_cause(cause):
+                continue
+            yield item
+
+
+def last_record(path: Path | str) -> Record | None:
+    """The newest record of ``path`` (to continue its ``seq`` after a restart), or ``None``.
+
+    Reads only the newest file that holds a record."""
+    for file in reversed(record_files(Path(path))):
+        found = None
+        for item in scan_file(file):
+            if isinstance(item, Record):
+                found = item
+        if found is not None:
+            return found
+    return None

@@ -1,0 +1,52 @@
+"""Shared helpers for the record tests: building records the way the daemon does."""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+
+from supervisord.record import BadLine, Record, format_utc, read_records
+
+EPOCH = dt.datetime(2026, 3, 1, 12, 0, tzinfo=dt.UTC)
+
+
+def make_record(
+    seq: int,
+    *,
+    causes: tuple[str, ...] = ("vsc_estop",),
+    to: str = "STOPPED",
+    before: str = "RUN",
+    kind: str | None = None,
+    pad: int = 0,
+) -> dict[str, object]:
+    """A record with sequence ``seq``, ``seq`` seconds after EPOCH; ``pad`` adds bytes."""
+    record: dict[str, object] = {
+        "seq": seq,
+        "mono_ns": 1_000_000_000 + seq * 1_000_000,
+        "utc": format_utc(EPOCH + dt.timedelta(seconds=seq)),
+        "from": before,
+        "to": to,
+        "causes": [{"name": c, "sources": ["remote"]} for c in causes],
+        "trigger": "vsc_heartbeat",
+    }
+    if kind is not None:
+        record["kind"] = kind
+    if pad:
+        record["note"] = "x" * pad
+    return record
+
+
+def records_in(path: Path) -> list[Record]:
+    """The records of ``path`` (all files), asserting there is no bad line but a torn tail."""
+    found = []
+    for item in read_records(path):
+        if isinstance(item, BadLine):
+            assert item.reason.value == "torn_tail", item
+            continue
+        found.append(item)
+    return found
+
+
+def seqs_in(path: Path) -> list[int]:
+    """The sequence numbers of ``path``'s records, oldest first."""
+    return [r.seq for r in records_in(path)]
