@@ -115,9 +115,9 @@ class SafetyConfig:
     """Everything the safety core needs to know about the robot (safety-rules.md §2-5, §8).
 
     ``vsc_timeout_ms`` left as ``None`` takes the transport's default (200 ms serial, 300 ms
-    CAN; see ``effective_vsc_timeout_ms``). A CAN-connected VSC has no user watchdog, so ``require_watchdog`` must be set to
-    false explicitly there: the integrator has to acknowledge that the supervisor's own outputs
-    carry the duty alone (safety-rules.md §5).
+    CAN; see ``effective_vsc_timeout_ms``). A CAN-connected VSC has no user watchdog, so
+    ``require_watchdog`` must be set to false explicitly there: the integrator has to
+    acknowledge that the supervisor's own outputs carry the duty alone (safety-rules.md §5).
     """
 
     transport: Transport = Transport.SERIAL

@@ -42,7 +42,9 @@ def test_client_heartbeat_at_500_ms_is_too_late() -> None:
     decision = rig.beat()
     assert decision.state is State.STOPPED
     lost = decision.cause("client_lost:planner")
-    assert lost is not None and lost.latched and not lost.active
+    assert lost is not None
+    assert lost.latched
+    assert not lost.active
     assert lost.detail("reason") == "timeout"
 
 
@@ -87,7 +89,9 @@ def test_vsc_heartbeat_exactly_at_the_timeout_is_too_late() -> None:
     decision = rig.vsc()
     assert decision.state is State.STOPPED
     lost = decision.cause("vsc_link_lost")
-    assert lost is not None and lost.latched and not lost.active
+    assert lost is not None
+    assert lost.latched
+    assert not lost.active
 
 
 def test_vsc_timeout_on_can_defaults_to_300_ms() -> None:
@@ -112,7 +116,8 @@ def test_vsc_never_seen_counts_as_lost() -> None:
     rig = Rig()
     decision = rig.open_link()
     lost = decision.cause("vsc_link_lost")
-    assert lost is not None and lost.active
+    assert lost is not None
+    assert lost.active
     assert lost.detail("reason") == "no heartbeat since link open"
 
 
@@ -127,7 +132,9 @@ def test_required_client_that_never_connected_keeps_stopped() -> None:
     decision = rig.vsc(OPERATIONAL)
     assert decision.state is State.STOPPED
     lost = decision.cause("client_lost:planner")
-    assert lost is not None and lost.active and lost.detail("reason") == "never connected"
+    assert lost is not None
+    assert lost.active
+    assert lost.detail("reason") == "never connected"
     assert "client_lost:planner" in decision.refusals[0].detail
 
 
@@ -137,10 +144,12 @@ def test_required_client_that_said_hello_but_never_beat_is_lost() -> None:
     rig.open_link()
     decision = rig.connect()
     lost = decision.cause("client_lost:planner")
-    assert lost is not None and lost.active
+    assert lost is not None
+    assert lost.active
     assert lost.detail("reason") == "no heartbeat since hello"
-    assert rig.beat().cause("client_lost:planner") is not None
-    assert not rig.last.cause("client_lost:planner").active  # type: ignore[union-attr]
+    after = rig.beat().cause("client_lost:planner")
+    assert after is not None
+    assert not after.active
 
 
 @pytest.mark.parametrize(
@@ -178,7 +187,8 @@ def test_estop_word_with_unknown_bits_only_is_a_stop() -> None:
     decision = rig.vsc(OPERATIONAL, estop=0x0000_0100)
     assert decision.state is State.STOPPED
     estop = decision.cause("vsc_estop")
-    assert estop is not None and estop.detail("sources") == "unknown"
+    assert estop is not None
+    assert estop.detail("sources") == "unknown"
     assert estop.detail("word") == "0x00000100"
 
 
@@ -191,4 +201,5 @@ def test_estop_word_sources_are_named(word: int, sources: str) -> None:
     rig = Rig()
     rig.bring_up()
     estop = rig.vsc(LOCAL, estop=word).cause("vsc_estop")
-    assert estop is not None and estop.detail("sources") == sources
+    assert estop is not None
+    assert estop.detail("sources") == sources

@@ -77,11 +77,14 @@ def test_stop_cause_is_raised_latched_cleared_and_rearmed(scenario: Scenario) ->
     rig.advance(10)
     raised = scenario.raise_(rig)
     state = raised.cause(scenario.cause)
-    assert state is not None and state.active and state.latched
+    assert state is not None
+    assert state.active
+    assert state.latched
     assert raised.state is State.STOPPED
     assert not any(raised.outputs.values())
     (record,) = raised.records
-    assert record.previous is State.RUN and record.state is State.STOPPED
+    assert record.previous is State.RUN
+    assert record.state is State.STOPPED
     assert any(
         c.cause.name == scenario.cause and c.kind is ChangeKind.RAISED for c in record.changes
     )
@@ -89,7 +92,9 @@ def test_stop_cause_is_raised_latched_cleared_and_rearmed(scenario: Scenario) ->
     rig.advance(10)
     cleared = scenario.clear(rig)
     state = cleared.cause(scenario.cause)
-    assert state is not None and not state.active and state.latched
+    assert state is not None
+    assert not state.active
+    assert state.latched
     assert cleared.state is State.STOPPED
 
     rig.run_for(600, LOCAL)
@@ -98,7 +103,8 @@ def test_stop_cause_is_raised_latched_cleared_and_rearmed(scenario: Scenario) ->
     rearmed = rig.vsc(OPERATIONAL)
     assert rearmed.state is State.RUN
     assert rearmed.cause(scenario.cause) is None
-    assert rearmed.rearm is not None and rearmed.rearm.kind is RearmKind.TAKEOVER
+    assert rearmed.rearm is not None
+    assert rearmed.rearm.kind is RearmKind.TAKEOVER
 
 
 def test_internal_fault_is_momentary_but_latches() -> None:
@@ -109,7 +115,9 @@ def test_internal_fault_is_momentary_but_latches() -> None:
     rig.advance(10)
     decision = rig.feed(InternalFault(rig.now, "loop overran by 30 ms"))
     state = decision.cause("internal")
-    assert state is not None and not state.active and state.latched
+    assert state is not None
+    assert not state.active
+    assert state.latched
     assert state.detail("reason") == "loop overran by 30 ms"
     assert decision.state is State.STOPPED
     rig.run_for(600, LOCAL)
@@ -132,7 +140,9 @@ def test_hold_cause_is_raised_and_clears_by_itself(scenario: Scenario) -> None:
     rig.advance(10)
     held = scenario.raise_(rig)
     state = held.cause(scenario.cause)
-    assert state is not None and state.active and not state.latched
+    assert state is not None
+    assert state.active
+    assert not state.latched
     assert held.state is State.HOLD
     assert dict(held.outputs) == {"drive": False, "lights": True}
     rig.advance(10)
@@ -148,9 +158,12 @@ def test_startup_is_stopped_with_cause_startup() -> None:
     first = rig.last
     assert first.state is State.STOPPED
     startup = first.cause("startup")
-    assert startup is not None and startup.latched and not startup.active
+    assert startup is not None
+    assert startup.latched
+    assert not startup.active
     assert not any(first.outputs.values())
-    assert first.records and first.records[0].sequence == 1
+    assert first.records
+    assert first.records[0].sequence == 1
 
 
 def test_vsc_estop_record_names_the_sources() -> None:
@@ -161,12 +174,14 @@ def test_vsc_estop_record_names_the_sources() -> None:
     rig.advance(10)
     first = rig.vsc(LOCAL, estop=0b0000_0001)
     state = first.cause("vsc_estop")
-    assert state is not None and state.detail("sources") == "remote"
+    assert state is not None
+    assert state.detail("sources") == "remote"
     assert state.detail("word") == "0x00000001"
     rig.advance(10)
     second = rig.vsc(LOCAL, estop=0b0000_0101)
     state = second.cause("vsc_estop")
-    assert state is not None and state.detail("sources") == "remote,wired"
+    assert state is not None
+    assert state.detail("sources") == "remote,wired"
     (record,) = second.records
     assert [c.kind for c in record.changes] == [ChangeKind.UPDATED]
 

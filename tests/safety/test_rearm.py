@@ -35,7 +35,8 @@ def test_takeover_rearms_after_the_hold_time() -> None:
     decision = rig.vsc(OPERATIONAL)
     assert decision.state is State.RUN
     (record,) = decision.records
-    assert record.rearm is not None and record.rearm.kind is RearmKind.TAKEOVER
+    assert record.rearm is not None
+    assert record.rearm.kind is RearmKind.TAKEOVER
     assert record.previous is State.STOPPED
 
 
@@ -125,8 +126,10 @@ def test_local_reset_rearms_when_allowed_and_admin() -> None:
     rig.run_for(500, LOCAL)
     decision = rig.reset()
     assert decision.state is State.HOLD
-    assert decision.rearm is not None and decision.rearm.kind is RearmKind.LOCAL_RESET
-    assert decision.rearm.caller is not None and decision.rearm.caller.name == "alice"
+    assert decision.rearm is not None
+    assert decision.rearm.kind is RearmKind.LOCAL_RESET
+    assert decision.rearm.caller is not None
+    assert decision.rearm.caller.name == "alice"
     rig.advance(50)
     assert rig.vsc(OPERATIONAL).state is State.RUN
 
