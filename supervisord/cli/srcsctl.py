@@ -7,6 +7,7 @@ import sys
 from collections.abc import Sequence
 
 from supervisord.cli.decode import run_decode
+from supervisord.cli.demo import run_demo
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,6 +29,9 @@ def build_parser() -> argparse.ArgumentParser:
     ):
         formats.add_argument(flag, dest="mode", action="store_const", const=flag[2:], help=what)
     decode.set_defaults(mode="hex")
+
+    demo = commands.add_parser("demo", help="watch scripted VSC traffic decoded live")
+    demo.add_argument("--speed", type=float, default=1.0, help="time factor (default 1)")
     return parser
 
 
@@ -35,6 +39,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "decode":
         return run_decode(args.file, args.mode, sys.stdout, sys.stderr)
+    if args.command == "demo":
+        return run_demo(sys.stdout, args.speed)
     return 2  # pragma: no cover - argparse rejects unknown commands first
 
 
