@@ -1,0 +1,110 @@
+"""The transition table (safety-rules.md §1, §4) and the core's refusal to ever raise."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
+from supervisord.safety.transitions import next_state
+from tests.safety.rig import Rig
+
+ILLEGAL = {
+    (State.STOPPED, Situation.HOLD),
+    (State.STOPPED, Situation.CLEAR),
+    (State.HOLD, Situation.REARMED_HOLD),
+    (State.HOLD, Situation.REARMED_CLEAR),
+    (State.RUN, Situation.REARMED_HOLD),
+    (State.RUN, Situation.REARMED_CLEAR),
+}
+
+
+def test_table_covers_exactly_the_legal_moves() -> None:
+    """Every (state, situation) pair has exactly one row, except the illegal ones: leaving
+    STOPPED without a re-arm, and re-arming outside STOPPED."""
+    pairs = [(row.source, row.situation) for row in TABLE]
+    assert len(pairs) == len(set(pairs))
+    assert set(pairs) | ILLEGAL == set(itertools.product(State, Situation))
+    assert not set(pairs) & ILLEGAL
+
+
+@pytest.mark.parametrize(("state", "situation"), sorted(ILLEGAL, key=str))
+def test_illegal_move_raises_a_typed_error(state: State, situation: Situation) -> None:
+    """``next_state`` raises ``IllegalTransition`` for a pair with no row."""
+    with pytest.raises(IllegalTransition):
+        next_state(state, situation)
+
+
+def test_every_stop_goes_to_stopped_and_only_rearms_leave_it() -> None:
+    """A stop leads to STOPPED from every state; only re-arm situations lead out of it."""
+    for row in TABLE:
+        if row.situation is Situation.STOP:
+            assert row.target is State.STOPPED
+        if row.source is State.STOPPED and row.target is not State.STOPPED:
+            assert row.situation in {Situation.REARMED_HOLD, Situation.REARMED_CLEAR}
+
+
+def test_core_turns_an_illegal_transition_into_internal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """If the table ever refuses a move, the core stops with ``internal`` instead of raising."""
+    rig = Rig()
+    rig.bring_up()
+    real = next_state
+
+    def refusing(state: State, situation: Situation) -> State:
+        if situation is not Situation.STOP:
+            raise IllegalTransition(state, situation)
+        return real(state, situation)
+
+    monkeypatch.setattr("supervisord.safety.core.next_state", refusing)
+    rig.advance(10)
+    decision = rig.tick()
+    assert decision.state is State.STOPPED
+    internal = decision.cause("internal")
+    assert internal is not None
+    assert internal.latched
+    assert "no transition from RUN" in (internal.detail("reason") or "")
+
+
+def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bug inside the core becomes the ``internal`` cause and a refusal, never an exception."""
+    rig = Rig()
+    rig.bring_up()
+
+    def broken(self: SafetyCore, event: object, now: int) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(SafetyCore, "_apply", broken)
+    rig.advance(10)
+    decision = rig.tick()
+    assert decision.state is State.STOPPED
+    assert not any(decision.outputs.values())
+    assert decision.refusals[0].reason is RefusalReason.INTERNAL_ERROR
+    assert "internal" in decision.latched_names
+
+
+def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyPatch) -> None:
+    """When even the normal fail-safe path fails, a bare all-off STOPPED decision comes back."""
+    rig = Rig()
+    rig.bring_up()
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(SafetyCore, "_apply", broken)
+    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    rig.advance(10)
+    decision = rig.tick()
+    assert decision.state is State.STOPPED
+    assert not any(decision.outputs.values())
+    assert decision.heartbeat_estop == 1
+    assert decision.next_deadline > decision.now
+
+
+def test_input_that_is_not_an_event_is_refused() -> None:
+    """Anything that is not a safety event is refused by name and changes nothing."""
+    rig = Rig()
+    rig.bring_up()
+    decision = rig.core.handle("reset please")  # type: ignore[arg-type]
+    assert decision.refusals[0].reason is RefusalReason.NOT_AN_EVENT
+    assert decision.state is State.RUN
