@@ -235,7 +235,13 @@ class OutputSpec:
         role = t.choice("role", OutputRole, OutputRole.MOTION)
         options = cls._read(t)
         t.finish()
-        return cls(name=name, role=role, **options)
+        try:
+            return cls(name=name, role=role, **options)
+        except ConfigError as e:  # the spec's own checks name outputs.NAME.key: use the prefix
+            default = f"outputs.{name}."
+            if e.key.startswith(default):
+                raise ConfigError(t.key(e.key.removeprefix(default)), e.value, e.fix) from None
+            raise
 
     @classmethod
     @abc.abstractmethod

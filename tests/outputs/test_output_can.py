@@ -167,12 +167,17 @@ def test_worked_example_from_the_docs(virtual_buses: Buses) -> None:
     out = create_output(spec, can_bus=mine)
     out.open(T0)
     out.set(True, T0 + MS)
-    out.set(False, T0 + 2 * MS)
-    data = [bytes(f.data).hex(" ") for f in BusWatcher(theirs, CAN_SPEC).drain()]
-    assert data == [
+    assert out.tick(T0 + 21 * MS) is not None
+    out.set(False, T0 + 30 * MS)
+    assert out.tick(T0 + 50 * MS) is not None
+    frames = BusWatcher(theirs, CAN_SPEC).drain()
+    assert {(f.arbitration_id, f.is_extended_id, f.dlc) for f in frames} == {(0x201, False, 8)}
+    assert [bytes(f.data).hex(" ").upper() for f in frames] == [
         "06 00 00 00 00 00 00 00",
-        "0f 00 00 00 00 00 00 01",
-        "06 00 00 00 00 00 00 02",
+        "0F 00 00 00 00 00 00 01",
+        "0F 00 00 00 00 00 00 02",
+        "06 00 00 00 00 00 00 03",
+        "06 00 00 00 00 00 00 04",
     ]
     out.close()
 

@@ -68,6 +68,11 @@ def test_prefix_names_the_key() -> None:
     with pytest.raises(ConfigError) as e:
         parse_output_spec("x", {"kind": "sim", "typo": 1}, prefix="robot.outputs.x")
     assert e.value.key == "robot.outputs.x.typo"
+    with pytest.raises(ConfigError) as e:
+        parse_output_spec(
+            "x", {"kind": "gpio", "chip": "c", "line": "17"}, prefix="robot.outputs.x"
+        )
+    assert e.value.key == "robot.outputs.x.line"
 
 
 def test_bad_name_is_a_config_error() -> None:
