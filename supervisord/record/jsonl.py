@@ -260,7 +260,7 @@ class RecordWriter:
             fsync_dir(self.path.parent)
             self.repaired_bytes += self._truncate_torn_tail(fd)
             self._size = os.fstat(fd).st_size
-        except OSError:
+        except BaseException:  # whatever stops us, do not leak the descriptor
             os.close(fd)
             raise
         self._fd, self._dirty = fd, False

@@ -108,6 +108,16 @@ CAN_SPEC = CanEnableSpec(
 )
 
 
+@pytest.fixture(autouse=True)
+def no_bus_left_open() -> Iterator[None]:
+    """Fail any test that leaves a virtual CAN channel of its own open."""
+    from can.interfaces import virtual  # noqa: PLC0415  (python-can's registry of channels)
+
+    yield
+    leaked = [c for c in virtual.channels if str(c).startswith("test-")]
+    assert not leaked, f"virtual CAN channels left open: {leaked}"
+
+
 @pytest.fixture
 def virtual_buses() -> Iterator[tuple[can.BusABC, can.BusABC]]:
     """Two buses on a fresh virtual channel: the output's, and an observer's."""
