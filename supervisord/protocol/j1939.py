@@ -15,6 +15,7 @@ from supervisord.protocol.messages import (
     Axis,
     DPad,
     FeedbackSet,
+    Joystick,
     NumberedButtons,
     RemoteStatus,
     VscHeartbeat,
@@ -222,3 +223,25 @@ def decode_can(frame: CanFrame) -> CanMessage | CanRejection:
             if segment >= SEGMENT_COUNT:
                 return CanRejection(CanRejectReason.BAD_VALUE, ident, len(data))
             return FeedbackStringSegment(data[0], segment, text)
+
+
+class JoystickAssembler:
+    """Joins the four CAN joystick messages into the serial ``Joystick`` value.
+
+    Each basic or extended message replaces its hand's part; every message returns the whole
+    joystick as it now stands. Parts never received are neutral. Axes keep their J1939
+    meaning: read them with ``Axis.j1939_value``.
+    """
+
+    def __init__(self) -> None:
+        self._parts: dict[str, Axis | DPad | NumberedButtons] = {}
+
+    def update(self, message: JoystickBasic | JoystickExtended) -> Joystick:
+        side = message.hand.value
+        if isinstance(message, JoystickBasic):
+            self._parts[f"{side}_x"] = message.x
+            self._parts[f"{side}_y"] = message.y
+            self._parts[f"{side}_buttons"] = message.buttons
+        else:
+            self._parts[f"{side}_z"] = message.z
+        return Joystick(**self._parts)  # type: ignore[arg-type]  # keys are Joystick's fields

@@ -14,6 +14,7 @@ from supervisord.protocol.j1939 import (
     CanRejectReason,
     FeedbackStringSegment,
     Hand,
+    JoystickAssembler,
     JoystickBasic,
     JoystickExtended,
     decode_can,
@@ -123,3 +124,21 @@ def test_frames_cross_a_real_python_can_bus() -> None:
                 decode_can(CanFrame(raw.arbitration_id, bytes(raw.data), raw.is_extended_id))
             )
     assert received == sent
+
+
+def test_assembler_joins_the_four_joystick_messages() -> None:
+    """Basic and extended messages of both hands combine into one Joystick value."""
+    assembler = JoystickAssembler()
+    first = assembler.update(
+        JoystickBasic(
+            Hand.RIGHT,
+            Axis.from_value(7),
+            Axis.from_value(-8),
+            NumberedButtons(button_2=FieldStatus.SET),
+        )
+    )
+    assert first.right_x.value == 7
+    assert first.left_x == Axis.from_value(0)
+    joined = assembler.update(JoystickExtended(Hand.LEFT, Axis.from_value(100)))
+    assert [axis.value for axis in joined.axes] == [0, 0, 100, 7, -8, 0]
+    assert joined.right_buttons.pressed == {"button_2"}

@@ -1,0 +1,82 @@
+"""What every link offers the daemon's loop, and the reopen backoff."""
+
+from __future__ import annotations
+
+import abc
+from typing import ClassVar
+
+from supervisord.errors import SrcsError
+from supervisord.protocol.framing import Rejection
+from supervisord.protocol.hid import HidInput, HidRejection
+from supervisord.protocol.j1939 import CanRejection
+from supervisord.protocol.messages import Message
+
+Received = Message | HidInput | Rejection | CanRejection | HidRejection
+
+
+class LinkError(SrcsError):
+    """The port or bus could not be opened, or failed. ``reason`` says why in a few words."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+class LinkBroken(LinkError):
+    """The world broke an open link: unplugged, I/O error, bus-off (trio's "broken")."""
+
+
+class Link(abc.ABC):
+    """One connection to the VSC. Life cycle: ``open``, then ``receive``/``send`` until a
+    ``LinkBroken`` or ``close``; then ``open`` again for a new start."""
+
+    #: True when the VSC on this link can watch our heartbeat (serial only, notes §3/§4).
+    carries_heartbeat: ClassVar[bool] = False
+
+    @abc.abstractmethod
+    def open(self) -> None:
+        """Open the port or bus; raises ``LinkError`` (missing, busy, refused)."""
+
+    @abc.abstractmethod
+    def fileno(self) -> int | None:
+        """The descriptor to wait on while open; ``None`` if the interface has none (the
+        loop then polls ``receive`` every few milliseconds)."""
+
+    @abc.abstractmethod
+    def receive(self) -> list[Received]:
+        """Everything that has arrived, decoded, without blocking; raises ``LinkBroken``."""
+
+    @abc.abstractmethod
+    def send(self, messages: list[Message]) -> None:
+        """Write ``messages`` at once, in order; raises ``LinkBroken``."""
+
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Release the port or bus. Safe to call twice and after a failure."""
+
+    @property
+    @abc.abstractmethod
+    def is_open(self) -> bool: ...
+
+    @property
+    @abc.abstractmethod
+    def description(self) -> str:
+        """Where the link goes, for the log and the status."""
+
+
+class Backoff:
+    """When to try opening a link again: ``first_ms``, doubling to ``max_ms``; a successful
+    open resets it. Pure: times are monotonic nanoseconds passed in."""
+
+    def __init__(self, first_ms: int = 100, max_ms: int = 5000) -> None:
+        self._first = first_ms * 1_000_000
+        self._max = max_ms * 1_000_000
+        self._delay = self._first
+        self.next_attempt = 0
+
+    def failed(self, now: int) -> None:
+        self.next_attempt = now + self._delay
+        self._delay = min(self._delay * 2, self._max)
+
+    def succeeded(self) -> None:
+        self._delay = self._first

@@ -1,0 +1,80 @@
+"""The USB HID link: hidraw input reports, for monitoring and teleoperation only.
+
+HID mode carries no host heartbeat (notes §4), so it is never a safety channel: with this
+link the safety core never leaves STOPPED, and the daemon says so at start.
+"""
+
+from __future__ import annotations
+
+import os
+
+from supervisord.links.base import Link, LinkBroken, LinkError, Received
+from supervisord.protocol.hid import HidOutput, decode_hid_input, encode_hid_output
+from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+
+REPORT_LIMIT = 64
+
+
+class HidLink(Link):
+    """A hidraw device: each read is one input report."""
+
+    def __init__(self, path: str) -> None:
+        self._path = path
+        self._fd: int | None = None
+
+    @property
+    def description(self) -> str:
+        return f"HID {self._path} (no safety channel)"
+
+    @property
+    def is_open(self) -> bool:
+        return self._fd is not None
+
+    def open(self) -> None:
+        if self._fd is None:
+            try:
+                self._fd = os.open(self._path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC)
+            except OSError as error:
+                raise LinkError(error.strerror or str(error)) from error
+
+    def fileno(self) -> int | None:
+        return self._fd
+
+    def receive(self) -> list[Received]:
+        fd = self._require_open()
+        received: list[Received] = []
+        while True:
+            try:
+                report = os.read(fd, REPORT_LIMIT)
+            except BlockingIOError:
+                return received
+            except OSError as error:
+                raise LinkBroken(error.strerror or str(error)) from error
+            if not report:
+                raise LinkBroken("device gone")
+            received.append(decode_hid_input(report))
+
+    def send(self, messages: list[Message]) -> None:
+        """Display values and labels as output reports (manual §10.2.2); nothing else exists."""
+        fd = self._require_open()
+        for message in messages:
+            if isinstance(message, FeedbackSet):
+                report = HidOutput(message.key, message.value, 0, "")
+            elif isinstance(message, FeedbackName):
+                report = HidOutput(0, 0, message.key, message.text)
+            else:
+                continue
+            try:
+                os.write(fd, encode_hid_output(report))
+            except OSError as error:
+                raise LinkBroken(error.strerror or str(error)) from error
+
+    def close(self) -> None:
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)
+
+    def _require_open(self) -> int:
+        if self._fd is None:
+            raise LinkBroken("not open")
+        return self._fd

@@ -1,0 +1,97 @@
+"""The serial link: HRI packets over USB CDC or RS-232 at 115200 8N1 (manual §8)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from typing import ClassVar
+
+import serial
+
+from supervisord.links.base import Link, LinkBroken, LinkError, Received
+from supervisord.protocol.framing import FrameDecoder, encode_frame
+from supervisord.protocol.messages import Message
+
+BAUD = 115200  # manual §8: fixed
+READ_LIMIT = 4096
+
+
+class SerialLink(Link):
+    """A serial port, opened exclusively and read without blocking.
+
+    An unplugged USB device (or a closed pseudo-terminal master) shows as a read that is
+    ready but returns nothing, or as an I/O error: both are ``LinkBroken``. Every open starts
+    a fresh decoder, so no half frame survives a reconnect.
+    """
+
+    carries_heartbeat: ClassVar[bool] = True
+
+    def __init__(self, port: str) -> None:
+        self._path = port
+        self._port: serial.Serial | None = None
+        self._decoder = FrameDecoder()
+
+    @property
+    def description(self) -> str:
+        return f"serial {self._path}"
+
+    @property
+    def is_open(self) -> bool:
+        return self._port is not None
+
+    def open(self) -> None:
+        if self._port is not None:
+            return
+        try:
+            port = serial.Serial(self._path, BAUD, timeout=0, write_timeout=0, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as error:
+            raise LinkError(_short(error)) from error
+        self._port = port
+        self._decoder = FrameDecoder()
+
+    def fileno(self) -> int | None:
+        return self._port.fileno() if self._port is not None else None
+
+    def receive(self) -> list[Received]:
+        port = self._require_open()
+        try:
+            data = os.read(port.fileno(), READ_LIMIT)
+        except BlockingIOError:
+            return []
+        except OSError as error:
+            raise LinkBroken(_short(error)) from error
+        if not data:  # readable but empty: the device is gone (pyserial's wording, see above)
+            raise LinkBroken("device reports readiness to read but returned no data")
+        return list(self._decoder.feed(data))
+
+    def send(self, messages: list[Message]) -> None:
+        port = self._require_open()
+        data = b"".join(encode_frame(message) for message in messages)
+        try:
+            written = os.write(port.fileno(), data) if data else 0
+        except BlockingIOError:
+            written = 0
+        except OSError as error:
+            raise LinkBroken(_short(error)) from error
+        if written != len(data):
+            # The VSC reads at 115200 baud and our traffic is a few hundred bytes a second:
+            # an output buffer that is full means nobody is reading.
+            raise LinkBroken(f"output buffer full: wrote {written} of {len(data)} bytes")
+
+    def close(self) -> None:
+        port, self._port = self._port, None
+        if port is not None:
+            # The descriptor is released by close even when the device is already gone.
+            with contextlib.suppress(serial.SerialException, OSError):
+                port.close()
+
+    def _require_open(self) -> serial.Serial:
+        if self._port is None:
+            raise LinkBroken("not open")
+        return self._port
+
+
+def _short(error: BaseException) -> str:
+    if isinstance(error, OSError) and error.strerror:
+        return error.strerror
+    return str(error) or type(error).__name__

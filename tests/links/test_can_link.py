@@ -1,0 +1,97 @@
+"""The CAN link over python-can's real interfaces: virtual in one process, udp_multicast
+between processes' sockets."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from supervisord.links.base import LinkBroken
+from supervisord.links.can_link import CanLink, from_python_can, to_python_can
+from supervisord.protocol.j1939 import (
+    FeedbackStringSegment,
+    Hand,
+    JoystickBasic,
+    decode_can,
+    encode_can,
+)
+from supervisord.protocol.messages import (
+    Axis,
+    DPad,
+    FeedbackName,
+    FeedbackSet,
+    Joystick,
+    UserHeartbeat,
+    VscHeartbeat,
+)
+
+
+@pytest.fixture
+def vsc_bus() -> Iterator[can.BusABC]:
+    with can.Bus(interface="virtual", channel="link-test") as bus:
+        yield bus
+
+
+@pytest.fixture
+def link(vsc_bus: can.BusABC) -> Iterator[CanLink]:
+    link = CanLink("virtual", "link-test", 250_000)
+    link.open()
+    yield link
+    link.close()
+
+
+def test_heartbeat_and_joystick_arrive_decoded(vsc_bus: can.BusABC, link: CanLink) -> None:
+    """A heartbeat frame and a basic joystick frame from the VSC become a VscHeartbeat and a
+    whole Joystick."""
+    vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
+    basic = JoystickBasic(Hand.LEFT, Axis.from_value(300), Axis.from_value(-5), DPad())
+    vsc_bus.send(to_python_can(encode_can(basic)))
+    received = []
+    for _ in range(100):
+        received += link.receive()
+        if len(received) == 2:
+            break
+    assert received[0] == VscHeartbeat(9)
+    assert isinstance(received[1], Joystick)
+    assert (received[1].left_x.value, received[1].left_y.value) == (300, -5)
+
+
+def test_error_frame_breaks_the_link(vsc_bus: can.BusABC, link: CanLink) -> None:
+    """An error frame (bus error, bus-off) is a link fault."""
+    vsc_bus.send(can.Message(is_error_frame=True))
+    with pytest.raises(LinkBroken, match="error frame"):
+        link.receive()
+
+
+def test_send_has_only_feedback_on_can(vsc_bus: can.BusABC, link: CanLink) -> None:
+    """Feedback values go as one frame and labels as three segments; a user heartbeat has no
+    CAN form and is not sent (notes §3)."""
+    link.send([UserHeartbeat(0), FeedbackSet(1, 42), FeedbackName(90, "Hello CAN world!")])
+    frames = []
+    while (raw := vsc_bus.recv(timeout=0.5)) is not None:
+        frames.append(decode_can(from_python_can(raw)))
+    assert frames == [
+        FeedbackSet(1, 42),
+        FeedbackStringSegment(90, 0, "Hello "),
+        FeedbackStringSegment(90, 1, "CAN wo"),
+        FeedbackStringSegment(90, 2, "rld!"),
+    ]
+
+
+def test_virtual_bus_has_no_descriptor_udp_multicast_has_one() -> None:
+    """The loop can wait on udp_multicast's socket; the in-process virtual bus has none."""
+    virtual = CanLink("virtual", "fd-test", 250_000)
+    virtual.open()
+    try:
+        assert virtual.fileno() is None
+    finally:
+        virtual.close()
+    udp = CanLink("udp_multicast", "239.74.163.2", 250_000)
+    udp.open()
+    try:
+        assert isinstance(udp.fileno(), int)
+        assert udp.description == "CAN udp_multicast:239.74.163.2"
+    finally:
+        udp.close()
