@@ -16,6 +16,7 @@ from supervisord.safety import (
     LocalRelease,
     OutputReadback,
     RearmKind,
+    RefusalReason,
     Request,
     State,
 )
@@ -194,3 +195,26 @@ def test_every_record_has_a_rising_sequence_number() -> None:
     rig.estop()
     numbers = [r.sequence for d in rig.decisions for r in d.records]
     assert numbers == list(range(1, len(numbers) + 1))
+
+
+def test_output_that_cannot_be_set_is_a_fault() -> None:
+    """A failed write (no read-back at all) raises ``output_fault:NAME`` with the details."""
+    rig = Rig()
+    rig.bring_up()
+    decision = rig.feed(OutputReadback(rig.now, "lights", True, None))
+    fault = decision.cause("output_fault:lights")
+    assert fault is not None
+    assert fault.active
+    assert fault.detail("read_back") == "failed"
+    assert decision.state is State.STOPPED
+
+
+def test_read_back_of_an_unknown_output_is_internal() -> None:
+    """A read-back for an output the config does not name is our own side's error: it is
+    refused and stops with ``internal``."""
+    rig = Rig()
+    rig.bring_up()
+    decision = rig.feed(OutputReadback(rig.now, "ghost", True, True))
+    assert decision.refusals[0].reason is RefusalReason.UNKNOWN_OUTPUT
+    assert "internal" in decision.latched_names
+    assert decision.state is State.STOPPED
