@@ -1,0 +1,397 @@
+"""The one loop of ``srcsd``: it owns every piece of state and every safety duty.
+
+It waits on the link's descriptor, the client socket, a signal pipe and the earliest deadline
+(the safety core's, the outputs' periodic duties, a link reopen, the systemd watchdog), feeds
+what happened to the safety core, and applies each decision at once: outputs first, then the
+frames to the VSC, then the records (safety-rules.md §6). No other thread exists, so if this
+loop hangs, the user heartbeat stops and the VSC's key-85 watchdog opens its relays
+(safety-rules.md §5).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import logging
+import selectors
+import signal
+import socket
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+from supervisord.daemon.notify import Notifier
+from supervisord.daemon.records import record_json
+from supervisord.links.base import Backoff, Link, LinkBroken, LinkError
+from supervisord.outputs.base import Output, ReadBack
+from supervisord.protocol.framing import Rejection
+from supervisord.protocol.hid import HidInput, HidRejection
+from supervisord.protocol.j1939 import CanRejection
+from supervisord.protocol.messages import Message
+from supervisord.record.jsonl import RecordError, RecordWriter
+from supervisord.safety.config import SafetyConfig
+from supervisord.safety.core import SafetyCore
+from supervisord.safety.decision import Decision, Record
+from supervisord.safety.events import (
+    Event,
+    InternalFault,
+    LinkOpened,
+    OutputReadback,
+    VscReceived,
+)
+from supervisord.safety.events import (
+    LinkBroken as CoreLinkBroken,
+)
+
+log = logging.getLogger("srcsd")
+
+NS_PER_MS = 1_000_000
+POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
+OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
+MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
+
+
+@dataclass
+class Counters:
+    """What the loop has seen, for ``srcsctl status``."""
+
+    messages: int = 0
+    rejections: dict[str, int] = field(default_factory=dict)
+    link_opens: int = 0
+    link_failures: int = 0
+    record_errors: int = 0
+    internal_faults: int = 0
+
+    def reject(self, reason: str) -> None:
+        self.rejections[reason] = self.rejections.get(reason, 0) + 1
+
+
+class Listener:
+    """Something else the loop serves (the client API): descriptors to watch and callbacks.
+
+    ``handle`` returns safety events to feed to the core; ``decided`` is told every decision
+    and every received VSC message, so clients see state, records and traffic as they happen.
+    """
+
+    def descriptors(self) -> Iterable[tuple[int, bool]]:
+        """(fd, wants_write) pairs to watch now."""
+        return ()
+
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> list[Event]:
+        return []
+
+    def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
+        """A decision was applied; ``records`` are its stop-record entries as written."""
+
+    def received(self, message: Message | HidInput) -> None:
+        """A valid message arrived from the VSC."""
+
+    def close(self) -> None:
+        """Release everything."""
+
+
+class Supervisor:
+    """The daemon's state and loop. ``run`` returns the process exit status."""
+
+    def __init__(
+        self,
+        safety: SafetyConfig,
+        link: Link,
+        outputs: list[Output],
+        writer: RecordWriter | None,
+        *,
+        journal: Callable[[dict[str, object]], object] | None = None,
+        listener: Listener | None = None,
+        notifier: Notifier | None = None,
+        clock: Callable[[], int] = time.monotonic_ns,
+        wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.UTC),
+        backoff: Backoff | None = None,
+    ) -> None:
+        self.safety = safety
+        self.link = link
+        self.outputs = {output.name: output for output in outputs}
+        self.writer = writer
+        self.journal = journal
+        self.listener = listener or Listener()
+        self.notifier = notifier or Notifier({})
+        self.clock = clock
+        self.wall_clock = wall_clock
+        self.backoff = backoff or Backoff()
+        self.counters = Counters()
+        self.core: SafetyCore | None = None
+        self.decision: Decision | None = None
+        self._stop_requested = False
+        self._status = ""
+        self._next_watchdog: int | None = None
+        self._selector = selectors.DefaultSelector()
+        self._watched: dict[int, int] = {}
+        self._wake_r, self._wake_w = socket.socketpair()
+
+    # ----------------------------------------------------------------- start and stop
+
+    def start(self) -> Decision:
+        """Outputs off before anything else, then the core, then the link (safety-rules §6).
+
+        Returns the first decision. Raises ``OutputError`` when an output cannot be acquired:
+        a supervisor that cannot hold its outputs must not claim to be ready.
+        """
+        now = self.clock()
+        readbacks = [output.open(now) for output in self.outputs.values()]
+        self.core = SafetyCore(self.safety, now)
+        decision = self.core.tick(now)
+        for readback in readbacks:
+            decision = self._feed(self._readback_event(readback, now))
+        self._apply(decision)
+        self._try_open_link(now)
+        for fd in (self._wake_r.fileno(),):
+            self._wake_r.setblocking(False)
+            self._selector.register(fd, selectors.EVENT_READ, "wake")
+        interval = self.notifier.watchdog_interval_ns
+        self._next_watchdog = now if interval else None
+        assert self.decision is not None
+        self.notifier.send(READY="1", STATUS=self._status_text(self.decision))
+        return self.decision
+
+    def request_stop(self) -> None:
+        """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop)."""
+        self._stop_requested = True
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"\0")
+
+    def shutdown(self) -> None:
+        """All outputs off, then release the link, the socket and the record (SIGTERM path)."""
+        self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
+        now = self.clock()
+        for output in self.outputs.values():
+            with contextlib.suppress(Exception):
+                output.set(False, now)
+            with contextlib.suppress(Exception):
+                output.close()
+        self.link.close()
+        self.listener.close()
+        if self.writer is not None:
+            self.writer.close()
+        self._selector.close()
+        self._wake_r.close()
+        self._wake_w.close()
+        self.notifier.close()
+
+    def run(self) -> int:
+        """Start, loop until SIGTERM/SIGINT, shut down. Exit status 0 on a clean stop."""
+        previous = {
+            sig: signal.signal(sig, lambda *_: self.request_stop())
+            for sig in (signal.SIGTERM, signal.SIGINT)
+        }
+        try:
+            self.start()
+            while not self._stop_requested:
+                self.step()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            self.shutdown()
+        return 0
+
+    # ----------------------------------------------------------------- the loop
+
+    def step(self) -> None:
+        """Wait for the next input or deadline, then handle everything that is due."""
+        deadline = self._next_deadline()
+        timeout = max(0.0, (deadline - self.clock()) / 1e9)
+        self._sync_watches()
+        ready = self._selector.select(timeout)
+        now = self.clock()  # every input of this round counts as received now (§2)
+        try:
+            core_deadline = self.decision.next_deadline if self.decision else now
+            if now - core_deadline > OVERRUN_NS:
+                late = (now - core_deadline) // NS_PER_MS
+                self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
+            for key, mask in ready:
+                self._dispatch(key, mask, now)
+            if self.link.is_open and self.link.fileno() is None:
+                self._receive(now)
+            self._due(now)
+        except Exception as error:
+            self._internal_fault(now, error)
+
+    def _next_deadline(self) -> int:
+        candidates = [self.decision.next_deadline if self.decision else self.clock()]
+        candidates += [
+            d for output in self.outputs.values() if (d := output.next_deadline()) is not None
+        ]
+        if not self.link.is_open:
+            candidates.append(self.backoff.next_attempt)
+        elif self.link.fileno() is None:
+            candidates.append(self.clock() + POLL_NS)
+        if self._next_watchdog is not None:
+            candidates.append(self._next_watchdog)
+        return min(candidates)
+
+    def _sync_watches(self) -> None:
+        wanted: dict[int, int] = {}
+        fd = self.link.fileno() if self.link.is_open else None
+        if fd is not None:
+            wanted[fd] = selectors.EVENT_READ
+        for api_fd, wants_write in self.listener.descriptors():
+            wanted[api_fd] = selectors.EVENT_READ | (selectors.EVENT_WRITE if wants_write else 0)
+        for old in set(self._watched) - set(wanted):
+            with contextlib.suppress(KeyError, ValueError, OSError):
+                self._selector.unregister(old)
+        for new, events in wanted.items():
+            if new not in self._watched:
+                self._selector.register(new, events, "io")
+            elif self._watched[new] != events:
+                self._selector.modify(new, events, "io")
+        self._watched = wanted
+
+    def _dispatch(self, key: selectors.SelectorKey, mask: int, now: int) -> None:
+        if key.data == "wake":
+            with contextlib.suppress(BlockingIOError):
+                self._wake_r.recv(64)
+            return
+        if self.link.is_open and key.fd == self.link.fileno():
+            self._receive(now)
+            return
+        readable = bool(mask & selectors.EVENT_READ)
+        writable = bool(mask & selectors.EVENT_WRITE)
+        for event in self.listener.handle(key.fd, readable, writable, now):
+            self._apply(self._feed(event))
+
+    def _due(self, now: int) -> None:
+        if self.decision is not None and now >= self.decision.next_deadline:
+            assert self.core is not None
+            self._apply(self.core.tick(now))
+        for output in self.outputs.values():
+            deadline = output.next_deadline()
+            if deadline is not None and now >= deadline:
+                readback = output.tick(now)
+                if readback is not None and not readback.ok:
+                    self._apply(self._feed(self._readback_event(readback, now)))
+        if not self.link.is_open and now >= self.backoff.next_attempt:
+            self._try_open_link(now)
+        interval = self.notifier.watchdog_interval_ns
+        if self._next_watchdog is not None and interval and now >= self._next_watchdog:
+            self.notifier.send(WATCHDOG="1")
+            self._next_watchdog = now + interval
+
+    # ----------------------------------------------------------------- the link
+
+    def _try_open_link(self, now: int) -> None:
+        try:
+            self.link.open()
+        except LinkError as error:
+            self.counters.link_failures += 1
+            self.backoff.failed(now)
+            if self.counters.link_failures == 1 or self.counters.link_failures % 50 == 0:
+                log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
+            self._apply(self._feed(CoreLinkBroken(now, f"cannot open: {error.reason}")))
+            return
+        self.backoff.succeeded()
+        self.counters.link_opens += 1
+        log.info("%s: open", self.link.description)
+        self._apply(self._feed(LinkOpened(now)))
+
+    def _receive(self, now: int) -> None:
+        try:
+            received = self.link.receive()
+        except LinkBroken as error:
+            self._link_broken(now, error.reason)
+            return
+        for item in received:
+            if isinstance(item, Rejection | CanRejection | HidRejection):
+                self.counters.reject(
+                    item.reason.value if not isinstance(item, HidRejection) else "wrong_length"
+                )
+                continue
+            self.counters.messages += 1
+            self.listener.received(item)
+            if not isinstance(item, HidInput):
+                self._apply(self._feed(VscReceived(now, item)))
+
+    def _link_broken(self, now: int, reason: str) -> None:
+        log.warning("%s: broken: %s", self.link.description, reason)
+        self.link.close()
+        self.backoff.failed(now)
+        self._apply(self._feed(CoreLinkBroken(now, reason)))
+
+    def _send(self, frames: tuple[Message, ...], now: int) -> None:
+        if not frames or not self.link.is_open:
+            return
+        try:
+            self.link.send(list(frames))
+        except LinkBroken as error:
+            self._link_broken(now, error.reason)
+
+    # ----------------------------------------------------------------- decisions
+
+    def _feed(self, event: Event) -> Decision:
+        assert self.core is not None
+        return self.core.handle(event)
+
+    @staticmethod
+    def _readback_event(readback: ReadBack, now: int) -> OutputReadback:
+        observed = readback.observed if readback.fault is None else None
+        if readback.fault is None and observed is None:
+            observed = readback.written  # CAN: a frame that went out is the read-back
+        return OutputReadback(now, readback.name, readback.requested, observed)
+
+    def _apply(self, decision: Decision) -> None:
+        """Outputs first, then frames, then records and status (safety-rules.md §6)."""
+        for _ in range(MAX_SETTLE_STEPS):
+            changed = [
+                (output, on)
+                for name, on in decision.outputs.items()
+                if (output := self.outputs.get(name)) is not None and output.requested != on
+            ]
+            if not changed:
+                break
+            readbacks = [output.set(on, decision.now) for output, on in changed]
+            self._finish(decision)
+            for readback in readbacks:
+                decision = self._feed(self._readback_event(readback, decision.now))
+        self._finish(decision)
+
+    def _finish(self, decision: Decision) -> None:
+        if decision is self.decision:
+            return
+        self.decision = decision
+        self._send(decision.frames, decision.now)
+        written = [self._write_record(record) for record in decision.records]
+        for refusal in decision.refusals:
+            log.info("refused: %s", refusal.message)
+        self.listener.decided(decision, written)
+        status = self._status_text(decision)
+        if status != self._status:
+            self._status = status
+            self.notifier.send(STATUS=status)
+
+    def _write_record(self, record: Record) -> dict[str, object]:
+        entry = record_json(record, self.wall_clock())
+        if self.writer is not None:
+            try:
+                self.writer.append(entry)
+            except RecordError as error:
+                # The stop itself has already happened (outputs first); losing the disk must
+                # not unwind the loop. It is counted, reported, and journalled below.
+                self.counters.record_errors += 1
+                log.error("stop record not written: %s", error)
+        if self.journal is not None:
+            with contextlib.suppress(Exception):
+                self.journal(entry)
+        return entry
+
+    @staticmethod
+    def _status_text(decision: Decision) -> str:
+        causes = sorted(decision.active_names | decision.latched_names)
+        state = decision.state.value.upper()
+        return f"{state}: {', '.join(causes)}" if causes else state
+
+    def _internal_fault(self, now: int, error: Exception) -> None:
+        """The loop failed: outputs off directly, then the ``internal`` cause (safety-rules §2)."""
+        self.counters.internal_faults += 1
+        log.exception("internal fault in the main loop")
+        for output in self.outputs.values():
+            with contextlib.suppress(Exception):
+                output.set(False, now)
+        with contextlib.suppress(Exception):
+            self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))

@@ -1,0 +1,165 @@
+"""The main loop with real parts: a pseudo-terminal VSC, sim outputs mirrored to files, the
+JSON Lines stop record. A small VSC peer in the test answers key 85 and sends heartbeats."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from supervisord.daemon.loop import Supervisor
+from supervisord.links.base import Backoff
+from supervisord.links.serial_link import SerialLink
+from supervisord.outputs import create_output, parse_output_spec
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.framing import FrameDecoder, encode_frame
+from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.record.jsonl import Record, RecordWriter, read_records
+from supervisord.safety.config import OutputClass, OutputSpec, SafetyConfig
+from supervisord.safety.transitions import State
+from supervisord.testkit.pty_port import PtyPort
+
+
+class VscPeer:
+    """The VSC end of the pty: heartbeats every 50 ms in the current mode, key 85 = 1."""
+
+    def __init__(self, port: PtyPort) -> None:
+        self.port = port
+        self.mode = VscMode.LOCAL
+        self.estop = 0
+        self.silent = False
+        self.received: list[object] = []
+        self._decoder = FrameDecoder()
+        self._next = 0.0
+
+    def serve(self) -> None:
+        now = time.monotonic()
+        if self.port._master is None:
+            return
+        for message in self._decoder.feed(self.port.read()):
+            self.received.append(message)
+            if message == FeedbackGet(85):
+                self.port.write(encode_frame(FeedbackSet(85, 1)))
+        if not self.silent and now >= self._next:
+            self._next = now + 0.05
+            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, self.estop)))
+
+
+@pytest.fixture
+def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
+    port = PtyPort(tmp_path / "vsc")
+    outputs = [
+        create_output(parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})),
+        create_output(
+            parse_output_spec(
+                "lamp", {"kind": "sim", "role": "power", "path": str(tmp_path / "lamp")}
+            )
+        ),
+    ]
+    safety = SafetyConfig(
+        rearm_hold_ms=100,
+        outputs=(OutputSpec("drive", OutputClass.MOTION), OutputSpec("lamp", OutputClass.POWER)),
+    )
+    supervisor = Supervisor(
+        safety,
+        SerialLink(str(port.path)),
+        outputs,
+        RecordWriter(tmp_path / "stops.jsonl"),
+        backoff=Backoff(first_ms=20, max_ms=100),
+    )
+    yield supervisor, VscPeer(port), tmp_path
+    supervisor.shutdown()
+    port.close()
+
+
+def run_until(
+    supervisor: Supervisor, peer: VscPeer, done: Callable[[], bool], limit: float = 5.0
+) -> None:
+    end = time.monotonic() + limit
+    while not done():
+        assert time.monotonic() < end, f"timed out in {supervisor.decision}"
+        peer.serve()
+        supervisor.step()
+
+
+def level(tmp_path: Path, name: str) -> str:
+    return (tmp_path / name).read_text().strip()
+
+
+def active(supervisor: Supervisor) -> frozenset[str]:
+    return supervisor.decision.active_names if supervisor.decision else frozenset()
+
+
+def state(supervisor: Supervisor) -> State | None:
+    return supervisor.decision.state if supervisor.decision else None
+
+
+def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Path]) -> None:
+    """Outputs start off; a takeover runs them; a remote e-stop, VSC silence and an unplug
+    each stop them and are recorded with their cause; the user heartbeat flows meanwhile."""
+    supervisor, peer, tmp = rig
+    supervisor.start()
+    assert (level(tmp, "drive"), level(tmp, "lamp")) == ("0", "0")
+
+    run_until(
+        supervisor,
+        peer,
+        lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
+    )
+    time.sleep(0.15)  # conditions clear for longer than the 100 ms re-arm hold
+    peer.mode = VscMode.OPERATIONAL
+    run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
+    assert (level(tmp, "drive"), level(tmp, "lamp")) == ("1", "1")
+    run_until(supervisor, peer, lambda: UserHeartbeat(0) in peer.received)
+
+    peer.mode, peer.estop = VscMode.LOCAL, 1
+    run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+    assert (level(tmp, "drive"), level(tmp, "lamp")) == ("0", "0")
+
+    peer.silent = True
+    run_until(supervisor, peer, lambda: "vsc_link_lost" in active(supervisor))
+
+    peer.port.unplug()
+    run_until(supervisor, peer, lambda: "transport_fault" in active(supervisor))
+    peer.port.replug()
+    peer.silent = False
+    run_until(supervisor, peer, lambda: "transport_fault" not in active(supervisor))
+    assert supervisor.counters.link_opens == 2
+    assert state(supervisor) is State.STOPPED  # a reconnect is a new start
+
+    lines = (tmp / "stops.jsonl").read_text().splitlines()
+    assert len([r for r in read_records(tmp / "stops.jsonl") if isinstance(r, Record)]) == len(
+        lines
+    )
+    raised = {
+        change["name"]
+        for line in lines
+        for change in json.loads(line)["changes"]
+        if change["change"] == "raised"
+    }
+    assert {"vsc_estop", "vsc_link_lost", "transport_fault"} <= raised
+    assert json.loads((tmp / "stops.jsonl").read_text().splitlines()[0])["to"] == "stopped"
+
+
+def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:
+    """With no VSC at start the daemon runs, holds the outputs off with transport_fault, and
+    opens the port when it appears."""
+    supervisor = Supervisor(
+        SafetyConfig(outputs=(OutputSpec("drive", OutputClass.MOTION),)),
+        SerialLink(str(tmp_path / "vsc")),
+        [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+        None,
+        backoff=Backoff(first_ms=10, max_ms=20),
+    )
+    try:
+        decision = supervisor.start()
+        assert "transport_fault" in decision.active_names
+        with PtyPort(tmp_path / "vsc") as port:
+            peer = VscPeer(port)
+            run_until(supervisor, peer, lambda: supervisor.link.is_open)
+            assert supervisor.counters.link_failures >= 1
+    finally:
+        supervisor.shutdown()
