@@ -1,0 +1,98 @@
+"""Who is at the other end of a client connection (safety-rules.md §8).
+
+The kernel tells us the peer's pid, uid and gid as they were when it connected
+(``SO_PEERCRED``): a peer cannot forge them. Admin rights (``reset``, ``commission``) belong to
+root and to members of the configured admin group; a peer's supplementary groups come from
+``/proc/PID/status`` (``Groups:``), read once when the connection is accepted, and count only
+while that process still runs with the uid the kernel reported (so a recycled pid cannot lend
+its groups to another process).
+"""
+
+from __future__ import annotations
+
+import grp
+import pwd
+import socket
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+from supervisord.errors import ConfigError
+from supervisord.safety.events import Caller
+
+_UCRED = struct.Struct("3i")  # struct ucred: pid_t pid, uid_t uid, gid_t gid
+PROC = Path("/proc")
+
+
+@dataclass(frozen=True, slots=True)
+class PeerCredentials:
+    """The peer's process, user and primary group when it connected."""
+
+    pid: int
+    uid: int
+    gid: int
+
+
+def peer_credentials(sock: socket.socket) -> PeerCredentials:
+    """The credentials of the peer of a connected ``AF_UNIX`` socket.
+
+    Raises ``OSError`` when the socket has no peer (it was closed meanwhile)."""
+    raw = sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, _UCRED.size)
+    pid, uid, gid = _UCRED.unpack(raw)
+    return PeerCredentials(pid, uid, gid)
+
+
+def _status_fields(pid: int, proc: Path) -> dict[str, str]:
+    try:
+        text = (proc / str(pid) / "status").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return {}
+    fields = {}
+    for line in text.splitlines():
+        key, sep, value = line.partition(":")
+        if sep:
+            fields[key] = value.strip()
+    return fields
+
+
+def process_groups(credentials: PeerCredentials, proc: Path = PROC) -> frozenset[int]:
+    """The peer's groups: its primary gid and, while its process still runs with the same
+    effective uid, the supplementary groups of ``/proc/PID/status``. Never raises: what
+    cannot be read does not count."""
+    groups = {credentials.gid}
+    fields = _status_fields(credentials.pid, proc)
+    uids = fields.get("Uid", "").split()  # real, effective, saved, file system
+    if len(uids) >= 2 and uids[1] == str(credentials.uid):
+        groups.update(int(g) for g in fields.get("Groups", "").split() if g.isdecimal())
+    return frozenset(groups)
+
+
+def group_id(name: str | None, key: str = "api.admin_group") -> int | None:
+    """The gid of the group ``name`` (``None`` for ``None``: only root is admin).
+
+    Raises :class:`ConfigError` naming ``key`` when there is no such group."""
+    if name is None:
+        return None
+    try:
+        return grp.getgrnam(name).gr_gid
+    except KeyError:
+        raise ConfigError(key, name, "name a group that exists (see getent group)") from None
+
+
+def user_name(uid: int) -> str:
+    """The login name of ``uid``, or the number as text when it has none."""
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return str(uid)
+
+
+def is_admin(credentials: PeerCredentials, groups: frozenset[int], admin_gid: int | None) -> bool:
+    """Root, or a member of the admin group (``admin_gid``; ``None``: nobody but root)."""
+    return credentials.uid == 0 or (admin_gid is not None and admin_gid in groups)
+
+
+def caller(credentials: PeerCredentials, admin_gid: int | None, proc: Path = PROC) -> Caller:
+    """The safety core's view of the peer: uid, pid, login name and admin flag."""
+    admin = is_admin(credentials, process_groups(credentials, proc), admin_gid)
+    return Caller(credentials.uid, credentials.pid, user_name(credentials.uid), admin)

@@ -1,0 +1,527 @@
+"""The client API server: a non-blocking Unix socket driven by the daemon's one loop.
+
+safety-rules.md §8 and ``docs/api.md``. There are no threads: the server registers its
+sockets with the daemon's ``selectors`` selector (``data`` is the server) and keeps those
+registrations up to date itself, so a descriptor is always unregistered before it is closed.
+The loop hands every ready key back to :meth:`ApiServer.handle`, which returns typed results:
+
+- :class:`Accepted` - a client connected (``ClientConnected`` for the core);
+- :class:`Received` - a valid request the daemon must act on and answer with :meth:`reply`
+  or :meth:`reply_error`, exactly once;
+- :class:`Denied` - an admin-only request from a non-admin, already answered ``not_allowed``;
+- :class:`Closed` - a connection ended (``ClientDisconnected``), reported once per
+  :class:`Accepted`.
+
+:func:`core_event` turns a result into the safety core's event. Every socket is
+non-blocking; output waits in a bounded buffer per connection, and a client whose buffer
+overflows (stopped, or too slow to read) is disconnected: it can never block the loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import errno
+import os
+import selectors
+import socket
+import stat
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Final, Self
+
+from supervisord.api.credentials import caller, group_id, peer_credentials
+from supervisord.api.wire import (
+    ADMIN_REQUESTS,
+    DEFAULT_MAX_DISCARD,
+    DEFAULT_MAX_LINE,
+    ApiError,
+    ClientInfo,
+    ErrorCode,
+    Heartbeat,
+    Hello,
+    LineReader,
+    Request,
+    Subscribe,
+    Topic,
+    encode,
+    ok_reply,
+    parse_request,
+    to_core_event,
+)
+from supervisord.errors import ConfigError, SrcsError
+from supervisord.safety.events import ClientConnected, ClientDisconnected, Event
+
+DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
+DEFAULT_MODE: Final = 0o660
+DEFAULT_MAX_CLIENTS: Final = 16
+DEFAULT_MAX_OUTPUT: Final = 256 * 1024
+RECV_SIZE: Final = 16 * 1024  # bytes read per readable event: bounded work per loop turn
+ACCEPTS_PER_CALL: Final = 32
+BACKLOG: Final = 16
+
+READ, WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
+
+
+class ServerError(SrcsError):
+    """The server cannot start at its path; the message names the path and the fix."""
+
+
+@dataclass(frozen=True, slots=True)
+class ServerConfig:
+    """Where and how the API socket is served (``docs/api.md`` "Configuration").
+
+    ``mode`` must not let others write (connect to) the socket; ``group`` owns the socket
+    file (``None``: the daemon's group); ``admin_group`` grants ``reset`` and ``commission``
+    (``None``: only root). Raises :class:`ConfigError` for a value out of range.
+    """
+
+    path: Path = DEFAULT_SOCKET_PATH
+    mode: int = DEFAULT_MODE
+    group: str | None = None
+    admin_group: str | None = None
+    max_clients: int = DEFAULT_MAX_CLIENTS
+    max_line: int = DEFAULT_MAX_LINE
+    max_discard: int = DEFAULT_MAX_DISCARD
+    max_output: int = DEFAULT_MAX_OUTPUT
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "path", Path(self.path))
+        if not isinstance(self.mode, int) or self.mode & ~0o770 or not self.mode & 0o200:
+            raise ConfigError(
+                "api.mode", self.mode, "use 0600, 0620 or 0660: owner and group only, never others"
+            )
+        for key, value, low, high in (
+            ("api.max_clients", self.max_clients, 1, 1024),
+            ("api.max_line", self.max_line, 256, 1 << 20),
+            ("api.max_discard", self.max_discard, self.max_line, 1 << 26),
+            ("api.max_output", self.max_output, 4096, 1 << 28),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise ConfigError(key, value, f"use a whole number from {low} to {high}")
+
+
+class CloseReason(enum.Enum):
+    """Why a connection ended: closed by the peer, broken by the world, or closed by us."""
+
+    PEER_CLOSED = "peer_closed"  # the client closed its end
+    BROKEN = "broken"  # a read or write failed (e.g. connection reset)
+    OUTPUT_OVERFLOW = "output_overflow"  # the client did not read its replies and pushes
+    FLOOD = "flood"  # the client sent an endless line
+    SHUTDOWN = "shutdown"  # the server closed
+
+
+@dataclass(frozen=True, slots=True)
+class Accepted:
+    client: ClientInfo
+
+
+@dataclass(frozen=True, slots=True)
+class Received:
+    """A valid request; ``client`` is the connection as it was when the request arrived
+    (after a ``hello``, with its new name)."""
+
+    client: ClientInfo
+    request: Request
+
+
+@dataclass(frozen=True, slots=True)
+class Denied:
+    """A request the server refused for lack of rights, already answered with ``error``."""
+
+    client: ClientInfo
+    request: Request
+    error: ApiError
+
+
+@dataclass(frozen=True, slots=True)
+class Closed:
+    client: ClientInfo
+    reason: CloseReason
+
+
+Result = Accepted | Received | Denied | Closed
+
+
+def core_event(result: Result, now: int) -> Event | None:
+    """The safety core's event for one server result at ``now``, or ``None``.
+
+    A :class:`Denied` ``reset`` still becomes a ``ResetRequest`` (with ``admin`` false), so
+    the core refuses it and the refusal is recorded (safety-rules.md §4, §7)."""
+    match result:
+        case Accepted(client=client):
+            return ClientConnected(now, client.connection)
+        case Closed(client=client):
+            return ClientDisconnected(now, client.connection)
+        case Received(client=client, request=request) | Denied(client=client, request=request):
+            return to_core_event(request, client, now)
+
+
+class _Connection:
+    __slots__ = (
+        "accepted",
+        "closing",
+        "dead",
+        "info",
+        "mask",
+        "out",
+        "reader",
+        "sock",
+        "topics",
+    )
+
+    def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
+        self.sock, self.info, self.reader = sock, info, reader
+        self.out = bytearray()
+        self.topics: frozenset[Topic] = frozenset()
+        self.closing = False  # no more input; close once the output is flushed
+        self.accepted = True  # reported as Accepted, so its end is reported as Closed
+        self.mask = 0
+        self.dead = False  # the socket is closed
+
+
+class ApiServer:
+    """The API socket at ``config.path``, its connections and their buffers.
+
+    Construction creates the socket (mode ``config.mode``, group ``config.group``) and
+    registers it with ``selector``. A stale socket file left by a crash is replaced; a path
+    that is not a socket, or a socket another server still listens on, raises
+    :class:`ServerError` and nothing is changed. :meth:`close` ends every connection and
+    removes the socket file.
+    """
+
+    def __init__(self, config: ServerConfig, selector: selectors.BaseSelector) -> None:
+        self.config, self._selector = config, selector
+        self._admin_gid = group_id(config.admin_group)
+        socket_gid = group_id(config.group, "api.group")
+        self._connections: dict[int, _Connection] = {}  # by connection number
+        self._by_fd: dict[int, _Connection] = {}
+        self._next_number = 1
+        self._closed = False
+        self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
+        self._listen_fd = self._listener.fileno()
+        try:
+            selector.register(self._listener, READ, self)
+        except BaseException:
+            self._close_listener()
+            raise
+
+    # -- the loop's side ------------------------------------------------------------------
+
+    def handle(self, fd: int, mask: int) -> list[Result]:
+        """Act on one ready key of the selector (``key.fd``, ``mask``) whose ``data`` is this
+        server, and return what happened."""
+        if fd == self._listen_fd:
+            return self.accept()
+        results: list[Result] = []
+        if mask & WRITE:
+            results += self.on_writable(fd)
+        if mask & READ:
+            results += self.on_readable(fd)
+        return results
+
+    def accept(self) -> list[Result]:
+        """Accept the waiting connections (a bounded number per call)."""
+        results: list[Result] = []
+        for _ in range(ACCEPTS_PER_CALL):
+            if self._closed:
+                break
+            try:
+                sock, _address = self._listener.accept()
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # e.g. out of descriptors: try again on the next turn
+                break
+            accepted = self._adopt(sock)
+            if accepted is not None:
+                results.append(accepted)
+        return results
+
+    def on_readable(self, fd: int) -> list[Result]:
+        """Read what one connection sent and return its requests (and its end, if it ended)."""
+        conn = self._by_fd.get(fd)
+        if conn is None or conn.closing:
+            return []
+        try:
+            data = conn.sock.recv(RECV_SIZE)
+        except (BlockingIOError, InterruptedError):
+            return []
+        except OSError:
+            return list(self._drop(conn, CloseReason.BROKEN))
+        if not data:
+            return list(self._finish(conn, CloseReason.PEER_CLOSED))
+        results: list[Result] = []
+        for item in conn.reader.feed(data):
+            if isinstance(item, ApiError):
+                results += self._queue(conn, encode(item.reply()))
+            else:
+                results += self._dispatch(conn, item)
+            if conn.dead:  # closed while answering: nothing more to read
+                return results
+        if conn.reader.flooded:
+            error = ApiError(ErrorCode.FLOOD, "an endless line: the connection is closed")
+            results += self._queue(conn, encode(error.reply()))
+            if not conn.dead:
+                results += self._finish(conn, CloseReason.FLOOD)
+        return results
+
+    def on_writable(self, fd: int) -> list[Result]:
+        """Send what waits for one connection; close it once a closing one is flushed."""
+        conn = self._by_fd.get(fd)
+        if conn is None:
+            return []
+        if conn.out:
+            try:
+                sent = conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
+            except (BlockingIOError, InterruptedError):
+                sent = 0
+            except OSError:
+                return list(self._drop(conn, CloseReason.BROKEN))
+            del conn.out[:sent]
+        if conn.closing and not conn.out:
+            self._close(conn)
+            return []
+        self._watch(conn)
+        return []
+
+    # -- the daemon's side ----------------------------------------------------------------
+
+    def reply(self, received: Received, **fields: object) -> list[Closed]:
+        """Answer a request with success and ``fields``. Nothing happens if the connection is
+        gone; returns the connection's end if the answer overflowed its buffer."""
+        return self.send(received.client.connection, ok_reply(received.request, **fields))
+
+    def reply_error(self, received: Received, error: ApiError) -> list[Closed]:
+        """Answer a request with an error (e.g. :func:`~supervisord.api.wire.refusal_error`)."""
+        return self.send(received.client.connection, error.reply())
+
+    def send(self, connection: int, obj: Mapping[str, object]) -> list[Closed]:
+        """Send one JSON object to one connection (if it is still there)."""
+        conn = self._connections.get(connection)
+        if conn is None:
+            return []
+        return self._queue(conn, encode(obj))
+
+    def broadcast(self, topic: Topic, obj: Mapping[str, object]) -> list[Closed]:
+        """Push one JSON object to every connection subscribed to ``topic``."""
+        line: bytes | None = None
+        closed: list[Closed] = []
+        for conn in list(self._connections.values()):
+            if topic in conn.topics and not conn.closing:
+                line = line if line is not None else encode(obj)
+                closed += self._queue(conn, line)
+        return closed
+
+    def subscribed(self, topic: Topic) -> bool:
+        """Whether any connection wants ``topic`` (so a push is worth building)."""
+        return any(topic in c.topics for c in self._connections.values() if not c.closing)
+
+    def clients(self) -> tuple[ClientInfo, ...]:
+        """The open connections that were accepted, oldest first."""
+        return tuple(c.info for c in self._connections.values() if c.accepted and not c.closing)
+
+    @property
+    def path(self) -> Path:
+        return self.config.path
+
+    def close(self) -> list[Closed]:
+        """End every connection and remove the socket file (only if it is still ours).
+
+        Returns the ends not reported before; closing twice does nothing."""
+        if self._closed:
+            return []
+        self._closed = True
+        closed: list[Closed] = []
+        for conn in list(self._connections.values()):
+            if conn.accepted and not conn.closing:
+                closed.append(Closed(conn.info, CloseReason.SHUTDOWN))
+            self._close(conn)
+        self._close_listener()
+        return closed
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- inside ---------------------------------------------------------------------------
+
+    def _adopt(self, sock: socket.socket) -> Accepted | None:
+        sock.setblocking(False)
+        try:
+            who = caller(peer_credentials(sock), self._admin_gid)
+        except OSError:
+            sock.close()
+            return None
+        number = self._next_number
+        self._next_number += 1
+        reader = LineReader(self.config.max_line, self.config.max_discard)
+        conn = _Connection(sock, ClientInfo(number, who), reader)
+        self._connections[number] = conn
+        self._by_fd[sock.fileno()] = conn
+        live = sum(1 for c in self._connections.values() if c.accepted and not c.closing)
+        if live > self.config.max_clients:
+            conn.accepted, conn.closing = False, True
+            error = ApiError(
+                ErrorCode.TOO_MANY_CLIENTS,
+                f"the server takes at most {self.config.max_clients} clients",
+            )
+            self._watch(conn)
+            self._queue(conn, encode(error.reply()))
+            return None
+        self._watch(conn)
+        return Accepted(conn.info)
+
+    def _dispatch(self, conn: _Connection, line: bytes) -> list[Result]:
+        if not line.strip():
+            return []  # blank lines are allowed (handy when typing requests by hand)
+        try:
+            request = parse_request(line)
+            error = self._check(conn, request)
+        except ApiError as e:
+            return list(self._queue(conn, encode(e.reply())))
+        if error is not None:
+            if error.code == ErrorCode.NOT_ALLOWED:
+                return [
+                    Denied(conn.info, request, error),
+                    *self._queue(conn, encode(error.reply())),
+                ]
+            return list(self._queue(conn, encode(error.reply())))
+        if isinstance(request, Hello):
+            conn.info = replace(conn.info, name=request.name)
+        elif isinstance(request, Subscribe):
+            conn.topics = request.topics
+        return [Received(conn.info, request)]
+
+    def _check(self, conn: _Connection, request: Request) -> ApiError | None:
+        def error(code: ErrorCode, message: str) -> ApiError:
+            return ApiError(code, message, op=request.OP, request_id=request.id)
+
+        if isinstance(request, ADMIN_REQUESTS) and not conn.info.caller.admin:
+            return error(ErrorCode.NOT_ALLOWED, f"{request.OP} needs root or the admin group")
+        if isinstance(request, Hello):
+            if conn.info.name is not None:
+                return error(ErrorCode.ALREADY_NAMED, f"this connection is {conn.info.name}")
+            for other in self._connections.values():
+                if other.info.name == request.name and not other.closing:
+                    return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
+        if isinstance(request, Heartbeat) and conn.info.name is None:
+            return error(ErrorCode.NOT_HELLO, "say hello with a name before heartbeats")
+        return None
+
+    def _queue(self, conn: _Connection, line: bytes) -> list[Closed]:
+        if conn.dead:
+            return []
+        if not conn.out:
+            try:
+                sent = conn.sock.send(line, socket.MSG_NOSIGNAL)
+            except (BlockingIOError, InterruptedError):
+                sent = 0
+            except OSError:
+                return self._drop(conn, CloseReason.BROKEN)
+            line = line[sent:]
+        conn.out += line
+        if len(conn.out) > self.config.max_output:
+            return self._drop(conn, CloseReason.OUTPUT_OVERFLOW)
+        self._watch(conn)
+        return []
+
+    def _watch(self, conn: _Connection) -> None:
+        mask = (0 if conn.closing else READ) | (WRITE if conn.out or conn.closing else 0)
+        if mask == conn.mask:
+            return
+        if conn.mask == 0:
+            self._selector.register(conn.sock, mask, self)
+        else:
+            self._selector.modify(conn.sock, mask, self)
+        conn.mask = mask
+
+    def _finish(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
+        """Take no more input; close once the output is flushed; report the end now."""
+        report = conn.accepted and not conn.closing
+        conn.closing = True
+        self._watch(conn)
+        return [Closed(conn.info, reason)] if report else []
+
+    def _drop(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
+        """Close at once, dropping any output."""
+        report = conn.accepted and not conn.closing
+        self._close(conn)
+        return [Closed(conn.info, reason)] if report else []
+
+    def _close(self, conn: _Connection) -> None:
+        if conn.mask:
+            self._selector.unregister(conn.sock)
+            conn.mask = 0
+        if self._by_fd.get(conn.sock.fileno()) is conn:
+            del self._by_fd[conn.sock.fileno()]
+        self._connections.pop(conn.info.connection, None)
+        conn.out.clear()
+        conn.dead = True
+        conn.sock.close()
+
+    def _close_listener(self) -> None:
+        with contextlib.suppress(KeyError, ValueError):
+            self._selector.unregister(self._listener)
+        self._listener.close()
+        _unlink_if_ours(self.config.path, self._identity)
+
+
+# -- the socket file -----------------------------------------------------------------------
+
+
+def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tuple[int, int]]:
+    _remove_stale(path)
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
+    try:
+        sock.bind(str(path))
+        # Nobody can connect before listen(), so the mode and group are right before the
+        # first client arrives (safety-rules.md §8: the socket is not world-writable).
+        os.chmod(path, mode)
+        if gid is not None:
+            os.chown(path, -1, gid)
+        sock.listen(BACKLOG)
+        info = os.stat(path)
+    except OSError as e:
+        sock.close()
+        with contextlib.suppress(OSError):
+            if stat.S_ISSOCK(os.lstat(path).st_mode):
+                os.unlink(path)
+        raise ServerError(f"cannot serve the API at {path}: {e.strerror or e}") from e
+    return sock, (info.st_dev, info.st_ino)
+
+
+def _remove_stale(path: Path) -> None:
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise ServerError(f"cannot check {path}: {e.strerror or e}") from e
+    if not stat.S_ISSOCK(info.st_mode):
+        raise ServerError(f"{path} exists and is not a socket: remove it or choose another path")
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
+    try:
+        probe.connect(str(path))
+    except ConnectionRefusedError:
+        pass  # nobody listens: a stale socket left by a crash
+    except BlockingIOError:
+        raise ServerError(f"another server is listening at {path}") from None
+    except OSError as e:
+        if e.errno != errno.ENOENT:
+            raise ServerError(f"cannot check {path}: {e.strerror or e}") from e
+    else:
+        raise ServerError(f"another server is listening at {path}")
+    finally:
+        probe.close()
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
+
+
+def _unlink_if_ours(path: Path, identity: tuple[int, int]) -> None:
+    with contextlib.suppress(OSError):
+        info = os.lstat(path)
+        if (info.st_dev, info.st_ino) == identity:
+            os.unlink(path)

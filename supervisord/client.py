@@ -1,0 +1,294 @@
+"""A small, blocking Python client of the supervisor's API for the robot's programs.
+
+``docs/api.md`` describes the protocol this speaks (JSON lines over a Unix socket). A typical
+robot program names itself and sends a heartbeat every 100 ms::
+
+    with SupervisorClient.connect(DEFAULT_SOCKET_PATH, name="planner") as srcs:
+        while running:
+            srcs.heartbeat()
+            time.sleep(0.1)
+
+Every method sends one request and waits for its reply. A refused request raises
+:class:`~supervisord.api.wire.ApiError` with the server's stable ``code``; pushes that arrive
+meanwhile are kept for :meth:`SupervisorClient.next_event`. Every exception raised on purpose
+is a :class:`~supervisord.errors.SrcsError`. Not thread-safe: one client per thread.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import socket
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, Self
+
+from supervisord.api.wire import (
+    ApiError,
+    Commission,
+    DisplayLabel,
+    DisplayModeRequest,
+    DisplayRow,
+    DisplayValue,
+    Estop,
+    Heartbeat,
+    Hello,
+    Hold,
+    Release,
+    Request,
+    Reset,
+    Side,
+    Status,
+    Subscribe,
+    Topic,
+    Vibrate,
+    encode,
+    request_json,
+)
+from supervisord.errors import SrcsError
+from supervisord.protocol.codes import DisplayMode
+from supervisord.safety.events import Request as Releasable
+
+DEFAULT_TIMEOUT: Final = 5.0
+DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
+"""Where the daemon serves the API unless its config says otherwise."""
+MAX_REPLY_LINE: Final = 1 << 20
+MAX_KEPT_EVENTS: Final = 4096
+
+
+class ClientError(SrcsError):
+    """The client could not talk to the supervisor (not a refusal: see ``ApiError``)."""
+
+
+class ConnectError(ClientError):
+    """The socket could not be reached (no daemon, wrong path, no permission)."""
+
+
+class ConnectionClosedError(ClientError):
+    """The supervisor closed the connection (it stopped, or disconnected this client)."""
+
+
+class ClientTimeoutError(ClientError, TimeoutError):
+    """No reply came in time; the connection is closed because its replies would be out of
+    step with its requests."""
+
+
+class ProtocolError(ClientError):
+    """The supervisor sent something this client cannot read."""
+
+
+@dataclass(frozen=True, slots=True)
+class Push:
+    """One push of a subscribed topic: ``event`` (e.g. ``"state"``) and the whole object."""
+
+    event: str
+    data: dict[str, Any]
+
+
+class SupervisorClient:
+    """One connection to the supervisor. Use :meth:`connect`; close it (or use ``with``)."""
+
+    def __init__(self, sock: socket.socket, timeout: float = DEFAULT_TIMEOUT) -> None:
+        self._sock = sock
+        self.timeout = timeout
+        self._buffer = bytearray()
+        self._events: collections.deque[Push] = collections.deque(maxlen=MAX_KEPT_EVENTS)
+        self.name: str | None = None
+
+    @classmethod
+    def connect(
+        cls, path: str | Path, name: str | None = None, timeout: float = DEFAULT_TIMEOUT
+    ) -> Self:
+        """Connect to the socket at ``path`` and, with a ``name``, say hello.
+
+        Raises :class:`ConnectError`, or ``ApiError`` if the hello is refused."""
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            sock.settimeout(timeout)
+            sock.connect(str(path))
+        except OSError as e:
+            sock.close()
+            raise ConnectError(f"cannot connect to {path}: {e.strerror or e}") from e
+        client = cls(sock, timeout)
+        try:
+            if name is not None:
+                client.hello(name)
+        except BaseException:
+            client.close()
+            raise
+        return client
+
+    # -- requests -------------------------------------------------------------------------
+
+    def hello(self, name: str) -> None:
+        """Name this connection (safety-rules.md §8); required clients must, before heartbeats."""
+        self.call(Hello(name))
+        self.name = name
+
+    def heartbeat(self) -> None:
+        """Tell the supervisor this client is alive (at least every timeout, default 500 ms)."""
+        self.call(Heartbeat())
+
+    def estop(self) -> None:
+        """Ask for an e-stop: ``client_estop:NAME`` after hello, ``local_estop`` before."""
+        self.call(Estop())
+
+    def hold(self) -> None:
+        """Ask for a hold (``client_hold:NAME``) until :meth:`release` of ``"hold"``."""
+        self.call(Hold())
+
+    def release(self, what: str = "estop") -> None:
+        """End this client's own ``"estop"`` or ``"hold"``; a stop stays latched until re-armed."""
+        self.call(Release(Releasable(what)))
+
+    def status(self) -> dict[str, Any]:
+        """The state, causes and outputs (``docs/api.md`` "status")."""
+        return self.call(Status())
+
+    def subscribe(self, *topics: str) -> None:
+        """Receive pushes of these topics (replacing earlier ones); none: unsubscribe."""
+        self.call(Subscribe(frozenset(Topic(t) for t in topics)))
+
+    def display_value(self, key: int, value: int) -> None:
+        """Show ``value`` in user value ``key`` (1-9) on the remote."""
+        self.call(DisplayValue(key, value))
+
+    def display_label(self, key: int, text: str) -> None:
+        """Label user value ``key`` (1-9), at most 20 characters."""
+        self.call(DisplayLabel(key, text))
+
+    def display_row(self, index: int, text: str) -> None:
+        """Set text row ``index`` (1-4), at most 20 characters."""
+        self.call(DisplayRow(index, text))
+
+    def display_mode(self, mode: int | DisplayMode) -> None:
+        """Choose the remote's page: 0 GPS, 1 text rows, 2 labelled values, 3 values."""
+        self.call(DisplayModeRequest(DisplayMode(mode)))
+
+    def vibrate(self, side: str = "both") -> None:
+        """Vibrate the ``"left"``, ``"right"`` or ``"both"`` handles of the remote."""
+        self.call(Vibrate(Side(side)))
+
+    def reset(self) -> dict[str, Any]:
+        """A local re-arm (safety-rules.md §4); root or the admin group only."""
+        return self.call(Reset())
+
+    def commission(self) -> dict[str, Any]:
+        """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently.
+        Root or the admin group only; the reply carries what was read back."""
+        return self.call(Commission())
+
+    def call(self, request: Request) -> dict[str, Any]:
+        """Send any request and return its success reply (raises ``ApiError`` on an error)."""
+        self._send(request_json(request))
+        deadline = time.monotonic() + self.timeout
+        while True:
+            obj = self._read_object(deadline)
+            if "event" in obj:
+                self._events.append(Push(str(obj["event"]), obj))
+                continue
+            if obj.get("ok") is True:
+                return obj
+            raise _error(obj)
+
+    def next_event(self, timeout: float | None = None) -> Push | None:
+        """The next push, waiting up to ``timeout`` seconds (default: the client's timeout);
+        ``None`` when none came. Pushes are kept in order, the newest 4096 at most."""
+        if self._events:
+            return self._events.popleft()
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while True:
+            try:
+                obj = self._read_object(deadline, closing=False)
+            except ClientTimeoutError:
+                return None
+            if "event" in obj:
+                return Push(str(obj["event"]), obj)
+            if obj.get("ok") is False:  # e.g. too_many_clients, sent before closing
+                raise _error(obj)
+            raise ProtocolError(f"a reply without a request: {obj!r}"[:200])
+
+    # -- lifetime -------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Close the connection (the supervisor then reports the client as disconnected)."""
+        self._sock.close()
+
+    def fileno(self) -> int:
+        """The socket's descriptor, to wait for pushes in a ``select`` loop."""
+        return self._sock.fileno()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- inside ---------------------------------------------------------------------------
+
+    def _send(self, obj: dict[str, Any]) -> None:
+        if self._sock.fileno() < 0:
+            raise ConnectionClosedError("the client is closed")
+        try:
+            self._sock.settimeout(self.timeout)
+            self._sock.sendall(encode(obj))
+        except TimeoutError as e:
+            self.close()
+            raise ClientTimeoutError("the supervisor does not read its requests") from e
+        except OSError as e:
+            self.close()
+            raise ConnectionClosedError(f"the connection broke: {e.strerror or e}") from e
+
+    def _read_object(self, deadline: float, *, closing: bool = True) -> dict[str, Any]:
+        while True:
+            newline = self._buffer.find(b"\n")
+            if newline >= 0:
+                line = bytes(self._buffer[:newline])
+                del self._buffer[: newline + 1]
+                return _decode(line)
+            if len(self._buffer) > MAX_REPLY_LINE:
+                self.close()
+                raise ProtocolError("a line from the supervisor is too long")
+            self._fill(deadline, closing=closing)
+
+    def _fill(self, deadline: float, *, closing: bool) -> None:
+        if self._sock.fileno() < 0:
+            raise ConnectionClosedError("the client is closed")
+        remaining = deadline - time.monotonic()
+        try:
+            if remaining <= 0:
+                raise TimeoutError
+            self._sock.settimeout(remaining)
+            data = self._sock.recv(65536)
+        except TimeoutError as e:
+            if closing:
+                self.close()
+            raise ClientTimeoutError("no answer from the supervisor in time") from e
+        except OSError as e:
+            self.close()
+            raise ConnectionClosedError(f"the connection broke: {e.strerror or e}") from e
+        if not data:
+            self.close()
+            raise ConnectionClosedError("the supervisor closed the connection")
+        self._buffer += data
+
+
+def _error(obj: dict[str, Any]) -> ApiError:
+    return ApiError(
+        str(obj.get("code", "unknown")),
+        str(obj.get("error", "")),
+        op=obj.get("op"),
+        request_id=obj.get("id"),
+        extra={k: v for k, v in obj.items() if k not in ("ok", "code", "error", "op", "id")},
+    )
+
+
+def _decode(line: bytes) -> dict[str, Any]:
+    try:
+        obj = json.loads(line)
+    except ValueError as e:
+        raise ProtocolError(f"not JSON from the supervisor: {line[:80]!r}") from e
+    if not isinstance(obj, dict):
+        raise ProtocolError(f"not a JSON object from the supervisor: {line[:80]!r}")
+    return obj

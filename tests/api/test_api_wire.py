@@ -1,0 +1,405 @@
+"""The API's message vocabulary: framing, parsing, replies, pushes and core events."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+
+import pytest
+
+from supervisord.api.wire import (
+    OPS,
+    ApiError,
+    ClientInfo,
+    Commission,
+    DisplayLabel,
+    DisplayModeRequest,
+    DisplayRow,
+    DisplayValue,
+    ErrorCode,
+    Estop,
+    Heartbeat,
+    Hello,
+    Hold,
+    LineReader,
+    Release,
+    Request,
+    Reset,
+    Side,
+    Status,
+    Subscribe,
+    Topic,
+    Vibrate,
+    decision_json,
+    encode,
+    message_push,
+    message_topic,
+    ok_reply,
+    parse_request,
+    record_json,
+    record_push,
+    refusal_error,
+    request_json,
+    state_push,
+    to_core_event,
+    trigger_json,
+)
+from supervisord.protocol.codes import DisplayMode
+from supervisord.protocol.messages import (
+    FeedbackName,
+    FeedbackSet,
+    Gps,
+    Joystick,
+    RemoteStatus,
+    VscHeartbeat,
+)
+from supervisord.record.jsonl import REQUIRED_FIELDS
+from supervisord.record.jsonl import encode as encode_record
+from supervisord.safety.config import SafetyConfig
+from supervisord.safety.core import SafetyCore
+from supervisord.safety.decision import RefusalReason
+from supervisord.safety.events import (
+    Caller,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientHold,
+    ClientRelease,
+    DisplayUpdate,
+    LocalEstop,
+    LocalRelease,
+    ResetRequest,
+    VscReceived,
+)
+from supervisord.safety.events import Request as Releasable
+
+ROOT = Caller(0, 42, "root", True)
+USER = Caller(1000, 43, "robot", False)
+
+EVERY_REQUEST: tuple[Request, ...] = (
+    Hello("planner"),
+    Heartbeat(),
+    Estop(),
+    Hold(),
+    Release(Releasable.ESTOP),
+    Release(Releasable.HOLD, id=3),
+    Status(id="s-1"),
+    Subscribe(frozenset({Topic.STATE, Topic.RECORDS})),
+    Subscribe(frozenset()),
+    DisplayValue(9, -(2**31)),
+    DisplayLabel(1, "speed m/s"),
+    DisplayRow(4, "x" * 20),
+    DisplayModeRequest(DisplayMode.TEXT_ROWS),
+    Vibrate(Side.LEFT),
+    Reset(),
+    Commission(),
+)
+
+
+def code_of(line: bytes) -> str:
+    with pytest.raises(ApiError) as caught:
+        parse_request(line)
+    return caught.value.code
+
+
+# -- framing --------------------------------------------------------------------------------
+
+
+def test_lines_are_cut_at_newlines() -> None:
+    """Complete lines come out without their newline; a partial line waits for more bytes."""
+    reader = LineReader(256)
+    assert reader.feed(b'{"a":1}\n{"b"') == [b'{"a":1}']
+    assert reader.pending == 4
+    assert reader.feed(b":2}\n\n") == [b'{"b":2}', b""]
+
+
+def test_lines_fed_byte_by_byte_come_out_the_same() -> None:
+    """Feeding one byte at a time yields the same lines as feeding the whole stream."""
+    stream = b'{"op":"status"}\n{"op":"hello","name":"a"}\n'
+    whole = LineReader(256).feed(stream)
+    reader = LineReader(256)
+    pieces = [item for i in range(len(stream)) for item in reader.feed(stream[i : i + 1])]
+    assert pieces == whole
+
+
+def test_line_at_the_limit_passes_and_one_more_byte_is_too_long() -> None:
+    """max_line counts the newline: 255 bytes and a newline pass, 256 and a newline do not."""
+    reader = LineReader(256)
+    assert reader.feed(b"a" * 255 + b"\n") == [b"a" * 255]
+    items = reader.feed(b"b" * 256 + b"\nnext\n")
+    assert isinstance(items[0], ApiError)
+    assert items[0].code == ErrorCode.TOO_LONG
+    assert items[1:] == [b"next"]
+
+
+def test_too_long_is_reported_once_and_the_rest_discarded() -> None:
+    """An over-long line sent in pieces gives one error, then lines after it read normally."""
+    reader = LineReader(256, 4096)
+    errors = [item for _ in range(10) for item in reader.feed(b"z" * 100)]
+    assert [e.code for e in errors if isinstance(e, ApiError)] == [ErrorCode.TOO_LONG]
+    assert reader.pending == 0
+    assert reader.feed(b"zz\nok\n") == [b"ok"]
+    assert not reader.flooded
+
+
+def test_endless_line_floods_and_the_reader_stops() -> None:
+    """More than max_discard bytes of one line set flooded, and nothing more is read."""
+    reader = LineReader(256, 1024)
+    reader.feed(b"z" * 1000)
+    before = reader.flooded
+    reader.feed(b"z" * 100)
+    assert (before, reader.flooded) == (False, True)
+    assert reader.feed(b"\nok\n") == []
+
+
+def test_encode_is_one_compact_line() -> None:
+    """Replies are compact UTF-8 JSON with one newline at the end, even with newlines inside."""
+    line = encode({"ok": True, "text": "a\nb é"})
+    assert line.count(b"\n") == 1
+    assert line.endswith(b"\n")
+    assert json.loads(line) == {"ok": True, "text": "a\nb é"}
+
+
+def test_encode_refuses_values_json_cannot_hold() -> None:
+    """NaN or a Python object in a reply is our mistake: ValueError, nothing encoded."""
+    with pytest.raises(ValueError, match="JSON"):
+        encode({"x": float("nan")})
+    with pytest.raises(ValueError, match="JSON"):
+        encode({"x": object()})
+
+
+# -- parsing --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("request_value", EVERY_REQUEST, ids=repr)
+def test_every_request_round_trips(request_value: Request) -> None:
+    """What request_json writes, parse_request reads back as the same value."""
+    line = encode(request_json(request_value))[:-1]
+    assert parse_request(line) == request_value
+
+
+def test_every_op_is_covered_by_the_examples() -> None:
+    """The round-trip examples use every op the server knows."""
+    assert {r.OP for r in EVERY_REQUEST} == set(OPS)
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        b"{",
+        b"not json",
+        b'{"op":"status"} trailing',
+        b"\xff\xfe",
+        b'{"op":"status","op":"reset"}',
+        b'{"op":"display","mode":NaN}',
+        b"[" * 5000 + b"]" * 5000,
+    ],
+)
+def test_garbage_is_bad_json(line: bytes) -> None:
+    """Undecodable text, trailing bytes, duplicate keys, NaN and deep nesting are bad_json."""
+    assert code_of(line) == ErrorCode.BAD_JSON
+
+
+@pytest.mark.parametrize(
+    "obj",
+    [
+        [],
+        "status",
+        {},
+        {"op": 1},
+        {"op": "hello"},
+        {"op": "hello", "name": ""},
+        {"op": "hello", "name": "a" * 33},
+        {"op": "hello", "name": "bad name"},
+        {"op": "status", "extra": 1},
+        {"op": "status", "id": True},
+        {"op": "status", "id": "x" * 65},
+        {"op": "status", "id": 2**63},
+        {"op": "release"},
+        {"op": "release", "what": "all"},
+        {"op": "subscribe", "topics": "state"},
+        {"op": "subscribe", "topics": ["weather"]},
+        {"op": "display"},
+        {"op": "display", "mode": 1, "row": {"index": 1, "text": "a"}},
+        {"op": "display", "mode": 4},
+        {"op": "display", "mode": True},
+        {"op": "display", "value": {"key": 10, "value": 1}},
+        {"op": "display", "value": {"key": 1, "value": 2**31}},
+        {"op": "display", "value": {"key": 1}},
+        {"op": "display", "value": [1, 2]},
+        {"op": "display", "label": {"key": 0, "text": "a"}},
+        {"op": "display", "label": {"key": 1, "text": "x" * 21}},
+        {"op": "display", "label": {"key": 1, "text": "nul\u0000"}},
+        {"op": "display", "label": {"key": 1, "text": "snow \u2603"}},
+        {"op": "display", "row": {"index": 5, "text": "a"}},
+        {"op": "display", "row": {"index": 1, "text": "a", "colour": "red"}},
+        {"op": "vibrate", "side": "middle"},
+        {"op": "commission"},
+        {"op": "commission", "confirm": "yes"},
+    ],
+    ids=repr,
+)
+def test_invalid_requests_are_bad_request(obj: object) -> None:
+    """A request that is not an object, lacks a field, has an unknown one or is out of range."""
+    assert code_of(json.dumps(obj).encode()) == ErrorCode.BAD_REQUEST
+
+
+def test_unknown_op_echoes_the_id() -> None:
+    """An unknown op is unknown_op, and the error reply carries the request's id."""
+    with pytest.raises(ApiError) as caught:
+        parse_request(b'{"op":"launch","id":12}')
+    assert caught.value.code == ErrorCode.UNKNOWN_OP
+    assert caught.value.reply() == {
+        "ok": False,
+        "code": "unknown_op",
+        "error": "unknown op launch",
+        "id": 12,
+    }
+
+
+def test_field_errors_name_the_op_and_field() -> None:
+    """A bad field's error names the field and echoes the op, so a C programmer sees why."""
+    with pytest.raises(ApiError) as caught:
+        parse_request(b'{"op":"display","row":{"index":9,"text":"a"},"id":"r"}')
+    reply = caught.value.reply()
+    assert reply["op"] == "display"
+    assert reply["id"] == "r"
+    assert "row.index" in reply["error"]
+
+
+# -- replies and pushes ---------------------------------------------------------------------
+
+
+def test_ok_reply_echoes_op_and_id() -> None:
+    """A success reply names the op and echoes the id, followed by the extra fields."""
+    assert ok_reply(Status(id=5), state="RUN") == {
+        "ok": True,
+        "op": "status",
+        "id": 5,
+        "state": "RUN",
+    }
+    assert ok_reply(Heartbeat()) == {"ok": True, "op": "heartbeat"}
+
+
+def test_refusal_error_carries_the_reason_name() -> None:
+    """A refusal by the safety core becomes a refused error with its stable reason name."""
+    core = SafetyCore(SafetyConfig(local_reset=True), 0)
+    decision = core.handle(ResetRequest(1, USER))
+    (refusal,) = decision.refusals
+    assert refusal.reason is RefusalReason.NOT_ADMIN
+    reply = refusal_error(Reset(id=1), refusal).reply()
+    assert reply["code"] == "refused"
+    assert reply["reason"] == "not_admin"
+    assert reply["error"] == refusal.message
+
+
+def test_state_push_describes_the_decision() -> None:
+    """The state push names the state, every cause with its details, outputs and e-stop byte."""
+    decision = SafetyCore(SafetyConfig(), 7).decision
+    push = state_push(decision)
+    assert push["event"] == "state"
+    assert push == {"event": "state", **decision_json(decision)}
+    assert push["state"] == "STOPPED"
+    assert push["mono_ns"] == 7
+    assert push["heartbeat_estop"] == 1
+    names = [c["name"] for c in push["causes"]]
+    assert "startup" in names
+    watchdog = next(c for c in push["causes"] if c["name"] == "vsc_watchdog_off")
+    assert watchdog["details"] == {"key85": "no answer"}
+    assert watchdog["severity"] == "stop"
+    json.dumps(push, allow_nan=False)
+
+
+def test_record_json_is_a_record_the_store_accepts() -> None:
+    """record_json has every field docs/record.md requires, and the JSON Lines store files it."""
+    (record,) = SafetyCore(SafetyConfig(), 0).decision.records
+    utc = dt.datetime(2026, 3, 1, 12, tzinfo=dt.UTC)
+    obj = record_json(record, utc)
+    assert set(REQUIRED_FIELDS) <= set(obj)
+    assert obj["utc"] == "2026-03-01T12:00:00.000000+00:00"
+    assert obj["from"] == "STOPPED"
+    assert obj["trigger"] == {"event": "tick"}
+    assert encode_record(obj).endswith(b"\n")
+    assert record_push(obj)["event"] == "record"
+
+
+def test_record_kind_and_trigger_follow_the_change() -> None:
+    """A local e-stop while already STOPPED is a cause_raised record naming its caller."""
+    core = SafetyCore(SafetyConfig(), 0)
+    decision = core.handle(LocalEstop(5, ROOT))
+    (record,) = decision.records
+    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.UTC))
+    assert obj["kind"] == "cause_raised"
+    assert obj["trigger"] == {
+        "event": "local_estop",
+        "caller": {"uid": 0, "pid": 42, "name": "root", "admin": True},
+    }
+    assert {"name": "local_estop", "change": "raised"} in obj["changes"]
+
+
+def test_trigger_of_a_vsc_message_uses_the_protocol_json() -> None:
+    """A VSC message in a trigger is shown with the same JSON as srcsctl decode."""
+    obj = trigger_json(VscReceived(1, VscHeartbeat(mode=9)))
+    assert obj["event"] == "vsc_received"
+    assert obj["message"]["type"] == "vsc_heartbeat"
+    assert obj["message"]["vsc_mode_name"] == "operational"
+
+
+def test_message_pushes_use_the_topic_as_event() -> None:
+    """Joystick, GPS and remote-status messages are pushed under their topic; others are not."""
+    assert message_push(Joystick())["event"] == "joystick"
+    assert message_push(Joystick())["type"] == "joystick"
+    assert message_push(Gps(1, "$GPGGA,,"))["event"] == "gps"
+    assert message_push(RemoteStatus(80))["battery_level"] == 80
+    assert message_topic(RemoteStatus(80)) is Topic.REMOTE_STATUS
+    assert message_topic(VscHeartbeat(mode=9)) is None
+
+
+# -- safety-core events ---------------------------------------------------------------------
+
+NAMED = ClientInfo(4, USER, "planner")
+ANONYMOUS = ClientInfo(5, ROOT, None)
+
+
+@pytest.mark.parametrize(
+    ("request_value", "client", "expected"),
+    [
+        (Hello("planner"), NAMED, ClientHello(9, 4, "planner")),
+        (Heartbeat(), NAMED, ClientHeartbeat(9, 4)),
+        (Heartbeat(), ANONYMOUS, None),
+        (Estop(), NAMED, ClientEstop(9, 4)),
+        (Estop(), ANONYMOUS, LocalEstop(9, ROOT)),
+        (Hold(), NAMED, ClientHold(9, 4)),
+        (Hold(), ANONYMOUS, ClientHold(9, 5)),
+        (Release(Releasable.ESTOP), NAMED, ClientRelease(9, 4, Releasable.ESTOP)),
+        (Release(Releasable.ESTOP), ANONYMOUS, LocalRelease(9, ROOT)),
+        (Release(Releasable.HOLD), ANONYMOUS, ClientRelease(9, 5, Releasable.HOLD)),
+        (DisplayValue(3, 42), NAMED, DisplayUpdate(9, FeedbackSet(3, 42))),
+        (DisplayLabel(3, "v"), NAMED, DisplayUpdate(9, FeedbackName(3, "v"))),
+        (DisplayRow(1, "top"), ANONYMOUS, DisplayUpdate(9, FeedbackName(90, "top"))),
+        (DisplayRow(4, "end"), ANONYMOUS, DisplayUpdate(9, FeedbackName(93, "end"))),
+        (DisplayModeRequest(DisplayMode.VALUES), NAMED, DisplayUpdate(9, FeedbackSet(99, 3))),
+        (Vibrate(Side.LEFT), NAMED, DisplayUpdate(9, FeedbackSet(10, 1))),
+        (Vibrate(Side.RIGHT), NAMED, DisplayUpdate(9, FeedbackSet(11, 1))),
+        (Vibrate(Side.BOTH), NAMED, DisplayUpdate(9, FeedbackSet(12, 1))),
+        (Reset(), NAMED, ResetRequest(9, USER)),
+        (Status(), NAMED, None),
+        (Subscribe(frozenset()), NAMED, None),
+        (Commission(), ANONYMOUS, None),
+    ],
+    ids=repr,
+)
+def test_requests_become_core_events(
+    request_value: Request, client: ClientInfo, expected: object
+) -> None:
+    """Each request maps to the safety core's event: a named client's own, else the local one."""
+    assert to_core_event(request_value, client, 9) == expected
+
+
+def test_display_events_are_accepted_by_the_core() -> None:
+    """Every display and vibrate request gives a message the core's display rules accept."""
+    core = SafetyCore(SafetyConfig(), 0)
+    for request_value in EVERY_REQUEST:
+        event = to_core_event(request_value, NAMED, 1)
+        if isinstance(event, DisplayUpdate):
+            assert core.handle(event).refusals == (), request_value
