@@ -1,0 +1,213 @@
+"""Reading the file: the shipped examples, unreadable files, TOML syntax errors with their
+position, what ``srcsd --check-config`` prints, and what every error message names."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from supervisord.config import CanBus, SerialLink, check_config_main, load_config
+from supervisord.errors import ConfigError
+from supervisord.outputs import OutputKind, OutputRole
+from supervisord.safety.config import Transport
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+EXAMPLES = sorted(CONFIG_DIR.glob("*.toml"))
+
+VALID = """\
+[robot]
+name = "bot"
+
+[vsc]
+transport = "serial"
+
+[[outputs]]
+name = "drive"
+kind = "sim"
+"""
+
+
+def write(tmp_path: Path, text: str | bytes) -> Path:
+    """``text`` as the file robot.toml in ``tmp_path``."""
+    file = tmp_path / "robot.toml"
+    if isinstance(text, bytes):
+        file.write_bytes(text)
+    else:
+        file.write_text(text)
+    return file
+
+
+def srcs_admin_exists(name: str) -> bool:
+    """A group lookup in which only the examples' admin group exists."""
+    return name == "srcs-admin"
+
+
+def test_the_three_examples_are_shipped() -> None:
+    """config/ holds the serial-GPIO example, the CAN example and the demo's config."""
+    assert [p.name for p in EXAMPLES] == [
+        "demo.toml",
+        "example-can.toml",
+        "example-serial-gpio.toml",
+    ]
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_every_example_loads(path: Path) -> None:
+    """Each shipped example passes the whole validator."""
+    config = load_config(path, group_exists=srcs_admin_exists)
+    assert config.outputs
+    assert config.source == path
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_every_example_line_is_commented(path: Path) -> None:
+    """Every key of an example carries a comment, on its line or on the line just above."""
+    lines = path.read_text().splitlines()
+    for number, line in enumerate(lines):
+        if "=" not in line or line.lstrip().startswith("#"):
+            continue
+        above = lines[number - 1].lstrip() if number else ""
+        assert "#" in line or above.startswith("#"), f"{path.name}:{number + 1}: {line}"
+
+
+def test_serial_gpio_example(tmp_path: Path) -> None:
+    """The serial example: a serial VSC, two GPIO outputs (motion, pulsed power), two clients."""
+    config = load_config(CONFIG_DIR / "example-serial-gpio.toml", group_exists=srcs_admin_exists)
+    assert config.vsc.transport is Transport.SERIAL
+    assert isinstance(config.vsc.link, SerialLink)
+    assert [(o.kind, o.role) for o in config.outputs] == [
+        (OutputKind.GPIO, OutputRole.MOTION),
+        (OutputKind.GPIO, OutputRole.POWER),
+    ]
+    assert [c.name for c in config.safety.clients] == ["autonomy", "localization"]
+    assert config.api.admin_group == "srcs-admin"
+
+
+def test_can_example_is_the_docs_worked_example() -> None:
+    """The CAN example's traction output is the worked example, on the VSC's bus."""
+    config = load_config(CONFIG_DIR / "example-can.toml", group_exists=srcs_admin_exists)
+    assert config.vsc.transport is Transport.CAN
+    assert config.can_output_bus == CanBus("socketcan", "can0", 250_000)
+    traction = config.outputs[0]
+    assert traction.kind is OutputKind.CAN
+    assert getattr(traction, "arbitration_id", None) == 0x201
+    assert getattr(traction, "data_on", None) == bytes.fromhex("0F 00 00 00 00 00 00 00")
+    assert getattr(traction, "data_off", None) == bytes.fromhex("06 00 00 00 00 00 00 00")
+    assert (getattr(traction, "counter_byte", None), getattr(traction, "counter_mask", None)) == (
+        7,
+        0x0F,
+    )
+    assert config.safety.require_watchdog is False
+
+
+def test_demo_config_runs_without_hardware_or_clients(tmp_path: Path) -> None:
+    """The demo: serial to a path under the run folder, sim outputs, local reset, no clients."""
+    config = load_config(CONFIG_DIR / "demo.toml", base_dir=tmp_path)
+    assert config.vsc.link == SerialLink(tmp_path / "srcs-demo/vsc", 115_200)
+    assert {o.kind for o in config.outputs} == {OutputKind.SIM}
+    assert [getattr(o, "path", None) for o in config.outputs] == [
+        tmp_path / "srcs-demo/drive",
+        tmp_path / "srcs-demo/power",
+    ]
+    assert config.record.path == tmp_path / "srcs-demo/stops.jsonl"
+    assert config.record.journal is False
+    assert config.api.socket == tmp_path / "srcs-demo/api.sock"
+    assert config.api.admin_group is None
+    assert config.safety.local_reset is True
+    assert config.safety.clients == ()
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    """A file that cannot be read is an error naming it and the reason."""
+    missing = tmp_path / "nope.toml"
+    with pytest.raises(ConfigError) as caught:
+        load_config(missing)
+    assert caught.value.file == str(missing)
+    assert caught.value.key == "file"
+    assert "No such file" in caught.value.fix
+
+
+def test_not_utf8(tmp_path: Path) -> None:
+    """Bytes that are not UTF-8 are reported at their line and column."""
+    file = write(tmp_path, b'[robot]\nname = "b\xffot"\n')
+    with pytest.raises(ConfigError) as caught:
+        load_config(file)
+    assert caught.value.key == "line 2, column 10"
+    assert "UTF-8" in caught.value.fix
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "shown", "reason"),
+    [
+        ("[robot]\nname = bot\n", "line 2, column 8", "name = bot", "invalid value"),
+        ('[robot]\nname = "bot\n', "line 2, column 12", 'name = "bot', "illegal character"),
+        ("[robot\n", "line 1, column 7", "[robot", "expected ']'"),
+        ('[robot]\nname = "a"\nname = "b"\n', "line 3, column 11", 'name = "b"', "overwrite"),
+        ("[robot]\nname =", "line 2, column 7", "name =", "invalid value"),
+    ],
+)
+def test_toml_syntax_error_names_the_position(
+    tmp_path: Path, text: str, key: str, shown: str, reason: str
+) -> None:
+    """A TOML syntax error names the file, the line and column, the line's text and the cause."""
+    file = write(tmp_path, text)
+    with pytest.raises(ConfigError) as caught:
+        load_config(file)
+    error = caught.value
+    assert error.file == str(file)
+    assert error.key == key
+    assert error.value == shown
+    assert reason in error.fix.lower()
+    assert str(error).startswith(f"{file}: {key} = {shown!r}: correct the TOML syntax there (")
+
+
+def test_error_message_names_file_key_value_and_fix(tmp_path: Path) -> None:
+    """The printed message holds the file, the dotted key, the value and the fix, in order."""
+    file = write(
+        tmp_path, VALID.replace('transport = "serial"', 'timeout_ms = 5000\ntransport = "serial"')
+    )
+    with pytest.raises(ConfigError) as caught:
+        load_config(file)
+    assert str(caught.value) == f"{file}: vsc.timeout_ms = 5000: use a whole number from 50 to 1000"
+
+
+def test_check_config_ok(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--check-config prints one OK line with the robot, transport and counts, and returns 0."""
+    file = write(tmp_path, VALID + '\n[[clients]]\nname = "nav"\n')
+    assert check_config_main(file) == 0
+    out, err = capsys.readouterr()
+    assert out == f"{file}: OK — robot bot, transport serial, 1 output, 1 client\n"
+    assert err == f"{file}: warning: outputs[0] (drive) is simulated: it drives no hardware\n"
+
+
+def test_check_config_counts_in_plural(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The OK line counts several outputs and no clients in the plural."""
+    file = write(tmp_path, VALID + '\n[[outputs]]\nname = "power"\nkind = "sim"\n')
+    assert check_config_main(file) == 0
+    assert "2 outputs, 0 clients" in capsys.readouterr().out
+
+
+def test_check_config_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--check-config prints the error to stderr, nothing to stdout, and returns 1."""
+    file = write(tmp_path, VALID.replace('"serial"', '"serail"'))
+    assert check_config_main(file) == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith(f"{file}: vsc.transport = 'serail': use \"serial\"")
+
+
+def test_loading_imports_no_unused_plugin(tmp_path: Path) -> None:
+    """A serial config with sim outputs loads without importing gpiod or python-can."""
+    file = write(tmp_path, VALID)
+    probe = (
+        "import sys\nfrom supervisord.config import load_config\n"
+        f"load_config({str(file)!r})\n"
+        "print(' '.join(sorted(m.split('.')[0] for m in sys.modules)))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True)
+    loaded = set(out.stdout.split())
+    assert "gpiod" not in loaded
+    assert "can" not in loaded

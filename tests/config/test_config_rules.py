@@ -1,0 +1,559 @@
+"""Every validation rule of supervisord.config, one parametrized case per rule.
+
+Each case starts from a small valid config, changes one thing, and checks that the loader
+refuses it with the dotted key, the value and a fix; or, for the cases that must pass, checks
+the value it produced.
+"""
+
+from __future__ import annotations
+
+import copy
+import grp
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import pytest
+
+from supervisord.config import (
+    DEFAULT_CAN_BITRATE,
+    DEFAULT_SERIAL_PORT,
+    MISSING,
+    SERIAL_BAUD,
+    CanBus,
+    DaemonConfig,
+    HidLink,
+    SerialLink,
+    load_config,
+)
+from supervisord.errors import ConfigError
+from supervisord.outputs import OutputKind, OutputRole
+from supervisord.safety.config import OutputClass, Transport
+
+DELETE = object()
+"""A change that removes the key."""
+
+BASE: dict[str, object] = {
+    "robot": {"name": "test-bot"},
+    "vsc": {"transport": "serial", "port": "/dev/ttyACM0"},
+    "clients": [{"name": "autonomy"}],
+    "outputs": [{"name": "drive", "kind": "sim", "role": "motion"}],
+}
+
+CAN_VSC = {"transport": "can", "require_watchdog": False}
+GPIO = {"kind": "gpio", "chip": "gpiochip0", "line": 17}
+CAN_OUT = {"kind": "can", "arbitration_id": 0x201, "data_on": "01", "data_off": "00"}
+
+
+def _literal(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a JSON string is a TOML basic string for this text
+    if isinstance(value, list):
+        return "[" + ", ".join(_literal(v) for v in value) + "]"
+    assert isinstance(value, Mapping)
+    return "{ " + ", ".join(f"{k} = {_literal(v)}" for k, v in value.items()) + " }"
+
+
+def dump(data: Mapping[str, object]) -> str:
+    """``data`` as TOML: top-level scalars, then tables, then arrays of tables."""
+    lines = [f"{k} = {_literal(v)}" for k, v in data.items() if not isinstance(v, dict | list)]
+    for section, value in data.items():
+        entries = value if isinstance(value, list) else [value]
+        if not all(isinstance(e, dict) for e in entries):
+            if isinstance(value, list):  # a plain array at the top level
+                lines.insert(0, f"{section} = {_literal(value)}")
+            continue
+        for entry in entries:
+            assert isinstance(entry, dict)
+            lines.append(f"[[{section}]]" if isinstance(value, list) else f"[{section}]")
+            lines += [f"{k} = {_literal(v)}" for k, v in entry.items()]
+    return "\n".join(lines) + "\n"
+
+
+def changed(changes: Mapping[str, object]) -> dict[str, object]:
+    """BASE with each dotted path (``vsc.port``, ``outputs[0].role``) set, or removed."""
+    data = copy.deepcopy(BASE)
+    for path, value in changes.items():
+        node: object = data
+        parts = path.replace("[", ".").replace("]", "").split(".")
+        for part in parts[:-1]:
+            if isinstance(node, list):
+                node = node[int(part)]
+            else:
+                assert isinstance(node, dict)
+                node = node.setdefault(part, {})
+        last = parts[-1]
+        if isinstance(node, list):
+            index = int(last)
+            if value is DELETE:
+                del node[index]
+            elif index == len(node):
+                node.append(value)
+            else:
+                node[index] = value
+        else:
+            assert isinstance(node, dict)
+            if value is DELETE:
+                node.pop(last, None)
+            else:
+                node[last] = value
+    return data
+
+
+def load(tmp_path: Path, changes: Mapping[str, object], **kwargs: object) -> DaemonConfig:
+    """Write BASE with ``changes`` to a file and load it (every group exists)."""
+    file = tmp_path / "robot.toml"
+    file.write_text(dump(changed(changes)))
+    base_dir = kwargs.get("base_dir")
+    assert base_dir is None or isinstance(base_dir, Path)
+    return load_config(file, base_dir=base_dir, group_exists=lambda name: name != "nobody-here")
+
+
+def refused(tmp_path: Path, changes: Mapping[str, object]) -> ConfigError:
+    """The error loading BASE with ``changes`` raises."""
+    with pytest.raises(ConfigError) as caught:
+        load(tmp_path, changes)
+    return caught.value
+
+
+def check(tmp_path: Path, changes: Mapping[str, object], key: str, fix: str) -> None:
+    """Loading BASE with ``changes`` is refused naming ``key``, with ``fix`` in the message."""
+    error = refused(tmp_path, changes)
+    assert error.key == key
+    assert fix in error.fix
+    assert error.file == str(tmp_path / "robot.toml")
+    assert str(error).startswith(f"{error.file}: {key} = {error.value!r}: ")
+
+
+Case = tuple[dict[str, object], str, str]
+
+
+def test_base_config_is_valid(tmp_path: Path) -> None:
+    """The starting point of every case loads, with the documented defaults filled in."""
+    config = load(tmp_path, {})
+    assert config.robot.name == "test-bot"
+    assert config.vsc.link == SerialLink(Path("/dev/ttyACM0"), SERIAL_BAUD)
+    assert config.safety.effective_vsc_timeout_ms == 200
+    assert config.safety.heartbeat_hz == 20
+    assert config.safety.require_watchdog is True
+    assert config.safety.rearm_hold_ms == 500
+    assert config.safety.local_reset is False
+    assert [(c.name, c.timeout_ms) for c in config.safety.clients] == [("autonomy", 500)]
+    assert [(o.name, o.output_class) for o in config.safety.outputs] == [
+        ("drive", OutputClass.MOTION)
+    ]
+    assert config.vsc.reopen.min_ms == 100
+    assert config.vsc.reopen.max_ms == 5000
+    assert config.record.path == Path("/var/lib/srcsd/stops.jsonl")
+    assert (config.record.max_bytes, config.record.keep, config.record.journal) == (
+        4 * 1024 * 1024,
+        4,
+        True,
+    )
+    assert config.api.socket == Path("/run/srcsd/api.sock")
+    assert config.api.admin_group is None
+    assert (config.api.max_clients, config.api.max_message_bytes) == (16, 65536)
+    assert config.output_bus is None
+    assert config.can_output_bus is None
+
+
+FILE_CASES: list[Case] = [
+    ({"robt": {"name": "x"}}, "robt", "did you mean 'robot'?"),
+    ({"log": {"path": "/x"}}, "log", "did you mean 'record'?"),
+    ({"unheard_of": 1}, "unheard_of", "unknown key: remove it"),
+    ({"robot": "test-bot"}, "robot", "make it a table: a line [robot]"),
+    ({"vsc": ["serial"]}, "vsc", "make it a table"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), FILE_CASES, ids=lambda c: str(c)[:30])
+def test_sections(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """Unknown sections (with a did-you-mean hint) and sections that are not tables are refused."""
+    check(tmp_path, changes, key, fix)
+
+
+ROBOT_CASES: list[Case] = [
+    ({"robot": DELETE}, "robot.name", "give the robot's name"),
+    ({"robot.name": DELETE}, "robot.name", "give the robot's name"),
+    ({"robot.name": ""}, "robot.name", "give the robot's name"),
+    ({"robot.name": "  "}, "robot.name", "give the robot's name"),
+    ({"robot.name": "bad\tname"}, "robot.name", "give the robot's name"),
+    ({"robot.name": 7}, "robot.name", "give the robot's name"),
+    ({"robot.name": "x" * 65}, "robot.name", "shorten it to 64"),
+    ({"robot.nmae": "x"}, "robot.nmae", "did you mean 'name'?"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), ROBOT_CASES, ids=lambda c: str(c)[:30])
+def test_robot(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[robot] needs a printable name of 1-64 characters and nothing else."""
+    check(tmp_path, changes, key, fix)
+
+
+VSC_CASES: list[Case] = [
+    ({"vsc": DELETE}, "vsc.transport", '"serial" (USB or RS-232)'),
+    ({"vsc.transport": "usb"}, "vsc.transport", '"can" (J1939)'),
+    ({"vsc.transport": 1}, "vsc.transport", "use "),
+    ({"vsc.heartbeat_hx": 20}, "vsc.heartbeat_hx", "did you mean 'heartbeat_hz'?"),
+    ({"vsc.speed": 20}, "vsc.speed", "unknown key"),
+    ({"vsc.channel": "can0"}, "vsc.channel", 'applies to transport "can", not "serial"'),
+    ({"vsc.hidraw": "/dev/hidraw0"}, "vsc.hidraw", 'applies to transport "hid"'),
+    ({"vsc": {**CAN_VSC, "heartbeat_hz": 20}}, "vsc.heartbeat_hz", 'transport "serial"'),
+    ({"vsc": {**CAN_VSC, "port": "/dev/ttyACM0"}}, "vsc.port", 'transport "serial"'),
+    ({"vsc.baud": 9600}, "vsc.baud", "fixes the VSC's serial speed at 115200"),
+    ({"vsc.baud": "115200"}, "vsc.baud", "115200"),
+    ({"vsc.port": ""}, "vsc.port", "give a non-empty string"),
+    ({"vsc.port": 0}, "vsc.port", "give a non-empty string"),
+    ({"vsc.port": "/dev/"}, "vsc.port", "not a directory's"),
+    ({"vsc": {"transport": "hid"}}, "vsc.hidraw", '"/dev/hidraw0"'),
+    ({"vsc.reopen_min_ms": 5}, "vsc.reopen_min_ms", "from 10 to 10000"),
+    ({"vsc.reopen_min_ms": 1.5}, "vsc.reopen_min_ms", "whole number"),
+    ({"vsc.reopen_max_ms": 60_001}, "vsc.reopen_max_ms", "from 100 to 60000"),
+    (
+        {"vsc.reopen_min_ms": 2000, "vsc.reopen_max_ms": 1000},
+        "vsc.reopen_max_ms",
+        "at least reopen_min_ms (2000)",
+    ),
+    ({"vsc.timeout_ms": 49}, "vsc.timeout_ms", "from 50 to 1000"),
+    ({"vsc.timeout_ms": 1001}, "vsc.timeout_ms", "from 50 to 1000"),
+    ({"vsc.timeout_ms": "200"}, "vsc.timeout_ms", "without quotes"),
+    ({"vsc.heartbeat_hz": 19}, "vsc.heartbeat_hz", "from 20 to 50"),
+    ({"vsc.heartbeat_hz": 51}, "vsc.heartbeat_hz", "from 20 to 50"),
+    ({"vsc.heartbeat_hz": True}, "vsc.heartbeat_hz", "whole number"),
+    ({"vsc.require_watchdog": "yes"}, "vsc.require_watchdog", "true or false"),
+    ({"vsc": {"transport": "can"}}, "vsc.require_watchdog", "set it to false"),
+    ({"vsc": {**CAN_VSC, "require_watchdog": True}}, "vsc.require_watchdog", "no key 85"),
+    ({"vsc": {**CAN_VSC, "interface": "sockecan"}}, "vsc.interface", "did you mean 'socketcan'?"),
+    ({"vsc": {**CAN_VSC, "interface": "zzz"}}, "vsc.interface", "python-can interface"),
+    ({"vsc": {**CAN_VSC, "bitrate": 123_456}}, "vsc.bitrate", "standard rate"),
+    ({"vsc": {**CAN_VSC, "bitrate": "250k"}}, "vsc.bitrate", "whole number"),
+    ({"vsc": {**CAN_VSC, "channel": "can 0"}}, "vsc.channel", "remove the spaces"),
+    ({"vsc": {**CAN_VSC, "channel": ""}}, "vsc.channel", "non-empty string"),
+    ({"vsc": {**CAN_VSC, "channel": -1}}, "vsc.channel", "non-empty string"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), VSC_CASES, ids=lambda c: str(c)[:40])
+def test_vsc(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[vsc]: transport, its own keys only, fixed baud, backoff, and the safety values."""
+    check(tmp_path, changes, key, fix)
+
+
+def test_serial_defaults_and_fixed_baud(tmp_path: Path) -> None:
+    """A serial VSC defaults to the udev symlink and accepts baud = 115200 said aloud."""
+    config = load(tmp_path, {"vsc": {"transport": "serial", "baud": 115_200}})
+    assert config.vsc.link == SerialLink(Path(DEFAULT_SERIAL_PORT), SERIAL_BAUD)
+
+
+def test_can_vsc_defaults(tmp_path: Path) -> None:
+    """A CAN VSC defaults to socketcan on can0 at 250 kbit/s and a 300 ms link timeout."""
+    config = load(tmp_path, {"vsc": CAN_VSC})
+    assert config.vsc.transport is Transport.CAN
+    assert config.vsc.link == CanBus("socketcan", "can0", DEFAULT_CAN_BITRATE)
+    assert config.safety.effective_vsc_timeout_ms == 300
+    assert config.vsc.link.bus_options() == {
+        "interface": "socketcan",
+        "channel": "can0",
+        "bitrate": 250_000,
+    }
+
+
+@pytest.mark.parametrize(
+    ("interface", "channel"), [("virtual", "srcs-test"), ("udp_multicast", "239.74.163.2")]
+)
+def test_can_vsc_test_interfaces(tmp_path: Path, interface: str, channel: str) -> None:
+    """python-can's virtual and udp_multicast interfaces need only interface and channel."""
+    config = load(tmp_path, {"vsc": {**CAN_VSC, "interface": interface, "channel": channel}})
+    assert config.vsc.link == CanBus(interface, channel, DEFAULT_CAN_BITRATE)
+
+
+def test_can_channel_may_be_a_number(tmp_path: Path) -> None:
+    """Interfaces that number their channels (kvaser, ixxat) take an integer channel."""
+    config = load(tmp_path, {"vsc": {**CAN_VSC, "interface": "kvaser", "channel": 0}})
+    assert config.vsc.link == CanBus("kvaser", 0, DEFAULT_CAN_BITRATE)
+
+
+def test_hid_loads_with_a_warning(tmp_path: Path) -> None:
+    """transport "hid" is accepted, with its hidraw path and a warning that it never runs."""
+    config = load(tmp_path, {"vsc": {"transport": "hid", "hidraw": "/dev/hidraw3"}})
+    assert config.vsc.link == HidLink(Path("/dev/hidraw3"))
+    assert any("never a safety channel" in note for note in config.warnings())
+
+
+def test_watchdog_off_on_serial_warns(tmp_path: Path) -> None:
+    """require_watchdog = false on serial is allowed, with a warning."""
+    config = load(tmp_path, {"vsc.require_watchdog": False})
+    assert config.safety.require_watchdog is False
+    assert any("key 85" in note for note in config.warnings())
+
+
+REARM_CASES: list[Case] = [
+    ({"rearm.hold_ms": 99}, "rearm.hold_ms", "from 100 to 60000"),
+    ({"rearm.hold_ms": 60_001}, "rearm.hold_ms", "from 100 to 60000"),
+    ({"rearm.hold_ms": "500"}, "rearm.hold_ms", "whole number"),
+    ({"rearm.local_reset": 1}, "rearm.local_reset", "true or false"),
+    ({"rearm.rearm_hold_ms": 500}, "rearm.rearm_hold_ms", "did you mean 'hold_ms'?"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), REARM_CASES, ids=lambda c: str(c)[:30])
+def test_rearm(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[rearm]: hold time in range (checked by SafetyConfig), local_reset a flag."""
+    check(tmp_path, changes, key, fix)
+
+
+CLIENT_CASES: list[Case] = [
+    ({"clients": {"name": "autonomy"}}, "clients", "own [[clients]] table"),
+    ({"clients": ["autonomy"]}, "clients", "own [[clients]] table"),
+    ({"clients[0].name": DELETE}, "clients[0].name", "1 to 32 characters"),
+    ({"clients[0].name": "auto nomy"}, "clients[0].name", "1 to 32 characters"),
+    ({"clients[0].name": "x" * 33}, "clients[0].name", "1 to 32 characters"),
+    ({"clients[1]": {"name": "autonomy"}}, "clients[1].name", "clients[0] has the same name"),
+    ({"clients[1]": {"name": "nav", "timeout_ms": 19}}, "clients[1].timeout_ms", "20 to 10000"),
+    ({"clients[0].timeout_ms": 10_001}, "clients[0].timeout_ms", "from 20 to 10000"),
+    ({"clients[0].timeout_ms": 0.5}, "clients[0].timeout_ms", "whole number"),
+    ({"clients[0].timeout": 500}, "clients[0].timeout", "did you mean 'timeout_ms'?"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), CLIENT_CASES, ids=lambda c: str(c)[:30])
+def test_clients(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[[clients]]: an array of tables, unique valid names, timeouts in SafetyConfig's range."""
+    check(tmp_path, changes, key, fix)
+
+
+def test_no_clients_is_allowed(tmp_path: Path) -> None:
+    """A robot with no required client (the demo) loads with an empty client list."""
+    assert load(tmp_path, {"clients": DELETE}).safety.clients == ()
+
+
+OUTPUT_CASES: list[Case] = [
+    ({"outputs": DELETE}, "outputs", "add at least one [[outputs]]"),
+    (
+        {"outputs": {"drive": {"kind": "sim"}}},
+        "outputs.drive",
+        'write [[outputs]] with name = "drive"',
+    ),
+    ({"outputs": ["drive"]}, "outputs", "own [[outputs]] table"),
+    ({"outputs[0].name": DELETE}, "outputs[0].name", "1 to 32 characters"),
+    ({"outputs[0].name": "dr.ive"}, "outputs[0].name", "'_' and '-'"),
+    ({"outputs[0].kind": DELETE}, "outputs[0].kind", '"sim", "gpio", "can"'),
+    ({"outputs[0].kind": "relay"}, "outputs[0].kind", '"sim", "gpio", "can"'),
+    ({"outputs[0].class": "motion"}, "outputs[0].class", "did you mean 'role'?"),
+    ({"outputs[0].pathh": "x"}, "outputs[0].pathh", "did you mean 'path'?"),
+    ({"outputs[0].chip": "gpiochip0"}, "outputs[0].chip", "unknown key"),
+    ({"outputs[0].role": "drive"}, "outputs[0].role", "'motion', 'power'"),
+    ({"outputs[0].stuck_at": "maybe"}, "outputs[0].stuck_at", "'on', 'off'"),
+    ({"outputs[0]": {"name": "drive", "kind": "gpio", "line": 17}}, "outputs[0].chip", "string"),
+    (
+        {"outputs[0]": {"name": "d", **GPIO, "pulse_period_ms": 1}},
+        "outputs[0].pulse_period_ms",
+        "2 to 1000",
+    ),
+    ({"outputs[0]": {"name": "d", **CAN_OUT, "period_ms": 4}}, "outputs[0].period_ms", "5 to 1000"),
+    ({"outputs[0]": {"name": "d", **CAN_OUT, "data_on": "00"}}, "outputs[0].data_on", "differ"),
+    (
+        {"outputs[0]": {"name": "d", **CAN_OUT, "arbitration_id": 0x800}},
+        "outputs[0].arbitration_id",
+        "extended",
+    ),
+    (
+        {"outputs[1]": {"name": "drive", "kind": "sim"}},
+        "outputs[1].name",
+        "rename it: outputs[0] (drive) has it",
+    ),
+    (
+        {"outputs[0]": {"name": "a", **GPIO}, "outputs[1]": {"name": "b", **GPIO}},
+        "outputs[1].line",
+        "its own line: outputs[0] (a) has it",
+    ),
+    (
+        {"outputs[0].path": "run/x", "outputs[1]": {"name": "b", "kind": "sim", "path": "run/x"}},
+        "outputs[1].path",
+        "its own file",
+    ),
+    (
+        {
+            "vsc": CAN_VSC,
+            "outputs[0]": {"name": "a", **CAN_OUT},
+            "outputs[1]": {"name": "b", **CAN_OUT, "data_on": "02"},
+        },
+        "outputs[1].arbitration_id",
+        "its own id: outputs[0] (a) has it",
+    ),
+    ({"outputs[0].role": "power"}, "outputs", 'at least one output role = "motion"'),
+    ({"outputs[0]": {"name": "d", **CAN_OUT}}, "outputs[0].kind", "add an [output_bus] section"),
+    ({"output_bus": {"channel": "can1"}}, "output_bus", 'no output has kind = "can"'),
+    (
+        {"vsc": CAN_VSC, "outputs[0]": {"name": "d", **CAN_OUT}, "output_bus": {"channel": "can0"}},
+        "output_bus.channel",
+        "already send on the VSC's bus",
+    ),
+    (
+        {"outputs[0]": {"name": "d", **CAN_OUT}, "output_bus": {"chanel": "can1"}},
+        "output_bus.chanel",
+        "did you mean 'channel'?",
+    ),
+    (
+        {"outputs[0]": {"name": "d", **CAN_OUT}, "output_bus": {"bitrate": 1}},
+        "output_bus.bitrate",
+        "standard rate",
+    ),
+    ({"output_bus": "can1"}, "output_bus", "make it a table"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), OUTPUT_CASES, ids=lambda c: str(c)[:40])
+def test_outputs(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[[outputs]]: each kind's own checks under outputs[i], and the checks between outputs."""
+    check(tmp_path, changes, key, fix)
+
+
+def test_output_specs_and_safety_classes(tmp_path: Path) -> None:
+    """Each output becomes its kind's spec, and the safety core gets its name and class."""
+    config = load(
+        tmp_path,
+        {
+            "outputs[1]": {"name": "relay", **GPIO, "role": "power", "pulse_period_ms": 10},
+            "outputs[2]": {"name": "brake", **GPIO, "line": "BRAKE_EN"},
+        },
+    )
+    assert [(s.name, s.kind, s.role) for s in config.outputs] == [
+        ("drive", OutputKind.SIM, OutputRole.MOTION),
+        ("relay", OutputKind.GPIO, OutputRole.POWER),
+        ("brake", OutputKind.GPIO, OutputRole.MOTION),
+    ]
+    assert [(o.name, o.output_class) for o in config.safety.outputs] == [
+        ("drive", OutputClass.MOTION),
+        ("relay", OutputClass.POWER),
+        ("brake", OutputClass.MOTION),
+    ]
+    assert getattr(config.outputs[1], "pulse_period_ms", None) == 10
+
+
+def test_can_outputs_use_the_vsc_bus(tmp_path: Path) -> None:
+    """With a CAN VSC and no [output_bus], CAN outputs send on the VSC's bus."""
+    config = load(tmp_path, {"vsc": CAN_VSC, "outputs[0]": {"name": "d", **CAN_OUT}})
+    assert config.output_bus is None
+    assert config.can_output_bus == config.vsc.link
+
+
+def test_can_outputs_on_their_own_bus(tmp_path: Path) -> None:
+    """[output_bus] gives CAN outputs a bus of their own, with a serial or a CAN VSC."""
+    serial = load(tmp_path, {"outputs[0]": {"name": "d", **CAN_OUT}, "output_bus": {}})
+    assert serial.can_output_bus == CanBus("socketcan", "can0", DEFAULT_CAN_BITRATE)
+    second = load(
+        tmp_path,
+        {
+            "vsc": CAN_VSC,
+            "outputs[0]": {"name": "d", **CAN_OUT},
+            "output_bus": {"channel": "can1", "bitrate": 500_000},
+        },
+    )
+    assert second.can_output_bus == CanBus("socketcan", "can1", 500_000)
+
+
+def test_same_line_on_other_chips_is_allowed(tmp_path: Path) -> None:
+    """Two GPIO outputs may use the same offset on different chips."""
+    config = load(
+        tmp_path,
+        {"outputs[0]": {"name": "a", **GPIO}, "outputs[1]": {"name": "b", **GPIO, "chip": "x"}},
+    )
+    assert len(config.outputs) == 2
+
+
+def test_relative_paths_follow_the_config_file(tmp_path: Path) -> None:
+    """Relative paths (port, sim file, record, socket) are resolved against the file's folder."""
+    config = load(
+        tmp_path,
+        {
+            "vsc.port": "run/vsc",
+            "outputs[0].path": "run/drive",
+            "record": {"path": "run/stops.jsonl"},
+            "api": {"socket": "run/api.sock"},
+        },
+    )
+    assert config.vsc.link == SerialLink(tmp_path / "run/vsc", SERIAL_BAUD)
+    assert getattr(config.outputs[0], "path", None) == tmp_path / "run/drive"
+    assert config.record.path == tmp_path / "run/stops.jsonl"
+    assert config.api.socket == tmp_path / "run/api.sock"
+
+
+def test_base_dir_overrides_the_config_folder(tmp_path: Path) -> None:
+    """``base_dir`` replaces the file's folder as the root of relative paths."""
+    run = tmp_path / "elsewhere"
+    config = load(tmp_path, {"vsc.port": "vsc", "outputs[0].path": "drive"}, base_dir=run)
+    assert config.vsc.link == SerialLink(run / "vsc", SERIAL_BAUD)
+    assert getattr(config.outputs[0], "path", None) == run / "drive"
+
+
+RECORD_CASES: list[Case] = [
+    ({"record.max_bytes": 4095}, "record.max_bytes", "from 4096 to 1073741824"),
+    ({"record.max_bytes": 1 << 31}, "record.max_bytes", "from 4096 to 1073741824"),
+    ({"record.keep": 0}, "record.keep", "from 1 to 99"),
+    ({"record.keep": 100}, "record.keep", "from 1 to 99"),
+    ({"record.journal": "on"}, "record.journal", "true or false"),
+    ({"record.path": "/var/lib/srcsd/"}, "record.path", "not a directory's"),
+    ({"record.path": ""}, "record.path", "non-empty string"),
+    ({"record.max_byte": 1}, "record.max_byte", "did you mean 'max_bytes'?"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), RECORD_CASES, ids=lambda c: str(c)[:30])
+def test_record(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[record]: a file path, the store's size and count bounds, the journal flag."""
+    check(tmp_path, changes, key, fix)
+
+
+API_CASES: list[Case] = [
+    ({"api.socket": "/run/" + "s" * 103}, "api.socket", "at most 107 bytes"),
+    ({"api.socket": 1}, "api.socket", "non-empty string"),
+    ({"api.admin_group": "nobody-here"}, "api.admin_group", "groupadd --system nobody-here"),
+    ({"api.admin_group": "bad group"}, "api.admin_group", "give a group name"),
+    ({"api.admin_group": ""}, "api.admin_group", "give a group name"),
+    ({"api.max_clients": 1}, "api.max_clients", "from 2 to 256"),
+    ({"api.max_clients": 257}, "api.max_clients", "from 2 to 256"),
+    (
+        {"clients[1]": {"name": "nav"}, "clients[2]": {"name": "map"}, "api.max_clients": 3},
+        "api.max_clients",
+        "at least 4: the 3 required clients and one srcsctl",
+    ),
+    ({"api.max_message_bytes": 1023}, "api.max_message_bytes", "from 1024 to 1048576"),
+    ({"api.admin": "srcs"}, "api.admin", "did you mean 'admin_group'?"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), API_CASES, ids=lambda c: str(c)[:30])
+def test_api(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[api]: socket path length, an existing admin group, client and message limits."""
+    check(tmp_path, changes, key, fix)
+
+
+def test_socket_path_at_the_limit_is_accepted(tmp_path: Path) -> None:
+    """A socket path of exactly 107 bytes fits in sun_path with its NUL."""
+    socket = "/run/" + "s" * 102
+    assert len(socket) == 107
+    assert load(tmp_path, {"api.socket": socket}).api.socket == Path(socket)
+
+
+def test_admin_group_is_looked_up_on_the_system(tmp_path: Path) -> None:
+    """Without an injected lookup, admin_group is checked with grp.getgrnam."""
+    mine = grp.getgrgid(os.getgid()).gr_name
+    file = tmp_path / "robot.toml"
+    file.write_text(dump(changed({"api.admin_group": mine})))
+    assert load_config(file).api.admin_group == mine
+    file.write_text(dump(changed({"api.admin_group": "srcs-no-such-group-x"})))
+    with pytest.raises(ConfigError, match="no such group on this machine"):
+        load_config(file)
+
+
+def test_missing_values_are_shown_as_not_set(tmp_path: Path) -> None:
+    """A required key that is absent is named with the value "(not set)"."""
+    error = refused(tmp_path, {"robot.name": DELETE})
+    assert error.value is MISSING
+    assert "robot.name = (not set): " in str(error)
