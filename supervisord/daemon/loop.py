@@ -106,6 +106,7 @@ class Supervisor:
         clock: Callable[[], int] = time.monotonic_ns,
         wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.UTC),
         backoff: Backoff | None = None,
+        release: list[Callable[[], object]] | None = None,
     ) -> None:
         self.safety = safety
         self.link = link
@@ -118,6 +119,7 @@ class Supervisor:
         self.wall_clock = wall_clock
         self.backoff = backoff or Backoff()
         self.counters = Counters()
+        self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         self._stop_requested = False
@@ -168,6 +170,9 @@ class Supervisor:
             with contextlib.suppress(Exception):
                 output.close()
         self.link.close()
+        for release in self._release:
+            with contextlib.suppress(Exception):
+                release()
         self.listener.close()
         if self.writer is not None:
             self.writer.close()

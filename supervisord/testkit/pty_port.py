@@ -45,6 +45,10 @@ class PtyPort:
         self.path.unlink(missing_ok=True)
 
     @property
+    def plugged(self) -> bool:
+        return self._master is not None
+
+    @property
     def fd(self) -> int:
         if self._master is None:
             raise OSError("the port is unplugged")

@@ -15,37 +15,12 @@ from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.framing import FrameDecoder, encode_frame
-from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.protocol.messages import UserHeartbeat
 from supervisord.record.jsonl import Record, RecordWriter, read_records
 from supervisord.safety.config import OutputClass, OutputSpec, SafetyConfig
 from supervisord.safety.transitions import State
 from supervisord.testkit.pty_port import PtyPort
-
-
-class VscPeer:
-    """The VSC end of the pty: heartbeats every 50 ms in the current mode, key 85 = 1."""
-
-    def __init__(self, port: PtyPort) -> None:
-        self.port = port
-        self.mode = VscMode.LOCAL
-        self.estop = 0
-        self.silent = False
-        self.received: list[object] = []
-        self._decoder = FrameDecoder()
-        self._next = 0.0
-
-    def serve(self) -> None:
-        now = time.monotonic()
-        if self.port._master is None:
-            return
-        for message in self._decoder.feed(self.port.read()):
-            self.received.append(message)
-            if message == FeedbackGet(85):
-                self.port.write(encode_frame(FeedbackSet(85, 1)))
-        if not self.silent and now >= self._next:
-            self._next = now + 0.05
-            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, self.estop)))
+from tests.daemon.peer import VscPeer
 
 
 @pytest.fixture

@@ -1,0 +1,82 @@
+"""Building the daemon's parts from a validated configuration."""
+
+from __future__ import annotations
+
+import logging
+
+import can
+
+from supervisord.config import CanBus, DaemonConfig, HidLink, SerialLink
+from supervisord.daemon.loop import Listener, Supervisor
+from supervisord.daemon.notify import Notifier
+from supervisord.links.base import Backoff, Link
+from supervisord.links.can_link import CanLink
+from supervisord.links.hid_link import HidLink as HidLinkImpl
+from supervisord.links.serial_link import SerialLink as SerialLinkImpl
+from supervisord.outputs import Output, create_output
+from supervisord.outputs.base import OutputKind
+from supervisord.record.journal import JournalSink
+from supervisord.record.jsonl import RecordWriter
+
+log = logging.getLogger("srcsd")
+
+
+def build_link(config: DaemonConfig) -> Link:
+    settings = config.vsc.link
+    if isinstance(settings, SerialLink):
+        return SerialLinkImpl(str(settings.port))
+    if isinstance(settings, CanBus):
+        return CanLink(settings.interface, str(settings.channel), settings.bitrate)
+    assert isinstance(settings, HidLink)
+    return HidLinkImpl(str(settings.hidraw))
+
+
+def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.BusABC | None]:
+    """The outputs, and the CAN bus opened for their enable frames when it is not the VSC's.
+
+    CAN enable outputs send on ``[output_bus]`` when configured, else on the VSC's own bus,
+    which is then opened here so that the outputs exist (off) before anything else happens.
+    """
+    settings = config.can_output_bus
+    bus: can.BusABC | None = None
+    owned: can.BusABC | None = None
+    if settings is not None and any(spec.kind is OutputKind.CAN for spec in config.outputs):
+        if isinstance(link, CanLink) and settings == config.vsc.link:
+            link.open()
+            bus = link.bus
+        else:
+            owned = bus = can.Bus(
+                interface=settings.interface, channel=settings.channel, bitrate=settings.bitrate
+            )
+    return [create_output(spec, can_bus=bus) for spec in config.outputs], owned
+
+
+def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> Supervisor:
+    for warning in config.warnings():
+        log.warning("%s", warning)
+    link = build_link(config)
+    outputs, owned_bus = build_outputs(config, link)
+    record = config.record
+    writer = RecordWriter(record.path, max_bytes=record.max_bytes, keep=record.keep)
+    journal = None
+    if record.journal:
+        sink = JournalSink()
+        if sink.available:
+            journal = sink.write
+        else:
+            log.warning(
+                "journal unavailable (%s): records go to %s only",
+                sink.unavailable_reason,
+                record.path,
+            )
+    return Supervisor(
+        config.safety,
+        link,
+        outputs,
+        writer,
+        journal=journal,
+        listener=listener,
+        notifier=Notifier(),
+        backoff=Backoff(config.vsc.reopen.min_ms, config.vsc.reopen.max_ms),
+        release=[owned_bus.shutdown] if owned_bus is not None else [],
+    )
