@@ -237,8 +237,28 @@ class SupervisorClient:
             self.close()
             raise ClientTimeoutError("the supervisor does not read its requests") from e
         except OSError as e:
+            last = self._last_words()
             self.close()
+            if last is not None:  # e.g. too_many_clients, sent before the server closed
+                raise last from e
             raise ConnectionClosedError(f"the connection broke: {e.strerror or e}") from e
+
+    def _last_words(self) -> ApiError | None:
+        """The error line a server sent before it closed the connection, if any."""
+        try:
+            self._sock.setblocking(False)
+            while len(self._buffer) <= MAX_REPLY_LINE and (data := self._sock.recv(65536)):
+                self._buffer += data
+        except OSError:
+            pass
+        for line in bytes(self._buffer).split(b"\n"):
+            try:
+                obj = _decode(line)
+            except ProtocolError:
+                continue
+            if obj.get("ok") is False:
+                return _error(obj)
+        return None
 
     def _read_object(self, deadline: float, *, closing: bool = True) -> dict[str, Any]:
         while True:

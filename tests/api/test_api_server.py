@@ -79,6 +79,7 @@ class Loop:
             self.selector.close()
             raise
         self.answer = answer
+        self.before_reply: Callable[[Received], list[Closed]] | None = None
         self.results: list[Result] = []
         self.core = SafetyCore(SafetyConfig(), 0)
 
@@ -88,6 +89,8 @@ class Loop:
             assert key.data is self.server
             new += self.server.handle(key.fd, mask)
         for result in list(new):
+            if isinstance(result, Received) and self.before_reply is not None:
+                new += self.before_reply(result)
             if isinstance(result, Received) and self.answer:
                 fields = (
                     decision_json(self.core.decision) if isinstance(result.request, Status) else {}

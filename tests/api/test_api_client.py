@@ -1,0 +1,240 @@
+"""The Python client library against a real server (served from a helper thread in the test:
+the client blocks, the daemon's loop must keep turning meanwhile)."""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import TracebackType
+
+import pytest
+
+from supervisord.api.server import Closed, Received, ServerConfig
+from supervisord.api.wire import (
+    ApiError,
+    Commission,
+    DisplayLabel,
+    DisplayModeRequest,
+    DisplayRow,
+    DisplayValue,
+    ErrorCode,
+    Estop,
+    Heartbeat,
+    Hello,
+    Hold,
+    Release,
+    Reset,
+    Side,
+    Status,
+    Subscribe,
+    Topic,
+    Vibrate,
+    state_push,
+)
+from supervisord.client import (
+    ClientTimeoutError,
+    ConnectError,
+    ConnectionClosedError,
+    Push,
+    SupervisorClient,
+)
+from supervisord.protocol.codes import DisplayMode
+from supervisord.safety.events import Request as Releasable
+from tests.api.test_api_server import Loop
+
+
+@pytest.fixture(autouse=True)
+def no_descriptor_left_open() -> Iterator[None]:
+    """Fail any test that leaves a file descriptor open (a client or server not closed)."""
+    before = set(os.listdir("/proc/self/fd"))
+    yield
+    leaked = set(os.listdir("/proc/self/fd")) - before
+    assert not leaked, f"file descriptors left open: {sorted(leaked)}"
+
+
+class Served:
+    """A :class:`Loop` turning in a helper thread until the ``with`` block ends; read its
+    results only after that. A heartbeat makes it push the state before replying."""
+
+    def __init__(self, config: ServerConfig, answer: bool = True) -> None:
+        self.loop = Loop(config, answer)
+        self.loop.before_reply = self._push_on_heartbeat
+        self._stop = threading.Event()
+        self._turned = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name="test-loop")
+
+    def _push_on_heartbeat(self, received: Received) -> list[Closed]:
+        if isinstance(received.request, Heartbeat):
+            return self.loop.server.broadcast(Topic.STATE, state_push(self.loop.core.decision))
+        return []
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            with self._turned:
+                self.loop.turn(0.005)
+                self._turned.notify_all()
+
+    def until(self, done: Callable[[Loop], bool]) -> None:
+        """Wait (in the test's thread) until ``done(loop)`` holds after a turn of the loop."""
+        with self._turned:
+            assert self._turned.wait_for(lambda: done(self.loop), timeout=30)
+
+    def __enter__(self) -> Served:
+        self._thread.start()
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if not self._stop.is_set():
+            self._stop.set()
+            self._thread.join()
+            self.loop.close()
+
+    def requests(self) -> list[object]:
+        return [r.request for r in self.loop.of_type(Received)]
+
+
+@pytest.fixture
+def sock_path(tmp_path: Path) -> Path:
+    return tmp_path / "api.sock"
+
+
+def test_connect_with_name_says_hello_and_heartbeats(sock_path: Path) -> None:
+    """connect(name=...) says hello; heartbeat and status get their replies; with closes."""
+    with Served(ServerConfig(sock_path)) as served:
+        with SupervisorClient.connect(sock_path, name="planner") as client:
+            assert client.name == "planner"
+            for _ in range(3):
+                client.heartbeat()
+            status = client.status()
+            assert status["state"] == "STOPPED"
+            assert any(c["name"] == "startup" for c in status["causes"])
+        assert client.fileno() < 0
+        served.until(lambda loop: bool(loop.of_type(Closed)))
+    assert served.requests() == [Hello("planner"), Heartbeat(), Heartbeat(), Heartbeat(), Status()]
+    assert served.loop.of_type(Closed)[0].client.name == "planner"
+
+
+def test_every_method_sends_its_request(sock_path: Path) -> None:
+    """Each client method sends the request docs/api.md describes."""
+    with Served(ServerConfig(sock_path)) as served, SupervisorClient.connect(sock_path) as client:
+        client.estop()
+        client.hold()
+        client.release("hold")
+        client.release()
+        client.display_value(2, -7)
+        client.display_label(2, "torque")
+        client.display_row(1, "hello remote")
+        client.display_mode(DisplayMode.TEXT_ROWS)
+        client.vibrate("left")
+        client.subscribe("state", "records")
+        client.subscribe()
+        assert client.reset()["ok"] is True
+        assert client.commission()["ok"] is True
+    assert served.requests() == [
+        Estop(),
+        Hold(),
+        Release(Releasable.HOLD),
+        Release(Releasable.ESTOP),
+        DisplayValue(2, -7),
+        DisplayLabel(2, "torque"),
+        DisplayRow(1, "hello remote"),
+        DisplayModeRequest(DisplayMode.TEXT_ROWS),
+        Vibrate(Side.LEFT),
+        Subscribe(frozenset({Topic.STATE, Topic.RECORDS})),
+        Subscribe(frozenset()),
+        Reset(),
+        Commission(),
+    ]
+
+
+def test_refusals_raise_api_error_and_the_client_goes_on(sock_path: Path) -> None:
+    """An error reply raises ApiError with its code; the connection stays usable."""
+    with Served(ServerConfig(sock_path)), SupervisorClient.connect(sock_path) as client:
+        with pytest.raises(ApiError) as caught:
+            client.heartbeat()
+        assert caught.value.code == ErrorCode.NOT_HELLO
+        assert caught.value.op == "heartbeat"
+        with pytest.raises(ApiError) as caught:
+            client.display_row(9, "no such row")
+        assert caught.value.code == ErrorCode.BAD_REQUEST
+        client.hello("nav")
+        with pytest.raises(ApiError) as caught:
+            client.hello("nav2")
+        assert caught.value.code == ErrorCode.ALREADY_NAMED
+        client.heartbeat()
+
+
+def test_pushes_during_a_call_are_kept_for_next_event(sock_path: Path) -> None:
+    """A push that arrives before a reply is kept, in order, for next_event."""
+    with Served(ServerConfig(sock_path)), SupervisorClient.connect(sock_path, "nav") as client:
+        client.subscribe("state")
+        client.heartbeat()
+        client.heartbeat()
+        first, second = client.next_event(), client.next_event()
+        assert isinstance(first, Push)
+        assert first.event == "state"
+        assert first.data["state"] == "STOPPED"
+        assert second is not None
+        assert client.next_event(timeout=0.01) is None
+
+
+def test_next_event_waits_for_a_push(sock_path: Path) -> None:
+    """next_event reads a push that arrives while it waits (another client's heartbeat)."""
+    with (
+        Served(ServerConfig(sock_path)),
+        SupervisorClient.connect(sock_path) as watcher,
+        SupervisorClient.connect(sock_path, "nav") as robot,
+    ):
+        watcher.subscribe("state")
+        robot.heartbeat()
+        push = watcher.next_event(timeout=10)
+        assert push is not None
+        assert push.event == "state"
+
+
+def test_missing_socket_is_a_connect_error(tmp_path: Path) -> None:
+    """Connecting where no server listens raises ConnectError naming the path."""
+    with pytest.raises(ConnectError, match=r"absent\.sock"):
+        SupervisorClient.connect(tmp_path / "absent.sock")
+
+
+def test_server_shutdown_is_connection_closed(sock_path: Path) -> None:
+    """When the server goes away the next call raises ConnectionClosedError."""
+    served = Served(ServerConfig(sock_path))
+    with served, SupervisorClient.connect(sock_path, "nav") as client:
+        client.heartbeat()
+        served.__exit__(None, None, None)  # stop the loop and close the server early
+        with pytest.raises(ConnectionClosedError):
+            client.heartbeat()
+
+
+def test_too_many_clients_raises_on_hello(sock_path: Path) -> None:
+    """A client past max_clients gets ApiError too_many_clients from its hello."""
+    with (
+        Served(ServerConfig(sock_path, max_clients=1)),
+        SupervisorClient.connect(sock_path, "first") as first,
+    ):
+        first.heartbeat()
+        with pytest.raises(ApiError) as caught:
+            SupervisorClient.connect(sock_path, "second")
+        assert caught.value.code == ErrorCode.TOO_MANY_CLIENTS
+
+
+def test_no_reply_in_time_is_a_timeout_and_closes(sock_path: Path) -> None:
+    """A server that does not answer makes the call raise ClientTimeoutError and close."""
+    with (
+        Served(ServerConfig(sock_path), answer=False),
+        SupervisorClient.connect(sock_path, timeout=0.05) as client,
+    ):
+        with pytest.raises(ClientTimeoutError):
+            client.status()
+        assert client.fileno() < 0
+        with pytest.raises(ConnectionClosedError):
+            client.status()
