@@ -16,7 +16,7 @@ from supervisord.links.serial_link import SerialLink as SerialLinkImpl
 from supervisord.outputs import Output, create_output
 from supervisord.outputs.base import OutputKind
 from supervisord.record.journal import JournalSink
-from supervisord.record.jsonl import RecordWriter
+from supervisord.record.jsonl import RecordWriter, last_record
 
 log = logging.getLogger("srcsd")
 
@@ -69,7 +69,8 @@ def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> 
                 sink.unavailable_reason,
                 record.path,
             )
-    return Supervisor(
+    previous = last_record(record.path)
+    supervisor = Supervisor(
         config.safety,
         link,
         outputs,
@@ -80,3 +81,5 @@ def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> 
         backoff=Backoff(config.vsc.reopen.min_ms, config.vsc.reopen.max_ms),
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )
+    supervisor.sequence_offset = previous.seq if previous is not None else 0
+    return supervisor

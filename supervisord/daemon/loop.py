@@ -120,6 +120,8 @@ class Supervisor:
         self.backoff = backoff or Backoff()
         self.counters = Counters()
         self._release = release or []
+        # Sequence numbers continue the record across restarts (the core counts from 1).
+        self.sequence_offset = 0
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         self._stop_requested = False
@@ -140,10 +142,9 @@ class Supervisor:
         now = self.clock()
         readbacks = [output.open(now) for output in self.outputs.values()]
         self.core = SafetyCore(self.safety, now)
-        decision = self.core.tick(now)
+        self._apply(self.core.decision)  # the startup decision, with the first record
         for readback in readbacks:
-            decision = self._feed(self._readback_event(readback, now))
-        self._apply(decision)
+            self._apply(self._feed(self._readback_event(readback, now)))
         self._try_open_link(now)
         for fd in (self._wake_r.fileno(),):
             self._wake_r.setblocking(False)
@@ -371,7 +372,7 @@ class Supervisor:
             self.notifier.send(STATUS=status)
 
     def _write_record(self, record: Record) -> dict[str, object]:
-        entry = record_json(record, self.wall_clock())
+        entry = record_json(record, self.wall_clock(), self.sequence_offset)
         if self.writer is not None:
             try:
                 self.writer.append(entry)

@@ -67,10 +67,11 @@ def record_kind(record: Record) -> str:
     return "cause_cleared"
 
 
-def record_json(record: Record, utc: dt.datetime) -> JsonDict:
-    """The stop-record entry for ``record``, written at wall-clock time ``utc``."""
+def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> JsonDict:
+    """The stop-record entry for ``record``, written at wall-clock time ``utc``; its ``seq``
+    continues after ``sequence_offset``, the last one in the file."""
     result: JsonDict = {
-        "seq": record.sequence,
+        "seq": sequence_offset + record.sequence,
         "mono_ns": record.monotonic_ns,
         "utc": format_utc(utc),
         "kind": record_kind(record),

@@ -117,3 +117,79 @@ def test_bad_config_refuses_to_start(tmp_path: Path) -> None:
     assert done.returncode == 1
     assert str(bad) in done.stderr
     assert "rearm.hold_ms" in done.stderr
+
+
+def run_briefly(config: Path) -> None:
+    """Start srcsd with no VSC attached, let it record its start, stop it with SIGTERM."""
+    record = config.parent / "stops.jsonl"
+    before = record.read_text().count("\n") if record.exists() else 0
+    daemon = subprocess.Popen([SRCSD, "--config", str(config)], stderr=subprocess.DEVNULL)
+    end = time.monotonic() + 10
+    while not (record.exists() and record.read_text().count("\n") > before):
+        assert time.monotonic() < end
+        time.sleep(0.01)
+    daemon.send_signal(signal.SIGTERM)
+    assert daemon.wait(timeout=10) == 0
+
+
+def test_record_continues_across_restarts_and_srcsctl_log_reads_it(tmp_path: Path) -> None:
+    """A restarted daemon continues the sequence numbers; srcsctl log lists, filters by cause
+    and time, and prints JSON."""
+    config = tmp_path / "robot.toml"
+    config.write_text(CONFIG)
+    run_briefly(config)
+    first = (tmp_path / "stops.jsonl").read_text().count("\n")
+    run_briefly(config)
+    seqs = [json.loads(line)["seq"] for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
+    assert seqs == list(range(1, len(seqs) + 1))
+    assert len(seqs) > first
+
+    srcsctl = str(Path(SRCSD).with_name("srcsctl"))
+    listing = subprocess.run(
+        [srcsctl, "log", "--config", str(config)], capture_output=True, text=True, check=True
+    )
+    lines = listing.stdout.splitlines()
+    assert [line.split()[1] for line in lines] == [f"#{seq}" for seq in seqs]
+    assert sum(" tick " in line for line in lines) == 2  # one startup record per start
+    assert "transport_fault*" in listing.stdout
+    filtered = subprocess.run(
+        [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--cause", "transport", "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert filtered.stdout == ""  # "transport" is not a whole cause name
+    by_cause = subprocess.run(
+        [
+            srcsctl,
+            "log",
+            "--file",
+            str(tmp_path / "stops.jsonl"),
+            "--cause",
+            "transport_fault",
+            "--since",
+            "1h",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    objects = [json.loads(line) for line in by_cause.stdout.splitlines()]
+    assert objects
+    assert all(any(c["name"] == "transport_fault" for c in o["causes"]) for o in objects)
+    future = subprocess.run(
+        [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--since", "2999-01-01"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert future.stdout == ""
+    bad = subprocess.run(
+        [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--since", "yesterday"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert bad.returncode == 2
+    assert "not a time: 'yesterday'" in bad.stderr
