@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.records import record_json
 from supervisord.links.base import Backoff, Link, LinkBroken, LinkError
-from supervisord.outputs.base import Output, ReadBack
+from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
@@ -136,15 +136,22 @@ class Supervisor:
     def start(self) -> Decision:
         """Outputs off before anything else, then the core, then the link (safety-rules §6).
 
-        Returns the first decision. Raises ``OutputError`` when an output cannot be acquired:
-        a supervisor that cannot hold its outputs must not claim to be ready.
+        Returns the first decision. An output that cannot be acquired (busy, missing, not
+        permitted) is ``output_fault:NAME`` for good: the daemon stays up, STOPPED, and says so,
+        because a supervisor that exits holds nothing and reports nothing.
         """
         now = self.clock()
-        readbacks = [output.open(now) for output in self.outputs.values()]
+        events: list[Event] = []
+        for output in self.outputs.values():
+            try:
+                events.append(self._readback_event(output.open(now), now))
+            except OutputError as error:
+                log.error("output %s cannot be acquired: %s", output.name, error)
+                events.append(OutputReadback(now, output.name, False, None))
         self.core = SafetyCore(self.safety, now)
         self._apply(self.core.decision)  # the startup decision, with the first record
-        for readback in readbacks:
-            self._apply(self._feed(self._readback_event(readback, now)))
+        for event in events:
+            self._apply(self._feed(event))
         self._try_open_link(now)
         for fd in (self._wake_r.fileno(),):
             self._wake_r.setblocking(False)
@@ -223,7 +230,9 @@ class Supervisor:
     def _next_deadline(self) -> int:
         candidates = [self.decision.next_deadline if self.decision else self.clock()]
         candidates += [
-            d for output in self.outputs.values() if (d := output.next_deadline()) is not None
+            d
+            for output in self.outputs.values()
+            if output.is_open and (d := output.next_deadline()) is not None
         ]
         if not self.link.is_open:
             candidates.append(self.backoff.next_attempt)
@@ -268,7 +277,7 @@ class Supervisor:
             assert self.core is not None
             self._apply(self.core.tick(now))
         for output in self.outputs.values():
-            deadline = output.next_deadline()
+            deadline = output.next_deadline() if output.is_open else None
             if deadline is not None and now >= deadline:
                 readback = output.tick(now)
                 if readback is not None and not readback.ok:
@@ -347,7 +356,9 @@ class Supervisor:
             changed = [
                 (output, on)
                 for name, on in decision.outputs.items()
-                if (output := self.outputs.get(name)) is not None and output.requested != on
+                if (output := self.outputs.get(name)) is not None
+                and output.is_open
+                and output.requested != on
             ]
             if not changed:
                 break

@@ -138,3 +138,35 @@ def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:
             assert supervisor.counters.link_failures >= 1
     finally:
         supervisor.shutdown()
+
+
+def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_path: Path) -> None:
+    """A GPIO output on a chip that does not exist is output_fault:NAME from the start; the
+    daemon runs on, STOPPED, and the other outputs stay off."""
+    outputs = [
+        create_output(parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})),
+        create_output(
+            parse_output_spec(
+                "brake", {"kind": "gpio", "chip": str(tmp_path / "no-chip"), "line": 3}
+            )
+        ),
+    ]
+    supervisor = Supervisor(
+        SafetyConfig(
+            outputs=(
+                OutputSpec("drive", OutputClass.MOTION),
+                OutputSpec("brake", OutputClass.MOTION),
+            )
+        ),
+        SerialLink(str(tmp_path / "vsc")),
+        outputs,
+        None,
+    )
+    try:
+        decision = supervisor.start()
+        assert "output_fault:brake" in decision.active_names
+        assert decision.state is State.STOPPED
+        assert level(tmp_path, "drive") == "0"
+        supervisor.step()  # the loop goes on
+    finally:
+        supervisor.shutdown()
