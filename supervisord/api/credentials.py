@@ -1,11 +1,11 @@
 """Who is at the other end of a client connection (safety-rules.md §8).
 
 The kernel tells us the peer's pid, uid and gid as they were when it connected
-(``SO_PEERCRED``): a peer cannot forge them. Admin rights (``reset``, ``commission``) belong to
-root and to members of the configured admin group; a peer's supplementary groups come from
-``/proc/PID/status`` (``Groups:``), read once when the connection is accepted, and count only
-while that process still runs with the uid the kernel reported (so a recycled pid cannot lend
-its groups to another process).
+(``SO_PEERCRED``): a peer cannot forge them. Admin rights (``reset``, ``commission``)
+belong to root, the daemon's own user and members of the configured admin group; a peer's
+supplementary groups come from ``/proc/PID/status`` (``Groups:``), read once when the
+connection is accepted, and count only while that process still runs with the uid the
+kernel reported (so a recycled pid cannot lend its groups to another process).
 """
 
 from __future__ import annotations
@@ -87,12 +87,26 @@ def user_name(uid: int) -> str:
         return str(uid)
 
 
-def is_admin(credentials: PeerCredentials, groups: frozenset[int], admin_gid: int | None) -> bool:
-    """Root, or a member of the admin group (``admin_gid``; ``None``: nobody but root)."""
-    return credentials.uid == 0 or (admin_gid is not None and admin_gid in groups)
+def is_admin(
+    credentials: PeerCredentials,
+    groups: frozenset[int],
+    admin_gid: int | None,
+    own_uid: int | None = None,
+) -> bool:
+    """Root, the daemon's own user (``own_uid``), or a member of the admin group
+    (``admin_gid``; ``None``: no group)."""
+    if credentials.uid in (0, own_uid):
+        return True
+    return admin_gid is not None and admin_gid in groups
 
 
-def caller(credentials: PeerCredentials, admin_gid: int | None, proc: Path = PROC) -> Caller:
+def caller(
+    credentials: PeerCredentials,
+    admin_gid: int | None,
+    proc: Path = PROC,
+    *,
+    own_uid: int | None = None,
+) -> Caller:
     """The safety core's view of the peer: uid, pid, login name and admin flag."""
-    admin = is_admin(credentials, process_groups(credentials, proc), admin_gid)
+    admin = is_admin(credentials, process_groups(credentials, proc), admin_gid, own_uid)
     return Caller(credentials.uid, credentials.pid, user_name(credentials.uid), admin)

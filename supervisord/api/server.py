@@ -1,9 +1,8 @@
 """The client API server: a non-blocking Unix socket driven by the daemon's one loop.
 
-safety-rules.md §8 and ``docs/api.md``. There are no threads: the server registers its
-sockets with the daemon's ``selectors`` selector (``data`` is the server) and keeps those
-registrations up to date itself, so a descriptor is always unregistered before it is closed.
-The loop hands every ready key back to :meth:`ApiServer.handle`, which returns typed results:
+safety-rules.md §8 and ``docs/api.md``. There are no threads. Before each wait the loop asks
+:meth:`ApiServer.descriptors` which descriptors to watch (and which have output waiting), and
+hands every ready one back to :meth:`ApiServer.handle`, which returns typed results:
 
 - :class:`Accepted` - a client connected (``ClientConnected`` for the core);
 - :class:`Received` - a valid request the daemon must act on and answer with :meth:`reply`
@@ -23,7 +22,6 @@ import contextlib
 import enum
 import errno
 import os
-import selectors
 import socket
 import stat
 from collections.abc import Mapping
@@ -61,8 +59,6 @@ RECV_SIZE: Final = 16 * 1024  # bytes read per readable event: bounded work per 
 ACCEPTS_PER_CALL: Final = 32
 BACKLOG: Final = 16
 
-READ, WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
-
 
 class ServerError(SrcsError):
     """The server cannot start at its path; the message names the path and the fix."""
@@ -83,8 +79,17 @@ class ServerConfig:
     admin_group: str | None = None
     max_clients: int = DEFAULT_MAX_CLIENTS
     max_line: int = DEFAULT_MAX_LINE
-    max_discard: int = DEFAULT_MAX_DISCARD
+    max_discard: int | None = None
     max_output: int = DEFAULT_MAX_OUTPUT
+
+    @property
+    def discard_limit(self) -> int:
+        """Bytes of one over-long line discarded before the sender is disconnected."""
+        return (
+            self.max_discard
+            if self.max_discard is not None
+            else max(DEFAULT_MAX_DISCARD, 4 * self.max_line)
+        )
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "path", Path(self.path))
@@ -95,7 +100,7 @@ class ServerConfig:
         for key, value, low, high in (
             ("api.max_clients", self.max_clients, 1, 1024),
             ("api.max_line", self.max_line, 256, 1 << 20),
-            ("api.max_discard", self.max_discard, self.max_line, 1 << 26),
+            ("api.max_discard", self.discard_limit, self.max_line, 1 << 26),
             ("api.max_output", self.max_output, 4096, 1 << 28),
         ):
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
@@ -159,65 +164,65 @@ def core_event(result: Result, now: int) -> Event | None:
 
 
 class _Connection:
-    __slots__ = (
-        "accepted",
-        "closing",
-        "dead",
-        "info",
-        "mask",
-        "out",
-        "reader",
-        "sock",
-        "topics",
-    )
+    __slots__ = ("accepted", "dead", "info", "out", "reader", "sock", "topics")
 
     def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
         self.sock, self.info, self.reader = sock, info, reader
         self.out = bytearray()
         self.topics: frozenset[Topic] = frozenset()
-        self.closing = False  # no more input; close once the output is flushed
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
-        self.mask = 0
-        self.dead = False  # the socket is closed
+        self.dead = False  # ended: shut down, its descriptor released at the next descriptors()
 
 
 class ApiServer:
     """The API socket at ``config.path``, its connections and their buffers.
 
-    Construction creates the socket (mode ``config.mode``, group ``config.group``) and
-    registers it with ``selector``. A stale socket file left by a crash is replaced; a path
-    that is not a socket, or a socket another server still listens on, raises
-    :class:`ServerError` and nothing is changed. :meth:`close` ends every connection and
-    removes the socket file.
+    Construction creates the socket (mode ``config.mode``, group ``config.group``). A stale
+    socket file left by a crash is replaced; a path that is not a socket, or a socket another
+    server still listens on, raises :class:`ServerError` and nothing is changed.
+    :meth:`close` ends every connection and removes the socket file.
+
+    A connection that ends is shut down at once (its peer sees the end), but its descriptor
+    stays open until the next :meth:`descriptors` call, so the loop can drop it from its
+    watch list before the number can be reused by a new connection.
     """
 
-    def __init__(self, config: ServerConfig, selector: selectors.BaseSelector) -> None:
-        self.config, self._selector = config, selector
+    def __init__(self, config: ServerConfig) -> None:
+        self.config = config
         self._admin_gid = group_id(config.admin_group)
         socket_gid = group_id(config.group, "api.group")
+        self._own_uid = os.geteuid()
         self._connections: dict[int, _Connection] = {}  # by connection number
         self._by_fd: dict[int, _Connection] = {}
+        self._ended: list[socket.socket] = []
         self._next_number = 1
         self._closed = False
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
-        try:
-            selector.register(self._listener, READ, self)
-        except BaseException:
-            self._close_listener()
-            raise
 
     # -- the loop's side ------------------------------------------------------------------
 
-    def handle(self, fd: int, mask: int) -> list[Result]:
-        """Act on one ready key of the selector (``key.fd``, ``mask``) whose ``data`` is this
-        server, and return what happened."""
+    def descriptors(self) -> list[tuple[int, bool]]:
+        """``(fd, wants_write)`` for every descriptor to watch now: the listening socket and
+        each connection (always for reading). Releases the descriptors of ended connections,
+        so call it once per turn, before the wait, and watch exactly what it returns."""
+        for sock in self._ended:
+            sock.close()
+        self._ended.clear()
+        if self._closed:
+            return []
+        watched = [(self._listen_fd, False)]
+        watched += [(fd, bool(conn.out)) for fd, conn in self._by_fd.items()]
+        return watched
+
+    def handle(self, fd: int, readable: bool, writable: bool) -> list[Result]:
+        """Act on one ready descriptor and return what happened (in order)."""
         if fd == self._listen_fd:
-            return self.accept()
+            return self.accept() if readable and not self._closed else []
         results: list[Result] = []
-        if mask & WRITE:
+        if writable:
             results += self.on_writable(fd)
-        if mask & READ:
+        if readable:
             results += self.on_readable(fd)
         return results
 
@@ -225,8 +230,6 @@ class ApiServer:
         """Accept the waiting connections (a bounded number per call)."""
         results: list[Result] = []
         for _ in range(ACCEPTS_PER_CALL):
-            if self._closed:
-                break
             try:
                 sock, _address = self._listener.accept()
             except (BlockingIOError, InterruptedError):
@@ -241,49 +244,39 @@ class ApiServer:
     def on_readable(self, fd: int) -> list[Result]:
         """Read what one connection sent and return its requests (and its end, if it ended)."""
         conn = self._by_fd.get(fd)
-        if conn is None or conn.closing:
+        if conn is None:
             return []
         try:
             data = conn.sock.recv(RECV_SIZE)
         except (BlockingIOError, InterruptedError):
             return []
         except OSError:
-            return list(self._drop(conn, CloseReason.BROKEN))
+            return list(self._end(conn, CloseReason.BROKEN))
         if not data:
-            return list(self._finish(conn, CloseReason.PEER_CLOSED))
+            if conn.out:  # a peer that only shut down its sending side gets what waits
+                with contextlib.suppress(OSError):
+                    conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
+            return list(self._end(conn, CloseReason.PEER_CLOSED))
         results: list[Result] = []
         for item in conn.reader.feed(data):
             if isinstance(item, ApiError):
                 results += self._queue(conn, encode(item.reply()))
             else:
                 results += self._dispatch(conn, item)
-            if conn.dead:  # closed while answering: nothing more to read
+            if conn.dead:  # ended while answering: nothing more to read
                 return results
         if conn.reader.flooded:
             error = ApiError(ErrorCode.FLOOD, "an endless line: the connection is closed")
             results += self._queue(conn, encode(error.reply()))
-            if not conn.dead:
-                results += self._finish(conn, CloseReason.FLOOD)
+            results += self._end(conn, CloseReason.FLOOD)
         return results
 
     def on_writable(self, fd: int) -> list[Result]:
-        """Send what waits for one connection; close it once a closing one is flushed."""
+        """Send what waits for one connection."""
         conn = self._by_fd.get(fd)
-        if conn is None:
+        if conn is None or not conn.out:
             return []
-        if conn.out:
-            try:
-                sent = conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
-            except (BlockingIOError, InterruptedError):
-                sent = 0
-            except OSError:
-                return list(self._drop(conn, CloseReason.BROKEN))
-            del conn.out[:sent]
-        if conn.closing and not conn.out:
-            self._close(conn)
-            return []
-        self._watch(conn)
-        return []
+        return list(self._flush(conn))
 
     # -- the daemon's side ----------------------------------------------------------------
 
@@ -308,18 +301,18 @@ class ApiServer:
         line: bytes | None = None
         closed: list[Closed] = []
         for conn in list(self._connections.values()):
-            if topic in conn.topics and not conn.closing:
+            if topic in conn.topics:
                 line = line if line is not None else encode(obj)
                 closed += self._queue(conn, line)
         return closed
 
     def subscribed(self, topic: Topic) -> bool:
         """Whether any connection wants ``topic`` (so a push is worth building)."""
-        return any(topic in c.topics for c in self._connections.values() if not c.closing)
+        return any(topic in c.topics for c in self._connections.values())
 
     def clients(self) -> tuple[ClientInfo, ...]:
-        """The open connections that were accepted, oldest first."""
-        return tuple(c.info for c in self._connections.values() if c.accepted and not c.closing)
+        """The open connections, oldest first."""
+        return tuple(c.info for c in self._connections.values() if c.accepted)
 
     @property
     def path(self) -> Path:
@@ -334,10 +327,10 @@ class ApiServer:
         self._closed = True
         closed: list[Closed] = []
         for conn in list(self._connections.values()):
-            if conn.accepted and not conn.closing:
-                closed.append(Closed(conn.info, CloseReason.SHUTDOWN))
-            self._close(conn)
-        self._close_listener()
+            closed += self._end(conn, CloseReason.SHUTDOWN)
+        self.descriptors()  # releases the ended descriptors
+        self._listener.close()
+        _unlink_if_ours(self.config.path, self._identity)
         return closed
 
     def __enter__(self) -> Self:
@@ -351,27 +344,25 @@ class ApiServer:
     def _adopt(self, sock: socket.socket) -> Accepted | None:
         sock.setblocking(False)
         try:
-            who = caller(peer_credentials(sock), self._admin_gid)
+            who = caller(peer_credentials(sock), self._admin_gid, own_uid=self._own_uid)
         except OSError:
             sock.close()
             return None
         number = self._next_number
         self._next_number += 1
-        reader = LineReader(self.config.max_line, self.config.max_discard)
+        reader = LineReader(self.config.max_line, self.config.discard_limit)
         conn = _Connection(sock, ClientInfo(number, who), reader)
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
-        live = sum(1 for c in self._connections.values() if c.accepted and not c.closing)
-        if live > self.config.max_clients:
-            conn.accepted, conn.closing = False, True
+        if len(self._connections) > self.config.max_clients:
+            conn.accepted = False
             error = ApiError(
                 ErrorCode.TOO_MANY_CLIENTS,
                 f"the server takes at most {self.config.max_clients} clients",
             )
-            self._watch(conn)
-            self._queue(conn, encode(error.reply()))
+            self._queue(conn, encode(error.reply()))  # a fresh socket has room for one line
+            self._end(conn, CloseReason.SHUTDOWN)
             return None
-        self._watch(conn)
         return Accepted(conn.info)
 
     def _dispatch(self, conn: _Connection, line: bytes) -> list[Result]:
@@ -379,16 +370,14 @@ class ApiServer:
             return []  # blank lines are allowed (handy when typing requests by hand)
         try:
             request = parse_request(line)
-            error = self._check(conn, request)
         except ApiError as e:
             return list(self._queue(conn, encode(e.reply())))
+        error = self._check(conn, request)
         if error is not None:
+            answered: list[Result] = []
             if error.code == ErrorCode.NOT_ALLOWED:
-                return [
-                    Denied(conn.info, request, error),
-                    *self._queue(conn, encode(error.reply())),
-                ]
-            return list(self._queue(conn, encode(error.reply())))
+                answered.append(Denied(conn.info, request, error))
+            return answered + self._queue(conn, encode(error.reply()))
         if isinstance(request, Hello):
             conn.info = replace(conn.info, name=request.name)
         elif isinstance(request, Subscribe):
@@ -404,9 +393,8 @@ class ApiServer:
         if isinstance(request, Hello):
             if conn.info.name is not None:
                 return error(ErrorCode.ALREADY_NAMED, f"this connection is {conn.info.name}")
-            for other in self._connections.values():
-                if other.info.name == request.name and not other.closing:
-                    return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
+            if any(other.info.name == request.name for other in self._connections.values()):
+                return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
         if isinstance(request, Heartbeat) and conn.info.name is None:
             return error(ErrorCode.NOT_HELLO, "say hello with a name before heartbeats")
         return None
@@ -414,59 +402,36 @@ class ApiServer:
     def _queue(self, conn: _Connection, line: bytes) -> list[Closed]:
         if conn.dead:
             return []
-        if not conn.out:
-            try:
-                sent = conn.sock.send(line, socket.MSG_NOSIGNAL)
-            except (BlockingIOError, InterruptedError):
-                sent = 0
-            except OSError:
-                return self._drop(conn, CloseReason.BROKEN)
-            line = line[sent:]
         conn.out += line
         if len(conn.out) > self.config.max_output:
-            return self._drop(conn, CloseReason.OUTPUT_OVERFLOW)
-        self._watch(conn)
+            return self._end(conn, CloseReason.OUTPUT_OVERFLOW)
+        return self._flush(conn)
+
+    def _flush(self, conn: _Connection) -> list[Closed]:
+        """Send what the socket takes now; never waits."""
+        if not conn.out:
+            return []
+        try:
+            sent = conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
+        except (BlockingIOError, InterruptedError):
+            return []
+        except OSError:
+            return self._end(conn, CloseReason.BROKEN)
+        del conn.out[:sent]
         return []
 
-    def _watch(self, conn: _Connection) -> None:
-        mask = (0 if conn.closing else READ) | (WRITE if conn.out or conn.closing else 0)
-        if mask == conn.mask:
-            return
-        if conn.mask == 0:
-            self._selector.register(conn.sock, mask, self)
-        else:
-            self._selector.modify(conn.sock, mask, self)
-        conn.mask = mask
-
-    def _finish(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
-        """Take no more input; close once the output is flushed; report the end now."""
-        report = conn.accepted and not conn.closing
-        conn.closing = True
-        self._watch(conn)
-        return [Closed(conn.info, reason)] if report else []
-
-    def _drop(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
-        """Close at once, dropping any output."""
-        report = conn.accepted and not conn.closing
-        self._close(conn)
-        return [Closed(conn.info, reason)] if report else []
-
-    def _close(self, conn: _Connection) -> None:
-        if conn.mask:
-            self._selector.unregister(conn.sock)
-            conn.mask = 0
-        if self._by_fd.get(conn.sock.fileno()) is conn:
-            del self._by_fd[conn.sock.fileno()]
-        self._connections.pop(conn.info.connection, None)
-        conn.out.clear()
+    def _end(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
+        """Shut the connection down now (dropping its output) and report its end once."""
+        if conn.dead:
+            return []
         conn.dead = True
-        conn.sock.close()
-
-    def _close_listener(self) -> None:
-        with contextlib.suppress(KeyError, ValueError):
-            self._selector.unregister(self._listener)
-        self._listener.close()
-        _unlink_if_ours(self.config.path, self._identity)
+        self._connections.pop(conn.info.connection, None)
+        self._by_fd.pop(conn.sock.fileno(), None)
+        conn.out.clear()
+        with contextlib.suppress(OSError):
+            conn.sock.shutdown(socket.SHUT_RDWR)
+        self._ended.append(conn.sock)
+        return [Closed(conn.info, reason)] if conn.accepted else []
 
 
 # -- the socket file -----------------------------------------------------------------------

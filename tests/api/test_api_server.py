@@ -55,6 +55,7 @@ from supervisord.safety.events import (
 )
 
 NOBODY = 65534
+READ, WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
 T = TypeVar("T")
 
 
@@ -72,29 +73,37 @@ class Loop:
     daemon that answers every request ``ok`` (``status`` with the safety core's state)."""
 
     def __init__(self, config: ServerConfig, answer: bool = True) -> None:
+        self.server = ApiServer(config)
         self.selector = selectors.DefaultSelector()
-        try:
-            self.server = ApiServer(config, self.selector)
-        except BaseException:
-            self.selector.close()
-            raise
+        self.watched: dict[int, int] = {}
         self.answer = answer
         self.before_reply: Callable[[Received], list[Closed]] | None = None
         self.results: list[Result] = []
         self.core = SafetyCore(SafetyConfig(), 0)
 
+    def sync(self) -> None:
+        """Watch exactly what the server asks for, as the daemon's loop does."""
+        wanted = {fd: READ | (WRITE if out else 0) for fd, out in self.server.descriptors()}
+        for fd in set(self.watched) - set(wanted):
+            self.selector.unregister(fd)
+        for fd, events in wanted.items():
+            if fd not in self.watched:
+                self.selector.register(fd, events)
+            elif self.watched[fd] != events:
+                self.selector.modify(fd, events)
+        self.watched = wanted
+
     def turn(self, timeout: float = 0.0) -> list[Result]:
+        self.sync()
         new: list[Result] = []
         for key, mask in self.selector.select(timeout):
-            assert key.data is self.server
-            new += self.server.handle(key.fd, mask)
+            new += self.server.handle(key.fd, bool(mask & READ), bool(mask & WRITE))
         for result in list(new):
             if isinstance(result, Received) and self.before_reply is not None:
                 new += self.before_reply(result)
             if isinstance(result, Received) and self.answer:
-                fields = (
-                    decision_json(self.core.decision) if isinstance(result.request, Status) else {}
-                )
+                status = isinstance(result.request, Status)
+                fields = decision_json(self.core.decision) if status else {}
                 new += self.server.reply(result, **fields)
         self.results += new
         return new
@@ -236,23 +245,15 @@ def test_stale_socket_is_replaced(sock_path: Path, peers: Callable[[], Peer]) ->
 def test_path_that_is_not_a_socket_is_refused(sock_path: Path) -> None:
     """A regular file at the path stops the server from starting and is left alone."""
     sock_path.write_text("keep me")
-    selector = selectors.DefaultSelector()
-    try:
-        with pytest.raises(ServerError, match="not a socket"):
-            ApiServer(ServerConfig(sock_path), selector)
-    finally:
-        selector.close()
+    with pytest.raises(ServerError, match="not a socket"):
+        ApiServer(ServerConfig(sock_path))
     assert sock_path.read_text() == "keep me"
 
 
 def test_second_server_on_a_live_socket_is_refused(loop: Loop, sock_path: Path) -> None:
     """A server that finds another one listening at its path refuses to start."""
-    selector = selectors.DefaultSelector()
-    try:
-        with pytest.raises(ServerError, match="another server"):
-            ApiServer(ServerConfig(sock_path), selector)
-    finally:
-        selector.close()
+    with pytest.raises(ServerError, match="another server"):
+        ApiServer(ServerConfig(sock_path))
     assert sock_path.exists()
 
 
@@ -681,19 +682,17 @@ def test_recycled_pid_lends_no_groups(tmp_path: Path) -> None:
     assert process_groups(PeerCredentials(78, 1000, 1000), proc) == {1000}
 
 
-def test_root_is_always_admin(tmp_path: Path) -> None:
-    """uid 0 is an admin even with no admin group configured."""
+def test_root_and_the_daemons_own_user_are_admins(tmp_path: Path) -> None:
+    """uid 0 and the daemon's own uid are admins even with no admin group configured."""
     assert caller(PeerCredentials(1, 0, 0), None, tmp_path).admin is True
+    assert caller(PeerCredentials(1, 999, 999), None, tmp_path, own_uid=999).admin is True
+    assert caller(PeerCredentials(1, 998, 999), None, tmp_path, own_uid=999).admin is False
 
 
 def test_unknown_admin_group_is_a_config_error(sock_path: Path) -> None:
     """A server configured with a group that does not exist refuses to start."""
-    selector = selectors.DefaultSelector()
-    try:
-        with pytest.raises(ConfigError, match=r"api\.admin_group"):
-            ApiServer(ServerConfig(sock_path, admin_group="no-such-group-xyz"), selector)
-    finally:
-        selector.close()
+    with pytest.raises(ConfigError, match=r"api\.admin_group"):
+        ApiServer(ServerConfig(sock_path, admin_group="no-such-group-xyz"))
     assert not sock_path.exists()
 
 
