@@ -686,11 +686,12 @@ def record_kind(record: Record) -> str:
     return "cause_cleared"
 
 
-def record_json(record: Record, utc: dt.datetime) -> JsonDict:
+def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> JsonDict:
     """A stop record as JSON, with the fields ``docs/record.md`` requires; ``utc`` (aware) is
-    the wall-clock time the daemon stamped on it."""
+    the wall-clock time the daemon stamped on it. ``seq`` continues after ``sequence_offset``,
+    the last sequence number already in the store (the core counts from 1 at every start)."""
     result: JsonDict = {
-        "seq": record.sequence,
+        "seq": sequence_offset + record.sequence,
         "mono_ns": record.monotonic_ns,
         "utc": utc.astimezone(dt.UTC).isoformat(timespec="microseconds"),
         "kind": record_kind(record),

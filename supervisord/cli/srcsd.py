@@ -40,10 +40,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"srcsd: {error}", file=sys.stderr)
         return EXIT_CONFIG
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
-    from supervisord.daemon.assemble import build_supervisor  # noqa: PLC0415
+    from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
 
     try:
-        supervisor = build_supervisor(config)
+        supervisor = build_supervisor(config, build_api(config))
     except (SrcsError, OSError) as error:
         print(f"srcsd: cannot start: {error}", file=sys.stderr)
         return EXIT_CONFIG

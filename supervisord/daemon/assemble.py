@@ -6,7 +6,9 @@ import logging
 
 import can
 
+from supervisord.api.server import ApiServer, ServerConfig
 from supervisord.config import CanBus, DaemonConfig, HidLink, SerialLink
+from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
@@ -49,6 +51,19 @@ def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.B
                 interface=settings.interface, channel=settings.channel, bitrate=settings.bitrate
             )
     return [create_output(spec, can_bus=bus) for spec in config.outputs], owned
+
+
+def build_api(config: DaemonConfig) -> ApiListener:
+    api = config.api
+    server = ApiServer(
+        ServerConfig(
+            path=api.socket,
+            admin_group=api.admin_group,
+            max_clients=api.max_clients,
+            max_line=api.max_message_bytes,
+        )
+    )
+    return ApiListener(server)
 
 
 def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> Supervisor:

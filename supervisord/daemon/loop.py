@@ -20,8 +20,8 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
+from supervisord.api.wire import record_json
 from supervisord.daemon.notify import Notifier
-from supervisord.daemon.records import record_json
 from supervisord.links.base import Backoff, Link, LinkBroken, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.framing import Rejection
@@ -69,15 +69,22 @@ class Counters:
 class Listener:
     """Something else the loop serves (the client API): descriptors to watch and callbacks.
 
-    ``handle`` returns safety events to feed to the core; ``decided`` is told every decision
-    and every received VSC message, so clients see state, records and traffic as they happen.
+    ``decided`` and ``received`` are told every decision and every valid VSC message, so
+    clients see state, records and traffic as they happen.
     """
 
     def descriptors(self) -> Iterable[tuple[int, bool]]:
         """(fd, wants_write) pairs to watch now."""
         return ()
 
-    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> list[Event]:
+    def handle(
+        self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
+    ) -> None:
+        """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
+        and returns the core's decision (to answer with its refusals)."""
+
+    def take_events(self, now: int) -> list[Event]:
+        """Safety inputs that arose outside ``handle`` (e.g. a client dropped while pushing)."""
         return []
 
     def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
@@ -221,6 +228,8 @@ class Supervisor:
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
             for key, mask in ready:
                 self._dispatch(key, mask, now)
+            for event in self.listener.take_events(now):
+                self._apply(self._feed(event))
             if self.link.is_open and self.link.fileno() is None:
                 self._receive(now)
             self._due(now)
@@ -269,8 +278,7 @@ class Supervisor:
             return
         readable = bool(mask & selectors.EVENT_READ)
         writable = bool(mask & selectors.EVENT_WRITE)
-        for event in self.listener.handle(key.fd, readable, writable, now):
-            self._apply(self._feed(event))
+        self.listener.handle(key.fd, readable, writable, now, self._feed_and_apply)
 
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
@@ -342,6 +350,11 @@ class Supervisor:
     def _feed(self, event: Event) -> Decision:
         assert self.core is not None
         return self.core.handle(event)
+
+    def _feed_and_apply(self, event: Event) -> Decision:
+        decision = self._feed(event)
+        self._apply(decision)
+        return decision
 
     @staticmethod
     def _readback_event(readback: ReadBack, now: int) -> OutputReadback:

@@ -116,7 +116,7 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
         if change["change"] == "raised"
     }
     assert {"vsc_estop", "vsc_link_lost", "transport_fault"} <= raised
-    assert json.loads((tmp / "stops.jsonl").read_text().splitlines()[0])["to"] == "stopped"
+    assert json.loads((tmp / "stops.jsonl").read_text().splitlines()[0])["to"] == "STOPPED"
 
 
 def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:

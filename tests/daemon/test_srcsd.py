@@ -101,8 +101,8 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
         assert (tmp_path / "drive").read_text() == "0\n"
         assert "STOPPING=1" in notifications(notify)
         records = [json.loads(line) for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
-        assert records[0]["to"] == "stopped"
-        assert records[-1]["to"] == "run"
+        assert records[0]["to"] == "STOPPED"
+        assert records[-1]["to"] == "RUN"
         assert records[-1]["rearm"]["kind"] == "takeover"
         assert "Traceback" not in errors
 
