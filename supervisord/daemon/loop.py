@@ -160,9 +160,8 @@ class Supervisor:
         for event in events:
             self._apply(self._feed(event))
         self._try_open_link(now)
-        for fd in (self._wake_r.fileno(),):
-            self._wake_r.setblocking(False)
-            self._selector.register(fd, selectors.EVENT_READ, "wake")
+        self._wake_r.setblocking(False)
+        self._selector.register(self._wake_r.fileno(), selectors.EVENT_READ, "wake")
         interval = self.notifier.watchdog_interval_ns
         self._next_watchdog = now if interval else None
         assert self.decision is not None

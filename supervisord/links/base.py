@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import abc
-from typing import ClassVar
 
 from supervisord.errors import SrcsError
 from supervisord.protocol.framing import Rejection
@@ -29,9 +28,6 @@ class LinkBroken(LinkError):
 class Link(abc.ABC):
     """One connection to the VSC. Life cycle: ``open``, then ``receive``/``send`` until a
     ``LinkBroken`` or ``close``; then ``open`` again for a new start."""
-
-    #: True when the VSC on this link can watch our heartbeat (serial only, notes §3/§4).
-    carries_heartbeat: ClassVar[bool] = False
 
     @abc.abstractmethod
     def open(self) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-from typing import ClassVar
 
 import serial
 
@@ -23,8 +22,6 @@ class SerialLink(Link):
     ready but returns nothing, or as an I/O error: both are ``LinkBroken``. Every open starts
     a fresh decoder, so no half frame survives a reconnect.
     """
-
-    carries_heartbeat: ClassVar[bool] = True
 
     def __init__(self, port: str) -> None:
         self._path = port

@@ -170,3 +170,26 @@ def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_p
         supervisor.step()  # the loop goes on
     finally:
         supervisor.shutdown()
+
+
+def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscPeer, Path]) -> None:
+    """On a stop the output is already off when its record is written: outputs first,
+    logging after (safety-rules.md §6)."""
+    supervisor, peer, tmp = rig
+    seen: list[tuple[str, str]] = []
+    supervisor.journal = lambda entry: seen.append((str(entry["to"]), level(tmp, "drive")))
+    supervisor.start()
+    run_until(
+        supervisor,
+        peer,
+        lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
+    )
+    time.sleep(0.15)
+    peer.mode = VscMode.OPERATIONAL
+    run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
+    peer.mode, peer.estop = VscMode.LOCAL, 1
+    run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+    after_run = seen[[to for to, _ in seen].index("RUN") :]
+    stops = [drive for to, drive in after_run if to == "STOPPED"]
+    assert stops
+    assert set(stops) == {"0"}
