@@ -678,11 +678,14 @@ def trigger_json(event: object) -> JsonDict:
 
 
 def record_kind(record: Record) -> str:
-    """``state_change``, ``cause_raised`` or ``cause_cleared`` (``docs/record.md``)."""
+    """``state_change``, ``cause_raised``, the record's note (``rearm_refused``,
+    ``commissioned``) or ``cause_cleared``, in that order of precedence (``docs/record.md``)."""
     if record.previous is not record.state:
         return "state_change"
     if any(c.kind in (ChangeKind.RAISED, ChangeKind.UPDATED) for c in record.changes):
         return "cause_raised"
+    if record.note is not None:
+        return record.note.value
     return "cause_cleared"
 
 
@@ -701,6 +704,8 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
         "changes": [{"name": c.cause.name, "change": c.kind.value} for c in record.changes],
         "trigger": trigger_json(record.trigger),
     }
+    if record.reason:
+        result["reason"] = record.reason
     if record.rearm is not None:
         rearm: JsonDict = {"kind": record.rearm.kind.value}
         if record.rearm.caller is not None:

@@ -40,6 +40,8 @@ class RecordKind(enum.StrEnum):
     """A cause's condition cleared."""
     REARM_REFUSED = "rearm_refused"
     """A re-arm was asked for and refused."""
+    COMMISSIONED = "commissioned"
+    """Key 85 was written to the VSC (``srcsctl commission``)."""
 
 
 MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
@@ -47,6 +49,7 @@ MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
     RecordKind.CAUSE_RAISED: uuid.UUID("820501387c1a46049b855bcae8bc9ba2"),
     RecordKind.CAUSE_CLEARED: uuid.UUID("fd9e4e6d79c643eb9a534d2f8228aa89"),
     RecordKind.REARM_REFUSED: uuid.UUID("2be6051d1b7c43d0a0bfd08ad06caac8"),
+    RecordKind.COMMISSIONED: uuid.UUID("bdd0782d2f2b45a3bdc4e9984db1024d"),
 }
 """Stable journal MESSAGE_IDs, one per record kind. Never change them: operators' queries and
 alerting depend on them (``docs/record.md`` lists them)."""
@@ -84,13 +87,14 @@ def _is_stopped(state: object) -> bool:
 
 
 def priority(record: Mapping[str, object]) -> Priority:
-    """CRIT for a change into STOPPED, WARNING for a cause raised or a re-arm refused,
-    NOTICE otherwise (a cause cleared, any other change of state)."""
+    """CRIT for a change into STOPPED, WARNING for a cause raised, a re-arm refused or a
+    commissioning (it changes the VSC for good), NOTICE otherwise (a cause cleared, any other
+    change of state)."""
     kind = record_kind(record)
     if kind is RecordKind.STATE_CHANGE:
         into_stop = _is_stopped(record.get("to")) and not _is_stopped(record.get("from"))
         return Priority.CRIT if into_stop else Priority.NOTICE
-    if kind in (RecordKind.CAUSE_RAISED, RecordKind.REARM_REFUSED):
+    if kind in (RecordKind.CAUSE_RAISED, RecordKind.REARM_REFUSED, RecordKind.COMMISSIONED):
         return Priority.WARNING
     return Priority.NOTICE
 
@@ -110,13 +114,16 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
     if names is None:
         raise RecordUsageError("record field 'causes' must be a list of objects with a 'name'")
     kind = record_kind(record)
-    before, after, trigger = (_text(record.get(k)) for k in ("from", "to", "trigger"))
+    before, after, trigger, reason = (
+        _text(record.get(k, "")) for k in ("from", "to", "trigger", "reason")
+    )
     listed = ", ".join(names) or "none"
     message = {
         RecordKind.STATE_CHANGE: f"{before} -> {after}: causes {listed}; trigger {trigger}",
         RecordKind.CAUSE_RAISED: f"cause raised: {listed} (state {after}; trigger {trigger})",
         RecordKind.CAUSE_CLEARED: f"cause cleared: {listed} (state {after}; trigger {trigger})",
-        RecordKind.REARM_REFUSED: f"re-arm refused: causes {listed} (state {after})",
+        RecordKind.REARM_REFUSED: f"re-arm refused: {reason} (state {after}; causes {listed})",
+        RecordKind.COMMISSIONED: f"VSC commissioned: {reason} (trigger {trigger})",
     }[kind]
     fields = [
         ("MESSAGE", message),
@@ -131,6 +138,8 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         ("SRCS_TO", after),
         ("SRCS_TRIGGER", trigger),
     ]
+    if reason:
+        fields.append(("SRCS_REASON", reason))
     fields += [("SRCS_CAUSE", name) for name in names]
     fields.append(("SRCS_CAUSES", _text(record.get("causes"))))
     return fields

@@ -39,6 +39,7 @@ from supervisord.safety.decision import (
     Rearm,
     RearmKind,
     Record,
+    RecordNote,
     Refusal,
     RefusalReason,
 )
@@ -52,6 +53,7 @@ from supervisord.safety.events import (
     ClientHello,
     ClientHold,
     ClientRelease,
+    Commissioned,
     DisplayUpdate,
     Event,
     InternalFault,
@@ -138,6 +140,7 @@ class SafetyCore:
         self._frames: list[Message] = []
         self._refusals: list[Refusal] = []
         self._rearm: Rearm | None = None
+        self._note: tuple[RecordNote, str] | None = None
         self._book.pulse(Cause(CauseKind.STARTUP), now)  # §1: start STOPPED, cause startup
         self.decision: Decision = self.handle(Tick(now))
         """The latest decision returned (the startup decision until the first input)."""
@@ -169,6 +172,7 @@ class SafetyCore:
     def _step(self, event: object) -> Decision:
         self._frames, self._refusals = [], []
         self._rearm = None
+        self._note = None
         request: _RearmRequest | None = None
         if not is_event(event):
             self._refuse(RefusalReason.NOT_AN_EVENT, type(event).__name__, event)
@@ -181,7 +185,10 @@ class SafetyCore:
             request = self._apply(event, now)  # 2. the event
         self._refresh(now)  # 3. conditions
         if request is not None:  # 4. re-arm (§4)
+            refused = len(self._refusals)
             self._check_rearm(request, event, now)
+            if len(self._refusals) > refused:  # every refused re-arm is recorded (docs/record.md)
+                self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)
         previous = self._state
         self._state = self._transition(now)  # 5. the table
         return self._finish(event, previous, now)  # 6.
@@ -212,11 +219,21 @@ class SafetyCore:
         self._emit_link_frames(now, estop, urgent=raised_user_estop)
         causes = self._book.snapshot()
         records: tuple[Record, ...] = ()
-        if changes or previous is not self._state:
+        if changes or previous is not self._state or self._note is not None:
+            note, reason = self._note or (None, "")
             self._sequence += 1
             records = (
                 Record(
-                    self._sequence, now, previous, self._state, causes, changes, event, self._rearm
+                    self._sequence,
+                    now,
+                    previous,
+                    self._state,
+                    causes,
+                    changes,
+                    event,
+                    self._rearm,
+                    note,
+                    reason,
                 ),
             )
         return Decision(
@@ -296,6 +313,10 @@ class SafetyCore:
             self._book.pulse(
                 Cause(CauseKind.INTERNAL), now, make_details([("reason", event.reason[:200])])
             )
+        elif isinstance(event, Commissioned):
+            key85 = "no answer" if event.key85 is None else str(event.key85)
+            result = f"key85={key85} remote_status={'on' if event.remote_status else 'not seen'}"
+            self._note = (RecordNote.COMMISSIONED, result)
         elif isinstance(event, DisplayUpdate):
             reason = self._display.accept(event.message)
             if reason is not None:

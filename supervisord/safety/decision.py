@@ -38,6 +38,13 @@ class RearmKind(enum.Enum):
     LOCAL_RESET = "local_reset"  # ``srcsctl reset`` by an admin, when the config allows it
 
 
+class RecordNote(enum.Enum):
+    """A record made for something other than a change of state or cause (docs/record.md)."""
+
+    REARM_REFUSED = "rearm_refused"  # a reset or takeover was asked for and refused (§4)
+    COMMISSIONED = "commissioned"  # key 85 was written to the VSC (§5): permanent, so recorded
+
+
 @dataclass(frozen=True, slots=True)
 class Rearm:
     """A re-arm that ended STOPPED, and who gave it (``None`` for a takeover)."""
@@ -98,6 +105,8 @@ class Record:
     changes: tuple[CauseChange, ...]
     trigger: Event
     rearm: Rearm | None = None
+    note: RecordNote | None = None
+    reason: str = ""  # what the note is about: the refusal's text, the commissioning result
 
 
 @dataclass(frozen=True, slots=True)

@@ -182,6 +182,17 @@ class DisplayUpdate(_Event):
     message: FeedbackSet | FeedbackName
 
 
+@dataclass(frozen=True, slots=True)
+class Commissioned(_Event):
+    """``srcsctl commission`` ran: key 85 was written and read back (``key85``, ``None`` when the
+    VSC did not answer) and remote-status messages were enabled (``remote_status``: one was
+    seen since). Stored permanently on the VSC, so it is recorded (safety-rules.md §5)."""
+
+    caller: Caller
+    key85: int | None
+    remote_status: bool
+
+
 Event = (
     Tick
     | VscReceived
@@ -201,6 +212,7 @@ Event = (
     | OutputReadback
     | InternalFault
     | DisplayUpdate
+    | Commissioned
 )
 
 EVENT_TYPES: tuple[type, ...] = get_args(Event)

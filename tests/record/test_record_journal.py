@@ -35,6 +35,7 @@ def test_message_ids_are_fixed_and_distinct() -> None:
         RecordKind.CAUSE_RAISED: "820501387c1a46049b855bcae8bc9ba2",
         RecordKind.CAUSE_CLEARED: "fd9e4e6d79c643eb9a534d2f8228aa89",
         RecordKind.REARM_REFUSED: "2be6051d1b7c43d0a0bfd08ad06caac8",
+        RecordKind.COMMISSIONED: "bdd0782d2f2b45a3bdc4e9984db1024d",
     }
 
 
@@ -48,11 +49,13 @@ def test_message_ids_are_fixed_and_distinct() -> None:
         (make_record(0, before="HOLD", to="RUN"), Priority.NOTICE),
         (make_record(0, kind="cause_raised"), Priority.WARNING),
         (make_record(0, kind="rearm_refused"), Priority.WARNING),
+        (make_record(0, kind="commissioned"), Priority.WARNING),
         (make_record(0, kind="cause_cleared"), Priority.NOTICE),
     ],
 )
 def test_priority(record: dict[str, object], expected: Priority) -> None:
-    """A change into STOPPED is CRIT; raised causes and refused re-arms WARNING; others NOTICE."""
+    """A change into STOPPED is CRIT; raised causes, refused re-arms and commissioning WARNING;
+    others NOTICE."""
     assert priority(record) is expected
 
 
@@ -79,6 +82,16 @@ def test_fields_of_a_stop() -> None:
     assert as_dict["SRCS_TRIGGER"] == "vsc_heartbeat"
     assert [v for k, v in fields if k == "SRCS_CAUSE"] == ["vsc_estop", "client_lost:nav"]
     assert json.loads(as_dict["SRCS_CAUSES"]) == record["causes"]
+
+
+def test_a_reason_is_in_the_message_and_its_own_field() -> None:
+    """A refused re-arm or a commissioning says why, in MESSAGE and in SRCS_REASON."""
+    record = {**make_record(3, kind="commissioned", before="RUN", to="RUN"), "reason": "key85=1"}
+    fields = dict(journal_fields(record))
+    assert fields["MESSAGE"].startswith("VSC commissioned: key85=1")
+    assert fields["SRCS_REASON"] == "key85=1"
+    assert fields["MESSAGE_ID"] == MESSAGE_IDS[RecordKind.COMMISSIONED].hex
+    assert "SRCS_REASON" not in dict(journal_fields(make_record(4)))
 
 
 def test_structured_trigger_is_json() -> None:

@@ -5,13 +5,15 @@ from __future__ import annotations
 import dataclasses
 
 from supervisord.safety import (
+    Commissioned,
     InternalFault,
     LinkOpened,
     RearmKind,
+    RecordNote,
     RefusalReason,
     State,
 )
-from tests.safety.rig import LOCAL, NOBODY, OPERATIONAL, ROBOT, Rig
+from tests.safety.rig import ADMIN, LOCAL, NOBODY, OPERATIONAL, ROBOT, Rig
 
 LOCAL_RESET = dataclasses.replace(ROBOT, local_reset=True)
 
@@ -213,3 +215,41 @@ def test_client_reconnection_is_a_new_start() -> None:
     rig.run_for(100, LOCAL, clients=(2,))
     rig.advance(50)
     assert rig.vsc(OPERATIONAL).state is State.RUN
+
+
+def test_every_refused_rearm_is_recorded_with_its_reason() -> None:
+    """docs/record.md: a refused reset or takeover is a ``rearm_refused`` record naming why,
+    without any change of state."""
+    rig = Rig(LOCAL_RESET)
+    rig.bring_up()
+    rig.advance(10)
+    rig.estop()
+    decision = rig.reset()
+    [record] = decision.records
+    assert record.note is RecordNote.REARM_REFUSED
+    assert record.previous is record.state is State.STOPPED
+    assert record.reason.startswith(RefusalReason.CONDITIONS_ACTIVE.value)
+    assert "client_estop:planner" in record.reason
+
+
+def test_a_granted_rearm_is_not_noted_as_refused() -> None:
+    """The note is for refusals only: a granted reset is an ordinary change of state."""
+    rig = Rig(LOCAL_RESET)
+    _stopped_and_cleared(rig)
+    rig.run_for(500, LOCAL)
+    [record] = rig.reset().records
+    assert record.note is None
+    assert record.state is not State.STOPPED
+
+
+def test_commissioning_is_recorded_with_what_was_read_back() -> None:
+    """safety-rules.md §5: writing key 85 is stored on the VSC for good, so it is recorded."""
+    rig = Rig()
+    rig.bring_up()
+    decision = rig.feed(Commissioned(rig.now, ADMIN, key85=1, remote_status=False))
+    [record] = decision.records
+    assert record.note is RecordNote.COMMISSIONED
+    assert record.reason == "key85=1 remote_status=not seen"
+    assert decision.state is State.RUN
+    silent = rig.feed(Commissioned(rig.now, ADMIN, key85=None, remote_status=True))
+    assert silent.records[0].reason == "key85=no answer remote_status=on"
