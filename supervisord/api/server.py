@@ -440,20 +440,26 @@ class ApiServer:
 def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tuple[int, int]]:
     _remove_stale(path)
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
+    # Made under a private name and renamed into place once listening: a client that sees
+    # the path can connect at once (no refusal between bind and listen), and the mode and
+    # group are right before anyone can (safety-rules.md §8: not world-writable).
+    staging = path.with_name(f".{path.name}.{os.getpid()}")
     try:
-        sock.bind(str(path))
-        # Nobody can connect before listen(), so the mode and group are right before the
-        # first client arrives (safety-rules.md §8: the socket is not world-writable).
-        os.chmod(path, mode)
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(staging)
+        sock.bind(str(staging))
+        os.chmod(staging, mode)
         if gid is not None:
-            os.chown(path, -1, gid)
+            os.chown(staging, -1, gid)
         sock.listen(BACKLOG)
+        os.rename(staging, path)
         info = os.stat(path)
     except OSError as e:
         sock.close()
-        with contextlib.suppress(OSError):
-            if stat.S_ISSOCK(os.lstat(path).st_mode):
-                os.unlink(path)
+        for leftover in (staging, path):
+            with contextlib.suppress(OSError):
+                if stat.S_ISSOCK(os.lstat(leftover).st_mode):
+                    os.unlink(leftover)
         raise ServerError(f"cannot serve the API at {path}: {e.strerror or e}") from e
     return sock, (info.st_dev, info.st_ino)
 

@@ -3,6 +3,8 @@
 Every request that is a safety input goes to the core first; the reply then says "ok", or
 carries the core's refusal (e.g. why a reset was not honoured). Clients dropped while being
 written to (a stopped or flooding client) reach the core as disconnections on the next round.
+A ``commission`` is answered when its procedure ends (``daemon/commission.py``), a few
+seconds later; the loop meanwhile goes on as ever.
 """
 
 from __future__ import annotations
@@ -24,18 +26,24 @@ from supervisord.api.wire import (
     refusal_error,
     state_push,
 )
+from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message
+from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import ClientDisconnected, Event
 
 
 class ApiListener(Listener):
-    def __init__(self, server: ApiServer) -> None:
+    """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission)."""
+
+    def __init__(self, server: ApiServer, *, has_key85: bool = True) -> None:
         self.server = server
+        self.has_key85 = has_key85
         self.last: Decision | None = None
         self._closed: list[Closed] = []
+        self._commissioning: tuple[Commissioning, Received] | None = None
 
     def descriptors(self) -> Iterable[tuple[int, bool]]:
         return self.server.descriptors()
@@ -61,13 +69,7 @@ class ApiListener(Listener):
             self._closed += self.server.reply(result, **decision_json(self.last))
             return
         if isinstance(request, Commission):
-            # Writing key 85 is a separate, explicit, recorded step (safety-rules.md §5);
-            # until the daemon performs it, say so rather than pretend.
-            error = ApiError(
-                ErrorCode.UNAVAILABLE,
-                "commissioning is not available yet: set key 85 with the vendor's tool",
-            )
-            self._closed += self.server.reply_error(result, error)
+            self._begin_commissioning(result, now)
             return
         refusal = (
             next((r for r in decision.refusals if r.trigger == event), None) if decision else None
@@ -78,6 +80,49 @@ class ApiListener(Listener):
             self._closed += self.server.reply(result)
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
             self._closed += self.server.send(result.client.connection, state_push(self.last))
+
+    def _begin_commissioning(self, result: Received, now: int) -> None:
+        """Admin rights were checked by the server; here: is there a VSC to write to?"""
+        request = result.request
+        why = None
+        if not self.has_key85:
+            why = "the VSC's link is CAN or HID: there is no key 85 to set"
+        elif self.last is None or CauseKind.TRANSPORT_FAULT.value in self.last.active_names:
+            why = "there is no link to the VSC"
+        elif self._commissioning is not None:
+            why = "a commissioning is already running"
+        if why is not None:
+            error = ApiError(ErrorCode.UNAVAILABLE, why, op=request.OP, request_id=request.id)
+            self._closed += self.server.reply_error(result, error)
+            return
+        self._commissioning = (Commissioning(result.client.caller, now), result)
+
+    def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
+        if self._commissioning is None:
+            return []
+        procedure, result = self._commissioning
+        if not procedure.finished(now):
+            return procedure.due(now)
+        self._commissioning = None
+        feed(procedure.outcome(now))  # recorded by the core, whatever the outcome
+        read_back = {"key85": procedure.key85, "remote_status": procedure.remote_status}
+        if procedure.key85 != 1:
+            read = "no answer" if procedure.key85 is None else procedure.key85
+            request = result.request
+            error = ApiError(
+                ErrorCode.FAILED,
+                f"key 85 reads back {read}, not 1",
+                op=request.OP,
+                request_id=request.id,
+                extra=read_back,
+            )
+            self._closed += self.server.reply_error(result, error)
+        else:
+            self._closed += self.server.reply(result, **read_back)
+        return []
+
+    def next_deadline(self) -> int | None:
+        return self._commissioning[0].next_deadline() if self._commissioning else None
 
     def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
         changed = self.last is None or (decision.state, decision.causes) != (
@@ -94,6 +139,8 @@ class ApiListener(Listener):
     def received(self, message: Message | HidInput) -> None:
         if isinstance(message, HidInput):
             return
+        if self._commissioning is not None:
+            self._commissioning[0].received(message)
         topic = message_topic(message)
         if topic is not None and self.server.subscribed(topic):
             self._closed += self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]

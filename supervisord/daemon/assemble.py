@@ -63,7 +63,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
             max_line=api.max_message_bytes,
         )
     )
-    return ApiListener(server)
+    return ApiListener(server, has_key85=isinstance(config.vsc.link, SerialLink))
 
 
 def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> Supervisor:

@@ -87,6 +87,14 @@ class Listener:
         """Safety inputs that arose outside ``handle`` (e.g. a client dropped while pushing)."""
         return []
 
+    def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
+        """Work of the listener's own that is due (commissioning): frames to send to the VSC."""
+        return []
+
+    def next_deadline(self) -> int | None:
+        """When ``due`` must be called next, if the listener has work of its own."""
+        return None
+
     def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
         """A decision was applied; ``records`` are its stop-record entries as written."""
 
@@ -248,6 +256,8 @@ class Supervisor:
             candidates.append(self.clock() + POLL_NS)
         if self._next_watchdog is not None:
             candidates.append(self._next_watchdog)
+        if (listener_deadline := self.listener.next_deadline()) is not None:
+            candidates.append(listener_deadline)
         return min(candidates)
 
     def _sync_watches(self) -> None:
@@ -289,6 +299,9 @@ class Supervisor:
                 readback = output.tick(now)
                 if readback is not None and not readback.ok:
                     self._apply(self._feed(self._readback_event(readback, now)))
+        listener_deadline = self.listener.next_deadline()
+        if listener_deadline is not None and now >= listener_deadline:
+            self._send(tuple(self.listener.due(now, self._feed_and_apply)), now)
         if not self.link.is_open and now >= self.backoff.next_attempt:
             self._try_open_link(now)
         interval = self.notifier.watchdog_interval_ns

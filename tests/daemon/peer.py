@@ -1,28 +1,44 @@
-"""A minimal VSC for the daemon's tests: heartbeats in a chosen mode, key 85 answered with 1.
+"""A minimal VSC for the daemon's tests: heartbeats in a chosen mode, key 85 kept and answered
+as the manual says (§8.3.7-8.3.8), remote status once enabled by Message Control (§8.3.6).
 
 (The full simulated VSC with its remote is ``srcs-sim``.)"""
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
+from collections.abc import Iterator
 
-from supervisord.protocol.codes import VscMode
+from supervisord.protocol.codes import FeedbackKey, MessageType, VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
-from supervisord.protocol.messages import FeedbackGet, FeedbackSet, VscHeartbeat
+from supervisord.protocol.messages import (
+    FeedbackGet,
+    FeedbackSet,
+    MessageControl,
+    RemoteStatus,
+    VscHeartbeat,
+)
 from supervisord.testkit.pty_port import PtyPort
+
+KEY85 = FeedbackKey.USER_ESTOP_TIMEOUT
 
 
 class VscPeer:
-    """The VSC end of the pty: heartbeats every 50 ms in the current mode, key 85 = 1."""
+    """The VSC end of the pty: heartbeats every 50 ms in the current mode."""
 
-    def __init__(self, port: PtyPort) -> None:
+    def __init__(self, port: PtyPort, key85: int = 1) -> None:
         self.port = port
         self.mode = VscMode.LOCAL
         self.estop = 0
         self.silent = False
+        self.key85 = key85
+        self.answers_feedback = True
+        self.remote_status_ms: int | None = None  # off, as the VSC ships (manual table 5)
         self.received: list[object] = []
         self._decoder = FrameDecoder()
         self._next = 0.0
+        self._next_status = 0.0
 
     def serve(self) -> None:
         now = time.monotonic()
@@ -30,8 +46,41 @@ class VscPeer:
             return
         for message in self._decoder.feed(self.port.read()):
             self.received.append(message)
-            if message == FeedbackGet(85):
-                self.port.write(encode_frame(FeedbackSet(85, 1)))
-        if not self.silent and now >= self._next:
+            self._handle(message)
+        if self.silent:
+            return
+        if now >= self._next:
             self._next = now + 0.05
             self.port.write(encode_frame(VscHeartbeat(self.mode, 0, self.estop)))
+        if self.remote_status_ms is not None and now >= self._next_status:
+            self._next_status = now + self.remote_status_ms / 1000
+            self.port.write(encode_frame(RemoteStatus(80)))
+
+    def _handle(self, message: object) -> None:
+        if isinstance(message, FeedbackSet) and message.key == KEY85:
+            self.key85 = message.value
+        elif message == FeedbackGet(KEY85) and self.answers_feedback:
+            self.port.write(encode_frame(FeedbackSet(KEY85, self.key85)))
+        elif (
+            isinstance(message, MessageControl)
+            and message.message_type == MessageType.REMOTE_STATUS
+        ):
+            self.remote_status_ms = message.interval if message.enabled else None
+
+    @contextlib.contextmanager
+    def serving(self) -> Iterator[None]:
+        """Serve from a thread while the test blocks on a client call."""
+        done = threading.Event()
+
+        def loop() -> None:
+            while not done.is_set():
+                self.serve()
+                time.sleep(0.005)
+
+        thread = threading.Thread(target=loop, daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            done.set()
+            thread.join()

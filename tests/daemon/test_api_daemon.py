@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import os
 import signal
 import subprocess
 import time
@@ -72,3 +74,91 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
                 daemon.kill()
                 daemon.wait()
     assert not (tmp_path / "api.sock").exists()
+
+
+def _daemon(tmp_path: Path, config: str = CONFIG) -> subprocess.Popen[bytes]:
+    (tmp_path / "robot.toml").write_text(config)
+    return subprocess.Popen(
+        [SRCSD, "--config", str(tmp_path / "robot.toml")], stderr=subprocess.DEVNULL
+    )
+
+
+def _active(status: dict[str, object]) -> set[str]:
+    causes = status["causes"]
+    assert isinstance(causes, list)
+    return {c["name"] for c in causes if c["active"]}
+
+
+def test_commissioning_writes_key85_reads_it_back_and_records_it(tmp_path: Path) -> None:
+    """safety-rules.md §5: a VSC whose watchdog is off keeps the robot STOPPED with
+    vsc_watchdog_off; an admin's commission writes key 85 and enables remote status, the reply
+    carries what was read back, the record has a ``commissioned`` entry, and the cause clears."""
+    with PtyPort(tmp_path / "vsc") as port:
+        peer = VscPeer(port, key85=0)
+        daemon = _daemon(tmp_path)
+        try:
+            wait(peer, (tmp_path / "api.sock").exists)
+            with SupervisorClient.connect(tmp_path / "api.sock") as admin:
+                wait(peer, lambda: "vsc_watchdog_off" in _active(admin.status()))
+                with peer.serving():
+                    reply = admin.commission()
+                assert (reply["key85"], reply["remote_status"]) == (1, True)
+                assert peer.key85 == 1
+                assert peer.remote_status_ms == 1000
+                wait(peer, lambda: "vsc_watchdog_off" not in _active(admin.status()))
+            daemon.send_signal(signal.SIGTERM)
+            assert daemon.wait(timeout=10) == 0
+        finally:
+            if daemon.poll() is None:
+                daemon.kill()
+                daemon.wait()
+    records = [json.loads(line) for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
+    [entry] = [r for r in records if r["kind"] == "commissioned"]
+    assert entry["reason"] == "key85=1 remote_status=on"
+    assert entry["trigger"]["caller"]["uid"] == os.getuid()
+
+
+def test_commissioning_that_reads_nothing_back_fails_and_is_recorded(tmp_path: Path) -> None:
+    """A VSC that never answers Feedback Get: the reply is ``failed`` after the procedure's
+    timeout, naming what was read (nothing), and the attempt is still recorded."""
+    with PtyPort(tmp_path / "vsc") as port:
+        peer = VscPeer(port, key85=0)
+        peer.answers_feedback = False
+        daemon = _daemon(tmp_path)
+        try:
+            wait(peer, (tmp_path / "api.sock").exists)
+            with SupervisorClient.connect(tmp_path / "api.sock") as admin, peer.serving():
+                with pytest.raises(ApiError, match="key 85 reads back no answer") as failure:
+                    admin.commission()
+                assert failure.value.code == "failed"
+                assert failure.value.extra["key85"] is None
+            daemon.send_signal(signal.SIGTERM)
+            assert daemon.wait(timeout=10) == 0
+        finally:
+            if daemon.poll() is None:
+                daemon.kill()
+                daemon.wait()
+    kinds = [
+        json.loads(line)["kind"] for line in (tmp_path / "stops.jsonl").read_text().splitlines()
+    ]
+    assert "commissioned" in kinds
+
+
+def test_commissioning_without_a_link_is_unavailable(tmp_path: Path) -> None:
+    """No VSC at the port: nothing to write to, said at once."""
+    daemon = _daemon(tmp_path)
+    try:
+        deadline = time.monotonic() + 10
+        while not (tmp_path / "api.sock").exists():
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        with SupervisorClient.connect(tmp_path / "api.sock") as admin:
+            with pytest.raises(ApiError, match="no link to the VSC") as failure:
+                admin.commission()
+            assert failure.value.code == "unavailable"
+        daemon.send_signal(signal.SIGTERM)
+        assert daemon.wait(timeout=10) == 0
+    finally:
+        if daemon.poll() is None:
+            daemon.kill()
+            daemon.wait()

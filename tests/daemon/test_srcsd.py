@@ -89,9 +89,13 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
             wait(peer, lambda: time.monotonic() > pause)
             peer.mode = VscMode.OPERATIONAL
             wait(peer, lambda: (tmp_path / "drive").read_text() == "1\n")
-            seen += notifications(notify)
+
+            def running() -> bool:  # the output is set first, the status said after (§6)
+                seen.extend(notifications(notify))
+                return "STATUS=RUN" in seen
+
+            wait(peer, running)
             assert seen.count("WATCHDOG=1") >= 2
-            assert "STATUS=RUN" in seen
             daemon.send_signal(signal.SIGTERM)
             assert daemon.wait(timeout=10) == 0
         finally:
