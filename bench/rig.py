@@ -1,0 +1,455 @@
+"""The rig the timing benches share: a pseudo-terminal VSC in this process, the supervisor in
+another.
+
+Two processes, as on a robot, where the VSC and the supervisor do not share a scheduler slot:
+
+- **This process is the VSC.** It holds the device side of a real pseudo-terminal
+  (:class:`~supervisord.testkit.pty_port.PtyPort`), sends the VSC's traffic at its real rates
+  (joystick 50 Hz, heartbeat 20 Hz, GPS 1 Hz), answers the key-85 query, and timestamps what
+  the supervisor writes back (its user heartbeats).
+- **The child process is the supervisor** (``python -m bench.rig``): the real
+  :class:`~supervisord.daemon.loop.Supervisor` with the real serial link, safety core and
+  fsynced JSON Lines record; or, with ``--model poll50``, a minimal model of the public
+  drivers' 20 ms polling loop over the same port. Its one output is a sim output that
+  timestamps each change of level with ``time.monotonic_ns()`` right where the loop drives it
+  and reports the time over a pipe: the timestamp is taken in the loop's own process, so no
+  polling of a file adds to it. CLOCK_MONOTONIC is one clock for the whole machine, so the
+  VSC's send times and the supervisor's output times subtract directly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import platform
+import random
+import select
+import signal
+import struct
+import subprocess
+import sys
+import time
+import tty
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType, TracebackType
+
+from supervisord.daemon.loop import Supervisor
+from supervisord.links.base import Backoff
+from supervisord.links.serial_link import SerialLink
+from supervisord.outputs.base import ReadBack
+from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.framing import FrameDecoder, encode_frame
+from supervisord.protocol.messages import (
+    Axis,
+    FeedbackGet,
+    FeedbackSet,
+    Gps,
+    Joystick,
+    Message,
+    UserHeartbeat,
+    VscHeartbeat,
+)
+from supervisord.record.jsonl import RecordWriter
+from supervisord.safety.config import OutputClass, OutputSpec, SafetyConfig
+from supervisord.testkit.pty_port import PtyPort
+
+NS_PER_MS = 1_000_000
+REPO = Path(__file__).resolve().parents[1]  # the child runs ``-m bench.rig`` from here
+REPORT = struct.Struct("<?qq")  # level, write started, write finished (monotonic ns)
+SAMPLE_GGA = "$GPGGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,*69"
+JOYSTICK_NS = 20 * NS_PER_MS  # the VSC's default rates (manual table 5)
+HEARTBEAT_NS = 50 * NS_PER_MS
+GPS_NS = 1000 * NS_PER_MS
+POLL_PERIOD_NS = 20 * NS_PER_MS  # the public drivers' 50 Hz loop
+
+
+# ---------------------------------------------------------------------------------------------
+# The child: the supervisor (or the polling model) with a timestamping output
+
+
+class TimedOutput(SimOutput):
+    """A sim output that reports every change of its level: (level, started, finished).
+
+    ``started`` is taken as the loop enters the write, ``finished`` once the level is set and
+    read back (the sim output also rewrites its mirror file in that time, as a GPIO write
+    would do its ioctl). The report goes out after the second timestamp, so its cost is not
+    in the measured interval.
+    """
+
+    def __init__(self, spec: SimSpec, report_fd: int) -> None:
+        super().__init__(spec)
+        self._report_fd = report_fd
+        self._reported: bool | None = None
+
+    def _write(self, on: bool, now: int) -> ReadBack:
+        started = time.monotonic_ns()
+        readback = super()._write(on, now)
+        finished = time.monotonic_ns()
+        if on != self._reported:  # a stop re-asserting off is no new edge
+            self._reported = on
+            os.write(self._report_fd, REPORT.pack(on, started, finished))
+        return readback
+
+
+def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
+    """The real loop: serial link, safety core, outputs, fsynced record; until SIGTERM."""
+    safety = SafetyConfig(
+        vsc_timeout_ms=args.timeout_ms,
+        rearm_hold_ms=args.hold_ms,
+        outputs=(OutputSpec(output.name, OutputClass.MOTION),),
+    )
+    supervisor = Supervisor(
+        safety,
+        SerialLink(args.port),
+        [output],
+        RecordWriter(Path(args.record)),
+        backoff=Backoff(20, 100),
+    )
+    return supervisor.run()
+
+
+def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
+    """A minimal model of the public drivers' loop: wake every 20 ms, read what has arrived,
+    decode it, act on the last heartbeat, send a user heartbeat. Written for this bench; it
+    is the best case of that design (the drivers hand the value to another node to act on).
+    """
+    stop = False
+
+    def request_stop(_signum: int, _frame: FrameType | None) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, request_stop)
+    fd = os.open(args.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    tty.setraw(fd)
+    decoder = FrameDecoder()
+    output.open(time.monotonic_ns())
+    on = False
+    tick = time.monotonic_ns()
+    try:
+        while not stop:
+            tick += POLL_PERIOD_NS
+            time.sleep(max(0, tick - time.monotonic_ns()) / 1e9)
+            try:
+                data = os.read(fd, 4096)
+            except BlockingIOError:
+                data = b""
+            for event in decoder.feed(data):
+                if isinstance(event, VscHeartbeat):
+                    allowed = event.mode == VscMode.OPERATIONAL and event.estop == 0
+                    if allowed != on:
+                        on = allowed
+                        output.set(on, time.monotonic_ns())
+            os.write(fd, encode_frame(UserHeartbeat(0)))
+    finally:
+        output.close()
+        os.close(fd)
+    return 0
+
+
+def child_main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="bench.rig", description="the supervisor side")
+    parser.add_argument("--model", choices=("supervisor", "poll50"), default="supervisor")
+    parser.add_argument("--port", required=True)
+    parser.add_argument("--report-fd", type=int, required=True)
+    parser.add_argument("--level-file", default=None, help="mirror the level here (sim path)")
+    parser.add_argument("--record", required=True)
+    parser.add_argument("--timeout-ms", type=int, default=200)
+    parser.add_argument("--hold-ms", type=int, default=100)
+    args = parser.parse_args(argv)
+    level_file = Path(args.level_file) if args.level_file else None
+    output = TimedOutput(SimSpec(name="drive", path=level_file), args.report_fd)
+    if args.model == "poll50":
+        return run_poll_model(args, output)
+    return run_supervisor(args, output)
+
+
+# ---------------------------------------------------------------------------------------------
+# This process: the VSC
+
+
+@dataclass(frozen=True)
+class Edge:
+    """One change of the output's level, as the supervisor's process timed it."""
+
+    on: bool
+    started: int
+    finished: int
+
+
+class RigError(RuntimeError):
+    """The supervisor did not do what the bench waited for (or died)."""
+
+
+class Vsc:
+    """The VSC's side of a pseudo-terminal: its traffic, its answers, and what it hears.
+
+    ``pump`` is the only place time passes: it sends what is due, reads the supervisor's
+    frames and, when a report pipe is given, the output's edges.
+    """
+
+    def __init__(self, port_path: Path, report_fd: int | None = None, seed: int = 1) -> None:
+        self.port = PtyPort(port_path)
+        self.report_fd = report_fd
+        self.rng = random.Random(seed)
+        self.mode = VscMode.LOCAL
+        self.estop = 0
+        self.silent = False
+        self.joystick = True
+        self.edges: list[Edge] = []
+        self.heartbeat_arrivals: list[int] = []  # monotonic ns of each user heartbeat read
+        self.heartbeat_estops = 0
+        self.sent_frames = 0
+        self.sent_bytes = 0
+        self._decoder = FrameDecoder()
+        self._report_buffer = b""
+        now = time.monotonic_ns()
+        self._next_joystick = now
+        self._next_heartbeat = now
+        self._next_gps = now
+
+    def close(self) -> None:
+        self.port.close()
+
+    def send(self, message: Message) -> int:
+        """Write one frame; returns the monotonic time taken just before the write, so that
+        a latency measured from it is an upper bound (it includes the write itself)."""
+        frame = encode_frame(message)
+        sent = time.monotonic_ns()
+        self.port.write(frame)
+        self.sent_frames += 1
+        self.sent_bytes += len(frame)
+        return sent
+
+    def set_state(self, mode: VscMode, estop: int = 0) -> int:
+        """Change what the heartbeats say and send one at once (the cadence restarts from
+        now, as a VSC reporting a change would); returns its send time."""
+        self.mode, self.estop = mode, estop
+        self._next_heartbeat = time.monotonic_ns() + HEARTBEAT_NS
+        return self.send(VscHeartbeat(mode, 0, estop))
+
+    def _traffic(self, now: int) -> int:
+        """Send whatever is due at ``now``; returns when the next frame is due."""
+        if self.silent:
+            return now + HEARTBEAT_NS
+        if self.joystick and now >= self._next_joystick:
+            moving = self.mode == VscMode.OPERATIONAL  # the VSC zeroes the sticks otherwise
+            self.send(
+                Joystick(
+                    left_y=Axis.from_value(self.rng.randint(-1023, 1023) if moving else 0),
+                    right_x=Axis.from_value(self.rng.randint(-1023, 1023) if moving else 0),
+                )
+            )
+            self._next_joystick = _advance(self._next_joystick, now, JOYSTICK_NS)
+        if now >= self._next_heartbeat:
+            self.send(VscHeartbeat(self.mode, 0, self.estop))
+            self._next_heartbeat = _advance(self._next_heartbeat, now, HEARTBEAT_NS)
+        if self.joystick and now >= self._next_gps:
+            self.send(Gps(Gps.SOURCE_REMOTE, SAMPLE_GGA))
+            self._next_gps = _advance(self._next_gps, now, GPS_NS)
+        due = [self._next_heartbeat]
+        if self.joystick:
+            due += [self._next_joystick, self._next_gps]
+        return min(due)
+
+    def _hear(self) -> None:
+        data = self.port.read()
+        arrived = time.monotonic_ns()
+        for event in self._decoder.feed(data):
+            if isinstance(event, UserHeartbeat):
+                self.heartbeat_arrivals.append(arrived)
+                self.heartbeat_estops += event.estop != 0
+            elif event == FeedbackGet(85):
+                self.send(FeedbackSet(85, 1))  # the VSC's user watchdog is on
+
+    def _read_reports(self) -> None:
+        assert self.report_fd is not None
+        data = os.read(self.report_fd, 4096)
+        if not data:
+            raise RigError("the supervisor closed its report pipe (did it die?)")
+        self._report_buffer += data
+        while len(self._report_buffer) >= REPORT.size:
+            on, started, finished = REPORT.unpack_from(self._report_buffer)
+            self._report_buffer = self._report_buffer[REPORT.size :]
+            self.edges.append(Edge(on, started, finished))
+
+    def pump(self, until: int) -> None:
+        """Run the VSC until monotonic time ``until``."""
+        while True:
+            now = time.monotonic_ns()
+            wake = min(self._traffic(now), until)
+            watched = [self.port.fd] + ([self.report_fd] if self.report_fd is not None else [])
+            ready, _, _ = select.select(watched, [], [], max(0, wake - now) / 1e9)
+            if self.port.fd in ready:
+                self._hear()
+            if self.report_fd is not None and self.report_fd in ready:
+                self._read_reports()
+            if time.monotonic_ns() >= until:
+                return
+
+    def pump_ms(self, ms: float) -> None:
+        self.pump(time.monotonic_ns() + int(ms * NS_PER_MS))
+
+    def wait_edge(self, on: bool, limit_ms: float = 1000) -> Edge | None:
+        """Run until the output reports a change to ``on``; ``None`` after ``limit_ms``."""
+        seen = len(self.edges)
+        end = time.monotonic_ns() + int(limit_ms * NS_PER_MS)
+        while time.monotonic_ns() < end:
+            for edge in self.edges[seen:]:
+                if edge.on == on:
+                    return edge
+            seen = len(self.edges)
+            self.pump(min(end, time.monotonic_ns() + 5 * NS_PER_MS))
+        return None
+
+
+def _advance(scheduled: int, now: int, period: int) -> int:
+    """Keep the cadence; after a stall, restart from now rather than burst."""
+    following = scheduled + period
+    return following if following > now else now + period
+
+
+class Rig:
+    """The VSC here, the supervisor (or the polling model) in a child process.
+
+    Use as a context manager; it stops the child with SIGTERM and removes nothing it did not
+    create (everything lives in ``directory``).
+    """
+
+    def __init__(
+        self,
+        directory: Path,
+        *,
+        model: str = "supervisor",
+        timeout_ms: int = 200,
+        hold_ms: int = 100,
+        cpu: int | None = None,
+        mirror: bool = False,
+    ) -> None:
+        self.hold_ms = hold_ms
+        read_fd, write_fd = os.pipe()
+        self.vsc = Vsc(directory / "vsc", read_fd)
+        command = [
+            sys.executable,
+            "-m",
+            "bench.rig",
+            f"--model={model}",
+            f"--port={directory / 'vsc'}",
+            f"--report-fd={write_fd}",
+            f"--record={directory / 'stops.jsonl'}",
+            f"--timeout-ms={timeout_ms}",
+            f"--hold-ms={hold_ms}",
+        ]
+        if mirror:
+            command.append(f"--level-file={directory / 'drive'}")
+        # Our own interpreter running our own module: no untrusted input reaches the command.
+        self.process = subprocess.Popen(command, cwd=REPO, pass_fds=(write_fd,))  # noqa: S603
+        os.close(write_fd)  # the child's copy is the only writer: EOF means it died
+        if cpu is not None:
+            os.sched_setaffinity(self.process.pid, {cpu})
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        if self.vsc.report_fd is not None:
+            os.close(self.vsc.report_fd)
+            self.vsc.report_fd = None
+        self.vsc.close()
+
+    def __enter__(self) -> Rig:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def wait_idle(self, limit_ms: float = 200) -> bool:
+        """Run the VSC until the supervisor's process sleeps in its loop's ``epoll_wait``:
+        done with the previous input, including the fsync of its record. False when that
+        cannot be seen (no ``/proc/PID/wchan``) or did not happen within ``limit_ms``."""
+        wchan = Path(f"/proc/{self.pid}/wchan")
+        end = time.monotonic_ns() + int(limit_ms * NS_PER_MS)
+        while time.monotonic_ns() < end:
+            try:
+                if "epoll" in wchan.read_text():
+                    return True
+            except OSError:
+                return False
+            self.vsc.pump(time.monotonic_ns() + NS_PER_MS // 2)
+        return False
+
+    def arm(self, tries: int = 5) -> Edge:
+        """Bring the output on: a non-Operational heartbeat, clear conditions for the re-arm
+        hold (and key 85 answered), then Operational: the operator's takeover (safety-rules
+        §4). Returns the on edge."""
+        for _ in range(tries):
+            self.vsc.silent = False
+            self.vsc.set_state(VscMode.LOCAL)
+            self.vsc.pump_ms(self.hold_ms + 30)
+            self.vsc.set_state(VscMode.OPERATIONAL)
+            edge = self.vsc.wait_edge(True, limit_ms=300)
+            if edge is not None:
+                return edge
+            if self.process.poll() is not None:
+                break
+        raise RigError(f"the output did not come on (child status {self.process.poll()})")
+
+
+def percentile(values: Sequence[float], share: float) -> float:
+    """The nearest-rank percentile (``share`` in 0..1) of ``values``: always a measured value."""
+    ordered = sorted(values)
+    rank = max(1, min(len(ordered), math.ceil(share * len(ordered))))
+    return ordered[rank - 1]
+
+
+def machine() -> str:
+    """The machine in one line: CPU model, cores, kernel, Python (no host name)."""
+    model = platform.processor() or platform.machine()
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    return (
+        f"{model}, {os.cpu_count()} cores, {platform.machine()}, Linux {platform.release()}, "
+        f"Python {platform.python_version()}"
+    )
+
+
+def load() -> str:
+    """The load averages, to show how busy the machine was around a run."""
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f} {five:.2f} {fifteen:.2f}"
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A Markdown table (the benches' output pastes into docs/performance.md as it is)."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def ms(ns: float) -> str:
+    return f"{ns / NS_PER_MS:.3f}"
+
+
+if __name__ == "__main__":
+    sys.exit(child_main())
