@@ -7,6 +7,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from supervisord.cli import control
 from supervisord.cli.decode import run_decode
 from supervisord.cli.demo import run_demo
 from supervisord.cli.log import run_log
@@ -54,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     log.add_argument("--json", action="store_true", help="the records as JSON lines")
 
+    control.add_arguments(commands)
+
     demo = commands.add_parser("demo", help="watch scripted VSC traffic decoded live")
     demo.add_argument("--speed", type=float, default=1.0, help="time factor (default 1)")
     return parser
@@ -65,6 +68,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return run_decode(args.file, args.mode, sys.stdout, sys.stderr)
     if args.command == "log":
         return _log(args)
+    if args.command in control.COMMANDS:
+        return control.run(args, sys.stdout, sys.stderr)
     if args.command == "demo":
         return run_demo(sys.stdout, args.speed)
     return 2  # pragma: no cover - argparse rejects unknown commands first

@@ -36,11 +36,17 @@ from supervisord.safety.events import ClientDisconnected, Event
 
 
 class ApiListener(Listener):
-    """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission)."""
+    """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission);
+    ``robot``: the configured robot name, for ``status``."""
 
-    def __init__(self, server: ApiServer, *, has_key85: bool = True) -> None:
+    def __init__(
+        self, server: ApiServer, *, has_key85: bool = True, robot: str | None = None
+    ) -> None:
         self.server = server
         self.has_key85 = has_key85
+        self.robot = robot
+        self.daemon_info: Callable[[], dict[str, object]] = dict
+        """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
         self.last: Decision | None = None
         self._closed: list[Closed] = []
         self._commissioning: tuple[Commissioning, Received] | None = None
@@ -66,7 +72,8 @@ class ApiListener(Listener):
         request = result.request
         if isinstance(request, Status):
             assert self.last is not None
-            self._closed += self.server.reply(result, **decision_json(self.last))
+            daemon = {"robot": self.robot, **self.daemon_info()}
+            self._closed += self.server.reply(result, **decision_json(self.last), daemon=daemon)
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)

@@ -63,7 +63,9 @@ def build_api(config: DaemonConfig) -> ApiListener:
             max_line=api.max_message_bytes,
         )
     )
-    return ApiListener(server, has_key85=isinstance(config.vsc.link, SerialLink))
+    return ApiListener(
+        server, has_key85=isinstance(config.vsc.link, SerialLink), robot=config.robot.name
+    )
 
 
 def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> Supervisor:
@@ -97,4 +99,6 @@ def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> 
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )
     supervisor.sequence_offset = previous.seq if previous is not None else 0
+    if isinstance(listener, ApiListener):
+        listener.daemon_info = supervisor.info
     return supervisor

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import logging
+import os
 import selectors
 import signal
 import socket
@@ -145,6 +146,23 @@ class Supervisor:
         self._selector = selectors.DefaultSelector()
         self._watched: dict[int, int] = {}
         self._wake_r, self._wake_w = socket.socketpair()
+
+    def info(self) -> dict[str, object]:
+        """What ``status`` adds about the daemon itself: the link and the loop's counters."""
+        counters = self.counters
+        return {
+            "pid": os.getpid(),
+            "link": {
+                "description": self.link.description,
+                "open": self.link.is_open,
+                "opens": counters.link_opens,
+                "open_failures": counters.link_failures,
+            },
+            "messages": counters.messages,
+            "rejections": dict(sorted(counters.rejections.items())),
+            "record_errors": counters.record_errors,
+            "internal_faults": counters.internal_faults,
+        }
 
     # ----------------------------------------------------------------- start and stop
 
