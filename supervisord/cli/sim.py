@@ -1,0 +1,251 @@
+"""``srcs-sim``: a simulated VSC with its remote, on a pseudo-terminal or a CAN bus.
+
+    srcs-sim --serial [SYMLINK]          # serial protocol on a pty (path printed)
+    srcs-sim --can udp_multicast:239.74.163.2
+    srcs-sim --control sim.sock --eeprom vsc-eeprom.json --seed 7
+
+It prints ``srcs-sim: serial PATH (pty DEVICE)`` (or ``srcs-sim: can ...``), then
+``srcs-sim: control SOCKET`` when it has one, then ``srcs-sim: ready``. Driven by keys when
+stdin is a terminal, and by the control socket (``docs/simulator.md``). One thread, one
+``select`` loop on monotonic deadlines. SIGTERM or SIGINT: the pty and socket are removed
+and it exits 0. Exit 2: bad arguments, an unreadable EEPROM file, a port that cannot be
+made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import select
+import signal
+import sys
+import tempfile
+import termios
+import time
+import tty
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import can
+
+from supervisord.sim.can_side import CanSide
+from supervisord.sim.control import ControlServer
+from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Simulator, load_eeprom
+from supervisord.sim.model import LINK_DELAY_S, Transport, VscModel
+from supervisord.sim.serial_side import SerialSide
+
+POLL_S = 0.05  # the longest wait: state the model changes on its own shows within this
+POLL_NO_FD_S = 0.005  # an interface without a descriptor ("virtual") is polled
+
+KEYS: dict[str, tuple[str, str]] = {
+    "e": ("e-stop (press the remote's button)", "estop"),
+    "r": ("release the e-stop", "release"),
+    "t": ("takeover", "takeover"),
+    "p": ("pause", "pause"),
+    "m": ("menu (enter / leave)", "menu"),
+    "o": ("remote power off / on", "power"),
+    "w": ("wired e-stop input on / off", "wired_estop"),
+    "u": ("unplug / replug", "plug"),
+    "b": ("reboot the VSC", "reboot"),
+    "s": ("silence on / off", "silence"),
+    "l": ("print the LCD", "lcd"),
+    "h": ("this help", "help"),
+    "q": ("quit", "quit"),
+}
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="srcs-sim", description="A simulated SRCS VSC with its remote (docs/simulator.md)."
+    )
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--serial",
+        nargs="?",
+        const="",
+        metavar="SYMLINK",
+        help="serve the serial protocol on a pty, linked at SYMLINK (default: a temporary path)",
+    )
+    where.add_argument(
+        "--can", metavar="INTERFACE:CHANNEL", help="serve J1939 on a python-can interface"
+    )
+    parser.add_argument("--bitrate", type=int, default=250_000, help="CAN bitrate (socketcan)")
+    parser.add_argument("--control", metavar="SOCKET", help="the control API's Unix socket")
+    parser.add_argument(
+        "--eeprom", metavar="FILE", help="keep message control and permanent keys in FILE"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the fault injector")
+    parser.add_argument(
+        "--boot-delay",
+        type=float,
+        default=DEFAULT_BOOT_DELAY_S,
+        metavar="S",
+        help="seconds in the bootloader on a reboot (default %(default)s)",
+    )
+    parser.add_argument(
+        "--link-delay",
+        type=float,
+        default=LINK_DELAY_S,
+        metavar="S",
+        help="seconds from power-on to the remote link (default %(default)s)",
+    )
+    parser.add_argument(
+        "--newer-firmware", action="store_true", help="report Remote (0x06) instead of Local"
+    )
+    parser.add_argument("--remote-off", action="store_true", help="start with the remote off")
+    args = parser.parse_args(argv)
+    if args.can is not None and ":" not in args.can:
+        parser.error("--can takes INTERFACE:CHANNEL, e.g. udp_multicast:239.74.163.2")
+    if not 0 <= args.boot_delay <= 600 or not 0 <= args.link_delay <= 60:
+        parser.error("--boot-delay must be 0..600 and --link-delay 0..60 seconds")
+    return args
+
+
+class _Stop:
+    requested = False
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.requested = True
+
+
+@contextlib.contextmanager
+def _keys_mode(interactive: bool) -> Iterator[None]:
+    """Single keys without Enter while running, the terminal restored after."""
+    if not interactive:
+        yield
+        return
+    fd = sys.stdin.fileno()
+    saved = termios.tcgetattr(fd)
+    tty.setcbreak(fd)
+    try:
+        yield
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+
+
+def _say(text: str) -> None:
+    print(f"srcs-sim: {text}", flush=True)
+
+
+def _key_request(key: str, sim: Simulator, now: float) -> dict[str, Any] | None:
+    """The control request a key stands for (toggles read the current state)."""
+    entry = KEYS.get(key.lower())
+    if entry is None:
+        return None
+    command = entry[1]
+    if command == "power":
+        return {"cmd": "power", "on": not sim.model.remote_on}
+    if command == "wired_estop":
+        return {"cmd": "wired_estop", "active": not sim.model.wired_estop}
+    if command == "plug":
+        return {"cmd": "replug" if not sim.side.plugged else "unplug"}
+    if command == "silence":
+        return {"cmd": "silence", "on": not sim.silenced}
+    return {"cmd": command}
+
+
+def _on_key(key: str, sim: Simulator, now: float) -> None:
+    request = _key_request(key, sim, now)
+    if request is None:
+        return
+    if request["cmd"] == "help":
+        for letter, (text, _) in KEYS.items():
+            print(f"  {letter}  {text}")
+        return
+    reply = sim.request(request, now)
+    if not reply["ok"]:
+        _say(f"{request['cmd']}: {reply['error']}")
+    print(sim.model.render_lcd(now), flush=True)
+
+
+def _make_side(args: argparse.Namespace, scratch: Path) -> SerialSide | CanSide:
+    if args.can is not None:
+        interface, channel = args.can.split(":", 1)
+        return CanSide(interface, channel, args.bitrate)
+    path = Path(args.serial) if args.serial else scratch / "vsc"
+    return SerialSide(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    transport: Transport = "can" if args.can is not None else "serial"
+    eeprom_path = Path(args.eeprom) if args.eeprom else None
+    try:
+        eeprom = load_eeprom(eeprom_path, transport)
+    except ValueError as error:
+        print(f"srcs-sim: EEPROM file unreadable: {error}", file=sys.stderr)
+        return 2
+    stop = _Stop()
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    with tempfile.TemporaryDirectory(prefix="srcs-sim-") as scratch:
+        try:
+            side = _make_side(args, Path(scratch))
+        except (OSError, ValueError, can.CanError, ImportError) as error:
+            print(f"srcs-sim: cannot open the port: {error}", file=sys.stderr)
+            return 2
+        now = time.monotonic()
+        model = VscModel(
+            now,
+            transport=transport,
+            eeprom=eeprom,
+            newer_firmware=args.newer_firmware,
+            link_delay=args.link_delay,
+            remote_on=not args.remote_off,
+        )
+        sim = Simulator(
+            side, model, seed=args.seed, eeprom_path=eeprom_path, boot_delay=args.boot_delay
+        )
+        control: ControlServer | None = None
+        try:
+            if args.control:
+                control = ControlServer(Path(args.control))
+            if isinstance(side, SerialSide):
+                _say(f"serial {side.path} (pty {side.device})")
+            else:
+                _say(f"can {side.description}")
+            if control is not None:
+                _say(f"control {control.path}")
+            _say("ready")
+            _run(sim, control, stop)
+        except OSError as error:
+            print(f"srcs-sim: {error}", file=sys.stderr)
+            return 2
+        finally:
+            if control is not None:
+                control.close()
+            sim.close()
+    return 0
+
+
+def _run(sim: Simulator, control: ControlServer | None, stop: _Stop) -> None:
+    interactive = sys.stdin.isatty()
+    stdin_fd = sys.stdin.fileno() if interactive else None
+    if interactive:
+        _say("keys: " + ", ".join(f"{k} {text}" for k, (text, _) in KEYS.items()))
+    with _keys_mode(interactive):
+        while not stop.requested and not sim.quit_requested:
+            now = time.monotonic()
+            sim.step(now)
+            port_fd = sim.fileno()
+            longest = POLL_S if port_fd is not None or not sim.side.plugged else POLL_NO_FD_S
+            timeout = max(0.0, min(sim.next_deadline(now) - time.monotonic(), longest))
+            readers = [fd for fd in (port_fd, stdin_fd) if fd is not None]
+            writers: list[int] = []
+            if control is not None:
+                readers += control.read_fds()
+                writers += control.write_fds()
+            readable, writable, _ = select.select(readers, writers, [], timeout)
+            now = time.monotonic()
+            if control is not None:
+                ready = set(readable), set(writable)
+                control.serve(*ready, lambda request: sim.request(request, time.monotonic()))
+            if stdin_fd is not None and stdin_fd in readable:
+                for key in sys.stdin.read(1):
+                    _on_key(key, sim, now)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,7 @@
+"""``srcs-sim``: a simulated VSC with its remote, for testing robot code without hardware.
+
+``model`` (the state machine) and ``faults`` (the fault plan) are pure: no I/O, no clock;
+time comes in as monotonic seconds. ``serial_side``, ``can_side`` and ``control`` are the
+I/O edges; ``engine`` joins them; ``supervisord.cli.sim`` is the command.
+``docs/simulator.md`` describes it for users.
+"""

@@ -1,0 +1,284 @@
+"""Drive ``srcs-sim`` from tests: ``SimProcess`` runs it as a real subprocess, ``SimControl``
+speaks its control API (``docs/simulator.md``).
+
+    with SimProcess(tmp_path) as sim:          # serial pty at tmp_path / "vsc"
+        sim.control.key(85, 1)                 # commission the VSC's watchdog
+        start_my_robot(port=sim.serial_path)
+        sim.control.wait_for(lambda s: s["user_heartbeat_age"] is not None)
+        sim.control.takeover()
+        sim.control.estop()
+
+The process is started with ``sys.executable -m supervisord.cli.sim``, so it runs from a
+virtual environment whether or not the ``srcs-sim`` entry point is installed. Start-up
+waits until the control socket answers; a simulator that exits or never answers raises
+``SimError`` with the end of its log.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from supervisord.errors import SrcsError
+
+State = dict[str, Any]
+
+
+class SimError(SrcsError):
+    """The simulator did not start, stopped answering, or refused a request."""
+
+
+class SimControl:
+    """A client of the control socket: one connection, one reply per request.
+
+    ``request`` returns the reply of a request that succeeded and raises ``SimError`` with
+    the simulator's error text otherwise; ``call`` returns any reply as it came."""
+
+    def __init__(self, path: str | Path, timeout: float = 5.0) -> None:
+        self.path = Path(path)
+        self.timeout = timeout
+        self._sock: socket.socket | None = None
+        self._buffer = b""
+
+    def _connect(self) -> socket.socket:
+        if self._sock is None:
+            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            sock.settimeout(self.timeout)
+            try:
+                sock.connect(str(self.path))
+            except OSError:
+                sock.close()
+                raise
+            self._sock, self._buffer = sock, b""
+        return self._sock
+
+    def call(self, cmd: str, **fields: Any) -> State:
+        """Send ``{"cmd": cmd, **fields}`` and return the reply, ``ok`` true or false."""
+        line = json.dumps({"cmd": cmd, **fields}).encode() + b"\n"
+        try:
+            sock = self._connect()
+            sock.sendall(line)
+            while b"\n" not in self._buffer:
+                chunk = sock.recv(65536)
+                if not chunk:
+                    raise ConnectionError("the simulator closed the control connection")
+                self._buffer += chunk
+        except OSError as error:
+            self.close()
+            raise SimError(f"control socket {self.path}: {error}") from error
+        reply, _, self._buffer = self._buffer.partition(b"\n")
+        decoded: State = json.loads(reply)
+        return decoded
+
+    def request(self, cmd: str, **fields: Any) -> State:
+        reply = self.call(cmd, **fields)
+        if not reply.get("ok"):
+            raise SimError(f"{cmd}: {reply.get('error')}")
+        return reply
+
+    def close(self) -> None:
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    # -- one method per request (docs/simulator.md) ----------------------------------------
+
+    def state(self) -> State:
+        return self.request("state")
+
+    def lcd(self) -> str:
+        return str(self.request("lcd")["lcd"])
+
+    def estop(self) -> State:
+        return self.request("estop")
+
+    def release(self) -> State:
+        return self.request("release")
+
+    def pause(self, reason: str = "button") -> State:
+        return self.request("pause", reason=reason)
+
+    def takeover(self) -> State:
+        return self.request("takeover")
+
+    def menu(self) -> State:
+        return self.request("menu")
+
+    def mode(self, mode: str | int) -> State:
+        return self.request("mode", mode=mode)
+
+    def power(self, on: bool) -> State:
+        return self.request("power", on=on)
+
+    def wired_estop(self, active: bool) -> State:
+        return self.request("wired_estop", active=active)
+
+    def axes(self, **values: int) -> State:
+        return self.request("axes", **values)
+
+    def buttons(self, *pressed: str) -> State:
+        return self.request("buttons", pressed=list(pressed))
+
+    def key(self, key: int, value: int | None = None) -> int:
+        fields: dict[str, int] = {"key": key} if value is None else {"key": key, "value": value}
+        return int(self.request("key", **fields)["value"])
+
+    def unplug(self) -> State:
+        return self.request("unplug")
+
+    def replug(self) -> State:
+        return self.request("replug")
+
+    def reboot(self, delay: float | None = None, unplug: bool | None = None) -> State:
+        fields: dict[str, Any] = {}
+        if delay is not None:
+            fields["delay"] = delay
+        if unplug is not None:
+            fields["unplug"] = unplug
+        return self.request("reboot", **fields)
+
+    def fault(self, **plan: Any) -> State:
+        """Set a fault plan (``FaultPlan`` field names); no fields clears it."""
+        if not plan:
+            return self.request("fault", clear=True)
+        return self.request("fault", plan=plan)
+
+    def silence(self, on: bool = True) -> State:
+        return self.request("silence", on=on)
+
+    def bus_off(self, on: bool = True) -> State:
+        return self.request("bus_off", on=on)
+
+    def wait_for(
+        self, condition: Callable[[State], bool], timeout: float = 10.0, poll: float = 0.02
+    ) -> State:
+        """Poll ``state`` until ``condition`` holds; ``SimError`` with the last state if not."""
+        end = time.monotonic() + timeout
+        while True:
+            state = self.state()
+            if condition(state):
+                return state
+            if time.monotonic() > end:
+                summary = {k: state.get(k) for k in ("mode_name", "estop", "user_heartbeat_age")}
+                raise SimError(f"timed out after {timeout} s waiting; state: {summary}")
+            time.sleep(poll)
+
+    def __enter__(self) -> SimControl:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class SimProcess:
+    """``srcs-sim`` as a subprocess in ``workdir``.
+
+    ``serial`` is the pty symlink (relative paths are under ``workdir``; default
+    ``workdir/vsc``); ``can`` (``"udp_multicast:239.74.163.2"``) serves CAN instead. The
+    control socket is ``workdir/sim.sock``, the log (stderr) ``workdir/sim.log``.
+    ``eeprom`` keeps message control and key 85 across restarts. ``args`` are extra
+    command-line arguments (``--newer-firmware``, ``--remote-off``...)."""
+
+    def __init__(
+        self,
+        workdir: str | Path,
+        *,
+        serial: str | Path | None = "vsc",
+        can: str | None = None,
+        eeprom: str | Path | None = None,
+        seed: int = 0,
+        boot_delay: float | None = None,
+        link_delay: float | None = None,
+        args: Sequence[str] = (),
+        ready_timeout: float = 15.0,
+    ) -> None:
+        self.workdir = Path(workdir)
+        self.can = can
+        self.serial_path = None if can else self.workdir / (serial or "vsc")
+        self.control_path = self.workdir / "sim.sock"
+        self.log_path = self.workdir / "sim.log"
+        self.eeprom_path = None if eeprom is None else self.workdir / eeprom
+        self.ready_timeout = ready_timeout
+        command = [sys.executable, "-m", "supervisord.cli.sim", "--control", str(self.control_path)]
+        command += ["--can", can] if can else ["--serial", str(self.serial_path)]
+        if self.eeprom_path is not None:
+            command += ["--eeprom", str(self.eeprom_path)]
+        command += ["--seed", str(seed)]
+        if boot_delay is not None:
+            command += ["--boot-delay", str(boot_delay)]
+        if link_delay is not None:
+            command += ["--link-delay", str(link_delay)]
+        self.command = [*command, *args]
+        self.process: subprocess.Popen[bytes] | None = None
+        self.control = SimControl(self.control_path)
+
+    def start(self) -> SimProcess:
+        """Start it and wait until its control socket answers."""
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        with self.log_path.open("ab") as log:
+            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+                self.command, stdin=subprocess.DEVNULL, stdout=log, stderr=log
+            )
+        end = time.monotonic() + self.ready_timeout
+        while True:
+            if self.process.poll() is not None:
+                raise SimError(f"srcs-sim exited with {self.process.returncode}: {self.log()}")
+            if self.control_path.exists():
+                with contextlib.suppress(SimError):
+                    self.control.state()
+                    return self
+            if time.monotonic() > end:
+                self.kill()
+                raise SimError(f"srcs-sim did not answer in {self.ready_timeout} s: {self.log()}")
+            time.sleep(0.02)
+
+    def log(self, tail: int = 2000) -> str:
+        """The end of the simulator's output."""
+        try:
+            return self.log_path.read_text(errors="replace")[-tail:]
+        except FileNotFoundError:
+            return ""
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGTERM, then wait; the exit status (0 for a clean stop)."""
+        self.control.close()
+        if self.process is None:
+            return 0
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.kill()
+        return self.process.returncode
+
+    def kill(self) -> None:
+        self.control.close()
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+    def __enter__(self) -> SimProcess:
+        return self.start()
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.stop()
