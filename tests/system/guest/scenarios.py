@@ -1,0 +1,814 @@
+"""The system tier's scenarios. They run inside the guest only (see tests/system/vm.py).
+
+Each scenario prints one ``SRCS-RESULT {json}`` line: its name, whether it passed, a detail
+line and what it measured. Timing checks are coarse on purpose: Python runs 15-35 times
+slower under software emulation than on the host, and the numbers are printed, not hidden.
+
+usage: scenarios.py                         the suite named by srcs.suite= (main, powercut)
+       scenarios.py powercut-check ACKED    after the cut: check the disk against ACKED
+"""
+
+from __future__ import annotations
+
+import contextlib
+import grp
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import can
+
+from supervisord.client import SupervisorClient
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.framing import FrameDecoder, encode_frame
+from supervisord.protocol.j1939 import encode_can
+from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
+from supervisord.testkit.pty_port import PtyPort
+
+MARKER = Path("/.srcs-system-tier")
+GPIO_SIM = Path("/sys/kernel/config/gpio-sim")
+VSC_PORT = Path("/dev/srcs-vsc")
+CHIP_LABEL = "srcs-sim-gpio"
+RECORD_DISK = Path("/dev/vda")
+KEY85_WINDOW_S = 0.5  # the VSC's user watchdog (key 85): no user heartbeat for this long
+
+Measured = dict[str, Any]
+
+
+class Failed(Exception):
+    """A scenario's check failed; the message says what was expected and what was seen."""
+
+
+def check(condition: bool, message: str) -> None:
+    if not condition:
+        raise Failed(message)
+
+
+def emit(kind: str, payload: object) -> None:
+    print(f"SRCS-{kind} {json.dumps(payload, sort_keys=True)}", flush=True)
+
+
+def log(text: str) -> None:
+    print(f"[{time.monotonic():9.3f}] {text}", flush=True)
+
+
+def run(*cmd: str) -> str:
+    return subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip()
+
+
+def wait_for(what: str, predicate: Callable[[], bool], timeout: float, step: float = 0.05) -> float:
+    """Seconds until ``predicate`` held; Failed after ``timeout``."""
+    start = time.monotonic()
+    while True:
+        if predicate():
+            return time.monotonic() - start
+        if time.monotonic() - start > timeout:
+            raise Failed(f"{what}: not within {timeout:.0f} s")
+        time.sleep(step)
+
+
+# ---------------------------------------------------------------------------------- systemd
+
+
+def prop(unit: str, name: str) -> str:
+    return run("systemctl", "show", "-p", name, "--value", unit)
+
+
+def main_pid(unit: str) -> int:
+    return int(prop(unit, "MainPID") or 0)
+
+
+def journal(unit: str, since_cursor: str | None = None) -> str:
+    cmd = ["journalctl", "--no-pager", "-o", "short-monotonic", "-u", unit]
+    if since_cursor:
+        cmd += ["--after-cursor", since_cursor]
+    return subprocess.run(cmd, check=False, capture_output=True, text=True).stdout
+
+
+# ---------------------------------------------------------------------------------- gpio-sim
+
+
+class GpioSim:
+    """A gpio-sim chip made through configfs; the simulated side is read through sysfs."""
+
+    def __init__(self, name: str, lines: int) -> None:
+        self.root = GPIO_SIM / name
+        bank = self.root / "bank0"
+        bank.mkdir(parents=True)
+        (bank / "num_lines").write_text(str(lines))
+        (bank / "label").write_text(CHIP_LABEL)
+        (self.root / "live").write_text("1")
+        device = (self.root / "dev_name").read_text().strip()
+        self.chip = (bank / "chip_name").read_text().strip()
+        self.sysfs = Path("/sys/devices/platform", device, self.chip)
+
+    def value(self, line: int) -> int:
+        return int((self.sysfs / f"sim_gpio{line}" / "value").read_text())
+
+    def pull(self, line: int, up: bool) -> None:
+        (self.sysfs / f"sim_gpio{line}" / "pull").write_text("pull-up" if up else "pull-down")
+
+    def edges(self, line: int, seconds: float) -> int:
+        """Level changes seen by polling the line for ``seconds``."""
+        changes, last = 0, self.value(line)
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            now = self.value(line)
+            changes += now != last
+            last = now
+            time.sleep(0.002)
+        return changes
+
+    def close(self) -> None:
+        (self.root / "live").write_text("0")
+        (self.root / "bank0").rmdir()
+        self.root.rmdir()
+
+
+# ---------------------------------------------------------------------------------- the VSC
+
+
+class SerialVsc:
+    """A minimal VSC on a pty at /dev/srcs-vsc: heartbeats in ``mode`` with ``estop``, key 85
+    answered with 1, and the key-85 watchdog: no user heartbeat for 500 ms trips it."""
+
+    def __init__(self) -> None:
+        self.port = PtyPort(VSC_PORT)
+        self._own_port()
+        self.mode = VscMode.LOCAL
+        self.estop = 0
+        self.last_user_heartbeat: float | None = None
+        self.trips: list[float] = []  # monotonic times the watchdog tripped
+        self._tripped = False
+        self._decoder = FrameDecoder()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _own_port(self) -> None:
+        # What 60-srcs.rules does for the real port: group srcs-dev, mode 0660.
+        target = os.path.realpath(VSC_PORT)
+        os.chown(target, -1, grp.getgrnam("srcs-dev").gr_gid)
+        os.chmod(target, 0o660)
+
+    def _serve(self) -> None:
+        next_beat = 0.0
+        while not self._stop.is_set():
+            now = time.monotonic()
+            for message in self._decoder.feed(self.port.read(0.01)):
+                if isinstance(message, UserHeartbeat):
+                    self.last_user_heartbeat = time.monotonic()
+                    self._tripped = False
+                elif message == FeedbackGet(85):
+                    self.port.write(encode_frame(FeedbackSet(85, 1)))
+            last = self.last_user_heartbeat
+            if last is not None and not self._tripped and now - last > KEY85_WINDOW_S:
+                self._tripped = True
+                self.trips.append(now)
+            if now >= next_beat:
+                next_beat = now + 0.05
+                self.port.write(encode_frame(VscHeartbeat(self.mode, estop=self.estop)))
+
+    def takeover(self) -> None:
+        """The operator's takeover on the remote: out of Operational, then into it again."""
+        self.mode = VscMode.LOCAL
+        time.sleep(0.3)
+        self.mode = VscMode.OPERATIONAL
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.port.unplug()
+
+
+class CanVsc:
+    """A minimal VSC on vcan0: J1939 heartbeat frames every 50 ms with ``mode`` and ``estop``."""
+
+    def __init__(self, channel: str) -> None:
+        self.bus = can.Bus(interface="socketcan", channel=channel)
+        self.mode = VscMode.LOCAL
+        self.estop = 0
+        self.estop_sent: float | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            frame = encode_can(VscHeartbeat(self.mode, estop=self.estop))
+            self.bus.send(can.Message(arbitration_id=frame.arbitration_id, data=frame.data))
+            if self.estop and self.estop_sent is None:
+                self.estop_sent = time.monotonic()
+            time.sleep(0.05)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.bus.shutdown()
+
+
+# ---------------------------------------------------------------------------------- srcsd
+
+
+def write_config(instance: str, body: str) -> Path:
+    path = Path("/etc/srcs", f"{instance}.toml")
+    path.write_text(f'[robot]\nname = "{instance}"\n{body}')
+    return path
+
+
+def socket_path(instance: str) -> Path:
+    return Path("/run/srcsd", instance, "api.sock")
+
+
+def status(instance: str) -> dict[str, Any]:
+    with SupervisorClient.connect(socket_path(instance), timeout=10) as client:
+        return client.status()
+
+
+def state(instance: str) -> str:
+    try:
+        return str(status(instance)["state"])
+    except Exception:  # not up yet, or restarting: no state
+        return "DOWN"
+
+
+def wait_state(instance: str, want: str, timeout: float) -> float:
+    return wait_for(f"srcsd@{instance} {want}", lambda: state(instance) == want, timeout, 0.2)
+
+
+GPIO_CONFIG = """
+[vsc]
+transport = "serial"
+port = "/dev/srcs-vsc"
+require_watchdog = true
+
+[rearm]
+hold_ms = 500
+
+[[outputs]]
+name = "drive"
+kind = "gpio"
+role = "motion"
+chip = "srcs-sim-gpio"
+line = 0
+
+[[outputs]]
+name = "brake"
+kind = "gpio"
+role = "power"
+chip = "srcs-sim-gpio"
+line = 1
+active_low = true
+
+[[outputs]]
+name = "relay"
+kind = "gpio"
+role = "power"
+chip = "srcs-sim-gpio"
+line = 2
+pulse_period_ms = 50
+
+[record]
+path = "/var/lib/srcsd/gpio-a/stops.jsonl"
+
+[api]
+socket = "/run/srcsd/gpio-a/api.sock"
+"""
+
+DRIVE, BRAKE, RELAY = 0, 1, 2
+
+
+class Bench:
+    """The shared setup of the GPIO scenarios: a gpio-sim chip, the serial VSC, srcsd@gpio-a."""
+
+    unit = "srcsd@gpio-a.service"
+    instance = "gpio-a"
+
+    def __init__(self) -> None:
+        self.gpio = GpioSim("srcs", 4)
+        # The wiring docs/outputs.md asks for: a pull-up on the active-low brake line, so
+        # that a released line means "off"; the others are pulled down (gpio-sim's default).
+        self.gpio.pull(BRAKE, up=True)
+        self.vsc = SerialVsc()
+        write_config(self.instance, GPIO_CONFIG)
+
+    def levels(self) -> tuple[int, int, int]:
+        return self.gpio.value(DRIVE), self.gpio.value(BRAKE), self.gpio.value(RELAY)
+
+    def assert_off(self, when: str) -> None:
+        drive, brake = self.gpio.value(DRIVE), self.gpio.value(BRAKE)
+        check(drive == 0, f"{when}: drive (motion) line is {drive}, expected 0 (off)")
+        check(brake == 1, f"{when}: brake (active-low) line is {brake}, expected 1 (off)")
+        relay = self.gpio.edges(RELAY, 0.3)
+        check(relay == 0, f"{when}: relay line still pulsing ({relay} edges in 0.3 s)")
+        check(self.gpio.value(RELAY) == 0, f"{when}: relay line is on")
+
+    def to_run(self, timeout: float = 30) -> float:
+        """Take over on the remote until RUN; returns the seconds it took."""
+        start = time.monotonic()
+        self.vsc.takeover()
+        wait_state(self.instance, "RUN", timeout)
+        return time.monotonic() - start
+
+    def restarted(self, old_pid: int, timeout: float) -> tuple[int, float]:
+        """Wait for systemd to run a new main process that told READY=1."""
+
+        def ready() -> bool:
+            pid = main_pid(self.unit)
+            return pid not in (0, old_pid) and prop(self.unit, "ActiveState") == "active"
+
+        took = wait_for("restart", ready, timeout, 0.1)
+        return main_pid(self.unit), took
+
+    def close(self) -> None:
+        subprocess.run(["systemctl", "stop", self.unit], check=False)
+        self.vsc.close()
+        self.gpio.close()
+
+
+# ---------------------------------------------------------------------------------- scenarios
+
+
+def scenario_install(_bench: Bench) -> tuple[str, Measured]:
+    """srcsd@ installed as docs/install.md says: users, directories, units that verify."""
+    run("systemctl", "daemon-reload")
+    verify = subprocess.run(
+        ["systemd-analyze", "verify", "srcsd@gpio-a.service"],
+        check=False,
+        capture_output=True,
+        text=True,
+    )
+    check(verify.returncode == 0, f"systemd-analyze verify: {verify.stderr.strip()}")
+    run("getent", "passwd", "srcsd")
+    run("getent", "group", "srcs-dev")
+    for folder in ("/var/lib/srcsd", "/run/srcsd", "/var/log/srcsd"):
+        owner = run("stat", "-c", "%U:%G %a", folder)
+        check(owner == "srcsd:srcsd 750", f"{folder} is {owner}, expected srcsd:srcsd 750")
+    chip = run("stat", "-c", "%G %a", f"/dev/{_bench.gpio.chip}")
+    check(chip == "srcs-dev 660", f"/dev/{_bench.gpio.chip} is {chip}: the udev rule did not apply")
+    exposure = (
+        subprocess.run(
+            ["systemd-analyze", "security", "--no-pager", "srcsd@gpio-a.service"],
+            check=False,
+            capture_output=True,
+            text=True,
+        )
+        .stdout.strip()
+        .splitlines()
+    )
+    return "units verify; user, groups, directories and the gpiochip's group are in place", {
+        "exposure (running system)": exposure[-1] if exposure else "?",
+        "gpiochip": chip,
+    }
+
+
+def scenario_gpio(bench: Bench) -> tuple[str, Measured]:
+    """Outputs on gpio-sim lines: off at start, on after takeover, off on a remote e-stop."""
+    gpio, vsc, unit = bench.gpio, bench.vsc, bench.unit
+    start = time.monotonic()
+    run("systemctl", "start", unit)  # Type=notify: returns once srcsd said READY=1
+    started = time.monotonic() - start
+    pid = main_pid(unit)
+    proc = Path(f"/proc/{pid}/status").read_text()
+    uid = next(line.split()[1] for line in proc.splitlines() if line.startswith("Uid:"))
+    check(uid == str(run("id", "-u", "srcsd")), f"srcsd runs as uid {uid}, not as srcsd")
+    caps = next(line.split()[1] for line in proc.splitlines() if line.startswith("CapEff:"))
+    check(int(caps, 16) == 0, f"srcsd has capabilities {caps}")
+    bench.assert_off("after start")
+    wait_state(bench.instance, "STOPPED", 30)
+    to_run = bench.to_run()
+    drive, brake, _ = bench.levels()
+    check((drive, brake) == (1, 0), f"in RUN: drive={drive} brake={brake}, expected 1 and 0")
+    pulses = gpio.edges(RELAY, 1.0)
+    check(pulses >= 4, f"in RUN: pulsed relay changed {pulses} times in 1 s, expected ~20")
+    # The remote e-stop: the VSC's heartbeat carries a non-zero e-stop word.
+    t0 = time.monotonic()
+    vsc.estop = 1
+    off = wait_for("drive off after the e-stop", lambda: gpio.value(DRIVE) == 0, 10, 0.002)
+    brake_off = time.monotonic() - t0
+    wait_for("brake off", lambda: gpio.value(BRAKE) == 1, 10, 0.002)
+    brake_off = time.monotonic() - t0
+    wait_state(bench.instance, "STOPPED", 10)
+    bench.assert_off("after the e-stop")
+    causes = [c["name"] for c in status(bench.instance)["causes"]]
+    check("vsc_estop" in causes, f"causes after the e-stop: {causes}")
+    vsc.estop = 0
+    time.sleep(0.7)
+    check(gpio.value(DRIVE) == 0, "released e-stop alone re-enabled motion")
+    again = bench.to_run()
+    check(gpio.value(DRIVE) == 1, "no motion after the second takeover")
+    return "off at start; takeover raises, remote e-stop drops (active-low, pulsed too)", {
+        "systemctl start (to READY=1) s": round(started, 2),
+        "takeover to RUN s": round(to_run, 2),
+        "relay edges in 1 s of RUN (50 ms period)": pulses,
+        "e-stop frame to drive line off ms": round(off * 1000),
+        "e-stop frame to brake line off ms": round(brake_off * 1000),
+        "second takeover to RUN s": round(again, 2),
+    }
+
+
+def scenario_hang(bench: Bench) -> tuple[str, Measured]:
+    """SIGSTOP in RUN: the VSC's watchdog trips, systemd kills and restarts; STOPPED after."""
+    vsc, unit = bench.vsc, bench.unit
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    pid = main_pid(unit)
+    restarts = int(prop(unit, "NRestarts"))
+    trips = len(vsc.trips)
+    t0 = time.monotonic()
+    os.kill(pid, signal.SIGSTOP)
+    # What the lines do while the process is stopped but still holds them.
+    held: list[tuple[float, int, int, int]] = []
+    dead_at: float | None = None
+    while time.monotonic() - t0 < 30:
+        now = time.monotonic() - t0
+        held.append((now, *bench.levels()))
+        if dead_at is None and not Path(f"/proc/{pid}").exists():
+            dead_at = now
+        if dead_at is not None and now - dead_at > 0.5:
+            break
+        time.sleep(0.01)
+    check(len(vsc.trips) > trips, "the VSC's key-85 watchdog did not trip")
+    trip = vsc.trips[trips] - t0
+    check(dead_at is not None, "systemd did not kill the hung supervisor within 30 s")
+    assert dead_at is not None
+    while_stopped = [h for h in held if h[0] < dead_at]
+    drive_held = all(h[1] == 1 for h in while_stopped)
+    relay_levels = {h[3] for h in while_stopped[len(while_stopped) // 2 :]}
+    after = [h for h in held if h[0] > dead_at + 0.2]
+    check(bool(after) and all(h[1] == 0 and h[2] == 1 for h in after), "lines not off once dead")
+    _, took = bench.restarted(pid, 60)
+    check(int(prop(unit, "NRestarts")) == restarts + 1, "NRestarts did not grow by one")
+    check(prop(unit, "Result") == "success", f"unit result {prop(unit, 'Result')}")
+    log(journal(unit)[-1500:])
+    restarted_state = state(bench.instance)
+    check(restarted_state == "STOPPED", f"restarted supervisor is {restarted_state}, not STOPPED")
+    bench.assert_off("after the restart")
+    time.sleep(1.0)
+    check(state(bench.instance) == "STOPPED", "left STOPPED without a takeover")
+    back = bench.to_run()
+    return "watchdog trips, systemd kills and restarts, STOPPED until takeover", {
+        "SIGSTOP to VSC key-85 trip ms": round(trip * 1000),
+        "SIGSTOP to process killed by systemd s": round(dead_at, 2),
+        "drive line while stopped (before the kill)": "held on" if drive_held else "changed",
+        "pulsed relay while stopped": f"frozen at {sorted(relay_levels)}",
+        "lines after the kill (released)": "drive 0, brake 1 (pull-up), relay 0",
+        "SIGSTOP to restarted and READY s": round(dead_at + took, 2),
+        "takeover after restart to RUN s": round(back, 2),
+    }
+
+
+def scenario_crash(bench: Bench) -> tuple[str, Measured]:
+    """SIGKILL in RUN, then a restart-limit storm: lines released off, the VSC trips, STOPPED."""
+    gpio, vsc, unit = bench.gpio, bench.vsc, bench.unit
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    run("systemctl", "reset-failed", unit)
+    pid = main_pid(unit)
+    trips = len(vsc.trips)
+    t0 = time.monotonic()
+    os.kill(pid, signal.SIGKILL)
+    off = wait_for("drive released", lambda: gpio.value(DRIVE) == 0, 10, 0.002)
+    check(gpio.value(BRAKE) == 1, "brake line not off after the crash")
+    wait_for("VSC watchdog trip", lambda: len(vsc.trips) > trips, 5, 0.01)
+    trip = vsc.trips[trips] - t0
+    _, took = bench.restarted(pid, 60)
+    check(state(bench.instance) == "STOPPED", "restarted supervisor not STOPPED")
+    bench.assert_off("after the crash restart")
+    # The storm: kill every new process as soon as it is up, until systemd gives up.
+    kills = 1
+    storm_start = time.monotonic()
+    while prop(unit, "ActiveState") != "failed" and time.monotonic() - storm_start < 180:
+        pid = main_pid(unit)
+        if pid and prop(unit, "ActiveState") == "active":
+            os.kill(pid, signal.SIGKILL)
+            kills += 1
+        time.sleep(0.2)
+    result = prop(unit, "Result")
+    check(result == "start-limit-hit", f"after {kills} kills the unit's result is {result}")
+    storm = time.monotonic() - storm_start
+    bench.assert_off("after the restart limit")
+    time.sleep(KEY85_WINDOW_S * 2)
+    check(vsc.last_user_heartbeat is not None, "no user heartbeat ever")
+    assert vsc.last_user_heartbeat is not None
+    silent = time.monotonic() - vsc.last_user_heartbeat
+    check(silent > KEY85_WINDOW_S, "user heartbeats continue with the unit failed")
+    run("systemctl", "reset-failed", unit)
+    run("systemctl", "start", unit)
+    check(state(bench.instance) == "STOPPED", "started again after the storm: not STOPPED")
+    back = bench.to_run()
+    return "lines off at once, VSC trips, restart STOPPED; storm ends in start-limit-hit", {
+        "SIGKILL to drive line off ms": round(off * 1000),
+        "SIGKILL to VSC key-85 trip ms": round(trip * 1000),
+        "SIGKILL to restarted and READY s": round(took, 2),
+        "kills until start-limit-hit": kills,
+        "storm duration s": round(storm, 1),
+        "takeover after the storm to RUN s": round(back, 2),
+    }
+
+
+def scenario_clean_stop(bench: Bench) -> tuple[str, Measured]:
+    """systemctl stop in RUN: the outputs are set off before exit, the record is whole, exit 0."""
+    gpio, unit = bench.gpio, bench.unit
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    # Pull the drive line UP for this one: a merely released line would then read 1, so a 0
+    # seen between RUN and the exit can only be the daemon setting it off.
+    gpio.pull(DRIVE, up=True)
+    seen: list[int] = []
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            level = gpio.value(DRIVE)
+            if not seen or seen[-1] != level:
+                seen.append(level)
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    t0 = time.monotonic()
+    run("systemctl", "stop", unit)
+    took = time.monotonic() - t0
+    time.sleep(0.3)
+    done.set()
+    watcher.join()
+    gpio.pull(DRIVE, up=False)
+    status_code = prop(unit, "ExecMainStatus")
+    check(status_code == "0", f"exit status {status_code}")
+    check(prop(unit, "Result") == "success", f"result {prop(unit, 'Result')}")
+    check(0 in seen, f"drive line levels during the stop: {seen}, never set off")
+    items = list(read_records(Path("/var/lib/srcsd/gpio-a/stops.jsonl")))
+    bad = [i for i in items if isinstance(i, BadLine)]
+    check(not bad, f"record has bad lines after a clean stop: {bad}")
+    return "outputs set off before exit, record whole, exit status 0", {
+        "systemctl stop s": round(took, 2),
+        "drive line levels seen (pulled up for the test)": seen,
+        "records in the file": len(items),
+    }
+
+
+CAN_CONFIG = """
+[vsc]
+transport = "can"
+interface = "socketcan"
+channel = "vcan0"
+require_watchdog = false
+
+[rearm]
+hold_ms = 500
+
+[[outputs]]
+name = "traction"
+kind = "can"
+role = "motion"
+arbitration_id = 0x201
+data_on  = "0F 00 00 00 00 00 00 00"
+data_off = "06 00 00 00 00 00 00 00"
+counter_byte = 7
+counter_mask = 0x0F
+period_ms = 20
+
+[record]
+path = "/var/lib/srcsd/can-a/stops.jsonl"
+
+[api]
+socket = "/run/srcsd/can-a/api.sock"
+"""
+
+
+def scenario_can(_bench: Bench) -> tuple[str, Measured]:
+    """A CAN VSC on vcan0: enable frames on the bus, the off frame at once after a stop."""
+    run("ip", "link", "add", "dev", "vcan0", "type", "vcan")
+    run("ip", "link", "set", "up", "vcan0")
+    write_config("can-a", CAN_CONFIG)
+    vsc = CanVsc("vcan0")
+    unit = "srcsd@can-a.service"
+    bus = can.Bus(interface="socketcan", channel="vcan0")
+    try:
+        run("systemctl", "start", unit)
+        frames = collect(bus, 0x201, 1.0)
+        check(bool(frames), "no enable frames at all")
+        check(all(f[1][0] == 0x06 for f in frames), "on frame before any takeover")
+        vsc.mode = VscMode.LOCAL
+        time.sleep(0.3)
+        vsc.mode = VscMode.OPERATIONAL
+        wait_state("can-a", "RUN", 30)
+        frames = collect(bus, 0x201, 1.0)
+        on = [f for f in frames if f[1][0] == 0x0F]
+        check(len(on) >= 5, f"only {len(on)} on frames in 1 s of RUN")
+        counters = [f[1][7] & 0x0F for f in on]
+        check(all(a != b for a, b in itertools.pairwise(counters)), "counter stuck")
+        gaps = [b[0] - a[0] for a, b in itertools.pairwise(on)]
+        vsc.estop = 1
+        after = collect(bus, 0x201, 1.5)
+        sent = vsc.estop_sent
+        check(sent is not None, "the e-stop frame was not sent")
+        assert sent is not None
+        first_off = next((f[0] for f in after if f[1][0] == 0x06 and f[0] >= sent), None)
+        check(first_off is not None, "no off frame after the e-stop")
+        assert first_off is not None
+        late_on = [f for f in after if f[1][0] == 0x0F and f[0] > first_off]
+        check(not late_on, f"{len(late_on)} on frames after the first off frame")
+        offs = [f for f in after if f[1][0] == 0x06]
+        check(len(offs) >= 5, "the off frame does not keep going out")
+        latency = first_off - sent
+        check(latency < 1.0, f"off frame {latency * 1000:.0f} ms after the e-stop frame")
+        run("systemctl", "stop", unit)
+        return "enable frames with a rolling counter; off frame follows the e-stop", {
+            "on frames in 1 s of RUN (20 ms period)": len(on),
+            "median gap between on frames ms": round(sorted(gaps)[len(gaps) // 2] * 1000, 1),
+            "e-stop frame to first off frame ms": round(latency * 1000, 1),
+        }
+    finally:
+        subprocess.run(["systemctl", "stop", unit], check=False)
+        vsc.close()
+        bus.shutdown()
+
+
+def collect(bus: can.BusABC, ident: int, seconds: float) -> list[tuple[float, bytes]]:
+    """(monotonic receive time, data) of every frame with ``ident`` for ``seconds``."""
+    frames: list[tuple[float, bytes]] = []
+    end = time.monotonic() + seconds
+    while (left := end - time.monotonic()) > 0:
+        message = bus.recv(left)
+        if message is not None and message.arbitration_id == ident:
+            frames.append((time.monotonic(), bytes(message.data)))
+    return frames
+
+
+# ---------------------------------------------------------------------------------- power cut
+
+POWERCUT_CONFIG = """
+[vsc]
+transport = "serial"
+port = "/dev/srcs-vsc"
+
+[record]
+# Small files: the burst rotates several times, so the cut may land in a rotation too.
+max_bytes = 4096
+keep = 99
+
+[api]
+socket = "/run/srcsd/api.sock"
+"""
+
+
+def powercut_burst() -> None:
+    """Boot 2: srcsd keeps its record on the virtual disk; transitions until the power dies."""
+    run("mount", "-t", "ext4", str(RECORD_DISK), "/var/lib/srcsd")
+    write_config("cut", POWERCUT_CONFIG + '[[outputs]]\nname = "drive"\nkind = "sim"\n')
+    vsc = SerialVsc()
+    run("systemctl", "start", "srcsd@cut.service")
+    with SupervisorClient.connect("/run/srcsd/api.sock", name="burst", timeout=30) as client:
+        client.subscribe("records")
+        log("burst: estop/release until the power is cut")
+        # Ends with the guest: the host kills qemu after enough acknowledgements.
+        while vsc.port.plugged:
+            client.estop()
+            client.release()
+            while (push := client.next_event(0)) is not None:
+                if push.event == "record":
+                    record = {k: v for k, v in push.data.items() if k != "event"}
+                    emit("ACK", record)
+
+
+def powercut_check(acked_file: str) -> int:
+    """Boot 3: every acknowledged record is on the disk, whole; a torn tail is ignored."""
+    name = "powercut"
+    try:
+        acked = [json.loads(line) for line in Path(acked_file).read_text().splitlines()]
+        mount = Path("/mnt/record")
+        mount.mkdir(parents=True, exist_ok=True)
+        run("mount", "-t", "ext4", str(RECORD_DISK), str(mount))
+        path = mount / "stops.jsonl"
+        files = sorted(p.name for p in mount.iterdir() if p.name.startswith("stops"))
+        items = list(read_records(path))
+        records = {i.seq: dict(i.data) for i in items if not isinstance(i, BadLine)}
+        bad = [i for i in items if isinstance(i, BadLine)]
+        missing = [r["seq"] for r in acked if r["seq"] not in records]
+        changed = [r["seq"] for r in acked if r["seq"] in records and records[r["seq"]] != r]
+        check(not missing, f"acknowledged records missing from the disk: {missing}")
+        check(not changed, f"acknowledged records differ on the disk: {changed}")
+        check(
+            all(b.reason is BadLineReason.TORN_TAIL for b in bad),
+            f"bad lines other than a torn tail: {bad}",
+        )
+        natural = [b for b in bad if b.reason is BadLineReason.TORN_TAIL]
+        torn = "found after the cut" if natural else "none after the cut: one appended"
+        if not natural:
+            with path.open("ab") as handle:
+                handle.write(b'{"seq": 999999, "mono_ns": 1, "utc": "2026-')
+        last_good = max(records)
+        # What the daemon does when it opens the file again: cut the torn line off.
+        with RecordWriter(path):
+            pass
+        after = list(read_records(path))
+        check(
+            not any(isinstance(i, BadLine) for i in after),
+            "a torn tail remains after reopening",
+        )
+        check(path.read_bytes().endswith(b"\n"), "the file does not end with a whole line")
+        check(
+            max(i.seq for i in after if not isinstance(i, BadLine)) == last_good,
+            "the torn tail was read as a record",
+        )
+        emit(
+            "RESULT",
+            {
+                "name": name,
+                "ok": True,
+                "detail": f"all {len(acked)} acknowledged records on the disk, whole",
+                "measured": {
+                    "acknowledged before the cut": len(acked),
+                    "records on the disk": len(records),
+                    "written but not yet acknowledged": len(records) - len(acked),
+                    "record files": files,
+                    "torn tail": torn,
+                },
+            },
+        )
+        return 0
+    except Exception as error:  # reported as the scenario's failure
+        emit("RESULT", {"name": name, "ok": False, "detail": describe(error)})
+        return 1
+
+
+# ---------------------------------------------------------------------------------- runner
+
+Scenario = Callable[[Bench], tuple[str, Measured]]
+MAIN: list[tuple[str, Scenario]] = [
+    ("install", scenario_install),
+    ("gpio", scenario_gpio),
+    ("can", scenario_can),
+    ("hang", scenario_hang),
+    ("crash", scenario_crash),
+    ("clean_stop", scenario_clean_stop),
+]
+
+
+def describe(error: BaseException) -> str:
+    if isinstance(error, Failed | subprocess.CalledProcessError):
+        extra = getattr(error, "stderr", "") or ""
+        return f"{error} {extra}".strip()
+    return "".join(traceback.format_exception_only(error)).strip()
+
+
+def run_main() -> int:
+    print("SRCS-PLAN " + " ".join(name for name, _ in MAIN), flush=True)
+    bench = Bench()
+    failed = 0
+    try:
+        for name, scenario in MAIN:
+            log(f"scenario {name}")
+            t0 = time.monotonic()
+            try:
+                detail, measured = scenario(bench)
+                measured["scenario s"] = round(time.monotonic() - t0, 1)
+                emit("RESULT", {"name": name, "ok": True, "detail": detail, "measured": measured})
+            except Exception as error:  # one scenario's failure is reported
+                failed += 1
+                log(traceback.format_exc())
+                log(journal(bench.unit)[-3000:])
+                emit("RESULT", {"name": name, "ok": False, "detail": describe(error)})
+    finally:
+        bench.close()
+    return 1 if failed else 0
+
+
+def suite() -> str:
+    for arg in Path("/proc/cmdline").read_text().split():
+        if arg.startswith("srcs.suite="):
+            return arg.split("=", 1)[1]
+    return "main"
+
+
+@contextlib.contextmanager
+def guarded() -> Iterator[None]:
+    if not MARKER.exists():
+        print("scenarios: not inside the system tier's guest; refusing", file=sys.stderr)
+        sys.exit(99)
+    yield
+
+
+def main(argv: list[str]) -> int:
+    with guarded():
+        if argv[:1] == ["powercut-check"]:
+            return powercut_check(argv[1])
+        if suite() == "powercut":
+            powercut_burst()
+            return 0
+        return run_main()
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,223 @@
+"""The host side of the system tier: boot the guest, collect its results, cut its power.
+
+Three boots (each about 2-8 s before the scenarios start):
+
+1. ``srcs.suite=main``: systemd as PID 1 runs the scenarios in ``guest/scenarios.py`` against
+   ``srcsd@`` as installed by ``guest/prep``, then reboots (qemu exits).
+2. ``srcs.suite=powercut``: the stop record lives on a virtual ext4 disk; a client in the guest
+   prints every record the daemon pushes to it (``SRCS-ACK``) while transitions are driven in
+   a burst; after ``--acks`` of them this process kills qemu with SIGKILL: a power cut.
+3. ``srcs.mode=run``: a plain boot mounts the disk (ext4 replays its journal, as after a real
+   power cut) and checks every acknowledged record against what is on the disk.
+
+The guest reports with console lines ``SRCS-PLAN name ...`` and ``SRCS-RESULT {json}``; a
+planned scenario without a result counts as failed. Only the standard library is used: this
+runs with the system's python3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+PLAN = "SRCS-PLAN "
+RESULT = "SRCS-RESULT "
+ACK = "SRCS-ACK "
+RC = "SRCS-VM-RC="
+ACKED_FILE = "acked.jsonl"
+
+
+@dataclass
+class Boot:
+    """What one boot printed and how it ended."""
+
+    wall_s: float
+    killed: bool = False
+    plan: list[str] = field(default_factory=list)
+    results: list[dict[str, Any]] = field(default_factory=list)
+    acks: list[dict[str, Any]] = field(default_factory=list)
+    rc: int | None = None
+
+
+class Vm:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+
+    def command(self, append: str, *, disk: bool) -> list[str]:
+        a = self.args
+        cmd = [
+            "qemu-system-x86_64",
+            *("-nodefaults", "-no-user-config", "-accel", "tcg", "-cpu", "max"),
+            *("-smp", "1", "-m", "1024", "-display", "none", "-serial", "stdio"),
+            # The tiny kernel has no ACPI: a reset is how the guest ends, and qemu then exits.
+            "-no-reboot",
+            *("-device", "virtio-rng-pci", "-kernel", a.kernel, "-initrd", a.initrd),
+            # multidevs=remap: / spans several host file systems whose inode numbers collide.
+            "-virtfs",
+            "local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap",
+            "-virtfs",
+            f"local,path={a.out},mount_tag=srcs_out,security_model=none,multidevs=remap",
+        ]
+        if disk:
+            # cache=writeback: what the guest flushed has been written to the image file, and
+            # what it did not flush may still be in the guest's page cache, lost with qemu.
+            cmd += ["-drive", f"file={a.disk},format=raw,if=virtio,cache=writeback"]
+        append = f"console=ttyS0 panic=-1 quiet srcs.opt={a.opt} srcs.out {append}"
+        return [*cmd, "-append", append]
+
+    def boot(
+        self,
+        append: str,
+        *,
+        disk: bool = False,
+        timeout: float,
+        kill_when: Callable[[Boot], bool] | None = None,
+    ) -> Boot:
+        started = time.monotonic()
+        result = Boot(wall_s=0.0)
+        proc = subprocess.Popen(
+            self.command(append, disk=disk),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+        )
+        assert proc.stdout is not None
+        buffer = b""
+        deadline = started + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                print(f"[host] the guest ran past {timeout:.0f} s: killing qemu", flush=True)
+                proc.kill()
+                break
+            ready, _, _ = select.select([proc.stdout], [], [], min(left, 1.0))
+            if not ready:
+                continue
+            chunk = os.read(proc.stdout.fileno(), 65536)
+            if not chunk:
+                break
+            buffer += chunk
+            *lines, buffer = buffer.split(b"\n")
+            for raw in lines:
+                self._line(raw.decode(errors="replace").rstrip("\r"), started, result)
+            if kill_when is not None and not result.killed and kill_when(result):
+                # The power cut: no shutdown, no flush; the guest simply stops existing.
+                os.kill(proc.pid, signal.SIGKILL)
+                result.killed = True
+                print(f"[host {time.monotonic() - started:7.2f}] qemu killed", flush=True)
+        proc.wait()
+        result.wall_s = time.monotonic() - started
+        print(f"[host {result.wall_s:7.2f}] qemu exited ({proc.returncode})", flush=True)
+        return result
+
+    @staticmethod
+    def _line(line: str, started: float, result: Boot) -> None:
+        if not line.strip():
+            return
+        print(f"[host {time.monotonic() - started:7.2f}] {line}", flush=True)
+        at = line.find(PLAN)
+        if at >= 0:
+            result.plan.extend(line[at + len(PLAN) :].split())
+            return
+        for marker, into in ((RESULT, result.results), (ACK, result.acks)):
+            at = line.find(marker)
+            if at >= 0:
+                try:
+                    into.append(json.loads(line[at + len(marker) :]))
+                except json.JSONDecodeError:
+                    print("[host] unreadable result line above", flush=True)
+                return
+        at = line.find(RC)
+        if at >= 0:
+            result.rc = int(line[at + len(RC) :].split(maxsplit=1)[0])
+
+
+def systemd_boot(vm: Vm, suite: str) -> str:
+    a = vm.args
+    prep = Path(a.repo, "tests/system/guest/prep")
+    return (
+        f"srcs.mode=systemd srcs.prep={prep} systemd.unit=srcs-system-tier.target "
+        f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}"
+    )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    for name in ("repo", "kernel", "initrd", "opt", "disk", "out", "python"):
+        parser.add_argument(f"--{name}", required=True)
+    parser.add_argument("--started", type=float, default=time.time())
+    parser.add_argument("--acks", type=int, default=40, help="records acknowledged before the cut")
+    args = parser.parse_args()
+    vm = Vm(args)
+    outcomes: dict[str, bool] = {}
+
+    main_boot = vm.boot(systemd_boot(vm, "main"), timeout=1200)
+    for name in main_boot.plan:
+        outcomes[name] = False
+    for result in main_boot.results:
+        outcomes[result["name"]] = bool(result["ok"])
+    if not main_boot.plan:
+        outcomes["main-suite"] = False
+
+    outcomes["powercut"] = power_cut(vm)
+
+    print("\n== system tier", flush=True)
+    for result in main_boot.results:
+        print(f"{'PASS' if result['ok'] else 'FAIL'} {result['name']}: {result['detail']}")
+        for key, value in result.get("measured", {}).items():
+            print(f"    {key}: {value}")
+    for name, ok in outcomes.items():
+        if not ok and not any(r["name"] == name for r in main_boot.results):
+            print(f"FAIL {name}: no result from the guest")
+    print(f"total time {time.time() - args.started:.0f} s", flush=True)
+    passed = sum(outcomes.values())
+    failed = len(outcomes) - passed
+    print(f"{passed} passed, {failed} failed", flush=True)
+    return 1 if failed else 0
+
+
+def power_cut(vm: Vm) -> bool:
+    """Boots 2 and 3: records acknowledged to a client before the cut must be on the disk."""
+    out = Path(vm.args.out)
+    burst = vm.boot(
+        systemd_boot(vm, "powercut"),
+        disk=True,
+        timeout=600,
+        kill_when=lambda boot: len(boot.acks) >= vm.args.acks,
+    )
+    problems = [r["detail"] for r in burst.results if not r["ok"]]
+    if not burst.killed:
+        print(f"FAIL powercut: only {len(burst.acks)} acknowledged records, no cut", flush=True)
+        return False
+    with (out / ACKED_FILE).open("w") as handle:
+        for record in burst.acks:
+            handle.write(json.dumps(record) + "\n")
+    check = vm.boot(
+        f"srcs.mode=run -- {vm.args.python} {vm.args.repo}/tests/system/guest/scenarios.py "
+        f"powercut-check /srcs-out/{ACKED_FILE}",
+        disk=True,
+        timeout=300,
+    )
+    verdicts = [r for r in check.results if r["name"] == "powercut"]
+    ok = bool(verdicts) and all(r["ok"] for r in verdicts) and not problems
+    for r in verdicts:
+        print(f"{'PASS' if r['ok'] else 'FAIL'} powercut: {r['detail']}", flush=True)
+        for key, value in r.get("measured", {}).items():
+            print(f"    {key}: {value}", flush=True)
+    if not verdicts:
+        print("FAIL powercut: the check boot gave no result", flush=True)
+    return ok
+
+
+if __name__ == "__main__":
+    sys.exit(main())
