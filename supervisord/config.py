@@ -110,7 +110,7 @@ CAN_BUS_KEYS: Final = ("interface", "channel", "bitrate")
 REARM_KEYS: Final = ("hold_ms", "local_reset")
 CLIENT_KEYS: Final = ("name", "timeout_ms")
 RECORD_KEYS: Final = ("path", "max_bytes", "keep", "journal")
-API_KEYS: Final = ("socket", "admin_group", "max_clients", "max_message_bytes")
+API_KEYS: Final = ("socket", "group", "admin_group", "max_clients", "max_message_bytes")
 
 RENAMED: Final[Mapping[str, str]] = {"log": "record", "class": "role", "rearm_hold_ms": "hold_ms"}
 """Names an integrator may try from older sketches, and the name this file uses instead."""
@@ -199,11 +199,14 @@ class RecordConfig:
 class ApiConfig:
     """``[api]``: the Unix socket the robot's software and ``srcsctl`` talk to.
 
-    ``admin_group`` ``None`` means no group: commands that can re-enable motion or write the
-    VSC are then allowed only to root and to the daemon's own user.
+    ``group`` owns the socket (mode 0660): the robot's programs must be in it to connect
+    (``None``: the daemon's own group). ``admin_group`` ``None`` means no group: commands that
+    can re-enable motion or write the VSC are then allowed only to root and to the daemon's
+    own user.
     """
 
     socket: Path = Path(DEFAULT_SOCKET)
+    group: str | None = None
     admin_group: str | None = None
     max_clients: int = DEFAULT_MAX_CLIENTS
     max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES
@@ -777,6 +780,20 @@ class _Loader:
             journal=_flag("record.journal", table.get("journal", MISSING), True),
         )
 
+    def _group(self, key: str, group: object, example: str) -> str | None:
+        if group is MISSING:
+            return None
+        if not isinstance(group, str) or GROUP_NAME.fullmatch(group) is None:
+            raise ConfigError(key, group, f'give a group name in double quotes, e.g. "{example}"')
+        if not self.group_exists(group):
+            raise ConfigError(
+                key,
+                group,
+                f"no such group on this machine: create it (groupadd --system {group}) and "
+                "add the users to it, or name an existing group",
+            )
+        return group
+
     def api(self, table: Mapping[str, object], required_clients: int) -> ApiConfig:
         _check_keys("api", table, API_KEYS)
         socket = _path(
@@ -793,21 +810,10 @@ class _Loader:
                 f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
                 f'socket address), e.g. "{DEFAULT_SOCKET}"',
             )
-        group = table.get("admin_group", MISSING)
-        if group is not MISSING:
-            if not isinstance(group, str) or GROUP_NAME.fullmatch(group) is None:
-                raise ConfigError(
-                    "api.admin_group",
-                    group,
-                    'give a group name in double quotes, e.g. "srcs-admin"',
-                )
-            if not self.group_exists(group):
-                raise ConfigError(
-                    "api.admin_group",
-                    group,
-                    f"no such group on this machine: create it (groupadd --system {group}) and "
-                    "add the operators to it, or name an existing group",
-                )
+        group = self._group("api.group", table.get("group", MISSING), "srcs")
+        admin_group = self._group(
+            "api.admin_group", table.get("admin_group", MISSING), "srcs-admin"
+        )
         max_clients = _integer(
             "api.max_clients",
             table.get("max_clients", MISSING),
@@ -823,7 +829,8 @@ class _Loader:
             )
         return ApiConfig(
             socket=socket,
-            admin_group=None if group is MISSING else str(group),
+            group=group,
+            admin_group=admin_group,
             max_clients=max_clients,
             max_message_bytes=_integer(
                 "api.max_message_bytes",

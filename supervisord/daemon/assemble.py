@@ -58,6 +58,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
     server = ApiServer(
         ServerConfig(
             path=api.socket,
+            group=api.group,
             admin_group=api.admin_group,
             max_clients=api.max_clients,
             max_line=api.max_message_bytes,

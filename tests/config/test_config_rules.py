@@ -156,7 +156,7 @@ def test_base_config_is_valid(tmp_path: Path) -> None:
         True,
     )
     assert config.api.socket == Path("/run/srcsd/api.sock")
-    assert config.api.admin_group is None
+    assert (config.api.group, config.api.admin_group) == (None, None)
     assert (config.api.max_clients, config.api.max_message_bytes) == (16, 65536)
     assert config.output_bus is None
     assert config.can_output_bus is None
@@ -516,6 +516,8 @@ API_CASES: list[Case] = [
     ({"api.admin_group": "nobody-here"}, "api.admin_group", "groupadd --system nobody-here"),
     ({"api.admin_group": "bad group"}, "api.admin_group", "give a group name"),
     ({"api.admin_group": ""}, "api.admin_group", "give a group name"),
+    ({"api.group": "nobody-here"}, "api.group", "groupadd --system nobody-here"),
+    ({"api.group": 7}, "api.group", 'e.g. "srcs"'),
     ({"api.max_clients": 1}, "api.max_clients", "from 2 to 256"),
     ({"api.max_clients": 257}, "api.max_clients", "from 2 to 256"),
     (
@@ -530,7 +532,8 @@ API_CASES: list[Case] = [
 
 @pytest.mark.parametrize(("changes", "key", "fix"), API_CASES, ids=lambda c: str(c)[:30])
 def test_api(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
-    """[api]: socket path length, an existing admin group, client and message limits."""
+    """[api]: socket path length, existing socket and admin groups, client and message
+    limits."""
     check(tmp_path, changes, key, fix)
 
 

@@ -160,7 +160,7 @@ def test_watch_follows_a_stop_live(robot: Robot) -> None:
             first = watcher.stdout.readline()
             assert " STOPPED " in first
             assert robot.ctl("estop").returncode == 0
-            lines = []
+            lines: list[str] = []
             while not any("local_estop" in line and "record #" in line for line in lines):
                 lines.append(watcher.stdout.readline())
                 assert lines[-1], "watch ended early"
