@@ -50,6 +50,7 @@ NS_PER_MS = 1_000_000
 POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
+ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 
 
 @dataclass
@@ -143,6 +144,7 @@ class Supervisor:
         self._stop_requested = False
         self._status = ""
         self._next_watchdog: int | None = None
+        self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
         self._selector = selectors.DefaultSelector()
         self._watched: dict[int, int] = {}
         self._wake_r, self._wake_w = socket.socketpair()
@@ -158,6 +160,7 @@ class Supervisor:
                 "opens": counters.link_opens,
                 "open_failures": counters.link_failures,
             },
+            "outputs_not_acquired": sorted(self._acquiring),
             "messages": counters.messages,
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,
@@ -170,8 +173,9 @@ class Supervisor:
         """Outputs off before anything else, then the core, then the link (safety-rules §6).
 
         Returns the first decision. An output that cannot be acquired (busy, missing, not
-        permitted) is ``output_fault:NAME`` for good: the daemon stays up, STOPPED, and says so,
-        because a supervisor that exits holds nothing and reports nothing.
+        permitted) is ``output_fault:NAME``: the daemon stays up, STOPPED, says so, and tries
+        again with a backoff, because a supervisor that exits holds nothing and reports nothing.
+        Once acquired (off), the fault's condition clears; its stop waits for a re-arm (§4).
         """
         now = self.clock()
         events: list[Event] = []
@@ -179,8 +183,10 @@ class Supervisor:
             try:
                 events.append(self._readback_event(output.open(now), now))
             except OutputError as error:
-                log.error("output %s cannot be acquired: %s", output.name, error)
+                log.error("output %s cannot be acquired: %s (retrying)", output.name, error)
                 events.append(OutputReadback(now, output.name, False, None))
+                self._acquiring[output.name] = backoff = Backoff(ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS)
+                backoff.failed(now)
         self.core = SafetyCore(self.safety, now)
         self._apply(self.core.decision)  # the startup decision, with the first record
         for event in events:
@@ -274,6 +280,7 @@ class Supervisor:
             candidates.append(self.clock() + POLL_NS)
         if self._next_watchdog is not None:
             candidates.append(self._next_watchdog)
+        candidates += [backoff.next_attempt for backoff in self._acquiring.values()]
         if (listener_deadline := self.listener.next_deadline()) is not None:
             candidates.append(listener_deadline)
         return min(candidates)
@@ -317,6 +324,9 @@ class Supervisor:
                 readback = output.tick(now)
                 if readback is not None and not readback.ok:
                     self._apply(self._feed(self._readback_event(readback, now)))
+        for name, backoff in list(self._acquiring.items()):
+            if now >= backoff.next_attempt:
+                self._acquire(name, backoff, now)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
             self._send(tuple(self.listener.due(now, self._feed_and_apply)), now)
@@ -326,6 +336,18 @@ class Supervisor:
         if self._next_watchdog is not None and interval and now >= self._next_watchdog:
             self.notifier.send(WATCHDOG="1")
             self._next_watchdog = now + interval
+
+    def _acquire(self, name: str, backoff: Backoff, now: int) -> None:
+        output = self.outputs[name]
+        try:
+            readback = output.open(now)
+        except OutputError as error:
+            backoff.failed(now)
+            log.debug("output %s still cannot be acquired: %s", name, error)
+            return
+        del self._acquiring[name]
+        log.info("output %s acquired (off)", name)
+        self._apply(self._feed(self._readback_event(readback, now)))
 
     # ----------------------------------------------------------------- the link
 

@@ -172,6 +172,38 @@ def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_p
         supervisor.shutdown()
 
 
+def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> None:
+    """An output that cannot be acquired at start is tried again with a backoff; once it is
+    acquired (off) its fault's condition clears, and its stop stays latched for a re-arm."""
+    late = tmp_path / "late"
+    outputs = [
+        create_output(parse_output_spec("drive", {"kind": "sim", "path": str(late / "drive")}))
+    ]
+    supervisor = Supervisor(
+        SafetyConfig(outputs=(OutputSpec("drive", OutputClass.MOTION),)),
+        SerialLink(str(tmp_path / "vsc")),
+        outputs,
+        None,
+    )
+    try:
+        assert "output_fault:drive" in supervisor.start().active_names
+        assert supervisor.info()["outputs_not_acquired"] == ["drive"]
+        late.mkdir()  # the device appears
+        end = time.monotonic() + 5
+        while "output_fault:drive" in active(supervisor):
+            assert time.monotonic() < end, "never acquired"
+            supervisor.step()
+        assert level(late, "drive") == "0"
+        assert supervisor.info()["outputs_not_acquired"] == []
+        assert supervisor.decision is not None
+        fault = supervisor.decision.cause("output_fault:drive")
+        assert fault is not None
+        assert fault.latched
+        assert supervisor.decision.state is State.STOPPED
+    finally:
+        supervisor.shutdown()
+
+
 def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscPeer, Path]) -> None:
     """On a stop the output is already off when its record is written: outputs first,
     logging after (safety-rules.md §6)."""
