@@ -1,0 +1,88 @@
+"""Link loss: from the VSC's last heartbeat to the output off, against the configured timeout.
+
+Run: ``.venv/bin/python -m bench.link_loss [--trials N] [--timeout-ms T]``.
+
+Each trial starts in RUN under the VSC's full traffic (``bench/rig.py``), waits a random
+20-80 ms, sends one last heartbeat and then nothing at all, as a VSC that is unplugged from
+power or whose cable is cut would. The supervisor must stop with ``vsc_link_lost`` at the
+timeout (default 200 ms on serial). Measured: from just before the last heartbeat was written
+to the output off and read back in the supervisor's process. The target (safety-rules §9) is
+off within the timeout + 5 ms; the margin column is what is left of that.
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from bench.rig import NS_PER_MS, Rig, RigError, load, machine, ms, percentile, table
+from supervisord.protocol.codes import VscMode
+
+SLACK_NS = 5 * NS_PER_MS  # safety-rules §9: off within vsc_timeout + 5 ms
+
+
+def run(directory: Path, trials: int, timeout_ms: int = 200, seed: int = 1) -> list[int]:
+    """Silence-to-off times (ns) of ``trials`` link losses."""
+    rng = random.Random(seed)
+    measured: list[int] = []
+    with Rig(directory, timeout_ms=timeout_ms) as rig:
+        vsc = rig.vsc
+        for index in range(trials):
+            rig.arm()
+            vsc.pump_ms(rng.uniform(20, 80))
+            last = vsc.set_state(VscMode.OPERATIONAL)
+            vsc.silent = True
+            edge = vsc.wait_edge(False, limit_ms=timeout_ms + 1000)
+            if edge is None:
+                raise RigError(f"trial {index}: the output stayed on through the silence")
+            measured.append(edge.finished - last)
+            vsc.silent = False
+    return measured
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="bench.link_loss", description=__doc__)
+    parser.add_argument("--trials", type=int, default=300)
+    parser.add_argument("--timeout-ms", type=int, default=200, help="vsc timeout_ms (50-1000)")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args(argv)
+    print(f"machine: {machine()}")
+    print(f"before: {load()}")
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory:
+        measured = run(Path(directory), args.trials, args.timeout_ms, args.seed)
+    print(f"after: {load()}; {time.monotonic() - started:.0f} s")
+    timeout_ns = args.timeout_ms * NS_PER_MS
+    late = [value - timeout_ns for value in measured]
+    print(f"link loss: last VSC heartbeat written -> output off (timeout_ms = {args.timeout_ms})")
+    print()
+    rows = [
+        [
+            name,
+            len(values),
+            ms(min(values)),
+            ms(percentile(values, 0.5)),
+            ms(percentile(values, 0.99)),
+            ms(max(values)),
+        ]
+        for name, values in (("silence to off", measured), ("after the timeout", late))
+    ]
+    print(table(["ms", "n", "min", "p50", "p99", "max"], rows))
+    worst = max(measured)
+    margin = timeout_ns + SLACK_NS - worst
+    early = sum(value < timeout_ns for value in measured)
+    verdict = "PASS" if margin > 0 and early == 0 else "FAIL"
+    print()
+    print(f"stopped before the timeout: {early} of {len(measured)} (must be 0 to be exact)")
+    print(
+        f"safety-rules §9 target: off within {args.timeout_ms} + 5 ms -> worst {ms(worst)} ms, "
+        f"margin {ms(margin)} ms: {verdict}"
+    )
+
+
+if __name__ == "__main__":
+    main()
