@@ -82,7 +82,7 @@ class SimControl:
     def request(self, cmd: str, **fields: Any) -> State:
         reply = self.call(cmd, **fields)
         if not reply.get("ok"):
-            raise SimError(f"{cmd}: {reply.get('error')}")
+            raise SimError(str(reply.get("error")))  # the simulator's text names the request
         return reply
 
     def close(self) -> None:
