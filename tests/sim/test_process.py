@@ -27,7 +27,7 @@ from supervisord.protocol.messages import (
     UserHeartbeat,
     VscHeartbeat,
 )
-from supervisord.testkit.sim import SimError, SimProcess
+from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
 
 class Host:
@@ -306,3 +306,47 @@ def test_faults_through_the_control_api(tmp_path: Path) -> None:
             assert heartbeats(host.read(0.3))
         finally:
             host.close()
+
+
+def test_keys_drive_the_remote_when_stdin_is_a_terminal(tmp_path: Path) -> None:
+    """Single keys on a terminal: t takeover, e e-stop, l the LCD, q quit (exit 0)."""
+    terminal, stdin = os.openpty()
+    control_path = tmp_path / "sim.sock"
+    command = [sys.executable, "-m", "supervisord.cli.sim", "--serial", str(tmp_path / "vsc")]
+    with subprocess.Popen(
+        [*command, "--control", str(control_path), "--link-delay", "0"],
+        stdin=stdin,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    ) as process:
+        os.close(stdin)
+        try:
+            assert process.stdout is not None
+            while "ready" not in process.stdout.readline():
+                pass
+            control = SimControl(control_path)
+            try:
+                os.write(terminal, b"t")
+                control.wait_for(lambda s: s["mode_name"] == "operational")
+                os.write(terminal, b"e")
+                state = control.wait_for(lambda s: s["estop_bits"] == ["remote_button"])
+                assert "E-STOP" in state["lcd"]
+            finally:
+                control.close()
+            os.write(terminal, b"q")
+            assert process.wait(timeout=10) == 0
+            printed = process.stdout.read()
+            assert "|E-STOP" in printed  # the LCD printed after the key
+        finally:
+            os.close(terminal)
+            if process.poll() is None:
+                process.kill()
+
+
+def test_quit_request_exits_0(tmp_path: Path) -> None:
+    sim = SimProcess(tmp_path).start()
+    assert sim.control.request("quit") == {"ok": True}
+    assert sim.process is not None
+    assert sim.process.wait(timeout=10) == 0
+    sim.control.close()
