@@ -66,6 +66,7 @@ JOYSTICK_NS = 20 * NS_PER_MS  # the VSC's default rates (manual table 5)
 HEARTBEAT_NS = 50 * NS_PER_MS
 GPS_NS = 1000 * NS_PER_MS
 POLL_PERIOD_NS = 20 * NS_PER_MS  # the public drivers' 50 Hz loop
+MODELS = ("supervisor", "poll50", "event")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -76,9 +77,11 @@ class TimedOutput(SimOutput):
     """A sim output that reports every change of its level: (level, started, finished).
 
     ``started`` is taken as the loop enters the write, ``finished`` once the level is set and
-    read back (the sim output also rewrites its mirror file in that time, as a GPIO write
-    would do its ioctl). The report goes out after the second timestamp, so its cost is not
-    in the measured interval.
+    read back. By default the level lives in memory only, so ``finished - started`` is a few
+    microseconds where a GPIO write would spend its ioctl; with ``--level-file`` the sim
+    output also rewrites its mirror file in that interval, which costs milliseconds on ext4
+    (its rename-over-a-file flushes the data). The report goes out after the second
+    timestamp, so its cost is not in the measured interval.
     """
 
     def __init__(self, spec: SimSpec, report_fd: int) -> None:
@@ -115,9 +118,14 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
 
 def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
     """A minimal model of the public drivers' loop: wake every 20 ms, read what has arrived,
-    decode it, act on the last heartbeat, send a user heartbeat. Written for this bench; it
-    is the best case of that design (the drivers hand the value to another node to act on).
+    decode it, act on each heartbeat, send a user heartbeat. Written for this bench; it is
+    the best case of that design (the drivers hand the value to another node to act on).
+
+    ``--model event`` is the same loop woken by the port instead of a timer: the floor that
+    any Python loop on this machine meets (pty hand-off, wake-up, read, decode, write), to
+    tell the supervisor's own cost from the platform's.
     """
+    event_driven = args.model == "event"
     stop = False
 
     def request_stop(_signum: int, _frame: FrameType | None) -> None:
@@ -130,11 +138,15 @@ def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
     decoder = FrameDecoder()
     output.open(time.monotonic_ns())
     on = False
-    tick = time.monotonic_ns()
+    tick = next_beat = time.monotonic_ns()
     try:
         while not stop:
-            tick += POLL_PERIOD_NS
-            time.sleep(max(0, tick - time.monotonic_ns()) / 1e9)
+            if event_driven:
+                with contextlib.suppress(InterruptedError):
+                    select.select([fd], [], [], 0.05)
+            else:
+                tick += POLL_PERIOD_NS
+                time.sleep(max(0, tick - time.monotonic_ns()) / 1e9)
             try:
                 data = os.read(fd, 4096)
             except BlockingIOError:
@@ -145,7 +157,10 @@ def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
                     if allowed != on:
                         on = allowed
                         output.set(on, time.monotonic_ns())
-            os.write(fd, encode_frame(UserHeartbeat(0)))
+            now = time.monotonic_ns()
+            if not event_driven or now >= next_beat:  # polling: one per tick, as drivers do
+                os.write(fd, encode_frame(UserHeartbeat(0)))
+                next_beat = now + HEARTBEAT_NS
     finally:
         output.close()
         os.close(fd)
@@ -154,7 +169,7 @@ def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
 
 def child_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench.rig", description="the supervisor side")
-    parser.add_argument("--model", choices=("supervisor", "poll50"), default="supervisor")
+    parser.add_argument("--model", choices=MODELS, default="supervisor")
     parser.add_argument("--port", required=True)
     parser.add_argument("--report-fd", type=int, required=True)
     parser.add_argument("--level-file", default=None, help="mirror the level here (sim path)")
@@ -164,7 +179,7 @@ def child_main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     level_file = Path(args.level_file) if args.level_file else None
     output = TimedOutput(SimSpec(name="drive", path=level_file), args.report_fd)
-    if args.model == "poll50":
+    if args.model != "supervisor":
         return run_poll_model(args, output)
     return run_supervisor(args, output)
 
@@ -330,6 +345,7 @@ class Rig:
         hold_ms: int = 100,
         cpu: int | None = None,
         mirror: bool = False,
+        nice: int = 0,
     ) -> None:
         self.hold_ms = hold_ms
         read_fd, write_fd = os.pipe()
@@ -352,6 +368,8 @@ class Rig:
         os.close(write_fd)  # the child's copy is the only writer: EOF means it died
         if cpu is not None:
             os.sched_setaffinity(self.process.pid, {cpu})
+        if nice:  # the service unit runs srcsd at Nice=-5; below 0 needs root
+            os.setpriority(os.PRIO_PROCESS, self.process.pid, nice)
 
     @property
     def pid(self) -> int:

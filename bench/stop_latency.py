@@ -15,7 +15,8 @@ traffic and of the supervisor's own heartbeat timer, and is one of:
 
 The latency runs from just before the VSC side writes the frame (so it includes the write) to
 the moment the output's set-and-read-back returned in the supervisor's process. ``--model
-poll50`` runs the same stops against a model of the public drivers' 20 ms polling loop.
+poll50`` runs the same stops against a model of the public drivers' 20 ms polling loop;
+``--model event`` against a bare event-driven loop, the floor of any Python loop here.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.rig import Edge, Rig, RigError, load, machine, ms, percentile, table
+from bench.rig import MODELS, Edge, Rig, RigError, load, machine, ms, percentile, table
 from supervisord.protocol.codes import VscMode
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (notes §2)
@@ -62,6 +63,7 @@ def run(
     *,
     back_to_back: bool = False,
     mirror: bool = False,
+    nice: int = 0,
     seed: int = 1,
 ) -> list[Stop]:
     """Measure ``stops`` stops; every ``estop_every``-th is an e-stop (0: none).
@@ -73,7 +75,7 @@ def run(
     """
     rng = random.Random(seed)
     measured: list[Stop] = []
-    with Rig(directory, model=model, mirror=mirror) as rig:
+    with Rig(directory, model=model, mirror=mirror, nice=nice) as rig:
         vsc = rig.vsc
         rig.arm()
         for index in range(stops):
@@ -131,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="bench.stop_latency", description=__doc__)
     parser.add_argument("--stops", type=int, default=None, help="default 10000 (poll50: 3000)")
     parser.add_argument("--estop-every", type=int, default=25, help="0: holds only")
-    parser.add_argument("--model", choices=("supervisor", "poll50"), default="supervisor")
+    parser.add_argument("--model", choices=MODELS, default="supervisor")
     parser.add_argument(
         "--back-to-back",
         action="store_true",
@@ -139,6 +141,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     parser.add_argument(
         "--mirror", action="store_true", help="the sim output also rewrites its level file"
+    )
+    parser.add_argument(
+        "--nice", type=int, default=0, help="of the supervisor; the service unit uses -5 (root)"
     )
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
@@ -155,6 +160,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             args.model,
             back_to_back=args.back_to_back,
             mirror=args.mirror,
+            nice=args.nice,
             seed=args.seed,
         )
     wall = time.monotonic() - started
@@ -162,8 +168,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     what = {
         "supervisor": "the srcsd loop (Supervisor, serial link, safety core, fsynced record)",
         "poll50": "a 20 ms polling loop (model of the public drivers)",
+        "event": "a bare event-driven loop (select, read, decode, set): the platform's floor",
     }[args.model]
-    print(f"model: {what}")
+    print(f"model: {what}, nice {args.nice}" + (", back to back" if args.back_to_back else ""))
     print("stop latency, last byte of the stopping frame written -> output off and read back (ms)")
     print()
     print(table(["stops", "n", "p50", "p99", "p99.9", "max", "mean"], summary_rows(measured)))

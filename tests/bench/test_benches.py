@@ -34,8 +34,8 @@ def test_stop_latency_measures_every_stop_of_both_kinds(tmp_path: Path) -> None:
     assert len(records) >= 12  # the real loop recorded every stop and every re-arm
 
 
-def test_stop_latency_back_to_back_and_the_polling_model(tmp_path: Path) -> None:
-    for model in ("supervisor", "poll50"):
+def test_stop_latency_back_to_back_and_the_two_models(tmp_path: Path) -> None:
+    for model in ("supervisor", "poll50", "event"):
         directory = tmp_path / model
         directory.mkdir()
         measured = stop_latency.run(directory, 4, 2, model, back_to_back=True, mirror=True)
