@@ -1,0 +1,1005 @@
+"""Fault injection against the real ``srcsd``: a harness for the fault suite and for
+integrators' own tests (``docs/faults.md``).
+
+``Robot`` runs the real daemon as a process against ``srcs-sim`` (``SimProcess``) on a real
+pseudo-terminal, or on a python-can ``udp_multicast`` bus for CAN, with simulated outputs that
+mirror their level into files. It watches those files with inotify from the moment before the
+daemon starts, reads the stop record, and talks to the client API with ``SupervisorClient``::
+
+    with Robot(tmp_path) as robot:
+        robot.arm()                                      # takeover: RUN, outputs on
+        t0 = robot.now()
+        robot.sim.control.fault(drop=1.0, only_types=[0x20])
+        stop = robot.expect_stop("vsc_link_lost", t0, deadline_s=robot.vsc_timeout_s)
+        robot.sim.control.fault()
+        robot.recover(stop)                              # valid re-arm, RUN, status answers
+
+``expect_stop`` checks the first three promises of every scenario: every output off within
+the rule's deadline plus ``ALLOWANCE_S``, the cause raised in a stop record, and (with
+``recover``) no output on between the stop and the re-arm record. ``recover`` checks the
+fourth: after a valid takeover the robot runs again and ``status`` answers.
+
+The faults the simulator cannot make are made here: client processes that are killed,
+stopped or flood the socket (``ClientProcess``), wall-clock jumps (``FakeWallClock``, with
+Debian's libfaketime), a full disk under the record (a size-limited tmpfs in a private mount
+namespace), a private network namespace for CAN (``NetNamespace``).
+
+Deadlines are coarse on purpose: this is a functional suite on a shared two-core machine.
+The latency the rules ask for (safety-rules §9) is measured by ``bench/``, not here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import ctypes.util
+import glob
+import itertools
+import json
+import os
+import select
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Literal
+
+from supervisord.client import ClientError, SupervisorClient
+from supervisord.record import Record, read_records
+from supervisord.testkit.sim import SimControl, SimError, SimProcess
+
+# Scheduling allowance added to every rule's deadline. The machine has two cores and other
+# test runs share it; a Python process can be descheduled for a few hundred milliseconds.
+# The rules' own latencies (safety-rules §9) are the benchmarks' job, not this suite's.
+ALLOWANCE_S = float(os.environ.get("SRCS_FAULTS_ALLOWANCE_S", "0.75"))
+
+SERIAL_BEAT_S = 0.05  # the VSC heartbeat period on serial (manual table 5: 20 Hz)
+CAN_BEAT_S = 0.1  # on CAN (manual table 23: 10 Hz)
+HOLD_MS = 100  # the shortest re-arm hold the config allows: quick scenarios
+WAIT_S = 10.0  # how long any "until" waits before the scenario fails
+
+Transport = Literal["serial", "can"]
+State = dict[str, Any]
+
+
+class FaultHarnessError(AssertionError):
+    """A scenario's promise did not hold (an AssertionError, so pytest shows it as a failure)."""
+
+
+def wait_until(
+    condition: Callable[[], Any], timeout: float = WAIT_S, poll: float = 0.01, what: str = ""
+) -> Any:
+    """Poll ``condition`` until it returns something true; return that. Raise
+    ``FaultHarnessError`` naming ``what`` after ``timeout`` seconds."""
+    end = time.monotonic() + timeout
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > end:
+            raise FaultHarnessError(f"timed out after {timeout} s waiting for {what or condition}")
+        time.sleep(poll)
+
+
+# ------------------------------------------------------------------ watching output files
+
+
+_IN_CLOSE_WRITE = 0x0000_0008
+_IN_MOVED_TO = 0x0000_0080
+_IN_CREATE = 0x0000_0100
+_IN_NONBLOCK = 0o4000
+_IN_CLOEXEC = 0o2000000
+_EVENT = struct.Struct("iIII")
+
+
+class Inotify:
+    """The few inotify calls the watcher needs, through ctypes (no extra dependency)."""
+
+    def __init__(self) -> None:
+        self._libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        fd = self._libc.inotify_init1(_IN_NONBLOCK | _IN_CLOEXEC)
+        if fd < 0:
+            raise OSError(ctypes.get_errno(), "inotify_init1 failed")
+        self.fd: int = fd
+
+    def watch(self, folder: Path, mask: int) -> None:
+        if self._libc.inotify_add_watch(self.fd, os.fsencode(folder), mask) < 0:
+            error = ctypes.get_errno()
+            raise OSError(error, f"inotify_add_watch {folder}: {os.strerror(error)}")
+
+    def read(self) -> list[str]:
+        """The names of the files that events arrived for, in order (may repeat)."""
+        try:
+            data = os.read(self.fd, 65536)
+        except BlockingIOError:
+            return []
+        names = []
+        offset = 0
+        while offset + _EVENT.size <= len(data):
+            _, _, _, length = _EVENT.unpack_from(data, offset)
+            raw = data[offset + _EVENT.size : offset + _EVENT.size + length]
+            names.append(raw.split(b"\0", 1)[0].decode(errors="replace"))
+            offset += _EVENT.size + length
+        return names
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+@dataclass(frozen=True)
+class Level:
+    """One observed level of an output file: ``t`` (monotonic s) when it was seen, ``on``.
+    ``inferred`` marks a level the watcher did not read but knows must have been there
+    (see ``OutputWatcher``)."""
+
+    t: float
+    on: bool
+    inferred: bool = False
+
+
+class OutputWatcher:
+    """Follows the files of ``kind = "sim"`` outputs with inotify, from a thread, and keeps
+    every level each file showed, with the monotonic time it was seen.
+
+    The simulated output replaces its file atomically, and only when the level changes
+    (``supervisord/outputs/sim.py``); the only exception is the "off" it writes when the
+    output is acquired at a daemon start. So between two daemon starts the levels must
+    alternate: two "off" readings in a row mean an "on" came and went faster than this
+    thread could read it. The watcher records that "on" as ``inferred`` at the second
+    reading's time, so a brief "on" is never missed, only timed late. Call ``daemon_started``
+    before each daemon start."""
+
+    def __init__(self, paths: Sequence[Path]) -> None:
+        self.paths = {path.name: path for path in paths}
+        self.levels: dict[str, list[Level]] = {name: [] for name in self.paths}
+        self._starts: list[float] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._inotify = Inotify()
+        for folder in {path.parent for path in paths}:
+            self._inotify.watch(folder, _IN_MOVED_TO | _IN_CLOSE_WRITE | _IN_CREATE)
+        self._thread = threading.Thread(target=self._run, name="output-watcher", daemon=True)
+        self._thread.start()
+
+    def daemon_started(self) -> None:
+        with self._lock:
+            self._starts.append(time.monotonic())
+
+    def _run(self) -> None:
+        fd = self._inotify.fd
+        while not self._stop.is_set():
+            ready, _, _ = select.select([fd], [], [], 0.05)
+            if not ready:
+                continue
+            seen = time.monotonic()
+            for name in dict.fromkeys(self._inotify.read()):
+                if name in self.paths:
+                    self._sample(name, seen)
+
+    def _sample(self, name: str, seen: float) -> None:
+        try:
+            text = self.paths[name].read_text()
+        except FileNotFoundError:
+            return
+        if text not in ("0\n", "1\n"):
+            return  # never seen: the file is replaced atomically; be safe all the same
+        on = text == "1\n"
+        with self._lock:
+            history = self.levels[name]
+            if history and history[-1].on == on:
+                started = any(history[-1].t <= start <= seen for start in self._starts)
+                if on or not started:
+                    # A missed level in between: the opposite one, for an instant.
+                    history.append(Level(seen, not on, inferred=True))
+                elif not on:
+                    return  # the "off" written when a restarted daemon acquired the output
+            history.append(Level(seen, on))
+
+    def level(self, name: str) -> bool | None:
+        with self._lock:
+            history = self.levels[name]
+            return history[-1].on if history else None
+
+    def level_at(self, name: str, t: float) -> bool | None:
+        """The level last seen before ``t``."""
+        before = [lv for lv in self.history(name) if lv.t < t]
+        return before[-1].on if before else None
+
+    def history(self, name: str) -> list[Level]:
+        with self._lock:
+            return list(self.levels[name])
+
+    def first(self, name: str, on: bool, after: float) -> Level | None:
+        """The first level ``on`` seen at or after ``after``."""
+        return next((lv for lv in self.history(name) if lv.on == on and lv.t >= after), None)
+
+    def wait(self, name: str, on: bool, after: float, timeout: float = WAIT_S) -> Level:
+        """The first level ``on`` of ``name`` seen at or after ``after``; waits for it."""
+        found = wait_until(
+            lambda: self.first(name, on, after),
+            timeout,
+            poll=0.005,
+            what=f"output {name} {'on' if on else 'off'}",
+        )
+        assert isinstance(found, Level)
+        return found
+
+    def ons_between(self, start: float, end: float) -> list[tuple[str, Level]]:
+        """Every "on" seen in ``[start, end)``, on any output."""
+        return [
+            (name, lv)
+            for name in self.paths
+            for lv in self.history(name)
+            if lv.on and start <= lv.t < end
+        ]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self._inotify.close()
+
+
+# ------------------------------------------------------------------ faults made here
+
+
+class NetNamespace:
+    """A private network namespace with only the loopback device and a multicast route, so
+    that ``udp_multicast`` CAN frames of one scenario reach no other test run on the machine.
+    (python-can binds its multicast socket to the port on every address, and Linux delivers a
+    group's datagrams to every socket on that port that any process joined the group for.)
+    Needs root and iproute2; ``available()`` says whether it can work here."""
+
+    _counter = itertools.count()
+
+    def __init__(self) -> None:
+        self.name = f"srcs-faults-{os.getpid()}-{next(self._counter)}"
+        self.ip = shutil.which("ip") or "/usr/sbin/ip"
+        self.created = False
+
+    @staticmethod
+    def available() -> bool:
+        return os.geteuid() == 0 and shutil.which("ip") is not None
+
+    def create(self) -> NetNamespace:
+        for command in (
+            [self.ip, "netns", "add", self.name],
+            [self.ip, "-n", self.name, "link", "set", "lo", "up"],
+            [self.ip, "-n", self.name, "route", "add", "224.0.0.0/4", "dev", "lo"],
+        ):
+            subprocess.run(command, check=True, capture_output=True, timeout=30)  # noqa: S603
+            self.created = True
+        return self
+
+    def prefix(self) -> list[str]:
+        return [self.ip, "netns", "exec", self.name]
+
+    def delete(self) -> None:
+        if self.created:
+            command = [self.ip, "netns", "del", self.name]
+            subprocess.run(command, check=False, capture_output=True, timeout=30)  # noqa: S603
+            self.created = False
+
+
+def libfaketime() -> Path | None:
+    """Debian's ``libfaketime`` (package ``faketime``), if installed."""
+    found = sorted(glob.glob("/usr/lib/*/faketime/libfaketime.so.1"))
+    return Path(found[0]) if found else None
+
+
+class FakeWallClock:
+    """Makes a process see its wall clock jump while its monotonic clock runs on untouched.
+
+    The process is started with libfaketime preloaded, reading its offset from a file on every
+    call (``FAKETIME_NO_CACHE``); ``jump`` rewrites the file. ``DONT_FAKE_MONOTONIC`` (and its
+    newer spelling) leave ``CLOCK_MONOTONIC`` alone: it is the clock every deadline uses
+    (safety-rules §2), and the scenario checks from the stop record that it really was left
+    alone."""
+
+    def __init__(self, folder: Path) -> None:
+        library = libfaketime()
+        if library is None:
+            raise FaultHarnessError(
+                "libfaketime is not installed (Debian package 'faketime'): "
+                "a real wall-clock jump needs it"
+            )
+        self.library = library
+        self.path = folder / "faketime.rc"
+        self.offset_s = 0
+        self.path.write_text("+0\n")
+
+    def env(self) -> dict[str, str]:
+        return {
+            "LD_PRELOAD": str(self.library),
+            "FAKETIME_TIMESTAMP_FILE": str(self.path),
+            "FAKETIME_NO_CACHE": "1",
+            "DONT_FAKE_MONOTONIC": "1",
+            "FAKETIME_DONT_FAKE_MONOTONIC": "1",
+        }
+
+    def jump(self, seconds: int) -> None:
+        """Move the wall clock by ``seconds`` (relative to the current fake offset)."""
+        self.offset_s += seconds
+        tmp = self.path.with_suffix(".tmp")
+        tmp.write_text(f"{self.offset_s:+d}\n")
+        os.replace(tmp, self.path)
+
+
+class ClientProcess:
+    """A robot program as a separate process (``python -m supervisord.testkit.faults``):
+
+    - ``client``: says hello as ``name`` and sends a heartbeat every ``period`` s, reconnecting
+      when the daemon closes the connection; ``--estop`` asks for an e-stop once first;
+    - ``flood``: connects and writes one endless line as fast as the socket takes it;
+    - ``subscriber``: subscribes to every topic and never reads a byte.
+
+    It prints one line per event to its log (``hello``, ``closed``, ...). ``kill``, ``stop``
+    and ``cont`` send SIGKILL, SIGSTOP, SIGCONT."""
+
+    def __init__(
+        self,
+        socket_path: Path,
+        mode: str,
+        log: Path,
+        *,
+        name: str = "",
+        period: float = 0.1,
+        extra: Sequence[str] = (),
+    ) -> None:
+        self.log_path = log
+        command = [sys.executable, "-m", "supervisord.testkit.faults", mode, str(socket_path)]
+        if name:
+            command += ["--name", name]
+        command += ["--period", str(period), *extra]
+        self.command = command
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> ClientProcess:
+        with self.log_path.open("ab") as log:
+            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+                self.command, stdin=subprocess.DEVNULL, stdout=log, stderr=log
+            )
+        return self
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except FileNotFoundError:
+            return ""
+
+    def wait_log(self, text: str, timeout: float = WAIT_S) -> None:
+        wait_until(lambda: text in self.log(), timeout, what=f"{text!r} in {self.log_path.name}")
+
+    def signal(self, sig: signal.Signals) -> None:
+        assert self.process is not None
+        self.process.send_signal(sig)
+
+    def kill(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.send_signal(signal.SIGCONT)  # a stopped process must die too
+            self.process.kill()
+            self.process.wait()
+
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+
+# ------------------------------------------------------------------ the robot
+
+
+@dataclass(frozen=True)
+class OutputDef:
+    name: str
+    role: Literal["motion", "power"] = "motion"
+    stuck_at: Literal["on", "off"] | None = None
+
+
+@dataclass
+class Stop:
+    """A stop the harness saw: the fault injected at ``t_fault``, every output off by
+    ``t_off`` (monotonic s), and the stop record that raised ``cause``."""
+
+    cause: str
+    t_fault: float
+    t_off: float
+    record: dict[str, Any]
+
+
+DEFAULT_OUTPUTS = (OutputDef("drive", "motion"), OutputDef("power", "power"))
+
+
+@dataclass
+class Robot:
+    """The real ``srcsd`` against ``srcs-sim``, in ``workdir`` (see the module docstring).
+
+    ``clients``: required client names (``[[clients]]``, 500 ms timeout) run as
+    ``ClientProcess``es from ``arm`` on. ``record_tmpfs_bytes``: put the record directory on
+    a tmpfs of that size in a private mount namespace (the full-disk scenario; root only).
+    ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
+
+    workdir: Path
+    transport: Transport = "serial"
+    outputs: Sequence[OutputDef] = DEFAULT_OUTPUTS
+    clients: Sequence[str] = ()
+    record_tmpfs_bytes: int | None = None
+    clock: FakeWallClock | None = None
+    local_reset: bool = False
+    extra_vsc: str = ""
+    sim_args: Sequence[str] = ()
+    boot_delay: float = 1.0
+    seed: int = 0
+    sim: SimProcess = field(init=False)
+    daemon: subprocess.Popen[bytes] | None = field(init=False, default=None)
+    watcher: OutputWatcher | None = field(init=False, default=None)
+    netns: NetNamespace | None = field(init=False, default=None)
+    client_processes: dict[str, ClientProcess] = field(init=False, default_factory=dict)
+    _helpers: list[ClientProcess] = field(init=False, default_factory=list)
+    _starts: int = field(init=False, default=0)
+
+    _channels = itertools.count(1)
+
+    def __post_init__(self) -> None:
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.config_path = self.workdir / "robot.toml"
+        self.socket_path = self.workdir / "api.sock"
+        self.record_dir = self.workdir / "record"
+        self.record_dir.mkdir(exist_ok=True)
+        self.daemon_log = self.workdir / "srcsd.log"
+        self.output_paths = {o.name: self.workdir / "out" / o.name for o in self.outputs}
+        (self.workdir / "out").mkdir(exist_ok=True)
+        if self.transport == "can":
+            # A group of our own per robot; with a private namespace (below) it is isolated
+            # anyway, without one it keeps apart the robots of this run.
+            index = next(self._channels)
+            self.channel = f"239.74.{os.getpid() % 200 + 1}.{index % 250 + 1}"
+            if NetNamespace.available():
+                self.netns = NetNamespace()
+            self.sim = SimProcess(
+                self.workdir / "sim",
+                can=f"udp_multicast:{self.channel}",
+                seed=self.seed,
+                boot_delay=self.boot_delay,
+                args=self.sim_args,
+            )
+        else:
+            self.channel = ""
+            self.sim = SimProcess(
+                self.workdir / "sim",
+                eeprom="eeprom.json",
+                seed=self.seed,
+                boot_delay=self.boot_delay,
+                args=self.sim_args,
+            )
+
+    # ------------------------------------------------------------- life cycle
+
+    @property
+    def vsc_timeout_s(self) -> float:
+        """The rule's default link timeout (safety-rules §2): 200 ms serial, 300 ms CAN."""
+        return 0.3 if self.transport == "can" else 0.2
+
+    @property
+    def beat_s(self) -> float:
+        """The VSC heartbeat period: a frame-raised stop waits at most this for its frame."""
+        return CAN_BEAT_S if self.transport == "can" else SERIAL_BEAT_S
+
+    def config_text(self) -> str:
+        lines = ["[robot]", 'name = "fault-robot"', "[vsc]", f'transport = "{self.transport}"']
+        if self.transport == "can":
+            lines += ['interface = "udp_multicast"', f'channel = "{self.channel}"']
+            lines += ["require_watchdog = false"]  # there is no key 85 on CAN (§5)
+        else:
+            assert self.sim.serial_path is not None
+            lines += [f'port = "{self.sim.serial_path}"']
+        lines += ["reopen_min_ms = 50", "reopen_max_ms = 400"]
+        lines += [self.extra_vsc] if self.extra_vsc else []
+        lines += ["[rearm]", f"hold_ms = {HOLD_MS}"]
+        lines += ["local_reset = true"] if self.local_reset else []
+        for name in self.clients:
+            lines += ["[[clients]]", f'name = "{name}"', "timeout_ms = 500"]
+        for output in self.outputs:
+            lines += ["[[outputs]]", f'name = "{output.name}"', 'kind = "sim"']
+            lines += [f'role = "{output.role}"', f'path = "{self.output_paths[output.name]}"']
+            if output.stuck_at is not None:
+                lines += [f'stuck_at = "{output.stuck_at}"']
+        lines += ["[record]", f'path = "{self.record_dir / "stops.jsonl"}"']
+        lines += ["max_bytes = 65536", "keep = 2", "journal = false"]
+        lines += ["[api]", f'socket = "{self.socket_path}"']
+        return "\n".join(lines) + "\n"
+
+    def start(self) -> Robot:
+        """The simulator (with its watchdog key 85 commissioned on serial), the watcher, then
+        the daemon; returns once the daemon's API socket answers."""
+        if self.netns is not None:
+            self.netns.create()
+            self.sim.command = [*self.netns.prefix(), *self.sim.command]
+        self.sim.start()
+        if self.transport == "serial":
+            self.sim.control.key(85, 1)  # commissioned: the VSC watches our heartbeat (§5)
+        self.config_path.write_text(self.config_text())
+        self.watcher = OutputWatcher(list(self.output_paths.values()))
+        self.start_daemon()
+        return self
+
+    def daemon_command(self) -> list[str]:
+        command = [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config_path)]
+        if self.record_tmpfs_bytes is not None:
+            # A tmpfs of its own under the record, seen only by the daemon: a full disk that
+            # leaves the rest of the machine alone, and goes away with the process.
+            mount = f'mount -t tmpfs -o size={self.record_tmpfs_bytes} srcs-faults "$0"'
+            command = [
+                "unshare",
+                "--mount",
+                "--propagation",
+                "private",
+                "--",
+                "sh",
+                "-c",
+                f'{mount} && exec "$@"',
+                str(self.record_dir),
+                *command,
+            ]
+        if self.netns is not None:
+            command = [*self.netns.prefix(), *command]
+        return command
+
+    def start_daemon(self) -> None:
+        assert self.watcher is not None
+        with contextlib.suppress(FileNotFoundError):
+            self.socket_path.unlink()  # the old socket of a killed daemon: wait for the new
+        env = dict(os.environ)
+        if self.clock is not None:
+            env |= self.clock.env()
+        self.watcher.daemon_started()
+        with self.daemon_log.open("ab") as log:
+            self.daemon = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+                self.daemon_command(), stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env
+            )
+        self._starts += 1
+        daemon = self.daemon
+
+        def up() -> bool:
+            if daemon.poll() is not None:
+                raise FaultHarnessError(f"srcsd exited with {daemon.returncode}: {self.log()}")
+            return self.socket_path.exists() and self._answers()
+
+        wait_until(up, 20.0, what="srcsd's API socket")
+
+    def _answers(self) -> bool:
+        try:
+            self.status()
+        except (ClientError, OSError):
+            return False
+        return True
+
+    def stop_daemon(self) -> int:
+        """SIGTERM and the exit status (0 for a clean stop)."""
+        if self.daemon is None:
+            return 0
+        if self.daemon.poll() is None:
+            self.daemon.send_signal(signal.SIGTERM)
+            try:
+                self.daemon.wait(15)
+            except subprocess.TimeoutExpired:
+                self.daemon.kill()
+                self.daemon.wait()
+        return self.daemon.returncode
+
+    def kill_daemon(self) -> None:
+        if self.daemon is not None and self.daemon.poll() is None:
+            self.daemon.send_signal(signal.SIGCONT)
+            self.daemon.kill()
+            self.daemon.wait()
+
+    def close(self) -> None:
+        """Everything down, in reverse; never raises (a test's own failure shows first)."""
+        for process in [*self.client_processes.values(), *self._helpers]:
+            process.kill()
+        if self.daemon is not None and self.daemon.poll() is None:
+            self.daemon.send_signal(signal.SIGCONT)
+            self.stop_daemon()
+        with contextlib.suppress(Exception):
+            self.sim.stop()
+        if self.watcher is not None:
+            self.watcher.close()
+            self.watcher = None
+        if self.netns is not None:
+            self.netns.delete()
+
+    def finish(self) -> None:
+        """The end of a scenario: the daemon is still up, ``status`` answers, SIGTERM turns
+        every output off and exits 0, and its log holds no traceback."""
+        assert self.daemon is not None
+        assert self.daemon.poll() is None, f"srcsd died: {self.log()}"
+        self.status()
+        t = self.now()
+        code = self.stop_daemon()
+        assert code == 0, f"srcsd exited {code}: {self.log()}"
+        for name in self.output_paths:
+            if not self._stuck_on(name):
+                assert self.output_file(name) is False, f"{name} left on after SIGTERM"
+        assert "Traceback" not in self.log(), self.log()
+        del t
+
+    def __enter__(self) -> Robot:
+        try:
+            return self.start()
+        except BaseException:
+            self.close()
+            raise
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        try:
+            if kind is None:
+                self.finish()
+        finally:
+            self.close()
+
+    # ------------------------------------------------------------- looking
+
+    @staticmethod
+    def now() -> float:
+        """The monotonic clock, the one the daemon's records carry (``mono_ns``)."""
+        return time.monotonic()
+
+    def log(self, tail: int = 4000) -> str:
+        try:
+            return self.daemon_log.read_text(errors="replace")[-tail:]
+        except FileNotFoundError:
+            return ""
+
+    def client(self, timeout: float = 5.0) -> SupervisorClient:
+        return SupervisorClient.connect(self.socket_path, timeout=timeout)
+
+    def status(self) -> State:
+        with self.client() as api:
+            return api.status()
+
+    def active(self, status: State | None = None) -> set[str]:
+        status = status or self.status()
+        return {c["name"] for c in status["causes"] if c["active"]}
+
+    def active_stops(self, status: State | None = None) -> set[str]:
+        status = status or self.status()
+        return {c["name"] for c in status["causes"] if c["active"] and c["severity"] == "stop"}
+
+    def output_file(self, name: str) -> bool | None:
+        try:
+            return self.output_paths[name].read_text() == "1\n"
+        except FileNotFoundError:
+            return None
+
+    def _stuck_on(self, name: str) -> bool:
+        return any(o.name == name and o.stuck_at == "on" for o in self.outputs)
+
+    @property
+    def record_path(self) -> Path:
+        """The record file; inside the daemon's private mount namespace when it has one."""
+        path = self.record_dir / "stops.jsonl"
+        if self.record_tmpfs_bytes is not None and self.daemon is not None:
+            return Path(f"/proc/{self.daemon.pid}/root") / path.relative_to("/")
+        return path
+
+    def records(self) -> list[dict[str, Any]]:
+        """Every record written so far, oldest first, read with the store's own reader."""
+        return [
+            dict(item.data) for item in read_records(self.record_path) if isinstance(item, Record)
+        ]
+
+    def records_since(self, t: float) -> list[dict[str, Any]]:
+        t_ns = int(t * 1e9)
+        return [r for r in self.records() if r["mono_ns"] >= t_ns]
+
+    # ------------------------------------------------------------- arming
+
+    def start_clients(self) -> None:
+        for name in self.clients:
+            if name not in self.client_processes or not self.client_processes[name].alive():
+                self.client_processes[name] = self.run_client(name)
+
+    def run_client(
+        self, name: str, mode: str = "client", period: float = 0.1, extra: Sequence[str] = ()
+    ) -> ClientProcess:
+        log = self.workdir / f"client-{name or mode}-{len(self._helpers)}.log"
+        process = ClientProcess(
+            self.socket_path, mode, log, name=name, period=period, extra=extra
+        ).start()
+        if mode != "client" or name not in self.clients:
+            self._helpers.append(process)
+        return process
+
+    def arm(self) -> dict[str, Any]:
+        """From start to RUN: required clients running, the VSC linked, a takeover; every
+        output on. Returns the re-arm record."""
+        self.start_clients()
+        record = self.rearm()
+        for output in self.outputs:
+            if output.stuck_at is None:
+                assert self.watcher is not None
+                self.watcher.wait(output.name, True, 0.0)
+        return record
+
+    def rearm(self, attempts: int = 6) -> dict[str, Any]:
+        """A valid re-arm by the operator's takeover on the remote (safety-rules §4): wait until
+        no stop condition is active and the hold time has passed, make sure the VSC reports a
+        mode other than Operational (a pause, if it is in Operational), then take over. Returns
+        the record that ended STOPPED. A refused takeover (a condition came back) is tried
+        again, up to ``attempts`` times."""
+        control = self.sim.control
+        for _ in range(attempts):
+            wait_until(lambda: not self.active_stops(), what="every stop condition clear (§4.1)")
+            sim = control.wait_for(
+                lambda s: s["linked"] and not s["booting"] and s["estop"] == 0, timeout=WAIT_S
+            )
+            if sim["mode_name"] == "operational":
+                control.pause()
+            elif sim["mode_name"] == "menu":
+                control.menu()
+            # the hold time, and a non-Operational heartbeat seen after the last stop (§4.2)
+            time.sleep(HOLD_MS / 1000 + 2 * self.beat_s + 0.05)
+            if self.active_stops():
+                continue
+            t = self.now()
+            try:
+                control.takeover()
+            except SimError:
+                continue  # the remote refused (an e-stop bit came back): wait and try again
+            found = self._wait_rearm(t)
+            if found is not None:
+                return found
+        raise FaultHarnessError(f"no valid re-arm in {attempts} takeovers; {self.status()}")
+
+    def _wait_rearm(self, since: float) -> dict[str, Any] | None:
+        end = time.monotonic() + 3.0
+        while time.monotonic() < end:
+            for record in self.records_since(since - 0.05):
+                if record.get("rearm") is not None:
+                    return record
+                if record.get("kind") == "rearm_refused":
+                    return None
+            time.sleep(0.02)
+        return None
+
+    # ------------------------------------------------------------- the four promises
+
+    def expect_stop(
+        self, cause: str, t_fault: float, deadline_s: float, *, prefix: bool = False
+    ) -> Stop:
+        """Promise 1 and 2: every output off within ``deadline_s`` + ``ALLOWANCE_S`` of
+        ``t_fault``, and a record at or after ``t_fault`` that raises ``cause`` (with
+        ``prefix``, any cause starting with it) with the state STOPPED after it."""
+        assert self.watcher is not None
+        t_off = t_fault
+        limit = deadline_s + ALLOWANCE_S
+        for name in self.output_paths:
+            if self._stuck_on(name) or self.watcher.level_at(name, t_fault) is not True:
+                continue  # off already when the fault came (a hold, or never switched on)
+            level = self.watcher.wait(name, False, t_fault, timeout=limit + WAIT_S)
+            took = level.t - t_fault
+            assert took <= limit, (
+                f"{name} off {took * 1000:.0f} ms after the fault; the rule allows "
+                f"{deadline_s * 1000:.0f} ms (+{ALLOWANCE_S * 1000:.0f} ms scheduling)"
+            )
+            t_off = max(t_off, level.t)
+        record = wait_until(
+            lambda: self._raising(cause, t_fault, prefix), what=f"a stop record raising {cause}"
+        )
+        assert record["to"] == "STOPPED", record
+        return Stop(cause, t_fault, t_off, record)
+
+    def _raising(self, cause: str, since: float, prefix: bool) -> dict[str, Any] | None:
+        for record in self.records_since(since):
+            for change in record.get("changes", []):
+                name = change["name"]
+                hit = name.startswith(cause) if prefix else name == cause
+                if hit and change["change"] == "raised":
+                    return record
+        return None
+
+    def recover(self, stop: Stop) -> dict[str, Any]:
+        """Promise 3 and 4: a valid re-arm (a takeover after the fault was cleared by the
+        test), no output on between the stop and that re-arm record, every record between
+        them STOPPED, then RUN with every output on and ``status`` answering."""
+        rearm = self.rearm()
+        self.assert_nothing_on(stop.t_fault, rearm)
+        self.assert_serving(rearm)
+        return rearm
+
+    def assert_nothing_on(self, t_stop: float, rearm: dict[str, Any]) -> None:
+        """No output on between the stop and the re-arm (safety-rules §1, §4): the watcher
+        saw no "on" in that time, and the daemon never left STOPPED in its records."""
+        assert self.watcher is not None
+        t_rearm = rearm["mono_ns"] / 1e9
+        stops = [n for n in self.output_paths if not self._stuck_on(n)]
+        ons = [(n, lv) for n, lv in self.watcher.ons_between(t_stop, t_rearm) if n in stops]
+        # An "on" seen just after the re-arm record may be the re-arm's own; one seen before
+        # it is not.
+        early = [(n, lv) for n, lv in ons if lv.t < t_rearm]
+        assert not early, f"output on before a valid re-arm: {early}"
+        between = [r for r in self.records_since(t_stop) if r["mono_ns"] < rearm["mono_ns"]]
+        assert all(r["to"] == "STOPPED" for r in between if r is not rearm), between
+        for name in stops:
+            first_on = self.watcher.first(name, True, t_stop)
+            if first_on is not None:
+                assert first_on.t >= t_rearm, (name, first_on, t_rearm)
+
+    def assert_serving(self, rearm: dict[str, Any] | None = None) -> State:
+        """Alive and serving: the process runs, ``status`` answers RUN (or HOLD for a power
+        output only), and every healthy output is on in the files and in the status."""
+        assert self.daemon is not None
+        assert self.daemon.poll() is None, self.log()
+        assert self.watcher is not None
+        after = rearm["mono_ns"] / 1e9 - 0.05 if rearm else 0.0
+        for output in self.outputs:
+            if output.stuck_at is None:
+                self.watcher.wait(output.name, True, after)
+        status = self.status()
+        assert status["state"] == "RUN", status
+        assert all(status["outputs"].values()), status
+        return status
+
+    # ------------------------------------------------------------- helpers for scenarios
+
+    @property
+    def vsc(self) -> SimControl:
+        """The simulated VSC and remote (``docs/simulator.md``)."""
+        return self.sim.control
+
+    def healthy_outputs(self) -> list[str]:
+        return [o.name for o in self.outputs if o.stuck_at is None]
+
+    def stays_running(self, seconds: float) -> None:
+        """For ``seconds``: no record leaves RUN, no output goes off, and the state is RUN at
+        the end: a fault that must not stop the robot did not."""
+        assert self.watcher is not None
+        t = self.now()
+        time.sleep(seconds)
+        left = [r for r in self.records_since(t) if r["to"] != "RUN"]
+        assert not left, f"the robot left RUN: {left}"
+        for name in self.healthy_outputs():
+            off = self.watcher.first(name, False, t)
+            assert off is None, f"{name} went off at +{(off.t - t) * 1000:.0f} ms"
+        assert self.status()["state"] == "RUN"
+
+    def remote_estop(self) -> Stop:
+        """The operator's e-stop button on the remote: the stop the VSC reports in its next
+        heartbeat (safety-rules §2 ``vsc_estop``), at once. The button stays pressed."""
+        t = self.now()
+        self.vsc.estop()
+        return self.expect_stop("vsc_estop", t, self.beat_s)
+
+    def wait_state(self, state: str, timeout: float = WAIT_S) -> State:
+        found = wait_until(
+            lambda: (s := self.status())["state"] == state and s,
+            timeout,
+            what=f"state {state}",
+        )
+        assert isinstance(found, dict)
+        return found
+
+    def counters(self) -> Mapping[str, Any]:
+        daemon = self.status()["daemon"]
+        assert isinstance(daemon, dict)
+        return daemon
+
+    def fill_record_disk(self) -> int:
+        """Fill the record's tmpfs up to the last byte; the bytes written."""
+        assert self.record_tmpfs_bytes is not None
+        assert self.daemon is not None
+        filler = Path(f"/proc/{self.daemon.pid}/root") / self.record_dir.relative_to("/")
+        written = 0
+        with (filler / "filler").open("wb") as out:
+            block = b"\0" * 4096
+            while True:
+                try:
+                    written += out.write(block)
+                    out.flush()
+                except OSError:
+                    break
+            with contextlib.suppress(OSError):
+                while out.write(b"\0"):
+                    out.flush()
+                    written += 1
+        return written
+
+    def free_record_disk(self) -> None:
+        assert self.daemon is not None
+        filler = Path(f"/proc/{self.daemon.pid}/root") / self.record_dir.relative_to("/")
+        (filler / "filler").unlink()
+
+
+# ------------------------------------------------------------------ the client programs
+
+
+def _client_main(args: argparse.Namespace) -> int:
+    """Hello, then heartbeats, reconnecting whenever the daemon closes the connection."""
+    say = _say
+    while True:
+        try:
+            with SupervisorClient.connect(args.socket, name=args.name, timeout=2.0) as api:
+                say("hello")
+                if args.estop:
+                    api.estop()
+                    say("estop")
+                while True:
+                    api.heartbeat()
+                    time.sleep(args.period)
+        except ClientError as error:
+            say(f"closed: {type(error).__name__}")
+            time.sleep(0.05)
+
+
+def _flood_main(args: argparse.Namespace) -> int:
+    """One endless line: the server must cut it off (``flood``) and carry on."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.connect(args.socket)
+        _say("connected")
+        chunk = b"x" * 65536
+        sent = 0
+        try:
+            while True:
+                sent += sock.send(chunk)
+        except OSError as error:
+            _say(f"closed after {sent} bytes: {type(error).__name__}")
+        with contextlib.suppress(OSError):
+            _say(f"reply {sock.recv(4096)[:200]!r}")
+    return 0
+
+
+def _subscriber_main(args: argparse.Namespace) -> int:
+    """Subscribes to everything and then never reads: the server must drop it, not wait."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.connect(args.socket)
+        topics = ["state", "joystick", "gps", "remote_status", "records"]
+        sock.sendall(json.dumps({"op": "subscribe", "topics": topics}).encode() + b"\n")
+        _say("subscribed")
+        while True:
+            time.sleep(1.0)
+
+
+def _say(text: str) -> None:
+    print(text, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m supervisord.testkit.faults",
+        description="Robot programs that misbehave, for fault injection (docs/faults.md).",
+    )
+    parser.add_argument("mode", choices=["client", "flood", "subscriber"])
+    parser.add_argument("socket")
+    parser.add_argument("--name", default=None)
+    parser.add_argument("--period", type=float, default=0.1)
+    parser.add_argument("--estop", action="store_true", help="client: ask for an e-stop first")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    runs: dict[str, Callable[[argparse.Namespace], int]] = {
+        "client": _client_main,
+        "flood": _flood_main,
+        "subscriber": _subscriber_main,
+    }
+    return runs[args.mode](args)
+
+
+@contextlib.contextmanager
+def robot(workdir: Path, **options: Any) -> Iterator[Robot]:
+    """``Robot(workdir, **options)`` as a context (started, finished, closed)."""
+    with Robot(workdir, **options) as running:
+        yield running
+
+
+if __name__ == "__main__":
+    sys.exit(main())

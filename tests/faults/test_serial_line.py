@@ -1,0 +1,202 @@
+"""Faults of the serial line and of the VSC's own messages, made by ``srcs-sim`` on a real
+pty, against the real ``srcsd``. Each scenario: the robot runs, the fault comes, the promise
+of safety-rules.md holds, the fault is cleared, a valid takeover runs the robot again.
+``docs/faults.md`` lists them all."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from supervisord.testkit.faults import ALLOWANCE_S, Robot, wait_until
+
+HEARTBEAT = 0x20  # the VSC heartbeat's message type (manual §8.3.3)
+
+
+@pytest.mark.parametrize(
+    ("fault", "rejection"),
+    [
+        pytest.param({"drop": 1.0}, None, id="dropped"),
+        pytest.param({"corrupt": 1.0}, "bad_checksum", id="corrupt"),
+        pytest.param({"wrong_length": 1.0}, "wrong_length", id="wrong_length"),
+    ],
+)
+def test_heartbeats_that_do_not_arrive_whole_are_a_lost_link(
+    tmp_path: Path, fault: dict[str, float], rejection: str | None
+) -> None:
+    """§2 ``vsc_link_lost``: only a frame that passes the checksum and length checks counts as
+    a heartbeat. Heartbeats dropped, corrupted (one byte, so the checksum must catch it) or
+    of a wrong length, while the joystick frames keep flowing: off within ``vsc_timeout``."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        before = robot.counters()["rejections"]
+        t0 = robot.now()
+        robot.vsc.fault(**fault, only_types=[HEARTBEAT])
+        stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
+        counters = robot.counters()
+        assert robot.vsc.state()["frames_sent"] > 0
+        if rejection is not None:
+            assert counters["rejections"].get(rejection, 0) > before.get(rejection, 0)
+        robot.vsc.fault()
+        robot.recover(stop)
+
+
+def test_heartbeats_delayed_past_the_timeout_are_a_lost_link_that_stays_latched(
+    tmp_path: Path,
+) -> None:
+    """§2, §4: every heartbeat held back 400 ms (twice the timeout): a gap of 400 ms is a
+    lost link; when the late heartbeats flow again the condition clears but the stop stays
+    latched: STOPPED until a takeover."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        t0 = robot.now()
+        robot.vsc.fault(delay=1.0, delay_s=0.4, only_types=[HEARTBEAT])
+        stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
+        wait_until(lambda: "vsc_link_lost" not in robot.active(), what="late heartbeats")
+        time.sleep(0.3)
+        status = robot.status()
+        assert status["state"] == "STOPPED"
+        assert next(c for c in status["causes"] if c["name"] == "vsc_link_lost")["latched"]
+        robot.vsc.fault()
+        time.sleep(0.5)  # the frames still held back drain before the takeover
+        robot.recover(stop)
+
+
+@pytest.mark.parametrize(
+    ("fault", "rejection"),
+    [
+        pytest.param({"garbage": 1.0, "garbage_max": 64}, "noise", id="garbage_bursts"),
+        pytest.param({"unknown_type": 1.0}, "unknown_type", id="unknown_types"),
+        pytest.param({"duplicate": 1.0}, None, id="duplicates"),
+        pytest.param({"reorder": 0.3}, None, id="reordered"),
+    ],
+)
+def test_noisy_line_keeps_running_and_still_carries_the_estop(
+    tmp_path: Path, fault: dict[str, float], rejection: str | None
+) -> None:
+    """§2: garbage bursts before every frame, a valid frame of an unknown type before every
+    frame, every frame twice, or frames swapped with the next one. None of these loses a
+    heartbeat (the decoder resynchronises one byte on, notes §1), so the robot keeps running;
+    and the remote's e-stop still gets through at once (``vsc_estop``)."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        robot.vsc.fault(**fault)
+        robot.stays_running(1.0)
+        if rejection is not None:
+            assert robot.counters()["rejections"].get(rejection, 0) > 0
+        assert sum(robot.vsc.state()["fault_counts"].values()) > 10
+        stop = robot.remote_estop()
+        assert stop.record["causes"][0]["name"] == "vsc_estop"
+        robot.vsc.release()
+        robot.vsc.fault()
+        robot.recover(stop)
+
+
+def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
+    """§4.2: the VSC's logic hangs and repeats one heartbeat (Operational, no e-stop) for
+    ever. A stop raised on our side (the operator's local e-stop) turns the outputs off at
+    once; after its release the frozen heartbeat never shows the non-Operational mode a
+    takeover needs, so the robot stays STOPPED whatever the remote does."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        robot.vsc.fault(freeze_heartbeat=True)
+        robot.stays_running(0.3)
+        t0 = robot.now()
+        with robot.client() as operator:
+            operator.estop()
+            stop = robot.expect_stop("local_estop", t0, 0.0)
+            operator.release("estop")
+        wait_until(lambda: "local_estop" not in robot.active(), what="the release")
+        time.sleep(0.3)
+        robot.vsc.takeover()  # the model moves; the frozen heartbeat does not
+        time.sleep(0.5)
+        assert robot.status()["state"] == "STOPPED"
+        assert not [r for r in robot.records_since(t0) if r.get("rearm")]
+        robot.vsc.fault()
+        robot.recover(stop)
+
+
+def test_mode_flapping_holds_motion_and_keeps_power(tmp_path: Path) -> None:
+    """§3 ``vsc_mode``: the heartbeat's mode flaps between Operational and Pause every
+    100 ms. The motion output follows it off at once each time (a hold, a controlled stop);
+    the power output stays on (HOLD, not STOPPED); the robot runs again by itself once the
+    mode stays Operational (holds clear by themselves)."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        assert robot.watcher is not None
+        t0 = robot.now()
+        robot.vsc.fault(flap_mode=0x0B, flap_period_s=0.1)
+        first = robot.watcher.wait("drive", False, t0)
+        assert first.t - t0 <= 0.1 + robot.beat_s + ALLOWANCE_S
+        time.sleep(1.0)
+        robot.vsc.fault()
+        t1 = robot.now()
+        offs = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= t1 and not lv.on]
+        assert len(offs) >= 3, robot.watcher.history("drive")
+        assert robot.watcher.first("power", False, t0) is None
+        records = robot.records_since(t0)
+        assert all(r["to"] != "STOPPED" for r in records), records
+        assert any(c["name"] == "vsc_mode:pause" for r in records for c in r["changes"])
+        robot.wait_state("RUN")
+        robot.assert_serving()
+
+
+def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:
+    """§3: a VSC mode no table names (0x42) is a hold, ``vsc_mode:unknown_0x42``: motion off
+    at once, power on; Operational again runs again."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        assert robot.watcher is not None
+        t0 = robot.now()
+        robot.vsc.mode(0x42)
+        off = robot.watcher.wait("drive", False, t0)
+        assert off.t - t0 <= robot.beat_s + ALLOWANCE_S
+        status = robot.wait_state("HOLD")
+        assert "vsc_mode:unknown_0x42" in robot.active(status)
+        assert status["outputs"] == {"drive": False, "power": True}
+        assert robot.watcher.first("power", False, t0) is None
+        robot.vsc.mode("operational")
+        robot.wait_state("RUN")
+        robot.assert_serving()
+
+
+def test_slow_partial_writes_keep_running_and_carry_the_estop(tmp_path: Path) -> None:
+    """§2: the VSC writes 8 bytes at a time every 2 ms, so every frame is split across reads;
+    the frames are reassembled, the robot keeps running, the e-stop gets through."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        robot.vsc.fault(chunk_bytes=8, chunk_gap_s=0.002)
+        robot.stays_running(1.0)
+        stop = robot.remote_estop()
+        robot.vsc.release()
+        robot.vsc.fault()
+        robot.recover(stop)
+
+
+def test_a_line_too_slow_for_the_traffic_is_a_lost_link(tmp_path: Path) -> None:
+    """§2: one byte every 10 ms (a tenth of the traffic): whole heartbeats come seconds
+    apart, which is a lost link within ``vsc_timeout``."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        t0 = robot.now()
+        robot.vsc.fault(chunk_bytes=1, chunk_gap_s=0.01)
+        stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
+        robot.vsc.fault()
+        time.sleep(0.3)  # the bytes still queued in the simulator go out at once
+        robot.recover(stop)
+
+
+def test_silent_vsc_is_a_lost_link_and_we_ask_it_to_stop(tmp_path: Path) -> None:
+    """§2 ``vsc_link_lost`` and §5: the VSC falls silent with its port open (an RS-232 cable
+    cut on its transmit line). Outputs off within ``vsc_timeout``; our heartbeat's e-stop
+    byte goes to 1, so the VSC (which still hears us) opens its own relays too."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        t0 = robot.now()
+        robot.vsc.silence(True)
+        stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
+        robot.vsc.wait_for(lambda s: "user_request" in s["estop_bits"], timeout=2.0)
+        robot.vsc.silence(False)
+        robot.recover(stop)
