@@ -208,8 +208,10 @@ def main(argv: list[str] | None = None) -> int:
                 _say(f"can {side.description}")
             if control is not None:
                 _say(f"control {control.path}")
-            _say("ready")
-            _run(sim, control, stop)
+            interactive = sys.stdin.isatty()
+            with _keys_mode(interactive):  # before "ready": no key may meet a cooked terminal
+                _say("ready")
+                _run(sim, control, stop, interactive)
         except OSError as error:
             print(f"srcs-sim: {error}", file=sys.stderr)
             return 2
@@ -220,31 +222,29 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _run(sim: Simulator, control: ControlServer | None, stop: _Stop) -> None:
-    interactive = sys.stdin.isatty()
+def _run(sim: Simulator, control: ControlServer | None, stop: _Stop, interactive: bool) -> None:
     stdin_fd = sys.stdin.fileno() if interactive else None
     if interactive:
         _say("keys: " + ", ".join(f"{k} {text}" for k, (text, _) in KEYS.items()))
-    with _keys_mode(interactive):
-        while not stop.requested and not sim.quit_requested:
-            now = time.monotonic()
-            sim.step(now)
-            port_fd = sim.fileno()
-            longest = POLL_S if port_fd is not None or not sim.side.plugged else POLL_NO_FD_S
-            timeout = max(0.0, min(sim.next_deadline(now) - time.monotonic(), longest))
-            readers = [fd for fd in (port_fd, stdin_fd) if fd is not None]
-            writers: list[int] = []
-            if control is not None:
-                readers += control.read_fds()
-                writers += control.write_fds()
-            readable, writable, _ = select.select(readers, writers, [], timeout)
-            now = time.monotonic()
-            if control is not None:
-                ready = set(readable), set(writable)
-                control.serve(*ready, lambda request: sim.request(request, time.monotonic()))
-            if stdin_fd is not None and stdin_fd in readable:
-                for key in sys.stdin.read(1):
-                    _on_key(key, sim, now)
+    while not stop.requested and not sim.quit_requested:
+        now = time.monotonic()
+        sim.step(now)
+        port_fd = sim.fileno()
+        longest = POLL_S if port_fd is not None or not sim.side.plugged else POLL_NO_FD_S
+        timeout = max(0.0, min(sim.next_deadline(now) - time.monotonic(), longest))
+        readers = [fd for fd in (port_fd, stdin_fd) if fd is not None]
+        writers: list[int] = []
+        if control is not None:
+            readers += control.read_fds()
+            writers += control.write_fds()
+        readable, writable, _ = select.select(readers, writers, [], timeout)
+        now = time.monotonic()
+        if control is not None:
+            ready = set(readable), set(writable)
+            control.serve(*ready, lambda request: sim.request(request, time.monotonic()))
+        if stdin_fd is not None and stdin_fd in readable:
+            for key in sys.stdin.read(1):
+                _on_key(key, sim, now)
 
 
 if __name__ == "__main__":
