@@ -1,84 +1,344 @@
-"""``srcsctl demo``: watch VSC traffic decoded live.
+"""``srcsctl demo``: the supervisor against the simulated VSC, with a live view.
 
-A scripted VSC (``supervisord.testkit.traffic.demo_script``) writes its bytes in real time
-into a pseudo-terminal; the decoder reads the other end as it would read ``/dev/ttyACM0``
-and the view shows what it understood. (The supervisor and the full simulator take this
-command over once they exist.)
+It starts ``srcs-sim`` on a pseudo-terminal and the real ``srcsd`` with ``config/demo.toml``
+in a private run directory, commissions the simulated VSC through the API (as an integrator
+would with ``srcsctl commission``), and shows the remote, the supervisor, the outputs, the
+stop record and the remote's LCD, redrawn ten times a second. Keys press the remote's e-stop,
+pause, take over and cut the link. Without a terminal (or with ``--auto``) it plays a short
+story instead: take over, e-stop, re-arm, cut the link, re-arm, pause, resume.
 """
 
 from __future__ import annotations
 
+import contextlib
+import math
 import os
+import select
+import shutil
+import signal
+import subprocess
 import sys
+import tempfile
+import termios
 import time
 import tty
-from typing import IO
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, Final, TextIO
 
-from supervisord.protocol.codes import VscMode
-from supervisord.protocol.framing import FrameDecoder, Rejection
-from supervisord.protocol.messages import Joystick, VscHeartbeat
-from supervisord.testkit.traffic import demo_script
+from supervisord.api.wire import ApiError
+from supervisord.cli.demo_view import record_line, screen
+from supervisord.client import ClientError, SupervisorClient
+from supervisord.config import load_config
+from supervisord.errors import ConfigError, SrcsError
+from supervisord.testkit.sim import SimError, SimProcess
 
-
-def _mode_name(heartbeat: VscHeartbeat | None) -> str:
-    if heartbeat is None:
-        return "-"
-    known = VscMode.parse(heartbeat.mode)
-    return known.name if known else f"unknown {heartbeat.mode:#04x}"
-
-
-def render(
-    heartbeat: VscHeartbeat | None, joystick: Joystick | None, counts: dict[str, int]
-) -> str:
-    estop = "-"
-    if heartbeat is not None:
-        sources = sorted(source.value for source in heartbeat.estop_sources)
-        estop = f"E-STOP ({', '.join(sources)})" if heartbeat.estop else "clear"
-    sticks = " ".join(
-        f"{name}={axis.value if axis.value is not None else 'invalid':>5}"
-        for name, axis in zip(Joystick.AXES, joystick.axes if joystick else (), strict=False)
-    )
-    tallies = " ".join(f"{name}={count}" for name, count in sorted(counts.items()))
-    return f"mode {_mode_name(heartbeat):11} e-stop {estop:16} | {sticks} | {tallies}"
+DEMO_CONFIG: Final = Path(__file__).resolve().parents[2] / "config" / "demo.toml"
+RUN: Final = "srcs-demo"  # the directory config/demo.toml names for its files
+FRAME_S: Final = 0.1
 
 
-def run_demo(out: IO[str], speed: float = 1.0) -> int:
-    master, slave = os.openpty()
-    tty.setraw(slave)  # as a serial port is opened: no line discipline between the bytes
-    decoder = FrameDecoder()
-    heartbeat: VscHeartbeat | None = None
-    joystick: Joystick | None = None
-    counts: dict[str, int] = {}
-    start = time.monotonic()
-    last_mode = ""
+class DemoError(SrcsError):
+    """The demo could not start or lost one of its processes."""
+
+
+class Demo:
+    """The simulator and the supervisor in ``run_dir``, and the client that watches them."""
+
+    def __init__(self, run_dir: Path, config: Path, out: TextIO, speed: float) -> None:
+        self.run_dir = run_dir
+        self.out = out
+        self.speed = speed
+        self.notes: list[str] = []
+        self.records: list[dict[str, Any]] = []
+        self.status: dict[str, Any] | None = None
+        (run_dir / RUN).mkdir(parents=True, exist_ok=True)
+        self.config = run_dir / "demo.toml"
+        shutil.copyfile(config, self.config)
+        loaded = load_config(self.config)  # validated before anything starts
+        self.socket = loaded.api.socket
+        self.hold_s = loaded.safety.rearm_hold_ms / 1000
+        self.sim = SimProcess(run_dir / RUN, serial="vsc", eeprom="eeprom.json")
+        self.daemon: subprocess.Popen[bytes] | None = None
+        self.client: SupervisorClient | None = None
+        self._sticks_at: float | None = None
+
+    # -- life cycle --------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.note("starting srcs-sim (the VSC and its remote) and srcsd (the supervisor)")
+        self.sim.start()
+        with (self.run_dir / "srcsd.log").open("ab") as log:
+            self.daemon = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+                [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config)],
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=log,
+            )
+        end = time.monotonic() + 15
+        while self.client is None:
+            self._check_alive()
+            with contextlib.suppress(ClientError):
+                self.client = SupervisorClient.connect(self.socket, timeout=10)
+            if time.monotonic() > end:
+                raise DemoError(f"srcsd did not open {self.socket}: see {self.run_dir}/srcsd.log")
+            time.sleep(0.05)
+        self.client.subscribe("records")
+        self.refresh()
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.daemon is not None and self.daemon.poll() is None:
+            self.daemon.send_signal(signal.SIGTERM)  # outputs off, record flushed, exit 0
+            try:
+                self.daemon.wait(10)
+            except subprocess.TimeoutExpired:
+                self.daemon.kill()
+                self.daemon.wait()
+        self.sim.stop()
+
+    def _check_alive(self) -> None:
+        if self.daemon is not None and self.daemon.poll() is not None:
+            raise DemoError(
+                f"srcsd exited ({self.daemon.returncode}): see {self.run_dir}/srcsd.log"
+            )
+
+    # -- what is shown -----------------------------------------------------------------
+
+    def note(self, text: str) -> None:
+        self.notes.append(text)
+
+    def refresh(self) -> None:
+        """Ask both processes how they are; keep the stop records that were pushed."""
+        assert self.client is not None
+        self._check_alive()
+        self.status = self.client.status()
+        while (push := self.client.next_event(timeout=0)) is not None:
+            if push.event == "record":
+                self.records.append(push.data)
+                self.on_record(push.data)
+        if self._sticks_at is not None:  # a slow circle on the left stick, while asked
+            phase = time.monotonic() - self._sticks_at
+            x, y = int(600 * math.cos(phase)), int(600 * math.sin(phase))
+            self.sim.control.axes(left_x=x, left_y=y)
+
+    def _active(self) -> set[str]:
+        assert self.client is not None
+        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+
+    def on_record(self, record: dict[str, Any]) -> None:
+        """Hook for the story mode, which prints each record as it comes."""
+
+    def view(self) -> list[str]:
+        return screen(
+            self.sim.control.state(),
+            self.status,
+            self.records,
+            self.sim.control.lcd(),
+            self.notes,
+        )
+
+    @property
+    def state(self) -> str:
+        return str(self.status.get("state")) if self.status else "?"
+
+    # -- the remote's controls -----------------------------------------------------------
+
+    def commission(self) -> None:
+        assert self.client is not None
+        self.note("commissioning the VSC's key-85 watchdog (srcsctl commission)")
+        try:
+            reply = self.client.commission()
+        except ApiError as error:
+            self.note(f"commission: {error.code}: {error.message}")
+            return
+        self.note(f"commissioned: key 85 reads {reply.get('key85')}")
+
+    def toggle_estop(self) -> None:
+        if self.sim.control.state().get("remote_estop"):
+            self.sim.control.release()
+            self.note("remote e-stop released: take over [t] to re-arm")
+        else:
+            self.sim.control.estop()
+            self.note("remote e-stop pressed")
+
+    def pause(self) -> None:
+        self.sim.control.pause()
+        self.note("remote paused: take over [t] to resume")
+
+    def takeover(self) -> None:
+        if str(self.sim.control.state().get("mode_name")).lower() == "operational":
+            # Already Operational (e.g. a takeover the supervisor refused as too early): a
+            # new takeover starts from Pause, as an operator would do it on the remote, once
+            # the supervisor has seen the Pause in a VSC heartbeat (20 Hz).
+            self.sim.control.pause()
+            end = time.monotonic() + 1.0
+            while time.monotonic() < end and "vsc_mode:pause" not in self._active():
+                time.sleep(0.02)
+        self.sim.control.takeover()
+        self.note("takeover on the remote (to Operational)")
+
+    def toggle_link(self) -> None:
+        if self.sim.control.state().get("plugged"):
+            self.sim.control.unplug()
+            self.note("VSC unplugged: the link is cut")
+        else:
+            self.sim.control.replug()
+            self.note("VSC plugged in again: a new start, take over [t] to re-arm")
+
+    def toggle_sticks(self) -> None:
+        if self._sticks_at is None:
+            self._sticks_at = time.monotonic()
+            self.note("moving the left stick (the VSC zeroes it outside Operational)")
+        else:
+            self._sticks_at = None
+            self.sim.control.axes(left_x=0, left_y=0)
+            self.note("sticks back to centre")
+
+
+# -- the two ways to run it ----------------------------------------------------------------
+
+
+def run_demo(
+    out: TextIO, *, speed: float = 1.0, auto: bool | None = None, config: Path | None = None
+) -> int:
+    """Run the demo; interactive when stdin and stdout are terminals, unless ``auto``."""
+    interactive = sys.stdin.isatty() and out.isatty() if auto is None else not auto
+    with tempfile.TemporaryDirectory(prefix="srcs-demo-") as run_dir:
+        try:
+            demo: Demo = (Demo if interactive else StoryDemo)(
+                Path(run_dir), config or DEMO_CONFIG, out, speed
+            )
+        except (ConfigError, OSError) as error:
+            print(f"srcsctl demo: {error}", file=sys.stderr)
+            return 2
+        try:
+            demo.start()
+            demo.commission()
+            return _story(demo) if isinstance(demo, StoryDemo) else _interactive(demo)
+        except (SrcsError, OSError) as error:
+            print(f"srcsctl demo: {error}", file=sys.stderr)
+            return 1
+        finally:
+            demo.close()
+
+
+@contextlib.contextmanager
+def _raw_terminal() -> Iterator[None]:
+    fd = sys.stdin.fileno()
+    saved = termios.tcgetattr(fd)
+    tty.setcbreak(fd)
+    sys.stdout.write("\x1b[?25l")  # hide the cursor while redrawing
     try:
-        for at, data in demo_script():
-            delay = start + at / speed - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            os.write(master, data)
-            for event in decoder.feed(os.read(slave, 4096) if data else b""):
-                name = event.reason.value if isinstance(event, Rejection) else type(event).__name__
-                counts[name] = counts.get(name, 0) + 1
-                if isinstance(event, VscHeartbeat):
-                    heartbeat = event
-                elif isinstance(event, Joystick):
-                    joystick = event
-            line = render(heartbeat, joystick, counts)
-            if _mode_name(heartbeat) != last_mode:
-                last_mode = _mode_name(heartbeat)
-                out.write(f"\r[{at:5.1f} s] {line}\n")
-            elif out.isatty():
-                out.write(f"\r[{at:5.1f} s] {line}")
-            out.flush()
-    except KeyboardInterrupt:
-        pass
+        yield
     finally:
-        os.close(master)
-        os.close(slave)
-    out.write("\n")
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        sys.stdout.write("\x1b[?25h\n")
+
+
+def _interactive(demo: Demo) -> int:
+    actions: dict[str, Callable[[], None]] = {
+        "e": demo.toggle_estop,
+        "p": demo.pause,
+        "t": demo.takeover,
+        "l": demo.toggle_link,
+        "s": demo.toggle_sticks,
+    }
+    demo.note("press [t] to take over: the supervisor goes to RUN and the outputs come on")
+    with _raw_terminal():
+        while True:
+            demo.refresh()
+            demo.out.write("\x1b[H\x1b[2J" + "\n".join(demo.view()) + "\n")
+            demo.out.flush()
+            ready, _, _ = select.select([sys.stdin], [], [], FRAME_S)
+            if ready:
+                key = os.read(sys.stdin.fileno(), 1).decode(errors="replace").lower()
+                if key in ("q", "\x03", "\x04"):
+                    return 0
+                if key in actions:
+                    try:
+                        actions[key]()
+                    except SimError as refused:  # e.g. a takeover with the sticks off centre
+                        demo.note(f"the remote refused: {refused}")
+
+
+class StoryDemo(Demo):
+    """The demo without a terminal: a scripted story, printed line by line."""
+
+    def note(self, text: str) -> None:
+        super().note(text)
+        print(f"[demo] {text}", file=self.out, flush=True)
+
+    def _active(self) -> set[str]:
+        assert self.client is not None
+        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+
+    def on_record(self, record: dict[str, Any]) -> None:
+        print(f"  record {record_line(record)}", file=self.out, flush=True)
+
+    def wait(self, seconds: float) -> None:
+        end = time.monotonic() + seconds / self.speed
+        while time.monotonic() < end:
+            self.refresh()
+            time.sleep(0.02)
+
+    def settle(self, limit: float = 10.0) -> None:
+        """Wait until no stop condition is active, then for the re-arm hold time (§4)."""
+        end = time.monotonic() + limit
+        def stop_active() -> bool:
+            causes = (self.status or {}).get("causes", [])
+            return any(c.get("active") and c.get("severity") == "stop" for c in causes)
+
+        while stop_active():
+            if time.monotonic() > end:
+                raise DemoError(f"stop conditions stayed active: {self.status}")
+            self.wait(0.02)
+        end = time.monotonic() + self.hold_s + 0.1
+        while time.monotonic() < end:
+            self.refresh()
+            time.sleep(0.02)
+
+    def expect(self, state: str, limit: float = 10.0) -> None:
+        end = time.monotonic() + limit
+        while True:
+            self.refresh()
+            if self.state == state:
+                outputs = (self.status or {}).get("outputs", {})
+                levels = ", ".join(f"{k} {'ON' if v else 'off'}" for k, v in outputs.items())
+                print(f"  supervisor: {state}; outputs {levels}", file=self.out, flush=True)
+                return
+            if time.monotonic() > end:
+                raise DemoError(f"the supervisor stayed {self.state}, expected {state}")
+            time.sleep(0.02)
+
+
+def _story(demo: StoryDemo) -> int:
+    demo.expect("STOPPED")
+    demo.settle()
+    demo.takeover()
+    demo.expect("RUN")
+    demo.toggle_sticks()
+    demo.wait(1.5)
+    demo.toggle_estop()
+    demo.expect("STOPPED")
+    demo.toggle_sticks()  # a takeover needs the sticks neutral (the manual's rule)
+    demo.wait(0.5)
+    demo.toggle_estop()
+    demo.settle()
+    demo.takeover()
+    demo.expect("RUN")
+    demo.toggle_link()
+    demo.expect("STOPPED")
+    demo.wait(0.5)
+    demo.toggle_link()
+    demo.settle()
+    demo.takeover()
+    demo.expect("RUN")
+    demo.pause()
+    demo.wait(1.0)
+    demo.settle()
+    demo.takeover()
+    demo.expect("RUN")
+    demo.note("done: `srcsctl demo` in a terminal lets you press the keys yourself")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(run_demo(sys.stdout))

@@ -57,8 +57,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     control.add_arguments(commands)
 
-    demo = commands.add_parser("demo", help="watch scripted VSC traffic decoded live")
-    demo.add_argument("--speed", type=float, default=1.0, help="time factor (default 1)")
+    demo = commands.add_parser(
+        "demo",
+        help="the supervisor against the simulated VSC, with a live view",
+        description="Start srcs-sim and srcsd wired together in a private directory and show "
+        "them live; keys press the remote's e-stop, pause, takeover and cut the link. Without "
+        "a terminal, or with --auto, it plays a short story of stops and re-arms.",
+    )
+    demo.add_argument("--auto", action="store_true", help="play the story instead of keys")
+    demo.add_argument(
+        "--speed", type=float, default=1.0, help="story pauses run this much faster (default 1)"
+    )
+    demo.add_argument("--config", type=Path, help="another demo config (default config/demo.toml)")
     return parser
 
 
@@ -71,7 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command in control.COMMANDS:
         return control.run(args, sys.stdout, sys.stderr)
     if args.command == "demo":
-        return run_demo(sys.stdout, args.speed)
+        return run_demo(sys.stdout, speed=args.speed, auto=args.auto or None, config=args.config)
     return 2  # pragma: no cover - argparse rejects unknown commands first
 
 

@@ -70,6 +70,9 @@ class Commissioning:
         return frames
 
     def next_deadline(self) -> int:
+        """When ``due`` has work: at once when confirmed (to answer), else the next Get."""
+        if self.confirmed():
+            return 0
         return self.deadline if self.key85 == 1 else min(self._next_ask, self.deadline)
 
     def outcome(self, now: int) -> Commissioned:

@@ -6,7 +6,6 @@ plus a share of random garbage bytes between frames (a noisy RS-232 line).
 
 from __future__ import annotations
 
-import math
 import random
 from collections.abc import Iterator
 
@@ -46,39 +45,3 @@ def vsc_stream(seconds: float, garbage: float = 0.05, seed: int = 0) -> bytes:
         out += rng.randbytes(burst)
         out += frame
     return bytes(out)
-
-
-def demo_script() -> Iterator[tuple[float, bytes]]:
-    """A minute-long story as (seconds from start, bytes): the remote links in Local, the
-    operator takes over, drives, presses the e-stop, the line catches noise, and a takeover
-    brings it back. Heartbeats at 20 Hz, joystick at 50 Hz, GPS at 1 Hz."""
-    rng = random.Random(11)
-    story = [
-        (0.0, VscMode.SEARCHING, 1),
-        (2.0, VscMode.LOCAL, 0),
-        (4.0, VscMode.OPERATIONAL, 0),
-        (9.0, VscMode.LOCAL, 1),  # remote e-stop pressed: the VSC returns to Local
-        (11.0, VscMode.LOCAL, 0),  # e-stop released
-        (13.0, VscMode.OPERATIONAL, 0),  # takeover
-        (17.0, VscMode.PAUSE, 0),
-        (19.0, VscMode.OPERATIONAL, 0),
-    ]
-    for tick in range(int(22 * 1000 / TICK_MS)):
-        now = tick * TICK_MS / 1000
-        mode, estop = next((m, e) for t, m, e in reversed(story) if t <= now)
-        chunk = bytearray()
-        if tick % 2 == 0:
-            moving = mode == VscMode.OPERATIONAL
-            deflection = int(800 * math.sin(now * 1.7)) if moving else 0
-            chunk += encode_frame(
-                Joystick(
-                    left_y=Axis.from_value(deflection), right_x=Axis.from_value(deflection // 2)
-                )
-            )
-        if tick % 5 == 0:
-            chunk += encode_frame(VscHeartbeat(mode, 0, estop))
-        if tick % 100 == 0:
-            chunk += encode_frame(Gps(Gps.SOURCE_REMOTE, SAMPLE_GGA))
-        if 15.0 <= now < 15.5:  # a noisy line for half a second
-            chunk += rng.randbytes(8)
-        yield now, bytes(chunk)
