@@ -55,7 +55,7 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.record.jsonl import RecordWriter
-from supervisord.safety.config import OutputClass, OutputSpec, SafetyConfig
+from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.testkit.pty_port import PtyPort
 
 NS_PER_MS = 1_000_000
@@ -104,7 +104,7 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
     safety = SafetyConfig(
         vsc_timeout_ms=args.timeout_ms,
         rearm_hold_ms=args.hold_ms,
-        outputs=(OutputSpec(output.name, OutputClass.MOTION),),
+        outputs=(OutputSpec(output.name, OutputRole.MOTION),),
     )
     supervisor = Supervisor(
         safety,

@@ -34,7 +34,6 @@ from typing import Final
 from supervisord.errors import ConfigError
 from supervisord.outputs import (
     OutputKind,
-    OutputRole,
     OutputSpec,
     parse_output_spec,
     spec_class,
@@ -47,7 +46,7 @@ from supervisord.safety.config import (
     REARM_HOLD_RANGE_MS,
     VSC_TIMEOUT_RANGE_MS,
     ClientSpec,
-    OutputClass,
+    OutputRole,
     SafetyConfig,
     Transport,
 )
@@ -750,9 +749,7 @@ class _Loader:
                     "vsc.require_watchdog", vsc_table.get("require_watchdog", MISSING), True
                 ),
                 clients=clients,
-                outputs=tuple(
-                    SafetyOutputSpec(spec.name, OutputClass(spec.role.value)) for spec in outputs
-                ),
+                outputs=tuple(SafetyOutputSpec(spec.name, spec.role) for spec in outputs),
             )
         except ConfigError as error:
             key = _SAFETY_KEYS.get(error.key, error.key)

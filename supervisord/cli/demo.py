@@ -286,6 +286,7 @@ class StoryDemo(Demo):
     def settle(self, limit: float = 10.0) -> None:
         """Wait until no stop condition is active, then for the re-arm hold time (§4)."""
         end = time.monotonic() + limit
+
         def stop_active() -> bool:
             causes = (self.status or {}).get("causes", [])
             return any(c.get("active") and c.get("severity") == "stop" for c in causes)

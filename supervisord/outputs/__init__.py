@@ -11,7 +11,6 @@ from supervisord.outputs.base import (
     OutputError,
     OutputFault,
     OutputKind,
-    OutputRole,
     OutputSpec,
     OutputUsageError,
     Periodic,
@@ -21,6 +20,7 @@ from supervisord.outputs.base import (
     parse_output_spec,
     spec_class,
 )
+from supervisord.safety.config import OutputRole
 
 __all__ = [
     "NS_PER_MS",

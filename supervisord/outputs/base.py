@@ -29,6 +29,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar, Final, Self, TypeVar
 
 from supervisord.errors import ConfigError, SrcsError
+from supervisord.safety.config import NAME_PATTERN, OutputRole  # one vocabulary with the core
 
 if TYPE_CHECKING:
     from can import BusABC
@@ -44,13 +45,6 @@ class OutputKind(enum.StrEnum):
     SIM = "sim"
     GPIO = "gpio"
     CAN = "can"
-
-
-class OutputRole(enum.StrEnum):
-    """What an output gates (safety-rules §1): "motion" is on only in RUN, "power" in HOLD too."""
-
-    MOTION = "motion"
-    POWER = "power"
 
 
 class OutputFault(enum.StrEnum):
@@ -215,9 +209,11 @@ class OutputSpec:
     role: OutputRole = OutputRole.MOTION
 
     def __post_init__(self) -> None:
-        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
+        if NAME_PATTERN.fullmatch(self.name) is None:
             raise ConfigError(
-                "outputs", self.name, "name outputs with letters, digits, '_' and '-' only"
+                "outputs",
+                self.name,
+                "name outputs with 1-32 letters, digits, '_', '.' or '-' (as clients)",
             )
 
     @classmethod

@@ -10,7 +10,7 @@ from __future__ import annotations
 from supervisord.safety.causes import Cause, CauseKind, CauseState, Details, Severity
 from supervisord.safety.config import (
     ClientSpec,
-    OutputClass,
+    OutputRole,
     OutputSpec,
     SafetyConfig,
     Transport,
@@ -81,8 +81,8 @@ __all__ = [
     "LinkOpened",
     "LocalEstop",
     "LocalRelease",
-    "OutputClass",
     "OutputReadback",
+    "OutputRole",
     "OutputSpec",
     "Rearm",
     "RearmKind",

@@ -29,8 +29,9 @@ class Transport(enum.Enum):
     HID = "hid"  # USB game controller: never a safety channel (notes §4)
 
 
-class OutputClass(enum.Enum):
-    """What an output enables (safety-rules.md §1)."""
+class OutputRole(enum.StrEnum):
+    """What an output enables (safety-rules.md §1; safety-rules call it the output's class,
+    the config file spells it ``role``)."""
 
     MOTION = "motion"  # on only in RUN
     POWER = "power"  # on in HOLD and RUN
@@ -97,17 +98,15 @@ class ClientSpec:
 
 @dataclass(frozen=True, slots=True)
 class OutputSpec:
-    """An enable line the supervisor gates, and its class (safety-rules.md §1, §6)."""
+    """An enable line the supervisor gates, and its role (safety-rules.md §1, §6)."""
 
     name: str
-    output_class: OutputClass
+    role: OutputRole
 
     def __post_init__(self) -> None:
         _name("outputs.name", self.name)
-        if not isinstance(self.output_class, OutputClass):
-            raise ConfigError(
-                f"outputs.{self.name}.class", self.output_class, 'use "motion" or "power"'
-            )
+        if not isinstance(self.role, OutputRole):
+            raise ConfigError(f"outputs.{self.name}.role", self.role, 'use "motion" or "power"')
 
 
 @dataclass(frozen=True, slots=True)
@@ -222,16 +221,16 @@ class SafetyConfig:
             clients.append(ClientSpec(name, timeout))
         outputs = []
         for entry in _list("outputs", data.get("outputs", [])):
-            table = _table("outputs", entry, {"name", "class"})
+            table = _table("outputs", entry, {"name", "role"})
             name = _name("outputs.name", table.get("name"))
-            class_text = table.get("class")
+            role_text = table.get("role")
             try:
-                output_class = OutputClass(class_text)
+                role = OutputRole(str(role_text))
             except ValueError:
                 raise ConfigError(
-                    f"outputs.{name}.class", class_text, 'use "motion" or "power"'
+                    f"outputs.{name}.role", role_text, 'use "motion" or "power"'
                 ) from None
-            outputs.append(OutputSpec(name, output_class))
+            outputs.append(OutputSpec(name, role))
         timeout_value = data.get("vsc_timeout_ms")
         return cls(
             transport=transport,

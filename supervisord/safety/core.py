@@ -32,7 +32,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.safety.book import CauseBook
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
-from supervisord.safety.config import NAME_PATTERN, NS_PER_MS, OutputClass, SafetyConfig, Transport
+from supervisord.safety.config import NAME_PATTERN, NS_PER_MS, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
     ChangeKind,
     Decision,
@@ -612,7 +612,7 @@ class SafetyCore:
         return MappingProxyType(
             {
                 o.name: state is State.RUN
-                if o.output_class is OutputClass.MOTION
+                if o.role is OutputRole.MOTION
                 else state is not State.STOPPED
                 for o in self._config.outputs
             }

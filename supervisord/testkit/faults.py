@@ -795,12 +795,15 @@ class Robot:
             )
             t_off = max(t_off, level.t)
         record = wait_until(
-            lambda: self._raising(cause, t_fault, prefix), what=f"a stop record raising {cause}"
+            lambda: self.record_raising(cause, t_fault, prefix),
+            what=f"a stop record raising {cause}",
         )
         assert record["to"] == "STOPPED", record
         return Stop(cause, t_fault, t_off, record)
 
-    def _raising(self, cause: str, since: float, prefix: bool) -> dict[str, Any] | None:
+    def record_raising(
+        self, cause: str, since: float, prefix: bool = False
+    ) -> dict[str, Any] | None:
         for record in self.records_since(since):
             for change in record.get("changes", []):
                 name = change["name"]

@@ -29,7 +29,7 @@ from supervisord.config import (
 )
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
-from supervisord.safety.config import OutputClass, Transport
+from supervisord.safety.config import Transport
 
 DELETE = object()
 """A change that removes the key."""
@@ -144,9 +144,7 @@ def test_base_config_is_valid(tmp_path: Path) -> None:
     assert config.safety.rearm_hold_ms == 500
     assert config.safety.local_reset is False
     assert [(c.name, c.timeout_ms) for c in config.safety.clients] == [("autonomy", 500)]
-    assert [(o.name, o.output_class) for o in config.safety.outputs] == [
-        ("drive", OutputClass.MOTION)
-    ]
+    assert [(o.name, o.role) for o in config.safety.outputs] == [("drive", OutputRole.MOTION)]
     assert config.vsc.reopen.min_ms == 100
     assert config.vsc.reopen.max_ms == 5000
     assert config.record.path == Path("/var/lib/srcsd/stops.jsonl")
@@ -428,10 +426,10 @@ def test_output_specs_and_safety_classes(tmp_path: Path) -> None:
         ("relay", OutputKind.GPIO, OutputRole.POWER),
         ("brake", OutputKind.GPIO, OutputRole.MOTION),
     ]
-    assert [(o.name, o.output_class) for o in config.safety.outputs] == [
-        ("drive", OutputClass.MOTION),
-        ("relay", OutputClass.POWER),
-        ("brake", OutputClass.MOTION),
+    assert [(o.name, o.role) for o in config.safety.outputs] == [
+        ("drive", OutputRole.MOTION),
+        ("relay", OutputRole.POWER),
+        ("brake", OutputRole.MOTION),
     ]
     assert getattr(config.outputs[1], "pulse_period_ms", None) == 10
 

@@ -17,7 +17,7 @@ from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import UserHeartbeat
 from supervisord.record.jsonl import Record, RecordWriter, read_records
-from supervisord.safety.config import OutputClass, OutputSpec, SafetyConfig
+from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.transitions import State
 from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
@@ -36,7 +36,7 @@ def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
     ]
     safety = SafetyConfig(
         rearm_hold_ms=100,
-        outputs=(OutputSpec("drive", OutputClass.MOTION), OutputSpec("lamp", OutputClass.POWER)),
+        outputs=(OutputSpec("drive", OutputRole.MOTION), OutputSpec("lamp", OutputRole.POWER)),
     )
     supervisor = Supervisor(
         safety,
@@ -123,7 +123,7 @@ def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:
     """With no VSC at start the daemon runs, holds the outputs off with transport_fault, and
     opens the port when it appears."""
     supervisor = Supervisor(
-        SafetyConfig(outputs=(OutputSpec("drive", OutputClass.MOTION),)),
+        SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
         SerialLink(str(tmp_path / "vsc")),
         [create_output(parse_output_spec("drive", {"kind": "sim"}))],
         None,
@@ -154,8 +154,8 @@ def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_p
     supervisor = Supervisor(
         SafetyConfig(
             outputs=(
-                OutputSpec("drive", OutputClass.MOTION),
-                OutputSpec("brake", OutputClass.MOTION),
+                OutputSpec("drive", OutputRole.MOTION),
+                OutputSpec("brake", OutputRole.MOTION),
             )
         ),
         SerialLink(str(tmp_path / "vsc")),
@@ -180,7 +180,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
         create_output(parse_output_spec("drive", {"kind": "sim", "path": str(late / "drive")}))
     ]
     supervisor = Supervisor(
-        SafetyConfig(outputs=(OutputSpec("drive", OutputClass.MOTION),)),
+        SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
         SerialLink(str(tmp_path / "vsc")),
         outputs,
         None,

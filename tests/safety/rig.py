@@ -18,7 +18,7 @@ from supervisord.safety import (
     Decision,
     Event,
     LinkOpened,
-    OutputClass,
+    OutputRole,
     OutputSpec,
     Request,
     ResetRequest,
@@ -40,7 +40,7 @@ NOBODY = Caller(uid=1001, pid=43, name="bob", admin=False)
 
 ROBOT = SafetyConfig(
     clients=(ClientSpec("planner"),),
-    outputs=(OutputSpec("drive", OutputClass.MOTION), OutputSpec("lights", OutputClass.POWER)),
+    outputs=(OutputSpec("drive", OutputRole.MOTION), OutputSpec("lights", OutputRole.POWER)),
 )
 """A serial robot with one required client, a motion output and a power output."""
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from supervisord.errors import ConfigError
-from supervisord.safety import ClientSpec, OutputClass, OutputSpec, SafetyConfig, Transport
+from supervisord.safety import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
 
 
 def test_defaults_follow_the_rules() -> None:
@@ -33,7 +33,7 @@ def test_defaults_follow_the_rules() -> None:
         ({"transport": "serial"}, "transport"),
         ({"transport": Transport.CAN}, "require_watchdog"),
         ({"clients": (ClientSpec("a"), ClientSpec("a"))}, "clients.name"),
-        ({"outputs": [OutputSpec("x", OutputClass.POWER)]}, "outputs"),
+        ({"outputs": [OutputSpec("x", OutputRole.POWER)]}, "outputs"),
     ],
 )
 def test_bad_values_are_refused(kwargs: dict[str, object], key: str) -> None:
@@ -69,12 +69,12 @@ def test_from_mapping_reads_a_parsed_file() -> None:
             "transport": "can",
             "require_watchdog": False,
             "clients": [{"name": "planner", "timeout_ms": 300}],
-            "outputs": [{"name": "drive", "class": "motion"}, {"name": "lamp", "class": "power"}],
+            "outputs": [{"name": "drive", "role": "motion"}, {"name": "lamp", "role": "power"}],
         }
     )
     assert config.transport is Transport.CAN
     assert config.clients == (ClientSpec("planner", 300),)
-    assert config.outputs[1] == OutputSpec("lamp", OutputClass.POWER)
+    assert config.outputs[1] == OutputSpec("lamp", OutputRole.POWER)
 
 
 @pytest.mark.parametrize(
@@ -84,7 +84,7 @@ def test_from_mapping_reads_a_parsed_file() -> None:
         ({"transport": "usb"}, "transport"),
         ({"transport": "can"}, "require_watchdog"),
         ({"clients": [{"name": "a", "timeout": 3}]}, "clients.timeout"),
-        ({"outputs": [{"name": "a", "class": "laser"}]}, "outputs.a.class"),
+        ({"outputs": [{"name": "a", "role": "laser"}]}, "outputs.a.role"),
         ({"clients": "planner"}, "clients"),
     ],
 )

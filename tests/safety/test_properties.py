@@ -42,8 +42,8 @@ from supervisord.safety import (
     LinkOpened,
     LocalEstop,
     LocalRelease,
-    OutputClass,
     OutputReadback,
+    OutputRole,
     RearmKind,
     Request,
     ResetRequest,
@@ -174,7 +174,7 @@ def _check(config: SafetyConfig, before: Decision, after: Decision, event: Event
         assert after.state is State.STOPPED
     for spec in config.outputs:
         on = after.outputs[spec.name]
-        if spec.output_class is OutputClass.MOTION:
+        if spec.role is OutputRole.MOTION:
             assert not on or after.state is State.RUN
         else:
             assert not on or after.state is not State.STOPPED

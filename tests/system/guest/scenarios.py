@@ -339,9 +339,19 @@ class Bench:
 # ---------------------------------------------------------------------------------- scenarios
 
 
+def install() -> None:
+    """The commands of docs/install.md, step 3, that need the running system (the files were
+    copied before the boot by guest/prep)."""
+    run("systemd-sysusers", "srcsd.conf")
+    run("systemd-tmpfiles", "--create", "srcsd.conf")
+    run("udevadm", "control", "--reload")
+    subsystems = ("--subsystem-match=tty", "--subsystem-match=hidraw", "--subsystem-match=gpio")
+    run("udevadm", "trigger", "--action=add", *subsystems)
+    run("systemctl", "daemon-reload")
+
+
 def scenario_install(_bench: Bench) -> tuple[str, Measured]:
     """srcsd@ installed as docs/install.md says: users, directories, units that verify."""
-    run("systemctl", "daemon-reload")
     verify = subprocess.run(
         ["systemd-analyze", "verify", "srcsd@gpio-a.service"],
         check=False,
@@ -665,6 +675,7 @@ socket = "/run/srcsd/api.sock"
 
 def powercut_burst() -> None:
     """Boot 2: srcsd keeps its record on the virtual disk; transitions until the power dies."""
+    install()
     run("mount", "-t", "ext4", str(RECORD_DISK), "/var/lib/srcsd")
     write_config("cut", POWERCUT_CONFIG + '[[outputs]]\nname = "drive"\nkind = "sim"\n')
     vsc = SerialVsc()
@@ -765,6 +776,7 @@ def describe(error: BaseException) -> str:
 
 def run_main() -> int:
     print("SRCS-PLAN " + " ".join(name for name, _ in MAIN), flush=True)
+    install()
     bench = Bench()
     failed = 0
     try:
