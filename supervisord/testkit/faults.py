@@ -54,6 +54,7 @@ from types import TracebackType
 from typing import Any, Literal
 
 from supervisord.client import ClientError, SupervisorClient
+from supervisord.errors import SrcsError
 from supervisord.record import Record, read_records
 from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
@@ -781,6 +782,17 @@ class Robot:
         """Promise 1 and 2: every output off within ``deadline_s`` + ``ALLOWANCE_S`` of
         ``t_fault``, and a record at or after ``t_fault`` that raises ``cause`` (with
         ``prefix``, any cause starting with it) with the state STOPPED after it."""
+        t_off = self.expect_off(t_fault, deadline_s)
+        record = wait_until(
+            lambda: self.record_raising(cause, t_fault, prefix),
+            what=f"a stop record raising {cause}",
+        )
+        assert record["to"] == "STOPPED", record
+        return Stop(cause, t_fault, t_off, record)
+
+    def expect_off(self, t_fault: float, deadline_s: float) -> float:
+        """Every output that was on at ``t_fault`` seen off within ``deadline_s`` +
+        ``ALLOWANCE_S``; the time the last one was seen off."""
         assert self.watcher is not None
         t_off = t_fault
         limit = deadline_s + ALLOWANCE_S
@@ -794,12 +806,7 @@ class Robot:
                 f"{deadline_s * 1000:.0f} ms (+{ALLOWANCE_S * 1000:.0f} ms scheduling)"
             )
             t_off = max(t_off, level.t)
-        record = wait_until(
-            lambda: self.record_raising(cause, t_fault, prefix),
-            what=f"a stop record raising {cause}",
-        )
-        assert record["to"] == "STOPPED", record
-        return Stop(cause, t_fault, t_off, record)
+        return t_off
 
     def record_raising(
         self, cause: str, since: float, prefix: bool = False
@@ -877,6 +884,23 @@ class Robot:
             assert off is None, f"{name} went off at +{(off.t - t) * 1000:.0f} ms"
         assert self.status()["state"] == "RUN"
 
+    def remote_estop_unrecorded(self, subscriber: SupervisorClient) -> Stop:
+        """``remote_estop`` when the record file may not take the record (a full disk): the
+        stop record is taken from the ``records`` pushes ``subscriber`` subscribed to."""
+        t = self.now()
+        self.vsc.estop()
+        t_off = self.expect_off(t, self.beat_s)
+        end = time.monotonic() + WAIT_S
+        while time.monotonic() < end:
+            push = subscriber.next_event(timeout=0.5)
+            if push is None or push.event != "record" or push.data["mono_ns"] < t * 1e9:
+                continue
+            changes = push.data.get("changes", [])
+            if any(c["name"] == "vsc_estop" and c["change"] == "raised" for c in changes):
+                assert push.data["to"] == "STOPPED", push.data
+                return Stop("vsc_estop", t, t_off, push.data)
+        raise FaultHarnessError("no stop record raising vsc_estop was pushed")
+
     def remote_estop(self) -> Stop:
         """The operator's e-stop button on the remote: the stop the VSC reports in its next
         heartbeat (safety-rules §2 ``vsc_estop``), at once. The button stays pressed."""
@@ -904,18 +928,14 @@ class Robot:
         assert self.daemon is not None
         filler = Path(f"/proc/{self.daemon.pid}/root") / self.record_dir.relative_to("/")
         written = 0
-        with (filler / "filler").open("wb") as out:
-            block = b"\0" * 4096
-            while True:
-                try:
-                    written += out.write(block)
-                    out.flush()
-                except OSError:
-                    break
-            with contextlib.suppress(OSError):
-                while out.write(b"\0"):
-                    out.flush()
-                    written += 1
+        fd = os.open(filler / "filler", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        try:
+            for size in (65536, 4096, 1):  # whole pages first, then the last bytes
+                with contextlib.suppress(OSError):
+                    while True:
+                        written += os.write(fd, b"\0" * size)
+        finally:
+            os.close(fd)
         return written
 
     def free_record_disk(self) -> None:
@@ -928,21 +948,37 @@ class Robot:
 
 
 def _client_main(args: argparse.Namespace) -> int:
-    """Hello, then heartbeats, reconnecting whenever the daemon closes the connection."""
-    say = _say
+    """Hello, then heartbeats, reconnecting whenever the daemon closes the connection.
+    SIGUSR1 makes it stall: it pipelines thousands of requests, never reads a reply, and
+    stops itself (SIGSTOP), as a program hung in the middle of its work."""
+    stall = threading.Event()
+    signal.signal(signal.SIGUSR1, lambda *_: stall.set())
     while True:
         try:
             with SupervisorClient.connect(args.socket, name=args.name, timeout=2.0) as api:
-                say("hello")
+                _say("hello")
                 if args.estop:
                     api.estop()
-                    say("estop")
-                while True:
+                    _say("estop")
+                while not stall.is_set():
                     api.heartbeat()
                     time.sleep(args.period)
-        except ClientError as error:
-            say(f"closed: {type(error).__name__}")
+                _stall(api)
+        except SrcsError as error:  # closed, refused (too_many_clients), timed out
+            _say(f"closed: {type(error).__name__}")
             time.sleep(0.05)
+
+
+def _stall(api: SupervisorClient) -> None:
+    with socket.socket(fileno=os.dup(api.fileno())) as raw:
+        raw.setblocking(False)
+        pending = b'{"op": "status"}\n' * 4096
+        with contextlib.suppress(OSError):
+            while pending:
+                pending = pending[raw.send(pending) :]
+        _say("stalled")
+        os.kill(os.getpid(), signal.SIGSTOP)
+        time.sleep(3600)
 
 
 def _flood_main(args: argparse.Namespace) -> int:
