@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -14,9 +12,10 @@ import pytest
 from supervisord.api.wire import ApiError
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
+from supervisord.testkit.daemon import SrcsdProcess
 from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
-from tests.daemon.test_srcsd import CONFIG, SRCSD, wait
+from tests.daemon.test_srcsd import CONFIG, wait
 
 REQUIRED_CLIENT = '\n[[clients]]\nname = "autonomy"\ntimeout_ms = 500\n'
 
@@ -27,60 +26,51 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
     local_reset is refused with the core's reason; a state push reaches subscribers."""
     (tmp_path / "robot.toml").write_text(CONFIG + REQUIRED_CLIENT)
     with PtyPort(tmp_path / "vsc") as port:
-        daemon = subprocess.Popen(
-            [SRCSD, "--config", str(tmp_path / "robot.toml")], stderr=subprocess.DEVNULL
-        )
         peer = VscPeer(port)
-        try:
-            wait(peer, (tmp_path / "api.sock").exists)
-            with SupervisorClient.connect(tmp_path / "api.sock") as robot:
-                robot.hello("autonomy")
-                robot.subscribe("state")
-                clear = time.monotonic() + 0.4
-                while time.monotonic() < clear:  # heartbeats at 10 Hz, VSC traffic flowing
-                    robot.heartbeat()
-                    peer.serve()
-                    time.sleep(0.02)
-                assert "client_lost:autonomy" not in {
-                    c["name"] for c in robot.status()["causes"] if c["active"]
-                }
-                peer.mode = VscMode.OPERATIONAL
-                deadline = time.monotonic() + 5
-                while robot.status()["state"] != "RUN":
-                    assert time.monotonic() < deadline
-                    robot.heartbeat()
-                    peer.serve()
-                    time.sleep(0.02)
-                assert (tmp_path / "drive").read_text() == "1\n"
+        with (
+            SrcsdProcess(tmp_path / "robot.toml").start(serve=peer.serve) as daemon,
+            SupervisorClient.connect(daemon.socket) as robot,
+        ):
+            robot.hello("autonomy")
+            robot.subscribe("state")
+            clear = time.monotonic() + 0.4
+            while time.monotonic() < clear:  # heartbeats at 10 Hz, VSC traffic flowing
+                robot.heartbeat()
+                peer.serve()
+                time.sleep(0.02)
+            assert "client_lost:autonomy" not in {
+                c["name"] for c in robot.status()["causes"] if c["active"]
+            }
+            peer.mode = VscMode.OPERATIONAL
+            deadline = time.monotonic() + 5
+            while robot.status()["state"] != "RUN":
+                assert time.monotonic() < deadline
+                robot.heartbeat()
+                peer.serve()
+                time.sleep(0.02)
+            assert (tmp_path / "drive").read_text() == "1\n"
 
-                with SupervisorClient.connect(tmp_path / "api.sock") as operator:
-                    operator.estop()  # no hello: the operator's local e-stop
-                    status = operator.status()
-                    assert status["state"] == "STOPPED"
-                    assert "local_estop" in {c["name"] for c in status["causes"] if c["active"]}
-                    assert (tmp_path / "drive").read_text() == "0\n"
-                    operator.release("estop")
-                    with pytest.raises(ApiError, match="local reset is not allowed"):
-                        operator.reset()
+            with SupervisorClient.connect(tmp_path / "api.sock") as operator:
+                operator.estop()  # no hello: the operator's local e-stop
+                status = operator.status()
+                assert status["state"] == "STOPPED"
+                assert "local_estop" in {c["name"] for c in status["causes"] if c["active"]}
+                assert (tmp_path / "drive").read_text() == "0\n"
+                operator.release("estop")
+                with pytest.raises(ApiError, match="local reset is not allowed"):
+                    operator.reset()
 
-                pushes = []
-                while (push := robot.next_event(timeout=0.2)) is not None:
-                    pushes.append(push)
-                assert any(p.event == "state" and p.data["state"] == "STOPPED" for p in pushes)
-            daemon.send_signal(signal.SIGTERM)
-            assert daemon.wait(timeout=10) == 0
-        finally:
-            if daemon.poll() is None:
-                daemon.kill()
-                daemon.wait()
+            pushes = []
+            while (push := robot.next_event(timeout=0.2)) is not None:
+                pushes.append(push)
+            assert any(p.event == "state" and p.data["state"] == "STOPPED" for p in pushes)
+    assert daemon.exit_status == 0
     assert not (tmp_path / "api.sock").exists()
 
 
-def _daemon(tmp_path: Path, config: str = CONFIG) -> subprocess.Popen[bytes]:
-    (tmp_path / "robot.toml").write_text(config)
-    return subprocess.Popen(
-        [SRCSD, "--config", str(tmp_path / "robot.toml")], stderr=subprocess.DEVNULL
-    )
+def _daemon(tmp_path: Path, peer: VscPeer | None = None) -> SrcsdProcess:
+    (tmp_path / "robot.toml").write_text(CONFIG)
+    return SrcsdProcess(tmp_path / "robot.toml").start(serve=peer.serve if peer else lambda: None)
 
 
 def _active(status: dict[str, object]) -> set[str]:
@@ -95,23 +85,15 @@ def test_commissioning_writes_key85_reads_it_back_and_records_it(tmp_path: Path)
     carries what was read back, the record has a ``commissioned`` entry, and the cause clears."""
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port, key85=0)
-        daemon = _daemon(tmp_path)
-        try:
-            wait(peer, (tmp_path / "api.sock").exists)
-            with SupervisorClient.connect(tmp_path / "api.sock") as admin:
-                wait(peer, lambda: "vsc_watchdog_off" in _active(admin.status()))
-                with peer.serving():
-                    reply = admin.commission()
-                assert (reply["key85"], reply["remote_status"]) == (1, True)
-                assert peer.key85 == 1
-                assert peer.remote_status_ms == 1000
-                wait(peer, lambda: "vsc_watchdog_off" not in _active(admin.status()))
-            daemon.send_signal(signal.SIGTERM)
-            assert daemon.wait(timeout=10) == 0
-        finally:
-            if daemon.poll() is None:
-                daemon.kill()
-                daemon.wait()
+        with _daemon(tmp_path, peer) as daemon, SupervisorClient.connect(daemon.socket) as admin:
+            wait(peer, lambda: "vsc_watchdog_off" in _active(admin.status()))
+            with peer.serving():
+                reply = admin.commission()
+            assert (reply["key85"], reply["remote_status"]) == (1, True)
+            assert peer.key85 == 1
+            assert peer.remote_status_ms == 1000
+            wait(peer, lambda: "vsc_watchdog_off" not in _active(admin.status()))
+    assert daemon.exit_status == 0
     records = [json.loads(line) for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
     [entry] = [r for r in records if r["kind"] == "commissioned"]
     assert entry["reason"] == "key85=1 remote_status=on"
@@ -124,20 +106,16 @@ def test_commissioning_that_reads_nothing_back_fails_and_is_recorded(tmp_path: P
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port, key85=0)
         peer.answers_feedback = False
-        daemon = _daemon(tmp_path)
-        try:
-            wait(peer, (tmp_path / "api.sock").exists)
-            with SupervisorClient.connect(tmp_path / "api.sock") as admin, peer.serving():
-                with pytest.raises(ApiError, match="key 85 reads back no answer") as failure:
-                    admin.commission()
-                assert failure.value.code == "failed"
-                assert failure.value.extra["key85"] is None
-            daemon.send_signal(signal.SIGTERM)
-            assert daemon.wait(timeout=10) == 0
-        finally:
-            if daemon.poll() is None:
-                daemon.kill()
-                daemon.wait()
+        with (
+            _daemon(tmp_path, peer) as daemon,
+            SupervisorClient.connect(daemon.socket) as admin,
+            peer.serving(),
+        ):
+            with pytest.raises(ApiError, match="key 85 reads back no answer") as failure:
+                admin.commission()
+            assert failure.value.code == "failed"
+            assert failure.value.extra["key85"] is None
+    assert daemon.exit_status == 0
     kinds = [
         json.loads(line)["kind"] for line in (tmp_path / "stops.jsonl").read_text().splitlines()
     ]
@@ -146,19 +124,8 @@ def test_commissioning_that_reads_nothing_back_fails_and_is_recorded(tmp_path: P
 
 def test_commissioning_without_a_link_is_unavailable(tmp_path: Path) -> None:
     """No VSC at the port: nothing to write to, said at once."""
-    daemon = _daemon(tmp_path)
-    try:
-        deadline = time.monotonic() + 10
-        while not (tmp_path / "api.sock").exists():
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-        with SupervisorClient.connect(tmp_path / "api.sock") as admin:
-            with pytest.raises(ApiError, match="no link to the VSC") as failure:
-                admin.commission()
-            assert failure.value.code == "unavailable"
-        daemon.send_signal(signal.SIGTERM)
-        assert daemon.wait(timeout=10) == 0
-    finally:
-        if daemon.poll() is None:
-            daemon.kill()
-            daemon.wait()
+    with _daemon(tmp_path) as daemon, SupervisorClient.connect(daemon.socket) as admin:
+        with pytest.raises(ApiError, match="no link to the VSC") as failure:
+            admin.commission()
+        assert failure.value.code == "unavailable"
+    assert daemon.exit_status == 0

@@ -14,9 +14,10 @@ from pathlib import Path
 import pytest
 
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
+from supervisord.testkit.daemon import SrcsdProcess
 from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
-from tests.daemon.test_srcsd import CONFIG, SRCSD, wait
+from tests.daemon.test_srcsd import CONFIG
 
 SRCSCTL = shutil.which("srcsctl") or str(Path(__file__).parents[2] / ".venv/bin/srcsctl")
 
@@ -57,19 +58,12 @@ def robot(tmp_path: Path) -> Iterator[Robot]:
     (tmp_path / "robot.toml").write_text(CONFIG)
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port)
-        daemon = subprocess.Popen(
-            [SRCSD, "--config", str(tmp_path / "robot.toml")], stderr=subprocess.DEVNULL
-        )
-        try:
-            wait(peer, (tmp_path / "api.sock").exists)
-            with peer.serving():
-                yield Robot(tmp_path, peer)
-            daemon.send_signal(signal.SIGTERM)
-            assert daemon.wait(timeout=10) == 0
-        finally:
-            if daemon.poll() is None:
-                daemon.kill()
-                daemon.wait()
+        with (
+            SrcsdProcess(tmp_path / "robot.toml").start(serve=peer.serve) as daemon,
+            peer.serving(),
+        ):
+            yield Robot(tmp_path, peer)
+    assert daemon.exit_status == 0
 
 
 def test_status_in_both_forms(robot: Robot) -> None:

@@ -1,0 +1,107 @@
+"""Run the real ``srcsd`` from tests, as a user or systemd would start it.
+
+    with SrcsdProcess(tmp_path / "robot.toml") as daemon:   # waits for the API socket
+        ...
+    assert daemon.exit_status == 0                         # SIGTERM on leaving: a clean stop
+
+The process is ``sys.executable -m supervisord.cli.srcsd --config FILE``, so it runs from a
+virtual environment whether or not the entry point is installed. Leaving the ``with`` block
+sends SIGTERM and waits (safety-rules.md §6: outputs off, record flushed, exit 0); a daemon
+that does not stop within the timeout is killed and its status is then negative.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Self
+
+from supervisord.config import load_config
+from supervisord.errors import SrcsError
+
+
+class DaemonError(SrcsError):
+    """``srcsd`` exited early or never opened its API socket."""
+
+
+class SrcsdProcess:
+    """``srcsd --config config``; ``socket`` is the config's ``[api] socket``."""
+
+    def __init__(
+        self,
+        config: str | Path,
+        *,
+        env: Mapping[str, str] | None = None,
+        log: Path | None = None,
+        ready_timeout: float = 15.0,
+    ) -> None:
+        self.config = Path(config)
+        self.socket = load_config(self.config).api.socket
+        self.env = dict(env) if env is not None else None
+        self.log = log
+        self.ready_timeout = ready_timeout
+        self.process: subprocess.Popen[bytes] | None = None
+        self.exit_status: int | None = None
+
+    def start(self, *, serve: Callable[[], object] = lambda: None) -> Self:
+        """Start it and wait until its API socket exists; ``serve`` runs while waiting (e.g.
+        a test's own VSC peer, which must answer for the daemon to get anywhere)."""
+        with open(self.log or "/dev/null", "ab") as out:
+            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+                [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config)],
+                stdin=subprocess.DEVNULL,
+                stdout=out,
+                stderr=out,
+                env=self.env,
+            )
+        end = time.monotonic() + self.ready_timeout
+        while not self.socket.exists():
+            if self.process.poll() is not None:
+                raise DaemonError(f"srcsd exited with {self.process.returncode}")
+            if time.monotonic() > end:
+                self.kill()
+                raise DaemonError(f"srcsd did not open {self.socket} in {self.ready_timeout} s")
+            serve()
+            time.sleep(0.005)
+        return self
+
+    @property
+    def pid(self) -> int:
+        assert self.process is not None
+        return self.process.pid
+
+    def running(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGTERM, then wait; the exit status (negative: it had to be killed)."""
+        assert self.process is not None
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.kill()
+        self.exit_status = self.process.returncode
+        return self.exit_status
+
+    def kill(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+    def __enter__(self) -> Self:
+        return self if self.process is not None else self.start()
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.stop()
