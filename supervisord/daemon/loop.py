@@ -416,8 +416,14 @@ class Supervisor:
         return OutputReadback(now, readback.name, readback.requested, observed)
 
     def _apply(self, decision: Decision) -> None:
-        """Outputs first, then frames, then records and status (safety-rules.md §6)."""
-        for _ in range(MAX_SETTLE_STEPS):
+        """Outputs first, then frames, then records and status (safety-rules.md §6).
+
+        Setting outputs yields read-backs, which go back to the core; every decision that
+        comes of them is applied in turn, so none of their records is lost (a read-back fault
+        is a stop of its own, §7)."""
+        pending, fed = [decision], 0
+        while pending:
+            decision = pending.pop(0)
             changed = [
                 (output, on)
                 for name, on in decision.outputs.items()
@@ -425,13 +431,11 @@ class Supervisor:
                 and output.is_open
                 and output.requested != on
             ]
-            if not changed:
-                break
             readbacks = [output.set(on, decision.now) for output, on in changed]
             self._finish(decision)
-            for readback in readbacks:
-                decision = self._feed(self._readback_event(readback, decision.now))
-        self._finish(decision)
+            if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
+                fed += 1
+                pending += [self._feed(self._readback_event(r, decision.now)) for r in readbacks]
 
     def _finish(self, decision: Decision) -> None:
         if decision is self.decision:

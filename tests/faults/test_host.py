@@ -97,11 +97,6 @@ def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
             assert robot.output_file("power") is False
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="daemon bug: the decision of a read-back fault is replaced by the next output's "
-    "read-back in Supervisor._apply before its records are written (docs/faults.md)",
-)
 def test_output_fault_stop_is_recorded(tmp_path: Path) -> None:
     """§7 "every change of state and every cause raised or cleared is one record": the stop
     of ``test_output_stuck_off_is_an_output_fault`` (RUN -> STOPPED, ``output_fault:drive``
