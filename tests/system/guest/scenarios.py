@@ -28,19 +28,16 @@ from typing import Any
 import can
 
 from supervisord.client import SupervisorClient
-from supervisord.protocol.codes import VscMode
-from supervisord.protocol.framing import FrameDecoder, encode_frame
-from supervisord.protocol.j1939 import encode_can
-from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.testkit.sim import SimProcess
 
 MARKER = Path("/.srcs-system-tier")
 GPIO_SIM = Path("/sys/kernel/config/gpio-sim")
-VSC_PORT = Path("/dev/srcs-vsc")
 CHIP_LABEL = "srcs-sim-gpio"
 RECORD_DISK = Path("/dev/vda")
 KEY85_WINDOW_S = 0.5  # the VSC's user watchdog (key 85): no user heartbeat for this long
+VSC_LINK = "/dev/srcs-vsc"  # where 60-srcs.rules puts the real VSC's port
 
 Measured = dict[str, Any]
 
@@ -138,83 +135,57 @@ class GpioSim:
 # ---------------------------------------------------------------------------------- the VSC
 
 
-class SerialVsc:
-    """A minimal VSC on a pty at /dev/srcs-vsc: heartbeats in ``mode`` with ``estop``, key 85
-    answered with 1, and the key-85 watchdog: no user heartbeat for 500 ms trips it."""
-
-    def __init__(self) -> None:
-        self.port = PtyPort(VSC_PORT)
-        self._own_port()
-        self.mode = VscMode.LOCAL
-        self.estop = 0
-        self.last_user_heartbeat: float | None = None
-        self.trips: list[float] = []  # monotonic times the watchdog tripped
-        self._tripped = False
-        self._decoder = FrameDecoder()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._serve, daemon=True)
-        self._thread.start()
-
-    def _own_port(self) -> None:
-        # What 60-srcs.rules does for the real port: group srcs-dev, mode 0660.
-        target = os.path.realpath(VSC_PORT)
+def start_sim(workdir: str, *, on_can: str | None = None) -> SimProcess:
+    """srcs-sim on the pty at /dev/srcs-vsc (or on ``on_can``); key 85 commissioned on serial."""
+    sim = SimProcess(
+        Path("/run/srcs-tier", workdir), serial=VSC_LINK, can=on_can, ready_timeout=120
+    )
+    sim.control.timeout = 30  # replies are slow under emulation, not lost
+    sim.start()
+    if sim.serial_path is not None:
+        # What 60-srcs.rules does for a real VSC: group srcs-dev, mode 0660.
+        target = os.path.realpath(sim.serial_path)
         os.chown(target, -1, grp.getgrnam("srcs-dev").gr_gid)
         os.chmod(target, 0o660)
-
-    def _serve(self) -> None:
-        next_beat = 0.0
-        while not self._stop.is_set():
-            now = time.monotonic()
-            for message in self._decoder.feed(self.port.read(0.01)):
-                if isinstance(message, UserHeartbeat):
-                    self.last_user_heartbeat = time.monotonic()
-                    self._tripped = False
-                elif message == FeedbackGet(85):
-                    self.port.write(encode_frame(FeedbackSet(85, 1)))
-            last = self.last_user_heartbeat
-            if last is not None and not self._tripped and now - last > KEY85_WINDOW_S:
-                self._tripped = True
-                self.trips.append(now)
-            if now >= next_beat:
-                next_beat = now + 0.05
-                self.port.write(encode_frame(VscHeartbeat(self.mode, estop=self.estop)))
-
-    def takeover(self) -> None:
-        """The operator's takeover on the remote: out of Operational, then into it again."""
-        self.mode = VscMode.LOCAL
-        time.sleep(0.3)
-        self.mode = VscMode.OPERATIONAL
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join()
-        self.port.unplug()
+        sim.control.key(85, 1)
+    return sim
 
 
-class CanVsc:
-    """A minimal VSC on vcan0: J1939 heartbeat frames every 50 ms with ``mode`` and ``estop``."""
+def watchdog_tripped(sim: SimProcess) -> bool:
+    """The VSC's key-85 watchdog has set its e-stop bit (no user heartbeat for 500 ms)."""
+    return "user_timeout" in sim.control.state()["estop_bits"]
 
-    def __init__(self, channel: str) -> None:
-        self.bus = can.Bus(interface="socketcan", channel=channel)
-        self.mode = VscMode.LOCAL
-        self.estop = 0
-        self.estop_sent: float | None = None
+
+class Timeline:
+    """Every level change of some gpio-sim lines, sampled in a thread: (seconds, line, level)."""
+
+    def __init__(self, gpio: GpioSim, lines: tuple[int, ...]) -> None:
+        self.gpio, self.lines = gpio, lines
+        self.t0 = time.monotonic()
+        self.changes: list[tuple[float, int, int]] = [
+            (self.t0, line, gpio.value(line)) for line in lines
+        ]
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread = threading.Thread(target=self._sample, daemon=True)
         self._thread.start()
 
-    def _serve(self) -> None:
+    def _sample(self) -> None:
+        last = {line: level for _, line, level in self.changes}
         while not self._stop.is_set():
-            frame = encode_can(VscHeartbeat(self.mode, estop=self.estop))
-            self.bus.send(can.Message(arbitration_id=frame.arbitration_id, data=frame.data))
-            if self.estop and self.estop_sent is None:
-                self.estop_sent = time.monotonic()
-            time.sleep(0.05)
+            for line in self.lines:
+                level = self.gpio.value(line)
+                if level != last[line]:
+                    last[line] = level
+                    self.changes.append((time.monotonic(), line, level))
+            time.sleep(0.002)
 
-    def close(self) -> None:
+    def stop(self) -> None:
         self._stop.set()
         self._thread.join()
-        self.bus.shutdown()
+
+    def of(self, line: int) -> list[tuple[float, int]]:
+        """(seconds since ``t0``, level) of each change of ``line``; negative: before t0."""
+        return [(round(t - self.t0, 3), level) for t, n, level in self.changes if n == line]
 
 
 # ---------------------------------------------------------------------------------- srcsd
@@ -251,6 +222,9 @@ GPIO_CONFIG = """
 transport = "serial"
 port = "/dev/srcs-vsc"
 require_watchdog = true
+# The largest allowed: under emulation srcs-sim's 50 ms heartbeats reach srcsd up to a few
+# hundred ms late when three Python processes share one emulated CPU (docs/system-tier.md).
+timeout_ms = 1000
 
 [rearm]
 hold_ms = 500
@@ -299,7 +273,7 @@ class Bench:
         # The wiring docs/outputs.md asks for: a pull-up on the active-low brake line, so
         # that a released line means "off"; the others are pulled down (gpio-sim's default).
         self.gpio.pull(BRAKE, up=True)
-        self.vsc = SerialVsc()
+        self.sim = start_sim("gpio")
         write_config(self.instance, GPIO_CONFIG)
 
     def levels(self) -> tuple[int, int, int]:
@@ -316,7 +290,7 @@ class Bench:
     def to_run(self, timeout: float = 30) -> float:
         """Take over on the remote until RUN; returns the seconds it took."""
         start = time.monotonic()
-        self.vsc.takeover()
+        self.sim.control.takeover()
         wait_state(self.instance, "RUN", timeout)
         return time.monotonic() - start
 
@@ -332,7 +306,7 @@ class Bench:
 
     def close(self) -> None:
         subprocess.run(["systemctl", "stop", self.unit], check=False)
-        self.vsc.close()
+        self.sim.stop()
         self.gpio.close()
 
 
@@ -384,16 +358,15 @@ def scenario_install(_bench: Bench) -> tuple[str, Measured]:
 
 def scenario_gpio(bench: Bench) -> tuple[str, Measured]:
     """Outputs on gpio-sim lines: off at start, on after takeover, off on a remote e-stop."""
-    gpio, vsc, unit = bench.gpio, bench.vsc, bench.unit
+    gpio, sim, unit = bench.gpio, bench.sim, bench.unit
     start = time.monotonic()
     run("systemctl", "start", unit)  # Type=notify: returns once srcsd said READY=1
     started = time.monotonic() - start
     pid = main_pid(unit)
     proc = Path(f"/proc/{pid}/status").read_text()
-    uid = next(line.split()[1] for line in proc.splitlines() if line.startswith("Uid:"))
-    check(uid == str(run("id", "-u", "srcsd")), f"srcsd runs as uid {uid}, not as srcsd")
-    caps = next(line.split()[1] for line in proc.splitlines() if line.startswith("CapEff:"))
-    check(int(caps, 16) == 0, f"srcsd has capabilities {caps}")
+    fields = {line.split(":")[0]: line.split()[1:] for line in proc.splitlines() if ":" in line}
+    check(fields["Uid"][0] == run("id", "-u", "srcsd"), f"srcsd runs as uid {fields['Uid']}")
+    check(int(fields["CapEff"][0], 16) == 0, f"srcsd has capabilities {fields['CapEff']}")
     bench.assert_off("after start")
     wait_state(bench.instance, "STOPPED", 30)
     to_run = bench.to_run()
@@ -401,65 +374,56 @@ def scenario_gpio(bench: Bench) -> tuple[str, Measured]:
     check((drive, brake) == (1, 0), f"in RUN: drive={drive} brake={brake}, expected 1 and 0")
     pulses = gpio.edges(RELAY, 1.0)
     check(pulses >= 4, f"in RUN: pulsed relay changed {pulses} times in 1 s, expected ~20")
-    # The remote e-stop: the VSC's heartbeat carries a non-zero e-stop word.
+    # The remote e-stop: srcs-sim's next heartbeat (every 50 ms) carries the e-stop word.
     t0 = time.monotonic()
-    vsc.estop = 1
+    sim.control.estop()
     off = wait_for("drive off after the e-stop", lambda: gpio.value(DRIVE) == 0, 10, 0.002)
-    brake_off = time.monotonic() - t0
     wait_for("brake off", lambda: gpio.value(BRAKE) == 1, 10, 0.002)
     brake_off = time.monotonic() - t0
     wait_state(bench.instance, "STOPPED", 10)
     bench.assert_off("after the e-stop")
     causes = [c["name"] for c in status(bench.instance)["causes"]]
     check("vsc_estop" in causes, f"causes after the e-stop: {causes}")
-    vsc.estop = 0
-    time.sleep(0.7)
-    check(gpio.value(DRIVE) == 0, "released e-stop alone re-enabled motion")
+    sim.control.release()
+    time.sleep(1.0)
+    check(gpio.value(DRIVE) == 0, "releasing the e-stop alone re-enabled motion")
     again = bench.to_run()
     check(gpio.value(DRIVE) == 1, "no motion after the second takeover")
     return "off at start; takeover raises, remote e-stop drops (active-low, pulsed too)", {
         "systemctl start (to READY=1) s": round(started, 2),
         "takeover to RUN s": round(to_run, 2),
         "relay edges in 1 s of RUN (50 ms period)": pulses,
-        "e-stop frame to drive line off ms": round(off * 1000),
-        "e-stop frame to brake line off ms": round(brake_off * 1000),
+        "e-stop request to drive line off ms": round(off * 1000),
+        "e-stop request to brake line off ms": round(brake_off * 1000),
         "second takeover to RUN s": round(again, 2),
     }
 
 
 def scenario_hang(bench: Bench) -> tuple[str, Measured]:
     """SIGSTOP in RUN: the VSC's watchdog trips, systemd kills and restarts; STOPPED after."""
-    vsc, unit = bench.vsc, bench.unit
+    sim, unit = bench.sim, bench.unit
     if state(bench.instance) != "RUN":
         bench.to_run()
     pid = main_pid(unit)
     restarts = int(prop(unit, "NRestarts"))
-    trips = len(vsc.trips)
+    timeline = Timeline(bench.gpio, (DRIVE, BRAKE, RELAY))
+    time.sleep(0.3)  # the sampler is running before the signal goes out
     t0 = time.monotonic()
     os.kill(pid, signal.SIGSTOP)
-    # What the lines do while the process is stopped but still holds them.
-    held: list[tuple[float, int, int, int]] = []
-    dead_at: float | None = None
-    while time.monotonic() - t0 < 30:
-        now = time.monotonic() - t0
-        held.append((now, *bench.levels()))
-        if dead_at is None and not Path(f"/proc/{pid}").exists():
-            dead_at = now
-        if dead_at is not None and now - dead_at > 0.5:
-            break
-        time.sleep(0.01)
-    check(len(vsc.trips) > trips, "the VSC's key-85 watchdog did not trip")
-    trip = vsc.trips[trips] - t0
-    check(dead_at is not None, "systemd did not kill the hung supervisor within 30 s")
-    assert dead_at is not None
-    while_stopped = [h for h in held if h[0] < dead_at]
-    drive_held = all(h[1] == 1 for h in while_stopped)
-    relay_levels = {h[3] for h in while_stopped[len(while_stopped) // 2 :]}
-    after = [h for h in held if h[0] > dead_at + 0.2]
-    check(bool(after) and all(h[1] == 0 and h[2] == 1 for h in after), "lines not off once dead")
+    timeline.t0 = t0  # times in the timeline are from here on relative to the SIGSTOP
+    wait_for("the VSC's key-85 watchdog", lambda: watchdog_tripped(sim), 10, 0.02)
+    trip = time.monotonic() - t0
+    wait_for("systemd kills it", lambda: not Path(f"/proc/{pid}").exists(), 30, 0.01)
+    dead = time.monotonic() - t0
+    time.sleep(0.5)
+    timeline.stop()
+    drive, relay = timeline.of(DRIVE), timeline.of(RELAY)
+    check(all(level == 1 for t, level in drive if 0 <= t < dead - 0.3), "drive changed while hung")
+    pulses_after = [t for t, _ in relay if 0.1 < t < dead - 0.3]
+    check(not pulses_after, f"pulsed relay kept toggling while hung: {pulses_after[:5]}")
+    check(bench.levels()[:2] == (0, 1), f"lines not off once dead: {bench.levels()}")
     _, took = bench.restarted(pid, 60)
     check(int(prop(unit, "NRestarts")) == restarts + 1, "NRestarts did not grow by one")
-    check(prop(unit, "Result") == "success", f"unit result {prop(unit, 'Result')}")
     log(journal(unit)[-1500:])
     restarted_state = state(bench.instance)
     check(restarted_state == "STOPPED", f"restarted supervisor is {restarted_state}, not STOPPED")
@@ -467,61 +431,61 @@ def scenario_hang(bench: Bench) -> tuple[str, Measured]:
     time.sleep(1.0)
     check(state(bench.instance) == "STOPPED", "left STOPPED without a takeover")
     back = bench.to_run()
-    return "watchdog trips, systemd kills and restarts, STOPPED until takeover", {
-        "SIGSTOP to VSC key-85 trip ms": round(trip * 1000),
-        "SIGSTOP to process killed by systemd s": round(dead_at, 2),
-        "drive line while stopped (before the kill)": "held on" if drive_held else "changed",
-        "pulsed relay while stopped": f"frozen at {sorted(relay_levels)}",
-        "lines after the kill (released)": "drive 0, brake 1 (pull-up), relay 0",
-        "SIGSTOP to restarted and READY s": round(dead_at + took, 2),
+    drive_off = next((t for t, level in drive if level == 0 and t >= 0), None)
+    return "VSC watchdog trips, systemd kills and restarts, STOPPED until takeover", {
+        "SIGSTOP to VSC key-85 trip ms (polled)": round(trip * 1000),
+        "SIGSTOP to process gone s": round(dead, 2),
+        "drive line (t s, level) after SIGSTOP": drive,
+        "brake line (active-low) after SIGSTOP": timeline.of(BRAKE),
+        "relay line (pulsed) around SIGSTOP": relay[-6:],
+        "drive line held on while hung s": drive_off,
+        "SIGSTOP to restarted and READY s": round(dead + took, 2),
         "takeover after restart to RUN s": round(back, 2),
     }
 
 
 def scenario_crash(bench: Bench) -> tuple[str, Measured]:
     """SIGKILL in RUN, then a restart-limit storm: lines released off, the VSC trips, STOPPED."""
-    gpio, vsc, unit = bench.gpio, bench.vsc, bench.unit
+    gpio, sim, unit = bench.gpio, bench.sim, bench.unit
     if state(bench.instance) != "RUN":
         bench.to_run()
     run("systemctl", "reset-failed", unit)
     pid = main_pid(unit)
-    trips = len(vsc.trips)
     t0 = time.monotonic()
     os.kill(pid, signal.SIGKILL)
     off = wait_for("drive released", lambda: gpio.value(DRIVE) == 0, 10, 0.002)
     check(gpio.value(BRAKE) == 1, "brake line not off after the crash")
-    wait_for("VSC watchdog trip", lambda: len(vsc.trips) > trips, 5, 0.01)
-    trip = vsc.trips[trips] - t0
+    wait_for("the VSC's key-85 watchdog", lambda: watchdog_tripped(sim), 10, 0.02)
+    trip = time.monotonic() - t0
     _, took = bench.restarted(pid, 60)
     check(state(bench.instance) == "STOPPED", "restarted supervisor not STOPPED")
     bench.assert_off("after the crash restart")
     # The storm: kill every new process as soon as it is up, until systemd gives up.
     kills = 1
+    cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
     storm_start = time.monotonic()
-    while prop(unit, "ActiveState") != "failed" and time.monotonic() - storm_start < 180:
+    while prop(unit, "ActiveState") != "failed" and time.monotonic() - storm_start < 240:
         pid = main_pid(unit)
-        if pid and prop(unit, "ActiveState") == "active":
-            os.kill(pid, signal.SIGKILL)
-            kills += 1
-        time.sleep(0.2)
-    result = prop(unit, "Result")
-    check(result == "start-limit-hit", f"after {kills} kills the unit's result is {result}")
+        if pid and prop(unit, "ActiveState") in ("active", "activating"):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+                kills += 1
+        time.sleep(0.1)
     storm = time.monotonic() - storm_start
+    check(prop(unit, "ActiveState") == "failed", "the unit never gave up")
+    told = journal(unit, cursor)
+    check("Start request repeated too quickly" in told, "failed, but not by the start limit")
     bench.assert_off("after the restart limit")
-    time.sleep(KEY85_WINDOW_S * 2)
-    check(vsc.last_user_heartbeat is not None, "no user heartbeat ever")
-    assert vsc.last_user_heartbeat is not None
-    silent = time.monotonic() - vsc.last_user_heartbeat
-    check(silent > KEY85_WINDOW_S, "user heartbeats continue with the unit failed")
+    check(watchdog_tripped(sim), "the VSC's watchdog is not tripped with the unit failed")
     run("systemctl", "reset-failed", unit)
     run("systemctl", "start", unit)
     check(state(bench.instance) == "STOPPED", "started again after the storm: not STOPPED")
     back = bench.to_run()
-    return "lines off at once, VSC trips, restart STOPPED; storm ends in start-limit-hit", {
+    return "lines off at once, VSC trips, restart STOPPED; the storm ends at the start limit", {
         "SIGKILL to drive line off ms": round(off * 1000),
-        "SIGKILL to VSC key-85 trip ms": round(trip * 1000),
+        "SIGKILL to VSC key-85 trip ms (polled)": round(trip * 1000),
         "SIGKILL to restarted and READY s": round(took, 2),
-        "kills until start-limit-hit": kills,
+        "kills until the start limit": kills,
         "storm duration s": round(storm, 1),
         "takeover after the storm to RUN s": round(back, 2),
     }
@@ -573,6 +537,7 @@ transport = "can"
 interface = "socketcan"
 channel = "vcan0"
 require_watchdog = false
+timeout_ms = 1000  # as in the GPIO config: emulation delays, not the supervisor's bound
 
 [rearm]
 hold_ms = 500
@@ -597,62 +562,75 @@ socket = "/run/srcsd/can-a/api.sock"
 
 
 def scenario_can(_bench: Bench) -> tuple[str, Measured]:
-    """A CAN VSC on vcan0: enable frames on the bus, the off frame at once after a stop."""
+    """srcs-sim on vcan0: enable frames on the bus, the off frame at once after a stop."""
     run("ip", "link", "add", "dev", "vcan0", "type", "vcan")
     run("ip", "link", "set", "up", "vcan0")
     write_config("can-a", CAN_CONFIG)
-    vsc = CanVsc("vcan0")
+    sim = start_sim("can", on_can="socketcan:vcan0")
     unit = "srcsd@can-a.service"
     bus = can.Bus(interface="socketcan", channel="vcan0")
     try:
         run("systemctl", "start", unit)
-        frames = collect(bus, 0x201, 1.0)
-        check(bool(frames), "no enable frames at all")
-        check(all(f[1][0] == 0x06 for f in frames), "on frame before any takeover")
-        vsc.mode = VscMode.LOCAL
-        time.sleep(0.3)
-        vsc.mode = VscMode.OPERATIONAL
+        frames = collect(bus, 1.0)
+        enable = [f for f in frames if f.arbitration_id == 0x201]
+        check(bool(enable), "no enable frames at all")
+        check(all(f.data[0] == 0x06 for f in enable), "on frame before any takeover")
+        sim.control.takeover()
         wait_state("can-a", "RUN", 30)
-        frames = collect(bus, 0x201, 1.0)
-        on = [f for f in frames if f[1][0] == 0x0F]
+        frames = collect(bus, 1.0)
+        on = [f for f in frames if f.arbitration_id == 0x201 and f.data[0] == 0x0F]
         check(len(on) >= 5, f"only {len(on)} on frames in 1 s of RUN")
-        counters = [f[1][7] & 0x0F for f in on]
+        counters = [f.data[7] & 0x0F for f in on]
         check(all(a != b for a, b in itertools.pairwise(counters)), "counter stuck")
-        gaps = [b[0] - a[0] for a, b in itertools.pairwise(on)]
-        vsc.estop = 1
-        after = collect(bus, 0x201, 1.5)
-        sent = vsc.estop_sent
-        check(sent is not None, "the e-stop frame was not sent")
-        assert sent is not None
-        first_off = next((f[0] for f in after if f[1][0] == 0x06 and f[0] >= sent), None)
+        gaps = sorted(b.timestamp - a.timestamp for a, b in itertools.pairwise(on))
+        sim.control.estop()
+        after = collect(bus, 1.5)
+        # Both times are the kernel's receive stamps on one socket: the same clock.
+        estop_frame = next(
+            (
+                f
+                for f in after
+                if f.arbitration_id == CanId.HEARTBEAT and f.is_extended_id and f.data[2] & 0x01
+            ),
+            None,
+        )
+        check(estop_frame is not None, "no heartbeat with the e-stop word on the bus")
+        assert estop_frame is not None
+        enable = [f for f in after if f.arbitration_id == 0x201]
+        first_off = next(
+            (f for f in enable if f.data[0] == 0x06 and f.timestamp >= estop_frame.timestamp),
+            None,
+        )
         check(first_off is not None, "no off frame after the e-stop")
         assert first_off is not None
-        late_on = [f for f in after if f[1][0] == 0x0F and f[0] > first_off]
+        late_on = [f for f in enable if f.data[0] == 0x0F and f.timestamp > first_off.timestamp]
         check(not late_on, f"{len(late_on)} on frames after the first off frame")
-        offs = [f for f in after if f[1][0] == 0x06]
+        offs = [f for f in enable if f.data[0] == 0x06]
         check(len(offs) >= 5, "the off frame does not keep going out")
-        latency = first_off - sent
+        latency = first_off.timestamp - estop_frame.timestamp
         check(latency < 1.0, f"off frame {latency * 1000:.0f} ms after the e-stop frame")
         run("systemctl", "stop", unit)
         return "enable frames with a rolling counter; off frame follows the e-stop", {
             "on frames in 1 s of RUN (20 ms period)": len(on),
-            "median gap between on frames ms": round(sorted(gaps)[len(gaps) // 2] * 1000, 1),
-            "e-stop frame to first off frame ms": round(latency * 1000, 1),
+            "median gap between on frames ms": round(gaps[len(gaps) // 2] * 1000, 1),
+            "e-stop heartbeat frame to first off frame ms": round(latency * 1000, 1),
         }
     finally:
         subprocess.run(["systemctl", "stop", unit], check=False)
-        vsc.close()
+        sim.stop()
         bus.shutdown()
 
 
-def collect(bus: can.BusABC, ident: int, seconds: float) -> list[tuple[float, bytes]]:
-    """(monotonic receive time, data) of every frame with ``ident`` for ``seconds``."""
-    frames: list[tuple[float, bytes]] = []
+def collect(bus: can.BusABC, seconds: float) -> list[can.Message]:
+    """Every frame on the bus for ``seconds``, after dropping what queued up before."""
+    while bus.recv(0) is not None:
+        pass
+    frames: list[can.Message] = []
     end = time.monotonic() + seconds
     while (left := end - time.monotonic()) > 0:
         message = bus.recv(left)
-        if message is not None and message.arbitration_id == ident:
-            frames.append((time.monotonic(), bytes(message.data)))
+        if message is not None:
+            frames.append(message)
     return frames
 
 
@@ -662,6 +640,7 @@ POWERCUT_CONFIG = """
 [vsc]
 transport = "serial"
 port = "/dev/srcs-vsc"
+timeout_ms = 1000  # as in the GPIO config
 
 [record]
 # Small files: the burst rotates several times, so the cut may land in a rotation too.
@@ -678,13 +657,13 @@ def powercut_burst() -> None:
     install()
     run("mount", "-t", "ext4", str(RECORD_DISK), "/var/lib/srcsd")
     write_config("cut", POWERCUT_CONFIG + '[[outputs]]\nname = "drive"\nkind = "sim"\n')
-    vsc = SerialVsc()
+    sim = start_sim("cut")
     run("systemctl", "start", "srcsd@cut.service")
     with SupervisorClient.connect("/run/srcsd/api.sock", name="burst", timeout=30) as client:
         client.subscribe("records")
         log("burst: estop/release until the power is cut")
         # Ends with the guest: the host kills qemu after enough acknowledgements.
-        while vsc.port.plugged:
+        while sim.process is not None and sim.process.poll() is None:
             client.estop()
             client.release()
             while (push := client.next_event(0)) is not None:
