@@ -396,6 +396,15 @@ class ClientProcess:
 # ------------------------------------------------------------------ the robot
 
 
+def _priority() -> list[str]:
+    """``nice -n -5`` as root: the daemon's unit runs it at ``Nice=-5`` (units/srcsd@.service),
+    and the simulated VSC stands for hardware that is never late. Without it a busy shared
+    machine can hold either process back past the 250 ms overrun or the 200 ms link timeout,
+    a stop the scenario did not inject."""
+    nice = shutil.which("nice")
+    return [nice, "-n", "-5"] if nice and os.geteuid() == 0 else []
+
+
 @dataclass(frozen=True)
 class OutputDef:
     name: str
@@ -519,6 +528,7 @@ class Robot:
     def start(self) -> Robot:
         """The simulator (with its watchdog key 85 commissioned on serial), the watcher, then
         the daemon; returns once the daemon's API socket answers."""
+        self.sim.command = [*_priority(), *self.sim.command]
         if self.netns is not None:
             self.netns.create()
             self.sim.command = [*self.netns.prefix(), *self.sim.command]
@@ -548,6 +558,7 @@ class Robot:
                 str(self.record_dir),
                 *command,
             ]
+        command = [*_priority(), *command]
         if self.netns is not None:
             command = [*self.netns.prefix(), *command]
         return command
