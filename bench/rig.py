@@ -414,7 +414,7 @@ class Rig:
             self.vsc.pump(time.monotonic_ns() + NS_PER_MS // 2)
         return False
 
-    def arm(self, tries: int = 5) -> Edge:
+    def arm(self, tries: int = 10) -> Edge:
         """Bring the output on: a non-Operational heartbeat, clear conditions for the re-arm
         hold (and key 85 answered), then Operational: the operator's takeover (safety-rules
         §4). Returns the on edge."""
@@ -423,7 +423,7 @@ class Rig:
             self.vsc.set_state(VscMode.LOCAL)
             self.vsc.pump_ms(self.hold_ms + 30)
             self.vsc.set_state(VscMode.OPERATIONAL)
-            edge = self.vsc.wait_edge(True, limit_ms=300)
+            edge = self.vsc.wait_edge(True, limit_ms=1000)
             if edge is not None:
                 return edge
             if self.process.poll() is not None:

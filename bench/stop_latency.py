@@ -79,7 +79,11 @@ def run(
         vsc = rig.vsc
         rig.arm()
         for index in range(stops):
-            if back_to_back or model != "supervisor":
+            if model == "poll50":
+                # The on edge happened at one of its ticks: a gap spread over a whole period
+                # makes the stop's phase against the 20 ms tick uniform, as in service.
+                vsc.pump_ms(rng.uniform(2, 22))
+            elif back_to_back or model != "supervisor":
                 vsc.pump_ms(rng.uniform(2, 8))
             else:
                 rig.wait_idle()

@@ -75,7 +75,8 @@ def test_heartbeat_jitter_hears_a_steady_heartbeat(capsys: pytest.CaptureFixture
 
 
 def test_heartbeat_jitter_periods(tmp_path: Path) -> None:
-    periods = heartbeat_jitter.run(tmp_path, seconds=1.0, spin=1, pin=False)
+    periods, stops = heartbeat_jitter.run(tmp_path, seconds=1.0, spin=1, pin=False)
+    assert stops >= 0
     assert len(periods) >= 10  # 20 Hz for a second, whatever the scheduling
     # Two heartbeats read in one chunk share a timestamp: a period may be 0, never negative.
     assert all(period >= 0 for period in periods)
