@@ -287,12 +287,32 @@ class Bench:
         check(relay == 0, f"{when}: relay line still pulsing ({relay} edges in 0.3 s)")
         check(self.gpio.value(RELAY) == 0, f"{when}: relay line is on")
 
-    def to_run(self, timeout: float = 30) -> float:
-        """Take over on the remote until RUN; returns the seconds it took."""
+    def quiet(self) -> bool:
+        """srcsd is up and none of its stop conditions is active (latched ones may remain)."""
+        try:
+            causes = status(self.instance)["causes"]
+        except Exception:  # not up yet, or restarting
+            return False
+        return not any(c["active"] and c["severity"] == "stop" for c in causes)
+
+    def to_run(self, timeout: float = 60) -> float:
+        """Take over on the remote until RUN; the seconds from the takeover that re-armed it.
+
+        The safety core takes a takeover as a re-arm only once every stop condition has been
+        clear for rearm.hold_ms (500 ms), so it waits for that first; a takeover refused for
+        being early is repeated, from Pause, as an operator would."""
         start = time.monotonic()
-        self.sim.control.takeover()
-        wait_state(self.instance, "RUN", timeout)
-        return time.monotonic() - start
+        while time.monotonic() - start < timeout:
+            wait_for("stop conditions clear", self.quiet, timeout, 0.2)
+            time.sleep(0.7)
+            if self.sim.control.state()["mode_name"] == "operational":
+                self.sim.control.pause()
+            took = time.monotonic()
+            self.sim.control.takeover()
+            with contextlib.suppress(Failed):
+                wait_state(self.instance, "RUN", 5)
+                return time.monotonic() - took
+        raise Failed(f"srcsd@{self.instance} not in RUN within {timeout:.0f} s of takeovers")
 
     def restarted(self, old_pid: int, timeout: float) -> tuple[int, float]:
         """Wait for systemd to run a new main process that told READY=1."""
@@ -722,7 +742,7 @@ def powercut_check(acked_file: str) -> int:
                     "acknowledged before the cut": len(acked),
                     "records on the disk": len(records),
                     "written but not yet acknowledged": len(records) - len(acked),
-                    "record files": files,
+                    "record files (rotated at 4 KiB)": len(files),
                     "torn tail": torn,
                 },
             },
