@@ -632,14 +632,12 @@ class Robot:
         assert self.daemon is not None
         assert self.daemon.poll() is None, f"srcsd died: {self.log()}"
         self.status()
-        t = self.now()
         code = self.stop_daemon()
         assert code == 0, f"srcsd exited {code}: {self.log()}"
         for name in self.output_paths:
             if not self._stuck_on(name):
                 assert self.output_file(name) is False, f"{name} left on after SIGTERM"
         assert "Traceback" not in self.log(), self.log()
-        del t
 
     def __enter__(self) -> Robot:
         try:
