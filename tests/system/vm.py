@@ -35,6 +35,7 @@ RESULT = "SRCS-RESULT "
 ACK = "SRCS-ACK "
 RC = "SRCS-VM-RC="
 ACKED_FILE = "acked.jsonl"
+GUEST_TMP = Path("/tmp")  # noqa: S108 - the guest mounts a fresh tmpfs here (tests/system/init)
 
 
 @dataclass
@@ -73,6 +74,8 @@ class Vm:
             # what it did not flush may still be in the guest's page cache, lost with qemu.
             cmd += ["-drive", f"file={a.disk},format=raw,if=virtio,cache=writeback"]
         append = f"console=ttyS0 panic=-1 quiet srcs.opt={a.opt} srcs.out {append}"
+        if Path(a.repo).is_relative_to(GUEST_TMP):  # the guest's /tmp is its own: keep the repo
+            append = f"srcs.keep={a.repo} {append}"
         return [*cmd, "-append", append]
 
     def boot(
