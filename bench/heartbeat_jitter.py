@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from bench.rig import NS_PER_MS, Rig, load, machine, ms, percentile, table
+from bench.rig import NS_PER_MS, Rig, load, machine, ms, percentile, realtime, table
 
 NOMINAL_NS = 50 * NS_PER_MS  # heartbeat_hz = 20 (safety-rules §5 default)
 TARGET_NS = 2 * NS_PER_MS  # safety-rules §9: within 2 ms of nominal at p99
@@ -60,12 +60,9 @@ def run(
     with spinners(spin, others):  # started first: they keep the nice value we had
         try:
             os.setpriority(os.PRIO_PROCESS, 0, nice)  # the supervisor inherits it
-            previous_policy = os.sched_getscheduler(0)
-            if fifo:
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(fifo))
             if ours is not None:
                 os.sched_setaffinity(0, {ours})  # the VSC side shares the supervisor's core
-            with Rig(directory, cpu=ours) as rig:
+            with realtime(fifo), Rig(directory, cpu=ours) as rig:
                 rig.arm()
                 rig.vsc.pump_ms(500)  # settle: no stop, so the heartbeat keeps its cadence
                 first, edges = len(rig.vsc.heartbeat_arrivals), len(rig.vsc.edges)
@@ -74,8 +71,6 @@ def run(
                 stops = sum(not edge.on for edge in rig.vsc.edges[edges:])
         finally:
             os.sched_setaffinity(0, previous)
-            if fifo:
-                os.sched_setscheduler(0, previous_policy, os.sched_param(0))
             os.setpriority(os.PRIO_PROCESS, 0, previous_nice)
     return [later - earlier for earlier, later in itertools.pairwise(arrivals)], stops
 

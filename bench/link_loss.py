@@ -19,7 +19,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.rig import NS_PER_MS, Rig, RigError, load, machine, ms, percentile, table
+from bench.rig import NS_PER_MS, Rig, RigError, load, machine, ms, percentile, realtime, table
 from supervisord.protocol.codes import VscMode
 
 SLACK_NS = 5 * NS_PER_MS  # safety-rules §9: off within vsc_timeout + 5 ms
@@ -48,17 +48,24 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="bench.link_loss", description=__doc__)
     parser.add_argument("--trials", type=int, default=300)
     parser.add_argument("--timeout-ms", type=int, default=200, help="vsc timeout_ms (50-1000)")
+    parser.add_argument(
+        "--fifo", type=int, default=0, help="SCHED_FIFO priority of both sides (0: none; root)"
+    )
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
     print(f"machine: {machine()}")
     print(f"before: {load()}")
     started = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory:
+    with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory, realtime(args.fifo):
         measured = run(Path(directory), args.trials, args.timeout_ms, args.seed)
     print(f"after: {load()}; {time.monotonic() - started:.0f} s")
     timeout_ns = args.timeout_ms * NS_PER_MS
     late = [value - timeout_ns for value in measured]
-    print(f"link loss: last VSC heartbeat written -> output off (timeout_ms = {args.timeout_ms})")
+    fifo = f", SCHED_FIFO {args.fifo}" if args.fifo else ""
+    print(
+        "link loss: last VSC heartbeat written -> output off "
+        f"(timeout_ms = {args.timeout_ms}{fifo})"
+    )
     print()
     rows = [
         [

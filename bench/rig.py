@@ -32,7 +32,7 @@ import subprocess
 import sys
 import time
 import tty
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
@@ -429,6 +429,22 @@ class Rig:
             if self.process.poll() is not None:
                 break
         raise RigError(f"the output did not come on (child status {self.process.poll()})")
+
+
+@contextlib.contextmanager
+def realtime(priority: int) -> Iterator[None]:
+    """Run this process, and the children it starts meanwhile, in SCHED_FIFO at ``priority``
+    (0: leave the scheduling as it is). As ``CPUSchedulingPolicy=fifo`` would run the
+    service; needs root (CAP_SYS_NICE)."""
+    if not priority:
+        yield
+        return
+    previous = os.sched_getscheduler(0), os.sched_getparam(0)
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    try:
+        yield
+    finally:
+        os.sched_setscheduler(0, previous[0], previous[1])
 
 
 def percentile(values: Sequence[float], share: float) -> float:

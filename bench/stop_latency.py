@@ -29,7 +29,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.rig import MODELS, Edge, Rig, RigError, load, machine, ms, percentile, table
+from bench.rig import (
+    MODELS,
+    Edge,
+    Rig,
+    RigError,
+    load,
+    machine,
+    ms,
+    percentile,
+    realtime,
+    table,
+)
 from supervisord.protocol.codes import VscMode
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (notes §2)
@@ -149,6 +160,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument(
         "--nice", type=int, default=0, help="of the supervisor; the service unit uses -5 (root)"
     )
+    parser.add_argument(
+        "--fifo", type=int, default=0, help="SCHED_FIFO priority of both sides (0: none; root)"
+    )
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
     default_stops = 10_000 if args.model == "supervisor" else 3000
@@ -156,7 +170,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(f"machine: {machine()}")
     print(f"before: {load()}")
     started = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory:
+    with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory, realtime(args.fifo):
         measured = run(
             Path(directory),
             stops,
@@ -174,7 +188,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         "poll50": "a 20 ms polling loop (model of the public drivers)",
         "event": "a bare event-driven loop (select, read, decode, set): the platform's floor",
     }[args.model]
-    print(f"model: {what}, nice {args.nice}" + (", back to back" if args.back_to_back else ""))
+    extras = [f"nice {args.nice}"]
+    extras += [f"SCHED_FIFO {args.fifo}"] if args.fifo else []
+    extras += ["back to back"] if args.back_to_back else []
+    print(f"model: {what}, {', '.join(extras)}")
     print("stop latency, last byte of the stopping frame written -> output off and read back (ms)")
     print()
     print(table(["stops", "n", "p50", "p99", "p99.9", "max", "mean"], summary_rows(measured)))
