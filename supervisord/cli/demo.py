@@ -205,6 +205,10 @@ def run_demo(
 ) -> int:
     """Run the demo; interactive when stdin and stdout are terminals, unless ``auto``."""
     interactive = sys.stdin.isatty() and out.isatty() if auto is None else not auto
+    # SIGTERM (or a closed terminal) ends the demo like Ctrl-C: its simulator and supervisor
+    # are stopped and its directory removed, never left running.
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _interrupt)
     with tempfile.TemporaryDirectory(prefix="srcs-demo-") as run_dir:
         try:
             demo: Demo = (Demo if interactive else StoryDemo)(
@@ -220,8 +224,14 @@ def run_demo(
         except (SrcsError, OSError) as error:
             print(f"srcsctl demo: {error}", file=sys.stderr)
             return 1
+        except KeyboardInterrupt:
+            return 0
         finally:
             demo.close()
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager

@@ -8,8 +8,34 @@ import re
 import select
 import subprocess
 import time
+from pathlib import Path
 
 from tests.daemon.test_srcsctl import SRCSCTL
+
+
+def test_sigterm_stops_the_demo_and_everything_it_started() -> None:
+    """A demo ended by SIGTERM leaves no simulator or supervisor running behind it."""
+    with subprocess.Popen(
+        [SRCSCTL, "demo", "--auto"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    ) as demo:
+        assert demo.stdout is not None
+        while "supervisor: STOPPED" not in demo.stdout.readline():
+            assert demo.poll() is None
+        children = _children(demo.pid)
+        assert len(children) == 2  # srcs-sim and srcsd
+        demo.terminate()
+        assert demo.wait(timeout=20) == 0
+    end = time.monotonic() + 10
+    while any(Path(f"/proc/{pid}").exists() for pid in children):
+        assert time.monotonic() < end, "left running"
+        time.sleep(0.05)
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        found += [int(c) for c in (task / "children").read_text().split()]
+    return found
 
 
 def test_the_story_shows_stops_and_rearms() -> None:
@@ -76,6 +102,7 @@ def test_keys_in_a_terminal_take_over_and_stop() -> None:
             os.write(controller, b"q")
             assert demo.wait(timeout=20) == 0
         finally:
-            if demo.poll() is None:
-                demo.kill()
+            if demo.poll() is None:  # SIGTERM: the demo stops its simulator and supervisor
+                demo.terminate()
+                demo.wait(timeout=20)
             os.close(controller)
