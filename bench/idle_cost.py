@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -27,30 +26,13 @@ from pathlib import Path
 
 from bench.rig import NS_PER_MS, REPO, RigError, Vsc, load, machine, table
 from supervisord.protocol.codes import VscMode
+from supervisord.testkit.daemon import MINIMAL_CONFIG
+from supervisord.testkit.process import terminate
 
 TICKS = os.sysconf("SC_CLK_TCK")
 TARGET_CPU = 0.02  # safety-rules §9: under 2 % of one core
 TARGET_RSS_KB = 40 * 1024  # and under 40 MB resident
 WARM_UP_S = 3.0
-
-CONFIG = """\
-[robot]
-name = "bench"
-[vsc]
-transport = "serial"
-port = "vsc"
-[rearm]
-hold_ms = 100
-[[outputs]]
-name = "drive"
-kind = "sim"
-path = "drive"
-[record]
-path = "stops.jsonl"
-journal = false
-[api]
-socket = "api.sock"
-"""
 
 
 def cpu_seconds(pid: int) -> float:
@@ -90,7 +72,7 @@ def wait_on(vsc: Vsc, level_file: Path, limit_s: float) -> bool:
 
 def run(directory: Path, seconds: float) -> dict[str, float]:
     """Measure ``srcsd`` over ``seconds`` of RUN at full traffic."""
-    (directory / "robot.toml").write_text(CONFIG)
+    (directory / "robot.toml").write_text(MINIMAL_CONFIG)
     level_file = directory / "drive"
     vsc = Vsc(directory / "vsc")
     # Our own interpreter running our own package: no untrusted input reaches the command.
@@ -130,13 +112,7 @@ def run(directory: Path, seconds: float) -> dict[str, float]:
             "pss_kb": pss_kb(daemon.pid) or 0,
         }
     finally:
-        if daemon.poll() is None:
-            daemon.send_signal(signal.SIGTERM)
-            try:
-                daemon.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                daemon.kill()
-                daemon.wait()
+        terminate(daemon)
         vsc.close()
     return result
 

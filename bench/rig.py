@@ -56,6 +56,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
+from supervisord.testkit.process import terminate
 from supervisord.testkit.pty_port import PtyPort
 
 NS_PER_MS = 1_000_000
@@ -376,13 +377,7 @@ class Rig:
         return self.process.pid
 
     def close(self) -> None:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        terminate(self.process)
         if self.vsc.report_fd is not None:
             os.close(self.vsc.report_fd)
             self.vsc.report_fd = None

@@ -164,7 +164,7 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
             out.write(format_status(status))
         return 0
     if command in ("estop", "hold", "release"):
-        holding = command == "hold" or getattr(args, "what", None) == "hold"
+        holding = command == "hold" or (command == "release" and args.what == "hold")
         name = args.name or (DEFAULT_NAME if holding else None)
         if name is not None:
             client.hello(name)

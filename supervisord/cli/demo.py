@@ -31,6 +31,7 @@ from supervisord.cli.demo_view import record_line, screen
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError, SrcsError
+from supervisord.testkit.process import terminate
 from supervisord.testkit.sim import SimError, SimProcess
 
 DEMO_CONFIG: Final = Path(__file__).resolve().parents[2] / "config" / "demo.toml"
@@ -89,13 +90,8 @@ class Demo:
     def close(self) -> None:
         if self.client is not None:
             self.client.close()
-        if self.daemon is not None and self.daemon.poll() is None:
-            self.daemon.send_signal(signal.SIGTERM)  # outputs off, record flushed, exit 0
-            try:
-                self.daemon.wait(10)
-            except subprocess.TimeoutExpired:
-                self.daemon.kill()
-                self.daemon.wait()
+        if self.daemon is not None:
+            terminate(self.daemon)  # SIGTERM: outputs off, record flushed, exit 0
         self.sim.stop()
 
     def _check_alive(self) -> None:

@@ -12,7 +12,6 @@ that does not stop within the timeout is killed and its status is then negative.
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import time
@@ -23,6 +22,28 @@ from typing import Self
 
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
+from supervisord.testkit.process import terminate
+
+MINIMAL_CONFIG = """\
+[robot]
+name = "test-robot"
+[vsc]
+transport = "serial"
+port = "vsc"
+[rearm]
+hold_ms = 100
+[[outputs]]
+name = "drive"
+kind = "sim"
+path = "drive"
+[record]
+path = "stops.jsonl"
+journal = false
+[api]
+socket = "api.sock"
+"""
+"""A robot in one directory: the VSC's pty at ``vsc``, one simulated motion output mirrored
+to ``drive``, the record ``stops.jsonl``, the socket ``api.sock``, a 100 ms re-arm hold."""
 
 
 class DaemonError(SrcsError):
@@ -81,13 +102,7 @@ class SrcsdProcess:
     def stop(self, timeout: float = 10.0) -> int:
         """SIGTERM, then wait; the exit status (negative: it had to be killed)."""
         assert self.process is not None
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.kill()
-        self.exit_status = self.process.returncode
+        self.exit_status = terminate(self.process, timeout)
         return self.exit_status
 
     def kill(self) -> None:

@@ -56,6 +56,7 @@ from typing import Any, Literal
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.errors import SrcsError
 from supervisord.record import Record, read_records
+from supervisord.testkit.process import terminate
 from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
@@ -594,16 +595,7 @@ class Robot:
 
     def stop_daemon(self) -> int:
         """SIGTERM and the exit status (0 for a clean stop)."""
-        if self.daemon is None:
-            return 0
-        if self.daemon.poll() is None:
-            self.daemon.send_signal(signal.SIGTERM)
-            try:
-                self.daemon.wait(15)
-            except subprocess.TimeoutExpired:
-                self.daemon.kill()
-                self.daemon.wait()
-        return self.daemon.returncode
+        return 0 if self.daemon is None else terminate(self.daemon, 15)
 
     def kill_daemon(self) -> None:
         if self.daemon is not None and self.daemon.poll() is None:
@@ -615,9 +607,7 @@ class Robot:
         """Everything down, in reverse; never raises (a test's own failure shows first)."""
         for process in [*self.client_processes.values(), *self._helpers]:
             process.kill()
-        if self.daemon is not None and self.daemon.poll() is None:
-            self.daemon.send_signal(signal.SIGCONT)
-            self.stop_daemon()
+        self.stop_daemon()
         with contextlib.suppress(Exception):
             self.sim.stop()
         if self.watcher is not None:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import signal
 import socket
 import subprocess
 import sys
@@ -29,6 +28,7 @@ from types import TracebackType
 from typing import Any
 
 from supervisord.errors import SrcsError
+from supervisord.testkit.process import terminate
 
 State = dict[str, Any]
 
@@ -256,15 +256,7 @@ class SimProcess:
     def stop(self, timeout: float = 10.0) -> int:
         """SIGTERM, then wait; the exit status (0 for a clean stop)."""
         self.control.close()
-        if self.process is None:
-            return 0
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.kill()
-        return self.process.returncode
+        return 0 if self.process is None else terminate(self.process, timeout)
 
     def kill(self) -> None:
         self.control.close()

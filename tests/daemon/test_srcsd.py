@@ -14,29 +14,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from supervisord.protocol.codes import VscMode
+from supervisord.testkit.daemon import MINIMAL_CONFIG
 from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
 
 SRCSD = shutil.which("srcsd") or str(Path(__file__).parents[2] / ".venv/bin/srcsd")
 
-CONFIG = """
-[robot]
-name = "test-robot"
-[vsc]
-transport = "serial"
-port = "vsc"
-[rearm]
-hold_ms = 100
-[[outputs]]
-name = "drive"
-kind = "sim"
-path = "drive"
-[record]
-path = "stops.jsonl"
-journal = false
-[api]
-socket = "api.sock"
-"""
+CONFIG = MINIMAL_CONFIG
 
 
 def notifications(sock: socket.socket) -> list[str]:

@@ -7,35 +7,12 @@ names the VSC e-stop)."""
 from __future__ import annotations
 
 import json
-import shutil
-import signal
-import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
 from supervisord.testkit.sim import SimControl, SimError, SimProcess
-
-SRCSD = shutil.which("srcsd") or str(Path(__file__).parents[2] / ".venv/bin/srcsd")
-
-CONFIG = """
-[robot]
-name = "sim-robot"
-[vsc]
-transport = "serial"
-port = "vsc"
-[rearm]
-hold_ms = 100
-[[outputs]]
-name = "drive"
-kind = "sim"
-path = "drive"
-[record]
-path = "stops.jsonl"
-journal = false
-[api]
-socket = "api.sock"
-"""
 
 
 def wait(done: Callable[[], bool], limit: float = 15.0) -> None:
@@ -64,17 +41,12 @@ def take_over(control: SimControl, limit: float = 10.0) -> None:
 
 
 def test_srcsd_is_armed_by_a_takeover_and_stopped_by_the_remote_estop(tmp_path: Path) -> None:
-    (tmp_path / "robot.toml").write_text(CONFIG)
+    (tmp_path / "robot.toml").write_text(MINIMAL_CONFIG)
     drive = tmp_path / "drive"
+    log = tmp_path / "srcsd.log"
     with SimProcess(tmp_path, serial="vsc") as sim:
         assert sim.control.key(85, 1) == 1  # commissioned: the VSC watches the host
-        daemon = subprocess.Popen(
-            [SRCSD, "--config", str(tmp_path / "robot.toml")],
-            stderr=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
-            text=True,
-        )
-        try:
+        with SrcsdProcess(tmp_path / "robot.toml", log=log) as daemon:
             # The supervisor reads key 85 back and feeds the watchdog at 20 Hz.
             state = sim.control.wait_for(
                 lambda s: (
@@ -96,13 +68,8 @@ def test_srcsd_is_armed_by_a_takeover_and_stopped_by_the_remote_estop(tmp_path: 
             assert sim.control.state()["mode_name"] == "local"
             time.sleep(0.3)
             assert output(drive) == "0\n"  # latched
-            daemon.send_signal(signal.SIGTERM)
-            assert daemon.wait(timeout=10) == 0
-        finally:
-            if daemon.poll() is None:
-                daemon.kill()
-            _, errors = daemon.communicate()
-        assert "Traceback" not in errors
+        assert daemon.exit_status == 0
+        assert "Traceback" not in log.read_text()
     records = [json.loads(line) for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
     to_run = [r for r in records if r["to"] == "RUN"]
     assert to_run
