@@ -696,16 +696,21 @@ def powercut_burst() -> None:
     write_config("cut", POWERCUT_CONFIG + '[[outputs]]\nname = "drive"\nkind = "sim"\n')
     sim = start_sim("cut")
     run("systemctl", "start", "srcsd@cut.service")
-    with burst_client() as client:
-        log("burst: estop/release until the power is cut")
-        # Ends with the guest: the host kills qemu after enough acknowledgements.
-        while sim.process is not None and sim.process.poll() is None:
-            client.estop()
-            client.release()
-            while (push := client.next_event(0)) is not None:
-                if push.event == "record":
-                    record = {k: v for k, v in push.data.items() if k != "event"}
-                    emit("ACK", record)
+    log("burst: estop/release until the power is cut")
+    # Ends with the guest: the host kills qemu after enough acknowledgements. A connection
+    # that breaks (the daemon restarted) is made again, and the journal says why.
+    while sim.process is not None and sim.process.poll() is None:
+        with burst_client() as client:
+            try:
+                while sim.process.poll() is None:
+                    client.estop()
+                    client.release()
+                    while (push := client.next_event(0)) is not None:
+                        if push.event == "record":
+                            record = {k: v for k, v in push.data.items() if k != "event"}
+                            emit("ACK", record)
+            except ClientError as error:
+                log(f"burst: {error}; srcsd's journal:\n{journal('srcsd@cut.service')[-3000:]}")
 
 
 def powercut_check(acked_file: str) -> int:
