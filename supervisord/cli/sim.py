@@ -1,7 +1,7 @@
 """``srcs-sim``: a simulated VSC with its remote, on a pseudo-terminal or a CAN bus.
 
     srcs-sim --serial [SYMLINK]          # serial protocol on a pty (path printed)
-    srcs-sim --can udp_multicast:239.74.163.2
+    ip netns exec srcs srcs-sim --can udp_multicast:239.74.163.2   # one machine, a namespace
     srcs-sim --control sim.sock --eeprom vsc-eeprom.json --seed 7
 
 It prints ``srcs-sim: serial PATH (pty DEVICE)`` (or ``srcs-sim: can ...``), then
@@ -69,7 +69,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="serve the serial protocol on a pty, linked at SYMLINK (default: a temporary path)",
     )
     where.add_argument(
-        "--can", metavar="INTERFACE:CHANNEL", help="serve J1939 on a python-can interface"
+        "--can",
+        metavar="INTERFACE:CHANNEL",
+        help="serve J1939 on a python-can interface: socketcan:vcan0, or udp_multicast:GROUP "
+        "for processes of one machine only, run inside a private network namespace (its "
+        "frames stay on the machine, but joining the group is seen on the network: "
+        "docs/simulator.md)",
     )
     parser.add_argument("--bitrate", type=int, default=250_000, help="CAN bitrate (socketcan)")
     parser.add_argument("--control", metavar="SOCKET", help="the control API's Unix socket")

@@ -12,7 +12,7 @@ from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
-from supervisord.links.can_link import CanLink
+from supervisord.links.can_link import CanLink, bus_options
 from supervisord.links.hid_link import HidLink as HidLinkImpl
 from supervisord.links.serial_link import SerialLink as SerialLinkImpl
 from supervisord.outputs import Output, create_output
@@ -47,9 +47,8 @@ def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.B
             link.open()
             bus = link.bus
         else:
-            owned = bus = can.Bus(
-                interface=settings.interface, channel=settings.channel, bitrate=settings.bitrate
-            )
+            options = bus_options(settings.interface, settings.bitrate)
+            owned = bus = can.Bus(interface=settings.interface, channel=settings.channel, **options)
     return [create_output(spec, can_bus=bus) for spec in config.outputs], owned
 
 

@@ -26,6 +26,24 @@ from supervisord.protocol.j1939 import (
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
 MAX_FRAMES_PER_RECEIVE = 256  # a flood must not starve the loop's other duties
+UDP_MULTICAST_HOP_LIMIT = 0  # frames reach this machine's sockets and no network (below)
+
+
+def bus_options(interface: str, bitrate: int) -> dict[str, Any]:
+    """The python-can options every bus of this project opens with, by interface.
+
+    ``socketcan`` takes the bitrate. ``udp_multicast`` is CAN between processes of one
+    machine, never a network: with a hop limit of 0, Linux delivers a frame to the local
+    sockets that joined its group and sends it on no interface (python-can's default of 1
+    put every frame on the machine's network segment). Joining the group still announces
+    itself on the default interface, so outside a private network namespace it is not
+    silent: ``docs/testing.md`` "Network".
+    """
+    if interface == "socketcan":
+        return {"bitrate": bitrate}
+    if interface == "udp_multicast":
+        return {"hop_limit": UDP_MULTICAST_HOP_LIMIT}
+    return {}
 
 
 def to_python_can(frame: CanFrame) -> can.Message:
@@ -66,13 +84,9 @@ class CanLink(Link):
     def open(self) -> None:
         if self._bus is not None:
             return
-        options: dict[str, Any] = (
-            {"bitrate": self._bitrate} if self._interface == "socketcan" else {}
-        )
+        options = bus_options(self._interface, self._bitrate) | self._options
         try:
-            self._bus = can.Bus(
-                interface=self._interface, channel=self._channel, **options, **self._options
-            )
+            self._bus = can.Bus(interface=self._interface, channel=self._channel, **options)
         except (can.CanError, OSError, ValueError, ImportError) as error:
             raise LinkError(str(error) or type(error).__name__) from error
         self._joystick = JoystickAssembler()

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from typing import Any
 
 import can
 
+from supervisord.links.can_link import bus_options
 from supervisord.protocol.j1939 import (
     CanFrame,
     CanRejection,
@@ -133,7 +133,7 @@ class CanSide:
 
     def replug(self) -> None:
         self.unplug()
-        options: dict[str, Any] = {"bitrate": self.bitrate} if self.interface == "socketcan" else {}
+        options = bus_options(self.interface, self.bitrate)
         self._bus = can.Bus(interface=self.interface, channel=self.channel, **options)
 
     def close(self) -> None:

@@ -467,12 +467,14 @@ class Robot:
         self.output_paths = {o.name: self.workdir / "out" / o.name for o in self.outputs}
         (self.workdir / "out").mkdir(exist_ok=True)
         if self.transport == "can":
-            # A group of our own per robot; with a private namespace (below) it is isolated
-            # anyway, without one it keeps apart the robots of this run.
+            # Multicast only inside a network namespace of our own (docs/testing.md
+            # "Network"): nothing leaves the machine, no other run hears it. A group of our
+            # own per robot on top keeps apart the robots of one run.
+            if not NetNamespace.available():
+                raise RuntimeError("a CAN robot needs root and iproute2: docs/testing.md")
+            self.netns = NetNamespace()
             index = next(self._channels)
             self.channel = f"239.74.{os.getpid() % 200 + 1}.{index % 250 + 1}"
-            if NetNamespace.available():
-                self.netns = NetNamespace()
             self.sim = SimProcess(
                 self.workdir / "sim",
                 can=f"udp_multicast:{self.channel}",

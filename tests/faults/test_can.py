@@ -12,6 +12,9 @@ import pytest
 
 from supervisord.testkit.faults import Robot, wait_until
 
+# Every scenario multicasts: only inside the session's private network (docs/testing.md).
+pytestmark = pytest.mark.usefixtures("private_network")
+
 HEARTBEAT = 0x20  # the heartbeat's serial type; the simulator's CAN faults use the same names
 
 

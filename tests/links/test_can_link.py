@@ -3,6 +3,8 @@ between processes' sockets."""
 
 from __future__ import annotations
 
+import os
+import socket
 from collections.abc import Iterator
 
 import can
@@ -80,6 +82,7 @@ def test_send_has_only_feedback_on_can(vsc_bus: can.BusABC, link: CanLink) -> No
     ]
 
 
+@pytest.mark.usefixtures("private_network")
 def test_virtual_bus_has_no_descriptor_udp_multicast_has_one() -> None:
     """The loop can wait on udp_multicast's socket; the in-process virtual bus has none."""
     virtual = CanLink("virtual", "fd-test", 250_000)
@@ -93,5 +96,20 @@ def test_virtual_bus_has_no_descriptor_udp_multicast_has_one() -> None:
     try:
         assert isinstance(udp.fileno(), int)
         assert udp.description == "CAN udp_multicast:239.74.163.2"
+    finally:
+        udp.close()
+
+
+@pytest.mark.usefixtures("private_network")
+def test_udp_multicast_frames_never_leave_the_machine() -> None:
+    """udp_multicast is CAN between processes of one machine: its socket sends with a
+    multicast TTL of 0, which Linux delivers locally and puts on no interface."""
+    udp = CanLink("udp_multicast", "239.74.163.2", 250_000)
+    udp.open()
+    try:
+        fd = udp.fileno()
+        assert fd is not None
+        with socket.socket(fileno=os.dup(fd)) as view:
+            assert view.getsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL) == 0
     finally:
         udp.close()

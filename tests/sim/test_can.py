@@ -10,6 +10,7 @@ from pathlib import Path
 import can
 import pytest
 
+from supervisord.links.can_link import bus_options
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.j1939 import (
     CanFrame,
@@ -116,10 +117,11 @@ def test_can_estop_and_bus_off(virtual_sim: tuple[Simulator, can.BusABC]) -> Non
     assert decoded(collect(host, 0.3, sim))
 
 
+@pytest.mark.usefixtures("private_network")
 def test_srcs_sim_on_udp_multicast(tmp_path: Path) -> None:
     """Between processes on this machine: a real ``srcs-sim --can udp_multicast:...``."""
     group = "239.74.163.77"
-    host = can.Bus(interface="udp_multicast", channel=group)
+    host = can.Bus(interface="udp_multicast", channel=group, **bus_options("udp_multicast", 0))
     try:
         with SimProcess(tmp_path, can=f"udp_multicast:{group}", link_delay=0.0) as sim:
             assert sim.serial_path is None
