@@ -1,0 +1,20 @@
+"""Names newer than Python 3.10, for the modules that the client library (and so the ROS 2
+bridge) imports: a ROS installation brings its own Python, 3.10 on Humble to 3.12 on Jazzy
+(docs/ros2.md "Python versions"). The daemon itself runs on Debian 12's 3.11.
+
+Pure: the safety core imports it (``tests/safety/test_purity.py``)."""
+
+from __future__ import annotations
+
+import enum
+
+
+class StrEnum(str, enum.Enum):  # noqa: UP042 -- enum.StrEnum itself is 3.11
+    """What Python 3.11's ``enum.StrEnum`` does for explicit values: a member is its value
+    wherever it is used as text (``str()``, f-strings, JSON)."""
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, spec: str) -> str:
+        return str(self.value).__format__(spec)

@@ -1,0 +1,164 @@
+"""API pushes to the field values of the bridge's ROS messages: pure, no ROS import.
+
+Each function takes one push or reply as ``supervisord.client`` returns it (a JSON object,
+``docs/api.md`` "Pushes") and returns plain values that the rclpy edge copies into a message.
+Nothing here raises on a malformed push: a field that is missing or of the wrong kind maps to
+the safe value (an axis 0, a button up, the state STOPPED, no GPS fix).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Final
+
+AXES: Final = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
+"""``sensor_msgs/Joy`` axes 0-5, the order of the public drivers (docs/ros2.md "joy")."""
+BUTTONS: Final = (
+    ("left_button_values", "down"),
+    ("left_button_values", "right"),
+    ("left_button_values", "up"),
+    ("left_button_values", "left"),
+    ("right_button_values", "button_1"),
+    ("right_button_values", "button_2"),
+    ("right_button_values", "button_3"),
+    ("right_button_values", "button_4"),
+)
+"""``sensor_msgs/Joy`` buttons 0-7: the left pad in wire order, then the right buttons 1-4."""
+FULL_SCALE: Final = 1023  # manual table 19: an axis is -1023..1023
+TEXT_ROWS: Final = 4  # the remote's text page has four rows (docs/api.md "display")
+ROW_LENGTH: Final = 20  # of 20 single-byte characters each
+
+
+class State(enum.Enum):
+    """The supervisor's state (safety-rules §1) as the ``state`` topic names it."""
+
+    STOPPED = "STOPPED"
+    HOLD = "HOLD"
+    RUN = "RUN"
+
+
+def state_of(status: Mapping[str, Any] | None) -> State:
+    """The state of a ``state`` push or ``status`` reply; ``None`` (the supervisor cannot be
+    reached) and anything unreadable are STOPPED: the bridge never vouches for motion it
+    cannot see (docs/ros2.md "state")."""
+    if status is None:
+        return State.STOPPED
+    try:
+        return State(status.get("state"))
+    except ValueError:
+        return State.STOPPED
+
+
+def estop_of(state: State) -> bool:
+    """The ``estop`` topic: true unless the supervisor is reached and in RUN or HOLD. HOLD
+    is not an e-stop (safety-rules §3: the motion outputs are off but nothing latched)."""
+    return state not in (State.RUN, State.HOLD)
+
+
+@dataclass(frozen=True, slots=True)
+class JoyValues:
+    """``sensor_msgs/Joy`` ``axes`` (each -1..1) and ``buttons`` (each 0 or 1)."""
+
+    axes: tuple[float, ...]
+    buttons: tuple[int, ...]
+
+
+def axis_value(field: object) -> float:
+    """One axis of a joystick push scaled to -1..1; an invalid axis (``value`` null), a
+    missing one or one out of range is 0.0, the neutral stick (docs/ros2.md "joy")."""
+    if not isinstance(field, Mapping):
+        return 0.0
+    raw = field.get("value")
+    if isinstance(raw, bool) or not isinstance(raw, int) or abs(raw) > FULL_SCALE:
+        return 0.0
+    return raw / FULL_SCALE
+
+
+def joy_values(push: Mapping[str, Any]) -> JoyValues:
+    """The ``joy`` message of one joystick push (``docs/api.md`` "Pushes")."""
+    axes = tuple(axis_value(push.get(f"{name}_joystick_value")) for name in AXES)
+    buttons = []
+    for hand, name in BUTTONS:
+        values = push.get(hand)
+        pressed = values.get("pressed") if isinstance(values, Mapping) else None
+        buttons.append(int(isinstance(pressed, list) and name in pressed))
+    return JoyValues(axes, tuple(buttons))
+
+
+class FixStatus(enum.IntEnum):
+    """``sensor_msgs/NavSatStatus`` ``status`` values."""
+
+    NO_FIX = -1
+    FIX = 0
+    SBAS_FIX = 1
+    GBAS_FIX = 2
+
+
+# GGA fix quality (NMEA 0183): 0 invalid, 1 GPS, 2 DGPS (SBAS), 4 RTK fixed, 5 RTK float.
+_QUALITY: Final = {1: FixStatus.FIX, 2: FixStatus.SBAS_FIX, 4: FixStatus.GBAS_FIX}
+_QUALITY_RTK_FLOAT: Final = 5
+
+
+@dataclass(frozen=True, slots=True)
+class Fix:
+    """``sensor_msgs/NavSatFix`` values of one GGA sentence. ``altitude`` is above the WGS 84
+    ellipsoid (GGA's height above mean sea level plus its geoid separation), NaN when the
+    sentence lacks either."""
+
+    status: FixStatus
+    latitude: float
+    longitude: float
+    altitude: float
+
+
+def gps_fix(push: Mapping[str, Any]) -> Fix | None:
+    """The ``gps`` message of a GPS push, or ``None`` when it is no GGA sentence (only GGA
+    carries a position fix with its quality). A GGA without a valid fix gives ``NO_FIX``
+    with NaN coordinates, as ``sensor_msgs/NavSatFix`` asks."""
+    if push.get("sentence_type") != "GGA":
+        return None
+    latitude, longitude = push.get("latitude"), push.get("longitude")
+    quality = push.get("fix_quality")
+    valid = push.get("valid") is True and _number(latitude) and _number(longitude)
+    if not valid or not isinstance(quality, int) or quality == 0:
+        return Fix(FixStatus.NO_FIX, math.nan, math.nan, math.nan)
+    status = FixStatus.GBAS_FIX if quality == _QUALITY_RTK_FLOAT else _QUALITY.get(quality)
+    assert isinstance(latitude, float | int)  # _number above
+    assert isinstance(longitude, float | int)
+    return Fix(
+        status or FixStatus.FIX, float(latitude), float(longitude), _altitude(push.get("string"))
+    )
+
+
+def _number(value: object) -> bool:
+    return isinstance(value, float | int) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _altitude(sentence: object) -> float:
+    """GGA fields 9 (altitude above mean sea level, m) plus 11 (geoid separation, m)."""
+    if not isinstance(sentence, str):
+        return math.nan
+    fields = sentence.split("*", 1)[0].split(",")
+    try:
+        if fields[10] != "M" or fields[12] != "M":
+            return math.nan
+        total = float(fields[9]) + float(fields[11])
+    except (IndexError, ValueError):
+        return math.nan
+    return total if math.isfinite(total) else math.nan
+
+
+def display_rows(text: str) -> tuple[str, ...]:
+    """The four text rows of the remote's LCD for one ``display`` message: its lines, each
+    cut to 20 characters, characters the remote cannot show (beyond Latin-1, control
+    characters) replaced by ``?``; missing rows are blank, lines past the fourth dropped."""
+    lines = text.split("\n")[:TEXT_ROWS]
+    rows = [_printable(line.rstrip("\r"))[:ROW_LENGTH] for line in lines]
+    return tuple(rows + [""] * (TEXT_ROWS - len(rows)))
+
+
+def _printable(line: str) -> str:
+    return "".join(ch if 0x20 <= ord(ch) <= 0xFF and ord(ch) != 0x7F else "?" for ch in line)

@@ -1,0 +1,78 @@
+"""The diagnostics statuses (docs/ros2.md "Diagnostics"): levels, messages and keys."""
+
+from __future__ import annotations
+
+from supervisord.ros2.diagnostics import GateCounts, Level, remote_status, supervisor_status
+
+STATUS = {
+    "state": "STOPPED",
+    "causes": [
+        {
+            "name": "vsc_estop",
+            "severity": "stop",
+            "active": True,
+            "latched": True,
+            "details": {"sources": "remote"},
+        },
+        {"name": "client_lost:ros", "severity": "stop", "active": False, "latched": True},
+    ],
+    "outputs": {"drive": False},
+    "heartbeat_estop": 1,
+}
+DAEMON = {
+    "robot": "rover-1",
+    "pid": 42,
+    "link": {"description": "serial /dev/srcs-vsc", "open": True, "opens": 2, "open_failures": 1},
+    "messages": 1234,
+    "rejections": {"bad_checksum": 3, "wrong_length": 1},
+    "record_errors": 0,
+    "internal_faults": 0,
+}
+
+
+def _status(**kw: object) -> dict[str, str]:
+    status = supervisor_status(
+        kw.get("status", STATUS),  # type: ignore[arg-type]
+        DAEMON,
+        socket="/run/srcsd/api.sock",
+        client_name="ros",
+        gate=GateCounts(forwarded=7),
+        unreachable=str(kw.get("unreachable", "")),
+    )
+    return {"level": str(int(status.level)), "message": status.message, **dict(status.values)}
+
+
+def test_stopped_names_every_cause_with_details() -> None:
+    """STOPPED is ERROR, the message lists the causes, each cause is a key with its
+    severity, flags and details; the link and the counters are there too."""
+    values = _status()
+    assert values["level"] == str(int(Level.ERROR))
+    assert values["message"] == "STOPPED: vsc_estop, client_lost:ros"
+    assert values["vsc_estop"] == "stop, active, latched; sources=remote"
+    assert values["client_lost:ros"] == "stop, latched"
+    assert values["link open"] == "true"
+    assert values["link opens"] == "2"
+    assert values["rejections"] == "4"
+    assert values["rejections bad_checksum"] == "3"
+    assert values["output drive"] == "false"
+    assert values["cmd_vel forwarded"] == "7"
+
+
+def test_levels_follow_the_state_and_unreachable_is_error() -> None:
+    """RUN is OK, HOLD WARN; an unreachable supervisor is ERROR saying why."""
+    assert _status(status={"state": "RUN", "causes": []})["level"] == "0"
+    assert _status(status={"state": "HOLD", "causes": []})["level"] == "1"
+    values = _status(status=None, unreachable="cannot connect")
+    assert values["level"] == "2"
+    assert values["connected"] == "false"
+    assert "unreachable: cannot connect" in values["message"]
+
+
+def test_remote_status_levels() -> None:
+    """No remote status yet is STALE; a low battery or no radio link is WARN, else OK."""
+    assert remote_status(None, "r").level is Level.STALE
+    good = {"battery_level": 87, "connection_strength_vsc": 4, "connection_strength_src": 4}
+    assert remote_status(good, "r").level is Level.OK
+    assert dict(remote_status(good, "r").values)["battery level %"] == "87"
+    assert remote_status({**good, "battery_level": 10}, "r").level is Level.WARN
+    assert remote_status({**good, "connection_strength_src": 0}, "r").level is Level.WARN
