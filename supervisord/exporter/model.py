@@ -1,0 +1,509 @@
+"""What the exporter knows, as metric values: pure (no socket, no clock, no prometheus-client).
+
+The follower feeds it ``status`` replies and pushes as the JSON objects the API sends
+(``docs/api.md``); :meth:`ExporterModel.families` gives the metric families to serve. Anything
+the daemon sends that this code does not expect (a missing field, a wrong type, a new kind of
+push) is skipped, never raised: the exporter must keep serving whatever the daemon says.
+
+Two kinds of values (docs/fleet.md "Metrics"):
+
+- **The daemon's** (state, causes, outputs, link, the loop's counters, the remote's status):
+  exported only while connected. When the connection ends they go, so a scrape never shows
+  a state the exporter cannot vouch for; ``srcs_up`` says 0.
+- **The exporter's own counters** (stops, re-arms, raised causes, transitions, records seen
+  and missed), counted from the ``records`` push stream: they start at 0 when the exporter
+  starts and keep counting across daemon restarts; records the exporter could not see are
+  counted, by their sequence numbers, in ``srcs_records_missed_total``.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Final, Protocol
+
+STATES: Final = ("STOPPED", "HOLD", "RUN")
+"""The supervisor's states (safety-rules §1), one ``srcs_state`` series each."""
+MAX_LABEL_VALUES: Final = 64
+"""Distinct values one label may take (cause, reason, output); past it, ``other``. Cause
+names carry client names (``client_lost:NAME``), which any process that may connect can
+choose: the cap keeps a misbehaving client from growing the fleet's database without end."""
+OVERFLOW: Final = "other"
+REMOTE_STALE_NS: Final = 5_000_000_000
+"""A remote status older than this is not exported: the VSC sends one a second once
+commissioned (docs/api.md "commission"), and does not clear it when the remote's link drops
+(manual §8.3.4), so only a fresh one describes the remote now."""
+NS_PER_S: Final = 1_000_000_000
+
+
+class Kind(enum.Enum):
+    """A metric family's type (the OpenMetrics types this exporter uses)."""
+
+    GAUGE = "gauge"
+    COUNTER = "counter"  # ``name`` without ``_total``; the serving edge adds it
+    INFO = "info"  # ``name`` without ``_info``; one sample of value 1
+
+
+Labels = tuple[tuple[str, str], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    labels: Labels
+    value: float
+
+
+@dataclass(frozen=True, slots=True)
+class Family:
+    """One metric family: its name, type, help text and samples."""
+
+    name: str
+    kind: Kind
+    help: str
+    samples: tuple[Sample, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class Spec:
+    """A family the exporter may serve: its name as scraped, its type, its labels."""
+
+    name: str
+    kind: Kind
+    help: str
+    labels: tuple[str, ...] = ()
+
+    @property
+    def scraped(self) -> str:
+        """The sample name Prometheus stores (``_total`` and ``_info`` added)."""
+        suffix = {Kind.COUNTER: "_total", Kind.INFO: "_info", Kind.GAUGE: ""}[self.kind]
+        return self.name + suffix
+
+
+def _specs(*specs: Spec) -> dict[str, Spec]:
+    return {spec.name: spec for spec in specs}
+
+
+G, C, INFO = Kind.GAUGE, Kind.COUNTER, Kind.INFO
+SPECS: Final = _specs(
+    Spec("srcs_up", G, "1 while the exporter is connected to srcsd's API socket, else 0"),
+    Spec("srcs_daemon", INFO, "the daemon this exporter reads (from its status reply)", ("robot",)),
+    Spec("srcs_state", G, "1 for the supervisor's current state, 0 for the others", ("state",)),
+    Spec(
+        "srcs_cause_active",
+        G,
+        "1 while the cause's condition holds (every cause seen since the exporter started)",
+        ("cause", "severity"),
+    ),
+    Spec(
+        "srcs_cause_latched",
+        G,
+        "1 while a stop cause waits for a re-arm (safety-rules §4)",
+        ("cause", "severity"),
+    ),
+    Spec("srcs_output_on", G, "1 while the output is on", ("output",)),
+    Spec("srcs_outputs_not_acquired", G, "outputs the daemon could not acquire yet"),
+    Spec("srcs_link_up", G, "1 while the daemon's link to the VSC is open"),
+    Spec("srcs_link_opens", C, "times the daemon opened its link to the VSC (since it started)"),
+    Spec("srcs_link_open_failures", C, "failed attempts to open the link (since srcsd started)"),
+    Spec("srcs_messages", C, "valid messages from the VSC (since srcsd started)"),
+    Spec(
+        "srcs_rejections",
+        C,
+        "input from the VSC the decoder rejected, by reason (since srcsd started)",
+        ("reason",),
+    ),
+    Spec("srcs_record_errors", C, "stop records that could not be written (since srcsd started)"),
+    Spec("srcs_internal_faults", C, "internal faults the loop caught (since srcsd started)"),
+    Spec("srcs_remote_battery_percent", G, "the remote's battery level (10 % steps)"),
+    Spec("srcs_remote_battery_charging", G, "1 while the remote's battery charges"),
+    Spec(
+        "srcs_remote_link_strength",
+        G,
+        "the radio link's strength, 0 low, 1 medium, 2 high, as seen by the VSC or the remote",
+        ("seen_by",),
+    ),
+    Spec(
+        "srcs_remote_rssi",
+        G,
+        "the raw RSSI byte as seen by the VSC or the remote (the manual reserves it)",
+        ("seen_by",),
+    ),
+    Spec("srcs_remote_status_age_seconds", G, "time since the last remote-status message"),
+    Spec(
+        "srcs_stops",
+        C,
+        "changes into STOPPED, by each stop cause raised with them (seen by this exporter)",
+        ("cause",),
+    ),
+    Spec(
+        "srcs_rearms",
+        C,
+        "re-arms out of STOPPED, by each latched cause they released and the re-arm's kind",
+        ("cause", "kind"),
+    ),
+    Spec("srcs_rearm_refusals", C, "re-arms asked for and refused (seen by this exporter)"),
+    Spec("srcs_causes_raised", C, "causes raised, stop or hold, in any state", ("cause",)),
+    Spec(
+        "srcs_state_transitions",
+        C,
+        "changes of state (seen by this exporter)",
+        ("from_state", "to_state"),
+    ),
+    Spec("srcs_records_seen", C, "stop records this exporter received"),
+    Spec(
+        "srcs_records_missed",
+        C,
+        "stop records this exporter did not receive (gaps in their sequence numbers)",
+    ),
+    Spec("srcs_record_last_seq", G, "the sequence number of the newest record received"),
+    Spec("srcs_api_connects", C, "connections this exporter made to srcsd's API socket"),
+    Spec("srcs_daemon_restarts", C, "times srcsd's pid changed between two connections"),
+)
+"""Every family the exporter serves (docs/fleet.md lists them; the dashboard test checks its
+expressions against this table)."""
+
+
+@dataclass(frozen=True, slots=True)
+class CauseFlags:
+    severity: str
+    active: bool
+    latched: bool
+
+
+@dataclass(frozen=True, slots=True)
+class DaemonInfo:
+    """The ``daemon`` object of a ``status`` reply, the fields this exporter reads."""
+
+    robot: str | None = None
+    pid: int | None = None
+    link_open: bool | None = None
+    link_opens: int | None = None
+    link_open_failures: int | None = None
+    messages: int | None = None
+    rejections: tuple[tuple[str, int], ...] = ()
+    record_errors: int | None = None
+    internal_faults: int | None = None
+    outputs_not_acquired: int | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class RemoteStatus:
+    """A remote-status push (manual §8.3.4) and when it arrived (the caller's clock)."""
+
+    received_ns: int
+    battery_level: int | None
+    battery_charging: int | None
+    strength_vsc: int | None
+    strength_src: int | None
+    rssi_vsc: int | None
+    rssi_src: int | None
+
+
+@dataclass
+class _Labels:
+    """The values one label has taken, capped at :data:`MAX_LABEL_VALUES`."""
+
+    seen: dict[str, None] = field(default_factory=dict)
+
+    def admit(self, value: str) -> str:
+        if value in self.seen:
+            return value
+        if len(self.seen) >= MAX_LABEL_VALUES:
+            return OVERFLOW
+        self.seen[value] = None
+        return value
+
+
+def _int(value: object) -> int | None:
+    """An integer (not a bool) or ``None``."""
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def _text(value: object) -> str | None:
+    return value if isinstance(value, str) else None
+
+
+def _mapping(value: object) -> Mapping[str, object]:
+    return value if isinstance(value, Mapping) else {}
+
+
+def _list(value: object) -> list[object]:
+    return value if isinstance(value, list) else []
+
+
+class ExporterModel:
+    """The exporter's knowledge: fed with :meth:`connected`, :meth:`status`, :meth:`push` and
+    :meth:`disconnected`; read with :meth:`families`. Never raises on the daemon's data."""
+
+    def __init__(self) -> None:
+        self.up = False
+        # The daemon's values: valid while connected, dropped when the connection ends.
+        self.state: str | None = None
+        self.state_ns: int | None = None
+        self.causes: dict[str, CauseFlags] = {}
+        self.outputs: dict[str, bool] = {}
+        self.daemon: DaemonInfo | None = None
+        self.remote: RemoteStatus | None = None
+        # The exporter's own: for the life of the process.
+        self.known_causes: dict[str, str] = {}  # every cause seen: its severity
+        self.stops: dict[str, int] = {}
+        self.rearms: dict[tuple[str, str], int] = {}
+        self.raised: dict[str, int] = {}
+        self.transitions: dict[tuple[str, str], int] = {}
+        self.rearm_refusals = 0
+        self.records_seen = 0
+        self.records_missed = 0
+        self.last_seq: int | None = None
+        self.connects = 0
+        self.daemon_restarts = 0
+        self._last_pid: int | None = None
+        self._cause_labels = _Labels()
+        self._reason_labels = _Labels()
+        self._output_labels = _Labels()
+
+    # ------------------------------------------------------------------ feeding
+
+    def connected(self) -> None:
+        """A new connection to the API socket (before its first reply)."""
+        self.up = True
+        self.connects += 1
+
+    def disconnected(self) -> None:
+        """The connection ended: forget everything only a live connection can vouch for."""
+        self.up = False
+        self.state = None
+        self.state_ns = None
+        self.causes = {}
+        self.outputs = {}
+        self.daemon = None
+        self.remote = None
+
+    def status(self, reply: Mapping[str, object]) -> None:
+        """A ``status`` reply: the state and the ``daemon`` object."""
+        self._state(reply)
+        daemon = reply.get("daemon")
+        if isinstance(daemon, Mapping):
+            self._daemon(daemon)
+
+    def push(self, push: Mapping[str, object], now_ns: int) -> None:
+        """One push; ``now_ns`` is when it arrived (for the remote status's age)."""
+        match push.get("event"):
+            case "state":
+                self._state(push)
+            case "record":
+                self._record(push)
+            case "remote_status":
+                self._remote(push, now_ns)
+            case _:
+                pass  # a topic this exporter did not ask for, or a newer one
+
+    def _state(self, obj: Mapping[str, object]) -> None:
+        state = obj.get("state")
+        mono_ns = _int(obj.get("mono_ns"))
+        if state not in STATES or mono_ns is None:
+            return
+        # A push read after a newer status reply (the client keeps pushes that arrive while
+        # it waits for a reply) must not turn the state back.
+        if self.state_ns is not None and mono_ns < self.state_ns:
+            return
+        self.state, self.state_ns = str(state), mono_ns
+        causes: dict[str, CauseFlags] = {}
+        for item in _list(obj.get("causes")):
+            cause = _mapping(item)
+            name, severity = _text(cause.get("name")), _text(cause.get("severity"))
+            if name is None or severity is None:
+                continue
+            name = self._cause_label(name, severity)
+            flags = causes.get(name)
+            causes[name] = CauseFlags(
+                severity,
+                cause.get("active") is True or (flags is not None and flags.active),
+                cause.get("latched") is True or (flags is not None and flags.latched),
+            )
+        self.causes = causes
+        self.outputs = {
+            self._output_labels.admit(name): level
+            for name, level in _mapping(obj.get("outputs")).items()
+            if isinstance(level, bool)
+        }
+
+    def _cause_label(self, name: str, severity: str | None = None) -> str:
+        label = self._cause_labels.admit(name)
+        if severity is not None:
+            self.known_causes.setdefault(label, severity)
+        return label
+
+    def _daemon(self, daemon: Mapping[str, object]) -> None:
+        link = _mapping(daemon.get("link"))
+        link_open = link.get("open")
+        pid = _int(daemon.get("pid"))
+        if pid is not None:
+            if self._last_pid is not None and pid != self._last_pid:
+                self.daemon_restarts += 1
+            self._last_pid = pid
+        rejections: dict[str, int] = {}
+        for reason, count in _mapping(daemon.get("rejections")).items():
+            value = _int(count)
+            if value is not None:
+                label = self._reason_labels.admit(reason)
+                rejections[label] = rejections.get(label, 0) + value
+        self.daemon = DaemonInfo(
+            robot=_text(daemon.get("robot")),
+            pid=pid,
+            link_open=link_open if isinstance(link_open, bool) else None,
+            link_opens=_int(link.get("opens")),
+            link_open_failures=_int(link.get("open_failures")),
+            messages=_int(daemon.get("messages")),
+            rejections=tuple(sorted(rejections.items())),
+            record_errors=_int(daemon.get("record_errors")),
+            internal_faults=_int(daemon.get("internal_faults")),
+            outputs_not_acquired=(
+                len(_list(daemon.get("outputs_not_acquired")))
+                if isinstance(daemon.get("outputs_not_acquired"), list)
+                else None
+            ),
+        )
+
+    def _record(self, record: Mapping[str, object]) -> None:
+        """Count one stop record (docs/record.md), reconciled by its sequence number."""
+        seq = _int(record.get("seq"))
+        if seq is not None:
+            if self.last_seq is not None and seq > self.last_seq + 1:
+                # Written while this exporter was not connected (or not subscribed yet).
+                self.records_missed += seq - self.last_seq - 1
+            # A number at or below the last one: the daemon's sequence started again (a new
+            # record file); it is no repeat, since a push is sent once, to live subscribers.
+            self.last_seq = seq
+        self.records_seen += 1
+        severities: dict[str, str] = {}
+        for item in _list(record.get("causes")):
+            cause = _mapping(item)
+            name, severity = _text(cause.get("name")), _text(cause.get("severity"))
+            if name is not None and severity is not None:
+                severities[name] = severity
+                self._cause_label(name, severity)
+        changes = [
+            (_text(change.get("name")), _text(change.get("change")))
+            for change in map(_mapping, _list(record.get("changes")))
+        ]
+        raised = [name for name, kind in changes if name is not None and kind == "raised"]
+        released = [name for name, kind in changes if name is not None and kind == "released"]
+        for name in raised:
+            label = self._cause_label(name)
+            self.raised[label] = self.raised.get(label, 0) + 1
+        before, after = _text(record.get("from")), _text(record.get("to"))
+        if before in STATES and after in STATES and before != after:
+            key = (str(before), str(after))
+            self.transitions[key] = self.transitions.get(key, 0) + 1
+            if after == "STOPPED":
+                stop_causes = [n for n in raised if severities.get(n) == "stop"]
+                # Every stop has a stop cause raised with it (safety-rules §2); if a record
+                # ever lacked one, the stop still counts.
+                for name in stop_causes or ["unknown"]:
+                    label = self._cause_label(name)
+                    self.stops[label] = self.stops.get(label, 0) + 1
+            elif before == "STOPPED":
+                kind = _text(_mapping(record.get("rearm")).get("kind")) or "unknown"
+                for name in released or ["unknown"]:
+                    key = (self._cause_label(name), kind)
+                    self.rearms[key] = self.rearms.get(key, 0) + 1
+        if record.get("kind") == "rearm_refused":
+            self.rearm_refusals += 1
+
+    def _remote(self, push: Mapping[str, object], now_ns: int) -> None:
+        self.remote = RemoteStatus(
+            received_ns=now_ns,
+            battery_level=_int(push.get("battery_level")),
+            battery_charging=_int(push.get("battery_charging")),
+            strength_vsc=_int(push.get("connection_strength_vsc")),
+            strength_src=_int(push.get("connection_strength_src")),
+            rssi_vsc=_int(push.get("rssi_vsc")),
+            rssi_src=_int(push.get("rssi_src")),
+        )
+
+    # ------------------------------------------------------------------ reading
+
+    def families(self, now_ns: int) -> list[Family]:
+        """Every family with its samples now (``now_ns`` on the clock :meth:`push` was given)."""
+        out: dict[str, list[Sample]] = {name: [] for name in SPECS}
+
+        def put(name: str, value: float | None, **labels: str) -> None:
+            if value is not None:
+                out[name].append(Sample(tuple(labels.items()), float(value)))
+
+        put("srcs_up", 1 if self.up else 0)
+        self._own(put)
+        if self.up:
+            self._daemon_values(put)
+            self._remote_values(put, now_ns)
+        return [
+            Family(spec.name, spec.kind, spec.help, tuple(out[spec.name]))
+            for spec in SPECS.values()
+        ]
+
+    def _own(self, put: _Put) -> None:
+        for cause, count in sorted(self.stops.items()):
+            put("srcs_stops", count, cause=cause)
+        for (cause, kind), count in sorted(self.rearms.items()):
+            put("srcs_rearms", count, cause=cause, kind=kind)
+        for cause, count in sorted(self.raised.items()):
+            put("srcs_causes_raised", count, cause=cause)
+        for (before, after), count in sorted(self.transitions.items()):
+            put("srcs_state_transitions", count, from_state=before, to_state=after)
+        put("srcs_rearm_refusals", self.rearm_refusals)
+        put("srcs_records_seen", self.records_seen)
+        put("srcs_records_missed", self.records_missed)
+        put("srcs_record_last_seq", self.last_seq)
+        put("srcs_api_connects", self.connects)
+        put("srcs_daemon_restarts", self.daemon_restarts)
+
+    def _daemon_values(self, put: _Put) -> None:
+        if self.state is not None:
+            for state in STATES:
+                put("srcs_state", 1 if state == self.state else 0, state=state)
+            for cause, severity in sorted(self.known_causes.items()):
+                flags = self.causes.get(cause)
+                active = flags is not None and flags.active
+                latched = flags is not None and flags.latched
+                put("srcs_cause_active", active, cause=cause, severity=severity)
+                put("srcs_cause_latched", latched, cause=cause, severity=severity)
+            for output, on in sorted(self.outputs.items()):
+                put("srcs_output_on", on, output=output)
+        daemon = self.daemon
+        if daemon is None:
+            return
+        if daemon.robot is not None:
+            put("srcs_daemon", 1, robot=daemon.robot)
+        put("srcs_link_up", daemon.link_open)
+        put("srcs_link_opens", daemon.link_opens)
+        put("srcs_link_open_failures", daemon.link_open_failures)
+        put("srcs_messages", daemon.messages)
+        for reason, count in daemon.rejections:
+            put("srcs_rejections", count, reason=reason)
+        put("srcs_record_errors", daemon.record_errors)
+        put("srcs_internal_faults", daemon.internal_faults)
+        put("srcs_outputs_not_acquired", daemon.outputs_not_acquired)
+
+    def _remote_values(self, put: _Put, now_ns: int) -> None:
+        remote = self.remote
+        if remote is None or now_ns - remote.received_ns > REMOTE_STALE_NS:
+            return
+        put("srcs_remote_battery_percent", remote.battery_level)
+        put("srcs_remote_battery_charging", remote.battery_charging)
+        put("srcs_remote_link_strength", remote.strength_vsc, seen_by="vsc")
+        put("srcs_remote_link_strength", remote.strength_src, seen_by="remote")
+        put("srcs_remote_rssi", remote.rssi_vsc, seen_by="vsc")
+        put("srcs_remote_rssi", remote.rssi_src, seen_by="remote")
+        put("srcs_remote_status_age_seconds", max(0, now_ns - remote.received_ns) / NS_PER_S)
+
+
+class _Put(Protocol):
+    """The signature of ``families``' sample writer (for the type checker)."""
+
+    def __call__(self, name: str, value: float | None, **labels: str) -> None: ...
+
+
+def scraped_names() -> Iterable[str]:
+    """Every sample name a scrape may show (``_total`` and ``_info`` included)."""
+    return (spec.scraped for spec in SPECS.values())

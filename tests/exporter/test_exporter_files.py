@@ -1,0 +1,106 @@
+"""The shipped Prometheus and systemd files, checked by their own tools, and the exporter
+process without a daemon to follow (docs/fleet.md)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from prometheus_client.openmetrics.parser import text_string_to_metric_families
+
+from supervisord.exporter.model import SPECS
+from tests.exporter.stack import DASHBOARD, PROMTOOL, REPO, RULES, Exporter, http_get
+
+needs_promtool = pytest.mark.skipif(
+    not Path(PROMTOOL).exists(), reason="needs Debian's prometheus package (./dev installs it)"
+)
+UNIT = REPO / "units" / "srcs-exporter@.service"
+
+
+@needs_promtool
+def test_alert_rules_pass_promtool_check() -> None:
+    """promtool accepts the alert rules file."""
+    result = subprocess.run(
+        [PROMTOOL, "check", "rules", str(RULES)], check=False, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "7 rules found" in result.stdout
+
+
+@needs_promtool
+def test_alert_rules_fire_as_their_unit_tests_say() -> None:
+    """promtool's rule unit tests: supervisor down after 1 minute, STOPPED for 30 minutes,
+    a flapping link, a record error each fire (and not before their time)."""
+    tests = Path(__file__).with_name("rules-test.yml")
+    result = subprocess.run(
+        [PROMTOOL, "test", "rules", tests.name],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=tests.parent,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "SUCCESS" in result.stdout
+
+
+@needs_promtool
+def test_example_scrape_config_passes_promtool_check() -> None:
+    """The fleet's example prometheus.yml, with its rule file, is a valid config."""
+    config = REPO / "config" / "prometheus" / "prometheus.yml"
+    result = subprocess.run(
+        [PROMTOOL, "check", "config", str(config)], check=False, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_dashboard_is_json_and_uses_only_served_metrics() -> None:
+    """The Grafana dashboard is JSON, and every srcs_* name in its expressions and variables is
+    one the exporter serves (a renamed metric would leave an empty panel)."""
+    dashboard = json.loads(DASHBOARD.read_text())
+    served = {spec.scraped for spec in SPECS.values()}
+    texts = [t["expr"] for p in dashboard["panels"] for t in p["targets"]]
+    texts += [v["definition"] for v in dashboard["templating"]["list"]]
+    used = {name for text in texts for name in re.findall(r"\bsrcs_\w+", text)}
+    assert used, "the dashboard queries nothing"
+    assert used <= served, used - served
+    rules_used = set(re.findall(r"\bsrcs_\w+", RULES.read_text()))
+    assert rules_used <= served, rules_used - served
+
+
+@pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")
+def test_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
+    """systemd-analyze verify accepts the unit (its ExecStart pointed at this checkout, since
+    /opt/srcsd is the installed location)."""
+    text = UNIT.read_text().replace(
+        "/opt/srcsd/bin/srcs-exporter", f"{sys.executable} -m supervisord.cli.exporter"
+    )
+    (tmp_path / "srcs-exporter@.service").write_text(text)
+    result = subprocess.run(
+        ["systemd-analyze", "verify", str(tmp_path / "srcs-exporter@robot-a.service")],
+        check=False,
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip() == "", result.stderr
+
+
+def test_without_srcsd_the_exporter_serves_srcs_up_zero(tmp_path: Path) -> None:
+    """With no daemon at the socket, the exporter still answers scrapes: srcs_up 0, in valid
+    OpenMetrics, and no state, cause or link series at all."""
+    exporter = Exporter(tmp_path / "api.sock", tmp_path / "exporter.log")
+    try:
+        body, kind = http_get(exporter.url, accept="application/openmetrics-text; version=1.0.0")
+    finally:
+        assert exporter.stop() == 0
+    assert kind.startswith("application/openmetrics-text")
+    families = list(text_string_to_metric_families(body))  # type: ignore[no-untyped-call]
+    samples = {s.name: s.value for f in families for s in f.samples}
+    assert samples["srcs_up"] == 0
+    assert not {"srcs_state", "srcs_cause_active", "srcs_link_up"} & set(samples)
+    assert "srcsd not reachable" in exporter.log.read_text()
