@@ -15,18 +15,23 @@ Two processes, as on a robot, where the VSC and the supervisor do not share a sc
   and reports the time over a pipe: the timestamp is taken in the loop's own process, so no
   polling of a file adds to it. CLOCK_MONOTONIC is one clock for the whole machine, so the
   VSC's send times and the supervisor's output times subtract directly.
+- **A flooding client** (``--client-flood``, ``python -m bench.rig flood SOCKET``): a third
+  process that pipelines hold/release and every other request kind into the supervisor's
+  API socket as fast as the socket takes them, and reads its replies as they come.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import math
 import os
 import platform
 import random
 import select
 import signal
+import socket
 import struct
 import subprocess
 import sys
@@ -37,6 +42,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
 
+from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
@@ -56,6 +63,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
+from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.testkit.process import terminate
 from supervisord.testkit.pty_port import PtyPort
 
@@ -105,15 +113,21 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
     safety = SafetyConfig(
         vsc_timeout_ms=args.timeout_ms,
         rearm_hold_ms=args.hold_ms,
-        outputs=(OutputSpec(output.name, OutputRole.MOTION),),
+        outputs=(OutputSpec(output.name, OutputRole(args.role)),),
     )
+    listener = None
+    if args.api_socket:
+        listener = ApiListener(ApiServer(ServerConfig(path=Path(args.api_socket))))
     supervisor = Supervisor(
         safety,
         SerialLink(args.port),
         [output],
         RecordWriter(Path(args.record)),
         backoff=Backoff(20, 100),
+        listener=listener,
     )
+    if listener is not None:
+        listener.daemon_info = supervisor.info
     return supervisor.run()
 
 
@@ -177,12 +191,84 @@ def child_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--record", required=True)
     parser.add_argument("--timeout-ms", type=int, default=200)
     parser.add_argument("--hold-ms", type=int, default=100)
+    parser.add_argument("--api-socket", default=None, help="serve the client API here")
+    parser.add_argument("--role", choices=("motion", "power"), default="motion")
     args = parser.parse_args(argv)
     level_file = Path(args.level_file) if args.level_file else None
     output = TimedOutput(SimSpec(name="drive", path=level_file), args.report_fd)
     if args.model != "supervisor":
         return run_poll_model(args, output)
     return run_supervisor(args, output)
+
+
+# ---------------------------------------------------------------------------------------------
+# The flooding client
+
+FLOOD_REQUESTS: tuple[object, ...] = (
+    {"op": "hold"},
+    {"op": "release", "what": "hold"},
+    {"op": "hold"},
+    {"op": "release", "what": "hold"},
+    {"op": "status"},
+    {"op": "heartbeat"},
+    {"op": "release", "what": "estop"},
+    {"op": "hello", "name": "again"},
+    {"op": "subscribe", "topics": ["state"]},
+    {"op": "display", "value": {"key": 1, "value": 42}},
+    {"op": "display", "label": {"key": 1, "text": "speed"}},
+    {"op": "display", "row": {"index": 1, "text": "flooding"}},
+    {"op": "display", "mode": 1},
+    {"op": "vibrate", "side": "both"},
+    {"op": "reset"},
+    {"op": "nonsense"},
+    "not json",
+)
+"""One round of the flood: hold/release pairs and every other kind of request a client may
+send (no ``estop``: it would stop the robot, which is the point of no flood; no
+``commission``: it writes the VSC)."""
+
+
+def flood_main(socket_path: str) -> int:
+    """Say hello as ``flood``, then keep the socket full of requests and read every reply,
+    until the connection ends or SIGTERM."""
+    batch = b"".join(
+        (r if isinstance(r, str) else json.dumps(r)).encode() + b"\n" for r in FLOOD_REQUESTS
+    )
+    batch *= 20
+    stop = False
+
+    def request_stop(_signum: int, _frame: FrameType | None) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, request_stop)
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.connect(socket_path)
+        sock.sendall(b'{"op": "hello", "name": "flood"}\n')
+        sock.setblocking(False)
+        out = bytearray()
+        while not stop:
+            if len(out) < 65536:
+                out += batch
+            with contextlib.suppress(InterruptedError):
+                readable, writable, _ = select.select([sock], [sock], [], 0.05)
+                if writable:
+                    with contextlib.suppress(BlockingIOError):
+                        del out[: sock.send(out)]
+                if readable and not sock.recv(1 << 20):
+                    return 1  # the daemon closed the connection
+    return 0
+
+
+def start_flood(socket_path: Path) -> subprocess.Popen[bytes]:
+    """The flooding client as a process of its own (stop it with ``terminate``)."""
+    deadline = time.monotonic() + 10
+    while not socket_path.exists():
+        if time.monotonic() > deadline:
+            raise RigError(f"no API socket at {socket_path}")
+        time.sleep(0.01)
+    command = [sys.executable, "-m", "bench.rig", "flood", str(socket_path)]
+    return subprocess.Popen(command, cwd=REPO)  # noqa: S603 -- our own interpreter and module
 
 
 # ---------------------------------------------------------------------------------------------
@@ -347,8 +433,11 @@ class Rig:
         cpu: int | None = None,
         mirror: bool = False,
         nice: int = 0,
+        api_socket: Path | None = None,
+        role: str = "motion",
     ) -> None:
         self.hold_ms = hold_ms
+        self.api_socket = api_socket
         read_fd, write_fd = os.pipe()
         self.vsc = Vsc(directory / "vsc", read_fd)
         command = [
@@ -364,6 +453,9 @@ class Rig:
         ]
         if mirror:
             command.append(f"--level-file={directory / 'drive'}")
+        if api_socket is not None:
+            command.append(f"--api-socket={api_socket}")
+        command.append(f"--role={role}")
         # Our own interpreter running our own module: no untrusted input reaches the command.
         self.process = subprocess.Popen(command, cwd=REPO, pass_fds=(write_fd,))  # noqa: S603
         os.close(write_fd)  # the child's copy is the only writer: EOF means it died
@@ -416,7 +508,8 @@ class Rig:
         for _ in range(tries):
             self.vsc.silent = False
             self.vsc.set_state(VscMode.LOCAL)
-            self.vsc.pump_ms(self.hold_ms + 30)
+            # the hold, and Local heartbeats spanning the takeover dwell (re-arm rule 4)
+            self.vsc.pump_ms(max(self.hold_ms + 30, TAKEOVER_DWELL_NS / NS_PER_MS + 50))
             self.vsc.set_state(VscMode.OPERATIONAL)
             edge = self.vsc.wait_edge(True, limit_ms=1000)
             if edge is not None:
@@ -481,4 +574,6 @@ def ms(ns: float) -> str:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["flood"]:
+        sys.exit(flood_main(sys.argv[2]))
     sys.exit(child_main())

@@ -17,11 +17,20 @@ The latency runs from just before the VSC side writes the frame (so it includes 
 the moment the output's set-and-read-back returned in the supervisor's process. ``--model
 poll50`` runs the same stops against a model of the public drivers' 20 ms polling loop;
 ``--model event`` against a bare event-driven loop, the floor of any Python loop here.
+
+``--client-flood`` serves the client API on a socket and runs the same stops while a client
+pipelines hold/release and every other request kind into it as fast as it can (issue 11,
+``bench/rig.py``). Its holds would switch a motion output by themselves, so with the flood the
+measured output is a power output (off only when STOPPED) and every stop is an e-stop with
+its re-arm; compare it with the e-stop row of a quiet run. The user heartbeat's periods as
+the VSC heard them are printed too (the VSC's key-85 watchdog trips at 500 ms).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import itertools
 import random
 import tempfile
 import time
@@ -39,9 +48,12 @@ from bench.rig import (
     ms,
     percentile,
     realtime,
+    start_flood,
     table,
 )
+from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
+from supervisord.testkit.process import terminate
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (notes §2)
 TARGET_P99_NS = 2_000_000  # safety-rules §9
@@ -76,6 +88,8 @@ def run(
     mirror: bool = False,
     nice: int = 0,
     seed: int = 1,
+    client_flood: bool = False,
+    heartbeats: list[int] | None = None,
 ) -> list[Stop]:
     """Measure ``stops`` stops; every ``estop_every``-th is an e-stop (0: none).
 
@@ -87,37 +101,95 @@ def run(
     """
     rng = random.Random(seed)
     measured: list[Stop] = []
-    with Rig(directory, model=model, mirror=mirror, nice=nice) as rig:
-        vsc = rig.vsc
-        rig.arm()
-        for index in range(stops):
-            if model == "poll50":
-                # The on edge happened at one of its ticks: a gap spread over a whole period
-                # makes the stop's phase against the 20 ms tick uniform, as in service.
-                vsc.pump_ms(rng.uniform(2, 22))
-            elif back_to_back or model != "supervisor":
-                vsc.pump_ms(rng.uniform(2, 8))
-            else:
-                rig.wait_idle()
-                vsc.pump_ms(rng.uniform(0, 5))
-            if not vsc.edges or not vsc.edges[-1].on:
-                rig.arm()  # something else stopped it meanwhile: measure only from RUN
-            estop = estop_every > 0 and index % estop_every == estop_every - 1
-            if estop:
-                sent = vsc.set_state(VscMode.OPERATIONAL, ESTOP_REMOTE)
-            else:
-                sent = vsc.set_state(VscMode.PAUSE)
-            edge = vsc.wait_edge(False, limit_ms=1000)
-            if edge is None:
-                raise RigError(f"stop {index}: the output did not go off within 1 s")
-            measured.append(Stop("estop" if estop else "hold", sent, edge))
-            if estop:
-                rig.arm()
-            else:
-                vsc.set_state(VscMode.OPERATIONAL)
-                if vsc.wait_edge(True, limit_ms=1000) is None:
-                    rig.arm()
+    api_socket = directory / "api.sock" if client_flood else None
+    if client_flood:
+        estop_every = 1  # the flood's holds would be measured too: e-stops on a power output
+    with contextlib.ExitStack() as stack:
+        rig = stack.enter_context(
+            Rig(
+                directory,
+                model=model,
+                mirror=mirror,
+                nice=nice,
+                api_socket=api_socket,
+                role="power" if client_flood else "motion",
+            )
+        )
+        if api_socket is not None:
+            flood = start_flood(api_socket)
+            stack.callback(terminate, flood)
+        _measure(
+            rig,
+            stops,
+            estop_every,
+            model=model,
+            back_to_back=back_to_back,
+            rng=rng,
+            measured=measured,
+        )
+        if heartbeats is not None:
+            heartbeats += rig.vsc.heartbeat_arrivals
+        if api_socket is not None:
+            with SupervisorClient.connect(api_socket) as client:
+                daemon = client.status()["daemon"]
+            alive = "still connected" if flood.poll() is None else f"ended ({flood.poll()})"
+            print(
+                f"flood: {alive}; {daemon['rate_limited']} requests refused by the record "
+                f"budget, {daemon['record_errors']} record errors, "
+                f"{daemon['internal_faults']} internal faults"
+            )
     return measured
+
+
+def _measure(
+    rig: Rig,
+    stops: int,
+    estop_every: int,
+    *,
+    model: str,
+    back_to_back: bool,
+    rng: random.Random,
+    measured: list[Stop],
+) -> None:
+    """The stops of ``run``, appended to ``measured``."""
+    vsc = rig.vsc
+    rig.arm()
+    for index in range(stops):
+        if model == "poll50":
+            # The on edge happened at one of its ticks: a gap spread over a whole period
+            # makes the stop's phase against the 20 ms tick uniform, as in service.
+            vsc.pump_ms(rng.uniform(2, 22))
+        elif back_to_back or model != "supervisor":
+            vsc.pump_ms(rng.uniform(2, 8))
+        else:
+            rig.wait_idle()
+            vsc.pump_ms(rng.uniform(0, 5))
+        if not vsc.edges or not vsc.edges[-1].on:
+            # something else stopped it meanwhile (or the flood's hold): only from RUN
+            _back_on(rig)
+        estop = estop_every > 0 and index % estop_every == estop_every - 1
+        if estop:
+            sent = vsc.set_state(VscMode.OPERATIONAL, ESTOP_REMOTE)
+        else:
+            sent = vsc.set_state(VscMode.PAUSE)
+        edge = vsc.wait_edge(False, limit_ms=1000)
+        if edge is None:
+            raise RigError(f"stop {index}: the output did not go off within 1 s")
+        measured.append(Stop("estop" if estop else "hold", sent, edge))
+        if estop:
+            rig.arm()
+        else:
+            vsc.set_state(VscMode.OPERATIONAL)
+            if vsc.wait_edge(True, limit_ms=1000) is None:
+                rig.arm()
+
+
+def _back_on(rig: Rig) -> None:
+    """Wait up to 100 ms for the output to come back on by itself (a flooding client's hold
+    released), else re-arm."""
+    vsc = rig.vsc
+    if vsc.wait_edge(True, limit_ms=100) is None and (not vsc.edges or not vsc.edges[-1].on):
+        rig.arm()
 
 
 def summary_rows(measured: Sequence[Stop]) -> list[list[object]]:
@@ -165,12 +237,18 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--fifo", type=int, default=0, help="SCHED_FIFO priority of both sides (0: none; root)"
     )
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument(
+        "--client-flood",
+        action="store_true",
+        help="a client pipelines requests of every kind into the API socket meanwhile",
+    )
     args = parser.parse_args(argv)
     default_stops = 10_000 if args.model == "supervisor" else 3000
     stops = args.stops if args.stops is not None else default_stops
     print(f"machine: {machine()}")
     print(f"before: {load()}")
     started = time.monotonic()
+    heartbeats: list[int] = []
     with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory, realtime(args.fifo):
         measured = run(
             Path(directory),
@@ -181,6 +259,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             mirror=args.mirror,
             nice=args.nice,
             seed=args.seed,
+            client_flood=args.client_flood,
+            heartbeats=heartbeats,
         )
     wall = time.monotonic() - started
     print(f"after: {load()}; {wall:.0f} s")
@@ -192,10 +272,29 @@ def main(argv: Sequence[str] | None = None) -> None:
     extras = [f"nice {args.nice}"]
     extras += [f"SCHED_FIFO {args.fifo}"] if args.fifo else []
     extras += ["back to back"] if args.back_to_back else []
+    extras += ["a client flooding the API socket"] if args.client_flood else []
     print(f"model: {what}, {', '.join(extras)}")
     print("stop latency, last byte of the stopping frame written -> output off and read back (ms)")
     print()
     print(table(["stops", "n", "p50", "p99", "p99.9", "max", "mean"], summary_rows(measured)))
+    periods = [b - a for a, b in itertools.pairwise(heartbeats)]
+    if periods:
+        print()
+        print("user heartbeat period as the VSC heard it (ms; nominal 50, watchdog 500)")
+        print()
+        print(
+            table(
+                ["periods", "p50", "p99", "max"],
+                [
+                    [
+                        len(periods),
+                        ms(percentile(periods, 0.5)),
+                        ms(percentile(periods, 0.99)),
+                        ms(max(periods)),
+                    ]
+                ],
+            )
+        )
     p99 = percentile([s.latency for s in measured], 0.99)
     verdict = "PASS" if p99 < TARGET_P99_NS else "FAIL"
     print()

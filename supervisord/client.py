@@ -19,10 +19,11 @@ from __future__ import annotations
 import collections
 import json
 import socket
+import struct
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Self
+from typing import TYPE_CHECKING, Any, Final
 
 from supervisord.api.wire import (
     ApiError,
@@ -50,11 +51,17 @@ from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
 from supervisord.safety.events import Request as Releasable
 
+if TYPE_CHECKING:
+    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
+
 DEFAULT_TIMEOUT: Final = 5.0
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 """Where the daemon serves the API unless its config says otherwise."""
 MAX_REPLY_LINE: Final = 1 << 20
 MAX_KEPT_EVENTS: Final = 4096
+BACKLOG_WAIT_S: Final = 3.0
+"""The longest a full listen backlog is waited out (bounded by the client's timeout too)."""
+BACKLOG_SLICE_S: Final = 0.05
 
 
 class ClientError(SrcsError):
@@ -102,14 +109,10 @@ class SupervisorClient:
     ) -> Self:
         """Connect to the socket at ``path`` and, with a ``name``, say hello.
 
-        Raises :class:`ConnectError`, or ``ApiError`` if the hello is refused."""
-        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        try:
-            sock.settimeout(timeout)
-            sock.connect(str(path))
-        except OSError as e:
-            sock.close()
-            raise ConnectError(f"cannot connect to {path}: {e.strerror or e}") from e
+        A full listen backlog (``EAGAIN``: the supervisor is accepting a burst of connections)
+        is waited out for at most ``min(timeout, BACKLOG_WAIT_S)``; then, or at once for any
+        other failure, it raises :class:`ConnectError`; ``ApiError`` if the hello is refused."""
+        sock = _connect(Path(path), timeout)
         client = cls(sock, timeout)
         try:
             if name is not None:
@@ -292,6 +295,40 @@ class SupervisorClient:
             self.close()
             raise ConnectionClosedError("the supervisor closed the connection")
         self._buffer += data
+
+
+def _connect(path: Path, timeout: float) -> socket.socket:
+    """A connected socket (in ``timeout`` mode), waiting out a full listen backlog.
+
+    The wait is the kernel's own: a blocking ``connect`` with a send timeout sleeps until the
+    server accepts and makes room, in slices so a missed wake-up costs one slice at most. The
+    server's backlog is large (docs/api.md "The socket"), but connection churn by other
+    programs can still fill it, and the operator's ``srcsctl estop`` must not fail on that
+    (issue 11: 7 of 10 ``srcsctl status`` calls failed at once under churn)."""
+    budget = max(0.0, min(timeout, BACKLOG_WAIT_S))
+    deadline = time.monotonic() + budget
+    while True:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            remaining = max(0.001, min(BACKLOG_SLICE_S, deadline - time.monotonic()))
+            seconds = int(remaining)
+            wait = struct.pack("ll", seconds, int((remaining - seconds) * 1e6))
+            sock.settimeout(None)  # blocking, whatever socket.setdefaulttimeout says
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, wait)
+            sock.connect(str(path))
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, struct.pack("ll", 0, 0))
+            sock.settimeout(timeout)
+            return sock
+        except BlockingIOError as e:  # EAGAIN: the backlog stayed full for the whole slice
+            sock.close()
+            if time.monotonic() >= deadline:
+                raise ConnectError(
+                    f"cannot connect to {path}: the supervisor is busy (its listen backlog "
+                    f"stayed full for {budget:.1f} s)"
+                ) from e
+        except OSError as e:
+            sock.close()
+            raise ConnectError(f"cannot connect to {path}: {e.strerror or e}") from e
 
 
 def _error(obj: dict[str, Any]) -> ApiError:

@@ -24,6 +24,8 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import grp
+import os
+import pwd
 import re
 import sys
 import tomllib
@@ -38,12 +40,19 @@ from supervisord.outputs import (
     parse_output_spec,
     spec_class,
 )
-from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
+from supervisord.record.jsonl import (
+    DEFAULT_KEEP,
+    DEFAULT_MAX_BYTES,
+    KEEP_RANGE,
+    MAX_BYTES_RANGE,
+    rotated,
+)
 from supervisord.safety.config import (
     CLIENT_TIMEOUT_RANGE_MS,
     DEFAULT_CLIENT_TIMEOUT_MS,
     HEARTBEAT_HZ_RANGE,
     REARM_HOLD_RANGE_MS,
+    UID_RANGE,
     VSC_TIMEOUT_RANGE_MS,
     ClientSpec,
     OutputRole,
@@ -90,6 +99,9 @@ OUTPUT_NAME: Final = re.compile(r"[A-Za-z0-9_-]{1,32}")
 """Output names: the safety core allows ``.`` too, the output plugins do not; both must hold."""
 CLIENT_NAME: Final = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 GROUP_NAME: Final = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,31}")
+KERNEL_CHIP_NAME: Final = re.compile(r"gpiochip[0-9]+")
+"""A GPIO chip's kernel name: the device ``/dev/NAME`` (supervisord.outputs.gpio)."""
+USER_NAME: Final = GROUP_NAME
 
 SECTIONS: Final = ("robot", "vsc", "rearm", "clients", "outputs", "output_bus", "record", "api")
 ROBOT_KEYS: Final = ("name",)
@@ -107,7 +119,7 @@ VSC_TRANSPORT_KEYS: Final[Mapping[Transport, tuple[str, ...]]] = {
 }
 CAN_BUS_KEYS: Final = ("interface", "channel", "bitrate")
 REARM_KEYS: Final = ("hold_ms", "local_reset")
-CLIENT_KEYS: Final = ("name", "timeout_ms")
+CLIENT_KEYS: Final = ("name", "timeout_ms", "user", "uid")
 RECORD_KEYS: Final = ("path", "max_bytes", "keep", "journal")
 API_KEYS: Final = ("socket", "group", "admin_group", "max_clients", "max_message_bytes")
 
@@ -472,6 +484,8 @@ class _Loader:
         safety = self.safety(vsc, vsc_table, rearm, clients, outputs)
         output_bus = self.output_bus(data.get("output_bus", MISSING), vsc, outputs)
         api = self.api(_table("api", data.get("api", MISSING)), len(clients))
+        record = self.record(_table("record", data.get("record", MISSING)))
+        _check_path_owners(vsc, outputs, record, api)
         return DaemonConfig(
             source=self.source,
             robot=robot,
@@ -479,7 +493,7 @@ class _Loader:
             safety=safety,
             outputs=outputs,
             output_bus=output_bus,
-            record=self.record(_table("record", data.get("record", MISSING))),
+            record=record,
             api=api,
         )
 
@@ -620,12 +634,39 @@ class _Loader:
                     raise ConfigError(
                         f"{prefix}.name", name, f"rename it: clients[{j}] has the same name"
                     )
+            uid = self.client_user(prefix, table)
             try:
-                clients.append(ClientSpec(name, timeout))
+                clients.append(ClientSpec(name, timeout, uid))
             except ConfigError as error:  # its keys are clients.name, clients.NAME.timeout_ms
                 field = error.key.rsplit(".", 1)[-1]
                 raise ConfigError(f"{prefix}.{field}", error.value, error.fix) from None
         return tuple(clients)
+
+    @staticmethod
+    def client_user(prefix: str, table: Mapping[str, object]) -> int | None:
+        """The uid a client is bound to (``user`` by name or ``uid`` by number), or ``None``:
+        unbound, any user who can reach the socket may say hello under the name
+        (docs/safety.md "Clients bound to a user")."""
+        user, uid = table.get("user", MISSING), table.get("uid", MISSING)
+        if user is not MISSING and uid is not MISSING:
+            raise ConfigError(f"{prefix}.uid", uid, "give user or uid, not both")
+        if uid is not MISSING:
+            return _integer(f"{prefix}.uid", uid, 0, UID_RANGE)
+        if user is MISSING:
+            return None
+        if not isinstance(user, str) or USER_NAME.fullmatch(user) is None:
+            raise ConfigError(
+                f"{prefix}.user", user, 'give a user name in double quotes, e.g. "robot"'
+            )
+        try:
+            return pwd.getpwnam(user).pw_uid
+        except KeyError:
+            raise ConfigError(
+                f"{prefix}.user",
+                user,
+                f"no such user on this machine: create it (useradd --system {user}) or name "
+                "the user the client runs as",
+            ) from None
 
     # [[outputs]] --------------------------------------------------------------------------
 
@@ -855,14 +896,73 @@ def _check_output_cross(specs: Sequence[OutputSpec]) -> None:
 
 
 def _device_claims(spec: OutputSpec) -> list[tuple[object, str, object, str]]:
-    """What a spec holds exclusively: a GPIO line, a sim file, a CAN identifier."""
+    """What a spec holds exclusively: a GPIO line, a CAN identifier. (Its file, for a sim
+    output, is one of the paths :func:`_check_path_owners` compares across all sections.)"""
     chip, line = getattr(spec, "chip", None), getattr(spec, "line", None)
-    if spec.kind is OutputKind.GPIO:
-        return [(("gpio", chip, line), "line", line, "give each output its own line")]
-    path = getattr(spec, "path", None)
-    if spec.kind is OutputKind.SIM and path is not None:
-        return [(("sim", path), "path", str(path), "give each output its own file")]
+    if spec.kind is OutputKind.GPIO and isinstance(chip, str):
+        claim = ("gpio", _chip_identity(chip), line)
+        return [(claim, "line", line, "give each output its own line")]
     if spec.kind is OutputKind.CAN:
         ident = (getattr(spec, "arbitration_id", None), getattr(spec, "extended", None))
         return [(("can", ident), "arbitration_id", ident[0], "give each output its own id")]
     return []
+
+
+def _chip_identity(chip: str) -> tuple[str, str]:
+    """What the config alone can tell of a GPIO chip (docs/configuration.md "One owner per
+    path"): a device path, with symlinks resolved, and a kernel name (``gpiochip2``) are the
+    same device (``/dev/gpiochip2``); a label is only known to the hardware, so it stays a
+    label, and a line named by name is only known to the chip, so it stays a name."""
+    if "/" in chip:
+        return ("device", os.path.realpath(chip))
+    if KERNEL_CHIP_NAME.fullmatch(chip):
+        return ("device", os.path.realpath(f"/dev/{chip}"))
+    return ("label", chip)
+
+
+def _path_claims(
+    vsc: VscConfig, outputs: Sequence[OutputSpec], record: RecordConfig, api: ApiConfig
+) -> list[tuple[str, str, Path, str]]:
+    """(key, value as written, file, what of the owner) for every file the config names, in
+    the order of the file's sections; the record claims its rotated files too."""
+    claims: list[tuple[str, str, Path, str]] = []
+    link = vsc.link
+    if isinstance(link, SerialLink):
+        claims.append(("vsc.port", str(link.port), link.port, ""))
+    elif isinstance(link, HidLink):
+        claims.append(("vsc.hidraw", str(link.hidraw), link.hidraw, ""))
+    for i, spec in enumerate(outputs):
+        path = getattr(spec, "path", None)
+        if spec.kind is OutputKind.SIM and isinstance(path, Path):
+            claims.append((f"outputs[{i}].path", str(path), path, ""))
+    claims.append(("record.path", str(record.path), record.path, ""))
+    claims += [
+        ("record.path", str(record.path), rotated(record.path, n), f"rotated file {n}")
+        for n in range(1, record.keep + 1)
+    ]
+    claims.append(("api.socket", str(api.socket), api.socket, ""))
+    return claims
+
+
+def _check_path_owners(
+    vsc: VscConfig, outputs: Sequence[OutputSpec], record: RecordConfig, api: ApiConfig
+) -> None:
+    """Every file has one owner (issue 11; docs/configuration.md "One owner per path"): two
+    keys that name one file once relative paths and symlinks are resolved would destroy each
+    other's file (an output's write replacing the record, the socket's start removing an
+    output). The later key is refused, naming the earlier one."""
+    seen: dict[str, tuple[str, str, str]] = {}
+    for key, value, path, part in _path_claims(vsc, outputs, record, api):
+        resolved = os.path.realpath(path)
+        first = seen.setdefault(resolved, (key, value, part))
+        if first == (key, value, part):
+            continue
+        other_key, other_value, other_part = first
+        mine = f"its {part}" if part else "it"
+        other = f"{other_key} = {other_value!r}" + (f" (its {other_part})" if other_part else "")
+        raise ConfigError(
+            key,
+            value,
+            f"give it its own file: {mine} and {other} are one file once relative paths and "
+            "symlinks are resolved (every path in the config has one owner)",
+        )

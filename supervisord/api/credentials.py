@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from supervisord.errors import ConfigError
+from supervisord.protocol.text import ascii_digits, clean
 from supervisord.safety.events import Caller
 
 _UCRED = struct.Struct("3i")  # struct ucred: pid_t pid, uid_t uid, gid_t gid
@@ -63,7 +64,7 @@ def process_groups(credentials: PeerCredentials, proc: Path = PROC) -> frozenset
     fields = _status_fields(credentials.pid, proc)
     uids = fields.get("Uid", "").split()  # real, effective, saved, file system
     if len(uids) >= 2 and uids[1] == str(credentials.uid):
-        groups.update(int(g) for g in fields.get("Groups", "").split() if g.isdecimal())
+        groups.update(int(g) for g in fields.get("Groups", "").split() if ascii_digits(g))
     return frozenset(groups)
 
 
@@ -80,9 +81,14 @@ def group_id(name: str | None, key: str = "api.admin_group") -> int | None:
 
 
 def user_name(uid: int) -> str:
-    """The login name of ``uid``, or the number as text when it has none."""
+    """The login name of ``uid``, or the number as text when it has none.
+
+    A name that is not UTF-8 (the password database holds bytes; Python hands the bad ones on
+    as lone surrogates) is escaped here, at its source: ``r\\xe9mi``. Raw, it would reach the
+    record and every reply naming the caller, whose encoders cannot write it (issue 11: the
+    stop record of that user's ``srcsctl estop`` was lost and ``status`` stopped answering)."""
     try:
-        return pwd.getpwuid(uid).pw_name
+        return clean(pwd.getpwuid(uid).pw_name)
     except KeyError:
         return str(uid)
 

@@ -14,6 +14,17 @@ hands every ready one back to :meth:`ApiServer.handle`, which returns typed resu
 :func:`core_event` turns a result into the safety core's event. Every socket is
 non-blocking; output waits in a bounded buffer per connection, and a client whose buffer
 overflows (stopped, or too slow to read) is disconnected: it can never block the loop.
+
+Two rules keep the stop path open whatever the other programs do (issue 11,
+``docs/safety.md`` "The client socket cannot shut out a stop"):
+
+- **e-stop slots**: past ``max_clients`` a connection takes one of ``reserved_slots`` slots on
+  which only ``estop`` and ``status`` are served; an admin's connection evicts a non-admin's
+  from a full reserve, and a slot idle for ``slot_idle_ms`` is closed;
+- **a read budget**: one :meth:`ApiServer.handle` call handles at most ``requests_per_call``
+  requests of a connection, and one turn (from one :meth:`ApiServer.descriptors` call to the
+  next) at most ``requests_per_turn`` shared evenly among the connections; what is not read
+  stays in the socket, so its descriptor is readable again next turn.
 """
 
 from __future__ import annotations
@@ -24,10 +35,11 @@ import errno
 import os
 import socket
 import stat
+import time
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Final, Self
+from typing import TYPE_CHECKING, Final
 
 from supervisord.api.credentials import caller, group_id, peer_credentials
 from supervisord.api.wire import (
@@ -37,10 +49,12 @@ from supervisord.api.wire import (
     ApiError,
     ClientInfo,
     ErrorCode,
+    Estop,
     Heartbeat,
     Hello,
     LineReader,
     Request,
+    Status,
     Subscribe,
     Topic,
     encode,
@@ -49,15 +63,28 @@ from supervisord.api.wire import (
     to_core_event,
 )
 from supervisord.errors import ConfigError, SrcsError
-from supervisord.safety.events import ClientConnected, ClientDisconnected, Event
+from supervisord.safety.events import ClientConnected, ClientDisconnected, ClientHello, Event
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
 
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 DEFAULT_MODE: Final = 0o660
 DEFAULT_MAX_CLIENTS: Final = 16
 DEFAULT_MAX_OUTPUT: Final = 256 * 1024
-RECV_SIZE: Final = 16 * 1024  # bytes read per readable event: bounded work per loop turn
+RECV_SIZE: Final = 16 * 1024  # bytes looked at per readable event: bounded work per loop turn
 ACCEPTS_PER_CALL: Final = 32
-BACKLOG: Final = 16
+# Connections the kernel queues before we accept them. Under connect/disconnect churn 16 was
+# full at once and the operator's srcsctl got EAGAIN (issue 11); the kernel caps it at
+# net.core.somaxconn. The client also retries a full backlog briefly (supervisord/client.py).
+BACKLOG: Final = 512
+DEFAULT_RESERVED_SLOTS: Final = 4
+DEFAULT_SLOT_IDLE_MS: Final = 1000
+DEFAULT_REQUESTS_PER_CALL: Final = 8
+DEFAULT_REQUESTS_PER_TURN: Final = 64
+SLOT_REQUESTS: Final = (Estop, Status)
+"""What an e-stop slot serves: the operator's stop and a look at the state (docs/api.md)."""
+NS_PER_MS: Final = 1_000_000
 
 
 class ServerError(SrcsError):
@@ -70,7 +97,10 @@ class ServerConfig:
 
     ``mode`` must not let others write (connect to) the socket; ``group`` owns the socket
     file (``None``: the daemon's group); ``admin_group`` grants ``reset`` and ``commission``
-    (``None``: only root). Raises :class:`ConfigError` for a value out of range.
+    (``None``: only root). ``bound_users`` maps client names to the one uid that may say
+    hello under them (``[[clients]] user``). ``reserved_slots``, ``slot_idle_ms``,
+    ``requests_per_call`` and ``requests_per_turn`` are the limits of the module docstring.
+    Raises :class:`ConfigError` for a value out of range.
     """
 
     path: Path = DEFAULT_SOCKET_PATH
@@ -81,6 +111,11 @@ class ServerConfig:
     max_line: int = DEFAULT_MAX_LINE
     max_discard: int | None = None
     max_output: int = DEFAULT_MAX_OUTPUT
+    bound_users: Mapping[str, int] = field(default_factory=dict)
+    reserved_slots: int = DEFAULT_RESERVED_SLOTS
+    slot_idle_ms: int = DEFAULT_SLOT_IDLE_MS
+    requests_per_call: int = DEFAULT_REQUESTS_PER_CALL
+    requests_per_turn: int = DEFAULT_REQUESTS_PER_TURN
 
     @property
     def discard_limit(self) -> int:
@@ -102,6 +137,10 @@ class ServerConfig:
             ("api.max_line", self.max_line, 256, 1 << 20),
             ("api.max_discard", self.discard_limit, self.max_line, 1 << 26),
             ("api.max_output", self.max_output, 4096, 1 << 28),
+            ("api.reserved_slots", self.reserved_slots, 1, 64),
+            ("api.slot_idle_ms", self.slot_idle_ms, 10, 60_000),
+            ("api.requests_per_call", self.requests_per_call, 1, 1024),
+            ("api.requests_per_turn", self.requests_per_turn, 1, 1 << 16),
         ):
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
                 raise ConfigError(key, value, f"use a whole number from {low} to {high}")
@@ -115,6 +154,7 @@ class CloseReason(enum.Enum):
     OUTPUT_OVERFLOW = "output_overflow"  # the client did not read its replies and pushes
     FLOOD = "flood"  # the client sent an endless line
     SHUTDOWN = "shutdown"  # the server closed
+    EVICTED = "evicted"  # an e-stop slot taken over by an admin, or left idle
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,12 +199,30 @@ def core_event(result: Result, now: int) -> Event | None:
             return ClientConnected(now, client.connection)
         case Closed(client=client):
             return ClientDisconnected(now, client.connection)
+        case (
+            Received(client=client, request=Hello(name=name))
+            | Denied(client=client, request=Hello(name=name))
+        ):
+            # With the caller, so the core checks a bound client's user itself and records a
+            # refused hello (docs/safety.md "Clients bound to a user").
+            return ClientHello(now, client.connection, name, client.caller)
         case Received(client=client, request=request) | Denied(client=client, request=request):
             return to_core_event(request, client, now)
 
 
 class _Connection:
-    __slots__ = ("accepted", "dead", "info", "out", "reader", "sock", "topics")
+    __slots__ = (
+        "accepted",
+        "dead",
+        "info",
+        "last_ns",
+        "out",
+        "reader",
+        "slot",
+        "sock",
+        "taken",
+        "topics",
+    )
 
     def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
         self.sock, self.info, self.reader = sock, info, reader
@@ -172,6 +230,9 @@ class _Connection:
         self.topics: frozenset[Topic] = frozenset()
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
         self.dead = False  # ended: shut down, its descriptor released at the next descriptors()
+        self.slot = False  # an e-stop slot: estop and status only, never reported to the core
+        self.last_ns = 0  # when it was accepted or last sent a request (e-stop slots expire)
+        self.taken = 0  # requests handled in this turn (the read budget)
 
 
 class ApiServer:
@@ -197,6 +258,8 @@ class ApiServer:
         self._ended: list[socket.socket] = []
         self._next_number = 1
         self._closed = False
+        self._share = config.requests_per_call  # requests per connection in this turn
+        self._turn_left = config.requests_per_turn
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
 
@@ -211,9 +274,22 @@ class ApiServer:
         self._ended.clear()
         if self._closed:
             return []
+        self._new_turn(time.monotonic_ns())
         watched = [(self._listen_fd, False)]
         watched += [(fd, bool(conn.out)) for fd, conn in self._by_fd.items()]
         return watched
+
+    def next_deadline(self) -> int | None:
+        """When an idle e-stop slot must be closed (``time.monotonic_ns``), if any is open: the
+        loop should not sleep past it (it is checked in :meth:`descriptors`)."""
+        idle = self.config.slot_idle_ms * NS_PER_MS
+        ends = [c.last_ns + idle for c in self._connections.values() if c.slot]
+        return min(ends) if ends else None
+
+    def turn_limit(self) -> int:
+        """The most requests one turn can hand to the loop: ``requests_per_turn``, or one per
+        connection when there are more connections than that (every one gets its turn)."""
+        return max(self.config.requests_per_turn, len(self._connections))
 
     def handle(self, fd: int, readable: bool, writable: bool) -> list[Result]:
         """Act on one ready descriptor and return what happened (in order)."""
@@ -242,12 +318,19 @@ class ApiServer:
         return results
 
     def on_readable(self, fd: int) -> list[Result]:
-        """Read what one connection sent and return its requests (and its end, if it ended)."""
+        """Read what one connection sent and return its requests (and its end, if it ended).
+
+        At most the connection's share of this turn's budget is read: lines past it stay in
+        the socket, which is therefore readable again on the next turn (issue 11: one client
+        pipelining 16 KiB of requests made ~350 requests, each a record, in one turn)."""
         conn = self._by_fd.get(fd)
         if conn is None:
             return []
+        allowed = min(self._share - conn.taken, self._turn_left)
+        if allowed <= 0:
+            return []  # its share of this turn is used: the rest waits in the socket
         try:
-            data = conn.sock.recv(RECV_SIZE)
+            data = self._receive_lines(conn.sock, allowed)
         except (BlockingIOError, InterruptedError):
             return []
         except OSError:
@@ -259,6 +342,8 @@ class ApiServer:
             return list(self._end(conn, CloseReason.PEER_CLOSED))
         results: list[Result] = []
         for item in conn.reader.feed(data):
+            conn.taken += 1
+            self._turn_left -= 1
             if isinstance(item, ApiError):
                 results += self._queue(conn, encode(item.reply()))
             else:
@@ -341,6 +426,34 @@ class ApiServer:
 
     # -- inside ---------------------------------------------------------------------------
 
+    @staticmethod
+    def _receive_lines(sock: socket.socket, lines: int) -> bytes:
+        """Take from the socket at most ``lines`` lines (or the start of one long line): a
+        look first, then exactly those bytes, so the rest stays in the kernel's buffer."""
+        data = sock.recv(RECV_SIZE, socket.MSG_PEEK)
+        end = 0
+        for _ in range(lines):
+            newline = data.find(b"\n", end)
+            if newline < 0:
+                end = len(data)
+                break
+            end = newline + 1
+        if not data:
+            return sock.recv(1)  # the end of the stream (or an error), as a plain read says
+        return sock.recv(end)
+
+    def _new_turn(self, now: int) -> None:
+        """A turn begins: the read budget is shared anew and idle e-stop slots are closed."""
+        config = self.config
+        even = config.requests_per_turn // max(1, len(self._connections))
+        self._share = max(1, min(config.requests_per_call, even))
+        self._turn_left = max(config.requests_per_turn, len(self._connections))
+        idle = config.slot_idle_ms * NS_PER_MS
+        for conn in list(self._connections.values()):
+            conn.taken = 0
+            if conn.slot and now - conn.last_ns >= idle:
+                self._refuse_slot(conn, "an e-stop slot left idle is closed")
+
     def _adopt(self, sock: socket.socket) -> Accepted | None:
         sock.setblocking(False)
         try:
@@ -352,18 +465,32 @@ class ApiServer:
         self._next_number += 1
         reader = LineReader(self.config.max_line, self.config.discard_limit)
         conn = _Connection(sock, ClientInfo(number, who), reader)
+        conn.last_ns = time.monotonic_ns()
+        ordinary = sum(not c.slot for c in self._connections.values())
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
-        if len(self._connections) > self.config.max_clients:
-            conn.accepted = False
-            error = ApiError(
-                ErrorCode.TOO_MANY_CLIENTS,
-                f"the server takes at most {self.config.max_clients} clients",
-            )
-            self._queue(conn, encode(error.reply()))  # a fresh socket has room for one line
-            self._end(conn, CloseReason.SHUTDOWN)
-            return None
-        return Accepted(conn.info)
+        if ordinary < self.config.max_clients:
+            return Accepted(conn.info)
+        # Every ordinary slot is taken: an e-stop slot, so the operator's stop gets through
+        # (docs/safety.md "The client socket cannot shut out a stop").
+        conn.accepted, conn.slot = False, True
+        slots = [c for c in self._connections.values() if c.slot and c is not conn]
+        if len(slots) >= self.config.reserved_slots:
+            others = [c for c in slots if not c.info.caller.admin]
+            if who.admin and others:
+                self._refuse_slot(others[0], "an admin needed this e-stop slot")
+            else:
+                self._refuse_slot(conn, "and every e-stop slot is taken")
+        return None
+
+    def _refuse_slot(self, conn: _Connection, why: str) -> None:
+        """Close an e-stop slot with one ``too_many_clients`` line (a fresh socket has room)."""
+        error = ApiError(
+            ErrorCode.TOO_MANY_CLIENTS,
+            f"the server takes at most {self.config.max_clients} clients; {why}",
+        )
+        self._queue(conn, encode(error.reply()))
+        self._end(conn, CloseReason.EVICTED)
 
     def _dispatch(self, conn: _Connection, line: bytes) -> list[Result]:
         if not line.strip():
@@ -372,12 +499,16 @@ class ApiServer:
             request = parse_request(line)
         except ApiError as e:
             return list(self._queue(conn, encode(e.reply())))
+        conn.last_ns = time.monotonic_ns()
         error = self._check(conn, request)
         if error is not None:
             answered: list[Result] = []
             if error.code == ErrorCode.NOT_ALLOWED:
                 answered.append(Denied(conn.info, request, error))
-            return answered + self._queue(conn, encode(error.reply()))
+            answered += self._queue(conn, encode(error.reply()))
+            if conn.slot:  # an e-stop slot is no way in for a client: closed (docs/api.md)
+                self._end(conn, CloseReason.EVICTED)
+            return answered
         if isinstance(request, Hello):
             conn.info = replace(conn.info, name=request.name)
         elif isinstance(request, Subscribe):
@@ -388,11 +519,26 @@ class ApiServer:
         def error(code: ErrorCode, message: str) -> ApiError:
             return ApiError(code, message, op=request.OP, request_id=request.id)
 
+        if conn.slot and not isinstance(request, SLOT_REQUESTS):
+            return error(
+                ErrorCode.TOO_MANY_CLIENTS,
+                f"the server takes at most {self.config.max_clients} clients; this e-stop "
+                "slot serves estop and status only",
+            )
         if isinstance(request, ADMIN_REQUESTS) and not conn.info.caller.admin:
             return error(ErrorCode.NOT_ALLOWED, f"{request.OP} needs root or the admin group")
         if isinstance(request, Hello):
             if conn.info.name is not None:
                 return error(ErrorCode.ALREADY_NAMED, f"this connection is {conn.info.name}")
+            bound = self.config.bound_users.get(request.name)
+            if bound is not None and bound != conn.info.caller.uid:
+                # docs/safety.md "Clients bound to a user": checked before the name is looked
+                # up, so every attempt is refused and recorded, also while the client is up.
+                return error(
+                    ErrorCode.NOT_ALLOWED,
+                    f"{request.name} is bound to uid {bound}; this caller is uid "
+                    f"{conn.info.caller.uid}",
+                )
             if any(other.info.name == request.name for other in self._connections.values()):
                 return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
         if isinstance(request, Heartbeat) and conn.info.name is None:
@@ -444,6 +590,7 @@ def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tupl
     # the path can connect at once (no refusal between bind and listen), and the mode and
     # group are right before anyone can (safety-rules.md §8: not world-writable).
     staging = path.with_name(f".{path.name}.{os.getpid()}")
+    made = False
     try:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(staging)
@@ -452,14 +599,20 @@ def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tupl
         if gid is not None:
             os.chown(staging, -1, gid)
         sock.listen(BACKLOG)
-        os.rename(staging, path)
+        # A link, not a rename: if another server made its socket here since the stale one
+        # was removed, this fails (EEXIST) instead of stealing that live path.
+        os.link(staging, path)
+        made = True
         info = os.stat(path)
+        os.unlink(staging)
     except OSError as e:
         sock.close()
-        for leftover in (staging, path):
+        for leftover in (staging, path) if made else (staging,):
             with contextlib.suppress(OSError):
                 if stat.S_ISSOCK(os.lstat(leftover).st_mode):
                     os.unlink(leftover)
+        if e.errno == errno.EEXIST:
+            raise ServerError(f"another server is listening at {path}") from None
         raise ServerError(f"cannot serve the API at {path}: {e.strerror or e}") from e
     return sock, (info.st_dev, info.st_ino)
 

@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final, get_args
 
+from supervisord.compat import StrEnum
 from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode, FeedbackKey, StringKey
 from supervisord.protocol.jsonview import message_json
@@ -34,6 +35,7 @@ from supervisord.protocol.messages import (
     RemoteStatus,
     check_text,
 )
+from supervisord.protocol.text import clean, clean_json, is_clean
 from supervisord.safety.causes import CauseState
 from supervisord.safety.config import NAME_PATTERN
 from supervisord.safety.decision import ChangeKind, Decision, Record, Refusal
@@ -59,9 +61,11 @@ DEFAULT_MAX_LINE: Final = 4096
 DEFAULT_MAX_DISCARD: Final = 64 * 1024
 """Bytes of one over-long line the server discards before it disconnects the sender."""
 MAX_ID_LENGTH: Final = 64
+MAX_NESTING: Final = 16
+"""Arrays and objects nested deeper than this are ``bad_json`` (a request needs 2 levels)."""
 
 
-class ErrorCode(enum.StrEnum):
+class ErrorCode(StrEnum):
     """The stable ``code`` of an error reply. Values never change; new ones may be added."""
 
     BAD_JSON = "bad_json"  # not UTF-8 JSON, or duplicate keys, NaN, nesting too deep
@@ -101,7 +105,9 @@ class ApiError(SrcsError):
 
     def reply(self) -> JsonDict:
         """The error reply line's object."""
-        reply: JsonDict = {"ok": False, "code": str(self.code), "error": self.message}
+        # The message may quote the request (a field name, a value): escaped, so the reply
+        # always encodes (docs/safety.md "No input can raise").
+        reply: JsonDict = {"ok": False, "code": str(self.code), "error": clean(self.message)}
         if self.op is not None:
             reply["op"] = self.op
         if self.request_id is not None:
@@ -176,12 +182,21 @@ class LineReader:
 def encode(obj: Mapping[str, object]) -> bytes:
     """One reply or push as its line: compact UTF-8 JSON and a newline.
 
-    Raises ``ValueError`` (our own mistake) for a value JSON cannot hold."""
+    Text that UTF-8 cannot hold (a lone surrogate that escaped the checks at its source) is
+    written escaped (:func:`supervisord.protocol.text.clean`): a reply is never lost to its text.
+    Raises ``ValueError`` (our own mistake) for a value JSON cannot hold (NaN, an object)."""
     try:
         text = json.dumps(obj, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
     except TypeError as e:
         raise ValueError(f"not plain JSON: {e}") from e
-    return text.encode() + b"\n"  # json.dumps escapes newlines inside text
+    try:
+        return text.encode() + b"\n"  # json.dumps escapes newlines inside text
+    except UnicodeEncodeError:
+        # The last net; the sources clean their text (docs/safety.md "No input can
+        # raise"), so this costs nothing on the normal path.
+        return (
+            json.dumps(clean_json(obj), ensure_ascii=False, separators=(",", ":")).encode() + b"\n"
+        )
 
 
 # -- requests ------------------------------------------------------------------------------
@@ -376,12 +391,52 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
     result: dict[str, object] = {}
     for key, value in pairs:
         if key in result:
-            raise ValueError(f"duplicate key {key!r}")
+            raise ValueError(f"duplicate key {_shown(key)}")
         result[key] = value
     return result
 
 
+_JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
+_INNERMOST = re.compile(rb"\[[^\[\]{}]*\]|\{[^\[\]{}]*\}")
+
+
+def _too_deep(line: bytes) -> bool:
+    """Whether ``line`` nests arrays and objects deeper than :data:`MAX_NESTING`.
+
+    Decided before parsing, so the answer never depends on how deep the caller's stack is
+    (Python's parser raises ``RecursionError`` near its limit, wherever that is). Brackets
+    inside strings do not count. Cost: a count, and only for lines with many brackets, at
+    most ``MAX_NESTING`` passes of two regular expressions (C speed, linear)."""
+    if line.count(b"[") + line.count(b"{") <= MAX_NESTING:
+        return False
+    rest = _JSON_STRING.sub(b"", line)
+    for _ in range(MAX_NESTING):
+        rest, removed = _INNERMOST.subn(b"", rest)
+        if not removed:
+            return False  # unbalanced, not deep: the parser says what is wrong
+    return b"[" in rest or b"{" in rest
+
+
+def _shown(value: object) -> str:
+    """A short, encodable description of a request's value for an error message: never the
+    repr of a container (unbounded, recursive) or of a huge number (Python limits the digits
+    it converts), text escaped and cut."""
+    if isinstance(value, str):
+        return clean(repr(value[:40]) + ("..." if len(value) > 40 else ""))
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int):
+        return str(value) if -(10**30) < value < 10**30 else "an integer that long"
+    if isinstance(value, float):
+        return repr(value)
+    return "a list" if isinstance(value, list) else "an object"
+
+
 def _load(line: bytes) -> object:
+    if _too_deep(line):
+        raise ApiError(
+            ErrorCode.BAD_JSON, f"arrays and objects may be nested at most {MAX_NESTING} deep"
+        )
     try:
         text = line.decode("utf-8")
         return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
@@ -414,22 +469,29 @@ class _Fields:
     def nested(self, name: str) -> _Fields:
         value = self.get(name)
         if not isinstance(value, dict):
-            raise self.error(f"{self.where}{name} must be an object, not {value!r}"[:200])
+            raise self.error(f"{self.where}{name} must be an object, not {_shown(value)}")
         return _Fields(value, self.op, self.id, f"{self.where}{name}.")
 
     def integer(self, name: str, low: int, high: int) -> int:
         value = self.get(name)
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-            raise self.error(f"{self.where}{name} must be an integer {low}..{high}, not {value!r}")
+            raise self.error(
+                f"{self.where}{name} must be an integer {low}..{high}, not {_shown(value)}"
+            )
         return value
 
     def text(self, name: str) -> str:
         value = self.get(name)
+        if not isinstance(value, str):
+            raise self.error(f"{self.where}{name} must be text, not {_shown(value)}")
         try:
-            check_text(f"{self.where}{name}", value, NAME_TEXT_LENGTH)  # type: ignore[arg-type]
+            check_text(f"{self.where}{name}", value, NAME_TEXT_LENGTH)
         except ValueError as e:
-            raise self.error(str(e)[:200]) from e
-        return str(value)
+            raise self.error(
+                f"{self.where}{name} must be at most {NAME_TEXT_LENGTH} single-byte "
+                f"characters without NUL, not {_shown(value)}"
+            ) from e
+        return value
 
     def choice(self, name: str, members: tuple[enum.Enum, ...]) -> enum.Enum:
         value = self.get(name)
@@ -437,12 +499,12 @@ class _Fields:
             if member.value == value:
                 return member
         allowed = ", ".join(repr(m.value) for m in members)
-        raise self.error(f"{self.where}{name} must be one of {allowed}, not {value!r}"[:200])
+        raise self.error(f"{self.where}{name} must be one of {allowed}, not {_shown(value)}")
 
     def finish(self) -> None:
         unknown = sorted(set(self.obj) - self.used)
         if unknown:
-            shown = ", ".join(f"{self.where}{name}" for name in unknown)
+            shown = ", ".join(clean(f"{self.where}{name}") for name in unknown)
             raise self.error(f"unknown field(s) for {self.op}: {shown}"[:200])
 
 
@@ -454,6 +516,10 @@ def _request_id(obj: Mapping[str, object]) -> RequestId:
         raise ApiError(ErrorCode.BAD_REQUEST, "id must be an integer or text")
     if isinstance(value, str) and len(value) > MAX_ID_LENGTH:
         raise ApiError(ErrorCode.BAD_REQUEST, f"id text may be at most {MAX_ID_LENGTH} long")
+    if isinstance(value, str) and not is_clean(value):
+        # A lone surrogate ("\ud800") is valid JSON but no UTF-8: it could not be echoed in
+        # the reply, so the request is refused without an id (issue 11).
+        raise ApiError(ErrorCode.BAD_REQUEST, "id text must be Unicode (no lone surrogates)")
     if isinstance(value, int) and not -(2**63) <= value < 2**63:
         raise ApiError(ErrorCode.BAD_REQUEST, "id must fit in 64 signed bits")
     return value
@@ -620,7 +686,9 @@ def refusal_error(request: Request, refusal: Refusal) -> ApiError:
 
 
 def caller_json(caller: Caller) -> JsonDict:
-    return {"uid": caller.uid, "pid": caller.pid, "name": caller.name, "admin": caller.admin}
+    """The caller; its login name escaped if it is not UTF-8 (``credentials.user_name``
+    escapes it at the source already; this keeps every record and reply encodable)."""
+    return {"uid": caller.uid, "pid": caller.pid, "name": clean(caller.name), "admin": caller.admin}
 
 
 def cause_json(cause: CauseState) -> JsonDict:
@@ -633,7 +701,7 @@ def cause_json(cause: CauseState) -> JsonDict:
         "latched": cause.latched,
         "raised_ns": cause.raised_ns,
         "cleared_ns": cause.cleared_ns,
-        "details": dict(cause.details),
+        "details": {clean(k): clean(v) for k, v in cause.details},  # may quote input text
     }
 
 
@@ -654,13 +722,15 @@ def _plain(value: object) -> object:
         return caller_json(value)
     if isinstance(value, enum.Enum):
         return value.value
-    if isinstance(value, bool | int | str) or value is None:
+    if isinstance(value, str):
+        return clean(value)  # e.g. a link's or a fault's reason, which may quote input
+    if isinstance(value, bool | int) or value is None:
         return value
     if isinstance(value, tuple):
         return [_plain(v) for v in value]
     if isinstance(value, _MESSAGE_TYPES):
         return message_json(value)
-    return repr(value)[:200]
+    return clean(repr(value)[:200])
 
 
 _MESSAGE_TYPES: Final = get_args(Message)
@@ -696,7 +766,7 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
     result: JsonDict = {
         "seq": sequence_offset + record.sequence,
         "mono_ns": record.monotonic_ns,
-        "utc": utc.astimezone(dt.UTC).isoformat(timespec="microseconds"),
+        "utc": utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),  # noqa: UP017 -- dt.UTC is 3.11
         "kind": record_kind(record),
         "from": record.previous.name,
         "to": record.state.name,
@@ -705,7 +775,7 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
         "trigger": trigger_json(record.trigger),
     }
     if record.reason:
-        result["reason"] = record.reason
+        result["reason"] = clean(record.reason)
     if record.rearm is not None:
         rearm: JsonDict = {"kind": record.rearm.kind.value}
         if record.rearm.caller is not None:

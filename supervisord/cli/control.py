@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Final, TextIO
 
-from supervisord.api.wire import ApiError
+from supervisord.api.wire import ApiError, ErrorCode
 from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -127,6 +127,9 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         return EXIT_NO_DAEMON
     except ApiError as error:
         print(f"{prog}: {error.code}: {error.message}", file=err)
+        if error.code == ErrorCode.TOO_MANY_CLIENTS and os.geteuid() != 0:
+            # docs/api.md "Limits": an admin's connection takes over an e-stop slot.
+            print(f"{prog}: run it as root or a member of the admin group to get one", file=err)
         return EXIT_REFUSED
     except ClientError as error:
         print(f"{prog}: {error}", file=err)

@@ -31,6 +31,7 @@ from supervisord.cli.demo_view import record_line, screen
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError, SrcsError
+from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.testkit.process import terminate
 from supervisord.testkit.sim import SimError, SimProcess
 
@@ -167,11 +168,13 @@ class Demo:
         if str(self.sim.control.state().get("mode_name")).lower() == "operational":
             # Already Operational (e.g. a takeover the supervisor refused as too early): a
             # new takeover starts from Pause, as an operator would do it on the remote, once
-            # the supervisor has seen the Pause in a VSC heartbeat (20 Hz).
+            # the supervisor has seen the Pause in VSC heartbeats (20 Hz) spanning the
+            # takeover dwell (docs/safety.md, re-arming rule 4).
             self.sim.control.pause()
             end = time.monotonic() + 1.0
             while time.monotonic() < end and "vsc_mode:pause" not in self._active():
                 time.sleep(0.02)
+            time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.1)  # the dwell, and one heartbeat more
         self.sim.control.takeover()
         self.note("takeover on the remote (to Operational)")
 

@@ -42,9 +42,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
 
+    api = None
     try:
-        supervisor = build_supervisor(config, build_api(config))
+        api = build_api(config)
+        supervisor = build_supervisor(config, api)
     except (SrcsError, OSError) as error:
+        # A start that fails after the socket was made removes it (issue 11: a failed start
+        # left a stale api.sock; the next start would replace it, but clients saw a path that
+        # looked served). close() removes the file only if it is still ours.
+        if api is not None:
+            api.close()
         print(f"srcsd: cannot start: {error}", file=sys.stderr)
         return EXIT_CONFIG
     logging.getLogger("srcsd").info(

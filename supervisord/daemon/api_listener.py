@@ -1,7 +1,9 @@
 """The client API served from the daemon's loop: requests in, replies and pushes out.
 
 Every request that is a safety input goes to the core first; the reply then says "ok", or
-carries the core's refusal (e.g. why a reset was not honoured). Clients dropped while being
+carries the core's refusal (e.g. why a reset was not honoured, or ``rate_limited`` past the
+client's record budget, docs/safety.md). State pushes go out with the decision; record pushes
+once the record is on disk (``Listener.recorded``). Clients dropped while being
 written to (a stopped or flooding client) reach the core as disconnections on the next round.
 A ``commission`` is answered when its procedure ends (``daemon/commission.py``), a few
 seconds later; the loop meanwhile goes on as ever.
@@ -129,9 +131,15 @@ class ApiListener(Listener):
         return []
 
     def next_deadline(self) -> int | None:
-        return self._commissioning[0].next_deadline() if self._commissioning else None
+        # The server's own (an idle e-stop slot to close, checked when the loop asks for its
+        # descriptors) and the commissioning's, whichever comes first.
+        deadlines = [self.server.next_deadline()]
+        if self._commissioning is not None:
+            deadlines.append(self._commissioning[0].next_deadline())
+        due = [d for d in deadlines if d is not None]
+        return min(due) if due else None
 
-    def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
+    def decided(self, decision: Decision) -> None:
         changed = self.last is None or (decision.state, decision.causes) != (
             self.last.state,
             self.last.causes,
@@ -139,9 +147,12 @@ class ApiListener(Listener):
         self.last = decision
         if changed and self.server.subscribed(Topic.STATE):
             self._closed += self.server.broadcast(Topic.STATE, state_push(decision))
-        if records and self.server.subscribed(Topic.RECORDS):
-            for entry in records:
-                self._closed += self.server.broadcast(Topic.RECORDS, record_push(entry))
+
+    def recorded(self, entry: dict[str, object]) -> None:
+        # Pushed once the sink has it on disk (or counted it as not written): a record a
+        # subscriber sees is an acknowledged one (safety-rules §7, docs/record.md).
+        if self.server.subscribed(Topic.RECORDS):
+            self._closed += self.server.broadcast(Topic.RECORDS, record_push(entry))
 
     def received(self, message: Message | HidInput) -> None:
         if isinstance(message, HidInput):

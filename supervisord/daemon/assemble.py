@@ -61,6 +61,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
             admin_group=api.admin_group,
             max_clients=api.max_clients,
             max_line=api.max_message_bytes,
+            bound_users={c.name: c.uid for c in config.safety.clients if c.uid is not None},
         )
     )
     return ApiListener(

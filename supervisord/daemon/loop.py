@@ -3,9 +3,17 @@
 It waits on the link's descriptor, the client socket, a signal pipe and the earliest deadline
 (the safety core's, the outputs' periodic duties, a link reopen, the systemd watchdog), feeds
 what happened to the safety core, and applies each decision at once: outputs first, then the
-frames to the VSC, then the records (safety-rules.md §6). No other thread exists, so if this
-loop hangs, the user heartbeat stops and the VSC's key-85 watchdog opens its relays
-(safety-rules.md §5).
+frames to the VSC (safety-rules.md §6). Every turn serves the stop path first: the link to the
+VSC, then the core's timers (user heartbeat, link-loss and client deadlines), and only then a
+bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when the link has
+more to read or a deadline has come), so no client can push the VSC's next frame or the user
+heartbeat back (issue 11, ``docs/safety.md`` "The stop path first").
+
+Records, journal entries and log lines leave the loop through one :class:`~supervisord.daemon.
+sink.Sink` that it never waits for (its one thread writes and fsyncs); a record is pushed to
+subscribers once the sink says it is on disk. The user heartbeat, the outputs and the link are
+served only by this loop, so if it hangs, the heartbeat stops and the VSC's key-85 watchdog
+opens its relays (safety-rules.md §5).
 """
 
 from __future__ import annotations
@@ -14,25 +22,27 @@ import contextlib
 import datetime as dt
 import logging
 import os
+import select
 import selectors
 import signal
 import socket
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from supervisord.api.wire import record_json
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.sink import Sink, Written
 from supervisord.links.base import Backoff, Link, LinkBroken, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message
-from supervisord.record.jsonl import RecordError, RecordWriter
+from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
-from supervisord.safety.decision import Decision, Record
+from supervisord.safety.decision import Decision, Record, RefusalReason
 from supervisord.safety.events import (
     Event,
     InternalFault,
@@ -51,6 +61,8 @@ POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
+MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
+LIMIT_LOG_NS = 1_000_000_000  # rate-limited refusals are logged as a count, once a second
 
 
 @dataclass
@@ -62,6 +74,8 @@ class Counters:
     link_opens: int = 0
     link_failures: int = 0
     record_errors: int = 0
+    records_dropped: int = 0
+    rate_limited: int = 0
     internal_faults: int = 0
 
     def reject(self, reason: str) -> None:
@@ -97,8 +111,12 @@ class Listener:
         """When ``due`` must be called next, if the listener has work of its own."""
         return None
 
-    def decided(self, decision: Decision, records: list[dict[str, object]]) -> None:
-        """A decision was applied; ``records`` are its stop-record entries as written."""
+    def decided(self, decision: Decision) -> None:
+        """A decision was applied (outputs set, frames sent)."""
+
+    def recorded(self, entry: dict[str, object]) -> None:
+        """A stop-record entry is finished: on disk, or counted as not written. Called in
+        record order, after the decision that made it."""
 
     def received(self, message: Message | HidInput) -> None:
         """A valid message arrived from the VSC."""
@@ -117,7 +135,7 @@ class Supervisor:
         outputs: list[Output],
         writer: RecordWriter | None,
         *,
-        journal: Callable[[dict[str, object]], object] | None = None,
+        journal: Callable[[Mapping[str, object]], object] | None = None,
         listener: Listener | None = None,
         notifier: Notifier | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
@@ -148,6 +166,10 @@ class Supervisor:
         self._selector = selectors.DefaultSelector()
         self._watched: dict[int, int] = {}
         self._wake_r, self._wake_w = socket.socketpair()
+        self.sink: Sink | None = None
+        self._client_cursor = -1  # the last client descriptor served: the next turn starts after
+        self._limited_unlogged = 0
+        self._next_limit_log = 0
 
     def info(self) -> dict[str, object]:
         """What ``status`` adds about the daemon itself: the link and the loop's counters."""
@@ -164,6 +186,10 @@ class Supervisor:
             "messages": counters.messages,
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,
+            "records_dropped": counters.records_dropped,
+            "records_pending": self.sink.pending if self.sink is not None else 0,
+            "journal_errors": self.sink.journal_errors if self.sink is not None else 0,
+            "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
         }
 
@@ -178,6 +204,8 @@ class Supervisor:
         Once acquired (off), the fault's condition clears; its stop waits for a re-arm (§4).
         """
         now = self.clock()
+        self.sink = Sink(self.writer, self.journal)
+        self.sink.start()
         events: list[Event] = []
         for output in self.outputs.values():
             try:
@@ -194,6 +222,7 @@ class Supervisor:
         self._try_open_link(now)
         self._wake_r.setblocking(False)
         self._selector.register(self._wake_r.fileno(), selectors.EVENT_READ, "wake")
+        self._selector.register(self.sink.fileno(), selectors.EVENT_READ, "sink")
         interval = self.notifier.watchdog_interval_ns
         self._next_watchdog = now if interval else None
         assert self.decision is not None
@@ -207,7 +236,8 @@ class Supervisor:
             self._wake_w.send(b"\0")
 
     def shutdown(self) -> None:
-        """All outputs off, then release the link, the socket and the record (SIGTERM path)."""
+        """All outputs off, then release the link; drain the record (every queued record
+        written and fsynced, and pushed to subscribers), then the socket (SIGTERM path)."""
         self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
         now = self.clock()
         for output in self.outputs.values():
@@ -219,6 +249,10 @@ class Supervisor:
         for release in self._release:
             with contextlib.suppress(Exception):
                 release()
+        if self.sink is not None:
+            self.sink.close()
+            with contextlib.suppress(Exception):
+                self._take_written()
         self.listener.close()
         if self.writer is not None:
             self.writer.close()
@@ -235,6 +269,10 @@ class Supervisor:
         }
         try:
             self.start()
+            if self.sink is not None:
+                # Log lines leave the loop through the sink too: a slow stderr or journald
+                # must not hold the loop (issue 11).
+                self.sink.capture_logging(logging.getLogger())
             while not self._stop_requested:
                 self.step()
         finally:
@@ -246,26 +284,69 @@ class Supervisor:
     # ----------------------------------------------------------------- the loop
 
     def step(self) -> None:
-        """Wait for the next input or deadline, then handle everything that is due."""
+        """Wait for the next input or deadline, then serve, in this order: the link to the
+        VSC, the core's and the outputs' timers, the record sink's news, and at most
+        :data:`MAX_CLIENTS_PER_TURN` client descriptors (issue 11; docs/safety.md "The stop
+        path first"). Each input is stamped with the clock read when it was read."""
         deadline = self._next_deadline()
         timeout = max(0.0, (deadline - self.clock()) / 1e9)
         self._sync_watches()
         ready = self._selector.select(timeout)
-        now = self.clock()  # every input of this round counts as received now (§2)
+        now = self.clock()
         try:
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
+            link_fd = self.link.fileno() if self.link.is_open else None
+            clients: list[tuple[selectors.SelectorKey, int]] = []
             for key, mask in ready:
-                self._dispatch(key, mask, now)
-            for event in self.listener.take_events(now):
-                self._apply(self._feed(event))
+                if key.data == "wake":
+                    with contextlib.suppress(BlockingIOError):
+                        self._wake_r.recv(64)
+                elif key.data == "sink":
+                    pass  # taken below, every turn
+                elif link_fd is not None and key.fd == link_fd:
+                    self._receive()
+                else:
+                    clients.append((key, mask))
             if self.link.is_open and self.link.fileno() is None:
-                self._receive(now)
-            self._due(now)
+                self._receive()  # a link without a descriptor is polled
+            self._due(self.clock())
+            self._take_written()
+            self._serve_clients(clients)
+            for event in self.listener.take_events(self.clock()):
+                self._apply(self._feed(event))
         except Exception as error:
-            self._internal_fault(now, error)
+            self._internal_fault(self.clock(), error)
+
+    def _serve_clients(self, ready: list[tuple[selectors.SelectorKey, int]]) -> None:
+        """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, starting after the one
+        served last (so every client gets its turn), and stop early when the link has bytes
+        waiting or a core deadline has come: those go first (docs/safety.md)."""
+        if not ready:
+            return
+        ready.sort(key=lambda item: item[0].fd)
+        later = [item for item in ready if item[0].fd > self._client_cursor]
+        ordered = later + [item for item in ready if item[0].fd <= self._client_cursor]
+        for served, (key, mask) in enumerate(ordered):
+            if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
+                return  # the rest stay ready: the next turn serves them
+            self._client_cursor = key.fd
+            readable = bool(mask & selectors.EVENT_READ)
+            writable = bool(mask & selectors.EVENT_WRITE)
+            # The clock read right before the read: the time this client input was read (§2).
+            self.listener.handle(key.fd, readable, writable, self.clock(), self._feed_and_apply)
+
+    def _stop_path_waits(self) -> bool:
+        """Whether the link has bytes to read or the core's deadline has come."""
+        if self.decision is not None and self.clock() >= self.decision.next_deadline:
+            return True
+        fd = self.link.fileno() if self.link.is_open else None
+        if fd is None:
+            return False
+        readable, _, _ = select.select([fd], [], [], 0)
+        return bool(readable)
 
     def _next_deadline(self) -> int:
         candidates = [self.decision.next_deadline if self.decision else self.clock()]
@@ -301,18 +382,6 @@ class Supervisor:
             elif self._watched[new] != events:
                 self._selector.modify(new, events, "io")
         self._watched = wanted
-
-    def _dispatch(self, key: selectors.SelectorKey, mask: int, now: int) -> None:
-        if key.data == "wake":
-            with contextlib.suppress(BlockingIOError):
-                self._wake_r.recv(64)
-            return
-        if self.link.is_open and key.fd == self.link.fileno():
-            self._receive(now)
-            return
-        readable = bool(mask & selectors.EVENT_READ)
-        writable = bool(mask & selectors.EVENT_WRITE)
-        self.listener.handle(key.fd, readable, writable, now, self._feed_and_apply)
 
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
@@ -366,12 +435,13 @@ class Supervisor:
         log.info("%s: open", self.link.description)
         self._apply(self._feed(LinkOpened(now)))
 
-    def _receive(self, now: int) -> None:
+    def _receive(self) -> None:
         try:
             received = self.link.receive()
         except LinkBroken as error:
-            self._link_broken(now, error.reason)
+            self._link_broken(self.clock(), error.reason)
             return
+        now = self.clock()  # what was read counts as received now: right after the read (§2)
         for item in received:
             if isinstance(item, Rejection | CanRejection | HidRejection):
                 self.counters.reject(
@@ -442,29 +512,55 @@ class Supervisor:
             return
         self.decision = decision
         self._send(decision.frames, decision.now)
-        written = [self._write_record(record) for record in decision.records]
+        for record in decision.records:
+            self._write_record(record)
         for refusal in decision.refusals:
-            log.info("refused: %s", refusal.message)
-        self.listener.decided(decision, written)
+            if refusal.reason is RefusalReason.RATE_LIMITED:
+                self._rate_limited(decision.now)
+            else:
+                log.info("refused: %s", refusal.message)
+        self.listener.decided(decision)
         status = self._status_text(decision)
         if status != self._status:
             self._status = status
             self.notifier.send(STATUS=status)
 
-    def _write_record(self, record: Record) -> dict[str, object]:
+    def _write_record(self, record: Record) -> None:
+        """Hand the record to the sink (never waits). The stop itself has already happened
+        (outputs first, §6); the record follows on the sink's thread."""
         entry = record_json(record, self.wall_clock(), self.sequence_offset)
-        if self.writer is not None:
-            try:
-                self.writer.append(entry)
-            except RecordError as error:
-                # The stop itself has already happened (outputs first); losing the disk must
-                # not unwind the loop. It is counted, reported, and journalled below.
-                self.counters.record_errors += 1
-                log.error("stop record not written: %s", error)
-        if self.journal is not None:
-            with contextlib.suppress(Exception):
-                self.journal(entry)
-        return entry
+        if self.sink is None:  # not started: nothing can be written yet
+            self._recorded(Written(entry, "the record sink is not running", dropped=True))
+            return
+        if not self.sink.record(entry):
+            self._take_written()  # the dropped record is pushed in its place in the order
+
+    def _take_written(self) -> None:
+        if self.sink is not None:
+            for written in self.sink.take_written():
+                self._recorded(written)
+
+    def _recorded(self, written: Written) -> None:
+        """A record is finished. Not written (a full disk, a full queue) is counted and
+        logged, never a stop of its own: docs/record.md "A full disk"."""
+        if not written.acknowledged:
+            self.counters.record_errors += 1
+            self.counters.records_dropped += written.dropped
+            log.error("stop record not written: %s", written.error)
+        self.listener.recorded(dict(written.entry))
+
+    def _rate_limited(self, now: int) -> None:
+        """Count a release or reset refused under the record budget; log the count at most
+        once a second (a flood must not become a flood of log lines)."""
+        self.counters.rate_limited += 1
+        self._limited_unlogged += 1
+        if now >= self._next_limit_log:
+            log.warning(
+                "%d client requests refused: record budget exceeded (docs/safety.md)",
+                self._limited_unlogged,
+            )
+            self._limited_unlogged = 0
+            self._next_limit_log = now + LIMIT_LOG_NS
 
     @staticmethod
     def _status_text(decision: Decision) -> str:

@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-import enum
 import importlib
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar, Final, Self, TypeVar
 
+from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError, SrcsError
 from supervisord.safety.config import NAME_PATTERN, OutputRole  # one vocabulary with the core
 
@@ -36,10 +36,10 @@ if TYPE_CHECKING:
 
 NS_PER_MS: Final = 1_000_000
 
-_E = TypeVar("_E", bound=enum.StrEnum)
+_E = TypeVar("_E", bound=StrEnum)
 
 
-class OutputKind(enum.StrEnum):
+class OutputKind(StrEnum):
     """The output plugins, by the name the config uses in ``kind = ...``."""
 
     SIM = "sim"
@@ -47,7 +47,7 @@ class OutputKind(enum.StrEnum):
     CAN = "can"
 
 
-class OutputFault(enum.StrEnum):
+class OutputFault(StrEnum):
     """Why a write did not leave the output where it was asked to be (safety-rules §6)."""
 
     MISMATCH = "mismatch"

@@ -4,7 +4,9 @@ It models one enable line whose physical level is kept in memory. When the confi
 ``path``, every change of that level rewrites the file with ``1\\n`` (on) or ``0\\n`` (off),
 so a script, a test or an operator can watch it from outside. The file is replaced atomically
 (a temporary file in the same directory, then ``os.replace``): an outside reader never sees a
-half-written file.
+half-written file. A process killed between creating the temporary file and the rename
+leaves it behind (``.NAME.PID.tmp``); opening the output removes every such file of a process
+that no longer exists, and its own (issue 11).
 
 Fault injection is a real behaviour of the simulated device, not a test hook: a line can be
 *stuck* at a level (``stuck_at = "on"`` or ``"off"`` in the config, or :meth:`SimOutput.stick`
@@ -16,12 +18,14 @@ be written (its directory removed, a full disk) is reported as ``IO_ERROR``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-import enum
 import os
+import re
 from pathlib import Path
 from typing import Any, ClassVar
 
+from supervisord.compat import StrEnum
 from supervisord.outputs.base import (
     ConfigTable,
     Output,
@@ -33,7 +37,7 @@ from supervisord.outputs.base import (
 )
 
 
-class Level(enum.StrEnum):
+class Level(StrEnum):
     """A line level as the config spells it."""
 
     ON = "on"
@@ -91,6 +95,7 @@ class SimOutput(Output):
     def _open(self, now: int) -> ReadBack:
         self._mirrored = None
         try:
+            self._remove_leftovers()
             return self._drive(False, False)
         except OSError as e:
             raise OutputError(self.name, f"cannot write {self.spec.path}: {e}") from e
@@ -114,6 +119,27 @@ class SimOutput(Output):
             )
         return ReadBack(self.name, requested, level, observed)
 
+    def _remove_leftovers(self) -> None:
+        """Remove temporaries of this output left by a killed writer (its pid is gone) or by
+        this process. A live process's temporary is another instance's business."""
+        path = self.spec.path
+        if path is None:
+            return
+        pattern = re.compile(r"\." + re.escape(path.name) + r"\.([0-9]+)\.tmp")
+        try:
+            names = os.listdir(path.parent)
+        except FileNotFoundError:
+            return  # the directory is missing: the write below reports it
+        for name in names:
+            match = pattern.fullmatch(name)
+            if match is None:
+                continue
+            pid = int(match.group(1))
+            if pid != os.getpid() and _alive(pid):
+                continue
+            with contextlib.suppress(FileNotFoundError):
+                (path.parent / name).unlink()
+
     def _mirror(self) -> None:
         """Rewrite the file if the level changed since it was last written (atomic replace)."""
         path = self.spec.path
@@ -131,3 +157,14 @@ class SimOutput(Output):
             tmp.unlink(missing_ok=True)
             raise
         self._mirrored = self._device
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (one of another user counts as existing)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

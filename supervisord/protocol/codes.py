@@ -9,7 +9,10 @@ notes (``protocol-notes.md``); ``docs/protocol.md`` collects both.
 from __future__ import annotations
 
 import enum
-from typing import Self
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
 
 
 class _Parsable(enum.IntEnum):

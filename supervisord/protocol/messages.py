@@ -9,7 +9,7 @@ Multi-byte fields are little-endian on the wire (notes §1).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import ClassVar, Self
+from typing import TYPE_CHECKING, ClassVar
 
 from supervisord.protocol.codes import (
     AutonomyMode,
@@ -22,6 +22,9 @@ from supervisord.protocol.codes import (
     estop_sources,
 )
 from supervisord.protocol.nmea import GpsFix, parse_nmea
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
 
 U8 = (0, 0xFF)
 U16 = (0, 0xFFFF)

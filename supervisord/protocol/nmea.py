@@ -1,6 +1,7 @@
 """Reading the NMEA sentence of a GPS message (manual §8.3.2) into time, position and fix.
 
-Total: any text gives a ``GpsFix`` or ``None``, never an exception. A sentence whose ``*hh``
+Total: any text gives a ``GpsFix`` or ``None``, never an exception, and every number in a
+fix is finite and in range. Numbers are ASCII digits only (``_DECIMAL``). A sentence whose ``*hh``
 checksum is present and wrong gives ``None``: a corrupted position is worse than none.
 Understood: GGA (time, position, fix quality), RMC (time, position, validity) and GLL
 (position, time, validity) from any talker (GP, GN, GL, ...).
@@ -10,6 +11,8 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass
+
+from supervisord.protocol.text import ascii_digits
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,34 +31,52 @@ def _checksum_ok(body: str, given: str) -> bool:
     expected = 0
     for ch in body:
         expected ^= ord(ch)
-    try:
-        return int(given[:2], 16) == expected
-    except ValueError:
-        return False
+    hex_digits = given[:2]
+    if len(hex_digits) != 2 or not all(ch in _HEX for ch in hex_digits):
+        return False  # ``int(..., 16)`` would take " f", "+f" or "_f"
+    return int(hex_digits, 16) == expected
+
+
+_HEX = frozenset("0123456789abcdefABCDEF")
+_MAX_DIGITS = 16  # no NMEA number is longer; keeps every conversion small
+
+
+def _decimal(field: str) -> tuple[str, str] | None:
+    """``field`` as (integer digits, fraction digits) if it is a plain decimal of ASCII
+    digits with at most one point. ``str.isdigit`` takes "²", and ``int``/``float`` take
+    other scripts' digits, signs, underscores, whitespace, "nan" and "inf" (issue 11: "²" in a
+    GGA raised in this parser and stopped the robot)."""
+    if len(field) > _MAX_DIGITS:
+        return None
+    whole, dot, fraction = field.partition(".")
+    if not ascii_digits(whole) or (dot and fraction and not ascii_digits(fraction)):
+        return None
+    return whole, fraction
 
 
 def _time(field: str) -> dt.time | None:
-    if len(field) < 6 or not field[:6].isdigit():
+    number = _decimal(field)
+    if number is None or len(number[0]) != 6:
         return None
-    hour, minute, second = int(field[0:2]), int(field[2:4]), int(field[4:6])
-    micro = 0
-    if len(field) > 7 and field[6] == "." and field[7:].isdigit():
-        micro = round(float("0" + field[6:]) * 1_000_000)
+    whole, fraction = number
+    hour, minute, second = int(whole[0:2]), int(whole[2:4]), int(whole[4:6])
+    micro = round(int(fraction[:7].ljust(7, "0")) / 10) if fraction else 0
     try:
-        return dt.time(hour, minute, second, min(micro, 999_999), tzinfo=dt.UTC)
-    except ValueError:
+        return dt.time(hour, minute, second, min(micro, 999_999), tzinfo=dt.timezone.utc)  # noqa: UP017 -- dt.UTC is 3.11
+    except ValueError:  # 25:61:61: a time that does not exist
         return None
 
 
 def _angle(field: str, hemisphere: str, degree_digits: int, negative: str) -> float | None:
     """``ddmm.mmmm`` (or ``dddmm.mmmm``) and N/S/E/W into signed decimal degrees."""
-    if len(field) < degree_digits + 2 or hemisphere not in ("N", "S", "E", "W"):
+    number = _decimal(field)
+    if number is None or hemisphere not in ("N", "S", "E", "W"):
         return None
-    try:
-        degrees = int(field[:degree_digits])
-        minutes = float(field[degree_digits:])
-    except ValueError:
+    whole, fraction = number
+    if len(whole) != degree_digits + 2:
         return None
+    degrees = int(whole[:degree_digits])
+    minutes = float(f"{whole[degree_digits:]}.{fraction or '0'}")
     if not 0 <= minutes < 60:
         return None
     value = degrees + minutes / 60
@@ -84,7 +105,8 @@ def parse_nmea(sentence: str) -> GpsFix | None:
     kind = parts[0][-3:] if len(parts[0]) == 5 else ""
     if kind == "GGA" and len(parts) >= 7:
         lat, lon = _position(parts, 2)
-        quality = int(parts[6]) if parts[6].isdigit() else None
+        # One ASCII digit (0 invalid, 1 GPS, 2 DGPS, ... 8 simulation); anything else: unknown.
+        quality = int(parts[6]) if len(parts[6]) == 1 and ascii_digits(parts[6]) else None
         return GpsFix(kind, _time(parts[1]), lat, lon, quality, bool(quality))
     if kind == "RMC" and len(parts) >= 7:
         lat, lon = _position(parts, 3)

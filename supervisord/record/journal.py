@@ -22,6 +22,7 @@ import uuid
 from collections.abc import Callable, Mapping
 from typing import Final
 
+from supervisord.compat import StrEnum
 from supervisord.errors import SrcsError
 from supervisord.record.jsonl import RecordUsageError, cause_names
 
@@ -29,7 +30,7 @@ JOURNAL_SOCKET: Final = "/run/systemd/journal/socket"
 SYSLOG_IDENTIFIER: Final = "srcsd"
 
 
-class RecordKind(enum.StrEnum):
+class RecordKind(StrEnum):
     """What a record reports, as its optional ``kind`` field says (absent: a state change)."""
 
     STATE_CHANGE = "state_change"

@@ -15,7 +15,8 @@ Writing (:class:`RecordWriter`):
   never acknowledged. On open the writer **truncates** it, so the next record starts on a line
   of its own. A failed write is cut off the same way before the next append.
 - every OS error (``ENOSPC`` for a full disk, ``EIO``, ``EACCES``) raises :class:`RecordError`
-  with its ``errno``; the record was then **not** acknowledged. Nothing is swallowed.
+  with its ``errno``; the record was then **not** acknowledged. Nothing is swallowed: the
+  daemon counts and logs every one (``docs/record.md`` "A full disk").
 
 Reading (:func:`read_records`): across the rotated files, oldest first, yielding
 :class:`Record` and :class:`BadLine` items; a torn or undecodable last line of a file is
@@ -32,7 +33,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
-import enum
 import errno as errno_codes
 import json
 import os
@@ -41,6 +41,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Final, Self
 
+from supervisord.compat import StrEnum
 from supervisord.errors import SrcsError
 
 REQUIRED_FIELDS: Final = ("seq", "mono_ns", "utc", "from", "to", "causes", "trigger")
@@ -57,8 +58,9 @@ _CHUNK = 4096
 class RecordError(SrcsError):
     """The record file could not be written: the record was **not** acknowledged.
 
-    ``errno`` is the OS error number (``errno.ENOSPC`` for a full disk); the daemon turns this
-    into a cause and keeps the outputs where the safety core says."""
+    ``errno`` is the OS error number (``errno.ENOSPC`` for a full disk). The daemon counts it
+    (``record_errors`` in ``status``) and logs it; it is no stop cause, and the outputs stay
+    where the safety core says (``docs/record.md`` "A full disk")."""
 
     def __init__(self, path: Path, action: str, error: OSError) -> None:
         self.path, self.action, self.errno = path, action, error.errno
@@ -175,7 +177,8 @@ class RecordWriter:
     kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``.
     Raises :class:`RecordError` if the file cannot be opened.
 
-    One writer per path: the daemon's main loop is the only writer.
+    One writer per path, used by one thread at a time: in the daemon, the record sink's
+    thread (``supervisord/daemon/sink.py``) is the only writer.
     """
 
     def __init__(
@@ -316,7 +319,7 @@ class RecordWriter:
 # Reading
 
 
-class BadLineReason(enum.StrEnum):
+class BadLineReason(StrEnum):
     """Why a line of a record file is not a record."""
 
     TORN_TAIL = "torn_tail"

@@ -13,6 +13,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError
 
 NS_PER_MS = 1_000_000
@@ -29,7 +30,7 @@ class Transport(enum.Enum):
     HID = "hid"  # USB game controller: never a safety channel (notes §4)
 
 
-class OutputRole(enum.StrEnum):
+class OutputRole(StrEnum):
     """What an output enables (safety-rules.md §1; safety-rules call it the output's class,
     the config file spells it ``role``)."""
 
@@ -45,6 +46,7 @@ HEARTBEAT_HZ_RANGE = (20, 50)  # safety-rules.md §5
 REARM_HOLD_RANGE_MS = (100, 60_000)
 CLIENT_TIMEOUT_RANGE_MS = (20, 10_000)
 DEFAULT_CLIENT_TIMEOUT_MS = 500  # safety-rules.md §8
+UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
 
 
 def _whole_number(key: str, value: object, bounds: tuple[int, int]) -> int:
@@ -81,15 +83,20 @@ class ClientSpec:
     """A required client of the robot's software (safety-rules.md §8).
 
     Until it has connected, said hello and sent a heartbeat, and whenever it stays silent for
-    ``timeout_ms``, the cause ``client_lost:NAME`` is active.
+    ``timeout_ms``, the cause ``client_lost:NAME`` is active. With ``uid``, only a process of
+    that user may say hello under the name (docs/safety.md "Clients bound to a user");
+    ``None``, the default, lets any user who can reach the socket.
     """
 
     name: str
     timeout_ms: int = DEFAULT_CLIENT_TIMEOUT_MS
+    uid: int | None = None
 
     def __post_init__(self) -> None:
         _name("clients.name", self.name)
         _whole_number(f"clients.{self.name}.timeout_ms", self.timeout_ms, CLIENT_TIMEOUT_RANGE_MS)
+        if self.uid is not None:
+            _whole_number(f"clients.{self.name}.uid", self.uid, UID_RANGE)
 
     @property
     def timeout_ns(self) -> int:
@@ -181,8 +188,8 @@ class SafetyConfig:
     def from_mapping(cls, data: Mapping[str, object], file: str | None = None) -> SafetyConfig:
         """Build a config from parsed TOML-like data; unknown keys are errors, not ignored.
 
-        ``clients`` is a list of tables with ``name`` and optional ``timeout_ms``; ``outputs``
-        a list of tables with ``name`` and ``class`` ("motion" or "power").
+        ``clients`` is a list of tables with ``name`` and optional ``timeout_ms`` and ``uid``;
+        ``outputs`` a list of tables with ``name`` and ``class`` ("motion" or "power").
         """
         try:
             return cls._from_mapping(data)
@@ -211,14 +218,17 @@ class SafetyConfig:
             raise ConfigError("transport", transport_text, 'use "serial", "can" or "hid"') from None
         clients = []
         for entry in _list("clients", data.get("clients", [])):
-            table = _table("clients", entry, {"name", "timeout_ms"})
+            table = _table("clients", entry, {"name", "timeout_ms", "uid"})
             name = _name("clients.name", table.get("name"))
             timeout = _whole_number(
                 f"clients.{name}.timeout_ms",
                 table.get("timeout_ms", DEFAULT_CLIENT_TIMEOUT_MS),
                 CLIENT_TIMEOUT_RANGE_MS,
             )
-            clients.append(ClientSpec(name, timeout))
+            uid = table.get("uid")
+            if uid is not None:
+                uid = _whole_number(f"clients.{name}.uid", uid, UID_RANGE)
+            clients.append(ClientSpec(name, timeout, uid))
         outputs = []
         for entry in _list("outputs", data.get("outputs", [])):
             table = _table("outputs", entry, {"name", "role"})

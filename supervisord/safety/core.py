@@ -31,6 +31,7 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.safety.book import CauseBook
+from supervisord.safety.budget import RecordBudget
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import NAME_PATTERN, NS_PER_MS, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
@@ -73,6 +74,20 @@ from supervisord.safety.transitions import IllegalTransition, Situation, State, 
 
 KEY85_RETRY_NS = 1_000_000_000  # re-ask key 85 every second until it reads 1 (§5)
 IDLE_NS = 1_000_000_000  # the longest the core sleeps when nothing else is due
+TAKEOVER_DWELL_NS = 200 * NS_PER_MS
+"""docs/safety.md "Re-arming" rule 4: a takeover needs the non-Operational mode reported by an
+unbroken run of VSC heartbeats whose first and last are at least this far apart. Longer than
+any mode glitch or chatter, shorter than any person's takeover on the remote."""
+VSC_MIN_INTERVAL_NS = 20 * NS_PER_MS
+"""The shortest interval a VSC can be set to send its heartbeat at (manual §8.3.6 message
+control: 20 ms; the manual's rates are 20 Hz serial, 10 Hz CAN). Faster heartbeats are not
+a VSC's, and are no evidence of a takeover (rule 4)."""
+READ_TOGETHER_ALLOWANCE = 2
+"""Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
+read in one loop turn share one time, so a late read makes a span look shorter."""
+REFUSAL_QUIET_NS = 1_000_000_000
+"""The same takeover refusal is reported (and recorded) at most once per this: a flapping VSC
+would otherwise fill the record, whose rotation drops the stop the refusals are about."""
 LINKED_MODES = frozenset(
     {VscMode.LOCAL, VscMode.REMOTE, VscMode.OPERATIONAL, VscMode.MENU, VscMode.PAUSE}
 )
@@ -92,10 +107,23 @@ def _anonymous(connection: int) -> str:
 
 
 @dataclass(frozen=True, slots=True)
+class _Run:
+    """An unbroken run of non-Operational VSC heartbeats (re-arm rule 4): none Operational,
+    none ``vsc_timeout`` or more after the one before, all since the link last opened."""
+
+    first_ns: int
+    last_ns: int
+    heartbeats: int
+
+    def then(self, now: int) -> _Run:
+        return _Run(self.first_ns, now, self.heartbeats + 1)
+
+
+@dataclass(frozen=True, slots=True)
 class _RearmRequest:
     kind: RearmKind
     caller: Caller | None
-    takeover_began_ns: int | None  # the non-Operational heartbeat before the Operational one
+    run: _Run | None = None  # a takeover's evidence: the run before the Operational heartbeat
 
 
 class SafetyCore:
@@ -120,7 +148,8 @@ class SafetyCore:
         self._link_fault: str | None = "not opened yet"
         self._last_vsc_ns: int | None = None
         self._vsc_mode: int | None = None
-        self._non_operational_ns: int | None = None
+        self._run: _Run | None = None  # the current non-Operational run (re-arm rule 4)
+        self._quiet: tuple[RefusalReason, int] | None = None  # the last takeover refusal
         self._vsc_estop_word = 0
         self._remote_linked = False
         self._key85: int | None = None
@@ -136,6 +165,7 @@ class SafetyCore:
         self._local_estop: Caller | None = None
         self._output_faults: dict[str, Details] = {}
         self._display = DisplayStore()
+        self._budget = RecordBudget()  # records per client (docs/safety.md, issue 11)
         # Per-step scratch.
         self._frames: list[Message] = []
         self._refusals: list[Refusal] = []
@@ -182,7 +212,10 @@ class SafetyCore:
             # A clock that goes back is treated as not moving: no deadline is ever un-expired.
             now = self._now = max(self._now, event.now)
             self._refresh(now)  # 1. time passes
-            request = self._apply(event, now)  # 2. the event
+            if self._over_budget(event, now):  # 2. the event, unless its client is past budget
+                self._refuse(RefusalReason.RATE_LIMITED, type(event).__name__, event)
+            else:
+                request = self._apply(event, now)
         self._refresh(now)  # 3. conditions
         if request is not None:  # 4. re-arm (§4)
             refused = len(self._refusals)
@@ -222,6 +255,8 @@ class SafetyCore:
         if changes or previous is not self._state or self._note is not None:
             note, reason = self._note or (None, "")
             self._sequence += 1
+            if (client := self._client_key(event)) is not None:
+                self._budget.charge(client, now)
             records = (
                 Record(
                     self._sequence,
@@ -306,7 +341,7 @@ class SafetyCore:
                 self._refuse(RefusalReason.NOTHING_TO_RELEASE, "local_estop", event)
             self._local_estop = None
         elif isinstance(event, ResetRequest):
-            return _RearmRequest(RearmKind.LOCAL_RESET, event.caller, None)
+            return _RearmRequest(RearmKind.LOCAL_RESET, event.caller)
         elif isinstance(event, OutputReadback):
             self._on_readback(event, now)
         elif isinstance(event, InternalFault):
@@ -331,18 +366,23 @@ class SafetyCore:
         request = None
         if isinstance(message, VscHeartbeat):
             # §2: only a valid heartbeat is liveness; the daemon passes only checked frames.
-            self._last_vsc_ns = now
+            previous_ns, self._last_vsc_ns = self._last_vsc_ns, now
             self._vsc_estop_word = message.estop
             previous_mode = self._vsc_mode
-            if (
-                message.mode == VscMode.OPERATIONAL
-                and previous_mode is not None
-                and previous_mode != VscMode.OPERATIONAL
+            if message.mode == VscMode.OPERATIONAL:
+                if previous_mode is not None and previous_mode != VscMode.OPERATIONAL:
+                    # §4: the operator's takeover, not Operational followed by Operational;
+                    # whether the run before it is an operator's act is rule 4 (_check_rearm).
+                    request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
+                self._run = None
+            elif (
+                self._run is None
+                or previous_ns is None
+                or now - previous_ns >= self._config.vsc_timeout_ns
             ):
-                # §4: the operator's takeover, not Operational followed by Operational.
-                request = _RearmRequest(RearmKind.TAKEOVER, None, self._non_operational_ns)
-            if message.mode != VscMode.OPERATIONAL:
-                self._non_operational_ns = now
+                self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
+            else:
+                self._run = self._run.then(now)
             self._vsc_mode = message.mode
             linked = VscMode.parse(message.mode) in LINKED_MODES
             if linked and not self._remote_linked:
@@ -365,7 +405,7 @@ class SafetyCore:
             self._link_fault = None
         self._last_vsc_ns = None
         self._vsc_mode = None
-        self._non_operational_ns = None
+        self._run = None
         self._remote_linked = False
         self._key85 = None
         self._next_key85_ns = now if self._serial else None
@@ -377,6 +417,7 @@ class SafetyCore:
         self._link_fault = f"{word}: {event.reason}"[:200]
         self._last_vsc_ns = None
         self._vsc_mode = None
+        self._run = None
         self._remote_linked = False
         self._next_key85_ns = None
         self._next_heartbeat_ns = None
@@ -393,6 +434,12 @@ class SafetyCore:
             self._refuse(RefusalReason.UNKNOWN_CONNECTION, str(connection), event)
         elif self._connections[connection] is not None:
             self._refuse(RefusalReason.ALREADY_NAMED, str(self._connections[connection]), event)
+        elif self._wrong_user(event):
+            # docs/safety.md "Clients bound to a user": refused and recorded, before the name
+            # is looked up, so an attempt is recorded also while the real client is connected.
+            who = "an unknown caller" if event.caller is None else f"uid {event.caller.uid}"
+            self._refuse(RefusalReason.WRONG_USER, f"{name} from {who}", event)
+            self._note = (RecordNote.HELLO_REFUSED, self._refusals[-1].message)
         elif not isinstance(name, str) or NAME_PATTERN.fullmatch(name) is None:
             self._refuse(RefusalReason.BAD_NAME, repr(name)[:60], event)
         elif name in self._by_name:
@@ -404,6 +451,12 @@ class SafetyCore:
             if name in self._required:
                 # §4: a client's (re)connection is a new start; it must send a heartbeat.
                 self._client_beat_ns[name] = None
+
+    def _wrong_user(self, event: ClientHello) -> bool:
+        spec = self._required.get(event.name) if isinstance(event.name, str) else None
+        if spec is None or spec.uid is None:
+            return False
+        return event.caller is None or event.caller.uid != spec.uid
 
     def _named(self, event: Event, connection: int) -> str | None:
         if connection not in self._connections:
@@ -468,6 +521,27 @@ class SafetyCore:
         else:
             # §6: the condition clears when a later read-back matches what was set.
             self._output_faults.pop(event.output, None)
+
+    def _client_key(self, event: Event) -> tuple[str, object] | None:
+        """Who an input counts against for the records it causes (docs/safety.md, "How many
+        records one client may cause"): a named client by name (a reconnection does not
+        reset it), a connection before hello by number, a local command by uid and pid."""
+        if isinstance(event, LocalEstop | LocalRelease | ResetRequest):
+            return ("caller", (event.caller.uid, event.caller.pid))
+        connection = getattr(event, "connection", None)
+        if not isinstance(connection, int):
+            return None
+        name = self._connections.get(connection)
+        return ("name", name) if name is not None else ("connection", connection)
+
+    def _over_budget(self, event: Event, now: int) -> bool:
+        """A release or a reset from a client past its record budget. E-stops, holds,
+        heartbeats and disconnections are never limited: they can only add a reason to stop
+        or keep a client's liveness true (§0, §8); refusing a release errs on the safe side."""
+        if not isinstance(event, ClientRelease | LocalRelease | ResetRequest):
+            return False
+        client = self._client_key(event)
+        return client is not None and self._budget.exhausted(client, now)
 
     def _refuse(self, reason: RefusalReason, detail: str, event: object) -> None:
         self._refusals.append(Refusal(reason, detail, event))
@@ -569,41 +643,80 @@ class SafetyCore:
 
     def _check_rearm(self, request: _RearmRequest, event: Event, now: int) -> None:
         takeover = request.kind is RearmKind.TAKEOVER
+        if takeover and self._state is not State.STOPPED:
+            return  # a takeover outside STOPPED is just the remote leaving pause (§3)
+        refusal = self._rearm_refusal(request, now)
+        if refusal is None:
+            self._quiet = None
+            self._book.release_latches()
+            self._rearm = Rearm(request.kind, request.caller)
+            return
+        reason, detail = refusal
+        if takeover:
+            # The same takeover refusal again within a second is not reported (a flapping
+            # VSC, docs/safety.md "Re-arming"); a new reason always is. A local reset always
+            # gets its answer: a person asked.
+            quiet = self._quiet
+            if quiet is not None and quiet[0] is reason and now - quiet[1] < REFUSAL_QUIET_NS:
+                return
+            self._quiet = (reason, now)
+        self._refuse(reason, detail, event)
+
+    def _rearm_refusal(self, request: _RearmRequest, now: int) -> tuple[RefusalReason, str] | None:
+        """Why the re-arm is refused, or ``None`` when every rule of §4 holds."""
+        takeover = request.kind is RearmKind.TAKEOVER
         if not takeover:
             caller = request.caller
             if not self._config.local_reset:
-                self._refuse(RefusalReason.LOCAL_RESET_DISABLED, "", event)
-                return
+                return RefusalReason.LOCAL_RESET_DISABLED, ""
             if caller is None or not caller.admin:
-                self._refuse(RefusalReason.NOT_ADMIN, caller.name if caller else "", event)
-                return
-        if self._state is not State.STOPPED:
-            if not takeover:  # a takeover outside STOPPED is just the remote leaving pause
-                self._refuse(RefusalReason.NOT_STOPPED, self._state.name, event)
-            return
+                return RefusalReason.NOT_ADMIN, caller.name if caller else ""
+            if self._state is not State.STOPPED:
+                return RefusalReason.NOT_STOPPED, self._state.name
         active = self._book.active_stops()
         if active:
             # Safe choice: a re-arm while a stop condition is active does not count, even
             # later; it must be given after the conditions clear.
-            self._refuse(RefusalReason.CONDITIONS_ACTIVE, ", ".join(c.name for c in active), event)
-            return
-        last_stop = self._book.last_stop_raised_ns
-        began = request.takeover_began_ns
-        if takeover and (began is None or (last_stop is not None and began < last_stop)):
-            self._refuse(RefusalReason.NEW_CAUSE_DURING_REARM, "", event)
-            return
+            return RefusalReason.CONDITIONS_ACTIVE, ", ".join(c.name for c in active)
+        if takeover:
+            refusal = self._takeover_refusal(request.run)
+            if refusal is not None:
+                return refusal
         clear_since = self._book.stops_clear_since()
         hold = self._config.rearm_hold_ns
         if clear_since is None or now - clear_since < hold:
             clear_ms = 0 if clear_since is None else (now - clear_since) // NS_PER_MS
-            self._refuse(
+            return (
                 RefusalReason.HOLD_TIME_NOT_ELAPSED,
                 f"clear for {clear_ms} ms of {hold // NS_PER_MS} ms",
-                event,
             )
-            return
-        self._book.release_latches()
-        self._rearm = Rearm(request.kind, request.caller)
+        return None
+
+    def _takeover_refusal(self, run: _Run | None) -> tuple[RefusalReason, str] | None:
+        """Re-arming rules 2-4 for a takeover: is the run before this Operational heartbeat an
+        operator's act (docs/safety.md "Re-arming")? ``self._now`` is the Operational one."""
+        last_stop = self._book.last_stop_raised_ns
+        if run is None or (last_stop is not None and run.last_ns < last_stop):
+            # Rule 2 and 3: the non-Operational heartbeat must come after the last stop began.
+            return RefusalReason.NEW_CAUSE_DURING_REARM, ""
+        span = run.last_ns - run.first_ns
+        if span < TAKEOVER_DWELL_NS:  # rule 4: two heartbeats at least the dwell apart
+            beats = f"{run.heartbeats} heartbeat{'s' if run.heartbeats != 1 else ''}"
+            return (
+                RefusalReason.TAKEOVER_TOO_SHORT,
+                f"not Operational for {span // NS_PER_MS} ms in {beats}; "
+                f"{TAKEOVER_DWELL_NS // NS_PER_MS} ms needed",
+            )
+        heartbeats = run.heartbeats + 1  # with the Operational one
+        window = self._now - run.first_ns
+        allowed = window // VSC_MIN_INTERVAL_NS + 1 + READ_TOGETHER_ALLOWANCE
+        if heartbeats > allowed:  # rule 4: no faster than a VSC can send them
+            return (
+                RefusalReason.VSC_TOO_FAST,
+                f"{heartbeats} heartbeats in {window // NS_PER_MS} ms; a VSC sends at most one "
+                f"per {VSC_MIN_INTERVAL_NS // NS_PER_MS} ms",
+            )
+        return None
 
     # ----------------------------------------------------------------- outputs and frames
 

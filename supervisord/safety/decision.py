@@ -43,6 +43,7 @@ class RecordNote(enum.Enum):
 
     REARM_REFUSED = "rearm_refused"  # a reset or takeover was asked for and refused (§4)
     COMMISSIONED = "commissioned"  # key 85 was written to the VSC (§5): permanent, so recorded
+    HELLO_REFUSED = "hello_refused"  # a hello as a client bound to another user (§8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,6 +64,8 @@ class RefusalReason(enum.Enum):
     CONDITIONS_ACTIVE = "stop conditions are still active"
     NEW_CAUSE_DURING_REARM = "a new stop cause arrived during the takeover"
     HOLD_TIME_NOT_ELAPSED = "stop conditions have not been clear for the whole re-arm hold time"
+    TAKEOVER_TOO_SHORT = "the VSC did not report a non-Operational mode long enough for a takeover"
+    VSC_TOO_FAST = "VSC heartbeats came faster than a VSC sends them: no takeover"
     # Inputs that make no sense; each is ignored, never an exception.
     UNKNOWN_CONNECTION = "no such client connection"
     DUPLICATE_CONNECTION = "the connection number is already in use"
@@ -76,6 +79,8 @@ class RefusalReason(enum.Enum):
     DISPLAY_KEY_NOT_ALLOWED = "clients may only set display keys 1-12 and 99, names 1-9, 90-93"
     DISPLAY_VALUE_OUT_OF_RANGE = "the display value is out of range for its key"
     NOT_AN_EVENT = "the input is not a safety event"
+    WRONG_USER = "this client name is bound to another user"
+    RATE_LIMITED = "this client caused too many records in the last second; try again shortly"
     INTERNAL_ERROR = "the core failed on this input and stopped"
 
 

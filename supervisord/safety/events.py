@@ -70,10 +70,12 @@ class ClientConnected(_Event):
 
 @dataclass(frozen=True, slots=True)
 class ClientHello(_Event):
-    """A connected client named itself."""
+    """A connected client named itself; ``caller`` is who is at the other end (``None``:
+    unknown, which a client bound to a user refuses)."""
 
     connection: int
     name: str
+    caller: Caller | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -117,7 +117,11 @@ class Simulator:
     def _send(self, now: float) -> None:
         # The model ticks even while nothing is sent, so its clocks keep running.
         sending = not self.silenced and self.side.plugged
-        for produced in self.model.tick(now):
+        messages = self.model.tick(now)
+        if self.faults.flap_due(now) and not self.model.booting(now):
+            # A chattering VSC: each change of the flapping mode is a heartbeat of its own.
+            messages.insert(0, self.model.heartbeat(now))
+        for produced in messages:
             if not sending:
                 continue
             message = self.faults.message(produced, now)

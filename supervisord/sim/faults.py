@@ -9,7 +9,9 @@ Three stages, in the order the simulator applies them:
 
 1. ``message``: faults of the VSC's logic, on messages before encoding: a frozen heartbeat
    (the same content forever, whatever the VSC's state), mode flapping (the heartbeat's
-   mode alternates with ``flap_mode``).
+   mode alternates with ``flap_mode``; with ``flap_heartbeats`` every change of the flapping
+   mode also sends a heartbeat of its own, ``flap_due``, as a VSC whose mode logic chatters
+   faster than its heartbeat schedule).
 2. ``push`` / ``push_can`` then ``due``: faults of the line, per frame: drop, delay,
    duplicate, reorder, corrupt, wrong length, and inserted garbage or unknown-type frames.
 3. ``Pacer``: slow and partial writes: the serial bytes go out in chunks of
@@ -81,6 +83,7 @@ class FaultPlan:
     freeze_heartbeat: bool = False
     flap_mode: int | None = None  # the heartbeat's mode alternates with this one
     flap_period_s: float = 0.1
+    flap_heartbeats: bool = False  # a heartbeat at every change of the flapping mode
     chunk_bytes: int = 0  # 0: whole writes
     chunk_gap_s: float = 0.0
     only_types: frozenset[int] = frozenset()
@@ -94,22 +97,29 @@ class FaultPlan:
             value = getattr(self, name)
             if not _number(value) or not low <= value <= high:
                 raise ValueError(f"{name} must be {low}..{high} seconds, not {value!r}")
-        if not _number(self.flap_period_s) or not 0.01 <= self.flap_period_s <= 60.0:
-            raise ValueError("flap_period_s must be 0.01..60 seconds")
+        self._check_flapping()
         for name, low, high in (("corrupt_bytes", 1, 8), ("garbage_max", 1, 1024)):
             value = getattr(self, name)
             if not _integer(value) or not low <= value <= high:
                 raise ValueError(f"{name} must be an integer {low}..{high}, not {value!r}")
         if not _integer(self.chunk_bytes) or not 0 <= self.chunk_bytes <= 4096:
             raise ValueError("chunk_bytes must be an integer 0..4096")
-        if self.flap_mode is not None and (
-            not _integer(self.flap_mode) or not 0 <= self.flap_mode <= 0xFF
-        ):
-            raise ValueError("flap_mode must be a mode byte 0..255 or null")
         if not isinstance(self.freeze_heartbeat, bool):
             raise ValueError("freeze_heartbeat must be true or false")
         if not all(_integer(kind) and 0 <= kind <= 0xFF for kind in self.only_types):
             raise ValueError("only_types must be message type bytes")
+
+    def _check_flapping(self) -> None:
+        if not _number(self.flap_period_s) or not 0.01 <= self.flap_period_s <= 60.0:
+            raise ValueError("flap_period_s must be 0.01..60 seconds")
+        if self.flap_mode is not None and (
+            not _integer(self.flap_mode) or not 0 <= self.flap_mode <= 0xFF
+        ):
+            raise ValueError("flap_mode must be a mode byte 0..255 or null")
+        if not isinstance(self.flap_heartbeats, bool):
+            raise ValueError("flap_heartbeats must be true or false")
+        if self.flap_heartbeats and self.flap_mode is None:
+            raise ValueError("flap_heartbeats needs flap_mode")
 
     @property
     def active(self) -> bool:
@@ -161,6 +171,7 @@ class FaultInjector:
         self._seq = 0
         self._frozen: VscHeartbeat | None = None
         self._plan_start = 0.0
+        self._flips = 0  # the flaps whose extra heartbeat has been asked for (flap_due)
         self.plan = FaultPlan()
         self.set_plan(plan or FaultPlan(), 0.0)
 
@@ -169,6 +180,7 @@ class FaultInjector:
         self.plan = plan
         self._plan_start = now
         self._frozen = None
+        self._flips = 0
 
     def _count(self, kind: str) -> None:
         self.counts[kind] = self.counts.get(kind, 0) + 1
@@ -191,6 +203,24 @@ class FaultInjector:
             self._count("flap_mode")
             return replace(message, mode=plan.flap_mode)
         return message
+
+    def flap_due(self, now: float) -> bool:
+        """With ``flap_heartbeats``: whether the flapping mode has changed since the last
+        extra heartbeat (the caller then sends one, through ``message``); once per change."""
+        plan = self.plan
+        if plan.flap_mode is None or not plan.flap_heartbeats:
+            return False
+        flips = int((now - self._plan_start) / plan.flap_period_s) + 1
+        if flips <= self._flips:
+            return False
+        self._flips = flips
+        return True
+
+    def _next_flip(self) -> float | None:
+        plan = self.plan
+        if plan.flap_mode is None or not plan.flap_heartbeats:
+            return None
+        return self._plan_start + self._flips * plan.flap_period_s
 
     # -- stage 2: the line ---------------------------------------------------------------------
 
@@ -265,6 +295,9 @@ class FaultInjector:
         deadlines = [self._queue[0][0]] if self._queue else []
         if self._held:
             deadlines.append(self._held_since + 0.5)
+        flip = self._next_flip()
+        if flip is not None:
+            deadlines.append(flip)
         return min(deadlines, default=None)
 
     def clear(self) -> None:

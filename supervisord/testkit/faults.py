@@ -56,6 +56,7 @@ from typing import Any, Literal
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.errors import SrcsError
 from supervisord.record import Record, read_records
+from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.testkit.process import terminate
 from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
@@ -750,8 +751,9 @@ class Robot:
                 control.pause()
             elif sim["mode_name"] == "menu":
                 control.menu()
-            # the hold time, and a non-Operational heartbeat seen after the last stop (§4.2)
-            time.sleep(HOLD_MS / 1000 + 2 * self.beat_s + 0.05)
+            # the hold time, a non-Operational heartbeat seen after the last stop (§4.2), and
+            # heartbeats in it spanning the takeover dwell (docs/safety.md re-arm rule 4)
+            time.sleep(max(HOLD_MS / 1000, TAKEOVER_DWELL_NS / 1e9) + 2 * self.beat_s + 0.05)
             if self.active_stops():
                 continue
             t = self.now()

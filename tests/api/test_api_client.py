@@ -3,8 +3,11 @@ the client blocks, the daemon's loop must keep turning meanwhile)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import socket
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import TracebackType
@@ -238,3 +241,61 @@ def test_no_reply_in_time_is_a_timeout_and_closes(sock_path: Path) -> None:
         assert client.fileno() < 0
         with pytest.raises(ConnectionClosedError):
             client.status()
+
+
+def fill_backlog(path: Path) -> tuple[socket.socket, list[socket.socket]]:
+    """A listening socket with a backlog of 1 that accepts nothing, and the connections that
+    filled its backlog: the next connect gets EAGAIN, as under connection churn."""
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    listener.bind(str(path))
+    listener.listen(1)
+    queued: list[socket.socket] = []
+    while True:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
+        try:
+            sock.connect(str(path))
+        except BlockingIOError:
+            sock.close()
+            return listener, queued
+        queued.append(sock)
+
+
+def test_connect_waits_out_a_full_backlog(tmp_path: Path) -> None:
+    """A full listen backlog (EAGAIN) is retried: once the server accepts again, within the
+    client's bounded wait, the connection is made."""
+    path = tmp_path / "api.sock"
+    listener, queued = fill_backlog(path)
+    accepted: list[socket.socket] = []
+
+    def accept_later() -> None:
+        time.sleep(0.3)
+        listener.settimeout(5.0)
+        with contextlib.suppress(TimeoutError):  # the old client had given up already
+            for _ in range(len(queued) + 1):
+                accepted.append(listener.accept()[0])
+
+    helper = threading.Thread(target=accept_later)
+    helper.start()
+    try:
+        client = SupervisorClient.connect(path, timeout=5.0)
+        client.close()
+    finally:
+        helper.join()
+        for sock in [listener, *queued, *accepted]:
+            sock.close()
+
+
+def test_connect_gives_up_on_a_full_backlog_after_a_bounded_time(tmp_path: Path) -> None:
+    """A backlog that stays full is a ConnectError after the bounded wait (here the client's
+    0.3 s timeout), not a hang and not an instant failure."""
+    path = tmp_path / "api.sock"
+    listener, queued = fill_backlog(path)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(ConnectError, match="busy"):
+            SupervisorClient.connect(path, timeout=0.3)
+        took = time.monotonic() - t0
+        assert 0.2 < took < 3.0
+    finally:
+        for sock in [listener, *queued]:
+            sock.close()

@@ -403,3 +403,154 @@ def test_display_events_are_accepted_by_the_core() -> None:
         event = to_core_event(request_value, NAMED, 1)
         if isinstance(event, DisplayUpdate):
             assert core.handle(event).refusals == (), request_value
+
+
+# -- odd text (issue 11: no input string can raise) -----------------------------------------
+
+
+def strict_utf8(obj: object) -> bytes:
+    """The strictest encoding any sink uses: UTF-8 JSON, no NaN, no lone surrogates."""
+    return json.dumps(obj, ensure_ascii=False, allow_nan=False).encode("utf-8")
+
+
+@pytest.mark.parametrize("text_id", ["\\ud800", "\\udfff", "a\\udce9b", "\\ud83d"])
+def test_an_id_with_a_lone_surrogate_is_refused_and_the_refusal_encodes(text_id: str) -> None:
+    """An ``id`` that JSON can spell but UTF-8 cannot (a lone surrogate) is ``bad_request``,
+    and the error reply, which then carries no id, encodes (issue 11: it raised in the reply
+    encoder and the loop stopped the robot with ``internal``)."""
+    line = b'{"op":"status","id":"' + text_id.encode() + b'"}'
+    with pytest.raises(ApiError) as caught:
+        parse_request(line)
+    assert caught.value.code == ErrorCode.BAD_REQUEST
+    assert "id" not in caught.value.reply()
+    strict_utf8(caught.value.reply())
+    assert json.loads(encode(caught.value.reply()))["code"] == "bad_request"
+
+
+def test_a_proper_surrogate_pair_in_an_id_is_text_and_echoed() -> None:
+    """An escaped pair (``\\ud83d\\ude00``) is one character: a valid id, echoed as sent."""
+    request = parse_request(b'{"op":"status","id":"\\ud83d\\ude00"}')
+    assert request.id == "\U0001f600"
+    assert json.loads(encode(ok_reply(request)))["id"] == "\U0001f600"
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        b'{"op":"status","\\ud800":1}',
+        b'{"op":"display","row":{"index":1,"text":"a","\\udc80":2}}',
+        b'{"op":"\\ud800x"}',
+        b'{"op":"release","what":"\\udfff"}',
+        b'{"op":"subscribe","topics":["\\ud800"]}',
+        b'{"op":"display","label":{"key":1,"text":"\\ud800"}}',
+        b'{"op":"hello","name":"\\ud800"}',
+        b'{"op":"status","\\ud800":1,"\\ud800":2}',
+    ],
+)
+def test_every_error_about_odd_text_encodes(line: bytes) -> None:
+    """Field names, ops and values with lone surrogates are refused with a reply that encodes
+    strictly: the error text shows them escaped, never raw."""
+    with pytest.raises(ApiError) as caught:
+        parse_request(line)
+    strict_utf8(caught.value.reply())
+    assert encode(caught.value.reply()).endswith(b"\n")
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        b'{"op":"display","mode":' + b"[" * 900 + b"]" * 900 + b"}",
+        b'{"op":"display","value":' + b'{"a":' * 500 + b"1" + b"}" * 500 + b"}",
+        b'{"op":"status","id":' + b"[" * 40 + b"]" * 40 + b"}",
+        b"[" * 2000 + b"]" * 2000,
+    ],
+    ids=["list-900", "object-500", "list-40", "list-2000"],
+)
+def test_deep_nesting_is_bad_json_whatever_the_stack(line: bytes) -> None:
+    """Arrays or objects nested deeper than any request needs are ``bad_json`` at any depth of
+    the caller's stack, never a ``RecursionError`` (the answer must not depend on how deep the
+    loop happens to be when it parses)."""
+
+    def at_depth(n: int) -> str:
+        return code_of(line) if n == 0 else at_depth(n - 1)
+
+    assert {at_depth(n) for n in (0, 100, 400, 800)} == {ErrorCode.BAD_JSON}
+
+
+def test_brackets_inside_text_do_not_count_as_nesting() -> None:
+    """Text full of brackets is text: an id of 64 brackets is still a valid id."""
+    request = parse_request(json.dumps({"op": "status", "id": "[{" * 32}).encode())
+    assert request.id == "[{" * 32
+
+
+@pytest.mark.parametrize(
+    ("value", "code"),
+    [
+        (b"1e400", ErrorCode.BAD_REQUEST),
+        (b"-1e400", ErrorCode.BAD_REQUEST),
+        (b"1" * 4200, ErrorCode.BAD_REQUEST),
+        (b"1" * 5000, ErrorCode.BAD_JSON),
+        (b"0.5", ErrorCode.BAD_REQUEST),
+        (b"Infinity", ErrorCode.BAD_JSON),
+        (b"-Infinity", ErrorCode.BAD_JSON),
+    ],
+    ids=["1e400", "-1e400", "4200-digits", "5000-digits", "0.5", "Infinity", "-Infinity"],
+)
+def test_huge_and_unusual_numbers_are_refused_with_a_reply_that_encodes(
+    value: bytes, code: ErrorCode
+) -> None:
+    """Numbers JSON allows but no field takes (an overflowing float, thousands of digits,
+    Infinity) are refused with a short reply that encodes; nothing converts them to text
+    beyond Python's limit for integers."""
+    for line in (
+        b'{"op":"display","mode":' + value + b"}",
+        b'{"op":"status","id":' + value + b"}",
+        b'{"op":"display","value":{"key":1,"value":' + value + b"}}",
+    ):
+        with pytest.raises(ApiError) as caught:
+            parse_request(line)
+        assert caught.value.code == code
+        reply = encode(caught.value.reply())
+        assert len(reply) < 400
+        strict_utf8(caught.value.reply())
+
+
+def test_json_whitespace_is_accepted_and_other_whitespace_is_bad_json() -> None:
+    """Space, tab and CR around tokens are JSON; a vertical tab, form feed or no-break space
+    is not, and is ``bad_json`` (never a different exception)."""
+    assert parse_request(b' \t{ "op" :\t"status" }\r ') == Status()
+    for odd in (b"\x0b", b"\x0c", b"\xc2\xa0", b"\xe2\x80\x83", b"\x00"):
+        assert code_of(b"{" + odd + b'"op":"status"}') == ErrorCode.BAD_JSON
+
+
+def test_encode_escapes_text_that_utf8_cannot_hold() -> None:
+    """The last net: a lone surrogate that reached a reply is written as visible escaped text
+    (``\\ud800``, ``\\xe9`` for an undecodable byte), never raised."""
+    line = encode({"ok": True, "a": "x\ud800", "b": ["r\udce9mi"], "c": {"\udfff": 1}})
+    assert json.loads(line.decode("utf-8")) == {
+        "ok": True,
+        "a": "x\\ud800",
+        "b": ["r\\xe9mi"],
+        "c": {"\\udfff": 1},
+    }
+
+
+ODD_USER = Caller(4242, 44, "r\udce9mi", False)  # a login name that is not UTF-8
+
+
+def test_a_record_and_a_status_naming_an_odd_user_encode_strictly() -> None:
+    """A local e-stop by a user whose name was not UTF-8 (the name carries surrogates from the
+    password database) gives a record the store and the journal can encode, and a status that
+    encodes: the name shows its undecodable byte escaped (issue 11: the stop record was lost
+    and ``status`` stopped answering)."""
+    core = SafetyCore(SafetyConfig(), 0)
+    decision = core.handle(LocalEstop(5, ODD_USER))
+    (record,) = decision.records
+    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.UTC))
+    assert encode_record(obj).endswith(b"\n")
+    strict_utf8(obj)
+    assert obj["trigger"]["caller"]["name"] == "r\\xe9mi"
+    strict_utf8(state_push(decision))
+    strict_utf8(record_push(obj))
+    local = next(c for c in decision_json(decision)["causes"] if c["name"] == "local_estop")
+    strict_utf8(local)

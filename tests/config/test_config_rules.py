@@ -558,3 +558,29 @@ def test_missing_values_are_shown_as_not_set(tmp_path: Path) -> None:
     error = refused(tmp_path, {"robot.name": DELETE})
     assert error.value is MISSING
     assert "robot.name = (not set): " in str(error)
+
+
+BOUND_CLIENT_CASES: list[Case] = [
+    ({"clients[0].user": "no-such-user-xyz"}, "clients[0].user", "useradd --system"),
+    ({"clients[0].user": "bad user"}, "clients[0].user", "give a user name"),
+    ({"clients[0].user": 0}, "clients[0].user", "give a user name"),
+    ({"clients[0].uid": -1}, "clients[0].uid", "from 0 to 4294967294"),
+    ({"clients[0].uid": 1 << 32}, "clients[0].uid", "from 0 to 4294967294"),
+    ({"clients[0].uid": "0"}, "clients[0].uid", "whole number"),
+    ({"clients[0].uid": 0, "clients[0].user": "root"}, "clients[0].uid", "not both"),
+]
+
+
+@pytest.mark.parametrize(("changes", "key", "fix"), BOUND_CLIENT_CASES, ids=lambda c: str(c)[:30])
+def test_bound_clients(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> None:
+    """[[clients]] user and uid: an existing user or a valid uid, never both."""
+    check(tmp_path, changes, key, fix)
+
+
+def test_a_client_is_bound_by_user_name_or_uid_and_unbound_by_default(tmp_path: Path) -> None:
+    """user = "root" binds the client to uid 0, uid = 1234 to 1234; without either the
+    client is unbound (uid None): any user who can reach the socket may use its name."""
+    config = load(tmp_path, {"clients[0].user": "root", "clients[1]": {"name": "nav"}})
+    assert [(c.name, c.uid) for c in config.safety.clients] == [("autonomy", 0), ("nav", None)]
+    config = load(tmp_path, {"clients[0].uid": 1234})
+    assert config.safety.clients[0].uid == 1234

@@ -4,20 +4,26 @@ JSON Lines stop record. A small VSC peer in the test answers key 85 and sends he
 from __future__ import annotations
 
 import json
+import socket
+import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 import pytest
 
-from supervisord.daemon.loop import Supervisor
+from supervisord.daemon import loop
+from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.messages import UserHeartbeat
+from supervisord.protocol.messages import UserHeartbeat, VscHeartbeat
 from supervisord.record.jsonl import Record, RecordWriter, read_records
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
+from supervisord.safety.decision import Decision
+from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
@@ -60,6 +66,15 @@ def run_until(
         supervisor.step()
 
 
+def serve_for(supervisor: Supervisor, peer: VscPeer, seconds: float) -> None:
+    """Run the loop and the peer for ``seconds`` (e.g. the re-arm hold and the takeover's
+    non-Operational dwell, docs/safety.md "Re-arming")."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        peer.serve()
+        supervisor.step()
+
+
 def level(tmp_path: Path, name: str) -> str:
     return (tmp_path / name).read_text().strip()
 
@@ -84,7 +99,7 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
         peer,
         lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
     )
-    time.sleep(0.15)  # conditions clear for longer than the 100 ms re-arm hold
+    serve_for(supervisor, peer, 0.3)  # clear for the re-arm hold, non-Operational long enough
     peer.mode = VscMode.OPERATIONAL
     run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
     assert (level(tmp, "drive"), level(tmp, "lamp")) == ("1", "1")
@@ -105,6 +120,8 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     assert supervisor.counters.link_opens == 2
     assert state(supervisor) is State.STOPPED  # a reconnect is a new start
 
+    # Records reach the file on the sink's thread: read it once every record is written.
+    run_until(supervisor, peer, lambda: supervisor.sink is not None and not supervisor.sink.pending)
     lines = (tmp / "stops.jsonl").read_text().splitlines()
     assert len([r for r in read_records(tmp / "stops.jsonl") if isinstance(r, Record)]) == len(
         lines
@@ -216,12 +233,258 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
         peer,
         lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
     )
-    time.sleep(0.15)
+    serve_for(supervisor, peer, 0.3)
     peer.mode = VscMode.OPERATIONAL
     run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
     peer.mode, peer.estop = VscMode.LOCAL, 1
     run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+    # The journal is written on the sink's thread, after the loop has set the outputs.
+    run_until(supervisor, peer, lambda: [to for to, _ in seen][-1] == "STOPPED")
     after_run = seen[[to for to, _ in seen].index("RUN") :]
     stops = [drive for to, drive in after_run if to == "STOPPED"]
     assert stops
     assert set(stops) == {"0"}
+
+
+# ---------------------------------------------------------------- issue 11: the stop path first
+
+
+class _LateClock:
+    """The monotonic clock plus an offset the test moves (a read that takes long)."""
+
+    def __init__(self) -> None:
+        self.offset = 0
+
+    def __call__(self) -> int:
+        return time.monotonic_ns() + self.offset
+
+
+class _SlowReadLink(SerialLink):
+    """A serial link whose reads take 50 ms of the daemon's clock once ``slow``; remembers
+    when each read that brought an e-stop ended."""
+
+    def __init__(self, path: str, clock: _LateClock) -> None:
+        super().__init__(path)
+        self.clock = clock
+        self.slow = False
+        self.read_ends: list[int] = []
+
+    def receive(self) -> list[Any]:
+        received = super().receive()
+        if self.slow:
+            self.clock.offset += 50 * 1_000_000
+        if any(isinstance(m, VscHeartbeat) and m.estop for m in received):
+            self.read_ends.append(self.clock())  # when the e-stop's frame had been read
+        return received
+
+
+def _arm(supervisor: Supervisor, peer: VscPeer) -> None:
+    run_until(
+        supervisor,
+        peer,
+        lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
+    )
+    serve_for(supervisor, peer, 0.3)  # clear for the re-arm hold, non-Operational long enough
+    peer.mode = VscMode.OPERATIONAL
+    run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
+
+
+def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
+    """Issue 11 part 6: a record's ``mono_ns`` is the clock read right after the VSC frame
+    that caused it was read, not the start of the loop turn (here every read ends 50 ms of
+    the daemon's clock after it began)."""
+    clock = _LateClock()
+    with PtyPort(tmp_path / "vsc") as port:
+        link = _SlowReadLink(str(port.path), clock)
+        supervisor = Supervisor(
+            SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+            link,
+            [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+            RecordWriter(tmp_path / "stops.jsonl"),
+            clock=clock,
+        )
+        peer = VscPeer(port)
+        try:
+            supervisor.start()
+            _arm(supervisor, peer)
+            link.slow = True
+            peer.mode, peer.estop = VscMode.LOCAL, 1
+            run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+        finally:
+            supervisor.shutdown()
+    stop = next(
+        r.data
+        for r in read_records(tmp_path / "stops.jsonl")
+        if isinstance(r, Record) and r.data["to"] == "STOPPED" and r.data["from"] == "RUN"
+    )
+    stamp = stop["mono_ns"]
+    assert isinstance(stamp, int)
+    assert 0 <= stamp - link.read_ends[0] < 5_000_000, (stamp, link.read_ends)
+
+
+class _StalledWriter(RecordWriter):
+    """A record file on a disk that hangs: every append waits until released (or 3 s)."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self.release = threading.Event()
+
+    def append(self, record: Mapping[str, object]) -> None:
+        self.release.wait(3.0)
+        super().append(record)
+
+
+def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: Path) -> None:
+    """Issue 11 part 1, safety-rules §5, §6, §7: while the record's disk hangs, the loop goes
+    on: a remote e-stop turns the output off at once and the user heartbeat keeps its
+    period; once the disk answers, every record is in the file, in order, and a clean stop
+    drains them all."""
+    with PtyPort(tmp_path / "vsc") as port:
+        writer = _StalledWriter(tmp_path / "stops.jsonl")
+        supervisor = Supervisor(
+            SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+            SerialLink(str(port.path)),
+            [
+                create_output(
+                    parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})
+                )
+            ],
+            writer,
+        )
+        peer = VscPeer(port)
+        try:
+            supervisor.start()
+            _arm(supervisor, peer)
+            beats_before = sum(isinstance(m, UserHeartbeat) for m in peer.received)
+            t0 = time.monotonic()
+            peer.mode, peer.estop = VscMode.LOCAL, 1
+            run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED, limit=1.0)
+            assert level(tmp_path, "drive") == "0"
+            end = time.monotonic() + 0.5
+            while time.monotonic() < end:
+                peer.serve()
+                supervisor.step()
+            beats = sum(isinstance(m, UserHeartbeat) for m in peer.received) - beats_before
+            elapsed = time.monotonic() - t0
+            assert beats >= int(elapsed * 20 * 0.6), (beats, elapsed)  # 20 Hz, most of them
+            writer.release.set()
+        finally:
+            supervisor.shutdown()
+    seqs = [r.data["seq"] for r in read_records(tmp_path / "stops.jsonl") if isinstance(r, Record)]
+    assert seqs == list(range(1, len(seqs) + 1))
+    stops = [
+        r.data
+        for r in read_records(tmp_path / "stops.jsonl")
+        if isinstance(r, Record) and (r.data["from"], r.data["to"]) == ("RUN", "STOPPED")
+    ]
+    assert len(stops) == 1
+
+
+class _RecordingListener(Listener):
+    """Client descriptors that are always ready (socket pairs with data waiting); remembers
+    what each turn served, in order, with the link's reads."""
+
+    def __init__(self, count: int, order: list[str]) -> None:
+        self.pairs = [socket.socketpair() for _ in range(count)]
+        for ours, theirs in self.pairs:
+            theirs.send(b"x")
+            ours.setblocking(False)
+        self.order = order
+
+    def descriptors(self) -> Iterable[tuple[int, bool]]:
+        return [(ours.fileno(), False) for ours, _ in self.pairs]
+
+    def handle(
+        self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
+    ) -> None:
+        self.order.append(f"client:{fd}")
+
+    def close(self) -> None:
+        for pair in self.pairs:
+            for sock in pair:
+                sock.close()
+
+
+class _OrderLink(SerialLink):
+    def __init__(self, path: str, order: list[str]) -> None:
+        super().__init__(path)
+        self.order = order
+
+    def receive(self) -> list[Any]:
+        received = super().receive()
+        if received:
+            self.order.append("link")
+        return received
+
+
+def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_path: Path) -> None:
+    """Issue 11 part 1, safety-rules §5: with forty client descriptors always ready, a turn
+    reads the VSC's frames before any client, serves only a bounded number of clients, and
+    over a few turns every client gets its turn."""
+    order: list[str] = []
+    listener = _RecordingListener(40, order)
+    with PtyPort(tmp_path / "vsc") as port:
+        supervisor = Supervisor(
+            SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+            _OrderLink(str(port.path), order),
+            [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+            None,
+            listener=listener,
+        )
+        peer = VscPeer(port)
+        try:
+            supervisor.start()
+            turns: list[list[str]] = []
+            for _ in range(30):
+                peer.serve()
+                time.sleep(0.002)
+                del order[:]
+                supervisor.step()
+                turns.append(list(order))
+        finally:
+            supervisor.shutdown()
+    assert (
+        max(len([o for o in t if o.startswith("client")]) for t in turns)
+        <= loop.MAX_CLIENTS_PER_TURN
+    )
+    with_link = [t for t in turns if "link" in t]
+    assert with_link
+    assert all(t[0] == "link" for t in with_link), with_link
+    served = {o for t in turns for o in t if o.startswith("client")}
+    assert len(served) == 40
+
+
+def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None:
+    """Issue 11 part 8, docs/record.md "A full disk": every record fails with ENOSPC (the
+    file is /dev/full). The loop counts each failure in ``record_errors`` and raises no
+    cause of its own for it; the stops the core decides still happen."""
+    with PtyPort(tmp_path / "vsc") as port:
+        supervisor = Supervisor(
+            SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+            SerialLink(str(port.path)),
+            [
+                create_output(
+                    parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})
+                )
+            ],
+            RecordWriter("/dev/full"),
+        )
+        peer = VscPeer(port)
+        try:
+            supervisor.start()
+            _arm(supervisor, peer)
+            peer.mode, peer.estop = VscMode.LOCAL, 1
+            run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+            assert level(tmp_path, "drive") == "0"
+            run_until(supervisor, peer, lambda: supervisor.counters.record_errors >= 4)
+            assert supervisor.decision is not None
+            assert {c.name for c in supervisor.decision.causes} <= {
+                "startup",
+                "vsc_estop",
+                "vsc_link_lost",
+                "transport_fault",
+                "vsc_watchdog_off",
+                "vsc_mode:local",
+            }
+        finally:
+            supervisor.shutdown()

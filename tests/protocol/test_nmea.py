@@ -61,3 +61,67 @@ def test_any_text_parses_or_gives_none(text: str) -> None:
     """Whatever the remote sends, reading it never raises."""
     parse_nmea(text)
     parse_nmea("$GPGGA," + text)
+
+
+# Characters of the Latin-1 range that ``str.isdigit`` or ``float`` take but that are no NMEA
+# digits: superscripts, fractions, and the no-break space ``float`` strips (issue 11).
+NOT_ASCII_DIGITS = ("\u00b2", "\u00b3", "\u00b9", "\u00bc", "\u00bd", "\u00a0", "\u0085")
+GGA_FIELDS = "$GPGGA,{time},{lat},N,{lon},E,{quality},08,0.9,545.4,M,46.9,M,,"
+
+
+@pytest.mark.parametrize("odd", NOT_ASCII_DIGITS)
+def test_a_digit_that_is_not_ascii_is_not_a_digit(odd: str) -> None:
+    """A GGA whose quality, time or position holds a character that is a digit only to
+    Unicode (``²``) gives no value for that field, never an exception (issue 11: the sentence
+    stopped the robot with ``internal`` while a client subscribed to ``gps``)."""
+    fields = {"time": "123519", "lat": "4807.038", "lon": "01131.000", "quality": "1"}
+    for name, value in fields.items():
+        for spoiled in (odd, value[:-1] + odd, odd + value, value[:2] + odd + value[2:]):
+            fix = parse_nmea(GGA_FIELDS.format(**{**fields, name: spoiled}))
+            assert fix is not None
+            got = {
+                "time": fix.utc_time,
+                "lat": fix.latitude,
+                "lon": fix.longitude,
+                "quality": fix.fix_quality,
+            }[name]
+            assert got is None, (name, spoiled, got)
+
+
+@pytest.mark.parametrize("word", ["nan", "inf", "-inf", "1e3", "1_0", "+5", "-5", " 5", "0x1"])
+def test_numbers_are_plain_ascii_decimals(word: str) -> None:
+    """Only ``ddmm.mmmm`` of ASCII digits is a position and ``hhmmss[.ss]`` a time: no NaN,
+    infinity, exponent, sign, underscore or padding that Python's own number parsers accept."""
+    fix = parse_nmea(
+        GGA_FIELDS.format(time=f"1235{word}", lat=f"48{word}", lon=f"011{word}", quality=word)
+    )
+    assert fix is not None
+    assert (fix.utc_time, fix.latitude, fix.longitude, fix.fix_quality) == (None, None, None, None)
+
+
+_LATIN1 = st.characters(min_codepoint=0, max_codepoint=0xFF)
+_FIELD = st.one_of(
+    st.text(st.sampled_from("0123456789.") | st.sampled_from(NOT_ASCII_DIGITS), max_size=14),
+    st.text(_LATIN1, max_size=14),
+)
+
+
+_HEMISPHERE = st.sampled_from(["N", "S", "E", "W", "A", "V", "", "\u00b2"])
+
+
+@given(
+    st.sampled_from(["GGA", "RMC", "GLL"]),
+    st.lists(st.one_of(_FIELD, _HEMISPHERE), min_size=7, max_size=14),
+)
+def test_any_fields_give_finite_values_in_range(kind: str, fields: list[str]) -> None:
+    """Whatever each field of a GGA, RMC or GLL holds, the sentence parses or gives ``None``,
+    and every number it gives is finite and in range (so every JSON encoder takes it)."""
+    fix = parse_nmea(f"$GP{kind}," + ",".join(fields))
+    if fix is None:
+        return
+    if fix.latitude is not None:
+        assert -90 <= fix.latitude <= 90
+    if fix.longitude is not None:
+        assert -180 <= fix.longitude <= 180
+    if fix.fix_quality is not None:
+        assert 0 <= fix.fix_quality <= 9

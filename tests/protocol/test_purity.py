@@ -20,6 +20,8 @@ ALLOWED_MODULES = {
     "operator",
     "struct",
     "typing",
+    "typing_extensions",  # only under TYPE_CHECKING, for Python 3.10 (supervisord/compat.py)
+    "supervisord.compat",
     "supervisord.errors",
 }
 # Called names that would read a clock, open a file, sleep or talk to the terminal. The

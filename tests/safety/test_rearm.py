@@ -64,12 +64,14 @@ def test_refused_takeover_can_be_repeated_later() -> None:
     """After a too-early takeover the operator goes back to Local and takes over again."""
     rig = Rig()
     _stopped_and_cleared(rig)
-    rig.run_for(100, LOCAL)
+    rig.run_for(250, LOCAL)  # Local for the takeover dwell (rule 4), but before the hold
     rig.advance(50)
-    assert rig.vsc(OPERATIONAL).refusals
+    assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [
+        RefusalReason.HOLD_TIME_NOT_ELAPSED
+    ]
     rig.run_for(600, OPERATIONAL)
     assert rig.state is State.STOPPED  # staying in Operational is no new takeover
-    rig.run_for(100, LOCAL)
+    rig.run_for(250, LOCAL)
     rig.advance(50)
     assert rig.vsc(OPERATIONAL).state is State.RUN
 
@@ -212,7 +214,7 @@ def test_client_reconnection_is_a_new_start() -> None:
     decision = rig.run_for(1000, OPERATIONAL, clients=(2,))
     assert decision.state is State.STOPPED
     assert decision.latched_names == {"client_lost:planner"}
-    rig.run_for(100, LOCAL, clients=(2,))
+    rig.run_for(250, LOCAL, clients=(2,))  # the takeover dwell (rule 4)
     rig.advance(50)
     assert rig.vsc(OPERATIONAL).state is State.RUN
 

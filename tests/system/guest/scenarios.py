@@ -27,9 +27,11 @@ from typing import Any
 
 import can
 
+from supervisord.api.wire import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
+from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.testkit.sim import SimProcess
 
 MARKER = Path("/.srcs-system-tier")
@@ -317,6 +319,8 @@ class Bench:
             time.sleep(0.7)
             if self.sim.control.state()["mode_name"] == "operational":
                 self.sim.control.pause()
+                # Pause in heartbeats spanning the takeover dwell (docs/safety.md re-arm rule 4)
+                time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.15)
             took = time.monotonic()
             self.sim.control.takeover()
             with contextlib.suppress(Failed):
@@ -689,6 +693,17 @@ def burst_client(limit: float = 120.0) -> SupervisorClient:
             time.sleep(1.0)
 
 
+def release_within_budget(client: SupervisorClient) -> None:
+    """Release the burst's e-stop; past the record budget (20 records a second per client,
+    docs/safety.md) the daemon refuses with ``rate_limited``, and the burst waits a little."""
+    try:
+        client.release()
+    except ApiError as error:
+        if error.extra.get("reason") != "rate_limited":
+            raise
+        time.sleep(0.1)
+
+
 def powercut_burst() -> None:
     """Boot 2: srcsd keeps its record on the virtual disk; transitions until the power dies."""
     install()
@@ -704,7 +719,7 @@ def powercut_burst() -> None:
             try:
                 while sim.process.poll() is None:
                     client.estop()
-                    client.release()
+                    release_within_budget(client)
                     while (push := client.next_event(0)) is not None:
                         if push.event == "record":
                             record = {k: v for k, v in push.data.items() if k != "event"}

@@ -1,0 +1,171 @@
+"""A robot program floods the API socket with pipelined requests of every kind while the VSC
+reports an e-stop (issue 11; ``docs/faults.md``; ``docs/safety.md`` "The stop path first").
+
+The flood is a separate process that keeps the socket full: hold/release pairs and every
+other request a client may send, written as fast as the socket takes them, its replies read
+as they come (so the daemon never drops it for unread output). The user heartbeats are read
+on the simulator's side: a second control connection samples the VSC's age of the last user
+heartbeat every few milliseconds, and the VSC's own watchdog bit (``user_timeout``)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from supervisord.api.wire import ApiError
+from supervisord.client import ClientError, SupervisorClient
+from supervisord.safety.budget import RECORDS_PER_CLIENT
+from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.sim import SimControl, SimError
+
+WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (safety-rules §5, docs/faults.md)
+HEARTBEAT_MARGIN_S = 0.25  # "well within" the watchdog: at most half of it
+FLOOD_S = 3.0  # the flood runs this long before the e-stop
+
+FLOODER = r"""
+import json, select, socket, sys
+requests = [
+    {"op": "hold"}, {"op": "release", "what": "hold"},
+    {"op": "hold"}, {"op": "release", "what": "hold"},
+    {"op": "status"}, {"op": "heartbeat"}, {"op": "release", "what": "estop"},
+    {"op": "hello", "name": "again"}, {"op": "subscribe", "topics": ["state"]},
+    {"op": "display", "value": {"key": 1, "value": 42}},
+    {"op": "display", "label": {"key": 1, "text": "speed"}},
+    {"op": "display", "row": {"index": 1, "text": "flooding"}},
+    {"op": "display", "mode": 1}, {"op": "vibrate", "side": "both"}, {"op": "reset"},
+    {"op": "nonsense"}, "not json",
+]
+batch = b"".join(
+    (r if isinstance(r, str) else json.dumps(r)).encode() + b"\n" for r in requests
+) * 20
+sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+sock.connect(sys.argv[1])
+sock.sendall(b'{"op": "hello", "name": "flood"}\n')
+sock.setblocking(False)
+out = bytearray()
+sent = replies = 0
+print("flooding", flush=True)
+while True:
+    if len(out) < 65536:
+        out += batch
+    readable, writable, _ = select.select([sock], [sock], [], 0.05)
+    if writable:
+        try:
+            n = sock.send(out)
+        except BlockingIOError:
+            n = 0
+        sent += out[:n].count(b"\n")
+        del out[:n]
+    if readable:
+        data = sock.recv(1 << 20)
+        if not data:
+            print(f"closed after {sent} requests, {replies} replies", flush=True)
+            break
+        replies += data.count(b"\n")
+"""
+
+
+def _release_hold(robot: Robot, name: str) -> bool:
+    """End the hold a killed client left (docs/safety.md choice 12: it outlives the client);
+    past the client's record budget the release is refused for a while (``rate_limited``)."""
+    with SupervisorClient.connect(robot.socket_path, name=name) as client:
+        try:
+            client.release("hold")
+        except (ApiError, ClientError) as error:
+            return "no such request" in str(error)
+    return True
+
+
+class HeartbeatWatch:
+    """Samples the simulated VSC's age of the last user heartbeat on a connection of its
+    own, from a thread owned and joined by the test."""
+
+    def __init__(self, control_path: Path) -> None:
+        self.control = SimControl(control_path)
+        self.worst_age = 0.0
+        self.tripped = False
+        self.samples = 0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="heartbeat-watch")
+
+    def __enter__(self) -> HeartbeatWatch:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._done.set()
+        self._thread.join()
+        self.control.close()
+
+    def _run(self) -> None:
+        while not self._done.is_set():
+            try:
+                state: dict[str, Any] = self.control.state()
+            except (SimError, OSError):
+                continue
+            age = state.get("user_heartbeat_age")
+            if age is not None:
+                self.worst_age = max(self.worst_age, float(age))
+            self.tripped |= "user_timeout" in state.get("estop_bits", [])
+            self.samples += 1
+            time.sleep(0.003)
+
+
+def test_client_flood_neither_delays_the_estop_nor_starves_the_heartbeat(tmp_path: Path) -> None:
+    """§5, §6, §8, issue 11 part 1: while one client pipelines hold/release and every other
+    request kind as fast as the socket takes them, the user heartbeat keeps its period well
+    within the VSC's 500 ms watchdog (read on the VSC's side; the watchdog never trips), a
+    remote e-stop turns every output off within the next VSC heartbeat (+ the allowance),
+    no output turns on after the daemon read it, the flood's records stay within the
+    record budget (docs/safety.md), and the robot re-arms afterwards."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        flood_log = tmp_path / "flood.log"
+        with (
+            flood_log.open("wb") as log,
+            subprocess.Popen(
+                [sys.executable, "-c", FLOODER, str(robot.socket_path)],
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=log,
+            ) as flooder,
+        ):
+            try:
+                wait_until(lambda: "flooding" in flood_log.read_text(), what="the flood")
+                t_flood = robot.now()
+                with HeartbeatWatch(robot.sim.control_path) as beats:
+                    time.sleep(FLOOD_S)
+                    stop = robot.remote_estop()
+                    time.sleep(1.0)  # the flood goes on after the stop
+                    t_end = robot.now()
+                assert flooder.poll() is None, flood_log.read_text()  # never dropped
+            finally:
+                flooder.kill()
+        t_read = stop.record["mono_ns"] / 1e9
+        assert robot.watcher is not None
+        late = robot.watcher.ons_between(t_read, t_end)
+        assert late == [], f"outputs on after the e-stop was read: {late}"
+        print(
+            f"user heartbeat, worst period seen by the VSC: {beats.worst_age * 1000:.0f} ms "
+            f"({beats.samples} samples); e-stop off {1000 * (stop.t_off - stop.t_fault):.0f} ms"
+        )
+        assert beats.samples > 100
+        assert not beats.tripped, "the VSC's key-85 watchdog tripped during the flood"
+        assert beats.worst_age < HEARTBEAT_MARGIN_S, beats.worst_age
+        during = [r for r in robot.records_since(t_flood) if r["mono_ns"] < stop.record["mono_ns"]]
+        seconds = stop.t_fault - t_flood
+        # Two budgets: the flood's name (hold/release) and its process as a local caller
+        # (reset); a few records of the VSC's own besides.
+        assert len(during) <= (2 * RECORDS_PER_CLIENT + 5) * (seconds + 1), len(during)
+        counters = robot.counters()
+        assert counters["rate_limited"] > 0
+        assert counters["internal_faults"] == 0
+        robot.vsc.release()
+        wait_until(lambda: _release_hold(robot, "flood"), what="the flood's hold released")
+        rearm = robot.rearm()
+        robot.assert_nothing_on(t_read, rearm)
+        robot.assert_serving(rearm)

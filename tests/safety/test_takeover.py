@@ -1,0 +1,272 @@
+"""What a takeover must show (safety-rules.md §4, docs/safety.md "Re-arming" rule 4): the
+VSC's non-Operational mode in an unbroken run of heartbeats spanning the takeover dwell, at a
+rate the VSC can send. A real operator's takeover still re-arms; a flapping VSC never does."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from supervisord.safety import (
+    LinkOpened,
+    RearmKind,
+    RecordNote,
+    RefusalReason,
+    SafetyConfig,
+    State,
+    Transport,
+)
+from supervisord.safety.core import TAKEOVER_DWELL_NS, VSC_MIN_INTERVAL_NS
+from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, ROBOT, Rig
+
+DWELL_MS = TAKEOVER_DWELL_NS // MS
+FASTEST_MS = VSC_MIN_INTERVAL_NS // MS
+
+
+def _stopped_and_cleared(rig: Rig) -> None:
+    """RUN, then the client's e-stop and its release: STOPPED, every condition clear."""
+    rig.bring_up()
+    rig.advance(10)
+    rig.estop()
+    rig.advance(10)
+    rig.release()
+
+
+def _beat(rig: Rig, mode: int, beat_client: bool = True) -> None:
+    rig.vsc(mode)
+    if beat_client:
+        rig.beat()
+
+
+def _ever_left_stopped(rig: Rig, since: int) -> bool:
+    return any(d.state is not State.STOPPED or d.rearm for d in rig.decisions[since:])
+
+
+def test_the_flapping_vsc_of_issue_11_never_rearms() -> None:
+    """The defect of issue 11 part 5: after an e-stop has cleared, a VSC whose mode alternates
+    Local/Operational every 10 ms (a heartbeat at each change) re-armed the robot by itself.
+    For three seconds, long past the re-arm hold, it never leaves STOPPED."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    since = len(rig.decisions)
+    for i in range(300):
+        rig.advance(10)
+        _beat(rig, LOCAL if i % 2 == 0 else OPERATIONAL, beat_client=i % 5 == 0)
+    assert not _ever_left_stopped(rig, since)
+    reasons = {r.reason for d in rig.decisions[since:] for r in d.refusals}
+    assert RefusalReason.TAKEOVER_TOO_SHORT in reasons
+
+
+def test_one_non_operational_heartbeat_in_an_operational_stream_is_no_takeover() -> None:
+    """A single heartbeat that says Local in a stream of Operational ones (a glitch) is no
+    takeover, whatever its spacing: the non-Operational mode must be seen twice."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, OPERATIONAL)
+    rig.advance(50)
+    _beat(rig, LOCAL)
+    rig.advance(150)  # within the 200 ms link timeout, so no new stop
+    refused = rig.vsc(OPERATIONAL)
+    assert refused.state is State.STOPPED
+    assert [r.reason for r in refused.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+    assert "1 heartbeat" in refused.refusals[0].detail
+
+
+def test_takeover_needs_the_dwell_exactly() -> None:
+    """The first and last non-Operational heartbeats must be at least the dwell (200 ms)
+    apart: 199 ms is refused, 200 ms re-arms (boundaries inclusive, docs/safety.md choice 1)."""
+    for span_ms, runs in ((DWELL_MS - 1, False), (DWELL_MS, True)):
+        rig = Rig()
+        _stopped_and_cleared(rig)
+        rig.run_for(1000, OPERATIONAL)
+        rig.advance(50)
+        _beat(rig, PAUSE)
+        rig.advance(span_ms - 100)
+        _beat(rig, PAUSE)
+        rig.advance(100)
+        _beat(rig, PAUSE)
+        rig.advance(50)
+        decision = rig.vsc(OPERATIONAL)
+        assert (decision.state is State.RUN) is runs, (span_ms, decision.refusals)
+        if runs:
+            assert decision.rearm is not None
+            assert decision.rearm.kind is RearmKind.TAKEOVER
+        else:
+            assert [r.reason for r in decision.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+
+
+def test_heartbeats_faster_than_the_vsc_can_send_are_no_takeover() -> None:
+    """A run of Local heartbeats every 5 ms (four times the fastest rate the manual lets a
+    VSC be set to, one per 20 ms) spanning well over the dwell is refused as too fast."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, OPERATIONAL)
+    for i in range(100):
+        rig.advance(5)
+        _beat(rig, LOCAL, beat_client=i % 20 == 0)
+    rig.advance(5)
+    refused = rig.vsc(OPERATIONAL)
+    assert refused.state is State.STOPPED
+    assert [r.reason for r in refused.refusals] == [RefusalReason.VSC_TOO_FAST]
+
+
+def test_heartbeats_read_together_still_make_a_takeover() -> None:
+    """Frames that arrive in one read share one time: a 20 Hz VSC whose heartbeats are read
+    two at a time (a busy loop) still re-arms by the operator's takeover."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, OPERATIONAL)
+    for _ in range(6):
+        rig.advance(100)
+        _beat(rig, PAUSE)
+        _beat(rig, PAUSE)
+    rig.advance(50)
+    _beat(rig, PAUSE)
+    decision = rig.vsc(OPERATIONAL)
+    assert decision.state is State.RUN, decision.refusals
+
+
+def test_a_silent_gap_starts_the_run_again() -> None:
+    """Heartbeats more than ``vsc_timeout`` apart do not make one run: after a gap the dwell
+    is counted again from the first heartbeat after it (fresh evidence after a lost link)."""
+    config = dataclasses.replace(ROBOT, rearm_hold_ms=100)
+    rig = Rig(config)
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, LOCAL)
+    rig.advance(250)  # a gap past the 200 ms timeout: vsc_link_lost
+    rig.beat()
+    rig.run_for(150, LOCAL)  # conditions clear for 150 ms >= the 100 ms hold
+    rig.advance(50)
+    refused = rig.vsc(OPERATIONAL)
+    assert refused.state is State.STOPPED
+    assert [r.reason for r in refused.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+    rig.run_for(300, LOCAL)
+    rig.advance(50)
+    assert rig.vsc(OPERATIONAL).state is State.RUN
+
+
+def test_a_reconnect_starts_the_run_again() -> None:
+    """A VSC reconnect is a new start (§4): Local heartbeats from before it do not count
+    towards the dwell of a takeover after it."""
+    rig = Rig(dataclasses.replace(ROBOT, rearm_hold_ms=100))
+    rig.bring_up()
+    rig.run_for(1000, LOCAL)
+    rig.feed(LinkOpened(rig.now))
+    rig.key85(1)
+    rig.run_for(150, LOCAL)
+    rig.advance(50)
+    refused = rig.vsc(OPERATIONAL)
+    assert refused.state is State.STOPPED
+    assert [r.reason for r in refused.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+
+
+def test_refusals_of_a_flapping_vsc_are_recorded_at_most_once_a_second() -> None:
+    """A flapping VSC cannot fill the record with refused takeovers (its rotation would drop
+    the stop they are about): the same refusal is reported at most once a second."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, OPERATIONAL)
+    since = len(rig.decisions)
+    for i in range(500):  # five seconds of a 100 Hz flap: 250 takeovers too short
+        rig.advance(10)
+        _beat(rig, LOCAL if i % 2 == 0 else OPERATIONAL, beat_client=i % 5 == 0)
+    refused = [
+        r for d in rig.decisions[since:] for r in d.records if r.note is RecordNote.REARM_REFUSED
+    ]
+    assert [r.trigger.now - refused[0].trigger.now for r in refused] == [
+        i * 1000 * MS for i in range(5)
+    ]
+    assert all(r.reason.startswith(RefusalReason.TAKEOVER_TOO_SHORT.value) for r in refused)
+    assert not _ever_left_stopped(rig, since)
+
+
+def test_a_different_refusal_is_reported_at_once() -> None:
+    """Quieting a repeated refusal never hides a new reason: a takeover too short, then one
+    refused for another reason right after, are both reported."""
+    rig = Rig()
+    _stopped_and_cleared(rig)
+    rig.run_for(1000, OPERATIONAL)
+    rig.advance(50)
+    _beat(rig, LOCAL)
+    rig.advance(50)
+    assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+    rig.advance(10)
+    rig.estop()
+    rig.run_for(300, LOCAL)
+    rig.advance(50)
+    assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [RefusalReason.CONDITIONS_ACTIVE]
+
+
+def _flap_feed(rig: Rig, runs: list[list[int]]) -> None:
+    """Feed what a flapping VSC reports: runs of heartbeats, alternately Local and
+    Operational, each heartbeat after its gap (ms). A Local run is cut short so that its first
+    and last heartbeats are less than the dwell apart."""
+    for index, gaps in enumerate(runs):
+        mode = LOCAL if index % 2 == 0 else OPERATIONAL
+        span = 0
+        for position, gap in enumerate(gaps):
+            if position > 0:
+                span += gap
+                if mode == LOCAL and span >= DWELL_MS:
+                    break
+            rig.advance(gap)
+            _beat(rig, mode, beat_client=position % 3 == 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    config=st.sampled_from(
+        [ROBOT, dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False)]
+    ),
+    runs=st.lists(st.lists(st.integers(1, 49), min_size=1, max_size=12), min_size=1, max_size=40),
+)
+def test_a_vsc_flapping_faster_than_the_dwell_never_rearms(
+    config: SafetyConfig, runs: list[list[int]]
+) -> None:
+    """Whatever its pattern, a VSC that never reports a non-Operational mode in heartbeats
+    spanning the dwell (heartbeats 1-49 ms apart) never ends STOPPED after a stop, however
+    long the conditions have been clear."""
+    rig = Rig(config)
+    _stopped_and_cleared(rig)
+    rig.run_for(600, OPERATIONAL)
+    since = len(rig.decisions)
+    _flap_feed(rig, runs)
+    assert not _ever_left_stopped(rig, since)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    transport=st.sampled_from([Transport.SERIAL, Transport.CAN]),
+    period_ms=st.integers(FASTEST_MS, 100),
+    extra_ms=st.integers(0, 3000),
+    from_mode=st.sampled_from([LOCAL, PAUSE]),
+    read_together=st.booleans(),
+)
+def test_an_operators_takeover_rearms(
+    transport: Transport, period_ms: int, extra_ms: int, from_mode: int, read_together: bool
+) -> None:
+    """A VSC sending at any documented rate (one heartbeat per 20-100 ms), in Local or Pause
+    for at least the dwell after the conditions cleared, then Operational: RUN at once,
+    also when its heartbeats are read two at a time."""
+    assume(not read_together or 2 * period_ms < 200)  # a pair late by a whole timeout is a stop
+    config = ROBOT
+    if transport is Transport.CAN:
+        config = dataclasses.replace(ROBOT, transport=transport, require_watchdog=False)
+    rig = Rig(config)
+    _stopped_and_cleared(rig)
+    rig.run_for(600, from_mode)
+    step = 2 * period_ms if read_together else period_ms
+    elapsed = 0
+    while elapsed < DWELL_MS + extra_ms:
+        rig.advance(step)
+        elapsed += step
+        _beat(rig, from_mode)
+        if read_together:
+            _beat(rig, from_mode)
+    rig.advance(period_ms)
+    decision = rig.vsc(OPERATIONAL)
+    assert decision.state is State.RUN, decision.refusals
+    assert decision.rearm is not None
+    assert decision.rearm.kind is RearmKind.TAKEOVER
