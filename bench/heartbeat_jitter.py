@@ -6,7 +6,7 @@ The supervisor runs in RUN under the VSC's full traffic (``bench/rig.py``). The 
 timestamps every user heartbeat as it reads it from the pseudo-terminal and the bench prints
 the periods between them and their deviation from the nominal 50 ms.
 
-"The other core busy" (safety-rules §9): by default the supervisor and the VSC side are
+"The other core busy" (SR-9): by default the supervisor and the VSC side are
 pinned to the last core and ``--spinners`` processes (default 1) spin on the other core(s).
 ``--no-pin`` pins nothing, so the spinners compete with the supervisor for every core.
 """
@@ -25,8 +25,8 @@ from pathlib import Path
 
 from bench.rig import NS_PER_MS, Rig, load, machine, ms, percentile, realtime, table
 
-NOMINAL_NS = 50 * NS_PER_MS  # heartbeat_hz = 20 (safety-rules §5 default)
-TARGET_NS = 2 * NS_PER_MS  # safety-rules §9: within 2 ms of nominal at p99
+NOMINAL_NS = 50 * NS_PER_MS  # heartbeat_hz = 20 (SR-5 default)
+TARGET_NS = 2 * NS_PER_MS  # SR-9.3: within 2 ms of nominal at p99
 
 
 @contextmanager
@@ -119,7 +119,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     p99 = percentile(deviations, 0.99)
     verdict = "PASS" if p99 < TARGET_NS else "FAIL"
     print()
-    print(f"safety-rules §9 target: within 2 ms of nominal at p99 -> {ms(p99)} ms: {verdict}")
+    print(f"SR-9.3 target: within 2 ms of nominal at p99 -> {ms(p99)} ms: {verdict}")
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from supervisord.testkit.daemon import MINIMAL_CONFIG
 from supervisord.testkit.process import terminate
 
 TICKS = os.sysconf("SC_CLK_TCK")
-TARGET_CPU = 0.02  # safety-rules §9: under 2 % of one core
+TARGET_CPU = 0.02  # SR-9.4: under 2 % of one core
 TARGET_RSS_KB = 40 * 1024  # and under 40 MB resident
 WARM_UP_S = 3.0
 
@@ -72,7 +72,12 @@ def wait_on(vsc: Vsc, level_file: Path, limit_s: float) -> bool:
 
 def run(directory: Path, seconds: float) -> dict[str, float]:
     """Measure ``srcsd`` over ``seconds`` of RUN at full traffic."""
-    (directory / "robot.toml").write_text(MINIMAL_CONFIG)
+    # The rig's VSC answers key 85 but has no watchdog that acts (bench/rig.py), so the
+    # start-up proof test of the VSC's watchdog (docs/safety.md "The proof test") would keep
+    # the daemon STOPPED: off here, as the bench measures RUN's cost, not the proof test.
+    config = MINIMAL_CONFIG.replace('port = "vsc"\n', 'port = "vsc"\nprooftest = "off"\n', 1)
+    assert 'prooftest = "off"' in config
+    (directory / "robot.toml").write_text(config)
     level_file = directory / "drive"
     vsc = Vsc(directory / "vsc")
     # Our own interpreter running our own package: no untrusted input reaches the command.
@@ -82,7 +87,7 @@ def run(directory: Path, seconds: float) -> dict[str, float]:
         stderr=subprocess.DEVNULL,
     )
     try:
-        for _ in range(5):  # the takeover (safety-rules §4), as in Rig.arm
+        for _ in range(5):  # the takeover (SR-4), as in Rig.arm
             vsc.set_state(VscMode.LOCAL)
             vsc.pump_ms(400)  # the daemon starts, opens the port, asks key 85; clear 100 ms
             vsc.set_state(VscMode.OPERATIONAL)
@@ -143,9 +148,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     cpu_verdict = "PASS" if share < TARGET_CPU else "FAIL"
     rss_verdict = "PASS" if result["hwm_kb"] < TARGET_RSS_KB else "FAIL"
     print()
-    print(f"safety-rules §9 target: under 2 % of one core -> {100 * share:.2f} %: {cpu_verdict}")
+    print(f"SR-9.4 target: under 2 % of one core -> {100 * share:.2f} %: {cpu_verdict}")
     print(
-        f"safety-rules §9 target: under 40 MB resident -> peak "
+        f"SR-9.4 target: under 40 MB resident -> peak "
         f"{result['hwm_kb'] * 1024 / 1e6:.1f} MB: {rss_verdict}"
     )
 

@@ -6,7 +6,7 @@ Each trial starts in RUN under the VSC's full traffic (``bench/rig.py``), waits 
 20-80 ms, sends one last heartbeat and then nothing at all, as a VSC that is unplugged from
 power or whose cable is cut would. The supervisor must stop with ``vsc_link_lost`` at the
 timeout (default 200 ms on serial). Measured: from just before the last heartbeat was written
-to the output off and read back in the supervisor's process. The target (safety-rules §9) is
+to the output off and read back in the supervisor's process. The target (SR-9) is
 off within the timeout + 5 ms; the margin column is what is left of that.
 """
 
@@ -22,7 +22,7 @@ from pathlib import Path
 from bench.rig import NS_PER_MS, Rig, RigError, load, machine, ms, percentile, realtime, table
 from supervisord.protocol.codes import VscMode
 
-SLACK_NS = 5 * NS_PER_MS  # safety-rules §9: off within vsc_timeout + 5 ms
+SLACK_NS = 5 * NS_PER_MS  # SR-9.2: off within vsc_timeout + 5 ms
 
 
 def run(directory: Path, trials: int, timeout_ms: int = 200, seed: int = 1) -> list[int]:
@@ -86,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     print()
     print(f"stopped before the timeout: {early} of {len(measured)} (must be 0 to be exact)")
     print(
-        f"safety-rules §9 target: off within {args.timeout_ms} + 5 ms -> worst {ms(worst)} ms, "
+        f"SR-9.2 target: off within {args.timeout_ms} + 5 ms -> worst {ms(worst)} ms, "
         f"margin {ms(margin)} ms: {verdict}"
     )
 

@@ -503,8 +503,8 @@ class Rig:
 
     def arm(self, tries: int = 10) -> Edge:
         """Bring the output on: a non-Operational heartbeat, clear conditions for the re-arm
-        hold (and key 85 answered), then Operational: the operator's takeover (safety-rules
-        §4). Returns the on edge."""
+        hold (and key 85 answered), then Operational: the operator's takeover
+        (SR-4.2). Returns the on edge."""
         for _ in range(tries):
             self.vsc.silent = False
             self.vsc.set_state(VscMode.LOCAL)

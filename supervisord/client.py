@@ -125,7 +125,7 @@ class SupervisorClient:
     # -- requests -------------------------------------------------------------------------
 
     def hello(self, name: str) -> None:
-        """Name this connection (safety-rules.md §8); required clients must, before heartbeats."""
+        """Name this connection (SR-8); required clients must, before heartbeats."""
         self.call(Hello(name))
         self.name = name
 
@@ -174,7 +174,7 @@ class SupervisorClient:
         self.call(Vibrate(Side(side)))
 
     def reset(self) -> dict[str, Any]:
-        """A local re-arm (safety-rules.md §4); root or the admin group only."""
+        """A local re-arm (SR-4); root or the admin group only."""
         return self.call(Reset())
 
     def commission(self) -> dict[str, Any]:

@@ -50,7 +50,9 @@ from supervisord.record.jsonl import (
 from supervisord.safety.config import (
     CLIENT_TIMEOUT_RANGE_MS,
     DEFAULT_CLIENT_TIMEOUT_MS,
+    DEFAULT_PROOFTEST_CLEAR_MS,
     HEARTBEAT_HZ_RANGE,
+    PROOFTEST_CLEAR_RANGE_MS,
     REARM_HOLD_RANGE_MS,
     UID_RANGE,
     VSC_TIMEOUT_RANGE_MS,
@@ -60,6 +62,7 @@ from supervisord.safety.config import (
     Transport,
 )
 from supervisord.safety.config import OutputSpec as SafetyOutputSpec
+from supervisord.safety.prooftest import ProofTestPolicy
 
 # ---------------------------------------------------------------------------------------------
 # Defaults and ranges (docs/configuration.md lists each one)
@@ -86,6 +89,15 @@ CAN_BITRATES: Final = (
     800_000,
     1_000_000,
 )
+DEFAULT_CAN_ERROR_LIMIT: Final = 16
+"""docs/safety.md "CAN error frames": more than this many error frames within the window break
+the link. CAN's fault confinement adds 8 per error and takes 1 per good frame: 16 errors with
+no good frame between are 128, the error-passive threshold (``links.can_link.ERROR_LIMIT``)."""
+DEFAULT_CAN_ERROR_WINDOW_MS: Final = 1_000
+DEFAULT_CAN_ERROR_PASSIVE_MS: Final = 1_000
+CAN_ERROR_LIMIT_RANGE: Final = (0, 1_000)  # 0: every error frame is a fault (the strictest)
+CAN_ERROR_WINDOW_RANGE_MS: Final = (100, 10_000)
+CAN_ERROR_PASSIVE_RANGE_MS: Final = (0, 10_000)
 DEFAULT_RECORD_PATH: Final = "/var/lib/srcsd/stops.jsonl"
 DEFAULT_SOCKET: Final = "/run/srcsd/api.sock"
 SOCKET_PATH_MAX_BYTES: Final = 107  # sun_path holds 108 bytes, the last one the NUL
@@ -109,12 +121,21 @@ VSC_COMMON_KEYS: Final = (
     "transport",
     "timeout_ms",
     "require_watchdog",
+    "prooftest",
+    "prooftest_clear_ms",
     "reopen_min_ms",
     "reopen_max_ms",
 )
 VSC_TRANSPORT_KEYS: Final[Mapping[Transport, tuple[str, ...]]] = {
     Transport.SERIAL: ("port", "baud", "heartbeat_hz"),
-    Transport.CAN: ("interface", "channel", "bitrate"),
+    Transport.CAN: (
+        "interface",
+        "channel",
+        "bitrate",
+        "error_limit",
+        "error_window_ms",
+        "error_passive_ms",
+    ),
     Transport.HID: ("hidraw",),
 }
 CAN_BUS_KEYS: Final = ("interface", "channel", "bitrate")
@@ -187,6 +208,17 @@ class Backoff:
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
+class CanErrors:
+    """``[vsc]`` on CAN: when error frames become a link fault (docs/safety.md "CAN error
+    frames"). More than ``limit`` within ``window_ms``, or a controller error-passive for
+    ``passive_ms``, break the link; fewer are counted, shown in ``status`` and stop nothing."""
+
+    limit: int = DEFAULT_CAN_ERROR_LIMIT
+    window_ms: int = DEFAULT_CAN_ERROR_WINDOW_MS
+    passive_ms: int = DEFAULT_CAN_ERROR_PASSIVE_MS
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
 class VscConfig:
     """``[vsc]``: how the VSC is connected. The safety values of the same section (timeout,
     heartbeat rate, watchdog) are in :attr:`DaemonConfig.safety`."""
@@ -194,6 +226,8 @@ class VscConfig:
     transport: Transport
     link: SerialLink | CanBus | HidLink
     reopen: Backoff = Backoff()
+    can_errors: CanErrors = CanErrors()
+    """Used only on CAN (``[output_bus]`` errors are not read: it only sends)."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -261,6 +295,11 @@ class DaemonConfig:
             notes.append(
                 "vsc.require_watchdog = false: the VSC's own user watchdog (key 85) is not "
                 "checked, so the VSC does not stop when the supervisor falls silent"
+            )
+        if self.vsc.transport is Transport.SERIAL and self.safety.prooftest is ProofTestPolicy.OFF:
+            notes.append(
+                'vsc.prooftest = "off": the VSC\'s watchdog is never seen to act, so a VSC that '
+                "reads key 85 = 1 but ignores a missing heartbeat goes unnoticed (docs/safety.md)"
             )
         notes += [
             f"outputs[{i}] ({spec.name}) is simulated: it drives no hardware"
@@ -460,6 +499,8 @@ _SAFETY_KEYS: Final[Mapping[str, str]] = {
     "vsc_timeout_ms": "vsc.timeout_ms",
     "heartbeat_hz": "vsc.heartbeat_hz",
     "require_watchdog": "vsc.require_watchdog",
+    "prooftest": "vsc.prooftest",
+    "prooftest_clear_ms": "vsc.prooftest_clear_ms",
     "rearm_hold_ms": "rearm.hold_ms",
     "local_reset": "rearm.local_reset",
 }
@@ -531,10 +572,12 @@ class _Loader:
                     f'remove it: it applies to transport "{owner.value}", not "{transport.value}"',
                 )
         link: SerialLink | CanBus | HidLink
+        can_errors = CanErrors()
         if transport is Transport.SERIAL:
             link = self.serial(table)
         elif transport is Transport.CAN:
             link = self.can_bus("vsc", table)
+            can_errors = self.can_errors(table)
         else:
             link = HidLink(
                 _path("vsc.hidraw", table.get("hidraw", MISSING), None, self.base, '"/dev/hidraw0"')
@@ -553,7 +596,7 @@ class _Loader:
         )
         if high < low:
             raise ConfigError("vsc.reopen_max_ms", high, f"make it at least reopen_min_ms ({low})")
-        return VscConfig(transport, link, Backoff(low, high))
+        return VscConfig(transport, link, Backoff(low, high), can_errors)
 
     def serial(self, table: Mapping[str, object]) -> SerialLink:
         port = _path(
@@ -606,6 +649,30 @@ class _Loader:
             rates = ", ".join(str(rate) for rate in CAN_BITRATES)
             raise ConfigError(f"{prefix}.bitrate", bitrate, f"use a standard rate: {rates}")
         return CanBus(interface, channel, bitrate)
+
+    @staticmethod
+    def can_errors(table: Mapping[str, object]) -> CanErrors:
+        """``vsc.error_limit``, ``vsc.error_window_ms``, ``vsc.error_passive_ms``."""
+        return CanErrors(
+            _integer(
+                "vsc.error_limit",
+                table.get("error_limit", MISSING),
+                DEFAULT_CAN_ERROR_LIMIT,
+                CAN_ERROR_LIMIT_RANGE,
+            ),
+            _integer(
+                "vsc.error_window_ms",
+                table.get("error_window_ms", MISSING),
+                DEFAULT_CAN_ERROR_WINDOW_MS,
+                CAN_ERROR_WINDOW_RANGE_MS,
+            ),
+            _integer(
+                "vsc.error_passive_ms",
+                table.get("error_passive_ms", MISSING),
+                DEFAULT_CAN_ERROR_PASSIVE_MS,
+                CAN_ERROR_PASSIVE_RANGE_MS,
+            ),
+        )
 
     # [[clients]] --------------------------------------------------------------------------
 
@@ -772,6 +839,10 @@ class _Loader:
                 'give at least one output role = "motion": otherwise a hold (pause, menu, '
                 "a client's hold) leaves motion enabled",
             )
+        require_watchdog = _flag(
+            "vsc.require_watchdog", vsc_table.get("require_watchdog", MISSING), True
+        )
+        prooftest = self.prooftest(vsc.transport, require_watchdog, vsc_table)
         try:
             return SafetyConfig(
                 transport=vsc.transport,
@@ -786,8 +857,13 @@ class _Loader:
                     "rearm.hold_ms", rearm.get("hold_ms", MISSING), 500, REARM_HOLD_RANGE_MS
                 ),
                 local_reset=_flag("rearm.local_reset", rearm.get("local_reset", MISSING), False),
-                require_watchdog=_flag(
-                    "vsc.require_watchdog", vsc_table.get("require_watchdog", MISSING), True
+                require_watchdog=require_watchdog,
+                prooftest=prooftest,
+                prooftest_clear_ms=_integer_type(
+                    "vsc.prooftest_clear_ms",
+                    vsc_table.get("prooftest_clear_ms", MISSING),
+                    DEFAULT_PROOFTEST_CLEAR_MS,
+                    PROOFTEST_CLEAR_RANGE_MS,
                 ),
                 clients=clients,
                 outputs=tuple(SafetyOutputSpec(spec.name, spec.role) for spec in outputs),
@@ -795,6 +871,28 @@ class _Loader:
         except ConfigError as error:
             key = _SAFETY_KEYS.get(error.key, error.key)
             raise ConfigError(key, error.value, error.fix) from None
+
+    @staticmethod
+    def prooftest(
+        transport: Transport, require_watchdog: bool, vsc_table: Mapping[str, object]
+    ) -> ProofTestPolicy:
+        """``vsc.prooftest`` (docs/safety.md "The proof test", SR-5.3). The default: ``block``
+        on serial when the watchdog is required, ``record`` on serial when it is not (then a
+        VSC with key 85 off is recorded at every start, and runs), ``off`` on CAN and HID,
+        which have no user heartbeat to withhold."""
+        if transport is not Transport.SERIAL:
+            default = ProofTestPolicy.OFF
+        else:
+            default = ProofTestPolicy.BLOCK if require_watchdog else ProofTestPolicy.RECORD
+        raw = vsc_table.get("prooftest", MISSING)
+        if raw is MISSING:
+            return default
+        try:
+            return ProofTestPolicy(raw)
+        except ValueError:
+            raise ConfigError(
+                "vsc.prooftest", raw, 'use "block", "record" or "off" (docs/safety.md)'
+            ) from None
 
     # [record], [api] ----------------------------------------------------------------------
 

@@ -13,8 +13,8 @@ class SrcsError(Exception):
 
 
 class UnsafeCommandError(SrcsError, ValueError):
-    """Our own code asked to send something the protocol notes forbid (e.g. switching off the
-    VSC heartbeat, notes §2 "Other messages"). Nothing was sent."""
+    """Our own code asked to send something the protocol requirements forbid (e.g. switching
+    off the VSC heartbeat, PR-2.11). Nothing was sent."""
 
 
 class ConfigError(SrcsError, ValueError):

@@ -1,4 +1,4 @@
-"""The client API (safety-rules.md §8, ``docs/api.md``): the local Unix socket that serves the
+"""The client API (SR-8, ``docs/api.md``): the local Unix socket that serves the
 robot's programs and ``srcsctl``. :mod:`.wire` is the message vocabulary (sans-IO),
 :mod:`.server` the non-blocking server the daemon's loop drives, :mod:`.credentials` who is
 at the other end. The robot's programs use :mod:`supervisord.client`."""

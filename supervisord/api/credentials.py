@@ -1,4 +1,4 @@
-"""Who is at the other end of a client connection (safety-rules.md §8).
+"""Who is at the other end of a client connection (SR-8).
 
 The kernel tells us the peer's pid, uid and gid as they were when it connected
 (``SO_PEERCRED``): a peer cannot forge them. Admin rights (``reset``, ``commission``)

@@ -1,6 +1,6 @@
 """The client API server: a non-blocking Unix socket driven by the daemon's one loop.
 
-safety-rules.md §8 and ``docs/api.md``. There are no threads. Before each wait the loop asks
+SR-8 and ``docs/api.md``. There are no threads. Before each wait the loop asks
 :meth:`ApiServer.descriptors` which descriptors to watch (and which have output waiting), and
 hands every ready one back to :meth:`ApiServer.handle`, which returns typed results:
 
@@ -193,7 +193,7 @@ def core_event(result: Result, now: int) -> Event | None:
     """The safety core's event for one server result at ``now``, or ``None``.
 
     A :class:`Denied` ``reset`` still becomes a ``ResetRequest`` (with ``admin`` false), so
-    the core refuses it and the refusal is recorded (safety-rules.md §4, §7)."""
+    the core refuses it and the refusal is recorded (SR-4, SR-7)."""
     match result:
         case Accepted(client=client):
             return ClientConnected(now, client.connection)
@@ -588,7 +588,7 @@ def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tupl
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
     # Made under a private name and renamed into place once listening: a client that sees
     # the path can connect at once (no refusal between bind and listen), and the mode and
-    # group are right before anyone can (safety-rules.md §8: not world-writable).
+    # group are right before anyone can (SR-8: not world-writable).
     staging = path.with_name(f".{path.name}.{os.getpid()}")
     made = False
     try:

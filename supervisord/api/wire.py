@@ -1,4 +1,4 @@
-"""The client API's message vocabulary (safety-rules.md §8, ``docs/api.md``): sans-IO.
+"""The client API's message vocabulary (SR-8, ``docs/api.md``): sans-IO.
 
 Requests are JSON objects, one per line. :class:`LineReader` cuts a byte stream into bounded
 lines; :func:`parse_request` turns one line into a frozen request value or raises
@@ -38,7 +38,7 @@ from supervisord.protocol.messages import (
 from supervisord.protocol.text import clean, clean_json, is_clean
 from supervisord.safety.causes import CauseState
 from supervisord.safety.config import NAME_PATTERN
-from supervisord.safety.decision import ChangeKind, Decision, Record, Refusal
+from supervisord.safety.decision import ChangeKind, Decision, Record, RecordNote, Refusal
 from supervisord.safety.events import (
     Caller,
     ClientEstop,
@@ -50,6 +50,7 @@ from supervisord.safety.events import (
     Event,
     LocalEstop,
     LocalRelease,
+    ProofTestRequest,
     ResetRequest,
 )
 from supervisord.safety.events import Request as Releasable
@@ -248,7 +249,7 @@ class _Request:
 
 @dataclass(frozen=True, slots=True)
 class Hello(_Request):
-    """Name this connection: it becomes the client ``name`` (safety-rules.md §8)."""
+    """Name this connection: it becomes the client ``name`` (SR-8)."""
 
     OP = "hello"
     name: str
@@ -343,7 +344,7 @@ class Vibrate(_Request):
 
 @dataclass(frozen=True, slots=True)
 class Reset(_Request):
-    """``srcsctl reset``: a local re-arm (safety-rules.md §4). Admins only."""
+    """``srcsctl reset``: a local re-arm (SR-4). Admins only."""
 
     OP = "reset"
 
@@ -351,9 +352,18 @@ class Reset(_Request):
 @dataclass(frozen=True, slots=True)
 class Commission(_Request):
     """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently
-    (safety-rules.md §5). Admins only; the request must carry ``"confirm": true``."""
+    (SR-5). Admins only; the request must carry ``"confirm": true``."""
 
     OP = "commission"
+
+
+@dataclass(frozen=True, slots=True)
+class ProofTest(_Request):
+    """Run the proof test of the VSC's watchdog again (SR-5.3; docs/safety.md "The proof
+    test"). Admins only; the core refuses it in RUN and HOLD. The reply comes at once; the
+    result follows in ``status`` (``prooftest``) and a ``prooftest`` record."""
+
+    OP = "prooftest"
 
 
 Request = (
@@ -371,10 +381,11 @@ Request = (
     | Vibrate
     | Reset
     | Commission
+    | ProofTest
 )
 
-ADMIN_REQUESTS: Final = (Reset, Commission)
-"""Requests only an admin may make (safety-rules.md §8)."""
+ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
+"""Requests only an admin may make (SR-8)."""
 NAMED_REQUESTS: Final = (Heartbeat,)
 """Requests that need a connection that said hello."""
 
@@ -589,6 +600,10 @@ def _commission(f: _Fields) -> Request:
     return Commission(id=f.id)
 
 
+def _prooftest(f: _Fields) -> Request:
+    return ProofTest(id=f.id)
+
+
 _PARSERS = {
     "hello": _hello,
     "heartbeat": lambda f: Heartbeat(id=f.id),
@@ -601,6 +616,7 @@ _PARSERS = {
     "vibrate": _vibrate,
     "reset": lambda f: Reset(id=f.id),
     "commission": _commission,
+    "prooftest": _prooftest,
 }
 OPS: Final = tuple(_PARSERS)
 """Every request op, in the order ``docs/api.md`` documents them."""
@@ -713,6 +729,7 @@ def decision_json(decision: Decision) -> JsonDict:
         "causes": [cause_json(c) for c in decision.causes],
         "outputs": dict(sorted(decision.outputs.items())),
         "heartbeat_estop": decision.heartbeat_estop,
+        "prooftest": None if decision.prooftest is None else decision.prooftest.json(),
     }
 
 
@@ -752,6 +769,8 @@ def record_kind(record: Record) -> str:
     ``commissioned``) or ``cause_cleared``, in that order of precedence (``docs/record.md``)."""
     if record.previous is not record.state:
         return "state_change"
+    if record.prooftest is not None:
+        return RecordNote.PROOFTEST.value  # its outcome is what the record is about
     if any(c.kind in (ChangeKind.RAISED, ChangeKind.UPDATED) for c in record.changes):
         return "cause_raised"
     if record.note is not None:
@@ -776,6 +795,8 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
     }
     if record.reason:
         result["reason"] = clean(record.reason)
+    if record.prooftest is not None:
+        result["prooftest"] = record.prooftest.json()
     if record.rearm is not None:
         rearm: JsonDict = {"kind": record.rearm.kind.value}
         if record.rearm.caller is not None:
@@ -833,7 +854,7 @@ def display_message(
         case DisplayModeRequest(mode=mode):
             return FeedbackSet(FeedbackKey.DISPLAY_MODE, int(mode))
         case Vibrate(side=side):
-            return FeedbackSet(side.key, 1)  # protocol notes §2: vibrate takes the value 1
+            return FeedbackSet(side.key, 1)  # PR-2: vibrate takes the value 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -873,5 +894,7 @@ def to_core_event(request: Request, client: ClientInfo, now: int) -> Event | Non
             return DisplayUpdate(now, display_message(request))
         case Reset():
             return ResetRequest(now, client.caller)
+        case ProofTest():
+            return ProofTestRequest(now, client.caller)
         case Status() | Subscribe() | Commission():
             return None

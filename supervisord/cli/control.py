@@ -9,15 +9,17 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import grp
 import json
 import os
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final, TextIO
 
-from supervisord.api.wire import ApiError, ErrorCode
+from supervisord.api.wire import ApiError, ErrorCode, ProofTest
+from supervisord.cli.log import cause_mark, interruptible, zone
 from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -26,6 +28,7 @@ from supervisord.protocol.codes import DisplayMode
 EXIT_REFUSED: Final = 1
 EXIT_USAGE: Final = 2
 EXIT_NO_DAEMON: Final = 3
+EXIT_DENIED: Final = 4
 DEFAULT_NAME: Final = "srcsctl"
 RECONNECT_S: Final = 1.0
 
@@ -37,16 +40,38 @@ DISPLAY_MODES: Final[Mapping[str, DisplayMode]] = {
 }
 
 
-def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add the commands of this module to ``srcsctl``'s parser."""
-    socket_options = argparse.ArgumentParser(add_help=False)
-    where = socket_options.add_mutually_exclusive_group()
-    where.add_argument("--config", metavar="FILE", help="the robot's config (its [api] socket)")
+def socket_options(*, record: bool = False) -> argparse.ArgumentParser:
+    """``--config`` and ``--socket`` (only ``--config`` for the record), for every level of
+    the parser: before the command, after it, after a subcommand's arguments (issue 13). The
+    defaults are suppressed so that a level where the option is absent keeps what another
+    level set; read them with ``getattr(args, "socket", None)``."""
+    options = argparse.ArgumentParser(add_help=False)
+    if record:
+        options.add_argument(
+            "--config",
+            metavar="FILE",
+            default=argparse.SUPPRESS,
+            help="the robot's config (its [record] path)",
+        )
+        return options
+    where = options.add_mutually_exclusive_group()
+    where.add_argument(
+        "--config",
+        metavar="FILE",
+        default=argparse.SUPPRESS,
+        help="the robot's config (its [api] socket)",
+    )
     where.add_argument(
         "--socket",
         metavar="PATH",
+        default=argparse.SUPPRESS,
         help=f"the API socket (default $SRCS_SOCKET or {DEFAULT_SOCKET_PATH})",
     )
+    return options
+
+
+def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add the commands of this module to ``srcsctl``'s parser."""
     named = argparse.ArgumentParser(add_help=False)
     named.add_argument(
         "--name",
@@ -58,12 +83,20 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         name: str, help_text: str, *parents: argparse.ArgumentParser
     ) -> argparse.ArgumentParser:
         return commands.add_parser(
-            name, help=help_text, description=help_text, parents=[socket_options, *parents]
+            name, help=help_text, description=help_text, parents=[socket_options(), *parents]
         )
+
+    utc = argparse.ArgumentParser(add_help=False)
+    utc.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
 
     status = add("status", "show the state, its causes, the outputs and the link")
     status.add_argument("--json", action="store_true", help="the daemon's reply as JSON")
-    watch = add("watch", "follow state changes and stop records live (Ctrl-C ends)")
+    watch = add(
+        "watch",
+        "follow state changes and stop records live (Ctrl-C ends; * after a cause: its "
+        "condition has cleared and the stop waits for a re-arm)",
+        utc,
+    )
     watch.add_argument("--json", action="store_true", help="every push as a JSON line")
     watch.add_argument(
         "--joystick", action="store_true", help="also show the sticks and buttons as they come"
@@ -76,17 +109,21 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
 
     display = add("display", "put text, values or a page on the remote's screen")
     kinds = display.add_subparsers(dest="display", required=True, metavar="WHAT")
-    row = kinds.add_parser("row", help="text row 1-4 (at most 20 characters)")
+
+    def kind(name: str, help_text: str) -> argparse.ArgumentParser:
+        return kinds.add_parser(name, help=help_text, parents=[socket_options()])
+
+    row = kind("row", "text row 1-4 (at most 20 characters)")
     row.add_argument("index", type=int)
     row.add_argument("text")
-    value = kinds.add_parser("value", help="user value 1-9, optionally with its label")
+    value = kind("value", "user value 1-9, optionally with its label")
     value.add_argument("key", type=int)
     value.add_argument("value", type=int)
     value.add_argument("--label", help="the value's label (at most 20 characters)")
-    label = kinds.add_parser("label", help="the label of user value 1-9")
+    label = kind("label", "the label of user value 1-9")
     label.add_argument("key", type=int)
     label.add_argument("text")
-    mode = kinds.add_parser("mode", help="the page: gps, text, labelled or values (or 0-3)")
+    mode = kind("mode", "the page: gps, text, labelled or values (or 0-3)")
     mode.add_argument("mode", choices=(*DISPLAY_MODES, "0", "1", "2", "3"))
 
     vibrate = add("vibrate", "vibrate the remote's handles for 750 ms")
@@ -99,10 +136,26 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     commission.add_argument(
         "--yes", action="store_true", help="do not ask for confirmation (scripts)"
     )
+    add(
+        "prooftest",
+        "prove the VSC's key-85 watchdog again: withhold the heartbeat, see the VSC stop "
+        "(admin; only while STOPPED)",
+    )
 
 
 COMMANDS: Final = frozenset(
-    {"status", "watch", "estop", "hold", "release", "reset", "display", "vibrate", "commission"}
+    {
+        "status",
+        "watch",
+        "estop",
+        "hold",
+        "release",
+        "reset",
+        "display",
+        "vibrate",
+        "commission",
+        "prooftest",
+    }
 )
 
 
@@ -110,7 +163,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     """Run one of :data:`COMMANDS`; returns the exit status."""
     prog = f"srcsctl {args.command}"
     try:
-        path = socket_path(args.config, args.socket)
+        path = socket_path(getattr(args, "config", None), getattr(args, "socket", None))
     except ConfigError as error:
         print(f"{prog}: {error}", file=err)
         return EXIT_USAGE
@@ -123,6 +176,9 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         with SupervisorClient.connect(path, timeout=10.0) as client:
             return _one_shot(client, args, out)
     except ConnectError as error:
+        if isinstance(error.__cause__, PermissionError):
+            print(f"{prog}: {denied(path, error)}", file=err)
+            return EXIT_DENIED
         print(f"{prog}: {error} (is srcsd running?)", file=err)
         return EXIT_NO_DAEMON
     except ApiError as error:
@@ -134,6 +190,17 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     except ClientError as error:
         print(f"{prog}: {error}", file=err)
         return EXIT_NO_DAEMON
+
+
+def denied(path: Path, error: ConnectError) -> str:
+    """A refused ``connect`` said as such (issue 13: it read "is srcsd running?"), with the
+    fix: the socket is 0660, its group's members may connect (docs/api.md "The socket")."""
+    try:
+        group = grp.getgrgid(path.stat().st_gid).gr_name
+        how = f"run it as root or as a member of the group {group}"
+    except (OSError, KeyError):
+        how = "run it as root, or as a user who may open the socket and its directory"
+    return f"{error}: permission denied; {how}"
 
 
 def socket_path(config: str | None, socket: str | None) -> Path:
@@ -190,10 +257,32 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
     if command == "vibrate":
         client.vibrate(args.side)
         return 0
+    if command == "prooftest":
+        return _prooftest(client, out)
     reply = client.commission()
     remote = "on" if reply.get("remote_status") else "not seen (older firmware?)"
     print(f"commissioned: key 85 reads {reply.get('key85')}; remote status {remote}", file=out)
     return 0
+
+
+PROOFTEST_WAIT_S: Final = 30.0  # a held bit waits for the operator (docs/safety.md)
+
+
+def _prooftest(client: SupervisorClient, out: TextIO) -> int:
+    """Ask for a proof test (docs/safety.md "The proof test"), then follow ``status`` until
+    it has a result: exit 0 when it passed, 1 when it failed or gave none in time."""
+    client.call(ProofTest())
+    print("prooftest: started; the user heartbeat is withheld for up to 1.5 s", file=out)
+    deadline = time.monotonic() + PROOFTEST_WAIT_S
+    while time.monotonic() < deadline:
+        proof = client.status().get("prooftest") or {}
+        if proof.get("phase") in ("passed", "failed"):
+            last = proof.get("last") or {}
+            print(f"prooftest: {last.get('text')}", file=out)
+            return 0 if proof.get("phase") == "passed" else EXIT_REFUSED
+        time.sleep(0.1)
+    print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({proof.get('phase')})", file=out)
+    return EXIT_REFUSED
 
 
 def _display(client: SupervisorClient, args: argparse.Namespace) -> None:
@@ -219,14 +308,31 @@ def format_status(status: Mapping[str, Any]) -> str:
     """The human form of a ``status`` reply (``docs/api.md``)."""
     daemon: Mapping[str, Any] = status.get("daemon") or {}
     robot = daemon.get("robot") or "?"
-    lines = [f"robot {robot}: {status.get('state')}"]
+    since = daemon.get("in_state_s")
+    lines = [f"robot {robot}: {status.get('state')}" + (f" for {duration(since)}" if since else "")]
+    if "version" in daemon:
+        up = daemon.get("uptime_s")
+        lines.append(
+            f"  daemon   srcsd {daemon['version']}, pid {daemon.get('pid')}"
+            + (f", up {duration(up)}" if up is not None else "")
+        )
     link = daemon.get("link")
     if link:
         state = "open" if link.get("open") else "NOT OPEN"
+        if link.get("since_s") is not None:
+            state += f" for {duration(link['since_s'])}"
+        last_error = f"; last error: {link['last_error']}" if link.get("last_error") else ""
+        errors = link.get("error_frames")  # CAN only (docs/safety.md "CAN error frames")
+        counted = f", {errors} CAN error frames" if errors is not None else ""
         lines.append(
             f"  link     {link.get('description')}: {state} "
-            f"({link.get('opens')} opens, {link.get('open_failures')} failed attempts)"
+            f"({link.get('opens')} opens, {link.get('open_failures')} failed attempts"
+            f"{counted}){last_error}"
         )
+    lines += _client_lines(daemon.get("clients"))
+    remote = daemon.get("remote")
+    if "remote" in daemon:
+        lines.append(f"  remote   {remote_text(remote) if remote else 'no status seen'}")
     causes = status.get("causes") or []
     if not causes:
         lines.append("  causes   none")
@@ -237,6 +343,9 @@ def format_status(status: Mapping[str, Any]) -> str:
     levels = " ".join(f"{name}={'ON' if on else 'off'}" for name, on in outputs.items())
     lines.append(f"  outputs  {levels or 'none'}")
     lines.append(f"  to VSC   heartbeat e-stop byte {status.get('heartbeat_estop')}")
+    if proof := status.get("prooftest"):
+        last = (proof.get("last") or {}).get("text") or "none yet"
+        lines.append(f"  proof    watchdog proof test {proof.get('phase')}; last: {last}")
     if "messages" in daemon:
         rejected = ", ".join(f"{k} {v}" for k, v in (daemon.get("rejections") or {}).items())
         lines.append(
@@ -245,6 +354,50 @@ def format_status(status: Mapping[str, Any]) -> str:
             f"internal faults {daemon.get('internal_faults', 0)}"
         )
     return "\n".join(lines) + "\n"
+
+
+def duration(seconds: float) -> str:
+    """``12.3 s``, ``4 min 5 s``, ``2 h 3 min``, ``1 d 2 h``."""
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    whole = int(seconds)
+    if whole < 3600:
+        return f"{whole // 60} min {whole % 60} s"
+    if whole < 86400:
+        return f"{whole // 3600} h {whole % 3600 // 60} min"
+    return f"{whole // 86400} d {whole % 86400 // 3600} h"
+
+
+def _client_lines(clients: object) -> list[str]:
+    if not isinstance(clients, list):
+        return []
+    if not clients:
+        return ["  clients  none"]
+    lines = []
+    for index, client in enumerate(clients):
+        kind = f"required, {client.get('timeout_ms')} ms" if client.get("required") else "optional"
+        age = client.get("heartbeat_age_s")
+        if not client.get("connected"):
+            beat = "not connected"
+        elif age is None:
+            beat = "connected, no heartbeat yet"
+        else:
+            beat = f"heartbeat {duration(age)} ago"
+        label = "clients" if index == 0 else ""
+        lines.append(f"  {label:8} {client.get('name')} ({kind}): {beat}")
+    return lines
+
+
+def remote_text(remote: Mapping[str, Any]) -> str:
+    """The remote's last status (manual §8.3.4; kept by the VSC after a link loss, PR-2.10)."""
+    charging = ", charging" if remote.get("battery_charging") else ""
+    age = remote.get("age_s")
+    return (
+        f"battery {remote.get('battery_level')} %{charging}; link strength vsc "
+        f"{remote.get('connection_strength_vsc')} remote {remote.get('connection_strength_src')}"
+        f"; rssi vsc {remote.get('rssi_vsc')} remote {remote.get('rssi_src')}"
+        + (f" ({duration(age)} ago)" if age is not None else "")
+    )
 
 
 def _cause_text(cause: Mapping[str, Any]) -> str:
@@ -260,37 +413,101 @@ def _cause_text(cause: Mapping[str, Any]) -> str:
 
 
 def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    """Follow the daemon until Ctrl-C, reconnecting when it restarts."""
-    topics = ["state", "records", *(["joystick"] if args.joystick else [])]
-    show: Callable[[str, Mapping[str, Any]], str] = (
-        (lambda _e, data: json.dumps(dict(data), sort_keys=True)) if args.json else format_push
-    )
+    """Follow the daemon until Ctrl-C or SIGTERM, reconnecting when it restarts.
+
+    The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
+    it is printed once, and with ``--json`` every line is a push (issue 13); the human form
+    starts with one line about the daemon (version, uptime, clients) from ``status``."""
+    interruptible()
+    topics = [
+        "state",
+        "records",
+        *(["joystick"] if args.joystick else []),
+        *([] if args.json else ["remote_status"]),
+    ]
+    utc = bool(getattr(args, "utc", False))
+
+    def show(event: str, data: Mapping[str, Any]) -> str:
+        return (
+            json.dumps(dict(data), sort_keys=True)
+            if args.json
+            else format_push(event, data, utc=utc)
+        )
+
     said_waiting = False
     try:
         while True:
             try:
                 with SupervisorClient.connect(path, timeout=10.0) as client:
                     said_waiting = False
+                    if not args.json:
+                        print(daemon_line(client.status()), file=out, flush=True)
                     client.subscribe(*topics)
-                    print(
-                        show("state", {"event": "state", **client.status()}), file=out, flush=True
-                    )
+                    remote: object = None
                     while True:
                         push = client.next_event(timeout=3600)
-                        if push is not None:
-                            print(show(push.event, push.data), file=out, flush=True)
-            except ClientError as error:
-                if not said_waiting:
-                    print(f"srcsctl watch: {error}; retrying every second", file=err, flush=True)
-                    said_waiting = True
-                time.sleep(RECONNECT_S)
+                        if push is None:
+                            continue
+                        if push.event == "remote_status" and not args.json:
+                            # One line when battery or link strength change, not one a second.
+                            seen = tuple(push.data.get(k) for k in _REMOTE_SHOWN)
+                            if seen == remote:
+                                continue
+                            remote = seen
+                        print(show(push.event, push.data), file=out, flush=True)
+            except ConnectError as error:
+                if isinstance(error.__cause__, PermissionError):
+                    print(f"srcsctl watch: {denied(path, error)}", file=err, flush=True)
+                    return EXIT_DENIED
+                said_waiting = _waiting(error, said_waiting, err)
+            except (ClientError, ApiError) as error:
+                said_waiting = _waiting(error, said_waiting, err)
     except KeyboardInterrupt:
         return 0
 
 
-def format_push(event: str, data: Mapping[str, Any]) -> str:
-    """One line for a push: the local time, then what happened."""
-    stamp = dt.datetime.now().astimezone().strftime("%H:%M:%S.%f")[:-3]
+_REMOTE_SHOWN: Final = (
+    "battery_level",
+    "battery_charging",
+    "connection_strength_vsc",
+    "connection_strength_src",
+)
+
+
+def _waiting(error: Exception, said: bool, err: TextIO) -> bool:
+    if not said:
+        print(f"srcsctl watch: {error}; retrying every second", file=err, flush=True)
+    time.sleep(RECONNECT_S)
+    return True
+
+
+def daemon_line(status: Mapping[str, Any]) -> str:
+    """``watch``'s first line: which daemon it follows (``#``: not an event)."""
+    daemon: Mapping[str, Any] = status.get("daemon") or {}
+    up = daemon.get("uptime_s")
+    clients = daemon.get("clients")
+    names = (
+        ", ".join(
+            f"{c.get('name')}{'' if c.get('connected') else ' (not connected)'}" for c in clients
+        )
+        if isinstance(clients, list)
+        else "?"
+    )
+    return (
+        f"# srcsd {daemon.get('version', '?')} robot {daemon.get('robot', '?')}, pid "
+        f"{daemon.get('pid')}"
+        + (f", up {duration(up)}" if up is not None else "")
+        + f"; clients: {names or 'none'}"
+    )
+
+
+def format_push(
+    event: str, data: Mapping[str, Any], *, utc: bool = False, now: dt.datetime | None = None
+) -> str:
+    """One line for a push: the time of day (local, or UTC with ``utc``: the rule of
+    ``log``), then what happened."""
+    when = (now or dt.datetime.now(dt.UTC)).astimezone(zone(utc))
+    stamp = when.strftime("%H:%M:%S.%f")[:-3] + ("Z" if utc else "")
     if event == "state":
         causes = ", ".join(_short_cause(c) for c in data.get("causes") or []) or "no causes"
         outputs = " ".join(
@@ -304,6 +521,8 @@ def format_push(event: str, data: Mapping[str, Any]) -> str:
             f"{stamp} record #{data.get('seq')} {data.get('kind')}: "
             f"{data.get('from')} -> {data.get('to')}; causes {names}{reason}"
         )
+    if event == "remote_status":
+        return f"{stamp} remote {remote_text(data)}"
     if event == "joystick":
         suffix = "_joystick_value"
         axes = " ".join(
@@ -321,4 +540,4 @@ def format_push(event: str, data: Mapping[str, Any]) -> str:
 
 
 def _short_cause(cause: Mapping[str, Any]) -> str:
-    return f"{cause.get('name')}{'' if cause.get('active') else '*'}"
+    return f"{cause.get('name')}{cause_mark(cause)}"

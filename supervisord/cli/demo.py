@@ -293,7 +293,7 @@ class StoryDemo(Demo):
             time.sleep(0.02)
 
     def settle(self, limit: float = 10.0) -> None:
-        """Wait until no stop condition is active, then for the re-arm hold time (§4)."""
+        """Wait until no stop condition is active, then for the re-arm hold time (SR-4)."""
         end = time.monotonic() + limit
 
         def stop_active() -> bool:

@@ -1,19 +1,29 @@
-"""``srcsctl log``: the record of stops, filtered by time and cause, as text or JSON lines."""
+"""``srcsctl log``: the record of stops, filtered by time and cause, as text or JSON lines.
+
+One time rule with ``watch`` (issue 13, docs/srcsctl.md "Times"): times are shown in local
+time with their UTC offset, or in UTC with ``--utc``; a time typed without a zone is read the
+same way. One marker: ``*`` after a cause means its condition has cleared and the stop waits
+for a re-arm (SR-4), in ``log`` as in ``watch``.
+"""
 
 from __future__ import annotations
 
 import datetime as dt
 import json
 import re
+import signal
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import IO
+from typing import IO, Final
 
 from supervisord.record.jsonl import BadLine, Record, read_records
 
 EXIT_BAD_INPUT = 2
-_RELATIVE = re.compile(r"(\d+)([smhd])")
+FOLLOW_POLL_S: Final = 0.25
+"""How often ``log -f`` looks for new records (the file is appended and fsynced per record)."""
+_RELATIVE = re.compile(r"-?(\d+)([smhd])")
 _UNITS = {"s": "seconds", "m": "minutes", "h": "hours", "d": "days"}
 
 
@@ -21,17 +31,47 @@ class BadTime(ValueError):
     pass
 
 
-def parse_time(text: str, now: dt.datetime) -> dt.datetime:
-    """ISO 8601 (a time without a zone is UTC), or an age such as ``10m``, ``2h``, ``3d``."""
+def zone(utc: bool) -> dt.tzinfo | None:
+    """The zone times are shown and read in: UTC with ``--utc``, else local (``None``)."""
+    return dt.UTC if utc else None
+
+
+def parse_time(text: str, now: dt.datetime, *, utc: bool = False) -> dt.datetime:
+    """ISO 8601 (a time without a zone is local, or UTC with ``utc``), ``today`` or
+    ``yesterday`` (midnight, in the same zone), or an age such as ``10m``, ``-1h``, ``3d``."""
     relative = _RELATIVE.fullmatch(text)
     if relative:
         amount, unit = int(relative.group(1)), relative.group(2)
         return now - dt.timedelta(**{_UNITS[unit]: amount})
+    if text in ("today", "yesterday"):
+        midnight = now.astimezone(zone(utc)).replace(hour=0, minute=0, second=0, microsecond=0)
+        return midnight - dt.timedelta(days=1 if text == "yesterday" else 0)
     try:
         when = dt.datetime.fromisoformat(text)
     except ValueError as error:
-        raise BadTime(f"not a time: {text!r} (use ISO 8601 or an age like 10m, 2h, 3d)") from error
-    return when if when.tzinfo else when.replace(tzinfo=dt.UTC)
+        raise BadTime(
+            f"not a time: {text!r} (use ISO 8601, today, yesterday or an age like 10m, -2h, 3d)"
+        ) from error
+    if when.tzinfo:
+        return when
+    return when.replace(tzinfo=dt.UTC) if utc else when.astimezone()
+
+
+def show_time(utc_text: object, *, utc: bool = False) -> str:
+    """A record's ``utc`` in the display zone, to the millisecond, with its offset."""
+    try:
+        when = dt.datetime.fromisoformat(str(utc_text))
+    except ValueError:
+        return str(utc_text)
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=dt.UTC)
+    return when.astimezone(zone(utc)).isoformat(timespec="milliseconds")
+
+
+def cause_mark(cause: Mapping[str, object]) -> str:
+    """The one marker of ``log`` and ``watch``: ``*`` when the cause's condition has cleared
+    and only its latch holds the stop (it waits for a re-arm, SR-4), else nothing."""
+    return "" if cause.get("active") else "*"
 
 
 def _causes(data: Mapping[str, object]) -> str:
@@ -41,19 +81,19 @@ def _causes(data: Mapping[str, object]) -> str:
     names = []
     for cause in causes:
         if isinstance(cause, dict):
-            mark = "*" if cause.get("active") else ""
-            names.append(f"{cause.get('name')}{mark}")
+            names.append(f"{cause.get('name')}{cause_mark(cause)}")
     return ", ".join(names)
 
 
-def format_record(data: Mapping[str, object]) -> str:
-    """One line: time, sequence, transition, trigger, causes (* = condition active now)."""
+def format_record(data: Mapping[str, object], *, utc: bool = False) -> str:
+    """One line: time, sequence, transition, trigger, causes (* = cleared, waits for a re-arm)."""
     trigger = data.get("trigger")
     event = trigger.get("event", "?") if isinstance(trigger, dict) else "?"
     rearm = data.get("rearm")
     how = f" re-armed by {rearm.get('kind')}" if isinstance(rearm, dict) else ""
     move = f"{str(data.get('from')).upper()} -> {str(data.get('to')).upper()}"
-    return f"{data.get('utc')}  #{data.get('seq')}  {move:18} {event}{how}  [{_causes(data)}]"
+    when = show_time(data.get("utc"), utc=utc)
+    return f"{when}  #{data.get('seq')}  {move:18} {event}{how}  [{_causes(data)}]"
 
 
 def run_log(
@@ -65,23 +105,76 @@ def run_log(
     until: str | None = None,
     cause: str | None = None,
     as_json: bool = False,
+    utc: bool = False,
+    last: int | None = None,
+    follow: bool = False,
 ) -> int:
+    """Print the records (the ``last`` N of them when given); with ``follow``, then every
+    record appended after, until Ctrl-C or SIGTERM (exit 0)."""
     now = dt.datetime.now(dt.UTC)
     try:
-        start = parse_time(since, now) if since else None
-        end = parse_time(until, now) if until else None
+        start = parse_time(since, now, utc=utc) if since else None
+        end = parse_time(until, now, utc=utc) if until else None
     except BadTime as error:
         print(f"srcsctl log: {error}", file=errors)
         return EXIT_BAD_INPUT
-    if not path.exists():
+    if not path.exists() and not follow:
         print(f"srcsctl log: {path}: no record yet", file=errors)
         return EXIT_BAD_INPUT
-    for item in read_records(path, since=start, until=end, cause=cause):
-        if isinstance(item, BadLine):
-            print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
-        elif isinstance(item, Record):
-            out.write(json.dumps(item.data) + "\n" if as_json else format_record(item.data) + "\n")
-    return 0
+
+    reported: set[tuple[str, int]] = set()
+
+    def scan() -> list[Record]:
+        found: list[Record] = []
+        if not path.exists():
+            return found
+        for item in read_records(path, since=start, until=end, cause=cause):
+            if isinstance(item, BadLine):
+                if (str(item.file), item.line) not in reported:
+                    reported.add((str(item.file), item.line))
+                    print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
+            elif isinstance(item, Record):
+                found.append(item)
+        return found
+
+    def show(records: list[Record]) -> None:
+        for record in records:
+            data = record.data
+            out.write(json.dumps(data) + "\n" if as_json else format_record(data, utc=utc) + "\n")
+        out.flush()  # a pipe sees each record as it comes (line by line, not at exit)
+
+    records = scan()
+    show(records[-last:] if last is not None else records)
+    if not follow:
+        return 0
+    interruptible()
+    seen = records[-1].seq if records else 0
+    try:
+        while True:
+            time.sleep(FOLLOW_POLL_S)
+            # A record's seq only grows (docs/record.md); a restart continues it. A lower
+            # number than seen means the file was replaced: start over from it.
+            fresh = scan()
+            newer = [r for r in fresh if r.seq > seen]
+            if fresh and fresh[-1].seq < seen:
+                newer = fresh
+            if newer:
+                show(newer)
+                seen = newer[-1].seq
+    except KeyboardInterrupt:
+        return 0
+
+
+def interruptible() -> None:
+    """Ctrl-C and SIGTERM end a following command, even when it was started with SIGINT
+    ignored (a background job of a script: Python then installs no handler of its own,
+    which is what once made ``watch`` outlive its SIGINT in a test)."""
+
+    def interrupt(_sig: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, interrupt)
 
 
 if __name__ == "__main__":  # pragma: no cover

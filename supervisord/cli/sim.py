@@ -30,6 +30,7 @@ from typing import Any
 
 import can
 
+from supervisord import __version__
 from supervisord.sim.can_side import CanSide
 from supervisord.sim.control import ControlServer
 from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Simulator, load_eeprom
@@ -60,6 +61,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="srcs-sim", description="A simulated SRCS VSC with its remote (docs/simulator.md)."
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
         "--serial",

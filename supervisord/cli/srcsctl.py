@@ -7,45 +7,52 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from supervisord.cli import control
-from supervisord.cli.decode import run_decode
+from supervisord import __version__
+from supervisord.cli import control, decode
 from supervisord.cli.demo import run_demo
 from supervisord.cli.log import run_log
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 
-DEFAULT_CONFIG = "/etc/srcs/srcsd.toml"
+CONFIG_DIR = Path("/etc/srcs")
+"""Where install.md puts the robots' configs, one ``NAME.toml`` per ``srcsd@NAME``."""
+
+
+def default_config(directory: Path = CONFIG_DIR) -> Path:
+    """The config ``log`` reads when none is named: the only ``*.toml`` in ``directory``.
+    Raises :class:`LookupError` naming the choices when there is none or more than one
+    (issue 13: a fixed ``srcsd.toml`` was a file install.md never makes)."""
+    found = sorted(directory.glob("*.toml"))
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise LookupError(f"no config in {directory}; name one with --config FILE or --file PATH")
+    names = ", ".join(str(path) for path in found)
+    raise LookupError(f"{len(found)} configs in {directory} ({names}); name one with --config")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="srcsctl", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="srcsctl",
+        description=__doc__,
+        parents=[control.socket_options()],
+        epilog="--config and --socket may also come after the command and its arguments.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    decode = commands.add_parser(
-        "decode",
-        help="decode a capture of VSC traffic into JSON lines",
-        description="Decode a capture into one JSON object per frame or rejection "
-        "(docs/protocol.md, 'srcsctl decode'). Exit status 2 when any input was unreadable.",
-    )
-    decode.add_argument("file", nargs="?", default="-", help="the capture (default: stdin)")
-    formats = decode.add_mutually_exclusive_group()
-    for flag, what in (
-        ("--raw", "binary serial bytes"),
-        ("--can", "candump lines: ID#DATA, or candump's default or -L formats"),
-        ("--hid", "one HID report per line, in hex (9 bytes input, 26 bytes output)"),
-    ):
-        formats.add_argument(flag, dest="mode", action="store_const", const=flag[2:], help=what)
-    decode.set_defaults(mode="hex")
+    decode.add_arguments(commands)
 
     log = commands.add_parser(
         "log",
         help="show the record of stops",
         description="Show the record of stops, oldest first (docs/record.md). A time is ISO "
-        "8601 (UTC unless it names a zone) or an age such as 10m, 2h, 3d.",
+        "8601 (local time unless it names a zone; UTC with --utc), today, yesterday, or an "
+        "age such as 10m, -2h, 3d. A * after a cause: its condition has cleared and the stop "
+        "waits for a re-arm. Without --config or --file: the only config in /etc/srcs.",
+        parents=[control.socket_options(record=True)],
     )
-    where = log.add_mutually_exclusive_group()
-    where.add_argument("--config", metavar="FILE", help="the robot's config (its [record] path)")
-    where.add_argument("--file", metavar="PATH", help="the record file itself")
+    log.add_argument("--file", metavar="PATH", help="the record file itself")
     log.add_argument("--since", metavar="TIME", help="records at or after TIME")
     log.add_argument("--until", metavar="TIME", help="records before TIME")
     log.add_argument(
@@ -54,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="records with this cause (client_lost matches client_lost:autonomy)",
     )
     log.add_argument("--json", action="store_true", help="the records as JSON lines")
+    log.add_argument("-n", "--lines", type=int, metavar="N", help="only the last N records")
+    log.add_argument(
+        "-f", "--follow", action="store_true", help="then print new records as they come"
+    )
+    log.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
 
     control.add_arguments(commands)
 
@@ -73,9 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
     if args.command == "decode":
-        return run_decode(args.file, args.mode, sys.stdout, sys.stderr)
+        return decode.run(args, sys.stdout, sys.stderr)
     if args.command == "log":
         return _log(args)
     if args.command in control.COMMANDS:
@@ -85,15 +97,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 2  # pragma: no cover - argparse rejects unknown commands first
 
 
+def _ages_as_values(argv: Sequence[str]) -> list[str]:
+    """``--since -1h`` as ``--since=-1h``: argparse would take ``-1h`` for an option."""
+    out: list[str] = []
+    for arg in argv:
+        if out and out[-1] in ("--since", "--until") and arg.startswith("-"):
+            out[-1] = f"{out[-1]}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def _log(args: argparse.Namespace) -> int:
+    config = getattr(args, "config", None)
     if args.file:
         path = Path(args.file)
     else:
         try:
-            path = load_config(args.config or DEFAULT_CONFIG).record.path
-        except ConfigError as error:
+            path = load_config(config or default_config()).record.path
+        except (ConfigError, LookupError) as error:
             print(f"srcsctl log: {error}", file=sys.stderr)
             return 2
+    if args.lines is not None and args.lines < 0:
+        print("srcsctl log: -n needs a number of records, 0 or more", file=sys.stderr)
+        return 2
     return run_log(
         path,
         sys.stdout,
@@ -102,6 +129,9 @@ def _log(args: argparse.Namespace) -> int:
         until=args.until,
         cause=args.cause,
         as_json=args.json,
+        utc=args.utc,
+        last=args.lines,
+        follow=args.follow,
     )
 
 

@@ -4,17 +4,85 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
+from typing import Final, TextIO
 
+from supervisord import __version__
 from supervisord.config import check_config_main, load_config
 from supervisord.errors import ConfigError, SrcsError
 
-EXIT_CONFIG = 1
+EXIT_CONFIG: Final = 78
+"""sysexits.h EX_CONFIG, systemd's "not configured": the unit lists it in
+RestartPreventExitStatus=, so a bad or missing config fails once instead of restarting five
+times (issue 13; docs/install.md "Exit status")."""
+EXIT_CANNOT_START: Final = 1
+"""Valid config, but a resource could not be had (the record's directory, the socket held by
+another server): worth a restart, as Restart=on-failure does."""
+
+SYSLOG_PRIORITY: Final = {
+    logging.CRITICAL: 2,
+    logging.ERROR: 3,
+    logging.WARNING: 4,
+    logging.INFO: 6,
+    logging.DEBUG: 7,
+}
+"""A Python level as a syslog priority (sd-daemon(3)); levels in between round down."""
+
+
+def syslog_priority(level: int) -> int:
+    """The syslog priority of a log level: the priority of the nearest named level at or
+    below it (a custom level 35 is a warning)."""
+    named = [lvl for lvl in SYSLOG_PRIORITY if lvl <= level]
+    return SYSLOG_PRIORITY[max(named)] if named else SYSLOG_PRIORITY[logging.DEBUG]
+
+
+class JournalPrefixFormatter(logging.Formatter):
+    """``<N>message``, the sd-daemon(3) prefix that journald reads from a service's stderr as
+    the entry's PRIORITY. Every line of a multi-line message (a traceback) gets the prefix:
+    journald makes each line an entry of its own."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        prefix = f"<{syslog_priority(record.levelno)}>"
+        return "\n".join(prefix + line for line in super().format(record).split("\n"))
+
+
+def stderr_is_journal(stream: TextIO = sys.stderr) -> bool:
+    """Whether ``stream`` is the journal's stream socket: systemd says so in
+    ``JOURNAL_STREAM=DEV:INODE`` (systemd.exec(5)), and the descriptor must still be that
+    one (a child whose stderr was redirected inherits the variable, not the socket)."""
+    value = os.environ.get("JOURNAL_STREAM", "")
+    try:
+        device, inode = (int(part) for part in value.split(":"))
+        stat = os.fstat(stream.fileno())
+    except (ValueError, OSError):
+        return False
+    return (stat.st_dev, stat.st_ino) == (device, inode)
+
+
+def setup_logging(verbose: bool, stream: TextIO = sys.stderr) -> logging.Handler:
+    """Log lines to ``stream``: with their syslog priority prefix when it is the journal
+    (issue 13: `journalctl -p warning` must see the daemon's warnings), else as
+    ``srcsd: LEVEL: message`` for a person at a terminal. The prefixes need nothing but
+    stderr: no journal library, no compiler on the robot. The sink thread
+    (``daemon/sink.py``) later re-emits every line on this same handler, formatter and all."""
+    handler = logging.StreamHandler(stream)
+    if stderr_is_journal(stream):
+        handler.setFormatter(JournalPrefixFormatter("%(message)s"))
+    else:
+        handler.setFormatter(logging.Formatter("srcsd: %(levelname)s: %(message)s"))
+    root = logging.getLogger()
+    for old in list(root.handlers):
+        root.removeHandler(old)
+    root.addHandler(handler)
+    root.setLevel(logging.DEBUG if verbose else logging.INFO)
+    return handler
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="srcsd", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     group = parser.add_mutually_exclusive_group(required=True)
     group.add_argument("--config", metavar="FILE", help="run with this robot configuration")
     group.add_argument(
@@ -28,16 +96,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.check_config:
         return check_config_main(args.check_config)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
-        format="srcsd: %(levelname)s: %(message)s",
-        stream=sys.stderr,
-    )
+    setup_logging(args.verbose)
+    log = logging.getLogger("srcsd")
     try:
         config = load_config(args.config)
     except ConfigError as error:
-        # The daemon refuses to start on a bad configuration (docs/configuration.md).
-        print(f"srcsd: {error}", file=sys.stderr)
+        # The daemon refuses to start on a bad configuration (docs/configuration.md), with
+        # EX_CONFIG so that systemd does not restart it (RestartPreventExitStatus=78).
+        log.error("%s", error)
         return EXIT_CONFIG
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
@@ -52,10 +118,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         # looked served). close() removes the file only if it is still ours.
         if api is not None:
             api.close()
-        print(f"srcsd: cannot start: {error}", file=sys.stderr)
-        return EXIT_CONFIG
-    logging.getLogger("srcsd").info(
-        "robot %s: %s, %d outputs",
+        log.error("cannot start: %s", error)
+        return EXIT_CANNOT_START
+    log.info(
+        "srcsd %s, robot %s: %s, %d outputs",
+        __version__,
         config.robot.name,
         supervisor.link.description,
         len(supervisor.outputs),

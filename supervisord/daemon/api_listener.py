@@ -11,13 +11,16 @@ seconds later; the loop meanwhile goes on as ever.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import asdict
 
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
 from supervisord.api.wire import (
     ApiError,
     Commission,
     ErrorCode,
+    Heartbeat,
     Status,
     Subscribe,
     Topic,
@@ -31,7 +34,7 @@ from supervisord.api.wire import (
 from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener
 from supervisord.protocol.hid import HidInput
-from supervisord.protocol.messages import Message
+from supervisord.protocol.messages import Message, RemoteStatus
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import ClientDisconnected, Event
@@ -39,14 +42,28 @@ from supervisord.safety.events import ClientDisconnected, Event
 
 class ApiListener(Listener):
     """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission);
-    ``robot``: the configured robot name, for ``status``."""
+    ``robot``: the configured robot name, for ``status``; ``required``: the required clients'
+    names and timeouts (ms), for ``status``; ``clock``: the loop's clock."""
 
     def __init__(
-        self, server: ApiServer, *, has_key85: bool = True, robot: str | None = None
+        self,
+        server: ApiServer,
+        *,
+        has_key85: bool = True,
+        robot: str | None = None,
+        required: Mapping[str, int] | None = None,
+        clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.server = server
         self.has_key85 = has_key85
         self.robot = robot
+        self.required = dict(required or {})
+        self.clock = clock
+        # For ``status`` (issue 13; docs/api.md): each connection's last accepted heartbeat,
+        # the latest remote status and when it came, and when the current state began.
+        self._beats: dict[int, int] = {}
+        self._remote: tuple[RemoteStatus, int] | None = None
+        self._state_since: int | None = None
         self.daemon_info: Callable[[], dict[str, object]] = dict
         """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
         self.last: Decision | None = None
@@ -64,17 +81,21 @@ class ApiListener(Listener):
 
     def take_events(self, now: int) -> list[Event]:
         closed, self._closed = self._closed, []
+        for gone in closed:
+            self._beats.pop(gone.client.connection, None)
         return [ClientDisconnected(now, c.client.connection) for c in closed]
 
     def _result(self, result: Result, now: int, feed: Callable[[Event], Decision]) -> None:
         event = core_event(result, now)
         decision = feed(event) if event is not None else None
+        if isinstance(result, Closed):
+            self._beats.pop(result.client.connection, None)
         if not isinstance(result, Received):
             return  # Denied was answered by the server; Accepted and Closed need no reply
         request = result.request
         if isinstance(request, Status):
             assert self.last is not None
-            daemon = {"robot": self.robot, **self.daemon_info()}
+            daemon = {"robot": self.robot, **self.daemon_info(), **self._status_extra(now)}
             self._closed += self.server.reply(result, **decision_json(self.last), daemon=daemon)
             return
         if isinstance(request, Commission):
@@ -86,9 +107,40 @@ class ApiListener(Listener):
         if refusal is not None:
             self._closed += self.server.reply_error(result, refusal_error(request, refusal))
         else:
+            if isinstance(request, Heartbeat):
+                self._beats[result.client.connection] = now
             self._closed += self.server.reply(result)
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
             self._closed += self.server.send(result.client.connection, state_push(self.last))
+
+    def _status_extra(self, now: int) -> dict[str, object]:
+        """What ``status`` says beyond the daemon's counters (issue 13; docs/api.md): the
+        clients, the remote's last status, the time in the current state. Built from what
+        the listener saw, never from input it cannot trust: names passed the server's check."""
+        connected = {c.name: c.connection for c in self.server.clients() if c.name is not None}
+        clients: list[dict[str, object]] = []
+        for name in sorted(set(self.required) | set(connected)):
+            connection = connected.get(name)
+            beat = self._beats.get(connection) if connection is not None else None
+            entry: dict[str, object] = {
+                "name": name,
+                "required": name in self.required,
+                "connected": connection is not None,
+                "heartbeat_age_s": _age(now, beat),
+            }
+            if name in self.required:
+                entry["timeout_ms"] = self.required[name]
+            clients.append(entry)
+        remote: dict[str, object] | None = None
+        if self._remote is not None:
+            message, seen = self._remote
+            remote = {**asdict(message), "age_s": _age(now, seen)}
+        return {
+            "clients": clients,
+            "connections": len(self.server.clients()),
+            "remote": remote,
+            "in_state_s": _age(now, self._state_since),
+        }
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""
@@ -144,19 +196,24 @@ class ApiListener(Listener):
             self.last.state,
             self.last.causes,
         )
+        if self.last is None or decision.state != self.last.state:
+            self._state_since = decision.now
         self.last = decision
         if changed and self.server.subscribed(Topic.STATE):
             self._closed += self.server.broadcast(Topic.STATE, state_push(decision))
 
     def recorded(self, entry: dict[str, object]) -> None:
         # Pushed once the sink has it on disk (or counted it as not written): a record a
-        # subscriber sees is an acknowledged one (safety-rules §7, docs/record.md).
+        # subscriber sees is an acknowledged one (SR-7, docs/record.md).
         if self.server.subscribed(Topic.RECORDS):
             self._closed += self.server.broadcast(Topic.RECORDS, record_push(entry))
 
     def received(self, message: Message | HidInput) -> None:
         if isinstance(message, HidInput):
             return
+        if isinstance(message, RemoteStatus):
+            # Its values stay as the VSC last sent them (PR-2.10): the age says how old.
+            self._remote = (message, self.clock())
         if self._commissioning is not None:
             self._commissioning[0].received(message)
         topic = message_topic(message)
@@ -165,3 +222,8 @@ class ApiListener(Listener):
 
     def close(self) -> None:
         self.server.close()
+
+
+def _age(now: int, since: int | None) -> float | None:
+    """Seconds from ``since`` to ``now`` (milliseconds kept); ``None`` when never."""
+    return None if since is None else round(max(0, now - since) / 1e9, 3)

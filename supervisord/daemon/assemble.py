@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import logging
-
-import can
+from typing import TYPE_CHECKING
 
 from supervisord.api.server import ApiServer, ServerConfig
 from supervisord.config import CanBus, DaemonConfig, HidLink, SerialLink
@@ -12,13 +11,19 @@ from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
-from supervisord.links.can_link import CanLink, bus_options
 from supervisord.links.hid_link import HidLink as HidLinkImpl
 from supervisord.links.serial_link import SerialLink as SerialLinkImpl
 from supervisord.outputs import Output, create_output
 from supervisord.outputs.base import OutputKind
 from supervisord.record.journal import JournalSink
 from supervisord.record.jsonl import RecordWriter, last_record
+
+if TYPE_CHECKING:
+    import can
+
+# python-can (and ``links.can_link``, which imports it) is imported only when the config names
+# a CAN bus: it costs a serial robot several MB resident and tens of ms of start-up for nothing
+# (issue 14; SR-9.4; docs/performance.md "Start-up and memory").
 
 log = logging.getLogger("srcsd")
 
@@ -28,7 +33,17 @@ def build_link(config: DaemonConfig) -> Link:
     if isinstance(settings, SerialLink):
         return SerialLinkImpl(str(settings.port))
     if isinstance(settings, CanBus):
-        return CanLink(settings.interface, str(settings.channel), settings.bitrate)
+        from supervisord.links.can_link import CanLink  # noqa: PLC0415 -- CAN only
+
+        errors = config.vsc.can_errors  # docs/safety.md "CAN error frames"
+        return CanLink(
+            settings.interface,
+            str(settings.channel),
+            settings.bitrate,
+            error_limit=errors.limit,
+            error_window_ms=errors.window_ms,
+            error_passive_ms=errors.passive_ms,
+        )
     assert isinstance(settings, HidLink)
     return HidLinkImpl(str(settings.hidraw))
 
@@ -43,6 +58,10 @@ def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.B
     bus: can.BusABC | None = None
     owned: can.BusABC | None = None
     if settings is not None and any(spec.kind is OutputKind.CAN for spec in config.outputs):
+        import can  # noqa: PLC0415 -- CAN only
+
+        from supervisord.links.can_link import CanLink, bus_options  # noqa: PLC0415
+
         if isinstance(link, CanLink) and settings == config.vsc.link:
             link.open()
             bus = link.bus
@@ -65,7 +84,10 @@ def build_api(config: DaemonConfig) -> ApiListener:
         )
     )
     return ApiListener(
-        server, has_key85=isinstance(config.vsc.link, SerialLink), robot=config.robot.name
+        server,
+        has_key85=isinstance(config.vsc.link, SerialLink),
+        robot=config.robot.name,
+        required={c.name: c.timeout_ms for c in config.safety.clients},
     )
 
 

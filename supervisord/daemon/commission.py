@@ -1,13 +1,13 @@
 """Commissioning a VSC: switch its key-85 watchdog on and its remote-status messages on.
 
 Both settings are stored permanently by the VSC (manual §8.3.6 and table 13), so this is a
-separate, explicit step that an admin asks for (``srcsctl commission``, safety-rules.md §5),
+separate, explicit step that an admin asks for (``srcsctl commission``, SR-5),
 never something the daemon does on its own. The procedure writes, then reads back:
 
 1. Feedback Set key 85 = 1 and Message Control 0x22 enabled every 1000 ms (the manual's
    default rate for remote status);
 2. Feedback Get key 85 every 250 ms until the VSC answers 1 (it answers a Get with a Set of the
-   same key, §8.3.8), and waits for a remote-status message to prove the second write;
+   same key, manual §8.3.8), and waits for a remote-status message to prove the second write;
 3. ends when both are confirmed or after :data:`TIMEOUT_NS`, with what it saw.
 
 Pure: the caller passes the time and the VSC's messages in and sends the frames it returns.

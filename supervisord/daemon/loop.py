@@ -3,7 +3,7 @@
 It waits on the link's descriptor, the client socket, a signal pipe and the earliest deadline
 (the safety core's, the outputs' periodic duties, a link reopen, the systemd watchdog), feeds
 what happened to the safety core, and applies each decision at once: outputs first, then the
-frames to the VSC (safety-rules.md §6). Every turn serves the stop path first: the link to the
+frames to the VSC (SR-6). Every turn serves the stop path first: the link to the
 VSC, then the core's timers (user heartbeat, link-loss and client deadlines), and only then a
 bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when the link has
 more to read or a deadline has come), so no client can push the VSC's next frame or the user
@@ -13,7 +13,7 @@ Records, journal entries and log lines leave the loop through one :class:`~super
 sink.Sink` that it never waits for (its one thread writes and fsyncs); a record is pushed to
 subscribers once the sink says it is on disk. The user heartbeat, the outputs and the link are
 served only by this loop, so if it hangs, the heartbeat stops and the VSC's key-85 watchdog
-opens its relays (safety-rules.md §5).
+opens its relays (SR-5).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
+from supervisord import __version__
 from supervisord.api.wire import record_json
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import Sink, Written
@@ -170,17 +171,32 @@ class Supervisor:
         self._client_cursor = -1  # the last client descriptor served: the next turn starts after
         self._limited_unlogged = 0
         self._next_limit_log = 0
+        self._started_ns: int | None = None  # for ``status``: uptime (issue 13)
+        self._version_due = True  # the first record of this start names the version
+        self._link_since_ns: int | None = None  # when the link last opened or broke
+        self._link_error: str | None = None  # why it last broke or failed to open
 
     def info(self) -> dict[str, object]:
-        """What ``status`` adds about the daemon itself: the link and the loop's counters."""
+        """What ``status`` adds about the daemon itself: its version and uptime, the link and
+        the loop's counters (docs/api.md "status"; issue 13)."""
         counters = self.counters
+        now = self.clock()
         return {
             "pid": os.getpid(),
+            "version": __version__,
+            "uptime_s": _seconds(now, self._started_ns),
             "link": {
                 "description": self.link.description,
                 "open": self.link.is_open,
                 "opens": counters.link_opens,
                 "open_failures": counters.link_failures,
+                # How long it has been open (or not), and the last reason it broke or could
+                # not open (kept after a reopen: a flapping link shows why).
+                "since_s": _seconds(now, self._link_since_ns),
+                "last_error": self._link_error,
+                # CAN only (null on serial and HID): error frames counted since start, each
+                # one stopping nothing (docs/safety.md "CAN error frames", issue 14).
+                "error_frames": _error_frames(self.link),
             },
             "outputs_not_acquired": sorted(self._acquiring),
             "messages": counters.messages,
@@ -196,14 +212,15 @@ class Supervisor:
     # ----------------------------------------------------------------- start and stop
 
     def start(self) -> Decision:
-        """Outputs off before anything else, then the core, then the link (safety-rules §6).
+        """Outputs off before anything else, then the core, then the link (SR-6).
 
         Returns the first decision. An output that cannot be acquired (busy, missing, not
         permitted) is ``output_fault:NAME``: the daemon stays up, STOPPED, says so, and tries
         again with a backoff, because a supervisor that exits holds nothing and reports nothing.
-        Once acquired (off), the fault's condition clears; its stop waits for a re-arm (§4).
+        Once acquired (off), the fault's condition clears; its stop waits for a re-arm (SR-4).
         """
         now = self.clock()
+        self._started_ns = self._link_since_ns = now
         self.sink = Sink(self.writer, self.journal)
         self.sink.start()
         events: list[Event] = []
@@ -335,7 +352,7 @@ class Supervisor:
             self._client_cursor = key.fd
             readable = bool(mask & selectors.EVENT_READ)
             writable = bool(mask & selectors.EVENT_WRITE)
-            # The clock read right before the read: the time this client input was read (§2).
+            # The clock read right before the read: the time this client input was read (SR-2).
             self.listener.handle(key.fd, readable, writable, self.clock(), self._feed_and_apply)
 
     def _stop_path_waits(self) -> bool:
@@ -425,6 +442,7 @@ class Supervisor:
             self.link.open()
         except LinkError as error:
             self.counters.link_failures += 1
+            self._link_error = f"cannot open: {error.reason}"
             self.backoff.failed(now)
             if self.counters.link_failures == 1 or self.counters.link_failures % 50 == 0:
                 log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
@@ -432,6 +450,7 @@ class Supervisor:
             return
         self.backoff.succeeded()
         self.counters.link_opens += 1
+        self._link_since_ns = now
         log.info("%s: open", self.link.description)
         self._apply(self._feed(LinkOpened(now)))
 
@@ -441,7 +460,7 @@ class Supervisor:
         except LinkBroken as error:
             self._link_broken(self.clock(), error.reason)
             return
-        now = self.clock()  # what was read counts as received now: right after the read (§2)
+        now = self.clock()  # what was read counts as received now: right after the read (SR-2)
         for item in received:
             if isinstance(item, Rejection | CanRejection | HidRejection):
                 self.counters.reject(
@@ -455,6 +474,7 @@ class Supervisor:
 
     def _link_broken(self, now: int, reason: str) -> None:
         log.warning("%s: broken: %s", self.link.description, reason)
+        self._link_since_ns, self._link_error = now, reason
         self.link.close()
         self.backoff.failed(now)
         self._apply(self._feed(CoreLinkBroken(now, reason)))
@@ -486,11 +506,11 @@ class Supervisor:
         return OutputReadback(now, readback.name, readback.requested, observed)
 
     def _apply(self, decision: Decision) -> None:
-        """Outputs first, then frames, then records and status (safety-rules.md §6).
+        """Outputs first, then frames, then records and status (SR-6).
 
         Setting outputs yields read-backs, which go back to the core; every decision that
         comes of them is applied in turn, so none of their records is lost (a read-back fault
-        is a stop of its own, §7)."""
+        is a stop of its own, SR-7)."""
         pending, fed = [decision], 0
         while pending:
             decision = pending.pop(0)
@@ -527,8 +547,13 @@ class Supervisor:
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
-        (outputs first, §6); the record follows on the sink's thread."""
+        (outputs first, SR-6); the record follows on the sink's thread."""
         entry = record_json(record, self.wall_clock(), self.sequence_offset)
+        if self._version_due:
+            # The first record of a start (the startup stop) names the build that made it, so
+            # a stop record says which version was running (issue 13; docs/record.md).
+            entry["version"] = __version__
+            self._version_due = False
         if self.sink is None:  # not started: nothing can be written yet
             self._recorded(Written(entry, "the record sink is not running", dropped=True))
             return
@@ -569,7 +594,7 @@ class Supervisor:
         return f"{state}: {', '.join(causes)}" if causes else state
 
     def _internal_fault(self, now: int, error: Exception) -> None:
-        """The loop failed: outputs off directly, then the ``internal`` cause (safety-rules §2)."""
+        """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
         self.counters.internal_faults += 1
         log.exception("internal fault in the main loop")
         for output in self.outputs.values():
@@ -577,3 +602,15 @@ class Supervisor:
                 output.set(False, now)
         with contextlib.suppress(Exception):
             self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))
+
+
+def _error_frames(link: Link) -> int | None:
+    """The link's count of CAN error frames, or ``None`` for a link that has none (read by
+    attribute: the CAN link, and python-can with it, is imported only for a CAN VSC)."""
+    count = getattr(link, "error_frames", None)
+    return count if isinstance(count, int) else None
+
+
+def _seconds(now: int, since: int | None) -> float | None:
+    """``now - since`` in seconds (milliseconds kept), ``None`` when ``since`` is unknown."""
+    return None if since is None else round((now - since) / 1e9, 3)

@@ -9,7 +9,7 @@ log line, it hands it to the handlers the process had. Each record's outcome com
 the loop as a :class:`Written` through :meth:`Sink.take_written`, in the order the records
 were given, and a byte on :meth:`Sink.fileno` wakes the loop for it; only then does the loop
 push the record to the API's subscribers, so a pushed record is an acknowledged one
-(safety-rules §7, the power-cut scenario of ``docs/system-tier.md``).
+(SR-7, the power-cut scenario of ``docs/system-tier.md``).
 
 A full queue never blocks the loop: the record is not written, and comes back at once as a
 :class:`Written` with ``dropped`` set (counted in ``status`` as ``record_errors`` and

@@ -1,7 +1,7 @@
 """The socket edge: follow srcsd's API and feed the model, reconnecting for ever.
 
 One thread, one connection, no ``hello``: the exporter is an anonymous client, never a
-required one, so its absence, a hang or a crash can never stop the robot (safety-rules §8;
+required one, so its absence, a hang or a crash can never stop the robot (SR-8;
 docs/api.md "hello"). It subscribes to ``state``, ``records`` and ``remote_status`` (not
 ``joystick``: 20-50 messages a second that no metric needs) and asks for ``status`` every
 ``poll`` seconds, because the loop's counters (messages, rejections, link, record errors) come

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Final, Protocol
 
 STATES: Final = ("STOPPED", "HOLD", "RUN")
-"""The supervisor's states (safety-rules §1), one ``srcs_state`` series each."""
+"""The supervisor's states (SR-1), one ``srcs_state`` series each."""
 MAX_LABEL_VALUES: Final = 64
 """Distinct values one label may take (cause, reason, output); past it, ``other``. Cause
 names carry client names (``client_lost:NAME``), which any process that may connect can
@@ -98,7 +98,7 @@ SPECS: Final = _specs(
     Spec(
         "srcs_cause_latched",
         G,
-        "1 while a stop cause waits for a re-arm (safety-rules §4)",
+        "1 while a stop cause waits for a re-arm (SR-4)",
         ("cause", "severity"),
     ),
     Spec("srcs_output_on", G, "1 while the output is on", ("output",)),
@@ -398,7 +398,7 @@ class ExporterModel:
             self.transitions[key] = self.transitions.get(key, 0) + 1
             if after == "STOPPED":
                 stop_causes = [n for n in raised if severities.get(n) == "stop"]
-                # Every stop has a stop cause raised with it (safety-rules §2); if a record
+                # Every stop has a stop cause raised with it (SR-2); if a record
                 # ever lacked one, the stop still counts.
                 for name in stop_causes or ["unknown"]:
                     label = self._cause_label(name)

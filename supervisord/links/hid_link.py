@@ -1,6 +1,6 @@
 """The USB HID link: hidraw input reports, for monitoring and teleoperation only.
 
-HID mode carries no host heartbeat (notes §4), so it is never a safety channel: with this
+HID mode carries no host heartbeat (PR-4), so it is never a safety channel: with this
 link the safety core never leaves STOPPED, and the daemon says so at start.
 """
 

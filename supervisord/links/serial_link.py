@@ -43,6 +43,15 @@ class SerialLink(Link):
             port = serial.Serial(self._path, BAUD, timeout=0, write_timeout=0, exclusive=True)
         except (serial.SerialException, OSError, ValueError) as error:
             raise LinkError(_short(error)) from error
+        try:
+            # Discard what waited in the port (tcflush TCIFLUSH): a VSC's old heartbeats must
+            # never be read as current (issue 14; SR-2.2, SR-2.11: a heartbeat counts from
+            # when it was received). pyserial 3.5 flushes in open too; this does not rely on it.
+            port.reset_input_buffer()
+        except (serial.SerialException, OSError) as error:
+            with contextlib.suppress(serial.SerialException, OSError):
+                port.close()
+            raise LinkError(_short(error)) from error
         self._port = port
         self._decoder = FrameDecoder()
 

@@ -1,4 +1,4 @@
-"""Outputs: the enable lines of the motion controllers (safety-rules §6, ``docs/outputs.md``).
+"""Outputs: the enable lines of the motion controllers (SR-6, ``docs/outputs.md``).
 
 This package imports no plugin: ``sim``, ``gpio`` (``gpiod``) and ``can`` (``python-can``) are
 imported by :func:`output_class` only when a config names them.

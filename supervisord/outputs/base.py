@@ -1,7 +1,7 @@
 """The output interface: what every enable-line driver promises, and the registry of kinds.
 
 An output gates one enable line of a motion controller (``docs/outputs.md``). The rules it
-serves are safety-rules §6:
+serves are SR-6:
 
 - it is requested in the **off** state before anything else happens (:meth:`Output.open`);
 - it is set off first on every stop, so :meth:`Output.set` is fast and synchronous, and it
@@ -48,7 +48,7 @@ class OutputKind(StrEnum):
 
 
 class OutputFault(StrEnum):
-    """Why a write did not leave the output where it was asked to be (safety-rules §6)."""
+    """Why a write did not leave the output where it was asked to be (SR-6)."""
 
     MISMATCH = "mismatch"
     """The level read back differs from the level written."""
@@ -308,7 +308,7 @@ class Output(abc.ABC):
 
     @property
     def role(self) -> OutputRole:
-        """Motion or power (safety-rules §1)."""
+        """Motion or power (SR-1)."""
         return self._spec.role
 
     @property

@@ -15,7 +15,7 @@ frame, built from a template (``docs/outputs.md`` has a worked example):
 
 On :meth:`CanEnableOutput.set` the new frame goes out at once, inside the call, and the period
 restarts from there; so on a stop the "off" frame leaves at once and keeps going out every
-period (safety-rules §6). A frame the bus refuses (bus closed, transmit buffer full) is a
+period (SR-6). A frame the bus refuses (bus closed, transmit buffer full) is a
 ``SEND_ERROR`` read-back, i.e. ``output_fault:NAME``. The bus belongs to the daemon: this
 output never shuts it down. Sends never block: a full transmit queue is a fault, not a wait.
 """

@@ -5,7 +5,7 @@
   by its name (a string) or its offset (an integer).
 - The line is requested as an output whose initial value is *inactive*: the kernel drives it
   off in the same call that grants it, so it is never on before the supervisor says so
-  (safety-rules §6). ``active_low`` makes "on" a low level; on/off below are always logical.
+  (SR-6). ``active_low`` makes "on" a low level; on/off below are always logical.
 - Every write is read back with ``get_value``; a different value is a ``MISMATCH`` and an
   OS error (line released, chip gone) an ``IO_ERROR``. Either becomes ``output_fault:NAME``.
 - Optional pulsed enable (``pulse_period_ms``): while on, the line toggles every period from

@@ -8,7 +8,7 @@ from operator import mul
 def fletcher16(data: bytes | bytearray | memoryview) -> int:
     """The manual's Fletcher-16 variant: both sums start at 0 and are kept mod 256.
 
-    Returns ``sum2 << 8 | sum1``; on the wire sum1 goes first (notes §1). Over a frame it
+    Returns ``sum2 << 8 | sum1``; on the wire sum1 goes first (PR-1). Over a frame it
     covers the header, type, length and payload.
 
     The manual's loop adds each byte to sum1 and each new sum1 to sum2. Reduction mod 256

@@ -2,8 +2,8 @@
 
 Fields that arrive from a peer keep their raw integer (a VSC may send a mode or key this
 module does not know); each enum's ``parse`` turns a raw value into a member or ``None``.
-Section numbers refer to the user manual (``srcs-user-manual.txt``) and the wire-format
-notes (``protocol-notes.md``); ``docs/protocol.md`` collects both.
+Section numbers refer to the user manual (``srcs-user-manual.txt``), IDs ``PR-N.M`` to the
+protocol requirements of ``docs/requirements.md``; ``docs/protocol.md`` collects both.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ class MessageType(_Parsable):
 
 
 class VscMode(_Parsable):
-    """VSC modes (manual §6 table 1, notes §2 "Modes"). Only OPERATIONAL allows motion."""
+    """VSC modes (manual §6 table 1, PR-2.7). Only OPERATIONAL allows motion."""
 
     SEARCHING = 0x01
     LOCAL = 0x04
@@ -59,7 +59,7 @@ class AutonomyMode(_Parsable):
 
 
 class FieldStatus(_Parsable):
-    """The 2-bit status of a joystick direction or a button (manual tables 20/22, notes §2).
+    """The 2-bit status of a joystick direction or a button (manual tables 20/22, PR-2).
 
     The manual prints these as ``0x00 0x01 0x10 0x11``; they are binary, so ERROR is 2.
     """
@@ -71,7 +71,7 @@ class FieldStatus(_Parsable):
 
 
 class EstopSource(enum.Enum):
-    """Named sources of the VSC heartbeat's e-stop word (notes §2 "VSC heartbeat")."""
+    """Named sources of the VSC heartbeat's e-stop word (PR-2.5, PR-2.6)."""
 
     REMOTE = "remote"  # bits 0-1: the remote's button, the remote off, or out of range
     WIRED = "wired"  # bits 2-3: the VSC's wired e-stop input
@@ -96,7 +96,7 @@ def estop_sources(word: int) -> frozenset[EstopSource]:
 
 
 class FeedbackKey(_Parsable):
-    """Keys of the User Feedback Set/Get messages (manual table 13, notes §2).
+    """Keys of the User Feedback Set/Get messages (manual table 13, PR-2).
 
     The manual prints key 81 twice; the second one (inactivity pause enable) is 84.
     """

@@ -1,4 +1,4 @@
-"""HRI packet framing over serial (manual §8.2, notes §1), without any I/O.
+"""HRI packet framing over serial (manual §8.2, PR-1), without any I/O.
 
 ``encode_frame`` turns a message into wire bytes. ``FrameDecoder`` is fed bytes in any
 chunking and returns, in order, the messages found and a ``Rejection`` for everything else.
@@ -16,10 +16,10 @@ from supervisord.protocol.codes import MessageType
 from supervisord.protocol.messages import Message, MessageControl
 from supervisord.protocol.payload import decode_payload, encode_payload, payload_length_ok
 
-HEADER = b"\x10\x01"  # the manual's "uint16 0x1001", sent as 10 01 (notes §1)
+HEADER = b"\x10\x01"  # the manual's "uint16 0x1001", sent as 10 01 (PR-1)
 HEADER_SIZE = 4  # header, type, length
 CHECKSUM_SIZE = 2
-MAX_PAYLOAD = 248  # notes §1: the largest payload any peer accepts
+MAX_PAYLOAD = 248  # PR-1: the largest payload any peer accepts
 MAX_FRAME = HEADER_SIZE + MAX_PAYLOAD + CHECKSUM_SIZE
 # Never switched off by us: without them the supervisor would be blind (manual §8.3.6 note).
 ESSENTIAL_TYPES = frozenset({MessageType.VSC_HEARTBEAT, MessageType.JOYSTICK})
@@ -41,7 +41,7 @@ class Rejection:
     """Bytes that were not a valid message; ``byte_count`` says how many were consumed.
 
     Unless the frame's checksum held (an unknown type), only the first header byte is
-    consumed: the decoder looks for the next header one byte on (notes §1), so a corrupt
+    consumed: the decoder looks for the next header one byte on (PR-1), so a corrupt
     length byte cannot swallow the good frames behind it.
     """
 

@@ -1,4 +1,4 @@
-"""The USB HID game-controller reports (manual §10, notes §4), without any I/O.
+"""The USB HID game-controller reports (manual §10, PR-4), without any I/O.
 
 HID mode carries no host heartbeat, so it is an input for monitoring and teleoperation and
 never a safety channel. Reports are taken without a report-id byte, as hidraw delivers them

@@ -1,4 +1,4 @@
-"""The CAN (SAE J1939 style) messages of manual §9 and notes §3, without any I/O.
+"""The CAN (SAE J1939 style) messages of manual §9 and PR-3, without any I/O.
 
 Frames are ``CanFrame`` values (29-bit id and data) that the daemon turns into python-can
 messages. Ids are matched on PGN and source address; the 3 priority bits are ignored, as
@@ -28,18 +28,18 @@ _PRIORITY_MASK = 0x1C00_0000
 _PRIORITY_3 = 0x0C00_0000
 PAD = 0xFF
 SEGMENT_TEXT_LENGTH = 6
-SEGMENT_COUNT = 3  # the VSC joins three 6-character segments into 18 characters (§9.2.7)
+SEGMENT_COUNT = 3  # the VSC joins three 6-character segments into 18 characters (manual §9.2.7)
 
 
 class CanId(enum.IntEnum):
-    """The 29-bit ids of manual table 23 and notes §3 (priority 3)."""
+    """The 29-bit ids of manual table 23 and PR-3 (priority 3)."""
 
     LEFT_BASIC = 0x0CFDD633
     LEFT_EXTENDED = 0x0CFDD733
     RIGHT_BASIC = 0x0CFDD834
     RIGHT_EXTENDED = 0x0CFDD934
     HEARTBEAT = 0x0CFDE801
-    REMOTE_STATUS = 0x0CFDE861  # not in the manual; notes §3 (a public CAN database)
+    REMOTE_STATUS = 0x0CFDE861  # not in the manual; PR-3 (a public CAN database)
     FEEDBACK_VALUE = 0x0CFDE900
     FEEDBACK_STRING = 0x0CFDEA00
 
@@ -66,7 +66,8 @@ class Hand(enum.Enum):
 
 @dataclass(frozen=True, slots=True)
 class JoystickBasic:
-    """Basic joystick message 1 (left, with the D-pad) or 2 (right, buttons 1-4) (§9.2.1/3)."""
+    """Basic joystick message 1 (left, with the D-pad) or 2 (right, buttons 1-4), manual
+    §9.2.1 and §9.2.3."""
 
     hand: Hand
     x: Axis
@@ -81,7 +82,7 @@ class JoystickBasic:
 
 @dataclass(frozen=True, slots=True)
 class JoystickExtended:
-    """Extended joystick message 1 or 2: the hand's Z axis (§9.2.2/4)."""
+    """Extended joystick message 1 or 2: the hand's Z axis (manual §9.2.2/4)."""
 
     hand: Hand
     z: Axis
@@ -89,7 +90,7 @@ class JoystickExtended:
 
 @dataclass(frozen=True, slots=True)
 class FeedbackStringSegment:
-    """One third of an 18-character feedback string, to the VSC (§9.2.7)."""
+    """One third of an 18-character feedback string, to the VSC (manual §9.2.7)."""
 
     key: int
     segment: int
@@ -112,7 +113,7 @@ CanMessage = (
 
 
 class CanRejectReason(enum.Enum):
-    UNKNOWN_ID = "unknown_id"  # not a frame of manual §9 / notes §3
+    UNKNOWN_ID = "unknown_id"  # not a frame of manual §9 / PR-3
     WRONG_LENGTH = "wrong_length"  # fewer data bytes than the message needs
     STANDARD_ID = "standard_id"  # an 11-bit frame: every SRCS message has a 29-bit id
     BAD_VALUE = "bad_value"  # a field outside what the message can mean (segment over 2)

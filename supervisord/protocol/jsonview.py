@@ -51,7 +51,7 @@ def _name(enum_type: type[VscMode | AutonomyMode | FeedbackKey | StringKey], val
 
 
 def axis_json(axis: Axis, *, j1939: bool = False) -> JsonDict:
-    """``value`` is the signed deflection, or null when the axis is invalid (notes §2)."""
+    """``value`` is the signed deflection, or null when the axis is invalid (PR-2)."""
     return {
         "value": axis.j1939_value if j1939 else axis.value,
         "magnitude": axis.magnitude,

@@ -3,7 +3,7 @@
 Every field holds what the wire carries: a peer may send a mode, key or status this code has
 no name for, and the safety logic must still see it (an unknown mode is a fault, not an error
 that hides the frame). Constructing a value that the wire cannot carry raises ``ValueError``.
-Multi-byte fields are little-endian on the wire (notes §1).
+Multi-byte fields are little-endian on the wire (PR-1).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def check_text(name: str, text: str, max_length: int) -> None:
 
 @dataclass(frozen=True, slots=True)
 class Axis:
-    """One joystick axis word (manual table 19, notes §2 "Joystick axis word").
+    """One joystick axis word (manual table 19, PR-2.1, PR-2.2).
 
     Byte 0 holds the neutral, negative and positive status in bits 0-1, 2-3, 4-5 and the two
     low magnitude bits in 6-7; byte 1 holds the eight high magnitude bits.
@@ -90,7 +90,7 @@ class Axis:
 
     @property
     def j1939_value(self) -> int | None:
-        """As ``value``, but magnitudes 1022/1023 mean error / not available (notes §2, CAN)."""
+        """As ``value``, but magnitudes 1022/1023 mean error / not available (PR-2, CAN)."""
         if self.magnitude >= 1022 and self.neutral is not FieldStatus.SET:
             return None
         return self.value
@@ -171,7 +171,7 @@ class DPad(_ButtonByte):
 
 @dataclass(frozen=True, slots=True)
 class NumberedButtons(_ButtonByte):
-    """The right hand's buttons 1-4, in wire order (notes §2 "Button byte")."""
+    """The right hand's buttons 1-4, in wire order (PR-2.4)."""
 
     button_1: FieldStatus = _UP
     button_2: FieldStatus = _UP
@@ -250,7 +250,7 @@ class Gps:
 class VscHeartbeat:
     """0x20, from the VSC: mode, autonomy mode, e-stop word (manual §8.3.3, 6 bytes).
 
-    Any non-zero e-stop word is a stop, including bits without a name (notes §2).
+    Any non-zero e-stop word is a stop, including bits without a name (PR-2).
     """
 
     TYPE: ClassVar[MessageType] = MessageType.VSC_HEARTBEAT
@@ -312,7 +312,7 @@ class MessageControl:
     """0x23, to the VSC: switch a VSC message on or off and set its interval (manual §8.3.6).
 
     Stored permanently by the VSC. The encoder refuses to switch off the heartbeat or the
-    joystick message (manual note in §8.3.6; a supervisor must never blind itself).
+    joystick message (a note in manual §8.3.6, PR-2.11; a supervisor must never blind itself).
     """
 
     TYPE: ClassVar[MessageType] = MessageType.MESSAGE_CONTROL
@@ -370,7 +370,10 @@ class FeedbackName:
 
 @dataclass(frozen=True, slots=True)
 class FeedbackGet:
-    """0x32, to the VSC: ask for a key's value; the VSC answers with ``FeedbackSet`` (§8.3.8)."""
+    """0x32, to the VSC: ask for a key's value; the VSC answers with ``FeedbackSet``.
+
+    Manual §8.3.8; PR-2.8.
+    """
 
     TYPE: ClassVar[MessageType] = MessageType.FEEDBACK_GET
 

@@ -1,4 +1,4 @@
-"""Payload bytes of each HRI packet message type, both ways (manual §8.3, notes §2).
+"""Payload bytes of each HRI packet message type, both ways (manual §8.3, PR-2).
 
 ``decode_payload`` is only called with a payload of the length ``payload_length_ok``
 accepted; with such a payload it cannot fail.

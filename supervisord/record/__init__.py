@@ -1,4 +1,4 @@
-"""The record of stops (safety-rules §7, ``docs/record.md``): an append-only JSON Lines file
+"""The record of stops (SR-7, ``docs/record.md``): an append-only JSON Lines file
 with fsync per record and crash-safe rotation, and the systemd journal."""
 
 from supervisord.record.journal import (

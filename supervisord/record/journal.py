@@ -1,4 +1,4 @@
-"""The record of stops in the systemd journal (safety-rules §7, ``docs/record.md``).
+"""The record of stops in the systemd journal (SR-7, ``docs/record.md``).
 
 Each record becomes one journal entry with a stable ``MESSAGE_ID`` per record kind (so that
 ``journalctl MESSAGE_ID=...`` and journal catalogs find them across versions) and structured
@@ -43,6 +43,8 @@ class RecordKind(StrEnum):
     """A re-arm was asked for and refused."""
     COMMISSIONED = "commissioned"
     """Key 85 was written to the VSC (``srcsctl commission``)."""
+    PROOFTEST = "prooftest"
+    """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
 
 
 MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
@@ -51,6 +53,7 @@ MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
     RecordKind.CAUSE_CLEARED: uuid.UUID("fd9e4e6d79c643eb9a534d2f8228aa89"),
     RecordKind.REARM_REFUSED: uuid.UUID("2be6051d1b7c43d0a0bfd08ad06caac8"),
     RecordKind.COMMISSIONED: uuid.UUID("bdd0782d2f2b45a3bdc4e9984db1024d"),
+    RecordKind.PROOFTEST: uuid.UUID("af4347b3c6a741d6a06ce07e58cea85a"),
 }
 """Stable journal MESSAGE_IDs, one per record kind. Never change them: operators' queries and
 alerting depend on them (``docs/record.md`` lists them)."""
@@ -92,6 +95,11 @@ def priority(record: Mapping[str, object]) -> Priority:
     commissioning (it changes the VSC for good), NOTICE otherwise (a cause cleared, any other
     change of state)."""
     kind = record_kind(record)
+    if kind is RecordKind.PROOFTEST:
+        # A failed proof test leaves the robot with one stop path: CRIT, as a stop (SR-7.3).
+        outcome = record.get("prooftest")
+        failed = not isinstance(outcome, Mapping) or outcome.get("result") != "passed"
+        return Priority.CRIT if failed else Priority.NOTICE
     if kind is RecordKind.STATE_CHANGE:
         into_stop = _is_stopped(record.get("to")) and not _is_stopped(record.get("from"))
         return Priority.CRIT if into_stop else Priority.NOTICE
@@ -125,6 +133,7 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         RecordKind.CAUSE_CLEARED: f"cause cleared: {listed} (state {after}; trigger {trigger})",
         RecordKind.REARM_REFUSED: f"re-arm refused: {reason} (state {after}; causes {listed})",
         RecordKind.COMMISSIONED: f"VSC commissioned: {reason} (trigger {trigger})",
+        RecordKind.PROOFTEST: f"VSC watchdog proof test {reason} (state {after})",
     }[kind]
     fields = [
         ("MESSAGE", message),

@@ -1,4 +1,4 @@
-"""The record of stops as an append-only JSON Lines file (safety-rules §7, ``docs/record.md``).
+"""The record of stops as an append-only JSON Lines file (SR-7, ``docs/record.md``).
 
 Writing (:class:`RecordWriter`):
 

@@ -4,7 +4,7 @@
 A command is forwarded only while the supervisor is in RUN and only when it is at most
 ``max_age_ns`` old; on leaving RUN the gate asks for one zero command at once, then forwards
 nothing until RUN comes back. It never repeats or replays a command. Like twist_mux's locks it
-is a convenience for the motion stack: the enable lines stay the real stop (safety-rules §1).
+is a convenience for the motion stack: the enable lines stay the real stop (SR-1).
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ ROW_LENGTH: Final = 20  # of 20 single-byte characters each
 
 
 class State(enum.Enum):
-    """The supervisor's state (safety-rules §1) as the ``state`` topic names it."""
+    """The supervisor's state (SR-1) as the ``state`` topic names it."""
 
     STOPPED = "STOPPED"
     HOLD = "HOLD"
@@ -54,7 +54,7 @@ def state_of(status: Mapping[str, Any] | None) -> State:
 
 def estop_of(state: State) -> bool:
     """The ``estop`` topic: true unless the supervisor is reached and in RUN or HOLD. HOLD
-    is not an e-stop (safety-rules §3: the motion outputs are off but nothing latched)."""
+    is not an e-stop (SR-3: the motion outputs are off but nothing latched)."""
     return state not in (State.RUN, State.HOLD)
 
 

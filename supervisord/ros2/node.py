@@ -4,7 +4,7 @@ Thin on purpose: field values come from :mod:`~supervisord.ros2.mapping` and
 :mod:`~supervisord.ros2.diagnostics`, the velocity gate is :mod:`~supervisord.ros2.gate`, the
 socket is :mod:`~supervisord.ros2.link`. Everything runs on one single-threaded executor, the
 heartbeat included: a stalled ROS process stops sending heartbeats, and with the bridge's name
-in ``[[clients]]`` the supervisor stops the robot (safety-rules §8).
+in ``[[clients]]`` the supervisor stops the robot (SR-8).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The book of causes: which conditions hold, which stops are latched, and what changed.
 
-Internal to the core. It enforces the latch rule of safety-rules.md §2 in one place: a stop
+Internal to the core. It enforces the latch rule of SR-2 in one place: a stop
 cause, once raised, stays in the book until :meth:`CauseBook.release_latches` (a valid re-arm,
-§4) finds its condition clear.
+SR-4) finds its condition clear.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ class CauseBook:
         self._entries: dict[Cause, _Entry] = {}
         self._changes: list[CauseChange] = []
         self.last_stop_raised_ns: int | None = None
-        """When the latest stop cause was raised: re-arms must come after it (§4 rule 2)."""
+        """When the latest stop cause was raised: re-arms must come after it (SR-4.2)."""
 
     def set(self, cause: Cause, active: bool, now: int, details: Details = ()) -> None:
         """Make ``cause``'s condition active or clear at ``now``."""
@@ -77,7 +77,7 @@ class CauseBook:
             self.set(cause, True, now, details)
 
     def release_latches(self) -> None:
-        """A valid re-arm (§4): drop every latched stop cause. Callers check that no stop
+        """A valid re-arm (SR-4): drop every latched stop cause. Callers check that no stop
         condition is active first; an active one would keep its latch."""
         for cause, entry in list(self._entries.items()):
             if entry.latched and not entry.active:
@@ -96,7 +96,7 @@ class CauseBook:
         return any(e.active and c.severity is Severity.HOLD for c, e in self._entries.items())
 
     def user_estop(self) -> bool:
-        """Whether any condition that sets the user heartbeat's e-stop byte is active (§5)."""
+        """Whether any condition that sets the user heartbeat's e-stop byte is active (SR-5)."""
         return any(e.active and c.kind.sets_user_estop for c, e in self._entries.items())
 
     def stops_clear_since(self) -> int | None:

@@ -1,7 +1,7 @@
-"""The closed vocabulary of causes: why the supervisor is not in RUN (safety-rules.md §2, §3).
+"""The closed vocabulary of causes: why the supervisor is not in RUN (SR-2, SR-3).
 
-A *stop* cause (§2) forces STOPPED and latches: once raised it stays in the record of active
-causes until a valid re-arm (§4), even after its condition has cleared. A *hold* cause (§3)
+A *stop* cause (SR-2) forces STOPPED and latches: once raised it stays in the record of active
+causes until a valid re-arm (SR-4), even after its condition has cleared. A *hold* cause (SR-3)
 forces HOLD and clears by itself. Each cause kind is an enum member; a cause that belongs to a
 client, an output or a VSC mode carries that name as its ``subject``.
 """
@@ -24,14 +24,14 @@ def make_details(pairs: Iterable[tuple[str, str]]) -> Details:
 class Severity(enum.Enum):
     """Which rule a cause falls under."""
 
-    STOP = "stop"  # safety-rules.md §2: stop category 0, outputs off at once, latches
-    HOLD = "hold"  # safety-rules.md §3: controlled stop, clears by itself
+    STOP = "stop"  # SR-2: stop category 0, outputs off at once, latches
+    HOLD = "hold"  # SR-3: controlled stop, clears by itself
 
 
 class CauseKind(enum.Enum):
-    """Every cause the supervisor can name (safety-rules.md §1-3). Values are the record names."""
+    """Every cause the supervisor can name (SR-1 to SR-3). Values are the record names."""
 
-    STARTUP = "startup"  # §1: the supervisor starts STOPPED with this cause
+    STARTUP = "startup"  # SR-1: the supervisor starts STOPPED with this cause
     VSC_ESTOP = "vsc_estop"
     VSC_LINK_LOST = "vsc_link_lost"
     TRANSPORT_FAULT = "transport_fault"
@@ -40,9 +40,10 @@ class CauseKind(enum.Enum):
     LOCAL_ESTOP = "local_estop"
     OUTPUT_FAULT = "output_fault"
     VSC_WATCHDOG_OFF = "vsc_watchdog_off"
+    VSC_WATCHDOG_UNTESTED = "vsc_watchdog_untested"  # SR-5.3: key 85 not proven to act
     INTERNAL = "internal"
-    VSC_MODE = "vsc_mode"  # §3 hold
-    CLIENT_HOLD = "client_hold"  # §3 hold
+    VSC_MODE = "vsc_mode"  # SR-3 hold
+    CLIENT_HOLD = "client_hold"  # SR-3 hold
 
     @property
     def severity(self) -> Severity:
@@ -63,9 +64,11 @@ class CauseKind(enum.Enum):
     def sets_user_estop(self) -> bool:
         """Whether an active condition of this kind sets the user heartbeat's e-stop byte.
 
-        safety-rules.md §5: every supervisor-side stop condition does. ``vsc_estop`` does not:
+        SR-5: every supervisor-side stop condition does. ``vsc_estop`` does not:
         our own byte makes the VSC raise its user e-stop bits, which would then hold the byte
-        at 1 for ever. ``startup`` is never an active condition.
+        at 1 for ever. ``startup`` is never an active condition. ``vsc_watchdog_untested``
+        does not either: the proof test needs the byte at 0 to see the VSC's own bits 6-7
+        come and go (PR-2.6, docs/safety.md "The proof test"); the outputs are off meanwhile.
         """
         return self.severity is Severity.STOP and self not in _NOT_USER_ESTOP_KINDS
 
@@ -81,7 +84,9 @@ _SUBJECT_KINDS = frozenset(
     }
 )
 _MOMENTARY_KINDS = frozenset({CauseKind.STARTUP, CauseKind.INTERNAL})
-_NOT_USER_ESTOP_KINDS = frozenset({CauseKind.VSC_ESTOP, CauseKind.STARTUP})
+_NOT_USER_ESTOP_KINDS = frozenset(
+    {CauseKind.VSC_ESTOP, CauseKind.STARTUP, CauseKind.VSC_WATCHDOG_UNTESTED}
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,7 +114,7 @@ class Cause:
 
     @property
     def name(self) -> str:
-        """The name used in records and by ``srcsctl``, as in safety-rules.md §2/§3."""
+        """The name used in records and by ``srcsctl``, as in SR-2/SR-3."""
         if self.subject is None:
             return self.kind.value
         return f"{self.kind.value}:{self.subject}"

@@ -1,9 +1,9 @@
 """The safety core's configuration as frozen values that validate themselves.
 
-Every value the rules in ``safety-rules.md`` leave to the robot's configuration arrives here,
-typed and checked once. A wrong value raises :class:`~supervisord.errors.ConfigError` naming the
-key, the value and the fix; the daemon prints it and refuses to start. The core itself never
-sees an unchecked value.
+Every value the requirements (``docs/requirements.md``) leave to the robot's configuration
+arrives here, typed and checked once. A wrong value raises
+:class:`~supervisord.errors.ConfigError` naming the key, the value and the fix; the daemon
+prints it and refuses to start. The core itself never sees an unchecked value.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError
+from supervisord.safety.prooftest import ProofTestPolicy
 
 NS_PER_MS = 1_000_000
 
@@ -23,29 +24,30 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 
 
 class Transport(enum.Enum):
-    """How the VSC is connected (protocol notes §1, §3, §4)."""
+    """How the VSC is connected (PR-1, PR-3, PR-4)."""
 
     SERIAL = "serial"  # HRI packets over USB CDC or RS-232: user heartbeat and key 85 exist
-    CAN = "can"  # J1939 frames: no user heartbeat, no key 85 (notes §3)
-    HID = "hid"  # USB game controller: never a safety channel (notes §4)
+    CAN = "can"  # J1939 frames: no user heartbeat, no key 85 (PR-3)
+    HID = "hid"  # USB game controller: never a safety channel (PR-4)
 
 
 class OutputRole(StrEnum):
-    """What an output enables (safety-rules.md §1; safety-rules call it the output's class,
-    the config file spells it ``role``)."""
+    """What an output enables (SR-1.2; the config file spells it ``role``)."""
 
     MOTION = "motion"  # on only in RUN
     POWER = "power"  # on in HOLD and RUN
 
 
 DEFAULT_VSC_TIMEOUT_MS = {Transport.SERIAL: 200, Transport.CAN: 300, Transport.HID: 200}
-"""safety-rules.md §2 ``vsc_link_lost``: 200 ms on serial, 300 ms on CAN."""
+"""SR-2.2 ``vsc_link_lost``: 200 ms on serial, 300 ms on CAN."""
 
 VSC_TIMEOUT_RANGE_MS = (50, 1000)
-HEARTBEAT_HZ_RANGE = (20, 50)  # safety-rules.md §5
+HEARTBEAT_HZ_RANGE = (20, 50)  # SR-5
 REARM_HOLD_RANGE_MS = (100, 60_000)
 CLIENT_TIMEOUT_RANGE_MS = (20, 10_000)
-DEFAULT_CLIENT_TIMEOUT_MS = 500  # safety-rules.md §8
+PROOFTEST_CLEAR_RANGE_MS = (1_000, 600_000)
+DEFAULT_PROOFTEST_CLEAR_MS = 10_000  # docs/safety.md "The proof test": a held bit's wait
+DEFAULT_CLIENT_TIMEOUT_MS = 500  # SR-8
 UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
 
 
@@ -80,7 +82,7 @@ def _unique(key: str, names: list[str]) -> None:
 
 @dataclass(frozen=True, slots=True)
 class ClientSpec:
-    """A required client of the robot's software (safety-rules.md §8).
+    """A required client of the robot's software (SR-8).
 
     Until it has connected, said hello and sent a heartbeat, and whenever it stays silent for
     ``timeout_ms``, the cause ``client_lost:NAME`` is active. With ``uid``, only a process of
@@ -105,7 +107,7 @@ class ClientSpec:
 
 @dataclass(frozen=True, slots=True)
 class OutputSpec:
-    """An enable line the supervisor gates, and its role (safety-rules.md §1, §6)."""
+    """An enable line the supervisor gates, and its role (SR-1, SR-6)."""
 
     name: str
     role: OutputRole
@@ -118,12 +120,17 @@ class OutputSpec:
 
 @dataclass(frozen=True, slots=True)
 class SafetyConfig:
-    """Everything the safety core needs to know about the robot (safety-rules.md §2-5, §8).
+    """Everything the safety core needs to know about the robot (SR-2 to SR-5, SR-8).
 
     ``vsc_timeout_ms`` left as ``None`` takes the transport's default (200 ms serial, 300 ms
     CAN; see ``effective_vsc_timeout_ms``). A CAN-connected VSC has no user watchdog, so
     ``require_watchdog`` must be set to false explicitly there: the integrator has to
-    acknowledge that the supervisor's own outputs carry the duty alone (safety-rules.md §5).
+    acknowledge that the supervisor's own outputs carry the duty alone (SR-5).
+
+    ``prooftest`` (docs/safety.md "The proof test", SR-5.3) is ``OFF`` unless given: the
+    robot's file sets it (``vsc.prooftest``, default ``block`` on serial, see
+    ``supervisord.config``); a core built in code for tests of other rules runs none. On CAN
+    and HID only ``OFF`` is accepted: there is no user heartbeat to withhold.
     """
 
     transport: Transport = Transport.SERIAL
@@ -134,6 +141,8 @@ class SafetyConfig:
     require_watchdog: bool = True
     clients: tuple[ClientSpec, ...] = ()
     outputs: tuple[OutputSpec, ...] = ()
+    prooftest: ProofTestPolicy = ProofTestPolicy.OFF
+    prooftest_clear_ms: int = DEFAULT_PROOFTEST_CLEAR_MS
 
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
@@ -150,6 +159,16 @@ class SafetyConfig:
                 'set it to false for transport "can": a CAN-connected VSC has no user '
                 "heartbeat and no key 85, so the supervisor's outputs carry the duty alone",
             )
+        if not isinstance(self.prooftest, ProofTestPolicy):
+            raise ConfigError("prooftest", self.prooftest, 'use "block", "record" or "off"')
+        if self.transport is not Transport.SERIAL and self.prooftest is not ProofTestPolicy.OFF:
+            raise ConfigError(
+                "prooftest",
+                self.prooftest.value,
+                f'set it to "off" for transport "{self.transport.value}": there is no user '
+                "heartbeat to withhold, so the VSC's watchdog cannot be proven",
+            )
+        _whole_number("prooftest_clear_ms", self.prooftest_clear_ms, PROOFTEST_CLEAR_RANGE_MS)
         if not isinstance(self.clients, tuple) or not all(
             isinstance(c, ClientSpec) for c in self.clients
         ):
@@ -183,6 +202,10 @@ class SafetyConfig:
     @property
     def rearm_hold_ns(self) -> int:
         return self.rearm_hold_ms * NS_PER_MS
+
+    @property
+    def prooftest_clear_ns(self) -> int:
+        return self.prooftest_clear_ms * NS_PER_MS
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, object], file: str | None = None) -> SafetyConfig:

@@ -11,22 +11,25 @@ Each step runs in a fixed order:
 1. time passes: deadlines up to ``now`` expire (a heartbeat that arrives exactly at its
    timeout is too late, because its deadline expires first);
 2. the event updates the facts the core tracks;
-3. every condition is recomputed from the facts (safety-rules.md §2, §3);
-4. a re-arm the event gave is checked (§4);
-5. the transition table gives the new state (§1);
+3. every condition is recomputed from the facts (SR-2, SR-3);
+4. a re-arm the event gave is checked (SR-4);
+5. the transition table gives the new state (SR-1);
 6. outputs, frames, the next deadline and the record follow.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 from supervisord.protocol.codes import FeedbackKey, VscMode, estop_sources
 from supervisord.protocol.messages import (
     FeedbackGet,
     FeedbackSet,
+    Gps,
+    Joystick,
     Message,
+    RemoteStatus,
     UserHeartbeat,
     VscHeartbeat,
 )
@@ -64,15 +67,24 @@ from supervisord.safety.events import (
     LocalEstop,
     LocalRelease,
     OutputReadback,
+    ProofTestRequest,
     Request,
     ResetRequest,
     Tick,
     VscReceived,
     is_event,
 )
+from supervisord.safety.prooftest import (
+    USER_BITS,
+    Outcome,
+    Phase,
+    ProofTest,
+    ProofTestPolicy,
+    trip_late_ns,
+)
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 
-KEY85_RETRY_NS = 1_000_000_000  # re-ask key 85 every second until it reads 1 (§5)
+KEY85_RETRY_NS = 1_000_000_000  # re-ask key 85 every second until it reads 1 (SR-5)
 IDLE_NS = 1_000_000_000  # the longest the core sleeps when nothing else is due
 TAKEOVER_DWELL_NS = 200 * NS_PER_MS
 """docs/safety.md "Re-arming" rule 4: a takeover needs the non-Operational mode reported by an
@@ -92,7 +104,11 @@ LINKED_MODES = frozenset(
     {VscMode.LOCAL, VscMode.REMOTE, VscMode.OPERATIONAL, VscMode.MENU, VscMode.PAUSE}
 )
 """Modes in which a remote is linked to the VSC; a move into one of them from Searching, an
-unknown mode or no heartbeat is a re-link that loses the remote's display (notes §2)."""
+unknown mode or no heartbeat is a re-link that loses the remote's display (PR-2)."""
+INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
+"""VSC messages that change no fact the core keeps (``_on_vsc`` ignores them): in a steady
+state they take the cheap path (docs/performance.md "The cheap path"). A whitelist, so that a
+message type added later takes the full path until someone decides otherwise."""
 
 
 def mode_name(mode: int) -> str:
@@ -127,7 +143,7 @@ class _RearmRequest:
 
 
 class SafetyCore:
-    """The supervisor's decision-making heart (safety-rules.md §1-5, §8).
+    """The supervisor's decision-making heart (SR-1 to SR-5, SR-8).
 
     ``SafetyCore(config, now)`` starts STOPPED with the cause ``startup``; :attr:`decision`
     holds the startup decision (all outputs off, the first record). Then feed every input to
@@ -155,7 +171,14 @@ class SafetyCore:
         self._key85: int | None = None
         self._next_key85_ns: int | None = None
         self._next_heartbeat_ns: int | None = None
-        # Clients (safety-rules.md §8).
+        # The proof test of the VSC's watchdog (SR-5.3; docs/safety.md "The proof test").
+        self._proof = ProofTest(
+            config.prooftest if self._serial else ProofTestPolicy.OFF,
+            config.prooftest_clear_ns,
+            trip_late_ns(config.vsc_timeout_ns),
+        )
+        self._proof_outcome: Outcome | None = None  # finished in this step, for its record
+        # Clients (SR-8).
         self._connections: dict[int, str | None] = {}
         self._by_name: dict[str, int] = {}
         self._client_beat_ns: dict[str, int | None] = {}
@@ -171,7 +194,7 @@ class SafetyCore:
         self._refusals: list[Refusal] = []
         self._rearm: Rearm | None = None
         self._note: tuple[RecordNote, str] | None = None
-        self._book.pulse(Cause(CauseKind.STARTUP), now)  # §1: start STOPPED, cause startup
+        self._book.pulse(Cause(CauseKind.STARTUP), now)  # SR-1: start STOPPED, cause startup
         self.decision: Decision = self.handle(Tick(now))
         """The latest decision returned (the startup decision until the first input)."""
 
@@ -189,17 +212,97 @@ class SafetyCore:
         """No input arrived by the deadline: let time pass to ``now``."""
         return self.handle(Tick(now))
 
+    cheap_path = True
+    """Answer inputs that cannot change a decision without the full step (``_cheap``). The
+    full path is the reference: ``tests/safety/test_cheap_path.py`` switches this off on one
+    of two cores and checks that both give the same decisions for random inputs (SR-9.4)."""
+    _steady = False  # the last step ended normally: its decision is the state's fixed point
+    _steady_estop = 0  # the user heartbeat's byte from the conditions alone (no urgent raise)
+
     def handle(self, event: Event) -> Decision:
         """Feed one input; never raises (a failure of the core stops with ``internal``)."""
         try:
-            self.decision = self._step(event)
+            cheap = self._cheap(event) if self._steady and self.cheap_path else None
+            self.decision = cheap if cheap is not None else self._step(event)
         except Exception as error:  # the core must never raise: stop with ``internal`` instead
+            self._steady = False
             self.decision = self._fail_safe(event, error)
         return self.decision
 
+    def _cheap(self, event: Event) -> Decision | None:
+        """The decision for an input that cannot change one, or ``None`` for the full step.
+
+        Cheap are a :class:`Tick`, an inert VSC message (:data:`INERT_VSC_MESSAGES`) and a VSC
+        heartbeat with the same mode and e-stop word as the last, all before the previous
+        decision's ``next_deadline`` while the last step ended normally. Before that deadline
+        no timeout expires and no frame is due (``_next_deadline`` lists every one of them),
+        so step 1 of the full path changes nothing; such an input changes no condition
+        (a heartbeat after an expired timeout clears ``vsc_link_lost`` and is not cheap)
+        (step 3), asks no re-arm (the mode did not change, step 4), so the state is the
+        previous step's fixed point (step 5) and no record or frame follows (step 6). What
+        can differ is ``now``, the facts the heartbeat moves (its time, the takeover run)
+        and so ``next_deadline``, which are computed as the full path does (SR-2.2, SR-2.11:
+        the heartbeat still restarts the link deadline). docs/performance.md "The cheap path".
+        """
+        if type(event) not in _CHEAP_EVENTS:
+            return None
+        previous = self.decision
+        now = max(self._now, event.now)
+        if now >= previous.next_deadline or not self._fixed_point():
+            return None
+        if self._proof.phase not in _SETTLED_PROOF:
+            return None  # a proof test pending or running moves with time and heartbeats
+        if isinstance(event, VscReceived):
+            message = event.message
+            if not self._link_open:
+                return None  # the full path refuses it (LINK_NOT_OPEN)
+            if isinstance(message, VscHeartbeat):
+                last = self._last_vsc_ns
+                if (
+                    last is None  # the first heartbeat clears "never seen" (SR-2.2)
+                    or now - last >= self._config.vsc_timeout_ns  # this one clears the timeout
+                    or message.mode != self._vsc_mode
+                    or message.estop != self._vsc_estop_word
+                ):
+                    return None
+            elif not isinstance(message, INERT_VSC_MESSAGES):
+                return None
+            self._now = now
+            if self._on_vsc(event, now) is not None:  # cannot happen: the mode is unchanged
+                raise AssertionError("a heartbeat of an unchanged mode asked for a re-arm")
+        else:
+            self._now = now
+        # ``replace`` keeps every other field of the previous decision as the full step would
+        # compute it again (state, causes, outputs, and any field added later).
+        return replace(
+            previous,
+            now=now,
+            heartbeat_estop=self._steady_estop,
+            next_deadline=self._next_deadline(now),
+            frames=(),
+            records=(),
+            refusals=(),
+            rearm=None,
+        )
+
     # ----------------------------------------------------------------- the step
 
+    def _fixed_point(self) -> bool:
+        """Whether the table keeps the state where it is when nothing changes (SR-1): true for
+        every legal row a step can end on; checked anyway, so that a table that ever says
+        otherwise is met by the full step, which turns its refusal into ``internal``."""
+        book = self._book
+        if book.any_latched():
+            situation = Situation.STOP
+        else:
+            situation = Situation.HOLD if book.any_hold() else Situation.CLEAR
+        try:
+            return next_state(self._state, situation) is self._state
+        except IllegalTransition:
+            return False
+
     def _step(self, event: object) -> Decision:
+        self._steady = False
         self._frames, self._refusals = [], []
         self._rearm = None
         self._note = None
@@ -217,14 +320,16 @@ class SafetyCore:
             else:
                 request = self._apply(event, now)
         self._refresh(now)  # 3. conditions
-        if request is not None:  # 4. re-arm (§4)
+        if request is not None:  # 4. re-arm (SR-4)
             refused = len(self._refusals)
             self._check_rearm(request, event, now)
             if len(self._refusals) > refused:  # every refused re-arm is recorded (docs/record.md)
                 self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)
         previous = self._state
         self._state = self._transition(now)  # 5. the table
-        return self._finish(event, previous, now)  # 6.
+        decision = self._finish(event, previous, now)  # 6.
+        self._steady = True  # a normal end: the next input may take the cheap path
+        return decision
 
     def _transition(self, now: int) -> State:
         try:
@@ -242,15 +347,18 @@ class SafetyCore:
         return Situation.HOLD if hold else Situation.CLEAR
 
     def _finish(self, event: Event, previous: State, now: int) -> Decision:
-        estop = 1 if self._book.user_estop() else 0
+        estop = self._steady_estop = 1 if self._book.user_estop() else 0
         changes = self._book.take_changes()
         raised_user_estop = any(
             ch.cause.kind.sets_user_estop for ch in changes if ch.kind is ChangeKind.RAISED
         )
         if raised_user_estop:
-            estop = 1  # a momentary cause (``internal``) still reaches the VSC once (§5)
+            estop = 1  # a momentary cause (``internal``) still reaches the VSC once (SR-5)
         self._emit_link_frames(now, estop, urgent=raised_user_estop)
         causes = self._book.snapshot()
+        proof, self._proof_outcome = self._proof_outcome, None
+        if proof is not None and self._note is None:
+            self._note = (RecordNote.PROOFTEST, proof.text)  # a record even if nothing changed
         records: tuple[Record, ...] = ()
         if changes or previous is not self._state or self._note is not None:
             note, reason = self._note or (None, "")
@@ -269,6 +377,7 @@ class SafetyCore:
                     self._rearm,
                     note,
                     reason,
+                    proof,
                 ),
             )
         return Decision(
@@ -282,6 +391,7 @@ class SafetyCore:
             records=records,
             refusals=tuple(self._refusals),
             rearm=self._rearm,
+            prooftest=self._proof.status(),
         )
 
     def _fail_safe(self, event: object, error: Exception) -> Decision:
@@ -356,6 +466,8 @@ class SafetyCore:
             reason = self._display.accept(event.message)
             if reason is not None:
                 self._refuse(reason, f"key {event.message.key}", event)
+        elif isinstance(event, ProofTestRequest):
+            self._on_prooftest(event)
         return None
 
     def _on_vsc(self, event: VscReceived, now: int) -> _RearmRequest | None:
@@ -365,13 +477,18 @@ class SafetyCore:
             return None
         request = None
         if isinstance(message, VscHeartbeat):
-            # §2: only a valid heartbeat is liveness; the daemon passes only checked frames.
+            # SR-2: only a valid heartbeat is liveness; the daemon passes only checked frames.
             previous_ns, self._last_vsc_ns = self._last_vsc_ns, now
+            if previous_ns is not None and now - previous_ns >= self._config.vsc_timeout_ns:
+                # The VSC was silent: it may have rebooted (a firmware update can reset key
+                # 85), so its watchdog is proven again (docs/safety.md "The proof test").
+                self._proof.restart()
+            self._proof.heartbeat(message.mode, message.estop, now)
             self._vsc_estop_word = message.estop
             previous_mode = self._vsc_mode
             if message.mode == VscMode.OPERATIONAL:
                 if previous_mode is not None and previous_mode != VscMode.OPERATIONAL:
-                    # §4: the operator's takeover, not Operational followed by Operational;
+                    # SR-4: the operator's takeover, not Operational followed by Operational;
                     # whether the run before it is an operator's act is rule 4 (_check_rearm).
                     request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
                 self._run = None
@@ -398,8 +515,8 @@ class SafetyCore:
         return request
 
     def _on_link_opened(self, now: int) -> None:
-        # §4: a reconnect of the VSC is a new start. Liveness starts over ("never seen since
-        # link open" counts as lost, §2) and key 85 is read back again (§5).
+        # SR-4: a reconnect of the VSC is a new start. Liveness starts over ("never seen since
+        # link open" counts as lost, SR-2) and key 85 is read back again (SR-5).
         self._link_open = True
         if self._config.transport is not Transport.HID:
             self._link_fault = None
@@ -410,6 +527,7 @@ class SafetyCore:
         self._key85 = None
         self._next_key85_ns = now if self._serial else None
         self._next_heartbeat_ns = now if self._serial else None
+        self._proof.restart()  # SR-4.4 a new start: the VSC's watchdog is proven again
 
     def _on_link_down(self, event: LinkBroken | LinkClosed) -> None:
         word = "broken" if isinstance(event, LinkBroken) else "closed"
@@ -421,6 +539,20 @@ class SafetyCore:
         self._remote_linked = False
         self._next_key85_ns = None
         self._next_heartbeat_ns = None
+        self._proof.restart()
+
+    def _on_prooftest(self, event: ProofTestRequest) -> None:
+        """``srcsctl prooftest``: admins only, only while STOPPED, one at a time."""
+        if self._proof.policy is ProofTestPolicy.OFF:
+            self._refuse(RefusalReason.PROOFTEST_NOT_POSSIBLE, self._config.transport.value, event)
+        elif not event.caller.admin:
+            self._refuse(RefusalReason.NOT_ADMIN, event.caller.name[:60], event)
+        elif self._state is not State.STOPPED:
+            self._refuse(RefusalReason.PROOFTEST_NOT_STOPPED, self._state.name, event)
+        elif self._proof.running:
+            self._refuse(RefusalReason.PROOFTEST_RUNNING, self._proof.phase.value, event)
+        else:
+            self._proof.restart()
 
     def _on_connected(self, event: ClientConnected) -> None:
         if event.connection in self._connections:
@@ -449,7 +581,7 @@ class SafetyCore:
             self._by_name[name] = connection
             self._ever_connected.add(name)
             if name in self._required:
-                # §4: a client's (re)connection is a new start; it must send a heartbeat.
+                # SR-4: a client's (re)connection is a new start; it must send a heartbeat.
                 self._client_beat_ns[name] = None
 
     def _wrong_user(self, event: ClientHello) -> bool:
@@ -473,7 +605,7 @@ class SafetyCore:
 
     def _on_request(self, event: ClientEstop | ClientHold) -> None:
         # An e-stop or hold is always honoured, even before hello: it can only add a reason
-        # to stop (§0). Before hello it is filed under "#<connection>".
+        # to stop (SR-0). Before hello it is filed under "#<connection>".
         name = self._connections.get(event.connection) or _anonymous(event.connection)
         requests = self._client_estops if isinstance(event, ClientEstop) else self._client_holds
         requests.add(name)
@@ -519,7 +651,7 @@ class SafetyCore:
                 [("requested", str(event.requested)), ("read_back", str(event.read_back))]
             )
         else:
-            # §6: the condition clears when a later read-back matches what was set.
+            # SR-6: the condition clears when a later read-back matches what was set.
             self._output_faults.pop(event.output, None)
 
     def _client_key(self, event: Event) -> tuple[str, object] | None:
@@ -537,7 +669,7 @@ class SafetyCore:
     def _over_budget(self, event: Event, now: int) -> bool:
         """A release or a reset from a client past its record budget. E-stops, holds,
         heartbeats and disconnections are never limited: they can only add a reason to stop
-        or keep a client's liveness true (§0, §8); refusing a release errs on the safe side."""
+        or keep a client's liveness true (SR-0, SR-8); refusing a release errs on the safe side."""
         if not isinstance(event, ClientRelease | LocalRelease | ResetRequest):
             return False
         client = self._client_key(event)
@@ -549,7 +681,8 @@ class SafetyCore:
     # ----------------------------------------------------------------- conditions
 
     def _refresh(self, now: int) -> None:
-        """Recompute every lasting condition from the facts (safety-rules.md §2, §3)."""
+        """Recompute every lasting condition from the facts (SR-2, SR-3)."""
+        self._advance_proof(now)
         book, config = self._book, self._config
         hid = config.transport is Transport.HID
         fault = "hid is not a safety channel" if hid else self._link_fault
@@ -586,6 +719,8 @@ class SafetyCore:
             now,
             make_details([("key85", "no answer" if self._key85 is None else str(self._key85))]),
         )
+        proof = self._proof
+        book.set(Cause(CauseKind.VSC_WATCHDOG_UNTESTED), proof.untested, now, proof.details())
         book.sync(CauseKind.CLIENT_LOST, self._lost_clients(now), now)
         book.sync(
             CauseKind.CLIENT_ESTOP,
@@ -621,6 +756,35 @@ class SafetyCore:
             now,
         )
 
+    def _advance_proof(self, now: int) -> None:
+        """Start, abort or time out the proof test (docs/safety.md "The proof test"). It runs
+        only while STOPPED, with the VSC heard and nothing of ours asking it to stop (the
+        heartbeat's byte at 0, so bits 6-7 are the watchdog's alone, PR-2.6)."""
+        proof = self._proof
+        if proof.policy is ProofTestPolicy.OFF:
+            return
+        heard = (
+            self._link_open
+            and self._last_vsc_ns is not None
+            and now - self._last_vsc_ns < self._config.vsc_timeout_ns
+        )
+        calm = not self._book.user_estop() and self._local_estop is None
+        stopped = self._state is State.STOPPED
+        if proof.running and not (heard and calm and stopped):
+            proof.abort()  # our own stop must reach the VSC at once (SR-5.2)
+        ready = heard and calm and stopped and self._vsc_estop_word & USER_BITS == 0
+        proof.advance(now, ready, self._key85, self._vsc_mode)
+        outcome = proof.take_outcome()
+        if outcome is not None:
+            self._proof_outcome = outcome
+            if not outcome.passed and proof.policy is ProofTestPolicy.RECORD:
+                # The record policy: a failure is a momentary stop, latched until a re-arm.
+                self._book.pulse(
+                    Cause(CauseKind.VSC_WATCHDOG_UNTESTED),
+                    now,
+                    make_details([("observed", outcome.text)]),
+                )
+
     def _lost_clients(self, now: int) -> dict[Cause, Details]:
         lost: dict[Cause, Details] = {}
         for name, spec in self._required.items():
@@ -639,12 +803,12 @@ class SafetyCore:
             )
         return lost
 
-    # ----------------------------------------------------------------- re-arm (§4)
+    # ----------------------------------------------------------------- re-arm (SR-4)
 
     def _check_rearm(self, request: _RearmRequest, event: Event, now: int) -> None:
         takeover = request.kind is RearmKind.TAKEOVER
         if takeover and self._state is not State.STOPPED:
-            return  # a takeover outside STOPPED is just the remote leaving pause (§3)
+            return  # a takeover outside STOPPED is just the remote leaving pause (SR-3)
         refusal = self._rearm_refusal(request, now)
         if refusal is None:
             self._quiet = None
@@ -663,7 +827,7 @@ class SafetyCore:
         self._refuse(reason, detail, event)
 
     def _rearm_refusal(self, request: _RearmRequest, now: int) -> tuple[RefusalReason, str] | None:
-        """Why the re-arm is refused, or ``None`` when every rule of §4 holds."""
+        """Why the re-arm is refused, or ``None`` when every rule of SR-4 holds."""
         takeover = request.kind is RearmKind.TAKEOVER
         if not takeover:
             caller = request.caller
@@ -721,7 +885,7 @@ class SafetyCore:
     # ----------------------------------------------------------------- outputs and frames
 
     def _levels(self, state: State) -> MappingProxyType[str, bool]:
-        # §1: motion outputs on only in RUN; power outputs on in HOLD and RUN.
+        # SR-1: motion outputs on only in RUN; power outputs on in HOLD and RUN.
         return MappingProxyType(
             {
                 o.name: state is State.RUN
@@ -734,9 +898,16 @@ class SafetyCore:
     def _emit_link_frames(self, now: int, estop: int, *, urgent: bool) -> None:
         if not self._link_open:
             return
-        if self._next_heartbeat_ns is not None and (urgent or now >= self._next_heartbeat_ns):
-            # §5: user heartbeat at heartbeat_hz; a new stop goes out at once.
+        if urgent:
+            self._proof.abort()  # a new stop reaches the VSC at once, proof test or not
+        if (
+            self._next_heartbeat_ns is not None
+            and (urgent or now >= self._next_heartbeat_ns)
+            and not self._proof.withholding  # the proof test withholds it (SR-5.3)
+        ):
+            # SR-5: user heartbeat at heartbeat_hz; a new stop goes out at once.
             self._frames.append(UserHeartbeat(estop))
+            self._proof.sent(now)
             self._next_heartbeat_ns = _after(
                 self._next_heartbeat_ns, now, self._config.heartbeat_period_ns, urgent
             )
@@ -754,12 +925,24 @@ class SafetyCore:
             if beat is not None:
                 candidates.append(beat + self._required[name].timeout_ns)
         if self._link_open:
-            for due in (self._next_heartbeat_ns, self._next_key85_ns, self._display.next_due()):
+            for due in (
+                self._next_heartbeat_ns,
+                self._next_key85_ns,
+                self._display.next_due(),
+                self._proof.next_deadline(),
+            ):
                 if due is not None:
                     candidates.append(due)
         # A deadline already passed has been acted on in this step (an expired timeout stays
         # expired until a new heartbeat), so only future times count.
         return min(t for t in candidates if t > now)
+
+
+_CHEAP_EVENTS = frozenset({Tick, VscReceived})
+"""The only event types ``SafetyCore._cheap`` considers; every other takes the full step."""
+_SETTLED_PROOF = frozenset({Phase.OFF, Phase.PASSED})
+"""Proof-test phases in which neither time nor an unchanged heartbeat moves the proof test
+(docs/safety.md "The proof test"); in any other the cheap path declines."""
 
 
 def _after(scheduled: int, now: int, period: int, restart: bool) -> int:

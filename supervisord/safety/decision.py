@@ -1,6 +1,6 @@
 """What the safety core answers: a frozen :class:`Decision` for every input.
 
-The daemon acts on a decision in this order (safety-rules.md §6): set the outputs, send the
+The daemon acts on a decision in this order (SR-6): set the outputs, send the
 frames, then write the records and report the refusals.
 """
 
@@ -13,15 +13,16 @@ from dataclasses import dataclass
 from supervisord.protocol.messages import Message
 from supervisord.safety.causes import Cause, CauseState, Severity
 from supervisord.safety.events import Caller, Event
+from supervisord.safety.prooftest import Outcome, ProofStatus
 from supervisord.safety.transitions import State
 
 
 class ChangeKind(enum.Enum):
-    """How a cause changed in one step (safety-rules.md §7: every raise and clear is recorded)."""
+    """How a cause changed in one step (SR-7: every raise and clear is recorded)."""
 
     RAISED = "raised"  # its condition became active (a momentary cause fired)
     CLEARED = "cleared"  # its condition became clear; a stop cause stays latched
-    RELEASED = "released"  # a re-arm released the latch of a clear stop cause (§4)
+    RELEASED = "released"  # a re-arm released the latch of a clear stop cause (SR-4)
     UPDATED = "updated"  # an active cause's details changed (e.g. more e-stop sources)
 
 
@@ -32,7 +33,7 @@ class CauseChange:
 
 
 class RearmKind(enum.Enum):
-    """The two re-arm paths of safety-rules.md §4."""
+    """The two re-arm paths of SR-4."""
 
     TAKEOVER = "takeover"  # the operator's takeover on the remote: not Operational -> Operational
     LOCAL_RESET = "local_reset"  # ``srcsctl reset`` by an admin, when the config allows it
@@ -41,9 +42,10 @@ class RearmKind(enum.Enum):
 class RecordNote(enum.Enum):
     """A record made for something other than a change of state or cause (docs/record.md)."""
 
-    REARM_REFUSED = "rearm_refused"  # a reset or takeover was asked for and refused (§4)
-    COMMISSIONED = "commissioned"  # key 85 was written to the VSC (§5): permanent, so recorded
-    HELLO_REFUSED = "hello_refused"  # a hello as a client bound to another user (§8)
+    REARM_REFUSED = "rearm_refused"  # a reset or takeover was asked for and refused (SR-4)
+    COMMISSIONED = "commissioned"  # key 85 was written to the VSC (SR-5): permanent, so recorded
+    HELLO_REFUSED = "hello_refused"  # a hello as a client bound to another user (SR-8)
+    PROOFTEST = "prooftest"  # a proof test of the VSC's watchdog finished (SR-5.3)
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,7 +59,7 @@ class Rearm:
 class RefusalReason(enum.Enum):
     """Why the core did not do what an input asked. The value is the text ``srcsctl`` prints."""
 
-    # Re-arm refusals (safety-rules.md §4).
+    # Re-arm refusals (SR-4).
     LOCAL_RESET_DISABLED = "local reset is not allowed by the config (local_reset = false)"
     NOT_ADMIN = "the caller is not in the admin group"
     NOT_STOPPED = "nothing to re-arm: the supervisor is not STOPPED"
@@ -81,6 +83,10 @@ class RefusalReason(enum.Enum):
     NOT_AN_EVENT = "the input is not a safety event"
     WRONG_USER = "this client name is bound to another user"
     RATE_LIMITED = "this client caused too many records in the last second; try again shortly"
+    # srcsctl prooftest (docs/safety.md "The proof test").
+    PROOFTEST_NOT_POSSIBLE = "no proof test here: the link has no user heartbeat, or it is off"
+    PROOFTEST_NOT_STOPPED = "the proof test runs only while STOPPED, never in RUN or HOLD"
+    PROOFTEST_RUNNING = "a proof test is already running"
     INTERNAL_ERROR = "the core failed on this input and stopped"
 
 
@@ -99,7 +105,7 @@ class Refusal:
 
 @dataclass(frozen=True, slots=True)
 class Record:
-    """One entry of the stop record (safety-rules.md §7) for a step that changed the state or
+    """One entry of the stop record (SR-7) for a step that changed the state or
     a cause. UTC time is stamped later by the daemon: the core has no wall clock."""
 
     sequence: int
@@ -112,6 +118,7 @@ class Record:
     rearm: Rearm | None = None
     note: RecordNote | None = None
     reason: str = ""  # what the note is about: the refusal's text, the commissioning result
+    prooftest: Outcome | None = None  # a proof test that finished with this input
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,7 +127,7 @@ class Decision:
 
     - ``state`` and ``causes`` (every active or latched cause, sorted by name).
     - ``outputs``: the level each configured output must have now (name -> on).
-    - ``heartbeat_estop``: the e-stop byte for user heartbeats (safety-rules.md §5).
+    - ``heartbeat_estop``: the e-stop byte for user heartbeats (SR-5).
     - ``next_deadline``: call ``tick`` at this monotonic time at the latest (always later
       than ``now``).
     - ``frames``: messages to send to the VSC now, in order.
@@ -138,6 +145,7 @@ class Decision:
     records: tuple[Record, ...] = ()
     refusals: tuple[Refusal, ...] = ()
     rearm: Rearm | None = None
+    prooftest: ProofStatus | None = None  # the proof test of the VSC's watchdog, for status
 
     def cause(self, name: str) -> CauseState | None:
         """The cause of that name (e.g. ``"client_lost:planner"``), or ``None``."""

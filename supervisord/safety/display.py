@@ -1,6 +1,6 @@
 """The remote's display content, kept so it can be sent again after the remote re-links.
 
-Protocol notes §2: labels and the display mode are lost when the remote restarts or re-links;
+PR-2: labels and the display mode are lost when the remote restarts or re-links;
 values go at most at 20 Hz and strings at most at 4 Hz (manual §6.5: a text row every 250 ms).
 The limits are applied per class of message, across all keys: one value frame per 50 ms and
 one string frame per 250 ms. Internal to the core.
@@ -46,7 +46,7 @@ class DisplayStore:
             self._pending_names[message.key] = message
             return None
         if message.key in _VIBRATE_KEYS:
-            if message.value != 1:  # notes §2: vibrate takes the value 1
+            if message.value != 1:  # PR-2: vibrate takes the value 1
                 return RefusalReason.DISPLAY_VALUE_OUT_OF_RANGE
             self._pending_values[message.key] = message  # momentary: not kept for re-links
             return None

@@ -1,7 +1,7 @@
 """What the daemon tells the safety core: every input is a frozen event carrying ``now``.
 
 ``now`` is the monotonic clock in integer nanoseconds (``time.monotonic_ns()`` in the daemon),
-taken when the input arrived: safety-rules.md §2 measures every deadline "from the moment the
+taken when the input arrived: SR-2 measures every deadline "from the moment the
 frame was received". The core never reads a clock of its own.
 
 Clients are named by the daemon's connection number (``connection``) until they say hello;
@@ -37,14 +37,14 @@ class Tick(_Event):
 
 @dataclass(frozen=True, slots=True)
 class VscReceived(_Event):
-    """A decoded message from the VSC that passed the checksum and length checks (§2)."""
+    """A decoded message from the VSC that passed the checksum and length checks (SR-2)."""
 
     message: Message
 
 
 @dataclass(frozen=True, slots=True)
 class LinkOpened(_Event):
-    """The port or bus to the VSC is open: a new start (safety-rules.md §4)."""
+    """The port or bus to the VSC is open: a new start (SR-4.4)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,7 +63,7 @@ class LinkClosed(_Event):
 
 @dataclass(frozen=True, slots=True)
 class ClientConnected(_Event):
-    """A client opened a connection on the local socket (safety-rules.md §8)."""
+    """A client opened a connection on the local socket (SR-8)."""
 
     connection: int
 
@@ -123,7 +123,7 @@ class ClientDisconnected(_Event):
 
 @dataclass(frozen=True, slots=True)
 class Caller:
-    """Who sent a local command, from the socket peer's credentials (safety-rules.md §8).
+    """Who sent a local command, from the socket peer's credentials (SR-8).
 
     ``admin`` is decided by the daemon (membership of the admin group).
     """
@@ -151,7 +151,7 @@ class LocalRelease(_Event):
 @dataclass(frozen=True, slots=True)
 class ResetRequest(_Event):
     """``srcsctl reset``: a local re-arm, honoured only when the config allows it and the caller
-    is an admin (safety-rules.md §4)."""
+    is an admin (SR-4)."""
 
     caller: Caller
 
@@ -188,11 +188,19 @@ class DisplayUpdate(_Event):
 class Commissioned(_Event):
     """``srcsctl commission`` ran: key 85 was written and read back (``key85``, ``None`` when the
     VSC did not answer) and remote-status messages were enabled (``remote_status``: one was
-    seen since). Stored permanently on the VSC, so it is recorded (safety-rules.md §5)."""
+    seen since). Stored permanently on the VSC, so it is recorded (SR-5)."""
 
     caller: Caller
     key85: int | None
     remote_status: bool
+
+
+@dataclass(frozen=True, slots=True)
+class ProofTestRequest(_Event):
+    """``srcsctl prooftest``: run the proof test of the VSC's watchdog again (SR-5.3; docs/
+    safety.md "The proof test"). Admins only, and only while STOPPED."""
+
+    caller: Caller
 
 
 Event = (
@@ -215,6 +223,7 @@ Event = (
     | InternalFault
     | DisplayUpdate
     | Commissioned
+    | ProofTestRequest
 )
 
 EVENT_TYPES: tuple[type, ...] = get_args(Event)

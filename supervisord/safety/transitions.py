@@ -1,4 +1,4 @@
-"""THE transition table of the supervisor (safety-rules.md §1, §4).
+"""THE transition table of the supervisor (SR-1, SR-4).
 
 The core reduces everything it knows to one :class:`Situation` and asks :func:`next_state`
 for the state that follows from the current one. Every legal move is a row of :data:`TABLE`;
@@ -16,7 +16,7 @@ from supervisord.errors import SrcsError
 
 
 class State(enum.Enum):
-    """The three states of safety-rules.md §1."""
+    """The three states of SR-1."""
 
     STOPPED = "stopped"  # a stop cause is active, or latched and not yet re-armed
     HOLD = "hold"  # no stop, but motion is not intended
@@ -26,10 +26,10 @@ class State(enum.Enum):
 class Situation(enum.Enum):
     """What the causes add up to at one moment; the ``label`` names it in the diagram."""
 
-    STOP = "stop cause active or latched"  # §2: every stop cause latches
-    REARMED_HOLD = "valid re-arm, a hold cause active"  # §4 then §3
-    REARMED_CLEAR = "valid re-arm, no hold cause"  # §4
-    HOLD = "hold cause active"  # §3
+    STOP = "stop cause active or latched"  # SR-2: every stop cause latches
+    REARMED_HOLD = "valid re-arm, a hold cause active"  # SR-4 then SR-3
+    REARMED_CLEAR = "valid re-arm, no hold cause"  # SR-4
+    HOLD = "hold cause active"  # SR-3
     CLEAR = "no stop and no hold cause"
 
     @property
@@ -44,23 +44,23 @@ class Transition:
     source: State
     situation: Situation
     target: State
-    rule: str  # the section of safety-rules.md the row implements
+    rule: str  # the requirement IDs (docs/requirements.md) the row implements
 
 
 S, H, R = State.STOPPED, State.HOLD, State.RUN
 
 TABLE: tuple[Transition, ...] = (
-    # STOPPED is left only through a valid re-arm (§4); it never ends on its own (§1).
-    Transition(S, Situation.STOP, S, "§1, §2"),
-    Transition(S, Situation.REARMED_HOLD, H, "§4"),
-    Transition(S, Situation.REARMED_CLEAR, R, "§4"),
-    # From HOLD and RUN any stop cause stops at once (§2); holds come and go by themselves (§3).
-    Transition(H, Situation.STOP, S, "§2"),
-    Transition(H, Situation.HOLD, H, "§3"),
-    Transition(H, Situation.CLEAR, R, "§3"),
-    Transition(R, Situation.STOP, S, "§2"),
-    Transition(R, Situation.HOLD, H, "§3"),
-    Transition(R, Situation.CLEAR, R, "§1"),
+    # STOPPED is left only through a valid re-arm (SR-4); it never ends on its own (SR-1.3).
+    Transition(S, Situation.STOP, S, "SR-1.3, SR-2"),
+    Transition(S, Situation.REARMED_HOLD, H, "SR-4"),
+    Transition(S, Situation.REARMED_CLEAR, R, "SR-4"),
+    # From HOLD and RUN any stop cause stops at once (SR-2); holds come and go by themselves (SR-3).
+    Transition(H, Situation.STOP, S, "SR-2"),
+    Transition(H, Situation.HOLD, H, "SR-3"),
+    Transition(H, Situation.CLEAR, R, "SR-3"),
+    Transition(R, Situation.STOP, S, "SR-2"),
+    Transition(R, Situation.HOLD, H, "SR-3"),
+    Transition(R, Situation.CLEAR, R, "SR-1.1"),
 )
 """Every legal (state, situation) -> state move. Missing pairs are illegal: STOPPED with no
 latch and no re-arm, and a re-arm outside STOPPED."""

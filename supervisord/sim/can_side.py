@@ -1,4 +1,4 @@
-"""The simulator's CAN edge: J1939 frames on any python-can interface (manual §9, notes §3).
+"""The simulator's CAN edge: J1939 frames on any python-can interface (manual §9, PR-3).
 
 ``udp_multicast`` carries frames between processes on one machine (a channel is a multicast
 group, e.g. ``239.74.163.2``); ``virtual`` only within one process, so it suits tests that
@@ -108,7 +108,9 @@ class CanSide:
     def _send(self, item: CanFrame | CanErrorFrame) -> None:
         assert self._bus is not None
         if isinstance(item, CanErrorFrame):
-            message = can.Message(is_error_frame=True, is_extended_id=True)
+            message = can.Message(
+                arbitration_id=item.classes, is_error_frame=True, is_extended_id=True
+            )
         else:
             message = can.Message(
                 arbitration_id=item.arbitration_id,
@@ -123,7 +125,7 @@ class CanSide:
     def bus_off(self, on: bool) -> None:
         """Enter bus-off (one error frame, then silence) or recover from it."""
         if on and not self.is_bus_off and self._bus is not None:
-            self._send(CanErrorFrame())
+            self._send(CanErrorFrame(0x40))  # CAN_ERR_BUSOFF, as SocketCAN reports it
         self.is_bus_off = on
 
     def unplug(self) -> None:

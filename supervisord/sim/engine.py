@@ -31,7 +31,7 @@ from supervisord.sim.model import (
 )
 from supervisord.sim.serial_side import SerialSide
 
-DEFAULT_BOOT_DELAY_S = 2.0  # the real bootloader waits one to two minutes (notes §5)
+DEFAULT_BOOT_DELAY_S = 2.0  # the real bootloader waits one to two minutes (PR-5)
 MAX_DELAY_S = 600.0
 Side = SerialSide | CanSide
 Reply = dict[str, Any]
@@ -327,7 +327,7 @@ class Simulator:
         delay = _arg(request, "delay", float, self.boot_delay)
         if not 0 <= delay <= MAX_DELAY_S:
             raise RequestError(f"reboot: delay must be 0..{MAX_DELAY_S:g} seconds")
-        # On USB the VSC leaves the bus while its bootloader runs (notes §5); on RS-232 or
+        # On USB the VSC leaves the bus while its bootloader runs (PR-5); on RS-232 or
         # CAN the line only falls silent.
         unplug = _arg(request, "unplug", bool, isinstance(self.side, SerialSide))
         self.model.reboot(now, delay)
@@ -345,6 +345,7 @@ class Simulator:
         else:
             plan = FaultPlan.from_json(_arg(request, "plan", dict))
         self.faults.set_plan(plan, now)
+        self.model.set_watchdog(plan.watchdog, plan.watchdog_late_s, now)
         self._log(f"fault plan: {plan.to_json() or 'none'}")
         return {"faults": plan.to_json()}
 

@@ -7,6 +7,11 @@ it, and tests can use it directly on frames they build.
 
 Three stages, in the order the simulator applies them:
 
+0. ``watchdog``: faults of the VSC's key-85 watchdog, applied by the model (``VscModel.
+   watchdog``): one that ignores the missing user heartbeat, one that trips late
+   (``watchdog_late_s``), one that never clears its user-timeout bit, even after a takeover;
+   and ``held``, no fault but the other reading of the manual: a bit held until the
+   operator's takeover (docs/safety.md "The proof test").
 1. ``message``: faults of the VSC's logic, on messages before encoding: a frozen heartbeat
    (the same content forever, whatever the VSC's state), mode flapping (the heartbeat's
    mode alternates with ``flap_mode``; with ``flap_heartbeats`` every change of the flapping
@@ -38,15 +43,22 @@ from supervisord.protocol.framing import HEADER_SIZE, build_frame
 from supervisord.protocol.j1939 import CanFrame
 from supervisord.protocol.messages import Message, VscHeartbeat
 
-# Types the notes list as seen from the VSC but outside the manual (notes §2): the decoder
+# Types seen from the VSC but outside the manual (PR-2.13): the decoder
 # must count and skip them.
 UNKNOWN_TYPES = (0x25, 0x26, 0x33, 0x40, 0x50, 0x90, 0xA5, 0xB1, 0xD3, 0xF7)
 UNKNOWN_CAN_ID = 0x0CFDFF42  # priority 3, a PGN the SRCS does not use
+WATCHDOG_BEHAVIOURS = ("healthy", "ignores", "late", "held", "never_clears")
+"""How the simulated VSC's key-85 watchdog behaves (``VscModel.watchdog``)."""
 
 
 @dataclass(frozen=True, slots=True)
 class CanErrorFrame:
-    """What a CAN receiver sees instead of a frame whose CRC failed."""
+    """What a CAN receiver sees instead of a frame whose CRC failed: a SocketCAN error frame
+    whose identifier holds its classes (linux/can/error.h: 0x08 protocol violation, the
+    default; 0x40 bus-off). The daemon's policy tells them apart (docs/safety.md "CAN error
+    frames")."""
+
+    classes: int = 0x08
 
 
 Item = bytes | CanFrame | CanErrorFrame
@@ -87,6 +99,8 @@ class FaultPlan:
     chunk_bytes: int = 0  # 0: whole writes
     chunk_gap_s: float = 0.0
     only_types: frozenset[int] = frozenset()
+    watchdog: str = "healthy"  # one of WATCHDOG_BEHAVIOURS
+    watchdog_late_s: float = 1.0  # with watchdog "late": the trip comes after this
 
     def __post_init__(self) -> None:
         for name in _PROBABILITIES:
@@ -104,6 +118,10 @@ class FaultPlan:
                 raise ValueError(f"{name} must be an integer {low}..{high}, not {value!r}")
         if not _integer(self.chunk_bytes) or not 0 <= self.chunk_bytes <= 4096:
             raise ValueError("chunk_bytes must be an integer 0..4096")
+        if self.watchdog not in WATCHDOG_BEHAVIOURS:
+            raise ValueError(f"watchdog must be one of {list(WATCHDOG_BEHAVIOURS)}")
+        if not _number(self.watchdog_late_s) or not 0.5 <= self.watchdog_late_s <= 60.0:
+            raise ValueError("watchdog_late_s must be 0.5..60 seconds")
         if not isinstance(self.freeze_heartbeat, bool):
             raise ValueError("freeze_heartbeat must be true or false")
         if not all(_integer(kind) and 0 <= kind <= 0xFF for kind in self.only_types):

@@ -1,4 +1,4 @@
-"""The simulated VSC and its remote as a pure state machine (manual §6, §8.3, notes §2).
+"""The simulated VSC and its remote as a pure state machine (manual §6, §8.3, PR-2).
 
 No I/O and no clock: every method that depends on time takes ``now``, monotonic seconds.
 The host's messages go in through ``handle``; ``tick`` returns what the VSC sends at
@@ -8,14 +8,20 @@ saves it when ``eeprom_version`` changes.
 
 Where the manual is silent the choices are written down here and in ``docs/simulator.md``:
 
-- E-stop word bits (notes §2 only name the pairs): 0x01 the remote's e-stop button, 0x02 no
+- E-stop word bits (PR-2 only name the pairs): 0x01 the remote's e-stop button, 0x02 no
   remote link (remote off, out of range, or the VSC still searching), 0x04 the wired input,
   0x40 the host's heartbeat asked for an e-stop, 0x80 the key-85 watchdog timed out.
 - The key-85 watchdog trips when the last user heartbeat is 500 ms old or older (age >= 0.5 s,
   inclusive). Its age is counted from the VSC's boot when no heartbeat has arrived since.
-  On CAN there is no user heartbeat (notes §3), so the watchdog never runs there.
+  On CAN there is no user heartbeat (PR-3), so the watchdog never runs there.
 - The takeover (manual §2 "protocol enforced remote takeover sequence") is refused while
   any e-stop bit is set, while a stick is deflected, outside Local/Remote/Pause, or in Menu.
+- The watchdog's behaviour is ``watchdog`` (set through the fault plan, docs/simulator.md):
+  ``healthy`` as above; ``ignores`` never trips; ``late`` trips at ``watchdog_late_s``;
+  ``held`` keeps the bit, once it tripped after a user heartbeat, until the operator's
+  takeover gesture, which clears it and leaves the remote in Local (a second takeover enters
+  Operational); ``never_clears`` keeps it until a reboot, the takeover refused. The manual
+  does not say whether the real VSC clears the bit by itself or holds it (issue 16).
 - Newer firmware reports Remote (0x06) wherever older firmware reports Local (0x04).
 """
 
@@ -228,6 +234,8 @@ class VscModel:
         self.rate_violations = 0
         self.vibration_count = 0
         self.reboots = 0
+        self.watchdog = "healthy"  # faults.WATCHDOG_BEHAVIOURS
+        self.watchdog_late_s = 1.0
         self._created = now
         self._value_times: deque[float] = deque()
         self._string_times: deque[float] = deque()
@@ -247,6 +255,7 @@ class VscModel:
         self._estop = int(EstopBit.REMOTE_LINK)
         self._last_user_heartbeat = start  # the watchdog counts from boot until one arrives
         self._user_heartbeat_seen = False
+        self._timeout_held = False  # watchdog "held" or "never_clears": the bit is kept
         self._user_request = 0
         self._due = dict.fromkeys(self.eeprom.message_control, start)
         self._outbox: list[Message] = []
@@ -261,7 +270,7 @@ class VscModel:
 
     def reboot(self, now: float, delay: float) -> None:
         """Restart the VSC: silent and deaf for ``delay`` (its bootloader), then a fresh start
-        in Searching, linking to the remote ``link_delay`` later (manual §6.7, notes §5)."""
+        in Searching, linking to the remote ``link_delay`` later (manual §6.7, PR-5.1)."""
         self.reboots += 1
         self._boot(now + delay, until=now + delay)
 
@@ -295,13 +304,13 @@ class VscModel:
                 self._count_rate(self._string_times, STRING_RATE_LIMIT * SEGMENT_COUNT, now)
                 parts = self._segments.setdefault(key, [None] * SEGMENT_COUNT)
                 parts[segment] = text
-                if segment == SEGMENT_COUNT - 1:  # §9.2.7: joined once the third arrives
+                if segment == SEGMENT_COUNT - 1:  # manual §9.2.7: joined once the third arrives
                     self._set_label(key, "".join(part or "" for part in parts))
                     del self._segments[key]
             case FeedbackGet(key=key):
                 answer = self.key_value(key)
                 if answer is None:
-                    self.ignored_messages += 1  # §8.3.8 answers only a valid key
+                    self.ignored_messages += 1  # manual §8.3.8 answers only a valid key
                 else:
                     self._outbox.append(FeedbackSet(key, answer))
             case _:
@@ -414,10 +423,10 @@ class VscModel:
             return self.joystick(now)
         if kind == MessageType.GPS:
             if not self._linked:
-                return None  # the position comes from the remote's GPS (§8.3.2)
+                return None  # the position comes from the remote's GPS (manual §8.3.2)
             return Gps(Gps.SOURCE_REMOTE, self.gps_sentence(now))
         if kind == MessageType.REMOTE_STATUS:
-            return self.remote_status  # §8.3.4: not cleared when the link drops
+            return self.remote_status  # manual §8.3.4: not cleared when the link drops
         return None
 
     def heartbeat(self, now: float) -> VscHeartbeat:
@@ -460,10 +469,10 @@ class VscModel:
         linked = self.remote_on and self._link_at is not None and now >= self._link_at
         if linked != self._linked:
             self._linked = linked
-            # Labels and display mode are lost when the remote re-links (notes §2).
+            # Labels and display mode are lost when the remote re-links (PR-2).
             self.labels.clear()
             self.display_mode = DisplayMode.GPS.value
-            self._mode = self.idle_mode  # §6.2: a new link starts in Local
+            self._mode = self.idle_mode  # manual §6.2: a new link starts in Local
             self._forced_mode = None
         keys = self.eeprom.keys
         if (
@@ -472,7 +481,7 @@ class VscModel:
             and keys[84]
             and now - self._last_activity >= (keys[80] + 1) * 60.0
         ):
-            self._mode, self._pause_reason = VscMode.PAUSE, "inactivity"  # §6.3, §6.4
+            self._mode, self._pause_reason = VscMode.PAUSE, "inactivity"  # manual §6.3, §6.4
             self._inactivity_paused_at = now
         if (
             self._inactivity_paused_at is not None
@@ -480,7 +489,7 @@ class VscModel:
             and now - self._inactivity_paused_at >= AUTO_OFF_S
         ):
             self._inactivity_paused_at = None
-            self.power(False, now)  # §6.4 AutoOffEnable: the remote switches itself off
+            self.power(False, now)  # manual §6.4 AutoOffEnable: the remote switches itself off
             return
         word = 0
         if not self._linked:
@@ -491,16 +500,32 @@ class VscModel:
             word |= EstopBit.WIRED
         if self._user_request:
             word |= EstopBit.USER_REQUEST
-        if self.watchdog_enabled and now - self._last_user_heartbeat >= WATCHDOG_S:
+        if self._watchdog_tripped(now) or self._timeout_held:
             word |= EstopBit.USER_TIMEOUT
         self._estop = int(word)
         if word and self._linked and self._mode != self.idle_mode:
-            # §6.6: "The system will always revert to Local Mode after an E-Stop".
+            # manual §6.6: "The system will always revert to Local Mode after an E-Stop".
             self._mode, self._forced_mode = self.idle_mode, None
+
+    def _watchdog_tripped(self, now: float) -> bool:
+        if not self.watchdog_enabled or self.watchdog == "ignores":
+            return False
+        limit = self.watchdog_late_s if self.watchdog == "late" else WATCHDOG_S
+        tripped = now - self._last_user_heartbeat >= limit
+        if tripped and self._user_heartbeat_seen and self.watchdog in ("held", "never_clears"):
+            self._timeout_held = True  # a trip after heartbeats were seen is kept
+        return tripped
+
+    def set_watchdog(self, behaviour: str, late_s: float, now: float) -> None:
+        """How the key-85 watchdog behaves from now on (faults.WATCHDOG_BEHAVIOURS)."""
+        self.watchdog, self.watchdog_late_s = behaviour, late_s
+        if behaviour not in ("held", "never_clears"):
+            self._timeout_held = False
+        self._update(now)
 
     @property
     def watchdog_enabled(self) -> bool:
-        """Key 85 is on and the link has a user heartbeat (serial only, notes §3)."""
+        """Key 85 is on and the link has a user heartbeat (serial only, PR-3)."""
         return self.transport == "serial" and self.eeprom.keys[85] == 1
 
     def mode(self, now: float) -> int:
@@ -565,9 +590,20 @@ class VscModel:
     def takeover(self, now: float) -> None:
         """The takeover sequence: Local (or Remote, or Pause) to Operational (manual §6.5).
 
-        Refused while any e-stop bit is set (§6.6: enables return only once the condition is
+        Refused while any e-stop bit is set (manual §6.6: enables return only once the condition is
         corrected), while a stick is deflected (no jump into motion), and from Menu."""
         self._require_link(now, "takeover")
+        if (
+            self.watchdog == "held"
+            and self._estop == EstopBit.USER_TIMEOUT
+            and self._timeout_held
+            and not self._watchdog_tripped(now)
+        ):
+            # The held bit: the gesture acknowledges it; the remote stays in Local (manual §6.6).
+            self._timeout_held = False
+            self._activity(now)
+            self._update(now)
+            return
         if self._estop:
             names = ", ".join(bit.name or "" for bit in EstopBit if self._estop & bit).lower()
             raise SimRefused(f"takeover: e-stop active ({names}); clear it first")
@@ -578,7 +614,9 @@ class VscModel:
         if mode == VscMode.OPERATIONAL:
             return
         if mode not in (self.idle_mode, VscMode.PAUSE):
-            raise SimRefused(f"takeover: not from mode {mode:#04x} (only Local or Pause, §6.5)")
+            raise SimRefused(
+                f"takeover: not from mode {mode:#04x} (only Local or Pause, manual §6.5)"
+            )
         self._activity(now)
         self._mode, self._pause_reason = VscMode.OPERATIONAL, ""
 
@@ -595,7 +633,7 @@ class VscModel:
         if mode == VscMode.PAUSE:
             return
         if mode != VscMode.OPERATIONAL:
-            raise SimRefused(f"pause: only from Operational (mode is {mode:#04x}, §6.2-6.3)")
+            raise SimRefused(f"pause: only from Operational (mode is {mode:#04x}, manual §6.2-6.3)")
         self._activity(now)
         self._mode, self._pause_reason = VscMode.PAUSE, reason
 
@@ -650,7 +688,7 @@ class VscModel:
         """Edit user value ``key`` (1-9) in the remote's menu: the VSC tells the host with a
         Feedback Set (manual §8.3.9)."""
         if self.mode(now) != VscMode.MENU:
-            raise SimRefused("edit: values are edited in Menu mode only (§8.3.9)")
+            raise SimRefused("edit: values are edited in Menu mode only (manual §8.3.9)")
         if key not in USER_VALUE_KEYS or not -32768 <= value <= 32767:
             raise SimRefused("edit: key must be 1-9 and value a 16-bit integer")
         self.values[key] = value

@@ -6,7 +6,7 @@
 
 The process is ``sys.executable -m supervisord.cli.srcsd --config FILE``, so it runs from a
 virtual environment whether or not the entry point is installed. Leaving the ``with`` block
-sends SIGTERM and waits (safety-rules.md §6: outputs off, record flushed, exit 0); a daemon
+sends SIGTERM and waits (SR-6: outputs off, record flushed, exit 0); a daemon
 that does not stop within the timeout is killed and its status is then negative.
 """
 

@@ -25,7 +25,7 @@ Debian's libfaketime), a full disk under the record (a size-limited tmpfs in a p
 namespace), a private network namespace for CAN (``NetNamespace``).
 
 Deadlines are coarse on purpose: this is a functional suite on a shared two-core machine.
-The latency the rules ask for (safety-rules §9) is measured by ``bench/``, not here.
+The latency the rules ask for (SR-9) is measured by ``bench/``, not here.
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.
-# The rules' own latencies (safety-rules §9) are the benchmarks' job, not this suite's.
+# The rules' own latencies (SR-9) are the benchmarks' job, not this suite's.
 ALLOWANCE_S = float(os.environ.get("SRCS_FAULTS_ALLOWANCE_S", "0.75"))
 
 SERIAL_BEAT_S = 0.05  # the VSC heartbeat period on serial (manual table 5: 20 Hz)
@@ -304,7 +304,7 @@ class FakeWallClock:
     The process is started with libfaketime preloaded, reading its offset from a file on every
     call (``FAKETIME_NO_CACHE``); ``jump`` rewrites the file. ``DONT_FAKE_MONOTONIC`` (and its
     newer spelling) leave ``CLOCK_MONOTONIC`` alone: it is the clock every deadline uses
-    (safety-rules §2), and the scenario checks from the stop record that it really was left
+    (SR-2), and the scenario checks from the stop record that it really was left
     alone."""
 
     def __init__(self, folder: Path) -> None:
@@ -497,7 +497,7 @@ class Robot:
 
     @property
     def vsc_timeout_s(self) -> float:
-        """The rule's default link timeout (safety-rules §2): 200 ms serial, 300 ms CAN."""
+        """The rule's default link timeout (SR-2): 200 ms serial, 300 ms CAN."""
         return 0.3 if self.transport == "can" else 0.2
 
     @property
@@ -509,7 +509,7 @@ class Robot:
         lines = ["[robot]", 'name = "fault-robot"', "[vsc]", f'transport = "{self.transport}"']
         if self.transport == "can":
             lines += ['interface = "udp_multicast"', f'channel = "{self.channel}"']
-            lines += ["require_watchdog = false"]  # there is no key 85 on CAN (§5)
+            lines += ["require_watchdog = false"]  # there is no key 85 on CAN (SR-5)
         else:
             assert self.sim.serial_path is not None
             lines += [f'port = "{self.sim.serial_path}"']
@@ -538,7 +538,7 @@ class Robot:
             self.sim.command = [*self.netns.prefix(), *self.sim.command]
         self.sim.start()
         if self.transport == "serial":
-            self.sim.control.key(85, 1)  # commissioned: the VSC watches our heartbeat (§5)
+            self.sim.control.key(85, 1)  # commissioned: the VSC watches our heartbeat (SR-5)
         self.config_path.write_text(self.config_text())
         self.watcher = OutputWatcher(list(self.output_paths.values()))
         self.start_daemon()
@@ -736,14 +736,14 @@ class Robot:
         return record
 
     def rearm(self, attempts: int = 6) -> dict[str, Any]:
-        """A valid re-arm by the operator's takeover on the remote (safety-rules §4): wait until
+        """A valid re-arm by the operator's takeover on the remote (SR-4): wait until
         no stop condition is active and the hold time has passed, make sure the VSC reports a
         mode other than Operational (a pause, if it is in Operational), then take over. Returns
         the record that ended STOPPED. A refused takeover (a condition came back) is tried
         again, up to ``attempts`` times."""
         control = self.sim.control
         for _ in range(attempts):
-            wait_until(lambda: not self.active_stops(), what="every stop condition clear (§4.1)")
+            wait_until(lambda: not self.active_stops(), what="every stop condition clear (SR-4.1)")
             sim = control.wait_for(
                 lambda s: s["linked"] and not s["booting"] and s["estop"] == 0, timeout=WAIT_S
             )
@@ -751,7 +751,7 @@ class Robot:
                 control.pause()
             elif sim["mode_name"] == "menu":
                 control.menu()
-            # the hold time, a non-Operational heartbeat seen after the last stop (§4.2), and
+            # the hold time, a non-Operational heartbeat seen after the last stop (SR-4.2), and
             # heartbeats in it spanning the takeover dwell (docs/safety.md re-arm rule 4)
             time.sleep(max(HOLD_MS / 1000, TAKEOVER_DWELL_NS / 1e9) + 2 * self.beat_s + 0.05)
             if self.active_stops():
@@ -832,7 +832,7 @@ class Robot:
         return rearm
 
     def assert_nothing_on(self, t_stop: float, rearm: dict[str, Any]) -> None:
-        """No output on between the stop and the re-arm (safety-rules §1, §4): the watcher
+        """No output on between the stop and the re-arm (SR-1, SR-4): the watcher
         saw no "on" in that time, and the daemon never left STOPPED in its records."""
         assert self.watcher is not None
         t_rearm = rearm["mono_ns"] / 1e9
@@ -906,7 +906,7 @@ class Robot:
 
     def remote_estop(self) -> Stop:
         """The operator's e-stop button on the remote: the stop the VSC reports in its next
-        heartbeat (safety-rules §2 ``vsc_estop``), at once. The button stays pressed."""
+        heartbeat (SR-2.1 ``vsc_estop``), at once. The button stays pressed."""
         t = self.now()
         self.vsc.estop()
         return self.expect_stop("vsc_estop", t, self.beat_s)

@@ -1,4 +1,4 @@
-"""Properties of the real API server under arbitrary input (issue 11: no input string can
+"""Properties of the real API server under arbitrary input (SR-8.7: no input string can
 raise): the daemon's own parts (``build_api``, ``build_supervisor``) on a real Unix socket and
 a pseudo-terminal VSC, driven turn by turn as ``srcsd`` drives them; and every push builder fed
 arbitrary VSC payloads and odd caller names, encoded as strictly as any sink encodes."""

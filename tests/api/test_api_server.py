@@ -407,7 +407,7 @@ def test_hello_rules(loop: Loop, peers: Callable[[], Peer]) -> None:
 
 
 def test_subscribers_receive_broadcasts(loop: Loop, peers: Callable[[], Peer]) -> None:
-    """Only connections subscribed to a topic receive its pushes."""
+    """SR-8.2: only connections subscribed to a topic receive its pushes."""
     watcher, other = peers(), peers()
     assert watcher.ask(loop, {"op": "subscribe", "topics": ["state", "gps"]})["ok"] is True
     assert loop.server.subscribed(Topic.STATE)

@@ -1,6 +1,6 @@
-"""The API server's limits that keep the stop path open (issue 11, docs/api.md "Limits"):
-e-stop slots past ``max_clients``, the read budget per connection and per turn, clients
-bound to a user, and the socket file of a start that failed."""
+"""The API server's limits that keep the stop path open (SR-8.4, SR-8.6, SR-10.1;
+docs/api.md "Limits"): e-stop slots past ``max_clients``, the read budget per connection and
+per turn, clients bound to a user, and the socket file of a start that failed."""
 
 from __future__ import annotations
 

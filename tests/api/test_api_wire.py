@@ -22,6 +22,7 @@ from supervisord.api.wire import (
     Hello,
     Hold,
     LineReader,
+    ProofTest,
     Release,
     Request,
     Reset,
@@ -93,6 +94,7 @@ EVERY_REQUEST: tuple[Request, ...] = (
     Vibrate(Side.LEFT),
     Reset(),
     Commission(),
+    ProofTest(),
 )
 
 

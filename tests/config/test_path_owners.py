@@ -1,4 +1,4 @@
-"""Every path in the config has one owner (issue 11 part 4; docs/configuration.md "One owner
+"""Every path in the config has one owner (SR-11.1; docs/configuration.md "One owner
 per path"): the VSC's port, every output's file or GPIO line, the record and its rotated
 files, the API socket, compared after resolving relative paths and symlinks, across all
 sections. A clash is a ConfigError naming both keys, and ``srcsd --check-config`` fails."""

@@ -1,5 +1,7 @@
 """A minimal VSC for the daemon's tests: heartbeats in a chosen mode, key 85 kept and answered
-as the manual says (§8.3.7-8.3.8), remote status once enabled by Message Control (§8.3.6).
+as the manual says (manual §8.3.7-8.3.8), remote status once enabled by Message Control (§8.3.6),
+and the key-85 watchdog: bit 7 of the e-stop word while key 85 is 1 and no user heartbeat
+came for 500 ms (manual §8.3.5), which the supervisor's proof test looks for (SR-5.3, issue 16).
 
 (The full simulated VSC with its remote is ``srcs-sim``.)"""
 
@@ -17,6 +19,7 @@ from supervisord.protocol.messages import (
     FeedbackSet,
     MessageControl,
     RemoteStatus,
+    UserHeartbeat,
     VscHeartbeat,
 )
 from supervisord.testkit.pty_port import PtyPort
@@ -39,6 +42,7 @@ class VscPeer:
         self._decoder = FrameDecoder()
         self._next = 0.0
         self._next_status = 0.0
+        self._last_user = time.monotonic()  # the watchdog counts from power-on
 
     def serve(self) -> None:
         now = time.monotonic()
@@ -51,13 +55,17 @@ class VscPeer:
             return
         if now >= self._next:
             self._next = now + 0.05
-            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, self.estop)))
+            timed_out = self.key85 == 1 and now - self._last_user >= 0.5
+            word = self.estop | (0x80 if timed_out else 0)
+            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, word)))
         if self.remote_status_ms is not None and now >= self._next_status:
             self._next_status = now + self.remote_status_ms / 1000
             self.port.write(encode_frame(RemoteStatus(80)))
 
     def _handle(self, message: object) -> None:
-        if isinstance(message, FeedbackSet) and message.key == KEY85:
+        if isinstance(message, UserHeartbeat):
+            self._last_user = time.monotonic()
+        elif isinstance(message, FeedbackSet) and message.key == KEY85:
             self.key85 = message.value
         elif message == FeedbackGet(KEY85) and self.answers_feedback:
             self.port.write(encode_frame(FeedbackSet(KEY85, self.key85)))

@@ -21,9 +21,9 @@ REQUIRED_CLIENT = '\n[[clients]]\nname = "autonomy"\ntimeout_ms = 500\n'
 
 
 def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Path) -> None:
-    """A required client's hello and heartbeats let a takeover run the robot; its silence
-    stops it; an operator's local e-stop over the socket stops it; a reset without
-    local_reset is refused with the core's reason; a state push reaches subscribers."""
+    """SR-0.2, SR-8.1, SR-8.2: a required client's hello and heartbeats let a takeover run the
+    robot; its silence stops it; an operator's local e-stop over the socket stops it; a reset
+    without local_reset is refused with the core's reason; a state push reaches subscribers."""
     (tmp_path / "robot.toml").write_text(CONFIG + REQUIRED_CLIENT)
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port)
@@ -33,8 +33,17 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
         ):
             robot.hello("autonomy")
             robot.subscribe("state")
+            deadline = time.monotonic() + 10
+            # Heartbeats at 10 Hz, VSC traffic flowing, until the proof test of the VSC's
+            # watchdog has passed (SR-5.3: it comes before any RUN, issue 16), then for
+            # longer than the re-arm hold.
+            while robot.status()["prooftest"]["phase"] != "passed":
+                assert time.monotonic() < deadline, robot.status()["prooftest"]
+                robot.heartbeat()
+                peer.serve()
+                time.sleep(0.02)
             clear = time.monotonic() + 0.4
-            while time.monotonic() < clear:  # heartbeats at 10 Hz, VSC traffic flowing
+            while time.monotonic() < clear:
                 robot.heartbeat()
                 peer.serve()
                 time.sleep(0.02)
@@ -80,7 +89,7 @@ def _active(status: dict[str, object]) -> set[str]:
 
 
 def test_commissioning_writes_key85_reads_it_back_and_records_it(tmp_path: Path) -> None:
-    """safety-rules.md §5: a VSC whose watchdog is off keeps the robot STOPPED with
+    """SR-5: a VSC whose watchdog is off keeps the robot STOPPED with
     vsc_watchdog_off; an admin's commission writes key 85 and enables remote status, the reply
     carries what was read back, the record has a ``commissioned`` entry, and the cause clears."""
     with PtyPort(tmp_path / "vsc") as port:

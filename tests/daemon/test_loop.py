@@ -223,7 +223,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
 
 def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscPeer, Path]) -> None:
     """On a stop the output is already off when its record is written: outputs first,
-    logging after (safety-rules.md §6)."""
+    logging after (SR-6.1, SR-10.2)."""
     supervisor, peer, tmp = rig
     seen: list[tuple[str, str]] = []
     supervisor.journal = lambda entry: seen.append((str(entry["to"]), level(tmp, "drive")))
@@ -335,7 +335,7 @@ class _StalledWriter(RecordWriter):
 
 
 def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: Path) -> None:
-    """Issue 11 part 1, safety-rules §5, §6, §7: while the record's disk hangs, the loop goes
+    """Issue 11 part 1, SR-5, SR-6, SR-7: while the record's disk hangs, the loop goes
     on: a remote e-stop turns the output off at once and the user heartbeat keeps its
     period; once the disk answers, every record is in the file, in order, and a clean stop
     drains them all."""
@@ -418,7 +418,7 @@ class _OrderLink(SerialLink):
 
 
 def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_path: Path) -> None:
-    """Issue 11 part 1, safety-rules §5: with forty client descriptors always ready, a turn
+    """SR-10.1: Issue 11 part 1, SR-5: with forty client descriptors always ready, a turn
     reads the VSC's frames before any client, serves only a bounded number of clients, and
     over a few turns every client gets its turn."""
     order: list[str] = []
@@ -455,7 +455,7 @@ def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_pat
 
 
 def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None:
-    """Issue 11 part 8, docs/record.md "A full disk": every record fails with ENOSPC (the
+    """SR-7.6, docs/record.md "A full disk": every record fails with ENOSPC (the
     file is /dev/full). The loop counts each failure in ``record_errors`` and raises no
     cause of its own for it; the stops the core decides still happen."""
     with PtyPort(tmp_path / "vsc") as port:
@@ -488,3 +488,55 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
             }
         finally:
             supervisor.shutdown()
+
+
+def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
+    """Issue 14, docs/safety.md "CAN error frames": isolated error frames on the VSC's CAN bus
+    stop nothing and their count shows in ``status`` (``link.error_frames``) and in
+    ``srcsctl status``; a serial link has none to count (null, and no words for it)."""
+    import can  # noqa: PLC0415 -- only this test needs python-can
+
+    from supervisord.cli.control import format_status  # noqa: PLC0415
+    from supervisord.links.can_link import CanLink  # noqa: PLC0415
+    from supervisord.safety.config import Transport  # noqa: PLC0415
+
+    with can.Bus(interface="virtual", channel="loop-errors") as vsc_bus:
+        supervisor = Supervisor(
+            SafetyConfig(
+                transport=Transport.CAN,
+                require_watchdog=False,
+                outputs=(OutputSpec("drive", OutputRole.MOTION),),
+            ),
+            CanLink("virtual", "loop-errors", 250_000),
+            [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+            None,
+        )
+        try:
+            supervisor.start()
+            assert supervisor.info()["link"]["error_frames"] == 0  # type: ignore[index]
+            for _ in range(3):
+                vsc_bus.send(can.Message(arbitration_id=0x08, data=bytes(8), is_error_frame=True))
+            end = time.monotonic() + 5
+            while supervisor.link.error_frames < 3:  # type: ignore[attr-defined]
+                assert time.monotonic() < end
+                supervisor.step()
+            info = supervisor.info()
+            assert info["link"]["error_frames"] == 3  # type: ignore[index]
+            assert supervisor.link.is_open  # counted, not a fault
+            assert "transport_fault" not in supervisor.decision.active_names  # type: ignore[union-attr]
+            text = format_status({"state": "STOPPED", "daemon": info})
+            assert "3 CAN error frames" in text
+        finally:
+            supervisor.shutdown()
+
+
+def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer, Path]) -> None:
+    """A serial link has no error frames: ``link.error_frames`` is null and ``srcsctl status``
+    does not mention them."""
+    from supervisord.cli.control import format_status  # noqa: PLC0415
+
+    supervisor, _peer, _path = rig
+    supervisor.start()
+    info = supervisor.info()
+    assert info["link"]["error_frames"] is None  # type: ignore[index]
+    assert "error frame" not in format_status({"state": "STOPPED", "daemon": info})

@@ -1,4 +1,4 @@
-"""The record sink (supervisord/daemon/sink.py): the loop's one way out for records, journal
+"""The record sink (supervisord/daemon/sink.py; SR-7.5): the loop's one way out for records, journal
 entries and log lines, a bounded queue and one owned thread (docs/record.md "How a record
 leaves the loop")."""
 

@@ -41,8 +41,8 @@ def wait(peer: VscPeer, done: Callable[[], bool], limit: float = 10.0) -> None:
 
 
 def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
-    """READY=1 comes only once the output is off; WATCHDOG=1 keeps coming; a takeover runs
-    the output; SIGTERM turns it off, flushes the record and exits 0."""
+    """SR-0.2, SR-6.5: READY=1 comes only once the output is off; WATCHDOG=1 keeps coming; a
+    takeover runs the output; SIGTERM turns it off, flushes the record and exits 0."""
     (tmp_path / "robot.toml").write_text(CONFIG)
     notify_path = tmp_path / "notify"
     with (
@@ -69,12 +69,15 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
             wait(peer, ready)
             assert (tmp_path / "drive").read_text() == "0\n"
             assert any(line.startswith("STATUS=STOPPED") for line in seen)
+            # SR-5.3: the proof test of the VSC's watchdog comes before any RUN (issue 16).
+            record = tmp_path / "stops.jsonl"
+            wait(peer, lambda: record.exists() and '"kind":"prooftest"' in record.read_text())
             pause = time.monotonic() + 0.3  # clear for longer than the 100 ms re-arm hold
             wait(peer, lambda: time.monotonic() > pause)
             peer.mode = VscMode.OPERATIONAL
             wait(peer, lambda: (tmp_path / "drive").read_text() == "1\n")
 
-            def running() -> bool:  # the output is set first, the status said after (§6)
+            def running() -> bool:  # the output is set first, the status said after (SR-6)
                 seen.extend(notifications(notify))
                 return "STATUS=RUN" in seen
 
@@ -96,13 +99,14 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
 
 
 def test_bad_config_refuses_to_start(tmp_path: Path) -> None:
-    """A configuration error names file, key and fix, and the daemon exits 1 without starting."""
+    """A configuration error names file, key and fix, and the daemon exits 78 (EX_CONFIG) without
+    starting."""
     bad = tmp_path / "bad.toml"
     bad.write_text(CONFIG.replace("hold_ms = 100", "hold_ms = 5"))
     done = subprocess.run(
         [SRCSD, "--config", str(bad)], capture_output=True, text=True, timeout=30, check=False
     )
-    assert done.returncode == 1
+    assert done.returncode == 78
     assert str(bad) in done.stderr
     assert "rearm.hold_ms" in done.stderr
 
@@ -139,7 +143,9 @@ def test_record_continues_across_restarts_and_srcsctl_log_reads_it(tmp_path: Pat
     lines = listing.stdout.splitlines()
     assert [line.split()[1] for line in lines] == [f"#{seq}" for seq in seqs]
     assert sum(" tick " in line for line in lines) == 2  # one startup record per start
-    assert "transport_fault*" in listing.stdout
+    # One marker everywhere (docs/srcsctl.md): * = condition cleared, waiting for a re-arm.
+    assert "startup*" in listing.stdout  # a pulse: raised and cleared at once
+    assert "transport_fault*" not in listing.stdout  # no VSC: still active
     filtered = subprocess.run(
         [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--cause", "transport", "--json"],
         capture_output=True,
@@ -174,10 +180,10 @@ def test_record_continues_across_restarts_and_srcsctl_log_reads_it(tmp_path: Pat
     )
     assert future.stdout == ""
     bad = subprocess.run(
-        [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--since", "yesterday"],
+        [srcsctl, "log", "--file", str(tmp_path / "stops.jsonl"), "--since", "last tuesday"],
         capture_output=True,
         text=True,
         check=False,
     )
     assert bad.returncode == 2
-    assert "not a time: 'yesterday'" in bad.stderr
+    assert "not a time: 'last tuesday'" in bad.stderr

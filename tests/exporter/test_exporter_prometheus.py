@@ -108,7 +108,7 @@ def test_srcsd_gone_is_srcs_up_zero_and_no_state(private_network: None, stack: S
     )
     robot.start_daemon()
     prom.wait_value("srcs_up", 1)
-    prom.wait_value('srcs_state{state="STOPPED"}', 1)  # a new daemon starts STOPPED (§1)
+    prom.wait_value('srcs_state{state="STOPPED"}', 1)  # a new daemon starts STOPPED (SR-1)
     prom.wait_value("srcs_daemon_restarts_total", 1)
     assert prom.value("sum(srcs_stops_total)") == stops
 

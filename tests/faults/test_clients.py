@@ -12,12 +12,12 @@ from pathlib import Path
 from supervisord.client import SupervisorClient
 from supervisord.testkit.faults import Robot, wait_until
 
-CLIENT_TIMEOUT_S = 0.5  # the required client's heartbeat deadline (safety-rules §8 default)
+CLIENT_TIMEOUT_S = 0.5  # the required client's heartbeat deadline (SR-8 default)
 MAX_CLIENTS = 16  # api.max_clients default (docs/configuration.md)
 
 
 def test_required_client_killed_is_lost_at_once(tmp_path: Path) -> None:
-    """§2 ``client_lost:NAME``, §4 "a client's reconnection is a new start": the required
+    """SR-2.4 ``client_lost:NAME``, SR-4.4 "a client's reconnection is a new start": the required
     client ``nav`` is killed (SIGKILL). Its connection ends with it: off at once. Restarted,
     it says hello and beats again; the stop stays latched until a takeover."""
     with Robot(tmp_path, clients=("nav",)) as robot:
@@ -33,7 +33,7 @@ def test_required_client_killed_is_lost_at_once(tmp_path: Path) -> None:
 
 
 def test_required_client_stopped_is_lost_after_its_timeout(tmp_path: Path) -> None:
-    """§2, §8: the required client is stopped (SIGSTOP): its connection stays open but it is
+    """SR-2, SR-8: the required client is stopped (SIGSTOP): its connection stays open but it is
     silent. Off within its 500 ms timeout. When it runs again (SIGCONT) its heartbeats clear
     the condition, and the stop stays latched until a takeover."""
     with Robot(tmp_path, clients=("nav",)) as robot:
@@ -52,7 +52,7 @@ def test_required_client_stopped_is_lost_after_its_timeout(tmp_path: Path) -> No
 
 
 def test_required_client_that_stops_reading_is_dropped_and_lost(tmp_path: Path) -> None:
-    """§8 "the supervisor never waits for a client": the required client pipelines 4096
+    """SR-8 "the supervisor never waits for a client": the required client pipelines 4096
     requests, never reads a reply and hangs (SIGSTOP). The daemon does not block on it: it
     drops the connection when its replies fill the buffer, which is ``client_lost:nav``,
     within the client's timeout at the latest; the loop carries on serving."""
@@ -70,7 +70,7 @@ def test_required_client_that_stops_reading_is_dropped_and_lost(tmp_path: Path) 
 
 
 def test_flood_on_the_socket_neither_stops_nor_starves_the_robot(tmp_path: Path) -> None:
-    """§8 limits, §2 ``local_estop``: a program writes one endless line into the socket. The
+    """SR-8 limits, SR-2.6 ``local_estop``: a program writes one endless line into the socket. The
     daemon cuts it off (``flood``) and closes it; meanwhile the required client's heartbeats
     are served and the robot keeps running. Right after, the operator's e-stop over the same
     socket stops the robot at once."""
@@ -91,7 +91,7 @@ def test_flood_on_the_socket_neither_stops_nor_starves_the_robot(tmp_path: Path)
 
 
 def test_client_estop_outlives_the_client(tmp_path: Path) -> None:
-    """§2 ``client_estop:NAME``, §8: a client (not a required one) asks for an e-stop and
+    """SR-2.5 ``client_estop:NAME``, SR-8: a client (not a required one) asks for an e-stop and
     its connection ends at once, as when it crashes. Off at once; the e-stop stays active
     after the disconnect, so no takeover helps (one seen by the daemon, the mode forced to
     Operational, is refused and recorded), until a client of the same name releases it."""
@@ -118,7 +118,7 @@ def test_client_estop_outlives_the_client(tmp_path: Path) -> None:
 def test_connections_exhausted_keep_a_dropped_client_out_and_the_robot_stopped(
     tmp_path: Path,
 ) -> None:
-    """§8 limits, §2 ``client_lost:NAME``: a program takes every free connection of the
+    """SR-8 limits, SR-2.4 ``client_lost:NAME``: a program takes every free connection of the
     socket. The robot keeps running (the required client is connected); the next connection
     is refused (``too_many_clients``). Then the required client dies: off at once, and while
     the slots stay taken it cannot come back, so the robot stays STOPPED. Once the program

@@ -1,5 +1,6 @@
 """A robot program floods the API socket with pipelined requests of every kind while the VSC
-reports an e-stop (issue 11; ``docs/faults.md``; ``docs/safety.md`` "The stop path first").
+reports an e-stop (SR-10.1, SR-7.5, SR-8.5; ``docs/faults.md``; ``docs/safety.md`` "The stop
+path first").
 
 The flood is a separate process that keeps the socket full: hold/release pairs and every
 other request a client may send, written as fast as the socket takes them, its replies read
@@ -22,7 +23,7 @@ from supervisord.safety.budget import RECORDS_PER_CLIENT
 from supervisord.testkit.faults import Robot, wait_until
 from supervisord.testkit.sim import SimControl, SimError
 
-WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (safety-rules §5, docs/faults.md)
+WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (SR-5, docs/faults.md)
 HEARTBEAT_MARGIN_S = 0.25  # "well within" the watchdog: at most half of it
 FLOOD_S = 3.0  # the flood runs this long before the e-stop
 
@@ -116,7 +117,7 @@ class HeartbeatWatch:
 
 
 def test_client_flood_neither_delays_the_estop_nor_starves_the_heartbeat(tmp_path: Path) -> None:
-    """§5, §6, §8, issue 11 part 1: while one client pipelines hold/release and every other
+    """SR-5, SR-6, SR-8, issue 11 part 1: while one client pipelines hold/release and every other
     request kind as fast as the socket takes them, the user heartbeat keeps its period well
     within the VSC's 500 ms watchdog (read on the VSC's side; the watchdog never trips), a
     remote e-stop turns every output off within the next VSC heartbeat (+ the allowance),

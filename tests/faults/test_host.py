@@ -17,7 +17,7 @@ from supervisord.testkit.faults import ALLOWANCE_S, FakeWallClock, OutputDef, Ro
 
 @pytest.mark.parametrize("jump_s", [3600, -86400], ids=["forward_1h", "back_1d"])
 def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
-    """§2 "every deadline is measured on the monotonic clock; a wall-clock jump changes
+    """SR-2.11 "every deadline is measured on the monotonic clock; a wall-clock jump changes
     nothing": the daemon's wall clock jumps an hour forward or a day back while the robot
     runs. No stop, no output off. A remote e-stop afterwards is still off at once; its record
     carries the jumped UTC time (so the daemon really saw the jump) and a monotonic time that
@@ -39,7 +39,7 @@ def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="mounting a size-limited tmpfs needs root")
 def test_full_disk_under_the_record_still_stops(tmp_path: Path) -> None:
-    """§6 "set off first on every stop, before logging or anything slower", §7: the record's
+    """SR-6.1 "set off first on every stop, before logging or anything slower", SR-7: the record's
     file system is full. A remote e-stop still turns every output off at once; the record
     that cannot be written is counted in ``status`` (``record_errors``) and logged, and it
     still reaches the API's subscribers with its cause. The daemon stays up; once there is
@@ -76,7 +76,7 @@ STUCK_OFF = (OutputDef("drive", "motion", stuck_at="off"), OutputDef("power", "p
 
 
 def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
-    """§6 "every write is read back; a mismatch is ``output_fault``": the motion line is
+    """SR-6.2 "every write is read back; a mismatch is ``output_fault``": the motion line is
     stuck off (a broken driver). A takeover re-arms; switching it on reads back off, which
     is ``output_fault:drive``: the power output, switched on with it, is off again at once
     and the robot is STOPPED with the cause latched. The motion line never read on; the
@@ -98,7 +98,7 @@ def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
 
 
 def test_output_fault_stop_is_recorded(tmp_path: Path) -> None:
-    """§7 "every change of state and every cause raised or cleared is one record": the stop
+    """SR-7.1 "every change of state and every cause raised or cleared is one record": the stop
     of ``test_output_stuck_off_is_an_output_fault`` (RUN -> STOPPED, ``output_fault:drive``
     raised) is in the stop record."""
     with Robot(tmp_path, outputs=STUCK_OFF) as robot:
@@ -110,7 +110,7 @@ def test_output_fault_stop_is_recorded(tmp_path: Path) -> None:
 
 
 def test_output_stuck_on_never_lets_the_robot_run(tmp_path: Path) -> None:
-    """§6, §4.1: the motion line is stuck on from the start (a welded contact). The read-back
+    """SR-6, SR-4.1: the motion line is stuck on from the start (a welded contact). The read-back
     of the first "off" differs: ``output_fault:drive`` from the start, a condition that stays
     active, so a takeover seen by the daemon (the mode forced to Operational: the VSC itself
     is held in e-stop by our heartbeat's byte) is refused and recorded, and the power line is

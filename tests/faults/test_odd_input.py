@@ -1,4 +1,4 @@
-"""Odd strings end to end (issue 11, "no input string can raise"; ``docs/safety.md`` "No input can
+"""Odd strings end to end (SR-8.7, "no input string can raise"; ``docs/safety.md`` "No input can
 raise"): the real ``srcsd`` against ``srcs-sim``. A request id that UTF-8
 cannot hold, other odd request lines, a user whose login name is not UTF-8 running
 ``srcsctl estop``, a GPS sentence with ``²`` where a digit belongs while a client subscribes to
@@ -89,7 +89,7 @@ ODD_LINES = [
 
 
 def test_odd_request_lines_each_get_a_reply_and_the_robot_keeps_running(tmp_path: Path) -> None:
-    """§8, §2 ``internal``: a request whose ``id`` holds a lone surrogate raised in the reply
+    """SR-8, SR-2.9 ``internal``: a request whose ``id`` holds a lone surrogate raised in the reply
     encoder (issue 11): no reply, and an ``internal`` stop. Now it and every other odd line
     (surrogates in names and ops, deep nesting, 2000 digits, 1e400, NaN, a vertical tab, a
     duplicate key, bytes that are not UTF-8) get exactly one error reply each, in order; the
@@ -158,7 +158,7 @@ needs_root = pytest.mark.skipif(
 def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
     tmp_path: Path,
 ) -> None:
-    """§2 ``local_estop``, §7 every stop recorded: a user whose login name is not UTF-8 ran
+    """SR-2.6 ``local_estop``, SR-7 every stop recorded: a user whose login name is not UTF-8 ran
     ``srcsctl estop`` (issue 11): the output went off but no stop record was written,
     ``status`` stopped answering and later records were lost (the name carried surrogates into
     the record and reply encoders). Now the e-stop answers, turns the output off, is recorded
@@ -220,7 +220,7 @@ SUPERSCRIPT_GGA = "$GPGGA,123519,4807.038,N,01131.000,E,\u00b2,08,0.9,545.4,M,46
 
 
 def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Path) -> None:
-    """§2 ``internal``, §8 pushes: a GGA sentence whose fix quality is ``²`` (``str.isdigit``
+    """SR-2.9 ``internal``, SR-8 pushes: a GGA sentence whose fix quality is ``²`` (``str.isdigit``
     takes it; ``int`` does not) raised in the NMEA parser while a client subscribed to ``gps``
     (issue 11): four ``internal`` stops in three seconds. Now the running robot keeps running,
     the subscriber gets the sentence with no fix quality, and no record raises ``internal``."""
@@ -263,10 +263,10 @@ def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Pa
 def test_config_text_no_encoder_takes_is_refused_before_start(
     tmp_path: Path, text: bytes, hint: bytes
 ) -> None:
-    """§7, §8: config values reach ``status`` and the record (the robot's name, output and client
-    names, paths in reasons): a file that is not UTF-8, or that escapes a lone surrogate, is
-    refused by ``--check-config`` (and so by the daemon at start) with the line and the fix,
-    never let into the loop."""
+    """SR-7, SR-8: config values reach ``status`` and the record (the robot's name, output and
+    client names, paths in reasons): a file that is not UTF-8, or that escapes a lone surrogate, is
+    refused by ``--check-config`` (and so by the daemon at start) with the line and the fix, never
+    let into the loop."""
     config = tmp_path / "robot.toml"
     config.write_bytes(b"[robot]\n" + text + b"\n")
     checked = subprocess.run(

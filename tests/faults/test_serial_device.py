@@ -14,18 +14,18 @@ import pytest
 
 from supervisord.testkit.faults import ALLOWANCE_S, Robot, Stop, wait_until
 
-WATCHDOG_S = 0.5  # the VSC's key-85 watchdog trips after 500 ms without our heartbeat (§5)
+WATCHDOG_S = 0.5  # the VSC's key-85 watchdog trips after 500 ms without our heartbeat (SR-5)
 
 
 @pytest.mark.parametrize("unplugged_s", [0.0, 0.5], ids=["glitch", "half_a_second"])
 def test_unplug_is_a_transport_fault_and_replug_is_a_new_start(
     tmp_path: Path, unplugged_s: float
 ) -> None:
-    """§2 ``transport_fault``, §4 "a reconnect of the VSC is a new start": the USB cable is
+    """SR-2.3 ``transport_fault``, SR-4.4 "a reconnect of the VSC is a new start": the USB cable is
     pulled (for an instant, or for half a second) while the remote is in Operational. Off at
     once; after the replug the first heartbeats still say Operational, which is no takeover,
     so the robot stays STOPPED until the operator takes over again. Key 85 is read again
-    (§5)."""
+    (SR-5)."""
     with Robot(tmp_path) as robot:
         robot.arm()
         opens = robot.counters()["link"]["opens"]
@@ -44,7 +44,7 @@ def test_unplug_is_a_transport_fault_and_replug_is_a_new_start(
 
 
 def test_vsc_reboot_over_usb_with_its_bootloader_delay(tmp_path: Path) -> None:
-    """§2, §4, §5: the VSC reboots; over USB it leaves the bus while its bootloader runs
+    """SR-2, SR-4, SR-5: the VSC reboots; over USB it leaves the bus while its bootloader runs
     (1 s here, one or two minutes on the real device), then comes back Searching with the
     remote-link e-stop bit. Off at once (``transport_fault``); the new VSC's e-stop word and
     its key 85 are checked again; a takeover after the remote links runs the robot."""
@@ -60,7 +60,7 @@ def test_vsc_reboot_over_usb_with_its_bootloader_delay(tmp_path: Path) -> None:
 
 
 def test_vsc_reboot_on_rs232_is_a_silent_line(tmp_path: Path) -> None:
-    """§2: on RS-232 the port stays while the VSC reboots; the line is silent for the
+    """SR-2: on RS-232 the port stays while the VSC reboots; the line is silent for the
     bootloader's second (``vsc_link_lost`` within the timeout), then the VSC reports
     Searching with its remote-link e-stop bit (``vsc_estop``, source ``remote``)."""
     with Robot(tmp_path, boot_delay=1.0) as robot:
@@ -75,7 +75,7 @@ def test_vsc_reboot_on_rs232_is_a_silent_line(tmp_path: Path) -> None:
 
 
 def test_replacement_vsc_without_its_watchdog_cannot_be_rearmed(tmp_path: Path) -> None:
-    """§5: after a reconnect key 85 is read back; a VSC that comes back with it off (a
+    """SR-5: after a reconnect key 85 is read back; a VSC that comes back with it off (a
     replacement never commissioned) keeps the robot STOPPED with ``vsc_watchdog_off``, and
     our heartbeat's e-stop byte holds the VSC in e-stop too. A takeover seen by the daemon
     (the mode forced to Operational) is refused and recorded. Once key 85 reads 1 (re-read
@@ -99,13 +99,16 @@ def test_replacement_vsc_without_its_watchdog_cannot_be_rearmed(tmp_path: Path) 
         assert "vsc_watchdog_off" in refused[0]["reason"]
         assert robot.watcher is not None
         assert robot.watcher.ons_between(t0, robot.now()) == []
+        # The forced mode is a test lever that outlasts an e-stop; a remote action ends it, so
+        # that the proof test's trip returns the VSC to Local as a real one does (manual §6.6).
+        robot.vsc.pause()
         robot.vsc.key(85, 1)
-        wait_until(lambda: not robot.active_stops(), what="key 85 read back as 1")
+        wait_until(lambda: not robot.active_stops(), what="key 85 read back as 1, then proven")
         robot.recover(stop)
 
 
 def test_hung_daemon_lets_the_vsc_stop_and_wakes_as_an_internal_fault(tmp_path: Path) -> None:
-    """§5 "if the loop hangs, the heartbeat must stop", §2 ``internal``: the daemon is
+    """SR-5.1 "if the loop hangs, the heartbeat must stop", SR-2.9 ``internal``: the daemon is
     stopped (SIGSTOP) in RUN. It can drive nothing now, so the VSC's own watchdog must open
     its relays: its e-stop word shows the user timeout within 500 ms. When the daemon runs
     again it finds its loop overran: off at once, cause ``internal``."""
@@ -129,11 +132,11 @@ def test_hung_daemon_lets_the_vsc_stop_and_wakes_as_an_internal_fault(tmp_path: 
 
 
 def test_killed_daemon_restarts_stopped_and_needs_a_takeover(tmp_path: Path) -> None:
-    """§4 "a restart of the supervisor is a new start", §5, §6: the daemon is killed (SIGKILL)
-    in RUN. The VSC's watchdog opens its relays within 500 ms (a crash releases the lines;
-    the simulated file cannot, see docs/faults.md). The restarted daemon sets every output
-    off before its socket is up, stays STOPPED with ``startup`` while the remote is still
-    Operational, and runs only after a new takeover."""
+    """SR-4.4 "a restart of the supervisor is a new start", SR-5, SR-6: the daemon is killed
+    (SIGKILL) in RUN. The VSC's watchdog opens its relays within 500 ms (a crash releases the lines;
+    the simulated file cannot, see docs/faults.md). The restarted daemon sets every output off
+    before its socket is up, stays STOPPED with ``startup`` while the remote is still Operational,
+    and runs only after a new takeover."""
     with Robot(tmp_path) as robot:
         robot.arm()
         assert robot.daemon is not None
@@ -158,7 +161,7 @@ def test_killed_daemon_restarts_stopped_and_needs_a_takeover(tmp_path: Path) -> 
 
 
 def test_local_estop_stops_and_reaches_the_vsc(tmp_path: Path) -> None:
-    """§2 ``local_estop``, §5: the operator runs ``srcsctl estop`` on the vehicle computer.
+    """SR-2.6 ``local_estop``, SR-5: the operator runs ``srcsctl estop`` on the vehicle computer.
     Off at once (before srcsctl has its answer); our heartbeat's e-stop byte is 1 while it
     is active, so the VSC's own relays open too (its word shows the user request);
     ``srcsctl release`` returns the byte to 0 so the operator can take over from the

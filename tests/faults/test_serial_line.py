@@ -1,6 +1,6 @@
 """Faults of the serial line and of the VSC's own messages, made by ``srcs-sim`` on a real
-pty, against the real ``srcsd``. Each scenario: the robot runs, the fault comes, the promise
-of safety-rules.md holds, the fault is cleared, a valid takeover runs the robot again.
+pty, against the real ``srcsd``. Each scenario: the robot runs, the fault comes, the requirement
+of docs/requirements.md holds, the fault is cleared, a valid takeover runs the robot again.
 ``docs/faults.md`` lists them all."""
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ HEARTBEAT = 0x20  # the VSC heartbeat's message type (manual §8.3.3)
 def test_heartbeats_that_do_not_arrive_whole_are_a_lost_link(
     tmp_path: Path, fault: dict[str, float], rejection: str | None
 ) -> None:
-    """§2 ``vsc_link_lost``: only a frame that passes the checksum and length checks counts as
-    a heartbeat. Heartbeats dropped, corrupted (one byte, so the checksum must catch it) or
-    of a wrong length, while the joystick frames keep flowing: off within ``vsc_timeout``."""
+    """SR-2.2 ``vsc_link_lost``, SR-2.10: only a frame that passes the checksum and length checks
+    counts as a heartbeat. Heartbeats dropped, corrupted (one byte, so the checksum must catch it)
+    or of a wrong length, while the joystick frames keep flowing: off within ``vsc_timeout``."""
     with Robot(tmp_path) as robot:
         robot.arm()
         before = robot.counters()["rejections"]
@@ -46,7 +46,7 @@ def test_heartbeats_that_do_not_arrive_whole_are_a_lost_link(
 def test_heartbeats_delayed_past_the_timeout_are_a_lost_link_that_stays_latched(
     tmp_path: Path,
 ) -> None:
-    """§2, §4: every heartbeat held back 400 ms (twice the timeout): a gap of 400 ms is a
+    """SR-2, SR-4: every heartbeat held back 400 ms (twice the timeout): a gap of 400 ms is a
     lost link; when the late heartbeats flow again the condition clears but the stop stays
     latched: STOPPED until a takeover."""
     with Robot(tmp_path) as robot:
@@ -76,9 +76,9 @@ def test_heartbeats_delayed_past_the_timeout_are_a_lost_link_that_stays_latched(
 def test_noisy_line_keeps_running_and_still_carries_the_estop(
     tmp_path: Path, fault: dict[str, float], rejection: str | None
 ) -> None:
-    """§2: garbage bursts before every frame, a valid frame of an unknown type before every
+    """SR-2: garbage bursts before every frame, a valid frame of an unknown type before every
     frame, every frame twice, or frames swapped with the next one. None of these loses a
-    heartbeat (the decoder resynchronises one byte on, notes §1), so the robot keeps running;
+    heartbeat (the decoder resynchronises one byte on, PR-1), so the robot keeps running;
     and the remote's e-stop still gets through at once (``vsc_estop``)."""
     with Robot(tmp_path) as robot:
         robot.arm()
@@ -95,7 +95,7 @@ def test_noisy_line_keeps_running_and_still_carries_the_estop(
 
 
 def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
-    """§4.2: the VSC's logic hangs and repeats one heartbeat (Operational, no e-stop) for
+    """SR-4.2: the VSC's logic hangs and repeats one heartbeat (Operational, no e-stop) for
     ever. A stop raised on our side (the operator's local e-stop) turns the outputs off at
     once; after its release the frozen heartbeat never shows the non-Operational mode a
     takeover needs, so the robot stays STOPPED whatever the remote does."""
@@ -119,7 +119,7 @@ def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
 
 
 def test_mode_flapping_holds_motion_and_keeps_power(tmp_path: Path) -> None:
-    """§3 ``vsc_mode``: the heartbeat's mode flaps between Operational and Pause every
+    """SR-3.1 ``vsc_mode``: the heartbeat's mode flaps between Operational and Pause every
     100 ms. The motion output follows it off at once each time (a hold, a controlled stop);
     the power output stays on (HOLD, not STOPPED); the robot runs again by itself once the
     mode stays Operational (holds clear by themselves)."""
@@ -144,7 +144,7 @@ def test_mode_flapping_holds_motion_and_keeps_power(tmp_path: Path) -> None:
 
 
 def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:
-    """§3: a VSC mode no table names (0x42) is a hold, ``vsc_mode:unknown_0x42``: motion off
+    """SR-3: a VSC mode no table names (0x42) is a hold, ``vsc_mode:unknown_0x42``: motion off
     at once, power on; Operational again runs again."""
     with Robot(tmp_path) as robot:
         robot.arm()
@@ -163,7 +163,7 @@ def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:
 
 
 def test_slow_partial_writes_keep_running_and_carry_the_estop(tmp_path: Path) -> None:
-    """§2: the VSC writes 8 bytes at a time every 2 ms, so every frame is split across reads;
+    """SR-2: the VSC writes 8 bytes at a time every 2 ms, so every frame is split across reads;
     the frames are reassembled, the robot keeps running, the e-stop gets through."""
     with Robot(tmp_path) as robot:
         robot.arm()
@@ -176,7 +176,7 @@ def test_slow_partial_writes_keep_running_and_carry_the_estop(tmp_path: Path) ->
 
 
 def test_a_line_too_slow_for_the_traffic_is_a_lost_link(tmp_path: Path) -> None:
-    """§2: one byte every 10 ms (a tenth of the traffic): whole heartbeats come seconds
+    """SR-2: one byte every 10 ms (a tenth of the traffic): whole heartbeats come seconds
     apart, which is a lost link within ``vsc_timeout``."""
     with Robot(tmp_path) as robot:
         robot.arm()
@@ -189,7 +189,7 @@ def test_a_line_too_slow_for_the_traffic_is_a_lost_link(tmp_path: Path) -> None:
 
 
 def test_silent_vsc_is_a_lost_link_and_we_ask_it_to_stop(tmp_path: Path) -> None:
-    """§2 ``vsc_link_lost`` and §5: the VSC falls silent with its port open (an RS-232 cable
+    """SR-2.2 ``vsc_link_lost`` and SR-5: the VSC falls silent with its port open (an RS-232 cable
     cut on its transmit line). Outputs off within ``vsc_timeout``; our heartbeat's e-stop
     byte goes to 1, so the VSC (which still hears us) opens its own relays too."""
     with Robot(tmp_path) as robot:

@@ -1,4 +1,4 @@
-"""The client socket cannot shut out a stop, nor lend a required client's name (issue 11,
+"""The client socket cannot shut out a stop, nor lend a required client's name (SR-8.4, SR-8.6;
 ``docs/safety.md`` "The client socket cannot shut out a stop" and "Clients bound to a
 user"): the real ``srcsd`` against ``srcs-sim``, with hostile programs that are members of the
 socket's group (they run as ``nobody``, in the group ``nogroup`` the socket belongs to)."""
@@ -132,7 +132,7 @@ def srcsctl(path: Path, *args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_operator_estop_gets_through_every_slot_held_and_churn(shared_dir: Path) -> None:
-    """§2 ``local_estop``, §8 limits: a program in the socket's group holds every ordinary
+    """SR-2.6 ``local_estop``, SR-8 limits: a program in the socket's group holds every ordinary
     slot (16 idle connections, re-opened when closed) while four others connect and
     disconnect as fast as they can. ``srcsctl status`` answers every time, and ``srcsctl
     estop`` succeeds at once: every output goes off and the stop is recorded. Once the
@@ -159,7 +159,7 @@ def test_operator_estop_gets_through_every_slot_held_and_churn(shared_dir: Path)
             print(f"srcsctl estop under churn: {took:.2f} s, interpreter start included")
             assert estop.returncode == 0, estop.stderr
             assert "estop (local): done; the supervisor is STOPPED" in estop.stdout
-            # Outputs are set before the reply is sent (safety-rules §6): off by the time the
+            # Outputs are set before the reply is sent (SR-6): off by the time the
             # command says done. Its run time here is mostly its interpreter starting on two
             # cores the churners keep busy; the daemon's own latency is the benches' job.
             stop = robot.expect_stop("local_estop", t0, took)
@@ -193,7 +193,7 @@ def say_hello_as(path: Path, name: str, out: int) -> Callable[[], None]:
 def test_hello_as_a_bound_client_from_another_user_is_refused_and_recorded(
     shared_dir: Path,
 ) -> None:
-    """§8, ``client_lost:NAME``: the required client ``nav`` is bound to root and dies (off at
+    """SR-8, ``client_lost:NAME``: the required client ``nav`` is bound to root and dies (off at
     once). A program of another user says hello as ``nav`` and sends heartbeats: the hello is
     refused (``not_allowed``) and recorded (kind ``hello_refused``, naming the caller), the
     heartbeats are ``not_hello``, and ``client_lost:nav`` stays active. The real ``nav``

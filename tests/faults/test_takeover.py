@@ -1,4 +1,4 @@
-"""A takeover is an operator's act (issue 11 part 5; docs/safety.md "Re-arming" rule 4): the
+"""A takeover is an operator's act (SR-4.5; docs/safety.md "Re-arming" rule 4): the
 real ``srcsd`` against ``srcs-sim`` whose VSC flaps its mode after an e-stop. No flapping
 re-arms the robot; the operator's own takeover afterwards does (``docs/faults.md``)."""
 
@@ -30,7 +30,7 @@ def _refused(records: list[dict[str, Any]], until: float) -> list[dict[str, Any]
     ],
 )
 def test_a_flapping_vsc_never_rearms_after_an_estop(tmp_path: Path, flap: dict[str, Any]) -> None:
-    """§4 (rule 4 of docs/safety.md): after the remote's e-stop has been released, the VSC's
+    """SR-4 (rule 4 of docs/safety.md): after the remote's e-stop has been released, the VSC's
     mode flaps Local/Operational (every 10 ms with a heartbeat at each change, as the issue
     found, or every 100 ms on its 20 Hz schedule) for twenty re-arm holds. The robot stays
     STOPPED with every output off and no re-arm; the refused takeovers are recorded at most

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from collections.abc import Iterator
 
 import can
@@ -60,16 +61,90 @@ def test_heartbeat_and_joystick_arrive_decoded(vsc_bus: can.BusABC, link: CanLin
     assert (received[1].left_x.value, received[1].left_y.value) == (300, -5)
 
 
-def test_error_frame_breaks_the_link(vsc_bus: can.BusABC, link: CanLink) -> None:
-    """An error frame (bus error, bus-off) is a link fault."""
-    vsc_bus.send(can.Message(is_error_frame=True))
-    with pytest.raises(LinkBroken, match="error frame"):
-        link.receive()
+def error_frame(class_bits: int = 0x08, data: bytes = bytes(8)) -> can.Message:
+    """A SocketCAN error frame: the class in the identifier (0x08 protocol violation,
+    0x04 controller problem, 0x40 bus-off), details in the data (linux/can/error.h)."""
+    return can.Message(arbitration_id=class_bits, data=data, is_error_frame=True)
+
+
+def drain(link: CanLink) -> list[object]:
+    received: list[object] = []
+    for _ in range(20):
+        received += link.receive()
+    return received
+
+
+def test_an_isolated_error_frame_is_counted_and_stops_nothing(
+    vsc_bus: can.BusABC, link: CanLink
+) -> None:
+    """SR-2.12: one error frame among good traffic is counted, and the heartbeat after it still
+    arrives: CAN retransmits the frame itself (docs/safety.md "CAN error frames")."""
+    vsc_bus.send(error_frame())
+    vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
+    assert drain(link) == [VscHeartbeat(9)]
+    assert link.error_frames == 1
+
+
+def test_errors_below_the_limit_in_a_window_stop_nothing(vsc_bus: can.BusABC) -> None:
+    """As many error frames as the limit within the window are counted, never a fault."""
+    link = CanLink("virtual", "link-test", 250_000, error_limit=16, error_window_ms=1000)
+    link.open()
+    try:
+        for _ in range(16):
+            vsc_bus.send(error_frame())
+        drain(link)
+        assert link.error_frames == 16
+    finally:
+        link.close()
+
+
+def test_errors_above_the_limit_in_a_window_break_the_link(vsc_bus: can.BusABC) -> None:
+    """One error frame more than the limit within the window is a transport fault."""
+    link = CanLink("virtual", "link-test", 250_000, error_limit=16, error_window_ms=1000)
+    link.open()
+    try:
+        for _ in range(17):
+            vsc_bus.send(error_frame())
+        with pytest.raises(LinkBroken, match="17 CAN error frames"):
+            drain(link)
+    finally:
+        link.close()
+
+
+def test_bus_off_breaks_the_link_at_once(vsc_bus: can.BusABC, link: CanLink) -> None:
+    """An error frame that reports bus-off is a transport fault at the first one."""
+    vsc_bus.send(error_frame(0x40))
+    with pytest.raises(LinkBroken, match="bus-off"):
+        drain(link)
+
+
+def test_error_passive_for_too_long_breaks_the_link(vsc_bus: can.BusABC) -> None:
+    """A controller that reports error-passive and is not back to error-active within the
+    configured time breaks the link; one back in time does not."""
+    link = CanLink("virtual", "link-test", 250_000, error_passive_ms=50)
+    link.open()
+    try:
+        passive, active = bytes([0, 0x10, 0, 0, 0, 0, 0, 0]), bytes([0, 0x40, 0, 0, 0, 0, 0, 0])
+        vsc_bus.send(error_frame(0x04, passive))
+        drain(link)
+        vsc_bus.send(error_frame(0x04, active))
+        drain(link)
+        time.sleep(0.08)
+        vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
+        assert drain(link) == [VscHeartbeat(9)]  # back to active in time: nothing stops
+        vsc_bus.send(error_frame(0x04, passive))
+        drain(link)
+        time.sleep(0.08)
+        vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
+        with pytest.raises(LinkBroken, match="error-passive"):
+            drain(link)
+    finally:
+        link.close()
 
 
 def test_send_has_only_feedback_on_can(vsc_bus: can.BusABC, link: CanLink) -> None:
-    """Feedback values go as one frame and labels as three segments; a user heartbeat has no
-    CAN form and is not sent (notes §3)."""
+    """PR-3.3: feedback values go as one frame and labels as three segments; a user heartbeat has no
+    CAN form and is not sent (PR-3)."""
     link.send([UserHeartbeat(0), FeedbackSet(1, 42), FeedbackName(90, "Hello CAN world!")])
     frames = []
     while (raw := vsc_bus.recv(timeout=0.5)) is not None:

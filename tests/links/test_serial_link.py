@@ -6,6 +6,7 @@ import os
 import select
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -105,7 +106,8 @@ def test_port_held_by_another_process_is_busy(port: PtyPort) -> None:
 
 
 def test_reopening_leaks_no_descriptor(port: PtyPort) -> None:
-    """A hundred open/unplug/fail/replug cycles leave the process's descriptor count as it was."""
+    """PR-6.5: a hundred open/unplug/fail/replug cycles leave the process's descriptor count as it
+    was."""
     before = len(os.listdir("/proc/self/fd"))
     link = SerialLink(str(port.path))
     for _ in range(100):
@@ -129,3 +131,22 @@ def test_backoff_doubles_to_its_limit_and_resets() -> None:
     backoff.succeeded()
     backoff.failed(0)
     assert backoff.next_attempt == 100_000_000
+
+
+def test_what_waited_in_the_port_before_open_is_discarded(port: PtyPort) -> None:
+    """Heartbeats the VSC wrote before the link opened (an e-stop-free Operational one among
+    them) are never read as current (issue 14): the first thing read is what came after."""
+    stale = encode_frame(VscHeartbeat(9)) * 20 + encode_frame(VscHeartbeat(4, 0, 1))
+    port.write(stale)
+    time.sleep(0.05)  # the bytes are in the line's input queue before anyone opens it
+    link = SerialLink(str(port.path))
+    link.open()
+    try:
+        port.write(encode_frame(VscHeartbeat(11)))
+        assert receive_until(link, 1) == [VscHeartbeat(11)]
+        fd = link.fileno()
+        assert fd is not None
+        ready, _, _ = select.select([fd], [], [], 0.1)
+        assert not ready  # and nothing of the old stream follows
+    finally:
+        link.close()

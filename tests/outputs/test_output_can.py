@@ -29,7 +29,7 @@ def test_open_sends_off_at_once(virtual_buses: Buses) -> None:
 
 
 def test_stop_sends_off_at_once_and_keeps_sending(virtual_buses: Buses) -> None:
-    """set(False) sends the off frame immediately, and every due tick sends it again."""
+    """SR-6.3: set(False) sends the off frame immediately, and every due tick sends it again."""
     mine, theirs = virtual_buses
     watch = BusWatcher(theirs, CAN_SPEC)
     out = CanEnableOutput(CAN_SPEC, mine)
@@ -62,7 +62,7 @@ def test_period_restarts_at_each_set(virtual_buses: Buses) -> None:
 
 
 def test_periodic_frames_follow_the_period(virtual_buses: Buses) -> None:
-    """Ticks at each deadline send one frame each, spaced exactly one period apart."""
+    """SR-6.3: ticks at each deadline send one frame each, spaced exactly one period apart."""
     mine, theirs = virtual_buses
     watch = BusWatcher(theirs, CAN_SPEC)
     out = CanEnableOutput(CAN_SPEC, mine)
@@ -95,7 +95,8 @@ def test_late_loop_sends_one_frame_not_a_burst(virtual_buses: Buses) -> None:
 
 
 def test_rolling_counter_keeps_template_bits_and_wraps(virtual_buses: Buses) -> None:
-    """The counter rises by one per frame within its mask, keeps the other bits, and wraps."""
+    """SR-6.3: the counter rises by one per frame within its mask, keeps the other bits, and
+    wraps."""
     spec = CanEnableSpec(
         name="m",
         arbitration_id=0x18FF1234,

@@ -1,5 +1,5 @@
 """The outputs' conformance suite: the contract of ``supervisord.outputs.base.Output``, run
-against every output kind this machine can run (safety-rules §6)."""
+against every output kind this machine can run (SR-6)."""
 
 from __future__ import annotations
 

@@ -138,7 +138,7 @@ def test_steady_line_reads_back_through_the_handle() -> None:
 
 
 def test_mismatch_and_io_error_are_faults() -> None:
-    """A line that ignores a write is MISMATCH; one whose request is gone is IO_ERROR."""
+    """SR-6.2: a line that ignores a write is MISMATCH; one whose request is gone is IO_ERROR."""
     line = MemoryLine()
     out = GpioOutput(GpioSpec(name="e", chip="c", line=0), opener=lambda _: line)
     out.open(T0)
@@ -154,7 +154,8 @@ def test_mismatch_and_io_error_are_faults() -> None:
 
 
 def test_pulse_toggles_only_while_on() -> None:
-    """A pulsed enable toggles at each due tick while on, and is steady off after set off."""
+    """SR-6.4: a pulsed enable toggles at each due tick while on, and is steady off after set
+    off."""
     line = MemoryLine()
     out = pulsed(line)
     out.open(T0)

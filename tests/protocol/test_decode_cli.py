@@ -87,11 +87,12 @@ def test_raw_stream_of_realistic_traffic_decodes_completely() -> None:
 
 
 def test_candump_formats() -> None:
-    """--can reads ID#DATA, candump -L lines and candump's default columns."""
+    """--can reads ID#DATA, candump -L lines and candump's default columns, each line's time
+    (candump -L, or -ta before the columns) as its capture_time, null when it has none."""
     capture = (
         b"0CFDE801#0400010000000000\n"
         b"(1700000000.000001) can0 0CFDE900#5501000000FFFFFF\n"
-        b"  can0  0CFDD934   [8]  01 00 FF FF FF FF FF FF\n"
+        b"(1700000000.250000)  can0  0CFDD934   [8]  01 00 FF FF FF FF FF FF\n"
         b"0CFDE802#00\n"
         b"0CFDE801#XYZ\n"
     )
@@ -106,11 +107,18 @@ def test_candump_formats() -> None:
     ]
     assert objects[1]["user_feedback_key_name"] == "user_estop_timeout"
     assert objects[2]["z_joystick_value"]["value"] == 0
+    assert [obj["capture_time"] for obj in objects] == [
+        None,
+        1700000000.000001,
+        1700000000.25,
+        None,
+    ]
     assert objects[3] == {
         "type": "rejected",
         "reason": "unknown_id",
         "can_id": 0x0CFDE802,
         "length": 1,
+        "capture_time": None,
         "line": 4,
     }
 

@@ -35,7 +35,7 @@ def reasons(events: list[object]) -> list[RejectReason]:
 
 
 def test_bad_checksum_is_rejected_and_the_next_frame_survives() -> None:
-    """A frame with a wrong checksum is one BAD_CHECKSUM; the heartbeat after it decodes."""
+    """PR-1.6: a frame with a wrong checksum is one BAD_CHECKSUM; the heartbeat after it decodes."""
     bad = bytearray(HB)
     bad[-1] ^= 0xFF
     events = decode_all(bytes(bad) + HB)
@@ -48,7 +48,8 @@ def test_bad_checksum_is_rejected_and_the_next_frame_survives() -> None:
 
 @pytest.mark.parametrize("length", range(249, 256))
 def test_impossible_length_is_rejected_at_once(length: int) -> None:
-    """A length byte over 248 is rejected without waiting for the bytes it claims."""
+    """PR-1.5, PR-6.4: a length byte over 248 is rejected without waiting for the bytes it
+    claims."""
     decoder = FrameDecoder()
     events = decoder.feed(bytes((0x10, 0x01, 0x20, length)))
     assert events[0] == Rejection(RejectReason.BAD_LENGTH, 1, 0x20, length, "over 248")
@@ -56,8 +57,8 @@ def test_impossible_length_is_rejected_at_once(length: int) -> None:
 
 
 def test_corrupt_length_does_not_swallow_following_heartbeats() -> None:
-    """A length byte corrupted upwards costs its own frame only: every good heartbeat inside
-    the claimed span still decodes (notes §1)."""
+    """PR-1.6, PR-6.4: a length byte corrupted upwards costs its own frame only: every good
+    heartbeat inside the claimed span still decodes (PR-1)."""
     corrupt = bytearray(HB)
     corrupt[3] = 40  # claims 40 payload bytes: the next three heartbeats lie inside
     events = decode_all(bytes(corrupt) + HB * 4)
@@ -79,7 +80,7 @@ def test_bogus_header_of_unknown_type_delays_but_loses_nothing() -> None:
     [(0x20, 5), (0x20, 40), (0x10, 15), (0x12, 0), (0x31, 20), (0x21, 0)],
 )
 def test_known_type_with_impossible_length_is_rejected_at_once(kind: int, length: int) -> None:
-    """A known type with a length byte it never has is WRONG_LENGTH from its header alone,
+    """PR-1.7: a known type with a length byte it never has is WRONG_LENGTH from its header alone,
     never half-decoded, and the decoder does not wait for the bytes it claims."""
     frame = build_frame(kind, bytes(length))
     decoder = FrameDecoder()
@@ -91,7 +92,7 @@ def test_known_type_with_impossible_length_is_rejected_at_once(kind: int, length
 
 @pytest.mark.parametrize("kind", [0xA2, 0x25, 0x90, 0xF9])
 def test_unknown_type_is_skipped_whole(kind: int) -> None:
-    """A checksummed frame of a type the manual does not define (the setup protocol among
+    """PR-2.13: a checksummed frame of a type the manual does not define (the setup protocol among
     them) is one UNKNOWN_TYPE covering the frame, then decoding goes on."""
     frame = build_frame(kind, bytes(3))
     assert decode_all(frame + HB) == [
@@ -142,14 +143,14 @@ def test_memory_stays_bounded_under_endless_partial_frames() -> None:
 
 
 def test_name_string_is_nul_padded_and_read_up_to_nul() -> None:
-    """A label travels NUL-padded to 20 bytes and comes back without the padding."""
+    """PR-2.12: a label travels NUL-padded to 20 bytes and comes back without the padding."""
     frame = encode_frame(FeedbackName(90, "Hello"))
     assert frame[4:-2] == bytes((90,)) + b"Hello" + bytes(15)
     assert decode_all(frame) == [FeedbackName(90, "Hello")]
 
 
 def test_gps_length_counts_the_source_byte() -> None:
-    """The GPS length byte counts the source byte and the sentence (notes §2)."""
+    """The GPS length byte counts the source byte and the sentence (PR-2.9)."""
     frame = encode_frame(Gps(1, "$GPGGA"))
     assert frame[3] == 7
     assert decode_all(frame) == [Gps(1, "$GPGGA")]
@@ -157,7 +158,7 @@ def test_gps_length_counts_the_source_byte() -> None:
 
 @pytest.mark.parametrize("essential", [0x10, 0x20])
 def test_encoder_refuses_to_switch_off_heartbeat_or_joystick(essential: int) -> None:
-    """Switching off the VSC heartbeat or joystick message raises instead of sending."""
+    """PR-2.11: switching off the VSC heartbeat or joystick message raises instead of sending."""
     with pytest.raises(UnsafeCommandError):
         encode_frame(MessageControl(essential, 0, 100))
     assert encode_frame(MessageControl(essential, 1, 100))  # re-timing stays allowed

@@ -62,7 +62,7 @@ def test_fuzz_decoder_contract() -> None:
 @pytest.mark.fuzz
 def test_fuzz_a_heartbeat_after_any_broken_frame_is_recovered() -> None:
     """Whatever type, length byte and bytes precede it, the heartbeat behind a broken frame is
-    decoded: the one-byte resync never loses it (notes §1)."""
+    decoded: the one-byte resync never loses it (PR-1)."""
     rng = random.Random(5)
     heartbeat = UserHeartbeat(0)
     for _ in range(EXAMPLES * 10):

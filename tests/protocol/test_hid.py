@@ -14,7 +14,7 @@ from supervisord.protocol.hid import (
 
 
 def test_input_report_fields() -> None:
-    """Six signed axes, D-pad low nibble, buttons high nibble, mode, e-stop (table 38)."""
+    """PR-4.1: six signed axes, D-pad low nibble, buttons high nibble, mode, e-stop (table 38)."""
     report = decode_hid_input(bytes([0x7F, 0x81, 0, 0, 0, 0, 0x32, 0x09, 0x01]))
     assert report == HidInput(127, -127, 0, 0, 0, 0, dpad=2, buttons=3, mode=9, estop=1)
     assert isinstance(report, HidInput)

@@ -1,4 +1,4 @@
-"""The CAN messages of manual §9 and notes §3, also carried over a real python-can bus."""
+"""The CAN messages of manual §9 and PR-3, also carried over a real python-can bus."""
 
 from __future__ import annotations
 
@@ -25,13 +25,14 @@ from supervisord.protocol.messages import Axis, DPad, FeedbackSet, NumberedButto
 
 
 def test_heartbeat_frame_layout() -> None:
-    """The CAN heartbeat carries the serial heartbeat's 6 bytes at id 0x0CFDE801, FF-padded."""
+    """PR-3.1: the CAN heartbeat carries the serial heartbeat's 6 bytes at id 0x0CFDE801,
+    FF-padded."""
     frame = encode_can(VscHeartbeat(VscMode.LOCAL, 0, 1))
     assert frame == CanFrame(0x0CFDE801, bytes.fromhex("04 00 01 00 00 00 FF FF"))
 
 
 def test_left_basic_joystick_layout() -> None:
-    """X in bytes 0-1, Y in 2-3, byte 4 unused, left buttons in byte 5 (manual table 24)."""
+    """PR-3.1: x in bytes 0-1, Y in 2-3, byte 4 unused, left buttons in byte 5 (manual table 24)."""
     message = JoystickBasic(
         Hand.LEFT, Axis.from_value(512), Axis.from_value(0), DPad(up=FieldStatus.SET)
     )
@@ -41,13 +42,13 @@ def test_left_basic_joystick_layout() -> None:
 
 
 def test_feedback_value_layout() -> None:
-    """The feedback value message is key then i32 little-endian, FF-padded (table 29)."""
+    """PR-3.1: the feedback value message is key then i32 little-endian, FF-padded (table 29)."""
     frame = encode_can(FeedbackSet(85, 1))
     assert frame == CanFrame(0x0CFDE900, bytes.fromhex("55 01 00 00 00 FF FF FF"))
 
 
 def test_eighteen_character_string_goes_as_three_segments() -> None:
-    """An 18-character feedback string is three 6-character segments 0, 1, 2 (§9.2.7)."""
+    """An 18-character feedback string is three 6-character segments 0, 1, 2 (manual §9.2.7)."""
     frames = feedback_string_frames(1, "Battery voltage V")
     assert [decode_can(frame) for frame in frames] == [
         FeedbackStringSegment(1, 0, "Batter"),
@@ -82,7 +83,7 @@ def test_rejections(frame: CanFrame, reason: CanRejectReason) -> None:
 
 @pytest.mark.parametrize("magnitude", [1022, 1023])
 def test_j1939_error_magnitudes_make_the_axis_invalid(magnitude: int) -> None:
-    """On CAN, magnitudes 1022/1023 mean error / not available (notes §2): no value."""
+    """PR-3.2: on CAN, magnitudes 1022/1023 mean error / not available (PR-2): no value."""
     decoded = decode_can(
         CanFrame(CanId.RIGHT_EXTENDED, Axis.from_value(magnitude).to_word().to_bytes(2, "little"))
     )

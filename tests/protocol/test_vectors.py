@@ -1,4 +1,4 @@
-"""The test vectors of protocol-notes.md §1, each encoded, and decoded whole, byte by byte,
+"""The test vectors of PR-1.8, each encoded, and decoded whole, byte by byte,
 and followed by garbage."""
 
 from __future__ import annotations
@@ -66,13 +66,14 @@ GARBAGE = bytes.fromhex("FF 00 10 10 01 FE 55")
 
 @pytest.mark.parametrize(("name", "message", "wire"), VECTORS, ids=IDS)
 def test_encode_gives_the_vector(name: str, message: Message, wire: str) -> None:
-    """Encoding the message gives exactly the bytes of the notes' vector."""
+    """PR-1.1 to PR-1.4: encoding the message gives exactly the bytes of the vector (PR-1.8)."""
     assert encode_frame(message) == bytes.fromhex(wire), name
 
 
 @pytest.mark.parametrize(("name", "message", "wire"), VECTORS, ids=IDS)
 def test_checksum_is_the_manuals_algorithm(name: str, message: Message, wire: str) -> None:
-    """The last two bytes are sum1 then sum2 of the manual's Fletcher-16 over all before them."""
+    """PR-1.3: the last two bytes are sum1 then sum2 of the manual's Fletcher-16 over all before
+    them."""
     frame = bytes.fromhex(wire)
     assert fletcher16(frame[:-2]) == frame[-1] << 8 | frame[-2], name
 
@@ -108,7 +109,8 @@ def test_decode_followed_by_garbage(name: str, message: Message, wire: str) -> N
 
 
 def test_vsc_heartbeat_names_the_remote_source() -> None:
-    """The 'remote e-stop bit' vector decodes to an e-stop whose named source is the remote."""
+    """PR-2.5, PR-2.6: the 'remote e-stop bit' vector decodes to an e-stop whose named source is the
+    remote."""
     (heartbeat,) = FrameDecoder().feed(bytes.fromhex("10 01 20 06 04 00 01 00 00 00 3C EF"))
     assert isinstance(heartbeat, VscHeartbeat)
     assert heartbeat.known_mode is VscMode.LOCAL
@@ -116,7 +118,8 @@ def test_vsc_heartbeat_names_the_remote_source() -> None:
 
 
 def test_joystick_vector_values() -> None:
-    """The joystick vector reads as LX +512, RX -1023, others 0, left Up and right button 1."""
+    """PR-2.1 to PR-2.4: the joystick vector reads as LX +512, RX -1023, others 0, left Up and right
+    button 1."""
     wire = "10 01 10 0E 10 80 01 00 01 00 C4 FF 01 00 01 00 10 01 97 BD"
     (joystick,) = FrameDecoder().feed(bytes.fromhex(wire))
     assert isinstance(joystick, Joystick)

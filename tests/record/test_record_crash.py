@@ -1,5 +1,5 @@
 """Crash safety of the record store: a crash at every step of a rotation, a writer process
-killed with SIGKILL while it appends, a file cut at any byte (safety-rules §7: nothing
+killed with SIGKILL while it appends, a file cut at any byte (SR-7: nothing
 acknowledged is lost)."""
 
 from __future__ import annotations
@@ -69,9 +69,9 @@ def _fill_to_rotation(w: RecordWriter, seq: int) -> int:
 def test_crash_at_each_rotation_step_loses_nothing(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, crash_at: int
 ) -> None:
-    """A crash at any step of a rotation (keep=3: two renames of old files, the rename of the
-    current file, two directory fsyncs) leaves every acknowledged record readable, in order,
-    once; a new writer then carries on and rotation stays bounded."""
+    """SR-7.2, SR-7.4: a crash at any step of a rotation (keep=3: two renames of old files, the
+    rename of the current file, two directory fsyncs) leaves every acknowledged record readable, in
+    order, once; a new writer then carries on and rotation stays bounded."""
     path = tmp_path / "stops.jsonl"
     w = RecordWriter(path, max_bytes=MAX_BYTES, keep=3)
     seq = 0
@@ -143,9 +143,9 @@ CHILD = textwrap.dedent(
 def test_sigkill_while_appending_loses_nothing_acknowledged(
     tmp_path: Path, kills: tuple[int, ...]
 ) -> None:
-    """A writer process killed with SIGKILL at arbitrary moments (rotations included) never
-    loses a record it acknowledged; each restart continues the sequence after the last record,
-    and the files hold one gap-free, duplicate-free sequence."""
+    """SR-7.4: a writer process killed with SIGKILL at arbitrary moments (rotations included) never
+    loses a record it acknowledged; each restart continues the sequence after the last record, and
+    the files hold one gap-free, duplicate-free sequence."""
     path = tmp_path / "stops.jsonl"
     acknowledged: list[int] = []
     root = Path(__file__).resolve().parents[2]

@@ -29,13 +29,14 @@ from tests.record.conftest import make_record
 
 
 def test_message_ids_are_fixed_and_distinct() -> None:
-    """Each record kind has its own MESSAGE_ID, and they never change."""
+    """SR-7.3: each record kind has its own MESSAGE_ID, and they never change."""
     assert {k: v.hex for k, v in MESSAGE_IDS.items()} == {
         RecordKind.STATE_CHANGE: "26c2f33dae3d4a6c8996fc9bc658ad32",
         RecordKind.CAUSE_RAISED: "820501387c1a46049b855bcae8bc9ba2",
         RecordKind.CAUSE_CLEARED: "fd9e4e6d79c643eb9a534d2f8228aa89",
         RecordKind.REARM_REFUSED: "2be6051d1b7c43d0a0bfd08ad06caac8",
         RecordKind.COMMISSIONED: "bdd0782d2f2b45a3bdc4e9984db1024d",
+        RecordKind.PROOFTEST: "af4347b3c6a741d6a06ce07e58cea85a",
     }
 
 
@@ -54,13 +55,14 @@ def test_message_ids_are_fixed_and_distinct() -> None:
     ],
 )
 def test_priority(record: dict[str, object], expected: Priority) -> None:
-    """A change into STOPPED is CRIT; raised causes, refused re-arms and commissioning WARNING;
-    others NOTICE."""
+    """SR-7.3: a change into STOPPED is CRIT; raised causes, refused re-arms and commissioning
+    WARNING; others NOTICE."""
     assert priority(record) is expected
 
 
 def test_fields_of_a_stop() -> None:
-    """A stop maps to MESSAGE, its MESSAGE_ID, CRIT and SRCS_* fields, one SRCS_CAUSE per cause."""
+    """SR-7.3: a stop maps to MESSAGE, its MESSAGE_ID, CRIT and SRCS_* fields, one SRCS_CAUSE per
+    cause."""
     record = make_record(7, causes=("vsc_estop", "client_lost:nav"))
     fields = journal_fields(record)
     as_dict = dict(fields)

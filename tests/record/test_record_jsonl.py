@@ -52,7 +52,8 @@ def test_file_mode_is_not_world_readable(tmp_path: Path) -> None:
 def test_fsync_per_record_and_directory_on_create(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Every append fsyncs the file before returning; creating the file fsyncs the directory."""
+    """SR-7.2: every append fsyncs the file before returning; creating the file fsyncs the
+    directory."""
     synced: list[str] = []
     real_fsync = os.fsync
 
@@ -130,8 +131,8 @@ def test_bounds_are_checked(tmp_path: Path, max_bytes: int, keep: int) -> None:
 
 
 def test_rotation_is_bounded_and_drops_the_oldest(tmp_path: Path) -> None:
-    """Files never exceed max_bytes, at most keep rotated files remain, and what remains is the
-    newest records, in order, without a gap."""
+    """SR-7.2: files never exceed max_bytes, at most keep rotated files remain, and what remains is
+    the newest records, in order, without a gap."""
     path = tmp_path / "stops.jsonl"
     with RecordWriter(path, max_bytes=4096, keep=3) as w:
         for seq in range(200):
@@ -156,8 +157,8 @@ def test_oversized_record_gets_a_file_of_its_own(tmp_path: Path) -> None:
 
 
 def test_torn_tail_is_truncated_on_open(tmp_path: Path) -> None:
-    """A partial last line left by a crash is cut off on open, so the next record starts on a
-    line of its own, and nothing acknowledged is lost."""
+    """SR-7.2: a partial last line left by a crash is cut off on open, so the next record starts on
+    a line of its own, and nothing acknowledged is lost."""
     path = tmp_path / "stops.jsonl"
     with RecordWriter(path) as w:
         w.append(make_record(0))
@@ -182,7 +183,8 @@ def test_torn_only_line_is_truncated(tmp_path: Path) -> None:
 
 
 def test_reader_reports_torn_tail_without_misreading(tmp_path: Path) -> None:
-    """A torn or undecodable last line is reported as TORN_TAIL and never yields a record."""
+    """SR-7.2: a torn or undecodable last line is reported as TORN_TAIL and never yields a
+    record."""
     path = tmp_path / "stops.jsonl"
     with RecordWriter(path) as w:
         w.append(make_record(0))

@@ -1,4 +1,4 @@
-"""The exact edges of the timeouts and of the input vocabularies (safety-rules.md §2, §3, §8).
+"""The exact edges of the timeouts and of the input vocabularies (SR-2, SR-3, SR-8).
 
 Boundary semantics: a timeout of T expires at exactly T after the last heartbeat ("silent for
 T or more is lost"); a heartbeat arriving at T is too late, because its deadline expires first.
@@ -30,8 +30,8 @@ def test_client_heartbeat_at_499_ms_keeps_run() -> None:
 
 
 def test_client_heartbeat_at_500_ms_is_too_late() -> None:
-    """A required client's heartbeat exactly 500 ms after the previous one comes too late: the
-    client was lost at 500 ms and the stop stays latched."""
+    """SR-2.4, SR-8.1: a required client's heartbeat exactly 500 ms after the previous one comes too
+    late: the client was lost at 500 ms and the stop stays latched."""
     rig = Rig()
     rig.bring_up()
     rig.beat()
@@ -70,7 +70,8 @@ def test_client_deadline_is_exactly_the_timeout() -> None:
 
 @pytest.mark.parametrize(("silence_ms", "state"), [(199, State.RUN), (200, State.STOPPED)])
 def test_vsc_timeout_edges(silence_ms: int, state: State) -> None:
-    """VSC silence of 199 ms keeps RUN; 200 ms (the serial default) is ``vsc_link_lost``."""
+    """SR-2.2, PR-6.1: VSC silence of 199 ms keeps RUN; 200 ms (the serial default) is
+    ``vsc_link_lost``."""
     rig = Rig()
     rig.bring_up()
     rig.beat()
@@ -122,8 +123,8 @@ def test_vsc_never_seen_counts_as_lost() -> None:
 
 
 def test_required_client_that_never_connected_keeps_stopped() -> None:
-    """A required client that never connected keeps the supervisor STOPPED, and a takeover is
-    refused naming it."""
+    """SR-2.4, SR-8.1: a required client that never connected keeps the supervisor STOPPED, and a
+    takeover is refused naming it."""
     rig = Rig()
     rig.open_link()
     rig.key85(1)
@@ -161,7 +162,8 @@ def test_required_client_that_said_hello_but_never_beat_is_lost() -> None:
     ],
 )
 def test_unknown_mode_is_a_hold(mode: int, name: str) -> None:
-    """A mode with no name is a hold (§3) named after its value: motion off, power on."""
+    """SR-1.2, SR-3.1, PR-2.7, PR-6.6: a mode with no name is a hold (SR-3) named after its value:
+    motion off, power on."""
     rig = Rig()
     rig.bring_up()
     rig.advance(10)
@@ -180,7 +182,8 @@ def test_searching_mode_is_a_hold_named_searching() -> None:
 
 
 def test_estop_word_with_unknown_bits_only_is_a_stop() -> None:
-    """An e-stop word with only unnamed bits still stops, with the source ``unknown``."""
+    """SR-2.1, PR-2.6: an e-stop word with only unnamed bits still stops, with the source
+    ``unknown``."""
     rig = Rig()
     rig.bring_up()
     rig.advance(10)
@@ -197,7 +200,7 @@ def test_estop_word_with_unknown_bits_only_is_a_stop() -> None:
     [(0b11, "remote"), (0b1100, "wired"), (0b1100_0000, "user"), (0x8000_0003, "remote,unknown")],
 )
 def test_estop_word_sources_are_named(word: int, sources: str) -> None:
-    """Each e-stop bit group is named in the cause's details (protocol notes §2)."""
+    """Each e-stop bit group is named in the cause's details (PR-2)."""
     rig = Rig()
     rig.bring_up()
     estop = rig.vsc(LOCAL, estop=word).cause("vsc_estop")

@@ -1,4 +1,4 @@
-"""Every cause of safety-rules.md §2 and §3 is raised, cleared, and (for stops) latched."""
+"""Every cause of SR-2 and SR-3 is raised, cleared, and (for stops) latched."""
 
 from __future__ import annotations
 
@@ -99,7 +99,7 @@ def test_stop_cause_is_raised_latched_cleared_and_rearmed(scenario: Scenario) ->
     assert cleared.state is State.STOPPED
 
     rig.run_for(600, LOCAL)
-    assert rig.state is State.STOPPED  # never leaves STOPPED on its own (§1)
+    assert rig.state is State.STOPPED  # never leaves STOPPED on its own (SR-1)
     rig.advance(50)
     rearmed = rig.vsc(OPERATIONAL)
     assert rearmed.state is State.RUN
@@ -134,8 +134,8 @@ HOLDS = [
 
 @pytest.mark.parametrize("scenario", HOLDS, ids=str)
 def test_hold_cause_is_raised_and_clears_by_itself(scenario: Scenario) -> None:
-    """Each hold cause moves RUN to HOLD (motion off, power on) and back to RUN when it clears,
-    without a re-arm."""
+    """SR-1.2, SR-3.1, SR-3.2: each hold cause moves RUN to HOLD (motion off, power on) and back to
+    RUN when it clears, without a re-arm."""
     rig = Rig()
     rig.bring_up()
     rig.advance(10)
@@ -154,7 +154,7 @@ def test_hold_cause_is_raised_and_clears_by_itself(scenario: Scenario) -> None:
 
 
 def test_startup_is_stopped_with_cause_startup() -> None:
-    """The core starts STOPPED with the latched cause ``startup`` and every output off."""
+    """SR-1.3: the core starts STOPPED with the latched cause ``startup`` and every output off."""
     rig = Rig()
     first = rig.last
     assert first.state is State.STOPPED
@@ -168,8 +168,8 @@ def test_startup_is_stopped_with_cause_startup() -> None:
 
 
 def test_vsc_estop_record_names_the_sources() -> None:
-    """A VSC e-stop's details name every source in the e-stop word, and a new source while
-    active is recorded as an update."""
+    """SR-2.1, PR-6.6: a VSC e-stop's details name every source in the e-stop word, and a new source
+    while active is recorded as an update."""
     rig = Rig()
     rig.bring_up()
     rig.advance(10)
@@ -198,7 +198,8 @@ def test_every_record_has_a_rising_sequence_number() -> None:
 
 
 def test_output_that_cannot_be_set_is_a_fault() -> None:
-    """A failed write (no read-back at all) raises ``output_fault:NAME`` with the details."""
+    """SR-2.7: a failed write (no read-back at all) raises ``output_fault:NAME`` with the
+    details."""
     rig = Rig()
     rig.bring_up()
     decision = rig.feed(OutputReadback(rig.now, "lights", True, None))

@@ -1,4 +1,4 @@
-"""Clients on the local socket (safety-rules.md §8): names, requests and nonsense inputs."""
+"""Clients on the local socket (SR-8): names, requests and nonsense inputs."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The user heartbeat to the VSC (safety-rules.md §5): rate, e-stop byte, transports."""
+"""The user heartbeat to the VSC (SR-5): rate, e-stop byte, transports."""
 
 from __future__ import annotations
 
@@ -22,7 +22,8 @@ def _tick_through(rig: Rig, ms: int) -> None:
 
 @pytest.mark.parametrize("hz", [20, 33, 50])
 def test_heartbeat_goes_out_at_the_configured_rate(hz: int) -> None:
-    """Driven only by its own deadlines, the core asks for ``heartbeat_hz`` frames a second."""
+    """SR-5.1, PR-6.2: driven only by its own deadlines, the core asks for ``heartbeat_hz`` frames a
+    second."""
     rig = Rig(dataclasses.replace(ROBOT, heartbeat_hz=hz))
     rig.open_link()
     before = len(rig.heartbeats())
@@ -94,7 +95,7 @@ def test_no_frames_while_the_link_is_down() -> None:
 
 
 def test_can_has_no_user_heartbeat_and_no_key85() -> None:
-    """On CAN the core never asks for a user heartbeat or a key 85 query (protocol notes §3)."""
+    """SR-5.5, PR-3.3: on CAN the core never asks for a user heartbeat or a key 85 query (PR-3)."""
     rig = Rig(dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False))
     rig.open_link()
     rig.connect()

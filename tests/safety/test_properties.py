@@ -1,6 +1,6 @@
 """Property tests: random inputs at random times never break the safety invariants.
 
-Invariants checked after every input (safety-rules.md §1-5):
+Invariants checked after every input (SR-1 to SR-5):
 - no output is on while a stop cause is active or latched, nor before a valid re-arm;
 - a motion output is on only in RUN, a power output only in HOLD or RUN;
 - STOPPED is left only by a re-arm: a takeover heartbeat or an admin's allowed local reset;

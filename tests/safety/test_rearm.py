@@ -1,4 +1,4 @@
-"""Re-arming after a stop (safety-rules.md §4): every path, and every reason for a refusal."""
+"""Re-arming after a stop (SR-4): every path, and every reason for a refusal."""
 
 from __future__ import annotations
 
@@ -109,7 +109,7 @@ def test_takeover_while_a_condition_is_active_is_refused_and_does_not_count() ->
 
 
 def test_new_cause_during_the_takeover_aborts_it() -> None:
-    """A stop cause raised between the Local heartbeat and the Operational one aborts the
+    """SR-4.3: a stop cause raised between the Local heartbeat and the Operational one aborts the
     takeover, even if the cause is momentary."""
     rig = Rig()
     _stopped_and_cleared(rig)
@@ -245,7 +245,7 @@ def test_a_granted_rearm_is_not_noted_as_refused() -> None:
 
 
 def test_commissioning_is_recorded_with_what_was_read_back() -> None:
-    """safety-rules.md §5: writing key 85 is stored on the VSC for good, so it is recorded."""
+    """SR-5.4: writing key 85 is stored on the VSC for good, so it is recorded."""
     rig = Rig()
     rig.bring_up()
     decision = rig.feed(Commissioned(rig.now, ADMIN, key85=1, remote_status=False))

@@ -1,4 +1,4 @@
-"""The client-record rule (docs/safety.md "How many records one client may cause"): a client
+"""The client-record rule (SR-8.5; docs/safety.md "How many records one client may cause"): a client
 causes at most ``RECORDS_PER_CLIENT`` records in any ``BUDGET_WINDOW_NS``; past it, the
 requests that take a reason to stop away (releases, resets) are refused with
 ``RATE_LIMITED`` and make no record, while e-stops, holds and heartbeats always count."""
@@ -58,7 +58,7 @@ def test_the_budget_comes_back_after_the_window() -> None:
 
 def test_estops_holds_and_heartbeats_are_never_limited() -> None:
     """Past its budget a client's e-stop still stops at once and is recorded (it only adds
-    a reason to stop, §0); its heartbeats still count."""
+    a reason to stop, SR-0); its heartbeats still count."""
     rig = Rig()
     rig.bring_up()
     for _ in range(RECORDS_PER_CLIENT):

@@ -1,4 +1,4 @@
-"""What a takeover must show (safety-rules.md §4, docs/safety.md "Re-arming" rule 4): the
+"""What a takeover must show (SR-4.5, docs/safety.md "Re-arming" rule 4): the
 VSC's non-Operational mode in an unbroken run of heartbeats spanning the takeover dwell, at a
 rate the VSC can send. A real operator's takeover still re-arms; a flapping VSC never does."""
 
@@ -148,7 +148,7 @@ def test_a_silent_gap_starts_the_run_again() -> None:
 
 
 def test_a_reconnect_starts_the_run_again() -> None:
-    """A VSC reconnect is a new start (§4): Local heartbeats from before it do not count
+    """A VSC reconnect is a new start (SR-4.4): Local heartbeats from before it do not count
     towards the dwell of a takeover after it."""
     rig = Rig(dataclasses.replace(ROBOT, rearm_hold_ms=100))
     rig.bring_up()

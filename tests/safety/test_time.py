@@ -1,4 +1,4 @@
-"""Time is an argument (safety-rules.md §2): integer monotonic nanoseconds, never read."""
+"""Time is an argument (SR-2): integer monotonic nanoseconds, never read."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from tests.safety.rig import LOCAL, MS, Rig
 
 
 def test_time_going_back_is_treated_as_not_moving() -> None:
-    """An input stamped earlier than the latest ``now`` is handled at the latest ``now``: an
-    expired timeout stays expired and the deadline is not moved into the past."""
+    """SR-2.11, PR-6.3: an input stamped earlier than the latest ``now`` is handled at the latest
+    ``now``: an expired timeout stays expired and the deadline is not moved into the past."""
     rig = Rig()
     rig.bring_up()
     rig.advance(250)

@@ -1,4 +1,4 @@
-"""The transition table (safety-rules.md §1, §4) and the core's refusal to ever raise."""
+"""The transition table (SR-1, SR-4) and the core's refusal to ever raise."""
 
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPat
 
     monkeypatch.setattr(SafetyCore, "_apply", broken)
     rig.advance(10)
-    decision = rig.tick()
+    decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
     assert decision.state is State.STOPPED
     assert not any(decision.outputs.values())
     assert decision.refusals[0].reason is RefusalReason.INTERNAL_ERROR
@@ -94,7 +94,7 @@ def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(SafetyCore, "_apply", broken)
     monkeypatch.setattr(SafetyCore, "_finish", broken)
     rig.advance(10)
-    decision = rig.tick()
+    decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
     assert decision.state is State.STOPPED
     assert not any(decision.outputs.values())
     assert decision.heartbeat_estop == 1

@@ -1,4 +1,4 @@
-"""Key 85, the VSC's user watchdog (safety-rules.md §5), and the transports without one."""
+"""Key 85, the VSC's user watchdog (SR-5), and the transports without one."""
 
 from __future__ import annotations
 
@@ -47,7 +47,8 @@ def test_watchdog_off_until_key85_reads_1() -> None:
 
 
 def test_unanswered_key85_keeps_stopped() -> None:
-    """Without an answer about key 85 a takeover is refused and the state stays STOPPED."""
+    """SR-2.8, SR-5.3: without an answer about key 85 a takeover is refused and the state stays
+    STOPPED."""
     rig = Rig()
     rig.open_link()
     rig.connect()
@@ -59,7 +60,8 @@ def test_unanswered_key85_keeps_stopped() -> None:
 
 
 def test_key85_is_read_again_after_a_reconnect() -> None:
-    """A new link forgets the old answer: the watchdog cause is back and the query resumes."""
+    """SR-5.3, PR-6.6: a new link forgets the old answer: the watchdog cause is back and the query
+    resumes."""
     rig = Rig()
     rig.bring_up()
     rig.advance(10)
@@ -77,7 +79,7 @@ def test_watchdog_not_required_raises_no_cause() -> None:
 
 
 def test_hid_never_leaves_stopped() -> None:
-    """HID is no safety channel: even with everything healthy and a takeover, STOPPED stays,
+    """PR-4.1: HID is no safety channel: even with everything healthy and a takeover, STOPPED stays,
     with ``transport_fault`` naming the reason."""
     rig = Rig(dataclasses.replace(ROBOT, transport=Transport.HID))
     rig.open_link()

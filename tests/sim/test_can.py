@@ -91,7 +91,7 @@ def test_can_traffic_at_the_manual_rates_and_the_joystick_in_four_frames(
 
 
 def test_can_feedback_values_and_joined_strings(virtual_sim: tuple[Simulator, can.BusABC]) -> None:
-    """§9.2.6 values; §9.2.7 the VSC joins three 6-character segments into 18 characters."""
+    """manual §9.2.6 values; §9.2.7 the VSC joins three 6-character segments into 18 characters."""
     sim, host = virtual_sim
     host.send(to_can(encode_can(FeedbackSet(4, 321))))
     for frame in feedback_string_frames(4, "Battery voltage V"):

@@ -1,5 +1,5 @@
 """The simulator's chattering VSC (``flap_heartbeats``): each change of the flapping mode is a
-heartbeat of its own, faster than any heartbeat schedule the manual allows (§8.3.6: 20 ms at
+heartbeat of its own, faster than any heartbeat schedule the manual allows (manual §8.3.6: 20 ms at
 the fastest). The fault suite uses it against the takeover rule (docs/safety.md rule 4)."""
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ def heartbeats(messages: Sequence[object]) -> list[VscHeartbeat]:
 
 
 def test_power_on_searches_with_the_remote_bits_then_links_in_local() -> None:
-    """§6.1: Searching indicates an e-stop; §6.2: the first link gives Local, no e-stop."""
+    """manual §6.1: Searching indicates an e-stop; §6.2: the first link gives Local, no e-stop."""
     model = VscModel(T0)
     first = heartbeats(model.tick(T0))[0]
     assert first.mode == VscMode.SEARCHING
@@ -69,7 +69,7 @@ def test_newer_firmware_reports_remote_where_older_reports_local() -> None:
 
 
 def test_local_leaves_only_by_takeover() -> None:
-    """§6.2: "The only transition from Local mode is into Operational mode"."""
+    """manual §6.2: "The only transition from Local mode is into Operational mode"."""
     model = linked_model()
     with pytest.raises(SimRefused, match="only from Operational"):
         model.pause(LINKED)
@@ -78,7 +78,7 @@ def test_local_leaves_only_by_takeover() -> None:
 
 
 def test_pause_and_takeover_from_pause() -> None:
-    """§6.3 pause; §6.5 Operational is entered only from Local or Pause."""
+    """manual §6.3 pause; §6.5 Operational is entered only from Local or Pause."""
     model = operational()
     model.pause(LINKED + 1)
     assert model.mode(LINKED + 1) == VscMode.PAUSE
@@ -98,7 +98,7 @@ def test_safetysense_pause_respects_its_enable_key() -> None:
 
 
 def test_menu_entered_from_operational_returns_to_pause() -> None:
-    """§6.4: Menu by its button; leaving does not resume motion without a takeover."""
+    """manual §6.4: Menu by its button; leaving does not resume motion without a takeover."""
     model = operational()
     model.menu(LINKED + 1)
     assert model.mode(LINKED + 1) == VscMode.MENU
@@ -128,7 +128,7 @@ def test_sticks_and_buttons_are_zeroed_outside_operational() -> None:
 
 
 def test_estop_returns_to_local_and_blocks_takeover_until_released() -> None:
-    """§6.6: an e-stop always reverts to Local; enables return only once corrected."""
+    """manual §6.6: an e-stop always reverts to Local; enables return only once corrected."""
     model = operational()
     model.press_estop(LINKED + 1)
     beat = model.heartbeat(LINKED + 1)
@@ -176,8 +176,8 @@ def test_remote_off_is_searching_with_link_bits_and_relinks_in_local() -> None:
 
 
 def test_key85_watchdog_trips_at_500_ms_inclusive() -> None:
-    """§8.3.5: with key 85 on, 500 ms without a user heartbeat raises the user e-stop. The
-    simulator trips when the age reaches 0.5 s (inclusive)."""
+    """manual §8.3.5, PR-2.8: with key 85 on, 500 ms without a user heartbeat raises the user
+    e-stop. The simulator trips when the age reaches 0.5 s (inclusive)."""
     model = operational()
     model.set_key(85, 1, LINKED)
     model.handle(UserHeartbeat(0), 2000.0)
@@ -212,8 +212,8 @@ def test_key85_watchdog_counts_from_boot_when_no_heartbeat_came() -> None:
 
 
 def test_default_rates_and_message_control() -> None:
-    """Table 5: heartbeat 20 Hz, joystick 50 Hz, GPS ~1 Hz, remote status off. A message
-    control changes a rate and is kept in the EEPROM (§8.3.6)."""
+    """Manual table 5, PR-2.10, PR-2.11: heartbeat 20 Hz, joystick 50 Hz, GPS ~1 Hz, remote status
+    off. A message control changes a rate and is kept in the EEPROM (manual §8.3.6)."""
     model = operational()
     counts: dict[type, int] = {}
     start = 2000.0
@@ -259,7 +259,7 @@ def test_eeprom_round_trips_through_json_and_rejects_bad_files() -> None:
 
 
 def test_feedback_get_answers_valid_keys_only() -> None:
-    """§8.3.8: a valid key is answered with a Feedback Set; an unknown one is not."""
+    """manual §8.3.8, PR-2.8: a valid key is answered with a Feedback Set; an unknown one is not."""
     model = linked_model()
     model.handle(FeedbackGet(85), LINKED)
     model.handle(FeedbackGet(77), LINKED)
@@ -280,7 +280,7 @@ def test_vibration_keys_count_and_run_750_ms() -> None:
 
 
 def test_menu_edit_is_sent_to_the_host() -> None:
-    """§8.3.9: a value edited in the remote's menu comes back as a Feedback Set."""
+    """manual §8.3.9: a value edited in the remote's menu comes back as a Feedback Set."""
     model = linked_model()
     with pytest.raises(SimRefused, match="Menu"):
         model.edit_value(2, 5, LINKED)
@@ -308,7 +308,7 @@ def test_reboot_is_silent_then_a_fresh_start() -> None:
 
 
 def test_inactivity_pause_then_auto_off() -> None:
-    """§6.3/§6.4: (key 80 + 1) minutes without activity pauses; 2 minutes later the remote
+    """manual §6.3/§6.4: (key 80 + 1) minutes without activity pauses; 2 minutes later the remote
     switches itself off when key 81 is on."""
     model = operational()
     model.set_key(80, 0, LINKED)

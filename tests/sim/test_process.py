@@ -199,7 +199,7 @@ def test_prints_the_pty_path_without_a_symlink() -> None:
 
 
 def test_eeprom_survives_a_restart(tmp_path: Path) -> None:
-    """Message control (§8.3.6) and key 85 (table 13) are kept as the VSC keeps them."""
+    """Message control (manual §8.3.6) and key 85 (table 13) are kept as the VSC keeps them."""
     with SimProcess(tmp_path, eeprom="eeprom.json") as sim:
         assert sim.serial_path is not None
         host = Host(sim.serial_path)

@@ -552,6 +552,50 @@ def scenario_clean_stop(bench: Bench) -> tuple[str, Measured]:
     }
 
 
+def scenario_prooftest(bench: Bench) -> tuple[str, Measured]:
+    """SR-5.3 (issue 16): under systemd, every start proves the VSC's key-85 watchdog before
+    the first RUN (a passed ``prooftest`` record, in the journal too); a VSC that ignores the
+    missing heartbeat is caught at the next start and keeps the robot STOPPED."""
+    unit, sim = bench.unit, bench.sim
+    run("systemctl", "restart", unit)
+
+    def proof() -> dict[str, Any]:
+        try:
+            return status(bench.instance).get("prooftest") or {}
+        except Exception:  # not up yet
+            return {}
+
+    took = wait_for("proof test passed", lambda: proof().get("phase") == "passed", 60, 0.1)
+    trip_ms = proof()["last"]["trip_ms"]
+    check(journal_has(unit, "proof test passed"), "no passed proof test in the journal")
+    sim.control.fault(watchdog="ignores")
+    try:
+        run("systemctl", "restart", unit)
+        wait_for("proof test failed", lambda: proof().get("phase") == "failed", 60, 0.1)
+        causes = [c["name"] for c in status(bench.instance)["causes"] if c["active"]]
+        check("vsc_watchdog_untested" in causes, f"causes after a failed proof test: {causes}")
+        check(state(bench.instance) == "STOPPED", "a failed proof test left STOPPED")
+        crit = subprocess.run(
+            ["journalctl", "--no-pager", "-u", unit, "-p", "crit", "-o", "cat"],
+            check=False,
+            capture_output=True,
+            text=True,
+        ).stdout
+        check("proof test failed" in crit, "the failed proof test is not in the journal at CRIT")
+    finally:
+        sim.control.fault()
+    run("systemctl", "restart", unit)
+    wait_for("proof test passed again", lambda: proof().get("phase") == "passed", 60, 0.1)
+    return "start-up proof test passes; an ignoring VSC is caught, STOPPED, CRIT", {
+        "restart to proof test passed s": round(took, 2),
+        "trip time ms (manual: 500)": trip_ms,
+    }
+
+
+def journal_has(unit: str, text: str) -> bool:
+    return text in journal(unit)
+
+
 CAN_CONFIG = """
 [vsc]
 transport = "can"
@@ -799,6 +843,7 @@ MAIN: list[tuple[str, Scenario]] = [
     ("hang", scenario_hang),
     ("crash", scenario_crash),
     ("clean_stop", scenario_clean_stop),
+    ("prooftest", scenario_prooftest),
 ]
 
 

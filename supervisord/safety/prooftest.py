@@ -1,0 +1,303 @@
+"""The proof test of the VSC's own watchdog (key 85): docs/safety.md "The proof test".
+
+Before the first RUN after every start, every reconnect and every silence of the VSC (a
+reboot), and on demand (``srcsctl prooftest``), the supervisor proves the second stop path
+(SR-0.1, SR-5.3): while STOPPED, it withholds the user heartbeat for longer than the VSC's
+500 ms watchdog (PR-2.8), confirms that the VSC reports the user e-stop bits (bits 6-7 of
+the e-stop word, PR-2.6) and leaves Operational if it was there, then resumes the heartbeat
+and confirms that the bits clear, by themselves or held until the operator's takeover.
+
+Pure: :class:`ProofTest` takes the VSC's heartbeats and ``now`` (monotonic ns) and says
+whether the core must withhold the heartbeat; the core owns every other fact.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Final
+
+from supervisord.protocol.codes import VscMode
+
+NS_PER_MS: Final = 1_000_000
+USER_BITS: Final = 0xC0
+"""Bits 6-7 of the VSC's e-stop word: the user computer's e-stop, from its heartbeat's byte
+or from the key-85 watchdog (PR-2.6)."""
+WATCHDOG_NS: Final = 500 * NS_PER_MS
+"""The VSC's user watchdog: an e-stop after 500 ms without a user heartbeat (manual §8.3.5)."""
+WITHHOLD_MORE_NS: Final = 800 * NS_PER_MS
+"""How much longer than a late trip the heartbeat is withheld: no trip by then (1.5 s with
+the default 200 ms ``vsc_timeout``, three times the watchdog), the VSC ignores it."""
+
+
+def trip_late_ns(vsc_timeout_ns: int) -> int:
+    """A trip seen later than this after the last heartbeat sent is late: the 500 ms watchdog
+    plus ``vsc_timeout``, the configured allowance for a VSC heartbeat to arrive (SR-2.2):
+    700 ms by default, room for one 50 ms heartbeat interval (manual table 5) and reading on
+    a busy vehicle computer; more where the config allows slow links (the system tier)."""
+    return WATCHDOG_NS + vsc_timeout_ns
+
+
+CLEARS_ITSELF_NS: Final = 500 * NS_PER_MS
+"""Bits that clear within this of the heartbeat resuming cleared by themselves; later, the
+VSC held them (until the operator's takeover, the manual does not say which it does)."""
+KEY85_WAIT_NS: Final = 3_000 * NS_PER_MS
+"""How long the test waits for key 85 to answer once the VSC is heard (it is asked every
+second, SR-5.3): no answer by then and the watchdog cannot be proven."""
+
+
+class ProofTestPolicy(enum.Enum):
+    """What a failed or impossible proof test does (config ``vsc.prooftest``)."""
+
+    BLOCK = "block"  # vsc_watchdog_untested stays active until a proof test passes
+    RECORD = "record"  # the failure is a momentary stop: recorded, latched, re-armed as usual
+    OFF = "off"  # no proof test (the only choice on CAN and HID: nothing to prove)
+
+
+class Phase(enum.Enum):
+    """Where the proof test is."""
+
+    WAITING = "waiting"  # not proven; waiting for the conditions to start
+    WITHHOLDING = "withholding"  # the user heartbeat is withheld; waiting for the trip
+    RESUMED = "resumed"  # the heartbeat goes out again; waiting for the bits to clear
+    PASSED = "passed"
+    FAILED = "failed"
+    OFF = "off"
+
+
+class Failure(enum.Enum):
+    """Why a proof test failed; the value is the text in the record and the cause's details."""
+
+    KEY85_OFF = "key 85 does not read 1: the VSC's watchdog is off, nothing to prove"
+    NO_TRIP = "the VSC did not report the user-timeout e-stop while the heartbeat was withheld"
+    LATE = "the VSC reported the user-timeout e-stop late"
+    STAYED_OPERATIONAL = "the VSC reported the user-timeout e-stop but stayed Operational"
+    NOT_CLEARED = "the VSC did not clear the user-timeout e-stop after the heartbeat resumed"
+
+
+class Cleared(enum.Enum):
+    """How the user bits cleared after the heartbeat resumed (docs/safety.md: both pass)."""
+
+    BY_ITSELF = "by_itself"
+    HELD = "held"  # held until the operator's takeover (or another act on the remote)
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """A finished proof test, for the record (``kind: prooftest``) and ``status``."""
+
+    passed: bool
+    failure: Failure | None
+    trip_ms: int | None
+    cleared: Cleared | None
+    cleared_ms: int | None  # from the heartbeat resuming to the bits clearing
+    at_ns: int
+
+    @property
+    def text(self) -> str:
+        trip = "no trip" if self.trip_ms is None else f"trip {self.trip_ms} ms (manual: 500 ms)"
+        if self.passed:
+            how = "by itself" if self.cleared is Cleared.BY_ITSELF else "held, then cleared"
+            return f"passed: {trip}; cleared {how} {self.cleared_ms} ms after the heartbeat resumed"
+        assert self.failure is not None
+        return f"failed: {self.failure.value}; {trip}"
+
+    def json(self) -> dict[str, object]:
+        return {
+            "result": "passed" if self.passed else "failed",
+            "failure": None if self.failure is None else self.failure.name.lower(),
+            "trip_ms": self.trip_ms,
+            "cleared": None if self.cleared is None else self.cleared.value,
+            "cleared_ms": self.cleared_ms,
+            "text": self.text,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class ProofStatus:
+    """What ``status`` shows: the policy, the phase and the latest finished proof test."""
+
+    policy: ProofTestPolicy
+    phase: Phase
+    last: Outcome | None
+
+    def json(self) -> dict[str, object]:
+        return {
+            "policy": self.policy.value,
+            "phase": self.phase.value,
+            "last": None if self.last is None else self.last.json(),
+        }
+
+
+class ProofTest:
+    """One proof test at a time; :meth:`restart` begins a new one (a new start, SR-4.4).
+
+    The core calls :meth:`heartbeat` for every VSC heartbeat, :meth:`advance` once per step
+    with whether it may start (STOPPED, the VSC heard, key 85 = 1, nothing asking the VSC
+    to stop), :meth:`sent` when a user heartbeat goes out, and reads :attr:`withholding`.
+    """
+
+    def __init__(
+        self, policy: ProofTestPolicy, clear_limit_ns: int, late_ns: int = trip_late_ns(0)
+    ) -> None:
+        self.policy = policy
+        self.clear_limit_ns = clear_limit_ns
+        self.late_ns = late_ns
+        self.withhold_limit_ns = late_ns + WITHHOLD_MORE_NS
+        self.phase = Phase.OFF if policy is ProofTestPolicy.OFF else Phase.WAITING
+        self.last: Outcome | None = None  # the latest finished proof test
+        self._new: Outcome | None = None  # finished in this step, not yet taken
+        self._heard_ns: int | None = None  # first VSC heartbeat of this attempt
+        self._sent_ns: int | None = None  # the last user heartbeat that went out
+        self._withheld_from: int | None = None  # that heartbeat, when withholding began
+        self._was_operational = False
+        self._trip_ns: int | None = None
+        self._resumed_ns: int | None = None
+
+    # -- what the core reads
+
+    @property
+    def withholding(self) -> bool:
+        return self.phase is Phase.WITHHOLDING
+
+    @property
+    def running(self) -> bool:
+        return self.phase in (Phase.WITHHOLDING, Phase.RESUMED)
+
+    @property
+    def untested(self) -> bool:
+        """The condition of ``vsc_watchdog_untested``: not proven yet (a test pending or
+        running blocks RUN under every policy: it must come before the first RUN), or
+        failed under the ``block`` policy."""
+        if self.phase in (Phase.OFF, Phase.PASSED):
+            return False
+        return self.phase is not Phase.FAILED or self.policy is ProofTestPolicy.BLOCK
+
+    def details(self) -> tuple[tuple[str, str], ...]:
+        if self.phase is Phase.FAILED and self.last is not None:
+            return (("observed", self.last.text),)
+        return (("reason", "the VSC's watchdog is not proven since the link opened"),)
+
+    def take_outcome(self) -> Outcome | None:
+        """The proof test that finished in this step, once."""
+        outcome, self._new = self._new, None
+        return outcome
+
+    def status(self) -> ProofStatus:
+        """For ``status``: the phase and the latest result."""
+        return ProofStatus(self.policy, self.phase, self.last)
+
+    def next_deadline(self) -> int | None:
+        if self.phase is Phase.WITHHOLDING and self._withheld_from is not None:
+            return self._withheld_from + self.withhold_limit_ns
+        if self.phase is Phase.RESUMED and self._resumed_ns is not None:
+            return self._resumed_ns + self.clear_limit_ns
+        return None
+
+    # -- inputs
+
+    def restart(self) -> None:
+        """A new start (link opened, the VSC silent, or asked for): not proven any more."""
+        if self.policy is ProofTestPolicy.OFF:
+            return
+        self.phase = Phase.WAITING
+        self._heard_ns = None
+        self._withheld_from = self._trip_ns = self._resumed_ns = None
+
+    def sent(self, now: int) -> None:
+        """A user heartbeat went out at ``now``."""
+        self._sent_ns = now
+        if self.phase is Phase.RESUMED and self._resumed_ns is None:
+            self._resumed_ns = now
+
+    def abort(self) -> None:
+        """A stop condition of the supervisor's own came up during the test: its byte must
+        reach the VSC at once, and it would hide the bits' clearing. Try again later."""
+        if self.running:
+            self.phase = Phase.WAITING
+            self._withheld_from = self._trip_ns = self._resumed_ns = None
+
+    def advance(self, now: int, ready: bool, key85: int | None, mode: int | None) -> None:
+        """Start when ``ready``; fail an impossible test; end a withholding that timed out."""
+        if (
+            self.phase is Phase.FAILED
+            and self.last is not None
+            and self.last.failure is Failure.KEY85_OFF
+            and key85 == 1
+        ):
+            self.restart()  # commissioned since: now there is something to prove
+        if self.phase is Phase.WAITING:
+            if key85 is not None and key85 != 1:
+                self._finish(now, Failure.KEY85_OFF)
+            elif key85 is None:
+                if self._heard_ns is not None and now - self._heard_ns >= KEY85_WAIT_NS:
+                    self._finish(now, Failure.KEY85_OFF)
+            elif ready and self._sent_ns is not None:
+                self.phase = Phase.WITHHOLDING
+                self._withheld_from = self._sent_ns
+                self._was_operational = mode == VscMode.OPERATIONAL
+                self._trip_ns = None
+        elif self.phase is Phase.WITHHOLDING:
+            assert self._withheld_from is not None
+            if now - self._withheld_from >= self.withhold_limit_ns:
+                failure = Failure.NO_TRIP if self._trip_ns is None else Failure.STAYED_OPERATIONAL
+                self._resume(now, failure)
+        elif (
+            self.phase is Phase.RESUMED
+            and self._resumed_ns is not None
+            and now - self._resumed_ns >= self.clear_limit_ns
+        ):
+            self._finish(now, Failure.NOT_CLEARED)
+
+    def heartbeat(self, mode: int, word: int, now: int) -> None:
+        """A VSC heartbeat with its mode and e-stop word, received at ``now``."""
+        if self._heard_ns is None:
+            self._heard_ns = now
+        tripped = word & USER_BITS != 0
+        if self.phase is Phase.WITHHOLDING and tripped:
+            assert self._withheld_from is not None
+            if self._trip_ns is None:
+                self._trip_ns = now
+            if self._trip_ns - self._withheld_from > self.late_ns:
+                self._resume(now, Failure.LATE)
+            elif not (self._was_operational and mode == VscMode.OPERATIONAL):
+                self._resume(now, None)
+        elif self.phase is Phase.RESUMED and not tripped and self._resumed_ns is not None:
+            self._cleared(now)
+        elif (
+            self.phase is Phase.FAILED
+            and self.last is not None
+            and self.last.failure is Failure.NOT_CLEARED
+            and not tripped
+            and self._resumed_ns is not None
+        ):
+            self._cleared(now)  # held longer than the limit, then cleared: a late pass
+
+    # -- steps
+
+    def _resume(self, now: int, failure: Failure | None) -> None:
+        """Stop withholding; the next heartbeat goes out in this step."""
+        if failure is not None:
+            self._finish(now, failure)
+            return
+        self.phase = Phase.RESUMED
+        self._resumed_ns = None  # set by the first heartbeat that goes out
+
+    def _trip_ms(self) -> int | None:
+        if self._trip_ns is None or self._withheld_from is None:
+            return None
+        return (self._trip_ns - self._withheld_from) // NS_PER_MS
+
+    def _cleared(self, now: int) -> None:
+        assert self._resumed_ns is not None
+        after = now - self._resumed_ns
+        how = Cleared.BY_ITSELF if after <= CLEARS_ITSELF_NS else Cleared.HELD
+        self.last = self._new = Outcome(True, None, self._trip_ms(), how, after // NS_PER_MS, now)
+        self.phase = Phase.PASSED
+
+    def _finish(self, now: int, failure: Failure) -> None:
+        self.last = self._new = Outcome(False, failure, self._trip_ms(), None, None, now)
+        self.phase = Phase.FAILED
+        if failure is Failure.NOT_CLEARED:
+            return  # keep watching: a held bit that clears later still passes
+        self._resumed_ns = None

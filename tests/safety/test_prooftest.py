@@ -1,0 +1,249 @@
+"""The proof test of the VSC's watchdog in the pure core (SR-5.3, SR-5.6, SR-5.7; docs/safety.md
+"The proof test"): a fake VSC whose watchdog is modelled here, a fake clock, no sleeping."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import pytest
+
+from supervisord.errors import ConfigError
+from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, VscReceived
+from supervisord.safety.config import SafetyConfig, Transport
+from supervisord.safety.decision import Decision, RefusalReason
+from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.prooftest import Phase, ProofTestPolicy
+
+from .rig import ADMIN, LOCAL, MS, NOBODY, OPERATIONAL, PAUSE, ROBOT, START_NS
+
+UNTESTED = "vsc_watchdog_untested"
+BLOCK = replace(ROBOT, clients=(), prooftest=ProofTestPolicy.BLOCK)
+
+
+class Vsc:
+    """A core fed by a VSC whose key-85 watchdog trips ``trip_ms`` after the last user
+    heartbeat (``None``: never) and clears when heartbeats resume (``holds``: only at a
+    takeover), sending its heartbeat every 50 ms (manual table 5)."""
+
+    def __init__(self, config: SafetyConfig = BLOCK, trip_ms: int | None = 500) -> None:
+        self.now = START_NS
+        self.core = SafetyCore(config, self.now)
+        self.trip_ms = trip_ms
+        self.holds = False
+        self.held = False
+        self.never_clears = False
+        self.mode = LOCAL
+        self.last_user = self.now
+        self.decisions: list[Decision] = []
+        self.feed(LinkOpened(self.now))
+        self.feed(VscReceived(self.now, FeedbackSet(85, 1)))
+
+    def feed(self, event: object) -> Decision:
+        decision = self.core.handle(event)  # type: ignore[arg-type]
+        if any(isinstance(f, UserHeartbeat) for f in decision.frames):
+            self.last_user = decision.now
+        self.decisions.append(decision)
+        return decision
+
+    def word(self) -> int:
+        tripped = self.trip_ms is not None and self.now - self.last_user >= self.trip_ms * MS
+        if tripped and (self.holds or self.never_clears):
+            self.held = True
+        return 0x80 if tripped or self.held else 0
+
+    def beat(self, ms: int = 50) -> Decision:
+        self.now += ms * MS
+        word = self.word()
+        if word:
+            self.mode = LOCAL  # manual §6.6: an e-stop reverts to Local
+        return self.feed(VscReceived(self.now, VscHeartbeat(self.mode, 0, word)))
+
+    def run(self, ms: int) -> Decision:
+        decision = self.decisions[-1]
+        for _ in range(ms // 50):
+            decision = self.beat()
+        return decision
+
+    @property
+    def proof(self) -> Decision:
+        return self.decisions[-1]
+
+    def records(self) -> list[str]:
+        return [r.prooftest.text for d in self.decisions for r in d.records if r.prooftest]
+
+    def takeover(self) -> Decision:
+        """The operator: Pause long enough for rule 4, then Operational."""
+        self.mode = PAUSE
+        self.run(300)
+        self.mode = OPERATIONAL
+        return self.beat()
+
+
+def test_a_healthy_watchdog_passes_with_its_trip_time_and_then_a_takeover_runs() -> None:
+    """SR-5.3: the heartbeat is withheld, the trip is measured (500 ms, seen with the next
+    VSC heartbeat), the bit clears by itself; one record; then a takeover reaches RUN."""
+    vsc = Vsc()
+    assert UNTESTED in vsc.proof.active_names
+    vsc.run(1000)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.PASSED
+    assert status.last is not None
+    assert status.last.trip_ms == 500
+    assert status.last.cleared is not None
+    assert status.last.cleared.value == "by_itself"
+    assert len(vsc.records()) == 1
+    assert UNTESTED not in vsc.proof.active_names
+    assert vsc.takeover().state is State.RUN
+
+
+def test_no_heartbeat_goes_out_while_withheld_and_the_robot_stays_stopped() -> None:
+    """SR-5.3, SR-1.1: during the withholding no user heartbeat goes out until the VSC
+    reports the trip, at least 500 ms, and the state is STOPPED throughout."""
+    vsc = Vsc()
+    sent = []
+    for _ in range(30):
+        decision = vsc.beat()
+        sent += [decision.now for f in decision.frames if isinstance(f, UserHeartbeat)]
+        assert decision.state is State.STOPPED
+    gaps = [b - a for a, b in itertools.pairwise(sent)]
+    assert max(gaps) >= 500 * MS
+
+
+@pytest.mark.parametrize(
+    ("trip_ms", "failure"), [(None, "NO_TRIP"), (900, "LATE")], ids=["ignores", "late"]
+)
+def test_a_watchdog_that_ignores_or_trips_late_fails_and_blocks(
+    trip_ms: int | None, failure: str
+) -> None:
+    """SR-5.3: no trip within 1.5 s, or a trip later than 700 ms, fails: the cause stays
+    active with the observation, and a takeover is refused."""
+    vsc = Vsc(trip_ms=trip_ms)
+    vsc.run(2500)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.FAILED
+    assert status.last is not None
+    assert status.last.failure is not None
+    assert status.last.failure.name == failure
+    cause = vsc.proof.cause(UNTESTED)
+    assert cause is not None
+    assert cause.active
+    assert "failed" in (cause.detail("observed") or "")
+    assert vsc.takeover().state is State.STOPPED
+
+
+def test_a_bit_that_never_clears_fails_after_the_clear_limit() -> None:
+    """SR-5.3: a bit still set ``prooftest_clear_ms`` after the heartbeat resumed fails."""
+    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
+    vsc.never_clears = True
+    vsc.run(2500)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.FAILED
+    assert status.last is not None
+    assert status.last.failure is not None
+    assert status.last.failure.name == "NOT_CLEARED"
+
+
+def test_a_bit_held_until_a_takeover_passes_as_held() -> None:
+    """SR-5.3: a bit that clears later than 500 ms after the heartbeat resumed passes, and
+    the record says it was held."""
+    vsc = Vsc()
+    vsc.holds = True
+    vsc.run(2000)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.RESUMED
+    vsc.held = False  # the operator's gesture on the remote
+    vsc.holds = False
+    vsc.beat()
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.PASSED
+    assert status.last is not None
+    assert status.last.cleared is not None
+    assert status.last.cleared.value == "held"
+
+
+def test_key85_off_cannot_pass() -> None:
+    """SR-5.3: with key 85 reading 0 there is nothing to prove: the proof test fails."""
+    vsc = Vsc(replace(BLOCK, require_watchdog=False))
+    vsc.feed(VscReceived(vsc.now, FeedbackSet(85, 0)))
+    vsc.run(200)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.FAILED
+    assert status.last is not None
+    assert status.last.failure is not None
+    assert status.last.failure.name == "KEY85_OFF"
+
+
+def test_the_record_policy_records_a_failure_and_lets_a_takeover_run() -> None:
+    """The ``record`` policy: a failure is a momentary stop, latched until a re-arm."""
+    vsc = Vsc(replace(BLOCK, prooftest=ProofTestPolicy.RECORD), trip_ms=None)
+    vsc.run(2500)
+    cause = vsc.proof.cause(UNTESTED)
+    assert cause is not None
+    assert cause.latched
+    assert not cause.active
+    assert vsc.takeover().state is State.RUN
+
+
+def test_a_stop_of_our_own_aborts_the_withholding_at_once() -> None:
+    """SR-5.2: a local e-stop during the withholding sends the heartbeat with the byte at
+    once; the proof test waits and runs again once the stop condition is clear."""
+    vsc = Vsc()
+    vsc.run(200)
+    assert vsc.proof.prooftest is not None
+    assert vsc.proof.prooftest.phase is Phase.WITHHOLDING
+    decision = vsc.feed(LocalEstop(vsc.now, ADMIN))
+    assert UserHeartbeat(1) in decision.frames
+    assert decision.prooftest is not None
+    assert decision.prooftest.phase is Phase.WAITING
+
+
+def test_a_reconnect_and_a_silent_vsc_repeat_the_proof_test() -> None:
+    """SR-4.4: a link that opens again, or a VSC silent for ``vsc_timeout`` (a reboot),
+    is proven again before RUN."""
+    vsc = Vsc()
+    vsc.run(1000)
+    vsc.now += 400 * MS  # silent: longer than the 200 ms timeout
+    vsc.beat()
+    assert UNTESTED in vsc.proof.active_names
+    vsc.run(1000)
+    assert len(vsc.records()) == 2
+    vsc.feed(LinkOpened(vsc.now))
+    assert UNTESTED in vsc.proof.active_names
+
+
+def test_prooftest_request_admin_only_and_only_while_stopped() -> None:
+    """SR-8.3: ``srcsctl prooftest`` is refused to a non-admin and in RUN; an admin's
+    request while STOPPED starts a new proof test."""
+    vsc = Vsc()
+    vsc.run(1000)
+    refused = vsc.feed(ProofTestRequest(vsc.now, NOBODY))
+    assert [r.reason for r in refused.refusals] == [RefusalReason.NOT_ADMIN]
+    started = vsc.feed(ProofTestRequest(vsc.now, ADMIN))
+    assert not started.refusals
+    assert UNTESTED in started.active_names
+    vsc.run(1000)
+    assert vsc.takeover().state is State.RUN
+    in_run = vsc.feed(ProofTestRequest(vsc.now, ADMIN))
+    assert [r.reason for r in in_run.refusals] == [RefusalReason.PROOFTEST_NOT_STOPPED]
+    assert in_run.state is State.RUN
+
+
+def test_can_and_hid_cannot_have_a_proof_test() -> None:
+    """Choice 8: CAN and HID have no user heartbeat to withhold: only ``off`` is accepted,
+    and the core built in code runs none unless asked (the TOML default is ``block``)."""
+    with pytest.raises(ConfigError, match="cannot be proven"):
+        SafetyConfig(
+            transport=Transport.CAN, require_watchdog=False, prooftest=ProofTestPolicy.RECORD
+        )
+    core = SafetyCore(replace(ROBOT, clients=()), START_NS)
+    assert core.decision.prooftest is not None
+    assert core.decision.prooftest.phase is Phase.OFF
+    assert UNTESTED not in core.handle(Tick(START_NS + 1)).active_names
