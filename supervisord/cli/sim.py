@@ -34,7 +34,7 @@ from supervisord import __version__
 from supervisord.sim.can_side import CanSide
 from supervisord.sim.control import ControlServer
 from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Simulator, load_eeprom
-from supervisord.sim.model import LINK_DELAY_S, Transport, VscModel
+from supervisord.sim.model import LINK_DELAY_S, REMOTE_OFF_REPORTS, Transport, VscModel
 from supervisord.sim.serial_side import SerialSide
 
 POLL_S = 0.05  # the longest wait: state the model changes on its own shows within this
@@ -102,6 +102,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--newer-firmware", action="store_true", help="report Remote (0x06) instead of Local"
     )
     parser.add_argument("--remote-off", action="store_true", help="start with the remote off")
+    parser.add_argument(
+        "--remote-off-reports",
+        choices=REMOTE_OFF_REPORTS,
+        default="searching",
+        help="how the VSC reports a switched-off remote: Searching with bit 0x02, or Local "
+        "with the remote's e-stop bit 0x01 as some hardware does (default %(default)s)",
+    )
     args = parser.parse_args(argv)
     if args.can is not None and ":" not in args.can:
         parser.error("--can takes INTERFACE:CHANNEL, e.g. udp_multicast:239.74.163.2")
@@ -201,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
             newer_firmware=args.newer_firmware,
             link_delay=args.link_delay,
             remote_on=not args.remote_off,
+            remote_off_reports=args.remote_off_reports,
         )
         sim = Simulator(
             side, model, seed=args.seed, eeprom_path=eeprom_path, boot_delay=args.boot_delay

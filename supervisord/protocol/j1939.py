@@ -3,6 +3,14 @@
 Frames are ``CanFrame`` values (29-bit id and data) that the daemon turns into python-can
 messages. Ids are matched on PGN and source address; the 3 priority bits are ignored, as
 J1939 receivers do. Unused bytes are sent as ``FF`` and not checked on receipt.
+
+A joystick axis magnitude of 1022 means error and 1023 not available (PR-3.2, J1939's
+convention for the top values of a parameter), whatever the axis's statuses say; 0..1021 are
+deflections. The frames (``decode_can``) keep the bits as sent; ``j1939_value`` reads them.
+The ``JoystickAssembler`` turns a reserved magnitude into the error or not-available status,
+so that the serial ``Joystick`` it builds means the same to every reader of ``Axis.value``
+(the API's joystick push, the ROS bridge). ``j1939_axis`` is the other direction: a
+deflection past 1021 is sent as 1021, never as a marker.
 """
 
 from __future__ import annotations
@@ -11,6 +19,7 @@ import enum
 import struct
 from dataclasses import dataclass
 
+from supervisord.protocol.codes import FieldStatus
 from supervisord.protocol.messages import (
     Axis,
     DPad,
@@ -29,6 +38,34 @@ _PRIORITY_3 = 0x0C00_0000
 PAD = 0xFF
 SEGMENT_TEXT_LENGTH = 6
 SEGMENT_COUNT = 3  # the VSC joins three 6-character segments into 18 characters (manual §9.2.7)
+
+
+MAGNITUDE_ERROR = 1022  # PR-3.2
+MAGNITUDE_NOT_AVAILABLE = 1023  # PR-3.2
+MAGNITUDE_MAX = 1021
+"""PR-3.2: the largest magnitude a J1939 joystick frame carries as a deflection."""
+_RESERVED = {MAGNITUDE_ERROR: FieldStatus.ERROR, MAGNITUDE_NOT_AVAILABLE: FieldStatus.NOT_AVAILABLE}
+
+
+def serial_axis(axis: Axis) -> Axis:
+    """``axis`` from a J1939 frame in the serial message's terms (PR-3.2): a reserved
+    magnitude becomes the error or not-available status on all three, so ``value`` is
+    ``None``; any other axis is returned as it is."""
+    status = _RESERVED.get(axis.magnitude)
+    return axis if status is None else Axis(status, status, status, axis.magnitude)
+
+
+def j1939_value(axis: Axis) -> int | None:
+    """The deflection of an axis from a J1939 frame, ``None`` when invalid (PR-2.2, PR-3.2)."""
+    return serial_axis(axis).value
+
+
+def j1939_axis(axis: Axis) -> Axis:
+    """``axis`` as a J1939 frame may carry it (PR-3.2): a valid deflection past 1021 is sent
+    as 1021, the nearest deflection that is not a marker; an invalid axis goes unchanged."""
+    if axis.magnitude <= MAGNITUDE_MAX or axis.value is None:
+        return axis
+    return Axis(axis.neutral, axis.negative, axis.positive, MAGNITUDE_MAX)
 
 
 class CanId(enum.IntEnum):
@@ -230,8 +267,9 @@ class JoystickAssembler:
     """Joins the four CAN joystick messages into the serial ``Joystick`` value.
 
     Each basic or extended message replaces its hand's part; every message returns the whole
-    joystick as it now stands. Parts never received are neutral. Axes keep their J1939
-    meaning: read them with ``Axis.j1939_value``.
+    joystick as it now stands. Parts never received are neutral. A reserved magnitude becomes
+    the error or not-available status (``serial_axis``, PR-3.2), so ``Axis.value`` of the
+    result means what ``j1939_value`` of the frame means.
     """
 
     def __init__(self) -> None:
@@ -240,9 +278,9 @@ class JoystickAssembler:
     def update(self, message: JoystickBasic | JoystickExtended) -> Joystick:
         side = message.hand.value
         if isinstance(message, JoystickBasic):
-            self._parts[f"{side}_x"] = message.x
-            self._parts[f"{side}_y"] = message.y
+            self._parts[f"{side}_x"] = serial_axis(message.x)
+            self._parts[f"{side}_y"] = serial_axis(message.y)
             self._parts[f"{side}_buttons"] = message.buttons
         else:
-            self._parts[f"{side}_z"] = message.z
+            self._parts[f"{side}_z"] = serial_axis(message.z)
         return Joystick(**self._parts)  # type: ignore[arg-type]  # keys are Joystick's fields

@@ -25,6 +25,7 @@ from supervisord.protocol.j1939 import (
     FeedbackStringSegment,
     JoystickBasic,
     JoystickExtended,
+    j1939_value,
 )
 from supervisord.protocol.messages import (
     Axis,
@@ -51,9 +52,10 @@ def _name(enum_type: type[VscMode | AutonomyMode | FeedbackKey | StringKey], val
 
 
 def axis_json(axis: Axis, *, j1939: bool = False) -> JsonDict:
-    """``value`` is the signed deflection, or null when the axis is invalid (PR-2)."""
+    """``value`` is the signed deflection, or null when the axis is invalid (PR-2.2); in a
+    J1939 frame also when the magnitude is 1022 or 1023 (PR-3.2). The rest is the bits as sent."""
     return {
-        "value": axis.j1939_value if j1939 else axis.value,
+        "value": j1939_value(axis) if j1939 else axis.value,
         "magnitude": axis.magnitude,
         "neutral_status": int(axis.neutral),
         "negative_status": int(axis.negative),

@@ -88,13 +88,6 @@ class Axis:
             return self.magnitude
         return None
 
-    @property
-    def j1939_value(self) -> int | None:
-        """As ``value``, but magnitudes 1022/1023 mean error / not available (PR-2, CAN)."""
-        if self.magnitude >= 1022 and self.neutral is not FieldStatus.SET:
-            return None
-        return self.value
-
     @classmethod
     def from_value(cls, value: int) -> Self:
         """The axis word a healthy remote sends for a deflection of ``value``."""

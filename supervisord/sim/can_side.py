@@ -27,6 +27,7 @@ from supervisord.protocol.j1939 import (
     JoystickExtended,
     decode_can,
     encode_can,
+    j1939_axis,
 )
 from supervisord.protocol.messages import FeedbackSet, Joystick, Message, RemoteStatus, VscHeartbeat
 from supervisord.sim.faults import CanErrorFrame, Item
@@ -42,13 +43,13 @@ def can_frames(message: Message) -> Iterator[CanFrame]:
     if isinstance(message, VscHeartbeat | RemoteStatus):
         yield encode_can(message)
     elif isinstance(message, Joystick):
-        left = JoystickBasic(Hand.LEFT, message.left_x, message.left_y, message.left_buttons)
-        yield encode_can(left)
-        yield encode_can(JoystickExtended(Hand.LEFT, message.left_z))
-        yield encode_can(
-            JoystickBasic(Hand.RIGHT, message.right_x, message.right_y, message.right_buttons)
-        )
-        yield encode_can(JoystickExtended(Hand.RIGHT, message.right_z))
+        # PR-3.2: 1022 and 1023 are J1939's error and not-available markers, so a stick at
+        # full deflection (the serial 1023) goes on CAN as 1021 (docs/simulator.md).
+        lx, ly, lz, rx, ry, rz = (j1939_axis(axis) for axis in message.axes)
+        yield encode_can(JoystickBasic(Hand.LEFT, lx, ly, message.left_buttons))
+        yield encode_can(JoystickExtended(Hand.LEFT, lz))
+        yield encode_can(JoystickBasic(Hand.RIGHT, rx, ry, message.right_buttons))
+        yield encode_can(JoystickExtended(Hand.RIGHT, rz))
 
 
 class CanSide:

@@ -384,6 +384,7 @@ class Simulator:
             "estop": word,
             "estop_bits": [bit.name.lower() for bit in EstopBit if word & bit and bit.name],
             "remote_on": model.remote_on,
+            "remote_off_reports": model.remote_off_reports,
             "linked": model.linked(now),
             "remote_estop": model.remote_estop,
             "wired_estop": model.wired_estop,

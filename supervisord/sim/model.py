@@ -11,6 +11,10 @@ Where the manual is silent the choices are written down here and in ``docs/simul
 - E-stop word bits (PR-2 only name the pairs): 0x01 the remote's e-stop button, 0x02 no
   remote link (remote off, out of range, or the VSC still searching), 0x04 the wired input,
   0x40 the host's heartbeat asked for an e-stop, 0x80 the key-85 watchdog timed out.
+- A switched-off remote is reported as Searching with 0x02 (``remote_off_reports="searching"``,
+  the default) or, as some hardware reports it, as Local (Remote on newer firmware) with the
+  remote's e-stop bit 0x01 (``"local"``); both are a stop (PR-2.6). A remote that is on and
+  still linking is Searching with 0x02 either way.
 - The key-85 watchdog trips when the last user heartbeat is 500 ms old or older (age >= 0.5 s,
   inclusive). Its age is counted from the VSC's boot when no heartbeat has arrived since.
   On CAN there is no user heartbeat (PR-3), so the watchdog never runs there.
@@ -54,6 +58,8 @@ from supervisord.protocol.messages import (
 from supervisord.protocol.nmea import parse_nmea
 
 Transport = Literal["serial", "can"]
+RemoteOffReport = Literal["searching", "local"]
+REMOTE_OFF_REPORTS: tuple[RemoteOffReport, ...] = ("searching", "local")
 
 WATCHDOG_S = 0.5  # manual §8.3.5: "after a 500ms timeout"
 VIBRATION_S = 0.75  # manual table 13: keys 10-12 drive a motor for 750 ms
@@ -211,8 +217,12 @@ class VscModel:
         newer_firmware: bool = False,
         link_delay: float = LINK_DELAY_S,
         remote_on: bool = True,
+        remote_off_reports: RemoteOffReport = "searching",
     ) -> None:
+        if remote_off_reports not in REMOTE_OFF_REPORTS:
+            raise ValueError(f"remote_off_reports must be one of {REMOTE_OFF_REPORTS}")
         self.transport: Transport = transport
+        self.remote_off_reports = remote_off_reports
         self.eeprom = eeprom or Eeprom.defaults(transport)
         self.eeprom_version = 0  # bumped on every change the edge must save
         self.idle_mode = VscMode.REMOTE if newer_firmware else VscMode.LOCAL
@@ -492,7 +502,9 @@ class VscModel:
             self.power(False, now)  # manual §6.4 AutoOffEnable: the remote switches itself off
             return
         word = 0
-        if not self._linked:
+        if self._off_as_local:
+            word |= EstopBit.REMOTE_BUTTON  # PR-2.6: the remote's bits, as some hardware does
+        elif not self._linked:
             word |= EstopBit.REMOTE_LINK
         elif self.remote_estop:
             word |= EstopBit.REMOTE_BUTTON
@@ -528,9 +540,16 @@ class VscModel:
         """Key 85 is on and the link has a user heartbeat (serial only, PR-3)."""
         return self.transport == "serial" and self.eeprom.keys[85] == 1
 
+    @property
+    def _off_as_local(self) -> bool:
+        """The remote is off and this VSC reports that as Local with bit 0x01 (PR-2.6)."""
+        return not self.remote_on and self.remote_off_reports == "local"
+
     def mode(self, now: float) -> int:
         """The mode the heartbeat reports."""
         self._update(now)
+        if self._off_as_local and not self.booting(now):
+            return self.idle_mode
         if not self._linked:
             return VscMode.SEARCHING
         return self._forced_mode if self._forced_mode is not None else self._mode

@@ -46,7 +46,17 @@ from supervisord.api.wire import (
     trigger_json,
 )
 from supervisord.protocol.codes import DisplayMode
+from supervisord.protocol.j1939 import (
+    CanFrame,
+    CanId,
+    Hand,
+    JoystickAssembler,
+    JoystickBasic,
+    decode_can,
+)
+from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import (
+    Axis,
     FeedbackName,
     FeedbackSet,
     Gps,
@@ -355,6 +365,28 @@ def test_message_pushes_use_the_topic_as_event() -> None:
     assert message_push(RemoteStatus(80))["battery_level"] == 80
     assert message_topic(RemoteStatus(80)) is Topic.REMOTE_STATUS
     assert message_topic(VscHeartbeat(mode=9)) is None
+
+
+@pytest.mark.parametrize("magnitude", [1020, 1021, 1022, 1023])
+def test_can_joystick_push_agrees_with_decode_on_reserved_magnitudes(magnitude: int) -> None:
+    """PR-3.2: a CAN joystick axis of magnitude 1022/1023 is null in the API's joystick push
+    as in ``srcsctl decode --can``, and 1020/1021 are the same number in both."""
+    word = Axis.from_value(-magnitude).to_word()
+    frame = CanFrame(CanId.LEFT_BASIC, (word | 0x0001 << 16).to_bytes(4, "little") + b"\xff\0")
+    basic = decode_can(frame)
+    assert isinstance(basic, JoystickBasic)
+    assert basic.hand is Hand.LEFT
+    decoded_value = message_json(basic)["x_joystick_value"]["value"]
+    pushed = message_push(JoystickAssembler().update(basic))
+    assert pushed["left_x_joystick_value"]["value"] == decoded_value
+    assert decoded_value == (None if magnitude >= 1022 else -magnitude)
+    assert pushed["left_x_joystick_value"]["magnitude"] == magnitude
+
+
+def test_serial_joystick_push_keeps_1023_as_full_deflection() -> None:
+    """PR-3.2, PR-2.1: on serial the reserved pair does not exist: 1023 is a full deflection."""
+    pushed = message_push(Joystick(right_z=Axis.from_value(1023)))
+    assert pushed["right_z_joystick_value"]["value"] == 1023
 
 
 # -- safety-core events ---------------------------------------------------------------------

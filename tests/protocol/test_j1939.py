@@ -20,6 +20,8 @@ from supervisord.protocol.j1939 import (
     decode_can,
     encode_can,
     feedback_string_frames,
+    j1939_axis,
+    j1939_value,
 )
 from supervisord.protocol.messages import Axis, DPad, FeedbackSet, NumberedButtons, VscHeartbeat
 
@@ -82,14 +84,59 @@ def test_rejections(frame: CanFrame, reason: CanRejectReason) -> None:
 
 
 @pytest.mark.parametrize("magnitude", [1022, 1023])
-def test_j1939_error_magnitudes_make_the_axis_invalid(magnitude: int) -> None:
-    """PR-3.2: on CAN, magnitudes 1022/1023 mean error / not available (PR-2): no value."""
-    decoded = decode_can(
-        CanFrame(CanId.RIGHT_EXTENDED, Axis.from_value(magnitude).to_word().to_bytes(2, "little"))
-    )
+@pytest.mark.parametrize(
+    "statuses",
+    [
+        (FieldStatus.NOT_SET, FieldStatus.NOT_SET, FieldStatus.SET),
+        (FieldStatus.SET, FieldStatus.NOT_SET, FieldStatus.NOT_SET),
+    ],
+    ids=["positive", "neutral"],
+)
+def test_j1939_error_magnitudes_make_the_axis_invalid(
+    magnitude: int, statuses: tuple[FieldStatus, FieldStatus, FieldStatus]
+) -> None:
+    """PR-3.2: on CAN, magnitudes 1022/1023 mean error / not available: no value, whatever
+    the statuses say (even neutral set)."""
+    axis = Axis(*statuses, magnitude)
+    decoded = decode_can(CanFrame(CanId.RIGHT_EXTENDED, axis.to_word().to_bytes(2, "little")))
     assert isinstance(decoded, JoystickExtended)
-    assert decoded.z.value == magnitude  # the serial reading would accept it
-    assert decoded.z.j1939_value is None
+    assert decoded.z == axis  # the frame's view keeps the bits as sent
+    assert j1939_value(decoded.z) is None
+
+
+def test_j1939_magnitudes_up_to_1021_are_deflections() -> None:
+    """PR-3.2: below the reserved pair a CAN magnitude is a deflection, as on serial."""
+    assert j1939_value(Axis.from_value(1021)) == 1021
+    assert j1939_value(Axis.from_value(-1021)) == -1021
+    assert j1939_value(Axis.from_value(0)) == 0
+    assert j1939_value(Axis(FieldStatus.ERROR, FieldStatus.ERROR, FieldStatus.ERROR, 5)) is None
+
+
+@pytest.mark.parametrize(
+    ("magnitude", "status"), [(1022, FieldStatus.ERROR), (1023, FieldStatus.NOT_AVAILABLE)]
+)
+def test_assembled_joystick_carries_the_reserved_meaning(
+    magnitude: int, status: FieldStatus
+) -> None:
+    """PR-3.2: the serial Joystick the CAN link assembles reads a reserved magnitude as the
+    error or not-available status, so every reader of ``Axis.value`` sees no value."""
+    assembler = JoystickAssembler()
+    joystick = assembler.update(
+        JoystickBasic(Hand.LEFT, Axis.from_value(magnitude), Axis.from_value(-5), DPad())
+    )
+    assert joystick.left_x.value is None
+    assert joystick.left_x == Axis(status, status, status, magnitude)
+    assert joystick.left_y.value == -5
+
+
+def test_j1939_axis_never_sends_a_reserved_magnitude_as_a_deflection() -> None:
+    """PR-3.2: a deflection past 1021 goes on CAN as 1021 (the nearest value that is not a
+    marker); the error and not-available markers and smaller deflections go unchanged."""
+    for value in range(-1023, 1024):
+        sent = j1939_axis(Axis.from_value(value))
+        assert j1939_value(sent) == max(-1021, min(1021, value))
+    marker = Axis(FieldStatus.ERROR, FieldStatus.ERROR, FieldStatus.ERROR, 1022)
+    assert j1939_axis(marker) == marker
 
 
 def test_right_hand_must_carry_numbered_buttons() -> None:

@@ -20,9 +20,10 @@ from supervisord.protocol.j1939 import (
     decode_can,
     encode_can,
     feedback_string_frames,
+    j1939_value,
 )
-from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
-from supervisord.sim.can_side import CanSide
+from supervisord.protocol.messages import Axis, FeedbackSet, Joystick, VscHeartbeat
+from supervisord.sim.can_side import CanSide, can_frames
 from supervisord.sim.engine import Simulator
 from supervisord.sim.model import VscModel
 from supervisord.testkit.sim import SimProcess
@@ -82,12 +83,47 @@ def test_can_traffic_at_the_manual_rates_and_the_joystick_in_four_frames(
     extended = [v for v in values if isinstance(v, JoystickExtended)]
     left = [b for b in basics if b.hand is Hand.LEFT]
     assert 10 <= len(left) <= 20  # ~16 Hz
-    assert left[-1].x.j1939_value == 400
+    assert j1939_value(left[-1].x) == 400
     assert left[-1].buttons.pressed == {"down"}
     right = [b for b in basics if b.hand is Hand.RIGHT]
     assert right[-1].buttons.pressed == {"button_2"}
     right_z = [e for e in extended if e.hand is Hand.RIGHT]
-    assert right_z[-1].z.j1939_value == -90
+    assert j1939_value(right_z[-1].z) == -90
+
+
+def test_can_frames_never_carry_a_reserved_magnitude_as_a_deflection() -> None:
+    """PR-3.2: the simulator's CAN edge sends a full deflection (1022 or 1023 asked) as 1021,
+    so the frames never carry the J1939 error or not-available marker as a value."""
+    joystick = Joystick(
+        left_x=Axis.from_value(1023),
+        left_y=Axis.from_value(-1022),
+        left_z=Axis.from_value(1021),
+        right_x=Axis.from_value(-1023),
+        right_y=Axis.from_value(400),
+    )
+    sent = [decode_can(frame) for frame in can_frames(joystick)]
+    axes = [a for m in sent if isinstance(m, JoystickBasic) for a in (m.x, m.y)]
+    axes += [m.z for m in sent if isinstance(m, JoystickExtended)]
+    assert all(axis.magnitude <= 1021 for axis in axes)
+    assert sorted(j1939_value(axis) or 0 for axis in axes) == [-1021, -1021, 0, 400, 1021, 1021]
+
+
+def test_sim_full_deflection_on_can_reads_as_a_value(
+    virtual_sim: tuple[Simulator, can.BusABC],
+) -> None:
+    """PR-3.2: sticks at -1023 and 1023 in the CAN simulator reach the bus as -1021 and 1021,
+    values and not markers."""
+    sim, host = virtual_sim
+    now = time.monotonic()
+    sim.model.takeover(now)
+    sim.model.set_axes({"left_x": 1023, "right_z": -1023}, now)
+    values = decoded(collect(host, 0.5, sim))
+    left = [v for v in values if isinstance(v, JoystickBasic) and v.hand is Hand.LEFT]
+    right_z = [v for v in values if isinstance(v, JoystickExtended) and v.hand is Hand.RIGHT]
+    assert left
+    assert right_z
+    assert j1939_value(left[-1].x) == 1021
+    assert j1939_value(right_z[-1].z) == -1021
 
 
 def test_can_feedback_values_and_joined_strings(virtual_sim: tuple[Simulator, can.BusABC]) -> None:

@@ -175,6 +175,23 @@ def test_remote_off_is_searching_with_link_bits_and_relinks_in_local() -> None:
     assert model.mode(LINKED + 2 + LINK_DELAY_S) == VscMode.LOCAL
 
 
+def test_remote_off_can_be_reported_as_local_with_the_remote_estop_bit() -> None:
+    """PR-2.6: with ``remote_off_reports="local"`` a switched-off remote is reported as some
+    hardware reports it, Local with the remote's e-stop bit 0x01, and sticks read neutral."""
+    model = linked_model(remote_off_reports="local")
+    model.takeover(LINKED)
+    model.set_axes({"left_x": 300}, LINKED + 0.5)
+    model.power(False, LINKED + 1)
+    beat = model.heartbeat(LINKED + 1)
+    assert (beat.mode, beat.estop) == (VscMode.LOCAL, EstopBit.REMOTE_BUTTON)
+    assert model.joystick(LINKED + 1).left_x.value == 0
+    with pytest.raises(SimRefused, match="no link"):
+        model.takeover(LINKED + 1)
+    model.power(True, LINKED + 2)
+    assert model.heartbeat(LINKED + 2) == VscHeartbeat(VscMode.SEARCHING, 0, EstopBit.REMOTE_LINK)
+    assert model.heartbeat(LINKED + 2 + LINK_DELAY_S) == VscHeartbeat(VscMode.LOCAL, 0, 0)
+
+
 def test_key85_watchdog_trips_at_500_ms_inclusive() -> None:
     """manual §8.3.5, PR-2.8: with key 85 on, 500 ms without a user heartbeat raises the user
     e-stop. The simulator trips when the age reaches 0.5 s (inclusive)."""
