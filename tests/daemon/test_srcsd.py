@@ -62,26 +62,32 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
             peer = VscPeer(port)
             seen: list[str] = []
 
-            def ready() -> bool:
-                seen.extend(notifications(notify))
-                return "READY=1" in seen
+            def reading(done: Callable[[], bool]) -> Callable[[], bool]:
+                """``done``, reading the notifications meanwhile: the socket queues only a few
+                datagrams (net.unix.max_dgram_qlen, 10 by default), and WATCHDOG=1 comes every
+                100 ms, so a reader that pauses loses the STATUS lines that follow."""
 
-            wait(peer, ready)
+                def check() -> bool:
+                    seen.extend(notifications(notify))
+                    return done()
+
+                return check
+
+            wait(peer, reading(lambda: "READY=1" in seen))
             assert (tmp_path / "drive").read_text() == "0\n"
             assert any(line.startswith("STATUS=STOPPED") for line in seen)
-            # SR-5.3: the proof test of the VSC's watchdog comes before any RUN (issue 16).
+            # SR-5.6: the proof test of the VSC's watchdog comes before any RUN.
             record = tmp_path / "stops.jsonl"
-            wait(peer, lambda: record.exists() and '"kind":"prooftest"' in record.read_text())
+            wait(
+                peer,
+                reading(lambda: record.exists() and '"kind":"prooftest"' in record.read_text()),
+            )
             pause = time.monotonic() + 0.3  # clear for longer than the 100 ms re-arm hold
-            wait(peer, lambda: time.monotonic() > pause)
+            wait(peer, reading(lambda: time.monotonic() > pause))
             peer.mode = VscMode.OPERATIONAL
-            wait(peer, lambda: (tmp_path / "drive").read_text() == "1\n")
-
-            def running() -> bool:  # the output is set first, the status said after (SR-6)
-                seen.extend(notifications(notify))
-                return "STATUS=RUN" in seen
-
-            wait(peer, running)
+            wait(peer, reading(lambda: (tmp_path / "drive").read_text() == "1\n"))
+            # The output is set first, the status said after (SR-6.1).
+            wait(peer, reading(lambda: "STATUS=RUN" in seen))
             assert seen.count("WATCHDOG=1") >= 2
             daemon.send_signal(signal.SIGTERM)
             assert daemon.wait(timeout=10) == 0
