@@ -38,6 +38,11 @@ def trip_late_ns(vsc_timeout_ns: int) -> int:
     return WATCHDOG_NS + vsc_timeout_ns
 
 
+EARLY_NS: Final = WATCHDOG_NS - 100 * NS_PER_MS
+"""A trip seen sooner than this after the last heartbeat sent cannot be the watchdog's answer
+to the withheld heartbeat (it needs 500 ms; 100 ms is two VSC heartbeat intervals of
+slack): the bits were on their way before the test (a trip of the loop's own, a stall of the
+vehicle computer). It proves nothing, so the test starts again once the bits clear (SR-5.6)."""
 CLEARS_ITSELF_NS: Final = 500 * NS_PER_MS
 """Bits that clear within this of the heartbeat resuming cleared by themselves; later, the
 VSC held them (until the operator's takeover, the manual does not say which it does)."""
@@ -256,6 +261,9 @@ class ProofTest:
         tripped = word & USER_BITS != 0
         if self.phase is Phase.WITHHOLDING and tripped:
             assert self._withheld_from is not None
+            if self._trip_ns is None and now - self._withheld_from < EARLY_NS:
+                self.abort()  # too early to be this test's trip: again once the bits clear
+                return
             if self._trip_ns is None:
                 self._trip_ns = now
             if self._trip_ns - self._withheld_from > self.late_ns:

@@ -135,6 +135,37 @@ def test_a_watchdog_that_ignores_or_trips_late_fails_and_blocks(
     assert vsc.takeover().state is State.STOPPED
 
 
+def test_a_trip_too_soon_after_the_last_heartbeat_proves_nothing_and_the_test_runs_again() -> None:
+    """SR-5.6: bits that show 50 ms into the withholding were on their way before it (the VSC
+    tripped on an earlier gap): no pass is recorded for them; once they clear the test runs
+    again and passes on a real 500 ms trip."""
+    vsc = Vsc()
+
+    def phase() -> Phase:
+        status = vsc.proof.prooftest
+        assert status is not None
+        return status.phase
+
+    for _ in range(20):  # until the withholding begins (the VSC heard, key 85 read back)
+        vsc.beat()
+        if phase() is Phase.WITHHOLDING:
+            break
+    assert phase() is Phase.WITHHOLDING
+    vsc.held = True  # an old trip: the VSC reports the bits at once
+    vsc.beat()
+    vsc.held = False
+    assert vsc.records() == []
+    assert phase() is Phase.WAITING
+    vsc.run(2000)
+    status = vsc.proof.prooftest
+    assert status is not None
+    assert status.phase is Phase.PASSED
+    assert status.last is not None
+    assert status.last.trip_ms is not None
+    assert status.last.trip_ms >= 500
+    assert len(vsc.records()) == 1
+
+
 def test_a_bit_that_never_clears_fails_after_the_clear_limit() -> None:
     """SR-5.3: a bit still set ``prooftest_clear_ms`` after the heartbeat resumed fails."""
     vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
