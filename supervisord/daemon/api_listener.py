@@ -117,7 +117,8 @@ class ApiListener(Listener):
         """What ``status`` says beyond the daemon's counters (issue 13; docs/api.md): the
         clients, the remote's last status, the time in the current state. Built from what
         the listener saw, never from input it cannot trust: names passed the server's check."""
-        connected = {c.name: c.connection for c in self.server.clients() if c.name is not None}
+        every = self.server.clients()
+        connected = {c.name: c.connection for c in every if c.name is not None}
         clients: list[dict[str, object]] = []
         for name in sorted(set(self.required) | set(connected)):
             connection = connected.get(name)
@@ -137,7 +138,7 @@ class ApiListener(Listener):
             remote = {**asdict(message), "age_s": _age(now, seen)}
         return {
             "clients": clients,
-            "connections": len(self.server.clients()),
+            "connections": len(every),
             "remote": remote,
             "in_state_s": _age(now, self._state_since),
         }

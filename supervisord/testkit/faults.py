@@ -292,6 +292,25 @@ class NetNamespace:
             self.created = False
 
 
+def in_private_mount(mount: str, target: Path, command: list[str]) -> list[str]:
+    """``command`` in a mount namespace of its own, after the shell line ``mount`` (which
+    names ``target`` as ``$0``) ran there: what it mounts is seen by that process alone and
+    goes away with it. Needs root and ``unshare``."""
+    script = f'{mount} && exec "$@"'
+    return [
+        "unshare",
+        "--mount",
+        "--propagation",
+        "private",
+        "--",
+        "sh",
+        "-c",
+        script,
+        str(target),
+        *command,
+    ]
+
+
 def libfaketime() -> Path | None:
     """Debian's ``libfaketime`` (package ``faketime``), if installed."""
     found = sorted(glob.glob("/usr/lib/*/faketime/libfaketime.so.1"))
@@ -550,18 +569,7 @@ class Robot:
             # A tmpfs of its own under the record, seen only by the daemon: a full disk that
             # leaves the rest of the machine alone, and goes away with the process.
             mount = f'mount -t tmpfs -o size={self.record_tmpfs_bytes} srcs-faults "$0"'
-            command = [
-                "unshare",
-                "--mount",
-                "--propagation",
-                "private",
-                "--",
-                "sh",
-                "-c",
-                f'{mount} && exec "$@"',
-                str(self.record_dir),
-                *command,
-            ]
+            command = in_private_mount(mount, self.record_dir, command)
         command = [*_priority(), *command]
         if self.netns is not None:
             command = [*self.netns.prefix(), *command]

@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 
-from supervisord.testkit.faults import OutputDef, Robot, wait_until
+from supervisord.testkit.faults import OutputDef, Robot, in_private_mount, wait_until
 
 ODD_NAME = b"r\xe9mi"  # Latin-1, not UTF-8: how a name from an old system arrives
 SHOWN_NAME = "r\\xe9mi"  # the name as records and replies show it: the byte escaped
@@ -133,19 +133,7 @@ class OddUserRobot(Robot):
     def daemon_command(self) -> list[str]:
         command = super().daemon_command()
         assert self.passwd is not None
-        bind = 'mount --bind "$0" /etc/passwd && exec "$@"'
-        return [
-            "unshare",
-            "--mount",
-            "--propagation",
-            "private",
-            "--",
-            "sh",
-            "-c",
-            bind,
-            str(self.passwd),
-            *command,
-        ]
+        return in_private_mount('mount --bind "$0" /etc/passwd', self.passwd, command)
 
 
 needs_root = pytest.mark.skipif(

@@ -24,24 +24,12 @@ build_supervisor(config, build_api(config))
 print(json.dumps(sorted(m for m in ("can", "serial") if m in sys.modules)))
 """
 
-CAN_VSC = """\
-[robot]
-name = "test-robot"
-[vsc]
-transport = "can"
-interface = "virtual"
-channel = "srcs-import-test"
-require_watchdog = false
-[[outputs]]
-name = "drive"
-kind = "sim"
-path = "drive"
-[record]
-path = "stops.jsonl"
-journal = false
-[api]
-socket = "api.sock"
-"""
+SERIAL_VSC = 'transport = "serial"\nport = "vsc"\n'
+CAN_VSC = MINIMAL_CONFIG.replace(
+    SERIAL_VSC,
+    'transport = "can"\ninterface = "virtual"\nchannel = "srcs-import-test"\n'
+    "require_watchdog = false\n",
+)
 
 
 def loaded(tmp_path: Path, config: str) -> list[str]:

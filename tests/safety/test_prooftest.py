@@ -14,7 +14,7 @@ from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, 
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import Decision, RefusalReason
 from supervisord.safety.events import ProofTestRequest
-from supervisord.safety.prooftest import Phase, ProofTestPolicy
+from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
 
 from .rig import ADMIN, LOCAL, MS, NOBODY, OPERATIONAL, PAUSE, ROBOT, START_NS
 
@@ -70,6 +70,20 @@ class Vsc:
     def proof(self) -> Decision:
         return self.decisions[-1]
 
+    def status(self) -> ProofStatus:
+        """The proof test's status in the latest decision (a serial core always has one)."""
+        status = self.proof.prooftest
+        assert status is not None
+        return status
+
+    def failure(self) -> str:
+        """The name of the failure the finished proof test reports."""
+        status = self.status()
+        assert status.phase is Phase.FAILED
+        assert status.last is not None
+        assert status.last.failure is not None
+        return status.last.failure.name
+
     def records(self) -> list[str]:
         return [r.prooftest.text for d in self.decisions for r in d.records if r.prooftest]
 
@@ -87,8 +101,7 @@ def test_a_healthy_watchdog_passes_with_its_trip_time_and_then_a_takeover_runs()
     vsc = Vsc()
     assert UNTESTED in vsc.proof.active_names
     vsc.run(1000)
-    status = vsc.proof.prooftest
-    assert status is not None
+    status = vsc.status()
     assert status.phase is Phase.PASSED
     assert status.last is not None
     assert status.last.trip_ms == 500
@@ -122,12 +135,7 @@ def test_a_watchdog_that_ignores_or_trips_late_fails_and_blocks(
     active with the observation, and a takeover is refused."""
     vsc = Vsc(trip_ms=trip_ms)
     vsc.run(2500)
-    status = vsc.proof.prooftest
-    assert status is not None
-    assert status.phase is Phase.FAILED
-    assert status.last is not None
-    assert status.last.failure is not None
-    assert status.last.failure.name == failure
+    assert vsc.failure() == failure
     cause = vsc.proof.cause(UNTESTED)
     assert cause is not None
     assert cause.active
@@ -142,23 +150,21 @@ def test_a_trip_too_soon_after_the_last_heartbeat_proves_nothing_and_the_test_ru
     vsc = Vsc()
 
     def phase() -> Phase:
-        status = vsc.proof.prooftest
-        assert status is not None
+        status = vsc.status()
         return status.phase
 
     for _ in range(20):  # until the withholding begins (the VSC heard, key 85 read back)
         vsc.beat()
-        if phase() is Phase.WITHHOLDING:
+        if vsc.status().phase is Phase.WITHHOLDING:
             break
-    assert phase() is Phase.WITHHOLDING
+    assert vsc.status().phase is Phase.WITHHOLDING
     vsc.held = True  # an old trip: the VSC reports the bits at once
     vsc.beat()
     vsc.held = False
     assert vsc.records() == []
-    assert phase() is Phase.WAITING
+    assert vsc.status().phase is Phase.WAITING
     vsc.run(2000)
-    status = vsc.proof.prooftest
-    assert status is not None
+    status = vsc.status()
     assert status.phase is Phase.PASSED
     assert status.last is not None
     assert status.last.trip_ms is not None
@@ -171,12 +177,7 @@ def test_a_bit_that_never_clears_fails_after_the_clear_limit() -> None:
     vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
     vsc.never_clears = True
     vsc.run(2500)
-    status = vsc.proof.prooftest
-    assert status is not None
-    assert status.phase is Phase.FAILED
-    assert status.last is not None
-    assert status.last.failure is not None
-    assert status.last.failure.name == "NOT_CLEARED"
+    assert vsc.failure() == "NOT_CLEARED"
 
 
 def test_a_bit_held_until_a_takeover_passes_as_held() -> None:
@@ -185,14 +186,12 @@ def test_a_bit_held_until_a_takeover_passes_as_held() -> None:
     vsc = Vsc()
     vsc.holds = True
     vsc.run(2000)
-    status = vsc.proof.prooftest
-    assert status is not None
+    status = vsc.status()
     assert status.phase is Phase.RESUMED
     vsc.held = False  # the operator's gesture on the remote
     vsc.holds = False
     vsc.beat()
-    status = vsc.proof.prooftest
-    assert status is not None
+    status = vsc.status()
     assert status.phase is Phase.PASSED
     assert status.last is not None
     assert status.last.cleared is not None
@@ -204,12 +203,7 @@ def test_key85_off_cannot_pass() -> None:
     vsc = Vsc(replace(BLOCK, require_watchdog=False))
     vsc.feed(VscReceived(vsc.now, FeedbackSet(85, 0)))
     vsc.run(200)
-    status = vsc.proof.prooftest
-    assert status is not None
-    assert status.phase is Phase.FAILED
-    assert status.last is not None
-    assert status.last.failure is not None
-    assert status.last.failure.name == "KEY85_OFF"
+    assert vsc.failure() == "KEY85_OFF"
 
 
 def test_the_record_policy_records_a_failure_and_lets_a_takeover_run() -> None:
