@@ -23,7 +23,9 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from bench.rig import NS_PER_MS, Rig, load, machine, ms, percentile, realtime, table
+from bench.rig import Rig, load, machine, ms, percentile, realtime, table
+from bench.stop_latency import CpuTimes, steal_text
+from supervisord.timebase import NS_PER_MS
 
 NOMINAL_NS = 50 * NS_PER_MS  # heartbeat_hz = 20 (SR-5 default)
 TARGET_NS = 2 * NS_PER_MS  # SR-9.3: within 2 ms of nominal at p99
@@ -85,6 +87,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     print(f"machine: {machine()}")
     print(f"before: {load()}")
+    cpu_before = CpuTimes.read()
     with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory:
         periods, stops = run(
             Path(directory),
@@ -94,7 +97,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             nice=args.nice,
             fifo=args.fifo,
         )
-    print(f"after: {load()}")
+    print(f"after: {load()}; {steal_text(cpu_before)}")
     where = "all cores, unpinned" if args.no_pin else "the other core(s); supervisor pinned"
     print(
         f"user heartbeat at 20 Hz, {args.spinners} busy process(es) on {where}, nice {args.nice}"

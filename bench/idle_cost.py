@@ -24,10 +24,12 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.rig import NS_PER_MS, REPO, RigError, Vsc, load, machine, table
+from bench.rig import REPO, RigError, Vsc, load, machine, table
+from bench.stop_latency import CpuTimes, steal_text
+from supervisord.children import terminate
 from supervisord.protocol.codes import VscMode
 from supervisord.testkit.daemon import MINIMAL_CONFIG
-from supervisord.testkit.process import terminate
+from supervisord.timebase import NS_PER_MS
 
 TICKS = os.sysconf("SC_CLK_TCK")
 TARGET_CPU = 0.02  # SR-9.4: under 2 % of one core
@@ -128,9 +130,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     print(f"machine: {machine()}")
     print(f"before: {load()}")
+    cpu_before = CpuTimes.read()
     with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory:
         result = run(Path(directory), args.seconds)
-    print(f"after: {load()}")
+    print(f"after: {load()}; {steal_text(cpu_before)}")
     wall, cpu = result["wall"], result["cpu"]
     share = cpu / wall
     print(

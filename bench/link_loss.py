@@ -19,8 +19,10 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.rig import NS_PER_MS, Rig, RigError, load, machine, ms, percentile, realtime, table
+from bench.rig import Rig, RigError, load, machine, ms, percentile, realtime, table
+from bench.stop_latency import CpuTimes, steal_text
 from supervisord.protocol.codes import VscMode
+from supervisord.timebase import NS_PER_MS
 
 SLACK_NS = 5 * NS_PER_MS  # SR-9.2: off within vsc_timeout + 5 ms
 
@@ -55,10 +57,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     print(f"machine: {machine()}")
     print(f"before: {load()}")
-    started = time.monotonic()
+    started, cpu_before = time.monotonic(), CpuTimes.read()
     with tempfile.TemporaryDirectory(prefix="srcs-bench-") as directory, realtime(args.fifo):
         measured = run(Path(directory), args.trials, args.timeout_ms, args.seed)
-    print(f"after: {load()}; {time.monotonic() - started:.0f} s")
+    print(f"after: {load()}; {time.monotonic() - started:.0f} s; {steal_text(cpu_before)}")
     timeout_ns = args.timeout_ms * NS_PER_MS
     late = [value - timeout_ns for value in measured]
     fifo = f", SCHED_FIFO {args.fifo}" if args.fifo else ""

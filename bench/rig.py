@@ -4,7 +4,7 @@ another.
 Two processes, as on a robot, where the VSC and the supervisor do not share a scheduler slot:
 
 - **This process is the VSC.** It holds the device side of a real pseudo-terminal
-  (:class:`~supervisord.testkit.pty_port.PtyPort`), sends the VSC's traffic at its real rates
+  (:class:`~supervisord.sim.pty.PtyPort`), sends the VSC's traffic at its real rates
   (joystick 50 Hz, heartbeat 20 Hz, GPS 1 Hz), answers the key-85 query, and timestamps what
   the supervisor writes back (its user heartbeats).
 - **The child process is the supervisor** (``python -m bench.rig``): the real
@@ -43,6 +43,7 @@ from pathlib import Path
 from types import FrameType, TracebackType
 
 from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.children import terminate
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -64,10 +65,9 @@ from supervisord.protocol.messages import (
 from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.core import TAKEOVER_DWELL_NS
-from supervisord.testkit.process import terminate
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.sim.pty import PtyPort
+from supervisord.timebase import NS_PER_MS, next_due
 
-NS_PER_MS = 1_000_000
 REPO = Path(__file__).resolve().parents[1]  # the child runs ``-m bench.rig`` from here
 REPORT = struct.Struct("<?qq")  # level, write started, write finished (monotonic ns)
 SAMPLE_GGA = "$GPGGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,*69"
@@ -128,7 +128,33 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
     )
     if listener is not None:
         listener.daemon_info = supervisor.info
+    if args.fsync_delay_ms:
+        slow_disk(args.fsync_delay_ms / 1000, supervisor)
     return supervisor.run()
+
+
+def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
+    """``--slow-disk`` (issue 14 item 3): every ``os.fsync`` of this child process (the stop
+    record's, in the record sink's thread) takes ``delay_s`` longer, as on a slow SD card. It
+    sleeps after the real fsync: a sleep releases the GIL as a blocking fsync does, so the
+    loop's thread runs meanwhile exactly as it would. The delay ends when the bench stops the
+    child, so that the shutdown drains the record queue at once instead of 50 ms a record."""
+    real_fsync = os.fsync
+    slow = [True]
+
+    def fsync(fd: int) -> None:
+        real_fsync(fd)
+        if slow[0]:
+            time.sleep(delay_s)
+
+    os.fsync = fsync  # type: ignore[assignment] # the record writer passes descriptors
+    shutdown = supervisor.shutdown
+
+    def fast_shutdown() -> None:
+        slow[0] = False
+        shutdown()
+
+    supervisor.shutdown = fast_shutdown  # type: ignore[method-assign]
 
 
 def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
@@ -193,6 +219,7 @@ def child_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--hold-ms", type=int, default=100)
     parser.add_argument("--api-socket", default=None, help="serve the client API here")
     parser.add_argument("--role", choices=("motion", "power"), default="motion")
+    parser.add_argument("--fsync-delay-ms", type=float, default=0, help="a slow disk")
     args = parser.parse_args(argv)
     level_file = Path(args.level_file) if args.level_file else None
     output = TimedOutput(SimSpec(name="drive", path=level_file), args.report_fd)
@@ -347,13 +374,13 @@ class Vsc:
                     right_x=Axis.from_value(self.rng.randint(-1023, 1023) if moving else 0),
                 )
             )
-            self._next_joystick = _advance(self._next_joystick, now, JOYSTICK_NS)
+            self._next_joystick = next_due(self._next_joystick, now, JOYSTICK_NS)
         if now >= self._next_heartbeat:
             self.send(VscHeartbeat(self.mode, 0, self.estop))
-            self._next_heartbeat = _advance(self._next_heartbeat, now, HEARTBEAT_NS)
+            self._next_heartbeat = next_due(self._next_heartbeat, now, HEARTBEAT_NS)
         if self.joystick and now >= self._next_gps:
             self.send(Gps(Gps.SOURCE_REMOTE, SAMPLE_GGA))
-            self._next_gps = _advance(self._next_gps, now, GPS_NS)
+            self._next_gps = next_due(self._next_gps, now, GPS_NS)
         due = [self._next_heartbeat]
         if self.joystick:
             due += [self._next_joystick, self._next_gps]
@@ -410,17 +437,12 @@ class Vsc:
         return None
 
 
-def _advance(scheduled: int, now: int, period: int) -> int:
-    """Keep the cadence; after a stall, restart from now rather than burst."""
-    following = scheduled + period
-    return following if following > now else now + period
-
-
 class Rig:
     """The VSC here, the supervisor (or the polling model) in a child process.
 
     Use as a context manager; it stops the child with SIGTERM and removes nothing it did not
-    create (everything lives in ``directory``).
+    create (everything lives in ``directory``). ``fsync_delay_ms``: every fsync of the
+    supervisor's record takes that much longer (``--slow-disk``, :func:`slow_disk`).
     """
 
     def __init__(
@@ -435,6 +457,7 @@ class Rig:
         nice: int = 0,
         api_socket: Path | None = None,
         role: str = "motion",
+        fsync_delay_ms: float = 0,
     ) -> None:
         self.hold_ms = hold_ms
         self.api_socket = api_socket
@@ -456,6 +479,8 @@ class Rig:
         if api_socket is not None:
             command.append(f"--api-socket={api_socket}")
         command.append(f"--role={role}")
+        if fsync_delay_ms:
+            command.append(f"--fsync-delay-ms={fsync_delay_ms}")
         # Our own interpreter running our own module: no untrusted input reaches the command.
         self.process = subprocess.Popen(command, cwd=REPO, pass_fds=(write_fd,))  # noqa: S603
         os.close(write_fd)  # the child's copy is the only writer: EOF means it died

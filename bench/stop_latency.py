@@ -67,16 +67,20 @@ from bench.rig import (
     start_flood,
     table,
 )
+from bench.unit import Scheduling, read_unit, rttime_limit
+from supervisord.children import terminate
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
-from supervisord.testkit.process import terminate
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (PR-2)
 TARGET_P99_NS = 2_000_000  # SR-9.1
 TARGET_P50_RATIO = 1.3  # issue 14: srcsd's median within 1.3 times the bare loop's, same run
 TARGET_P99_RATIO = 1.5  # and its p99 within 1.5 times
 SIDE_BY_SIDE = ("supervisor", "event", "poll50")
-NAMES = {"supervisor": "srcsd", "event": "bare", "poll50": "poll50"}
+SLOW_DISK = "slowdisk"  # srcsd's loop with a record fsync 50 ms slower (``--slow-disk``)
+SLOW_FSYNC_MS = 50.0
+NAMES = {"supervisor": "srcsd", "event": "bare", "poll50": "poll50", SLOW_DISK: "srcsd-slow"}
+SRCSD_LOOPS = ("supervisor", SLOW_DISK)
 UNIT = REPO / "units" / "srcsd@.service"
 
 
@@ -134,11 +138,12 @@ def run(
         rig = stack.enter_context(
             Rig(
                 directory,
-                model=model,
+                model="supervisor" if model == SLOW_DISK else model,
                 mirror=mirror,
                 nice=nice,
                 api_socket=api_socket,
                 role="power" if client_flood else "motion",
+                fsync_delay_ms=SLOW_FSYNC_MS if model == SLOW_DISK else 0,
             )
         )
         if api_socket is not None:
@@ -156,6 +161,20 @@ def run(
         )
         if heartbeats is not None:
             heartbeats += rig.vsc.heartbeat_arrivals
+        if model == SLOW_DISK:
+            # Each change of the output is a change of state, so a record: how far the
+            # record sink had got when the last stop was measured shows that the stops
+            # met fsyncs in progress (and a queue behind them), not an idle disk.
+            lines = (directory / "stops.jsonl").read_bytes().count(b"\n")
+            note = (
+                f"slow disk ({SLOW_FSYNC_MS:g} ms more per fsync): {lines} records on the "
+                f"disk when the block's stops were done; the output changed "
+                f"{len(rig.vsc.edges)} times (a record each)"
+            )
+            if notes is None:
+                print(note)
+            else:
+                notes.append(note)
         if api_socket is not None:
             with SupervisorClient.connect(api_socket) as client:
                 daemon = client.status()["daemon"]
@@ -191,7 +210,7 @@ def _measure(
             # The on edge happened at one of its ticks: a gap spread over a whole period
             # makes the stop's phase against the 20 ms tick uniform, as in service.
             vsc.pump_ms(rng.uniform(2, 22))
-        elif back_to_back or model != "supervisor":
+        elif back_to_back or model not in SRCSD_LOOPS:
             vsc.pump_ms(rng.uniform(2, 8))
         else:
             rig.wait_idle()
@@ -300,7 +319,11 @@ def ratio_rows(measured: dict[str, list[Stop]]) -> list[list[object]]:
     """srcsd/bare (the supervisor's own cost over the platform's floor) and poll/srcsd (how
     much sooner than the public drivers' design), at p50, p99 and max, from one run."""
     rows: list[list[object]] = []
-    pairs = [("srcsd / bare", "supervisor", "event"), ("poll50 / srcsd", "poll50", "supervisor")]
+    pairs = [
+        ("srcsd / bare", "supervisor", "event"),
+        ("poll50 / srcsd", "poll50", "supervisor"),
+        ("srcsd slow disk / srcsd", SLOW_DISK, "supervisor"),
+    ]
     for name, top, bottom in pairs:
         if not measured.get(top) or not measured.get(bottom):
             continue
@@ -343,20 +366,19 @@ def steal_share(before: CpuTimes, after: CpuTimes) -> float | None:
     return (after.steal - before.steal) / total if total > 0 else None
 
 
+def steal_text(before: CpuTimes) -> str:
+    """The host's steal time since ``before``, as every timing bench prints it with the load
+    (issue 14: on a virtual machine the host takes CPU time the guest cannot see otherwise)."""
+    steal = steal_share(before, CpuTimes.read())
+    share = f"{steal * 100:.1f} %" if steal is not None else "unknown"
+    return f"host steal during the run: {share} of CPU time"
+
+
 def unit_scheduling(unit: Path = UNIT) -> tuple[int, int]:
     """The service unit's ``Nice=`` and SCHED_FIFO priority (0 unless it sets
     ``CPUSchedulingPolicy=fifo``), so that ``--loaded`` runs the loops as the unit would."""
-    nice, fifo, priority = 0, False, 1
-    with contextlib.suppress(OSError):
-        for line in unit.read_text().splitlines():
-            key, _, value = line.strip().partition("=")
-            if key == "Nice":
-                nice = int(value)
-            elif key == "CPUSchedulingPolicy":
-                fifo = value.strip() == "fifo"
-            elif key == "CPUSchedulingPriority":
-                priority = int(value)
-    return nice, priority if fifo else 0
+    scheduling = read_unit(unit)
+    return scheduling.nice, scheduling.priority
 
 
 @contextlib.contextmanager
@@ -410,6 +432,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument(
+        "--slow-disk",
+        action="store_true",
+        help=f"also srcsd with every record fsync {SLOW_FSYNC_MS:g} ms slower, side by side",
+    )
+    parser.add_argument(
         "--client-flood",
         action="store_true",
         help="a client pipelines requests of every kind into srcsd's API socket meanwhile",
@@ -420,10 +447,15 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> None:
     args = _parser().parse_args(argv)
     model = "supervisor" if args.model == "srcsd" else args.model
-    models = SIDE_BY_SIDE if model == "all" else (model,)
-    unit_nice, unit_fifo = unit_scheduling() if args.loaded else (0, 0)
-    nice = args.nice if args.nice is not None else unit_nice
-    fifo = args.fifo if args.fifo is not None else unit_fifo
+    models: tuple[str, ...] = SIDE_BY_SIDE if model == "all" else (model,)
+    if args.slow_disk:
+        models = (*models, SLOW_DISK) if "supervisor" in models else (SLOW_DISK, *models)
+    unit = read_unit(UNIT) if args.loaded else Scheduling()
+    nice = args.nice if args.nice is not None else unit.nice
+    fifo = args.fifo if args.fifo is not None else unit.priority
+    # The unit's RLIMIT_RTTIME too, with its FIFO policy: a loop that ran too long without
+    # blocking would die here as under systemd (the bench then fails: "did it die?").
+    limit = unit if fifo and args.fifo is None else Scheduling()
     print(f"machine: {machine()}")
     print(f"before: {load()}")
     started = time.monotonic()
@@ -433,7 +465,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         spinners = stack.enter_context(busy(2)) if args.loaded else 0
         directory = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="srcs-bench-")))
         cpu_before = CpuTimes.read()
-        with realtime(fifo):
+        with rttime_limit(limit), realtime(fifo):
             measured = side_by_side(
                 directory,
                 args.stops,
@@ -455,6 +487,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(f"after: {load()}; {wall:.0f} s; host steal during the run: {steal_text} of CPU time")
     extras = [f"nice {nice}"]
     extras += [f"SCHED_FIFO {fifo}"] if fifo else []
+    if limit.soft_us is not None:
+        extras += [f"RLIMIT_RTTIME soft {limit.soft_us / 1e6:g} s (the unit's)"]
     extras += [f"loaded: {spinners} busy processes, unpinned"] if spinners else ["quiet"]
     extras += ["back to back"] if args.back_to_back else []
     extras += ["a client flooding srcsd's API socket"] if args.client_flood else []
@@ -475,6 +509,7 @@ def report(measured: dict[str, list[Stop]], models: Sequence[str], periods: list
         "supervisor": "srcsd: the srcsd loop (Supervisor, serial link, safety core, record)",
         "event": "bare: a bare event-driven loop (select, read, decode, set), the platform's floor",
         "poll50": "poll50: a 20 ms polling loop (model of the public drivers)",
+        SLOW_DISK: f"srcsd-slow: the srcsd loop, every record fsync {SLOW_FSYNC_MS:g} ms slower",
     }
     for name in models:
         print()

@@ -9,7 +9,7 @@ robot program names itself and sends a heartbeat every 100 ms::
             time.sleep(0.1)
 
 Every method sends one request and waits for its reply. A refused request raises
-:class:`~supervisord.api.wire.ApiError` with the server's stable ``code``; pushes that arrive
+:class:`~supervisord.api.framing.ApiError` with the server's stable ``code``; pushes that arrive
 meanwhile are kept for :meth:`SupervisorClient.next_event`. Every exception raised on purpose
 is a :class:`~supervisord.errors.SrcsError`. Not thread-safe: one client per thread.
 """
@@ -25,8 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from supervisord.api.wire import (
-    ApiError,
+from supervisord.api.framing import ApiError, encode
+from supervisord.api.requests import (
+    ApiRequest,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
@@ -37,19 +38,17 @@ from supervisord.api.wire import (
     Hello,
     Hold,
     Release,
-    Request,
     Reset,
     Side,
     Status,
     Subscribe,
     Topic,
     Vibrate,
-    encode,
     request_json,
 )
 from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
-from supervisord.safety.events import Request as Releasable
+from supervisord.safety.events import Request
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
@@ -143,7 +142,7 @@ class SupervisorClient:
 
     def release(self, what: str = "estop") -> None:
         """End this client's own ``"estop"`` or ``"hold"``; a stop stays latched until re-armed."""
-        self.call(Release(Releasable(what)))
+        self.call(Release(Request(what)))
 
     def status(self) -> dict[str, Any]:
         """The state, causes and outputs (``docs/api.md`` "status")."""
@@ -182,7 +181,7 @@ class SupervisorClient:
         Root or the admin group only; the reply carries what was read back."""
         return self.call(Commission())
 
-    def call(self, request: Request) -> dict[str, Any]:
+    def call(self, request: ApiRequest) -> dict[str, Any]:
         """Send any request and return its success reply (raises ``ApiError`` on an error)."""
         self._send(request_json(request))
         deadline = time.monotonic() + self.timeout

@@ -7,6 +7,8 @@ whose mistake it is.
 
 from __future__ import annotations
 
+from supervisord.strict import Invalid
+
 
 class SrcsError(Exception):
     """Base of every error raised on purpose by this package."""
@@ -17,17 +19,17 @@ class UnsafeCommandError(SrcsError, ValueError):
     off the VSC heartbeat, PR-2.11). Nothing was sent."""
 
 
-class ConfigError(SrcsError, ValueError):
+class ConfigError(SrcsError, Invalid):
     """A configuration value is missing, of the wrong kind or out of range.
 
-    The message names the file (when known), the key, the value and the fix; the daemon
-    prints it and refuses to start.
+    The message names the file (when known), the key, the value (shown bounded, see
+    :func:`supervisord.strict.shown`) and the fix; the daemon prints it and refuses to start.
+    The one strict reader (``supervisord.strict``) raises it for configuration tables.
     """
 
     def __init__(self, key: str, value: object, fix: str, file: str | None = None) -> None:
-        self.key, self.value, self.fix, self.file = key, value, fix, file
-        where = f"{file}: " if file else ""
-        super().__init__(f"{where}{key} = {value!r}: {fix}")
+        self.file = file
+        super().__init__(key, value, fix, where=f"{file}: " if file else "")
 
     def in_file(self, file: str) -> ConfigError:
         """The same error, naming ``file``."""

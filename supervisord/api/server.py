@@ -42,28 +42,30 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
 from supervisord.api.credentials import caller, group_id, peer_credentials
-from supervisord.api.wire import (
-    ADMIN_REQUESTS,
+from supervisord.api.framing import (
     DEFAULT_MAX_DISCARD,
     DEFAULT_MAX_LINE,
     ApiError,
-    ClientInfo,
     ErrorCode,
+    LineReader,
+    encode,
+)
+from supervisord.api.requests import (
+    ADMIN_REQUESTS,
+    ApiRequest,
     Estop,
     Heartbeat,
     Hello,
-    LineReader,
-    Request,
     Status,
     Subscribe,
     Topic,
-    encode,
-    ok_reply,
     parse_request,
-    to_core_event,
 )
+from supervisord.api.translate import ClientInfo, to_core_event
+from supervisord.api.views import ok_reply
 from supervisord.errors import ConfigError, SrcsError
 from supervisord.safety.events import ClientConnected, ClientDisconnected, ClientHello, Event
+from supervisord.timebase import NS_PER_MS
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
@@ -71,6 +73,10 @@ if TYPE_CHECKING:
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 DEFAULT_MODE: Final = 0o660
 DEFAULT_MAX_CLIENTS: Final = 16
+MAX_CLIENTS_RANGE: Final = (1, 256)
+"""``api.max_clients``: the one range, for the robot's file as for a server built in code."""
+MAX_LINE_RANGE: Final = (256, 1 << 20)
+"""``api.max_message_bytes`` (``max_line`` here): the one range, as ``MAX_CLIENTS_RANGE``."""
 DEFAULT_MAX_OUTPUT: Final = 256 * 1024
 RECV_SIZE: Final = 16 * 1024  # bytes looked at per readable event: bounded work per loop turn
 ACCEPTS_PER_CALL: Final = 32
@@ -84,7 +90,6 @@ DEFAULT_REQUESTS_PER_CALL: Final = 8
 DEFAULT_REQUESTS_PER_TURN: Final = 64
 SLOT_REQUESTS: Final = (Estop, Status)
 """What an e-stop slot serves: the operator's stop and a look at the state (docs/api.md)."""
-NS_PER_MS: Final = 1_000_000
 
 
 class ServerError(SrcsError):
@@ -133,8 +138,8 @@ class ServerConfig:
                 "api.mode", self.mode, "use 0600, 0620 or 0660: owner and group only, never others"
             )
         for key, value, low, high in (
-            ("api.max_clients", self.max_clients, 1, 1024),
-            ("api.max_line", self.max_line, 256, 1 << 20),
+            ("api.max_clients", self.max_clients, *MAX_CLIENTS_RANGE),
+            ("api.max_line", self.max_line, *MAX_LINE_RANGE),
             ("api.max_discard", self.discard_limit, self.max_line, 1 << 26),
             ("api.max_output", self.max_output, 4096, 1 << 28),
             ("api.reserved_slots", self.reserved_slots, 1, 64),
@@ -168,7 +173,7 @@ class Received:
     (after a ``hello``, with its new name)."""
 
     client: ClientInfo
-    request: Request
+    request: ApiRequest
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,7 +181,7 @@ class Denied:
     """A request the server refused for lack of rights, already answered with ``error``."""
 
     client: ClientInfo
-    request: Request
+    request: ApiRequest
     error: ApiError
 
 
@@ -371,7 +376,7 @@ class ApiServer:
         return self.send(received.client.connection, ok_reply(received.request, **fields))
 
     def reply_error(self, received: Received, error: ApiError) -> list[Closed]:
-        """Answer a request with an error (e.g. :func:`~supervisord.api.wire.refusal_error`)."""
+        """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
         return self.send(received.client.connection, error.reply())
 
     def send(self, connection: int, obj: Mapping[str, object]) -> list[Closed]:
@@ -515,7 +520,7 @@ class ApiServer:
             conn.topics = request.topics
         return [Received(conn.info, request)]
 
-    def _check(self, conn: _Connection, request: Request) -> ApiError | None:
+    def _check(self, conn: _Connection, request: ApiRequest) -> ApiError | None:
         def error(code: ErrorCode, message: str) -> ApiError:
             return ApiError(code, message, op=request.OP, request_id=request.id)
 

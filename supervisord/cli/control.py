@@ -18,7 +18,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final, TextIO
 
-from supervisord.api.wire import ApiError, ErrorCode, ProofTest
+from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.requests import ProofTest
 from supervisord.cli.log import cause_mark, interruptible, zone
 from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
 from supervisord.config import load_config

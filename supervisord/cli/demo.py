@@ -1,11 +1,11 @@
 """``srcsctl demo``: the supervisor against the simulated VSC, with a live view.
 
-It starts ``srcs-sim`` on a pseudo-terminal and the real ``srcsd`` with ``config/demo.toml``
-in a private run directory, commissions the simulated VSC through the API (as an integrator
-would with ``srcsctl commission``), and shows the remote, the supervisor, the outputs, the
-stop record and the remote's LCD, redrawn ten times a second. Keys press the remote's e-stop,
-pause, take over and cut the link. Without a terminal (or with ``--auto``) it plays a short
-story instead: take over, e-stop, re-arm, cut the link, re-arm, pause, resume.
+It starts ``srcs-sim`` on a pseudo-terminal and the real ``srcsd`` with ``demo.toml`` (this
+module's neighbour) in a private run directory, commissions the simulated VSC through the API
+(as an integrator would with ``srcsctl commission``), and shows the remote, the supervisor, the
+outputs, the stop record and the remote's LCD, redrawn ten times a second. Keys press the
+remote's e-stop, pause, take over and cut the link. Without a terminal (or with ``--auto``) it
+plays a short story instead: take over, e-stop, re-arm, cut the link, re-arm, pause, resume.
 """
 
 from __future__ import annotations
@@ -26,17 +26,19 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Final, TextIO
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
+from supervisord.children import terminate
 from supervisord.cli.demo_view import record_line, screen
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError, SrcsError
 from supervisord.safety.core import TAKEOVER_DWELL_NS
-from supervisord.testkit.process import terminate
-from supervisord.testkit.sim import SimError, SimProcess
+from supervisord.sim.process import SimError, SimProcess
 
-DEMO_CONFIG: Final = Path(__file__).resolve().parents[2] / "config" / "demo.toml"
-RUN: Final = "srcs-demo"  # the directory config/demo.toml names for its files
+# Package data next to this module, so that an installed wheel or the Debian package runs the
+# demo without the repository (issue 13).
+DEMO_CONFIG: Final = Path(__file__).resolve().with_name("demo.toml")
+RUN: Final = "srcs-demo"  # the directory demo.toml names for its files
 FRAME_S: Final = 0.1
 
 

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
 
+from supervisord import __version__
 from supervisord.client import DEFAULT_SOCKET_PATH
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -63,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=1.0,
         help="how often to ask srcsd for its counters (default 1; state comes as it changes)",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     return parser
 
 

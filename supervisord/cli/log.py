@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Final
 
-from supervisord.record.jsonl import BadLine, Record, read_records
+from supervisord.record.jsonl import BadLine, StoredRecord, read_records
 
 EXIT_BAD_INPUT = 2
 FOLLOW_POLL_S: Final = 0.25
@@ -124,8 +124,8 @@ def run_log(
 
     reported: set[tuple[str, int]] = set()
 
-    def scan() -> list[Record]:
-        found: list[Record] = []
+    def scan() -> list[StoredRecord]:
+        found: list[StoredRecord] = []
         if not path.exists():
             return found
         for item in read_records(path, since=start, until=end, cause=cause):
@@ -133,11 +133,11 @@ def run_log(
                 if (str(item.file), item.line) not in reported:
                     reported.add((str(item.file), item.line))
                     print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
-            elif isinstance(item, Record):
+            elif isinstance(item, StoredRecord):
                 found.append(item)
         return found
 
-    def show(records: list[Record]) -> None:
+    def show(records: list[StoredRecord]) -> None:
         for record in records:
             data = record.data
             out.write(json.dumps(data) + "\n" if as_json else format_record(data, utc=utc) + "\n")

@@ -57,7 +57,9 @@ KEYS: dict[str, tuple[str, str]] = {
 }
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser alone, with no side effects: ``main`` and the man page and shell
+    completion (``supervisord/cli/reference.py``) share it."""
     parser = argparse.ArgumentParser(
         prog="srcs-sim", description="A simulated SRCS VSC with its remote (docs/simulator.md)."
     )
@@ -109,6 +111,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="how the VSC reports a switched-off remote: Searching with bit 0x02, or Local "
         "with the remote's e-stop bit 0x01 as some hardware does (default %(default)s)",
     )
+    return parser
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.can is not None and ":" not in args.can:
         parser.error("--can takes INTERFACE:CHANNEL, e.g. udp_multicast:239.74.163.2")

@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument(
         "--speed", type=float, default=1.0, help="story pauses run this much faster (default 1)"
     )
-    demo.add_argument("--config", type=Path, help="another demo config (default config/demo.toml)")
+    demo.add_argument("--config", type=Path, help="another demo config (default: the packaged one)")
     return parser
 
 

@@ -15,15 +15,10 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 
+from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.requests import Commission, Heartbeat, Status, Subscribe, Topic
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
-from supervisord.api.wire import (
-    ApiError,
-    Commission,
-    ErrorCode,
-    Heartbeat,
-    Status,
-    Subscribe,
-    Topic,
+from supervisord.api.views import (
     decision_json,
     message_push,
     message_topic,
@@ -186,19 +181,21 @@ class ApiListener(Listener):
     def next_deadline(self) -> int | None:
         # The server's own (an idle e-stop slot to close, checked when the loop asks for its
         # descriptors) and the commissioning's, whichever comes first.
-        deadlines = [self.server.next_deadline()]
-        if self._commissioning is not None:
-            deadlines.append(self._commissioning[0].next_deadline())
+        server = self.server.next_deadline()
+        if self._commissioning is None:
+            return server  # the usual case, asked twice a turn (SR-9.4)
+        deadlines = [server, self._commissioning[0].next_deadline()]
         due = [d for d in deadlines if d is not None]
         return min(due) if due else None
 
     def decided(self, decision: Decision) -> None:
-        changed = self.last is None or (decision.state, decision.causes) != (
-            self.last.state,
-            self.last.causes,
-        )
-        if self.last is None or decision.state != self.last.state:
+        last = self.last
+        if last is None or decision.state is not last.state:
+            changed = True
             self._state_since = decision.now
+        else:
+            # The same tuple object is the same causes: the cheap path keeps them (SR-9.4).
+            changed = decision.causes is not last.causes and decision.causes != last.causes
         self.last = decision
         if changed and self.server.subscribed(Topic.STATE):
             self._closed += self.server.broadcast(Topic.STATE, state_push(decision))

@@ -26,8 +26,8 @@ from supervisord.protocol.messages import (
     RemoteStatus,
 )
 from supervisord.safety.events import Caller, Commissioned
+from supervisord.timebase import NS_PER_MS
 
-NS_PER_MS: Final = 1_000_000
 TIMEOUT_NS: Final = 3_000 * NS_PER_MS  # remote status comes once a second: room for two
 ASK_EVERY_NS: Final = 250 * NS_PER_MS  # the manual allows Feedback Get at up to 20 Hz
 REMOTE_STATUS_INTERVAL_MS: Final = 1_000

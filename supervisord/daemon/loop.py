@@ -31,39 +31,40 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from supervisord import __version__
-from supervisord.api.wire import record_json
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import Sink, Written
-from supervisord.links.base import Backoff, Link, LinkBroken, LinkError
+from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message
+from supervisord.record.format import record_json
 from supervisord.record.jsonl import RecordWriter
+from supervisord.safety.causes import CauseState
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision, Record, RefusalReason
 from supervisord.safety.events import (
     Event,
     InternalFault,
+    LinkBroken,
     LinkOpened,
     OutputReadback,
     VscReceived,
 )
-from supervisord.safety.events import (
-    LinkBroken as CoreLinkBroken,
-)
+from supervisord.safety.transitions import State
+from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 log = logging.getLogger("srcsd")
 
-NS_PER_MS = 1_000_000
 POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
-LIMIT_LOG_NS = 1_000_000_000  # rate-limited refusals are logged as a count, once a second
+LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
+_REJECTIONS = (Rejection, CanRejection, HidRejection)
 
 
 @dataclass
@@ -162,6 +163,8 @@ class Supervisor:
         self.decision: Decision | None = None
         self._stop_requested = False
         self._status = ""
+        self._status_causes: tuple[CauseState, ...] | None = None  # what ``_status`` is of
+        self._status_state: State | None = None
         self._next_watchdog: int | None = None
         self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
         self._selector = selectors.DefaultSelector()
@@ -317,21 +320,26 @@ class Supervisor:
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
             link_fd = self.link.fileno() if self.link.is_open else None
             clients: list[tuple[selectors.SelectorKey, int]] = []
+            sink_ready = False
             for key, mask in ready:
-                if key.data == "wake":
+                if key.fd == link_fd:
+                    self._receive()
+                elif key.data == "wake":
                     with contextlib.suppress(BlockingIOError):
                         self._wake_r.recv(64)
                 elif key.data == "sink":
-                    pass  # taken below, every turn
-                elif link_fd is not None and key.fd == link_fd:
-                    self._receive()
+                    sink_ready = True  # taken below, after the timers
                 else:
                     clients.append((key, mask))
-            if self.link.is_open and self.link.fileno() is None:
+            if link_fd is None and self.link.is_open:
                 self._receive()  # a link without a descriptor is polled
             self._due(self.clock())
-            self._take_written()
-            self._serve_clients(clients)
+            if sink_ready:
+                # Only when the sink said so (its socket is readable once a record is
+                # finished): not a system call per turn (SR-9.4).
+                self._take_written()
+            if clients:
+                self._serve_clients(clients)
             for event in self.listener.take_events(self.clock()):
                 self._apply(self._feed(event))
         except Exception as error:
@@ -366,22 +374,22 @@ class Supervisor:
         return bool(readable)
 
     def _next_deadline(self) -> int:
-        candidates = [self.decision.next_deadline if self.decision else self.clock()]
-        candidates += [
-            d
-            for output in self.outputs.values()
-            if output.is_open and (d := output.next_deadline()) is not None
-        ]
+        deadline = self.decision.next_deadline if self.decision else self.clock()
+        for output in self.outputs.values():
+            if output.is_open and (due := output.next_deadline()) is not None and due < deadline:
+                deadline = due
         if not self.link.is_open:
-            candidates.append(self.backoff.next_attempt)
+            deadline = min(deadline, self.backoff.next_attempt)
         elif self.link.fileno() is None:
-            candidates.append(self.clock() + POLL_NS)
-        if self._next_watchdog is not None:
-            candidates.append(self._next_watchdog)
-        candidates += [backoff.next_attempt for backoff in self._acquiring.values()]
-        if (listener_deadline := self.listener.next_deadline()) is not None:
-            candidates.append(listener_deadline)
-        return min(candidates)
+            deadline = min(deadline, self.clock() + POLL_NS)
+        if self._next_watchdog is not None and self._next_watchdog < deadline:
+            deadline = self._next_watchdog
+        for backoff in self._acquiring.values():
+            deadline = min(deadline, backoff.next_attempt)
+        listener_deadline = self.listener.next_deadline()
+        if listener_deadline is not None and listener_deadline < deadline:
+            deadline = listener_deadline
+        return deadline
 
     def _sync_watches(self) -> None:
         wanted: dict[int, int] = {}
@@ -390,6 +398,8 @@ class Supervisor:
             wanted[fd] = selectors.EVENT_READ
         for api_fd, wants_write in self.listener.descriptors():
             wanted[api_fd] = selectors.EVENT_READ | (selectors.EVENT_WRITE if wants_write else 0)
+        if wanted == self._watched:
+            return  # the usual turn: nothing to register again (SR-9.4)
         for old in set(self._watched) - set(wanted):
             with contextlib.suppress(KeyError, ValueError, OSError):
                 self._selector.unregister(old)
@@ -410,9 +420,10 @@ class Supervisor:
                 readback = output.tick(now)
                 if readback is not None and not readback.ok:
                     self._apply(self._feed(self._readback_event(readback, now)))
-        for name, backoff in list(self._acquiring.items()):
-            if now >= backoff.next_attempt:
-                self._acquire(name, backoff, now)
+        if self._acquiring:
+            for name, backoff in list(self._acquiring.items()):
+                if now >= backoff.next_attempt:
+                    self._acquire(name, backoff, now)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
             self._send(tuple(self.listener.due(now, self._feed_and_apply)), now)
@@ -446,7 +457,7 @@ class Supervisor:
             self.backoff.failed(now)
             if self.counters.link_failures == 1 or self.counters.link_failures % 50 == 0:
                 log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
-            self._apply(self._feed(CoreLinkBroken(now, f"cannot open: {error.reason}")))
+            self._apply(self._feed(LinkBroken(now, f"cannot open: {error.reason}")))
             return
         self.backoff.succeeded()
         self.counters.link_opens += 1
@@ -457,12 +468,12 @@ class Supervisor:
     def _receive(self) -> None:
         try:
             received = self.link.receive()
-        except LinkBroken as error:
+        except LinkBrokenError as error:
             self._link_broken(self.clock(), error.reason)
             return
         now = self.clock()  # what was read counts as received now: right after the read (SR-2)
         for item in received:
-            if isinstance(item, Rejection | CanRejection | HidRejection):
+            if isinstance(item, _REJECTIONS):
                 self.counters.reject(
                     item.reason.value if not isinstance(item, HidRejection) else "wrong_length"
                 )
@@ -477,14 +488,14 @@ class Supervisor:
         self._link_since_ns, self._link_error = now, reason
         self.link.close()
         self.backoff.failed(now)
-        self._apply(self._feed(CoreLinkBroken(now, reason)))
+        self._apply(self._feed(LinkBroken(now, reason)))
 
     def _send(self, frames: tuple[Message, ...], now: int) -> None:
         if not frames or not self.link.is_open:
             return
         try:
             self.link.send(list(frames))
-        except LinkBroken as error:
+        except LinkBrokenError as error:
             self._link_broken(now, error.reason)
 
     # ----------------------------------------------------------------- decisions
@@ -511,21 +522,23 @@ class Supervisor:
         Setting outputs yields read-backs, which go back to the core; every decision that
         comes of them is applied in turn, so none of their records is lost (a read-back fault
         is a stop of its own, SR-7)."""
-        pending, fed = [decision], 0
+        pending, fed, outputs = [decision], 0, self.outputs
         while pending:
             decision = pending.pop(0)
-            changed = [
-                (output, on)
+            readbacks = [
+                output.set(on, decision.now)
                 for name, on in decision.outputs.items()
-                if (output := self.outputs.get(name)) is not None
+                if (output := outputs.get(name)) is not None
                 and output.is_open
                 and output.requested != on
             ]
-            readbacks = [output.set(on, decision.now) for output, on in changed]
             self._finish(decision)
             if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
                 fed += 1
-                pending += [self._feed(self._readback_event(r, decision.now)) for r in readbacks]
+                if readbacks:
+                    pending += [
+                        self._feed(self._readback_event(r, decision.now)) for r in readbacks
+                    ]
 
     def _finish(self, decision: Decision) -> None:
         if decision is self.decision:
@@ -540,10 +553,14 @@ class Supervisor:
             else:
                 log.info("refused: %s", refusal.message)
         self.listener.decided(decision)
-        status = self._status_text(decision)
-        if status != self._status:
-            self._status = status
-            self.notifier.send(STATUS=status)
+        if decision.causes is not self._status_causes or decision.state is not self._status_state:
+            # The status line depends on these two alone; a decision of the cheap path keeps
+            # the previous one's (SR-9.4).
+            self._status_causes, self._status_state = decision.causes, decision.state
+            status = self._status_text(decision)
+            if status != self._status:
+                self._status = status
+                self.notifier.send(STATUS=status)
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened

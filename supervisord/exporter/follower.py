@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.exporter.model import ExporterModel
 

@@ -23,6 +23,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final, Protocol
 
+from supervisord.timebase import NS_PER_S
+
 STATES: Final = ("STOPPED", "HOLD", "RUN")
 """The supervisor's states (SR-1), one ``srcs_state`` series each."""
 MAX_LABEL_VALUES: Final = 64
@@ -34,7 +36,6 @@ REMOTE_STALE_NS: Final = 5_000_000_000
 """A remote status older than this is not exported: the VSC sends one a second once
 commissioned (docs/api.md "commission"), and does not clear it when the remote's link drops
 (manual §8.3.4), so only a fresh one describes the remote now."""
-NS_PER_S: Final = 1_000_000_000
 
 
 class Kind(enum.Enum):

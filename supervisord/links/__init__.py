@@ -2,6 +2,6 @@
 
 A link owns one port or bus. The daemon's loop waits on ``fileno()`` and calls ``receive``
 when it is readable; ``send`` writes at once. A link never retries by itself: when the world
-breaks it, it raises ``LinkBroken`` and the loop closes it and reopens it later with
+breaks it, it raises ``LinkBrokenError`` and the loop closes it and reopens it later with
 ``Backoff``. No link starts a thread.
 """

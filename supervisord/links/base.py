@@ -9,6 +9,7 @@ from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message
+from supervisord.timebase import NS_PER_MS
 
 Received = Message | HidInput | Rejection | CanRejection | HidRejection
 
@@ -21,13 +22,13 @@ class LinkError(SrcsError):
         self.reason = reason
 
 
-class LinkBroken(LinkError):
+class LinkBrokenError(LinkError):
     """The world broke an open link: unplugged, I/O error, bus-off (trio's "broken")."""
 
 
 class Link(abc.ABC):
     """One connection to the VSC. Life cycle: ``open``, then ``receive``/``send`` until a
-    ``LinkBroken`` or ``close``; then ``open`` again for a new start."""
+    ``LinkBrokenError`` or ``close``; then ``open`` again for a new start."""
 
     @abc.abstractmethod
     def open(self) -> None:
@@ -40,11 +41,11 @@ class Link(abc.ABC):
 
     @abc.abstractmethod
     def receive(self) -> list[Received]:
-        """Everything that has arrived, decoded, without blocking; raises ``LinkBroken``."""
+        """Everything that has arrived, decoded, without blocking; raises ``LinkBrokenError``."""
 
     @abc.abstractmethod
     def send(self, messages: list[Message]) -> None:
-        """Write ``messages`` at once, in order; raises ``LinkBroken``."""
+        """Write ``messages`` at once, in order; raises ``LinkBrokenError``."""
 
     @abc.abstractmethod
     def close(self) -> None:
@@ -65,8 +66,8 @@ class Backoff:
     open resets it. Pure: times are monotonic nanoseconds passed in."""
 
     def __init__(self, first_ms: int = 100, max_ms: int = 5000) -> None:
-        self._first = first_ms * 1_000_000
-        self._max = max_ms * 1_000_000
+        self._first = first_ms * NS_PER_MS
+        self._max = max_ms * NS_PER_MS
         self._delay = self._first
         self.next_attempt = 0
 

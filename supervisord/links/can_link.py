@@ -16,7 +16,7 @@ from typing import Any
 
 import can
 
-from supervisord.links.base import Link, LinkBroken, LinkError, Received
+from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
 from supervisord.protocol.j1939 import (
     CanFrame,
     FeedbackStringSegment,
@@ -28,6 +28,7 @@ from supervisord.protocol.j1939 import (
     feedback_string_frames,
 )
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 MAX_FRAMES_PER_RECEIVE = 256  # a flood must not starve the loop's other duties
 ERROR_LIMIT = 16
@@ -39,7 +40,7 @@ ERROR_WINDOW_MS = 1000
 ERROR_PASSIVE_MS = 1000
 """A controller that reports error-passive (counter >= 128) and not error-active again
 within this long breaks the link: errors outnumber good frames 1 to 8 for that long."""
-ERROR_LOG_NS = 1_000_000_000  # isolated error frames are logged as a count, once a second
+ERROR_LOG_NS = NS_PER_S  # isolated error frames are logged as a count, once a second
 # SocketCAN error classes (linux/can/error.h): in the identifier, details in data[1].
 CAN_ERR_CRTL, CAN_ERR_BUSOFF = 0x04, 0x40
 CAN_ERR_CRTL_PASSIVE, CAN_ERR_CRTL_ACTIVE = 0x10 | 0x20, 0x40  # RX/TX passive; back to active
@@ -95,8 +96,8 @@ class CanLink(Link):
         self._bus: can.BusABC | None = None
         self._joystick = JoystickAssembler()
         self._error_limit = error_limit
-        self._error_window_ns = error_window_ms * 1_000_000
-        self._error_passive_ns = error_passive_ms * 1_000_000
+        self._error_window_ns = error_window_ms * NS_PER_MS
+        self._error_passive_ns = error_passive_ms * NS_PER_MS
         self._recent: deque[int] = deque()  # times of the error frames within the window
         self._passive_since: int | None = None
         self.error_frames = 0
@@ -144,7 +145,7 @@ class CanLink(Link):
             try:
                 raw = bus.recv(timeout=0)
             except (can.CanError, OSError) as error:
-                raise LinkBroken(str(error) or "receive failed") from error
+                raise LinkBrokenError(str(error) or "receive failed") from error
             if raw is None:
                 break
             now = time.monotonic_ns()
@@ -154,8 +155,8 @@ class CanLink(Link):
             if self._passive_since is not None and now - self._passive_since >= (
                 self._error_passive_ns
             ):
-                raise LinkBroken(
-                    f"CAN controller error-passive for {self._error_passive_ns // 1_000_000} ms"
+                raise LinkBrokenError(
+                    f"CAN controller error-passive for {self._error_passive_ns // NS_PER_MS} ms"
                 )
             decoded = decode_can(from_python_can(raw))
             if isinstance(decoded, JoystickBasic | JoystickExtended):
@@ -165,13 +166,13 @@ class CanLink(Link):
         return received
 
     def _error_frame(self, raw: can.Message, now: int) -> None:
-        """Count an error frame; raise ``LinkBroken`` for bus-off, a sustained rate, or an
+        """Count an error frame; raise ``LinkBrokenError`` for bus-off, a sustained rate, or an
         error-passive controller for too long (docs/safety.md "CAN error frames")."""
         self.error_frames += 1
         classes = raw.arbitration_id
         detail = raw.data[1] if len(raw.data) > 1 else 0
         if classes & CAN_ERR_BUSOFF:
-            raise LinkBroken("CAN bus-off")
+            raise LinkBrokenError("CAN bus-off")
         if classes & CAN_ERR_CRTL:
             if detail & CAN_ERR_CRTL_ACTIVE:
                 self._passive_since = None
@@ -180,16 +181,16 @@ class CanLink(Link):
         if self._passive_since is not None and now - self._passive_since >= (
             self._error_passive_ns
         ):
-            raise LinkBroken(
-                f"CAN controller error-passive for {self._error_passive_ns // 1_000_000} ms"
+            raise LinkBrokenError(
+                f"CAN controller error-passive for {self._error_passive_ns // NS_PER_MS} ms"
             )
         recent = self._recent
         recent.append(now)
         while now - recent[0] >= self._error_window_ns:
             recent.popleft()
         if len(recent) > self._error_limit:
-            raise LinkBroken(
-                f"{len(recent)} CAN error frames within {self._error_window_ns // 1_000_000} ms"
+            raise LinkBrokenError(
+                f"{len(recent)} CAN error frames within {self._error_window_ns // NS_PER_MS} ms"
             )
         self._unlogged += 1
         if now >= self._next_log:  # counted and logged, at most a line a second
@@ -216,7 +217,7 @@ class CanLink(Link):
                 try:
                     bus.send(to_python_can(frame), timeout=0)
                 except (can.CanError, OSError) as error:
-                    raise LinkBroken(str(error) or "send failed") from error
+                    raise LinkBrokenError(str(error) or "send failed") from error
 
     def close(self) -> None:
         bus, self._bus = self._bus, None
@@ -225,5 +226,5 @@ class CanLink(Link):
 
     def _require_open(self) -> can.BusABC:
         if self._bus is None:
-            raise LinkBroken("not open")
+            raise LinkBrokenError("not open")
         return self._bus

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from supervisord.links.base import Link, LinkBroken, LinkError, Received
+from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
 from supervisord.protocol.hid import HidOutput, decode_hid_input, encode_hid_output
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
@@ -49,9 +49,9 @@ class HidLink(Link):
             except BlockingIOError:
                 return received
             except OSError as error:
-                raise LinkBroken(error.strerror or str(error)) from error
+                raise LinkBrokenError(error.strerror or str(error)) from error
             if not report:
-                raise LinkBroken("device gone")
+                raise LinkBrokenError("device gone")
             received.append(decode_hid_input(report))
 
     def send(self, messages: list[Message]) -> None:
@@ -67,7 +67,7 @@ class HidLink(Link):
             try:
                 os.write(fd, encode_hid_output(report))
             except OSError as error:
-                raise LinkBroken(error.strerror or str(error)) from error
+                raise LinkBrokenError(error.strerror or str(error)) from error
 
     def close(self) -> None:
         fd, self._fd = self._fd, None
@@ -76,5 +76,5 @@ class HidLink(Link):
 
     def _require_open(self) -> int:
         if self._fd is None:
-            raise LinkBroken("not open")
+            raise LinkBrokenError("not open")
         return self._fd

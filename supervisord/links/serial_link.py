@@ -7,26 +7,30 @@ import os
 
 import serial
 
-from supervisord.links.base import Link, LinkBroken, LinkError, Received
+from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
 from supervisord.protocol.framing import FrameDecoder, encode_frame
-from supervisord.protocol.messages import Message
+from supervisord.protocol.messages import Message, UserHeartbeat
 
 BAUD = 115200  # manual §8: fixed
-READ_LIMIT = 4096
+READ_LIMIT = 4096  # far more than arrives in a turn: one read takes everything waiting
 
 
 class SerialLink(Link):
     """A serial port, opened exclusively and read without blocking.
 
     An unplugged USB device (or a closed pseudo-terminal master) shows as a read that is
-    ready but returns nothing, or as an I/O error: both are ``LinkBroken``. Every open starts
+    ready but returns nothing, or as an I/O error: both are ``LinkBrokenError``. Every open starts
     a fresh decoder, so no half frame survives a reconnect.
     """
 
     def __init__(self, port: str) -> None:
         self._path = port
         self._port: serial.Serial | None = None
+        self._fd: int | None = None  # the port's descriptor while open, read once at open
         self._decoder = FrameDecoder()
+        # The user heartbeat goes out 20 times a second with one of two bytes (SR-5.1): its
+        # frames are encoded once (SR-9.4). At most 256 entries, one per byte value.
+        self._heartbeats: dict[UserHeartbeat, bytes] = {}
 
     @property
     def description(self) -> str:
@@ -53,48 +57,57 @@ class SerialLink(Link):
                 port.close()
             raise LinkError(_short(error)) from error
         self._port = port
+        self._fd = port.fileno()
         self._decoder = FrameDecoder()
 
     def fileno(self) -> int | None:
-        return self._port.fileno() if self._port is not None else None
+        return self._fd
 
     def receive(self) -> list[Received]:
-        port = self._require_open()
+        fd = self._require_open()
         try:
-            data = os.read(port.fileno(), READ_LIMIT)
+            data = os.read(fd, READ_LIMIT)
         except BlockingIOError:
             return []
         except OSError as error:
-            raise LinkBroken(_short(error)) from error
+            raise LinkBrokenError(_short(error)) from error
         if not data:  # readable but empty: the device is gone (pyserial's wording, see above)
-            raise LinkBroken("device reports readiness to read but returned no data")
+            raise LinkBrokenError("device reports readiness to read but returned no data")
         return list(self._decoder.feed(data))
 
     def send(self, messages: list[Message]) -> None:
-        port = self._require_open()
-        data = b"".join(encode_frame(message) for message in messages)
+        fd = self._require_open()
+        data = b"".join([self._encode(message) for message in messages])
         try:
-            written = os.write(port.fileno(), data) if data else 0
+            written = os.write(fd, data) if data else 0
         except BlockingIOError:
             written = 0
         except OSError as error:
-            raise LinkBroken(_short(error)) from error
+            raise LinkBrokenError(_short(error)) from error
         if written != len(data):
             # The VSC reads at 115200 baud and our traffic is a few hundred bytes a second:
             # an output buffer that is full means nobody is reading.
-            raise LinkBroken(f"output buffer full: wrote {written} of {len(data)} bytes")
+            raise LinkBrokenError(f"output buffer full: wrote {written} of {len(data)} bytes")
+
+    def _encode(self, message: Message) -> bytes:
+        if type(message) is not UserHeartbeat:
+            return encode_frame(message)
+        frame = self._heartbeats.get(message)
+        if frame is None:
+            frame = self._heartbeats[message] = encode_frame(message)
+        return frame
 
     def close(self) -> None:
-        port, self._port = self._port, None
+        port, self._port, self._fd = self._port, None, None
         if port is not None:
             # The descriptor is released by close even when the device is already gone.
             with contextlib.suppress(serial.SerialException, OSError):
                 port.close()
 
-    def _require_open(self) -> serial.Serial:
-        if self._port is None:
-            raise LinkBroken("not open")
-        return self._port
+    def _require_open(self) -> int:
+        if self._fd is None:
+            raise LinkBrokenError("not open")
+        return self._fd
 
 
 def _short(error: BaseException) -> str:

@@ -1,30 +1,34 @@
 """Outputs: the enable lines of the motion controllers (SR-6, ``docs/outputs.md``).
 
 This package imports no plugin: ``sim``, ``gpio`` (``gpiod``) and ``can`` (``python-can``) are
-imported by :func:`output_class` only when a config names them.
+imported by the registry (:func:`output_class`) only when a config names them.
 """
 
 from supervisord.outputs.base import (
-    NS_PER_MS,
-    ConfigTable,
+    Claim,
+    DeviceSpec,
     Output,
     OutputError,
     OutputFault,
     OutputKind,
-    OutputSpec,
     OutputUsageError,
     Periodic,
     ReadBack,
+    Resources,
+)
+from supervisord.outputs.registry import (
     create_output,
+    option_names,
     output_class,
     parse_output_spec,
+    read_spec,
     spec_class,
 )
-from supervisord.safety.config import OutputRole
+from supervisord.safety.config import OutputRole, OutputSpec
 
 __all__ = [
-    "NS_PER_MS",
-    "ConfigTable",
+    "Claim",
+    "DeviceSpec",
     "Output",
     "OutputError",
     "OutputFault",
@@ -34,8 +38,11 @@ __all__ = [
     "OutputUsageError",
     "Periodic",
     "ReadBack",
+    "Resources",
     "create_output",
+    "option_names",
     "output_class",
     "parse_output_spec",
+    "read_spec",
     "spec_class",
 ]

@@ -1,4 +1,6 @@
-"""The output interface: what every enable-line driver promises, and the registry of kinds.
+"""The output interface: what every enable-line driver promises, and what every kind's spec
+declares (its options, what it holds exclusively). The registry of kinds is
+:mod:`supervisord.outputs.registry`.
 
 An output gates one enable line of a motion controller (``docs/outputs.md``). The rules it
 serves are SR-6:
@@ -14,29 +16,27 @@ serves are SR-6:
 Time is an argument: ``now`` is the daemon's monotonic clock in integer nanoseconds. Outputs
 never read a clock themselves.
 
-Kinds are plugins picked by name (``"sim"``, ``"gpio"``, ``"can"``); :func:`output_class`
+Kinds are plugins picked by name (``"sim"``, ``"gpio"``, ``"can"``) in the registry, which
 imports a kind's module only when that kind is chosen, so a robot without GPIO never imports
-``gpiod`` and one without CAN never imports ``can``.
+``gpiod`` and one without CAN never imports ``can``. This module imports no plugin.
 """
 
 from __future__ import annotations
 
 import abc
 import dataclasses
-import importlib
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, ClassVar, Final, Self, TypeVar
+from collections.abc import Hashable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar, Self
 
+from supervisord import strict
 from supervisord.compat import StrEnum
-from supervisord.errors import ConfigError, SrcsError
-from supervisord.safety.config import NAME_PATTERN, OutputRole  # one vocabulary with the core
+from supervisord.errors import SrcsError
+from supervisord.safety.config import OutputRole, OutputSpec  # one vocabulary with the core
+from supervisord.timebase import next_due
 
 if TYPE_CHECKING:
     from can import BusABC
-
-NS_PER_MS: Final = 1_000_000
-
-_E = TypeVar("_E", bound=StrEnum)
 
 
 class OutputKind(StrEnum):
@@ -117,132 +117,69 @@ class OutputUsageError(SrcsError, RuntimeError):
 
 
 # ---------------------------------------------------------------------------------------------
-# Specs and their validation
+# Specs: each kind's declared options, what it holds exclusively
 
 
-class ConfigTable:
-    """Reads one output's config table, raising :class:`ConfigError` that names the full key.
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """Something an output holds exclusively (SR-11.1, docs/configuration.md "One owner per
+    path"): no two outputs may hold the same device, and a file no other key of the config.
 
-    Every key must be consumed: :meth:`finish` rejects unknown keys, because a misspelt option
-    in a safety config must not be silently ignored.
+    ``option`` is the spec's option that names it (``line``, ``arbitration_id``, ``path``) and
+    ``value`` its value as written, for the message; ``what`` is how the fix names it ("line",
+    "id"). A device is compared by ``identity`` (a hashable value); a file by ``path``, with
+    every other path of the config once symlinks are resolved.
     """
 
-    def __init__(self, prefix: str, table: Mapping[str, object]) -> None:
-        self.prefix = prefix
-        self._table = table
-        self._seen: set[str] = set()
-
-    def key(self, key: str) -> str:
-        """The full dotted name of ``key``, as error messages show it."""
-        return f"{self.prefix}.{key}"
-
-    def has(self, key: str) -> bool:
-        """Whether the table sets ``key``."""
-        return key in self._table
-
-    def raw(self, key: str) -> object:
-        """The value of ``key`` as given (``None`` when absent), marking it consumed."""
-        self._seen.add(key)
-        return self._table.get(key)
-
-    def string(self, key: str, default: str | None = None) -> str:
-        """A non-empty string; absent means ``default`` (absent and no default is an error)."""
-        value = self.raw(key)
-        if value is None and default is not None:
-            return default
-        if not isinstance(value, str) or not value:
-            raise ConfigError(self.key(key), value, "give a non-empty string")
-        return value
-
-    def integer(self, key: str, default: int | None, low: int, high: int) -> int:
-        """An integer in ``[low, high]``; absent means ``default``."""
-        value = self.raw(key)
-        if value is None and default is not None:
-            return default
-        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-            raise ConfigError(self.key(key), value, f"give an integer from {low} to {high}")
-        return value
-
-    def optional_integer(self, key: str, low: int, high: int) -> int | None:
-        """An integer in ``[low, high]``, or ``None`` when the key is absent."""
-        if not self.has(key):
-            self._seen.add(key)
-            return None
-        return self.integer(key, None, low, high)
-
-    def boolean(self, key: str, default: bool) -> bool:
-        """``true`` or ``false``; absent means ``default``."""
-        value = self.raw(key)
-        if value is None:
-            return default
-        if not isinstance(value, bool):
-            raise ConfigError(self.key(key), value, "give true or false")
-        return value
-
-    def choice(self, key: str, enum_type: type[_E], default: _E | None) -> _E:
-        """One of ``enum_type``'s values; absent means ``default``."""
-        value = self.raw(key)
-        if value is None and default is not None:
-            return default
-        allowed = ", ".join(repr(m.value) for m in enum_type)
-        if not isinstance(value, str):
-            raise ConfigError(self.key(key), value, f"give one of {allowed}")
-        try:
-            return enum_type(value)
-        except ValueError:
-            raise ConfigError(self.key(key), value, f"give one of {allowed}") from None
-
-    def finish(self) -> None:
-        """Reject any key that no reader consumed."""
-        unknown = sorted(set(self._table) - self._seen)
-        if unknown:
-            raise ConfigError(self.key(unknown[0]), self._table[unknown[0]], "unknown option")
+    option: str
+    value: object
+    what: str
+    identity: Hashable = None
+    path: Path | None = None
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class OutputSpec:
-    """What every output kind's spec has: the output's ``name`` (used in ``output_fault:NAME``)
-    and its ``role``. Each kind subclasses it with its own validated options."""
+class DeviceSpec(OutputSpec):
+    """An output the daemon drives: its name and role (what the safety core knows of it,
+    :class:`~supervisord.safety.config.OutputSpec`) and its kind's own validated options.
+
+    Every kind declares its options the same way: :attr:`options`, the keys of its config
+    table as :class:`~supervisord.strict.Key` (type, default, range, documentation: the
+    single source of the loader and of the JSON Schema), :meth:`from_options` to build the
+    spec from the values read, and :meth:`claims`, what it holds exclusively.
+    """
 
     kind: ClassVar[OutputKind]
-    name: str
-    role: OutputRole = OutputRole.MOTION
-
-    def __post_init__(self) -> None:
-        if NAME_PATTERN.fullmatch(self.name) is None:
-            raise ConfigError(
-                "outputs",
-                self.name,
-                "name outputs with 1-32 letters, digits, '_', '.' or '-' (as clients)",
-            )
+    options: ClassVar[tuple[strict.Key, ...]]
 
     @classmethod
-    def from_table(cls, name: str, table: Mapping[str, object], prefix: str = "") -> Self:
-        """Build and validate a spec from one config table (``[outputs.NAME]``).
-
-        ``kind`` and ``role`` are read here, the kind's own options by :meth:`_read`; unknown
-        keys are rejected. Raises :class:`ConfigError` naming ``prefix.key`` (default
-        ``outputs.NAME``).
-        """
-        t = ConfigTable(prefix or f"outputs.{name}", table)
-        kind = t.choice("kind", OutputKind, None)
-        if kind is not cls.kind:
-            raise ConfigError(t.key("kind"), kind.value, f"this spec reads kind {cls.kind.value!r}")
-        role = t.choice("role", OutputRole, OutputRole.MOTION)
-        options = cls._read(t)
-        t.finish()
-        try:
-            return cls(name=name, role=role, **options)
-        except ConfigError as e:  # the spec's own checks name outputs.NAME.key: use the prefix
-            default = f"outputs.{name}."
-            if e.key.startswith(default):
-                raise ConfigError(t.key(e.key.removeprefix(default)), e.value, e.fix) from None
-            raise
+    def from_options(cls, name: str, role: OutputRole, values: Mapping[str, object]) -> Self:
+        """The spec of output ``name`` from its options' values, as read by :attr:`options`
+        (a kind that converts a value, such as hex text to bytes, overrides this)."""
+        return cls(name=name, role=role, **values)
 
     @classmethod
-    @abc.abstractmethod
-    def _read(cls, t: ConfigTable) -> dict[str, Any]:
-        """The kind's own options from ``t``, as keyword arguments of the spec."""
+    def schema_rules(cls) -> tuple[dict[str, object], ...]:
+        """JSON Schema rules between this kind's options (e.g. a CAN id's range that depends
+        on ``extended``), for the config's published schema; none unless the kind says so."""
+        return ()
+
+    def claims(self) -> tuple[Claim, ...]:
+        """What this output holds exclusively (nothing, unless the kind says so)."""
+        return ()
+
+    def resolved(self, base: Path) -> Self:
+        """This spec with its relative file paths resolved against ``base`` (the config
+        file's directory); a kind without files returns itself."""
+        return self
+
+
+@dataclasses.dataclass(frozen=True)
+class Resources:
+    """What the daemon lends an output to drive it: ``can_bus``, the python-can bus a
+    ``can`` output sends on (the daemon owns and closes it)."""
+
+    can_bus: BusABC | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -278,8 +215,7 @@ class Periodic:
     def advance(self, now: int) -> None:
         """Schedule the next duty after the one performed at ``now``."""
         assert self.deadline is not None
-        following = self.deadline + self.period_ns
-        self.deadline = following if following > now else now + self.period_ns
+        self.deadline = next_due(self.deadline, now, self.period_ns)
 
 
 class Output(abc.ABC):
@@ -291,9 +227,16 @@ class Output(abc.ABC):
     """
 
     kind: ClassVar[OutputKind]
-    spec_type: ClassVar[type[OutputSpec]]
+    spec_type: ClassVar[type[DeviceSpec]]
 
-    def __init__(self, spec: OutputSpec) -> None:
+    @classmethod
+    def build(cls, spec: DeviceSpec, resources: Resources) -> Output:
+        """A new, not yet open output for ``spec`` with what it needs from ``resources``: how
+        the registry builds every kind. Raises :class:`ConfigError` when a resource the kind
+        needs is missing, :class:`OutputUsageError` for another kind's spec."""
+        return cls(spec)
+
+    def __init__(self, spec: DeviceSpec) -> None:
         if spec.kind is not self.kind:
             raise OutputUsageError(f"{type(self).__name__} cannot drive a {spec.kind} spec")
         self._spec = spec
@@ -388,67 +331,3 @@ class Output(abc.ABC):
     def __repr__(self) -> str:
         state = "open" if self.is_open else ("closed" if self._closed else "new")
         return f"<{type(self).__name__} {self.name!r} {state} requested={self._requested}>"
-
-
-# ---------------------------------------------------------------------------------------------
-# The registry
-
-_MODULES: Final[Mapping[OutputKind, tuple[str, str]]] = {
-    OutputKind.SIM: ("supervisord.outputs.sim", "SimOutput"),
-    OutputKind.GPIO: ("supervisord.outputs.gpio", "GpioOutput"),
-    OutputKind.CAN: ("supervisord.outputs.can_enable", "CanEnableOutput"),
-}
-
-
-def output_class(kind: OutputKind | str) -> type[Output]:
-    """The output class for ``kind``, importing its module now (and only now).
-
-    Raises :class:`ConfigError` for an unknown kind.
-    """
-    try:
-        kind = OutputKind(kind)
-    except ValueError:
-        allowed = ", ".join(repr(k.value) for k in OutputKind)
-        raise ConfigError("kind", kind, f"give one of {allowed}") from None
-    module_name, class_name = _MODULES[kind]
-    cls = getattr(importlib.import_module(module_name), class_name)
-    assert isinstance(cls, type)
-    assert issubclass(cls, Output)
-    return cls
-
-
-def spec_class(kind: OutputKind | str) -> type[OutputSpec]:
-    """The spec class for ``kind`` (importing its module, as :func:`output_class` does)."""
-    return output_class(kind).spec_type
-
-
-def parse_output_spec(name: str, table: Mapping[str, object], prefix: str = "") -> OutputSpec:
-    """Validate one ``[outputs.NAME]`` table into the spec of its ``kind``.
-
-    Raises :class:`ConfigError` naming the key (``outputs.NAME.key`` unless ``prefix`` says
-    otherwise) for a missing or unknown kind, a bad value or an unknown option.
-    """
-    prefix = prefix or f"outputs.{name}"
-    kind = table.get("kind")
-    if not isinstance(kind, str) or kind not in {k.value for k in OutputKind}:
-        allowed = ", ".join(repr(k.value) for k in OutputKind)
-        raise ConfigError(f"{prefix}.kind", kind, f"give one of {allowed}")
-    return spec_class(kind).from_table(name, table, prefix)
-
-
-def create_output(spec: OutputSpec, *, can_bus: BusABC | None = None) -> Output:
-    """A new, not yet open output for ``spec``.
-
-    ``can_bus`` is the python-can bus a ``can`` output sends on; the daemon owns and closes
-    it. Raises :class:`ConfigError` when a ``can`` output gets no bus.
-    """
-    if spec.kind is OutputKind.CAN:
-        if can_bus is None:
-            raise ConfigError(f"outputs.{spec.name}.kind", "can", "configure a CAN bus for it")
-        # Imported here, not at the top: a plugin is imported only when chosen.
-        from supervisord.outputs.can_enable import CanEnableOutput, CanEnableSpec  # noqa: PLC0415
-
-        if not isinstance(spec, CanEnableSpec):
-            raise OutputUsageError(f"a can output needs a CanEnableSpec, not {spec!r}")
-        return CanEnableOutput(spec, can_bus)
-    return output_class(spec.kind)(spec)

@@ -20,34 +20,80 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import glob
+import os
+import re
 from collections.abc import Callable
-from typing import Any, ClassVar, Protocol
+from typing import ClassVar, Final, Protocol
 
 import gpiod
 from gpiod.line import Direction, Value
 
+from supervisord import strict
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import (
-    NS_PER_MS,
-    ConfigTable,
+    Claim,
+    DeviceSpec,
     Output,
     OutputError,
     OutputFault,
     OutputKind,
-    OutputSpec,
     Periodic,
     ReadBack,
 )
+from supervisord.timebase import NS_PER_MS
 
 PULSE_PERIOD_MS_RANGE = (2, 1000)
 """Allowed ``pulse_period_ms`` (the time between two toggles; the pulse frequency is half its
 inverse)."""
 
 _MAX_OFFSET = 65535
+KERNEL_CHIP_NAME: Final = re.compile(r"gpiochip[0-9]+")
+"""A GPIO chip's kernel name: the device ``/dev/NAME``."""
+
+LINE_NAME_PATTERN: Final = (
+    "^(?![0-9]+$)[^\\u0000-\\u001f\\u007f-\\u009f]*[^ \\u0000-\\u001f\\u007f-\\u009f]"
+    "[^\\u0000-\\u001f\\u007f-\\u009f]*$"
+)
+"""A line's name: text as :data:`supervisord.strict.TEXT_PATTERN`, but not only digits (an
+offset is written as a number)."""
+
+CHIP: Final = strict.Text(
+    name="chip",
+    doc='The GPIO chip: a device path ("/dev/gpiochip2"), a kernel name ("gpiochip2") or a '
+    "label; a label that matches more than one chip is refused when the line is requested.",
+    example="gpiochip0",
+)
+LINE: Final = strict.Either(
+    name="line",
+    doc="The line: its name, or its offset on the chip as a number.",
+    options=(
+        strict.Text(
+            name="line",
+            doc="",
+            pattern=LINE_NAME_PATTERN,
+            rule="a line name in double quotes",
+            example="MOTOR_EN",
+        ),
+        strict.Whole(name="line", doc="", low=0, high=_MAX_OFFSET),
+    ),
+    example=17,
+)
+ACTIVE_LOW: Final = strict.Flag(
+    name="active_low", doc="On is a low level on the wire.", default=False, example=False
+)
+PULSE_PERIOD_MS: Final = strict.Whole(
+    name="pulse_period_ms",
+    doc="A pulsed enable: while on, the line toggles every this many ms (for safety relays "
+    "that need a living signal). Not set: a steady level.",
+    low=PULSE_PERIOD_MS_RANGE[0],
+    high=PULSE_PERIOD_MS_RANGE[1],
+    default=None,
+    example=10,
+)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class GpioSpec(OutputSpec):
+class GpioSpec(DeviceSpec):
     """Options of a ``kind = "gpio"`` output.
 
     ``chip``: path, kernel name or label. ``line``: name (str) or offset (int, 0-65535).
@@ -56,6 +102,7 @@ class GpioSpec(OutputSpec):
     """
 
     kind: ClassVar[OutputKind] = OutputKind.GPIO
+    options: ClassVar[tuple[strict.Key, ...]] = (CHIP, LINE, ACTIVE_LOW, PULSE_PERIOD_MS)
     chip: str
     line: str | int
     active_low: bool = False
@@ -64,19 +111,11 @@ class GpioSpec(OutputSpec):
     def __post_init__(self) -> None:
         super().__post_init__()
         prefix = f"outputs.{self.name}"
-        if not self.chip:
-            raise ConfigError(f"{prefix}.chip", self.chip, "give a chip path, name or label")
-        if isinstance(self.line, str):
-            if not self.line or self.line.isdigit():
-                raise ConfigError(
-                    f"{prefix}.line", self.line, "give a line name, or an offset as an integer"
-                )
-        elif isinstance(self.line, bool) or not 0 <= self.line <= _MAX_OFFSET:
-            raise ConfigError(f"{prefix}.line", self.line, f"give an offset 0-{_MAX_OFFSET}")
-        low, high = PULSE_PERIOD_MS_RANGE
-        if self.pulse_period_ms is not None and not low <= self.pulse_period_ms <= high:
-            raise ConfigError(
-                f"{prefix}.pulse_period_ms", self.pulse_period_ms, f"give {low} to {high} ms"
+        for key, value in ((CHIP, self.chip), (LINE, self.line)):
+            strict.check_value(key, value, f"{prefix}.{key.name}", ConfigError)
+        if self.pulse_period_ms is not None:
+            strict.check_value(
+                PULSE_PERIOD_MS, self.pulse_period_ms, f"{prefix}.pulse_period_ms", ConfigError
             )
 
     @property
@@ -84,17 +123,18 @@ class GpioSpec(OutputSpec):
         """The consumer label the line is requested under (shown by ``gpioinfo``)."""
         return f"srcsd-{self.name}"[:31]
 
-    @classmethod
-    def _read(cls, t: ConfigTable) -> dict[str, Any]:
-        line = t.raw("line")
-        if isinstance(line, bool) or not isinstance(line, str | int):
-            raise ConfigError(t.key("line"), line, "give a line name, or an offset as an integer")
-        return {
-            "chip": t.string("chip"),
-            "line": line,
-            "active_low": t.boolean("active_low", False),
-            "pulse_period_ms": t.optional_integer("pulse_period_ms", *PULSE_PERIOD_MS_RANGE),
-        }
+    def claims(self) -> tuple[Claim, ...]:
+        """Its line on its chip. What the config alone can tell of a chip (docs/configuration.md
+        "One owner per path"): a device path, with symlinks resolved, and a kernel name
+        (``gpiochip2``) are the same device (``/dev/gpiochip2``); a label is only known to the
+        hardware, so it stays a label, and a line named by name stays a name."""
+        if "/" in self.chip:
+            chip = ("device", os.path.realpath(self.chip))
+        elif KERNEL_CHIP_NAME.fullmatch(self.chip):
+            chip = ("device", os.path.realpath(f"/dev/{self.chip}"))
+        else:
+            chip = ("label", self.chip)
+        return (Claim("line", self.line, "line", identity=("gpio", chip, self.line)),)
 
 
 class LineHandle(Protocol):
@@ -184,7 +224,7 @@ class GpioOutput(Output):
     """
 
     kind: ClassVar[OutputKind] = OutputKind.GPIO
-    spec_type: ClassVar[type[OutputSpec]] = GpioSpec
+    spec_type: ClassVar[type[DeviceSpec]] = GpioSpec
 
     def __init__(
         self, spec: GpioSpec, opener: Callable[[GpioSpec], LineHandle] = request_line

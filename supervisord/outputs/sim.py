@@ -22,19 +22,22 @@ import contextlib
 import dataclasses
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar, Final, Self
 
+from supervisord import strict
 from supervisord.compat import StrEnum
 from supervisord.outputs.base import (
-    ConfigTable,
+    Claim,
+    DeviceSpec,
     Output,
     OutputError,
     OutputFault,
     OutputKind,
-    OutputSpec,
     ReadBack,
 )
+from supervisord.safety.config import OutputRole
 
 
 class Level(StrEnum):
@@ -44,8 +47,26 @@ class Level(StrEnum):
     OFF = "off"
 
 
+PATH: Final = strict.Text(
+    name="path",
+    doc="The file that mirrors the line's level (1 or 0); its directory must exist. "
+    "Relative to the config file's directory. Not set: memory only.",
+    default=None,
+    not_dir=True,
+    example="run/drive",
+)
+STUCK_AT: Final = strict.Choice(
+    name="stuck_at",
+    doc="A fault to simulate from the start: the line stays at this level whatever is "
+    "written. Not set: a healthy line.",
+    values={Level.ON.value: "", Level.OFF.value: ""},
+    default=None,
+    example="on",
+)
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class SimSpec(OutputSpec):
+class SimSpec(DeviceSpec):
     """Options of a ``kind = "sim"`` output.
 
     ``path``: the file to mirror the level into (``None``: memory only). Its directory must
@@ -53,23 +74,39 @@ class SimSpec(OutputSpec):
     """
 
     kind: ClassVar[OutputKind] = OutputKind.SIM
+    options: ClassVar[tuple[strict.Key, ...]] = (PATH, STUCK_AT)
     path: Path | None = None
     stuck_at: bool | None = None
 
     @classmethod
-    def _read(cls, t: ConfigTable) -> dict[str, Any]:
-        path = Path(t.string("path")) if t.has("path") else None
-        stuck: bool | None = None
-        if t.has("stuck_at"):
-            stuck = t.choice("stuck_at", Level, None) is Level.ON
-        return {"path": path, "stuck_at": stuck}
+    def from_options(cls, name: str, role: OutputRole, values: Mapping[str, object]) -> Self:
+        """The file as a path, the stuck level as a bool."""
+        path, stuck = values["path"], values["stuck_at"]
+        return cls(
+            name=name,
+            role=role,
+            path=None if path is None else Path(str(path)),
+            stuck_at=None if stuck is None else stuck == Level.ON.value,
+        )
+
+    def claims(self) -> tuple[Claim, ...]:
+        """Its file, if it has one: no other key of the config may name it."""
+        if self.path is None:
+            return ()
+        return (Claim("path", str(self.path), "file", path=self.path),)
+
+    def resolved(self, base: Path) -> Self:
+        """A relative ``path`` resolved against ``base``."""
+        if self.path is None or self.path.is_absolute():
+            return self
+        return dataclasses.replace(self, path=base / self.path)
 
 
 class SimOutput(Output):
     """A simulated enable line (see the module docstring for the file and the stuck fault)."""
 
     kind: ClassVar[OutputKind] = OutputKind.SIM
-    spec_type: ClassVar[type[OutputSpec]] = SimSpec
+    spec_type: ClassVar[type[DeviceSpec]] = SimSpec
 
     def __init__(self, spec: SimSpec) -> None:
         super().__init__(spec)

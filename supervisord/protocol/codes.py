@@ -19,10 +19,10 @@ class _Parsable(enum.IntEnum):
     @classmethod
     def parse(cls, value: int) -> Self | None:
         """The member for ``value``, or ``None`` when the value has no name."""
-        try:
-            return cls(value)
-        except ValueError:
-            return None
+        # The enum's own value table: one lookup instead of ``cls(value)`` and a ValueError
+        # for every unnamed value (called for every frame, SR-9.4).
+        member = cls._value2member_map_.get(value)
+        return member if isinstance(member, cls) else None
 
 
 class MessageType(_Parsable):

@@ -21,6 +21,11 @@ HEADER_SIZE = 4  # header, type, length
 CHECKSUM_SIZE = 2
 MAX_PAYLOAD = 248  # PR-1: the largest payload any peer accepts
 MAX_FRAME = HEADER_SIZE + MAX_PAYLOAD + CHECKSUM_SIZE
+FRAMES_KEPT = 64
+"""How many recent frames a decoder keeps with what they decoded to. Decoding is a pure
+function of a frame's bytes, and most frames repeat exactly (every heartbeat of a steady
+state, every joystick frame of a stick at rest): a repeat costs one lookup instead of the
+checksum and the decode (SR-9.4). Starts over when full, so it stays a few kilobytes."""
 # Never switched off by us: without them the supervisor would be blind (manual §8.3.6 note).
 ESSENTIAL_TYPES = frozenset({MessageType.VSC_HEARTBEAT, MessageType.JOYSTICK})
 
@@ -91,6 +96,7 @@ class FrameDecoder:
     def __init__(self) -> None:
         self._buffer = bytearray()
         self._noise = 0
+        self._decoded: dict[bytes, Event] = {}  # FRAMES_KEPT recent frames, decoded
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         """Take ``data`` and return the events it completes, in stream order."""
@@ -132,12 +138,22 @@ class FrameDecoder:
                         break
                     rejection = Rejection(RejectReason.TRUNCATED, 1, message_type, length)
             self._take_noise(events)
-            event = rejection or _decode_frame(bytes(buf[pos:frame_end]))
+            event = rejection or self._decode(bytes(buf[pos:frame_end]))
             events.append(event)
             pos += event.byte_count if isinstance(event, Rejection) else frame_end - pos
         del buf[:pos]
         self._take_noise(events)
         return events
+
+    def _decode(self, frame: bytes) -> Event:
+        decoded = self._decoded
+        event = decoded.get(frame)
+        if event is None:
+            event = _decode_frame(frame)
+            if len(decoded) >= FRAMES_KEPT:
+                decoded.clear()
+            decoded[frame] = event
+        return event
 
     @property
     def buffered(self) -> int:

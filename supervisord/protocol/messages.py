@@ -32,6 +32,10 @@ U32 = (0, 0xFFFF_FFFF)
 I32 = (-(2**31), 2**31 - 1)
 AXIS_MAGNITUDE_MAX = 1023
 _STATUS = tuple(FieldStatus)  # index by the 2-bit value: much faster than FieldStatus(v)
+DECODED_KEPT = 4096
+"""How many decoded axis words are kept for reuse (SR-9.4: a stick at rest sends the same
+word in every frame, 50 a second). Values are immutable, so the same one can come back; the
+store starts over when full, so it stays small (a few hundred kilobytes) whatever arrives."""
 NAME_TEXT_LENGTH = 20  # manual §8.3.10: 20 bytes, NUL-padded
 
 
@@ -100,17 +104,26 @@ class Axis:
         return cls(off, off, on, value)
 
     @classmethod
-    def from_word(cls, word: int) -> Self:
-        low, high = word & 0xFF, word >> 8
-        return cls(
-            _STATUS[low & 3], _STATUS[low >> 2 & 3], _STATUS[low >> 4 & 3], high << 2 | low >> 6
-        )
+    def from_word(cls, word: int) -> Axis:
+        """The axis in a 16-bit wire word (the same value for the same word, see
+        :data:`DECODED_KEPT`); ``ValueError`` for a word over 16 bits."""
+        axis = _AXES_BY_WORD.get(word)
+        if axis is None:
+            low, high = word & 0xFF, word >> 8
+            axis = cls(
+                _STATUS[low & 3], _STATUS[low >> 2 & 3], _STATUS[low >> 4 & 3], high << 2 | low >> 6
+            )
+            if len(_AXES_BY_WORD) >= DECODED_KEPT:
+                _AXES_BY_WORD.clear()
+            _AXES_BY_WORD[word] = axis
+        return axis
 
     def to_word(self) -> int:
         low = self.neutral | self.negative << 2 | self.positive << 4 | (self.magnitude & 3) << 6
         return (self.magnitude >> 2) << 8 | low
 
 
+_AXES_BY_WORD: dict[int, Axis] = {}
 NEUTRAL_AXIS = Axis.from_value(0)
 
 
@@ -129,9 +142,17 @@ class _ButtonByte:
 
     @classmethod
     def from_byte(cls, byte: int) -> Self:
-        statuses = _STATUS[byte & 3], _STATUS[byte >> 2 & 3], _STATUS[byte >> 4 & 3]
-        # The subclasses are dataclasses of exactly four statuses in wire order.
-        return cls(*statuses, _STATUS[byte >> 6])  # type: ignore[call-arg]
+        """The buttons in one wire byte; the same immutable value for the same byte (at most
+        256 per class are kept, SR-9.4)."""
+        key = (cls, byte)
+        buttons = _BUTTONS_BY_BYTE.get(key)
+        if buttons is None:
+            statuses = _STATUS[byte & 3], _STATUS[byte >> 2 & 3], _STATUS[byte >> 4 & 3]
+            # The subclasses are dataclasses of exactly four statuses in wire order.
+            buttons = cls(*statuses, _STATUS[byte >> 6])  # type: ignore[call-arg]
+            _BUTTONS_BY_BYTE[key] = buttons
+        assert isinstance(buttons, cls)
+        return buttons
 
     def to_byte(self) -> int:
         return sum(
@@ -149,6 +170,7 @@ class _ButtonByte:
         )
 
 
+_BUTTONS_BY_BYTE: dict[tuple[type[_ButtonByte], int], _ButtonByte] = {}
 _UP = FieldStatus.NOT_SET
 
 
@@ -200,9 +222,26 @@ class Joystick:
     )
 
     def __post_init__(self) -> None:
-        for name in self.AXES:
-            if not isinstance(getattr(self, name), Axis):
-                raise ValueError(f"joystick {name} must be an Axis")
+        # One expression for the common case (every frame, SR-9.4); the loop names the culprit.
+        axes: tuple[object, ...] = (
+            self.left_x,
+            self.left_y,
+            self.left_z,
+            self.right_x,
+            self.right_y,
+            self.right_z,
+        )
+        if not (
+            isinstance(axes[0], Axis)
+            and isinstance(axes[1], Axis)
+            and isinstance(axes[2], Axis)
+            and isinstance(axes[3], Axis)
+            and isinstance(axes[4], Axis)
+            and isinstance(axes[5], Axis)
+        ):
+            for name in self.AXES:
+                if not isinstance(getattr(self, name), Axis):
+                    raise ValueError(f"joystick {name} must be an Axis")
         if not isinstance(self.left_buttons, DPad):
             raise ValueError("joystick left_buttons must be a DPad")
         if not isinstance(self.right_buttons, NumberedButtons):

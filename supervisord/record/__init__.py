@@ -1,25 +1,25 @@
-"""The record of stops (SR-7, ``docs/record.md``): an append-only JSON Lines file
-with fsync per record and crash-safe rotation, and the systemd journal."""
+"""The record of stops (SR-7, ``docs/record.md``): its format (:mod:`.format`), an
+append-only JSON Lines file with fsync per record and crash-safe rotation (:mod:`.jsonl`), and
+the systemd journal (:mod:`.journal`)."""
 
+from supervisord.record.format import RecordKind, record_json, record_kind, written_kind
 from supervisord.record.journal import (
     JOURNAL_SOCKET,
     MESSAGE_IDS,
     JournalError,
     JournalSink,
     Priority,
-    RecordKind,
     journal_fields,
     priority,
-    record_kind,
 )
 from supervisord.record.jsonl import (
     REQUIRED_FIELDS,
     BadLine,
     BadLineReason,
-    Record,
     RecordError,
     RecordUsageError,
     RecordWriter,
+    StoredRecord,
     format_utc,
     last_record,
     read_records,
@@ -36,17 +36,19 @@ __all__ = [
     "JournalError",
     "JournalSink",
     "Priority",
-    "Record",
     "RecordError",
     "RecordKind",
     "RecordUsageError",
     "RecordWriter",
+    "StoredRecord",
     "format_utc",
     "journal_fields",
     "last_record",
     "priority",
     "read_records",
     "record_files",
+    "record_json",
     "record_kind",
     "scan_file",
+    "written_kind",
 ]

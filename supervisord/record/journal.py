@@ -5,46 +5,37 @@ Each record becomes one journal entry with a stable ``MESSAGE_ID`` per record ki
 ``SRCS_*`` fields. A transition into STOPPED is logged at priority CRIT, which journald syncs to
 disk at once; the rest at lower priorities (:func:`priority`).
 
-:func:`journal_fields` is the pure mapping from a record to journal fields; :class:`JournalSink`
-sends them with ``systemd.journal.sendv``. Where there is no journal (no socket at
-:data:`JOURNAL_SOCKET`, or no ``systemd`` module), the sink says so through
-:attr:`JournalSink.available` and its writes return ``False``: the JSON Lines file stays the
-record that counts.
+:func:`journal_fields` is the pure mapping from a record to journal fields and
+:func:`encode_native` the pure encoding of an entry in journald's native protocol;
+:class:`JournalSink` sends it to journald's socket itself, as ``daemon/notify.py`` does for
+sd_notify: no libsystemd, nothing compiled, so the robot needs no compiler (issue 13,
+``docs/record.md`` "Why no journal library"). Where there is no journal (no socket at
+:data:`JOURNAL_SOCKET`), the sink says so through :attr:`JournalSink.available` and its writes
+return ``False``: the JSON Lines file stays the record that counts.
 """
 
 from __future__ import annotations
 
+import array
 import enum
+import errno
+import fcntl
 import json
 import os
+import re
+import socket
 import stat
+import struct
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Iterable, Mapping
 from typing import Final
 
-from supervisord.compat import StrEnum
 from supervisord.errors import SrcsError
+from supervisord.record.format import RecordKind, written_kind
 from supervisord.record.jsonl import RecordUsageError, cause_names
 
 JOURNAL_SOCKET: Final = "/run/systemd/journal/socket"
 SYSLOG_IDENTIFIER: Final = "srcsd"
-
-
-class RecordKind(StrEnum):
-    """What a record reports, as its optional ``kind`` field says (absent: a state change)."""
-
-    STATE_CHANGE = "state_change"
-    """The state changed (a stop is a change into STOPPED)."""
-    CAUSE_RAISED = "cause_raised"
-    """A stop or hold cause became active."""
-    CAUSE_CLEARED = "cause_cleared"
-    """A cause's condition cleared."""
-    REARM_REFUSED = "rearm_refused"
-    """A re-arm was asked for and refused."""
-    COMMISSIONED = "commissioned"
-    """Key 85 was written to the VSC (``srcsctl commission``)."""
-    PROOFTEST = "prooftest"
-    """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
 
 
 MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
@@ -54,6 +45,7 @@ MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
     RecordKind.REARM_REFUSED: uuid.UUID("2be6051d1b7c43d0a0bfd08ad06caac8"),
     RecordKind.COMMISSIONED: uuid.UUID("bdd0782d2f2b45a3bdc4e9984db1024d"),
     RecordKind.PROOFTEST: uuid.UUID("af4347b3c6a741d6a06ce07e58cea85a"),
+    RecordKind.HELLO_REFUSED: uuid.UUID("31b39d5239c64c748a02ea76dd76a97f"),
 }
 """Stable journal MESSAGE_IDs, one per record kind. Never change them: operators' queries and
 alerting depend on them (``docs/record.md`` lists them)."""
@@ -76,16 +68,6 @@ class JournalError(SrcsError):
         super().__init__(f"journal refused the record: {error.strerror or error}")
 
 
-def record_kind(record: Mapping[str, object]) -> RecordKind:
-    """The record's kind (its ``kind`` field; a state change when absent).
-
-    Raises :class:`RecordUsageError` for an unknown kind."""
-    kind = record.get("kind", RecordKind.STATE_CHANGE.value)
-    if isinstance(kind, str) and kind in RecordKind.__members__.values():
-        return RecordKind(kind)
-    raise RecordUsageError(f"unknown record kind {kind!r}")
-
-
 def _is_stopped(state: object) -> bool:
     return str(state).upper() == "STOPPED"
 
@@ -94,7 +76,7 @@ def priority(record: Mapping[str, object]) -> Priority:
     """CRIT for a change into STOPPED, WARNING for a cause raised, a re-arm refused or a
     commissioning (it changes the VSC for good), NOTICE otherwise (a cause cleared, any other
     change of state)."""
-    kind = record_kind(record)
+    kind = written_kind(record)
     if kind is RecordKind.PROOFTEST:
         # A failed proof test leaves the robot with one stop path: CRIT, as a stop (SR-7.3).
         outcome = record.get("prooftest")
@@ -103,7 +85,12 @@ def priority(record: Mapping[str, object]) -> Priority:
     if kind is RecordKind.STATE_CHANGE:
         into_stop = _is_stopped(record.get("to")) and not _is_stopped(record.get("from"))
         return Priority.CRIT if into_stop else Priority.NOTICE
-    if kind in (RecordKind.CAUSE_RAISED, RecordKind.REARM_REFUSED, RecordKind.COMMISSIONED):
+    if kind in (
+        RecordKind.CAUSE_RAISED,
+        RecordKind.REARM_REFUSED,
+        RecordKind.COMMISSIONED,
+        RecordKind.HELLO_REFUSED,  # someone tried to speak as another user's client (SR-8)
+    ):
         return Priority.WARNING
     return Priority.NOTICE
 
@@ -122,7 +109,7 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
     names = cause_names(record)
     if names is None:
         raise RecordUsageError("record field 'causes' must be a list of objects with a 'name'")
-    kind = record_kind(record)
+    kind = written_kind(record)
     before, after, trigger, reason = (
         _text(record.get(k, "")) for k in ("from", "to", "trigger", "reason")
     )
@@ -134,6 +121,7 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         RecordKind.REARM_REFUSED: f"re-arm refused: {reason} (state {after}; causes {listed})",
         RecordKind.COMMISSIONED: f"VSC commissioned: {reason} (trigger {trigger})",
         RecordKind.PROOFTEST: f"VSC watchdog proof test {reason} (state {after})",
+        RecordKind.HELLO_REFUSED: f"hello refused: {reason} (trigger {trigger})",
     }[kind]
     fields = [
         ("MESSAGE", message),
@@ -155,36 +143,60 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
     return fields
 
 
-def _default_sendv() -> tuple[Callable[..., object] | None, str | None]:
-    try:
-        from systemd import journal  # noqa: PLC0415  (optional at run time: see available)
-    except ImportError as e:
-        return None, f"no systemd module: {e}"
-    sendv: Callable[..., object] = journal.sendv
-    return sendv, None
+FIELD_NAME: Final = re.compile(r"[A-Z][A-Z0-9_]{0,63}")
+"""What journald accepts as a field name that a client may set: upper-case letters, digits and
+underscores, not starting with an underscore (those are journald's own) or a digit, at most 64
+characters (systemd.journal-fields(7))."""
+
+SEND_TIMEOUT_S: Final = 2.0
+"""How long a write may wait for room in journald's queue. journald drains it in milliseconds;
+a journald that is stuck must not stall the sink thread, and with it every later record, for
+longer than this (SR-7.5): the entry is refused and counted, the file keeps the record."""
+
+_SEALS: Final = fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL
+
+
+def encode_native(fields: Iterable[tuple[str, str]]) -> bytes:
+    """One journal entry in journald's native protocol (systemd.io/JOURNAL_NATIVE_PROTOCOL):
+    ``KEY=value\n`` per field, and for a value with a newline in it the binary form
+    ``KEY\n`` + its length as a 64-bit little-endian number + the bytes + ``\n``.
+
+    Raises :class:`RecordUsageError` for a field name journald would drop."""
+    out = bytearray()
+    for key, value in fields:
+        if not FIELD_NAME.fullmatch(key):
+            raise RecordUsageError(f"not a journal field name: {key[:80]!r}")
+        data = value.encode("utf-8", "surrogateescape")
+        if b"\n" in data:
+            out += key.encode() + b"\n" + struct.pack("<Q", len(data)) + data + b"\n"
+        else:
+            out += key.encode() + b"=" + data + b"\n"
+    return bytes(out)
 
 
 class JournalSink:
-    """Sends records to the systemd journal.
+    """Sends records to the systemd journal over its native socket.
 
-    ``available`` is decided once, at construction: the ``systemd`` module imports and
-    ``socket_path`` is a socket. ``sendv`` (default ``systemd.journal.sendv``) is called with
-    ``"FIELD=value"`` strings.
+    ``available`` is decided once, at construction: ``socket_path`` is a socket. The entry goes
+    as one datagram; one too large for a datagram goes as a sealed memfd passed with
+    SCM_RIGHTS, as libsystemd does. :meth:`close` closes the sending socket.
     """
 
-    def __init__(
-        self,
-        sendv: Callable[..., object] | None = None,
-        socket_path: str = JOURNAL_SOCKET,
-    ) -> None:
-        reason = None
-        if sendv is None:
-            sendv, reason = _default_sendv()
-        if reason is None and not _is_socket(socket_path):
-            reason = f"no journal socket at {socket_path}"
-        self._sendv = sendv
-        self.unavailable_reason: str | None = reason
+    def __init__(self, socket_path: str = JOURNAL_SOCKET) -> None:
+        self.socket_path = socket_path
+        self._socket: socket.socket | None = None
+        self.unavailable_reason: str | None = None
         """Why the journal is not used, or ``None`` when it is."""
+        if not _is_socket(socket_path):
+            self.unavailable_reason = f"no journal socket at {socket_path}"
+            return
+        self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
+        # A blocking socket with a kernel send timeout: the kernel sleeps until journald's
+        # queue has room (an unconnected datagram socket polls as always writable, so a
+        # Python-side timeout would spin) and fails with EAGAIN after SEND_TIMEOUT_S.
+        seconds = int(SEND_TIMEOUT_S)
+        timeval = struct.pack("ll", seconds, int((SEND_TIMEOUT_S - seconds) * 1_000_000))
+        self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, timeval)
 
     @property
     def available(self) -> bool:
@@ -196,14 +208,46 @@ class JournalSink:
 
         Raises :class:`JournalError` if the journal refuses it, :class:`RecordUsageError` for
         a malformed record."""
-        fields = journal_fields(record)
-        if self.unavailable_reason is not None or self._sendv is None:
+        entry = encode_native(journal_fields(record))
+        if self._socket is None:
             return False
         try:
-            self._sendv(*(f"{key}={value}" for key, value in fields))
+            self._send(self._socket, entry)
         except OSError as e:
             raise JournalError(e) from e
         return True
+
+    def close(self) -> None:
+        if self._socket is not None:
+            self._socket.close()
+            self._socket = None
+            self.unavailable_reason = "closed"
+
+    def __enter__(self) -> JournalSink:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def _send(self, sock: socket.socket, entry: bytes) -> None:
+        try:
+            sock.sendto(entry, self.socket_path)
+            return
+        except OSError as e:
+            # Too large for one datagram (the socket's send buffer): libsystemd's fallback.
+            if e.errno not in (errno.EMSGSIZE, errno.ENOBUFS):
+                raise
+        fd = os.memfd_create("srcsd-journal", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
+        try:
+            view = memoryview(entry)
+            while view:
+                view = view[os.write(fd, view) :]
+            # journald takes a memfd only when it is sealed: nobody can change it any more.
+            fcntl.fcntl(fd, fcntl.F_ADD_SEALS, _SEALS)
+            rights = [(socket.SOL_SOCKET, socket.SCM_RIGHTS, array.array("i", [fd]).tobytes())]
+            sock.sendmsg([], rights, 0, self.socket_path)
+        finally:
+            os.close(fd)
 
 
 def _is_socket(path: str) -> bool:

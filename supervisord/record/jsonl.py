@@ -19,7 +19,7 @@ Writing (:class:`RecordWriter`):
   daemon counts and logs every one (``docs/record.md`` "A full disk").
 
 Reading (:func:`read_records`): across the rotated files, oldest first, yielding
-:class:`Record` and :class:`BadLine` items; a torn or undecodable last line of a file is
+:class:`StoredRecord` and :class:`BadLine` items; a torn or undecodable last line of a file is
 reported as ``TORN_TAIL``, never misread; a bad line elsewhere as ``NOT_JSON`` or
 ``NOT_A_RECORD``. Filters: time (``since <= utc < until``) and cause name.
 
@@ -342,7 +342,7 @@ class BadLine:
 
 
 @dataclasses.dataclass(frozen=True)
-class Record:
+class StoredRecord:
     """One record as read back: the JSON object, and where it was found.
 
     ``data`` is the object as written; the properties give the fields the store knows."""
@@ -390,8 +390,8 @@ def _is_record(obj: object) -> bool:
     )
 
 
-def scan_file(file: Path) -> Iterator[Record | BadLine]:
-    """Every line of one record file, as a :class:`Record` or a :class:`BadLine`, unfiltered.
+def scan_file(file: Path) -> Iterator[StoredRecord | BadLine]:
+    """Every line of one record file, as a :class:`StoredRecord` or a :class:`BadLine`, unfiltered.
     A file that does not exist (rotated away meanwhile) has no lines."""
     try:
         handle = file.open("rb")
@@ -409,7 +409,7 @@ def scan_file(file: Path) -> Iterator[Record | BadLine]:
             current = following
 
 
-def _parse_line(file: Path, number: int, raw: bytes, last: bool) -> Record | BadLine:
+def _parse_line(file: Path, number: int, raw: bytes, last: bool) -> StoredRecord | BadLine:
     def bad(reason: BadLineReason) -> BadLine:
         return BadLine(file, number, reason, raw[:200].decode(errors="replace"))
 
@@ -423,7 +423,7 @@ def _parse_line(file: Path, number: int, raw: bytes, last: bool) -> Record | Bad
         return bad(BadLineReason.NOT_JSON)
     if not _is_record(obj):
         return bad(BadLineReason.NOT_A_RECORD)
-    return Record(obj, file, number)
+    return StoredRecord(obj, file, number)
 
 
 def read_records(
@@ -431,11 +431,11 @@ def read_records(
     since: dt.datetime | None = None,
     until: dt.datetime | None = None,
     cause: str | None = None,
-) -> Iterator[Record | BadLine]:
+) -> Iterator[StoredRecord | BadLine]:
     """The records of ``path`` and its rotated files, oldest first, with the bad lines met.
 
     Only records with ``since <= utc < until`` (aware datetimes) and, when ``cause`` is given,
-    a matching cause (:meth:`Record.matches_cause`) are yielded; bad lines are always yielded,
+    a matching cause (:meth:`StoredRecord.matches_cause`) are yielded; bad lines are always yielded,
     so that the caller can report them. Safe to run while the writer appends or rotates: a
     file rotated away between listing and opening is skipped.
     """
@@ -453,14 +453,14 @@ def read_records(
             yield item
 
 
-def last_record(path: Path | str) -> Record | None:
+def last_record(path: Path | str) -> StoredRecord | None:
     """The newest record of ``path`` (to continue its ``seq`` after a restart), or ``None``.
 
     Reads only the newest file that holds a record."""
     for file in reversed(record_files(Path(path))):
         found = None
         for item in scan_file(file):
-            if isinstance(item, Record):
+            if isinstance(item, StoredRecord):
                 found = item
         if found is not None:
             return found

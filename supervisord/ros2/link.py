@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Union
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, Push, SupervisorClient
 
 TOPICS: Final = ("state", "joystick", "gps", "remote_status")

@@ -15,9 +15,11 @@ from collections import deque
 from collections.abc import Hashable
 from typing import Final
 
+from supervisord.timebase import NS_PER_S
+
 RECORDS_PER_CLIENT: Final = 20
 """Records one client may cause in any window (10 hold/release pairs a second)."""
-BUDGET_WINDOW_NS: Final = 1_000_000_000
+BUDGET_WINDOW_NS: Final = NS_PER_S
 """The window: one second of the monotonic clock."""
 MAX_TRACKED: Final = 4096
 """Clients remembered at once; the oldest are forgotten first (a bound on memory)."""

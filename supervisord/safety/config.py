@@ -10,17 +10,24 @@ from __future__ import annotations
 
 import enum
 import re
-from collections.abc import Mapping
 from dataclasses import dataclass
 
+from supervisord import strict
 from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError
 from supervisord.safety.prooftest import ProofTestPolicy
-
-NS_PER_MS = 1_000_000
+from supervisord.timebase import NS_PER_MS
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 """Client and output names: they become part of cause names such as ``client_lost:NAME``."""
+NAME = strict.Text(
+    name="name",
+    doc="A client's or output's name: it becomes part of cause names such as client_lost:NAME.",
+    pattern=NAME_PATTERN.pattern,
+    rule="1 to 32 characters from letters, digits, '_', '.' and '-'",
+    example="autonomy",
+)
+"""The same rule as a :class:`~supervisord.strict.Text` key, for the strict reader."""
 
 
 class Transport(enum.Enum):
@@ -38,6 +45,10 @@ class OutputRole(StrEnum):
     POWER = "power"  # on in HOLD and RUN
 
 
+_TRANSPORTS = ", ".join(f'"{t.value}"' for t in Transport)
+_ROLES = ", ".join(f'"{role.value}"' for role in OutputRole)
+_POLICIES = ", ".join(f'"{p.value}"' for p in ProofTestPolicy)
+
 DEFAULT_VSC_TIMEOUT_MS = {Transport.SERIAL: 200, Transport.CAN: 300, Transport.HID: 200}
 """SR-2.2 ``vsc_link_lost``: 200 ms on serial, 300 ms on CAN."""
 
@@ -49,27 +60,6 @@ PROOFTEST_CLEAR_RANGE_MS = (1_000, 600_000)
 DEFAULT_PROOFTEST_CLEAR_MS = 10_000  # docs/safety.md "The proof test": a held bit's wait
 DEFAULT_CLIENT_TIMEOUT_MS = 500  # SR-8
 UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
-
-
-def _whole_number(key: str, value: object, bounds: tuple[int, int]) -> int:
-    low, high = bounds
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ConfigError(key, value, f"use a whole number from {low} to {high}")
-    return value
-
-
-def _flag(key: str, value: object) -> bool:
-    if not isinstance(value, bool):
-        raise ConfigError(key, value, "use true or false")
-    return value
-
-
-def _name(key: str, value: object) -> str:
-    if not isinstance(value, str) or NAME_PATTERN.fullmatch(value) is None:
-        raise ConfigError(
-            key, value, "use 1 to 32 characters from letters, digits, '_', '.' and '-'"
-        )
-    return value
 
 
 def _unique(key: str, names: list[str]) -> None:
@@ -95,27 +85,35 @@ class ClientSpec:
     uid: int | None = None
 
     def __post_init__(self) -> None:
-        _name("clients.name", self.name)
-        _whole_number(f"clients.{self.name}.timeout_ms", self.timeout_ms, CLIENT_TIMEOUT_RANGE_MS)
+        strict.name("clients.name", self.name, NAME, ConfigError)
+        strict.whole(
+            f"clients.{self.name}.timeout_ms",
+            self.timeout_ms,
+            *CLIENT_TIMEOUT_RANGE_MS,
+            ConfigError,
+        )
         if self.uid is not None:
-            _whole_number(f"clients.{self.name}.uid", self.uid, UID_RANGE)
+            strict.whole(f"clients.{self.name}.uid", self.uid, *UID_RANGE, ConfigError)
 
     @property
     def timeout_ns(self) -> int:
         return self.timeout_ms * NS_PER_MS
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True)
 class OutputSpec:
-    """An enable line the supervisor gates, and its role (SR-1, SR-6)."""
+    """An enable line the supervisor gates, and its role (SR-1, SR-6): all the safety core
+    knows of an output. Each output kind's spec (``supervisord.outputs``) is an
+    ``OutputSpec`` with the kind's own options, so the daemon hands the same values to the
+    core and to the outputs."""
 
     name: str
-    role: OutputRole
+    role: OutputRole = OutputRole.MOTION
 
     def __post_init__(self) -> None:
-        _name("outputs.name", self.name)
+        strict.name("outputs.name", self.name, NAME, ConfigError)
         if not isinstance(self.role, OutputRole):
-            raise ConfigError(f"outputs.{self.name}.role", self.role, 'use "motion" or "power"')
+            raise ConfigError(f"outputs.{self.name}.role", self.role, f"use one of {_ROLES}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,12 +144,16 @@ class SafetyConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
-            raise ConfigError("transport", self.transport, 'use "serial", "can" or "hid"')
-        _whole_number("vsc_timeout_ms", self.effective_vsc_timeout_ms, VSC_TIMEOUT_RANGE_MS)
-        _whole_number("heartbeat_hz", self.heartbeat_hz, HEARTBEAT_HZ_RANGE)
-        _whole_number("rearm_hold_ms", self.rearm_hold_ms, REARM_HOLD_RANGE_MS)
-        _flag("local_reset", self.local_reset)
-        _flag("require_watchdog", self.require_watchdog)
+            raise ConfigError("transport", self.transport, f"use one of {_TRANSPORTS}")
+        # The ranges are checked here, once, for a config built in code as for one read from
+        # the robot's file (whose schema names the same constants: supervisord.config.schema).
+        strict.whole(
+            "vsc_timeout_ms", self.effective_vsc_timeout_ms, *VSC_TIMEOUT_RANGE_MS, ConfigError
+        )
+        strict.whole("heartbeat_hz", self.heartbeat_hz, *HEARTBEAT_HZ_RANGE, ConfigError)
+        strict.whole("rearm_hold_ms", self.rearm_hold_ms, *REARM_HOLD_RANGE_MS, ConfigError)
+        strict.flag("local_reset", self.local_reset, ConfigError)
+        strict.flag("require_watchdog", self.require_watchdog, ConfigError)
         if self.transport is Transport.CAN and self.require_watchdog:
             raise ConfigError(
                 "require_watchdog",
@@ -160,7 +162,7 @@ class SafetyConfig:
                 "heartbeat and no key 85, so the supervisor's outputs carry the duty alone",
             )
         if not isinstance(self.prooftest, ProofTestPolicy):
-            raise ConfigError("prooftest", self.prooftest, 'use "block", "record" or "off"')
+            raise ConfigError("prooftest", self.prooftest, f"use one of {_POLICIES}")
         if self.transport is not Transport.SERIAL and self.prooftest is not ProofTestPolicy.OFF:
             raise ConfigError(
                 "prooftest",
@@ -168,7 +170,9 @@ class SafetyConfig:
                 f'set it to "off" for transport "{self.transport.value}": there is no user '
                 "heartbeat to withhold, so the VSC's watchdog cannot be proven",
             )
-        _whole_number("prooftest_clear_ms", self.prooftest_clear_ms, PROOFTEST_CLEAR_RANGE_MS)
+        strict.whole(
+            "prooftest_clear_ms", self.prooftest_clear_ms, *PROOFTEST_CLEAR_RANGE_MS, ConfigError
+        )
         if not isinstance(self.clients, tuple) or not all(
             isinstance(c, ClientSpec) for c in self.clients
         ):
@@ -206,96 +210,3 @@ class SafetyConfig:
     @property
     def prooftest_clear_ns(self) -> int:
         return self.prooftest_clear_ms * NS_PER_MS
-
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, object], file: str | None = None) -> SafetyConfig:
-        """Build a config from parsed TOML-like data; unknown keys are errors, not ignored.
-
-        ``clients`` is a list of tables with ``name`` and optional ``timeout_ms`` and ``uid``;
-        ``outputs`` a list of tables with ``name`` and ``class`` ("motion" or "power").
-        """
-        try:
-            return cls._from_mapping(data)
-        except ConfigError as error:
-            raise error.in_file(file) if file else error from None
-
-    @classmethod
-    def _from_mapping(cls, data: Mapping[str, object]) -> SafetyConfig:
-        known = {
-            "transport",
-            "vsc_timeout_ms",
-            "heartbeat_hz",
-            "rearm_hold_ms",
-            "local_reset",
-            "require_watchdog",
-            "clients",
-            "outputs",
-        }
-        for key in data:
-            if key not in known:
-                raise ConfigError(key, data[key], f"remove it; known keys: {sorted(known)}")
-        transport_text = data.get("transport", Transport.SERIAL.value)
-        try:
-            transport = Transport(transport_text)
-        except ValueError:
-            raise ConfigError("transport", transport_text, 'use "serial", "can" or "hid"') from None
-        clients = []
-        for entry in _list("clients", data.get("clients", [])):
-            table = _table("clients", entry, {"name", "timeout_ms", "uid"})
-            name = _name("clients.name", table.get("name"))
-            timeout = _whole_number(
-                f"clients.{name}.timeout_ms",
-                table.get("timeout_ms", DEFAULT_CLIENT_TIMEOUT_MS),
-                CLIENT_TIMEOUT_RANGE_MS,
-            )
-            uid = table.get("uid")
-            if uid is not None:
-                uid = _whole_number(f"clients.{name}.uid", uid, UID_RANGE)
-            clients.append(ClientSpec(name, timeout, uid))
-        outputs = []
-        for entry in _list("outputs", data.get("outputs", [])):
-            table = _table("outputs", entry, {"name", "role"})
-            name = _name("outputs.name", table.get("name"))
-            role_text = table.get("role")
-            try:
-                role = OutputRole(str(role_text))
-            except ValueError:
-                raise ConfigError(
-                    f"outputs.{name}.role", role_text, 'use "motion" or "power"'
-                ) from None
-            outputs.append(OutputSpec(name, role))
-        timeout_value = data.get("vsc_timeout_ms")
-        return cls(
-            transport=transport,
-            vsc_timeout_ms=(
-                None
-                if timeout_value is None
-                else _whole_number("vsc_timeout_ms", timeout_value, VSC_TIMEOUT_RANGE_MS)
-            ),
-            heartbeat_hz=_whole_number(
-                "heartbeat_hz", data.get("heartbeat_hz", 20), HEARTBEAT_HZ_RANGE
-            ),
-            rearm_hold_ms=_whole_number(
-                "rearm_hold_ms", data.get("rearm_hold_ms", 500), REARM_HOLD_RANGE_MS
-            ),
-            local_reset=_flag("local_reset", data.get("local_reset", False)),
-            # The default stays true on every transport: a CAN config must say false itself.
-            require_watchdog=_flag("require_watchdog", data.get("require_watchdog", True)),
-            clients=tuple(clients),
-            outputs=tuple(outputs),
-        )
-
-
-def _list(key: str, value: object) -> list[object]:
-    if not isinstance(value, list | tuple):
-        raise ConfigError(key, value, "give a list of tables")
-    return list(value)
-
-
-def _table(key: str, value: object, allowed: set[str]) -> dict[str, object]:
-    if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
-        raise ConfigError(key, value, f"give a table with keys {sorted(allowed)}")
-    for k in value:
-        if k not in allowed:
-            raise ConfigError(f"{key}.{k}", value[k], f"remove it; known keys: {sorted(allowed)}")
-    return {str(k): v for k, v in value.items()}

@@ -19,8 +19,10 @@ Each step runs in a fixed order:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from types import MappingProxyType
+from typing import Any, Final
 
 from supervisord.protocol.codes import FeedbackKey, VscMode, estop_sources
 from supervisord.protocol.messages import (
@@ -36,7 +38,7 @@ from supervisord.protocol.messages import (
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
-from supervisord.safety.config import NAME_PATTERN, NS_PER_MS, OutputRole, SafetyConfig, Transport
+from supervisord.safety.config import NAME_PATTERN, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
     ChangeKind,
     Decision,
@@ -83,9 +85,10 @@ from supervisord.safety.prooftest import (
     trip_late_ns,
 )
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
+from supervisord.timebase import NS_PER_MS, NS_PER_S, next_due
 
-KEY85_RETRY_NS = 1_000_000_000  # re-ask key 85 every second until it reads 1 (SR-5)
-IDLE_NS = 1_000_000_000  # the longest the core sleeps when nothing else is due
+KEY85_RETRY_NS = NS_PER_S  # re-ask key 85 every second until it reads 1 (SR-5)
+IDLE_NS = NS_PER_S  # the longest the core sleeps when nothing else is due
 TAKEOVER_DWELL_NS = 200 * NS_PER_MS
 """docs/safety.md "Re-arming" rule 4: a takeover needs the non-Operational mode reported by an
 unbroken run of VSC heartbeats whose first and last are at least this far apart. Longer than
@@ -97,7 +100,7 @@ a VSC's, and are no evidence of a takeover (rule 4)."""
 READ_TOGETHER_ALLOWANCE = 2
 """Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
 read in one loop turn share one time, so a late read makes a span look shorter."""
-REFUSAL_QUIET_NS = 1_000_000_000
+REFUSAL_QUIET_NS = NS_PER_S
 """The same takeover refusal is reported (and recorded) at most once per this: a flapping VSC
 would otherwise fill the record, whose rotation drops the stop the refusals are about."""
 LINKED_MODES = frozenset(
@@ -158,6 +161,11 @@ class SafetyCore:
         self._sequence = 0
         self._required = {c.name: c for c in config.clients}
         self._output_names = frozenset(o.name for o in config.outputs)
+        self._levels_by_state: dict[State, MappingProxyType[str, bool]] = {}
+        # Read for every input; the config is frozen, so computed once.
+        self._vsc_timeout_ns = config.vsc_timeout_ns
+        self._heartbeat_period_ns = config.heartbeat_period_ns
+        self._client_timeout_ns = {c.name: c.timeout_ns for c in config.clients}
         self._serial = config.transport is Transport.SERIAL
         # The link to the VSC (closed until the daemon says it opened).
         self._link_open = False
@@ -233,56 +241,92 @@ class SafetyCore:
         """The decision for an input that cannot change one, or ``None`` for the full step.
 
         Cheap are a :class:`Tick`, an inert VSC message (:data:`INERT_VSC_MESSAGES`) and a VSC
-        heartbeat with the same mode and e-stop word as the last, all before the previous
-        decision's ``next_deadline`` while the last step ended normally. Before that deadline
-        no timeout expires and no frame is due (``_next_deadline`` lists every one of them),
-        so step 1 of the full path changes nothing; such an input changes no condition
-        (a heartbeat after an expired timeout clears ``vsc_link_lost`` and is not cheap)
-        (step 3), asks no re-arm (the mode did not change, step 4), so the state is the
-        previous step's fixed point (step 5) and no record or frame follows (step 6). What
-        can differ is ``now``, the facts the heartbeat moves (its time, the takeover run)
-        and so ``next_deadline``, which are computed as the full path does (SR-2.2, SR-2.11:
-        the heartbeat still restarts the link deadline). docs/performance.md "The cheap path".
+        heartbeat with the same mode and e-stop word as the last, while the last step ended
+        normally on a fixed point of the table and, either before the previous decision's
+        ``next_deadline`` or when the user heartbeat is the only thing due
+        (:meth:`_only_heartbeat_due`). Then no timeout expires and no other frame is due
+        (``_next_deadline`` lists every one of them), so step 1 of the full path changes
+        nothing; such an input changes no condition (a heartbeat after an expired timeout
+        clears ``vsc_link_lost`` and is not cheap) (step 3), asks no re-arm (the mode did not
+        change, step 4), so the state is the previous step's fixed point (step 5) and no
+        record follows (step 6); the one frame is the user heartbeat at its cadence, with the
+        byte of the conditions (SR-5.1, SR-5.2). What can differ is ``now``, the facts the
+        heartbeat moves (its time, the takeover run) and so ``next_deadline``, which are
+        computed as the full path does (SR-2.2, SR-2.11: the heartbeat still restarts the link
+        deadline). docs/performance.md "The cheap path".
         """
-        if type(event) not in _CHEAP_EVENTS:
-            return None
-        previous = self.decision
-        now = max(self._now, event.now)
-        if now >= previous.next_deadline or not self._fixed_point():
-            return None
-        if self._proof.phase not in _SETTLED_PROOF:
+        if type(event) not in _CHEAP_EVENTS or self._proof.phase not in _SETTLED_PROOF:
             return None  # a proof test pending or running moves with time and heartbeats
-        if isinstance(event, VscReceived):
+        previous = self.decision
+        now = event.now if event.now > self._now else self._now
+        beat_due = now >= previous.next_deadline
+        if (beat_due and not self._only_heartbeat_due(now)) or not self._fixed_point():
+            return None
+        if type(event) is VscReceived:
             message = event.message
             if not self._link_open:
                 return None  # the full path refuses it (LINK_NOT_OPEN)
-            if isinstance(message, VscHeartbeat):
+            if type(message) is VscHeartbeat:
                 last = self._last_vsc_ns
                 if (
                     last is None  # the first heartbeat clears "never seen" (SR-2.2)
-                    or now - last >= self._config.vsc_timeout_ns  # this one clears the timeout
+                    or now - last >= self._vsc_timeout_ns  # this one clears the timeout
                     or message.mode != self._vsc_mode
                     or message.estop != self._vsc_estop_word
                 ):
                     return None
-            elif not isinstance(message, INERT_VSC_MESSAGES):
+            elif type(message) not in _INERT_TYPES:
                 return None
             self._now = now
             if self._on_vsc(event, now) is not None:  # cannot happen: the mode is unchanged
                 raise AssertionError("a heartbeat of an unchanged mode asked for a re-arm")
         else:
             self._now = now
-        # ``replace`` keeps every other field of the previous decision as the full step would
-        # compute it again (state, causes, outputs, and any field added later).
-        return replace(
-            previous,
-            now=now,
-            heartbeat_estop=self._steady_estop,
-            next_deadline=self._next_deadline(now),
-            frames=(),
-            records=(),
-            refusals=(),
-            rearm=None,
+        frames: tuple[Message, ...] = ()
+        estop = self._steady_estop
+        if beat_due:
+            # What ``_emit_link_frames`` does for a heartbeat that is not urgent (SR-5.1).
+            frames = (UserHeartbeat(estop),)
+            self._proof.sent(now)
+            beat = self._next_heartbeat_ns
+            assert beat is not None  # _only_heartbeat_due checked it
+            self._next_heartbeat_ns = next_due(beat, now, self._heartbeat_period_ns)
+        # Every other field as the previous decision has it, as the full step would compute it
+        # again; ``tests/safety/test_cheap_heartbeat.py`` checks that this lists every field.
+        return Decision(
+            now,
+            previous.state,
+            previous.causes,
+            previous.outputs,
+            estop,
+            self._next_deadline(now),
+            frames,
+            (),
+            (),
+            None,
+            previous.prooftest,
+        )
+
+    def _only_heartbeat_due(self, now: int) -> bool:
+        """Whether, of everything ``_next_deadline`` lists, the user heartbeat is due at
+        ``now`` and nothing else is (and the proof test does not withhold it): the time at
+        which the full step's only work is to send it."""
+        beat = self._next_heartbeat_ns
+        if not self._link_open or beat is None or now < beat or self._proof.withholding:
+            return False
+        last = self._last_vsc_ns
+        if last is None or now - last >= self._vsc_timeout_ns:
+            return False  # the VSC's timeout expires: the full path raises vsc_link_lost
+        for name, client_beat in self._client_beat_ns.items():
+            if client_beat is not None and now - client_beat >= self._client_timeout_ns[name]:
+                return False
+        key85 = self._next_key85_ns
+        display = self._display.next_due()
+        proof = self._proof.next_deadline()
+        return (
+            (key85 is None or key85 > now)
+            and (display is None or display > now)
+            and (proof is None or proof > now)
         )
 
     # ----------------------------------------------------------------- the step
@@ -302,7 +346,7 @@ class SafetyCore:
             return False
 
     def _step(self, event: object) -> Decision:
-        self._steady = False
+        steady, self._steady = self._steady and self.cheap_path, False
         self._frames, self._refusals = [], []
         self._rearm = None
         self._note = None
@@ -314,7 +358,13 @@ class SafetyCore:
         else:
             # A clock that goes back is treated as not moving: no deadline is ever un-expired.
             now = self._now = max(self._now, event.now)
-            self._refresh(now)  # 1. time passes
+            if not (
+                # Before the previous decision's deadline, after a normal step, with the proof
+                # test settled, time passing changes no condition (the cheap path's argument,
+                # ``_cheap``): step 1 would recompute them to the same (SR-9.4).
+                steady and now < self.decision.next_deadline and self._proof.phase in _SETTLED_PROOF
+            ):
+                self._refresh(now)  # 1. time passes
             if self._over_budget(event, now):  # 2. the event, unless its client is past budget
                 self._refuse(RefusalReason.RATE_LIMITED, type(event).__name__, event)
             else:
@@ -423,52 +473,47 @@ class SafetyCore:
 
     # ----------------------------------------------------------------- events
 
-    def _apply(self, event: Event, now: int) -> _RearmRequest | None:  # noqa: PLR0912 -- one branch per event
-        if isinstance(event, VscReceived):
-            return self._on_vsc(event, now)
-        if isinstance(event, LinkOpened):
-            self._on_link_opened(now)
-        elif isinstance(event, LinkBroken | LinkClosed):
-            self._on_link_down(event)
-        elif isinstance(event, ClientConnected):
-            self._on_connected(event)
-        elif isinstance(event, ClientHello):
-            self._on_hello(event)
-        elif isinstance(event, ClientHeartbeat):
-            name = self._named(event, event.connection)
-            if name is not None and name in self._client_beat_ns:
-                self._client_beat_ns[name] = now
-        elif isinstance(event, ClientEstop | ClientHold):
-            self._on_request(event)
-        elif isinstance(event, ClientRelease):
-            self._on_release(event)
-        elif isinstance(event, ClientDisconnected):
-            self._on_disconnected(event)
-        elif isinstance(event, LocalEstop):
-            self._local_estop = event.caller
-        elif isinstance(event, LocalRelease):
-            if self._local_estop is None:
-                self._refuse(RefusalReason.NOTHING_TO_RELEASE, "local_estop", event)
-            self._local_estop = None
-        elif isinstance(event, ResetRequest):
-            return _RearmRequest(RearmKind.LOCAL_RESET, event.caller)
-        elif isinstance(event, OutputReadback):
-            self._on_readback(event, now)
-        elif isinstance(event, InternalFault):
-            self._book.pulse(
-                Cause(CauseKind.INTERNAL), now, make_details([("reason", event.reason[:200])])
-            )
-        elif isinstance(event, Commissioned):
-            key85 = "no answer" if event.key85 is None else str(event.key85)
-            result = f"key85={key85} remote_status={'on' if event.remote_status else 'not seen'}"
-            self._note = (RecordNote.COMMISSIONED, result)
-        elif isinstance(event, DisplayUpdate):
-            reason = self._display.accept(event.message)
-            if reason is not None:
-                self._refuse(reason, f"key {event.message.key}", event)
-        elif isinstance(event, ProofTestRequest):
-            self._on_prooftest(event)
-        return None
+    def _apply(self, event: Event, now: int) -> _RearmRequest | None:
+        """Step 2: the event updates the facts, through its handler in :data:`_HANDLERS`
+        (one per event type; ``tests/safety/test_dispatch.py`` checks that none is missing)."""
+        handler = _HANDLERS.get(type(event))
+        if handler is None:  # a type with no handler is not ignored: the core stops (SR-0)
+            raise LookupError(f"no handler for {type(event).__name__}")
+        return handler(self, event, now)
+
+    def _on_tick(self, event: Tick, now: int) -> None:
+        """Time passing is step 1's and step 3's work; a tick brings no fact of its own."""
+
+    def _on_client_heartbeat(self, event: ClientHeartbeat, now: int) -> None:
+        name = self._named(event, event.connection)
+        if name is not None and name in self._client_beat_ns:
+            self._client_beat_ns[name] = now
+
+    def _on_local_estop(self, event: LocalEstop, now: int) -> None:
+        self._local_estop = event.caller
+
+    def _on_local_release(self, event: LocalRelease, now: int) -> None:
+        if self._local_estop is None:
+            self._refuse(RefusalReason.NOTHING_TO_RELEASE, "local_estop", event)
+        self._local_estop = None
+
+    def _on_reset(self, event: ResetRequest, now: int) -> _RearmRequest:
+        return _RearmRequest(RearmKind.LOCAL_RESET, event.caller)
+
+    def _on_internal_fault(self, event: InternalFault, now: int) -> None:
+        self._book.pulse(
+            Cause(CauseKind.INTERNAL), now, make_details([("reason", event.reason[:200])])
+        )
+
+    def _on_commissioned(self, event: Commissioned, now: int) -> None:
+        key85 = "no answer" if event.key85 is None else str(event.key85)
+        result = f"key85={key85} remote_status={'on' if event.remote_status else 'not seen'}"
+        self._note = (RecordNote.COMMISSIONED, result)
+
+    def _on_display(self, event: DisplayUpdate, now: int) -> None:
+        reason = self._display.accept(event.message)
+        if reason is not None:
+            self._refuse(reason, f"key {event.message.key}", event)
 
     def _on_vsc(self, event: VscReceived, now: int) -> _RearmRequest | None:
         message = event.message
@@ -479,7 +524,7 @@ class SafetyCore:
         if isinstance(message, VscHeartbeat):
             # SR-2: only a valid heartbeat is liveness; the daemon passes only checked frames.
             previous_ns, self._last_vsc_ns = self._last_vsc_ns, now
-            if previous_ns is not None and now - previous_ns >= self._config.vsc_timeout_ns:
+            if previous_ns is not None and now - previous_ns >= self._vsc_timeout_ns:
                 # The VSC was silent: it may have rebooted (a firmware update can reset key
                 # 85), so its watchdog is proven again (docs/safety.md "The proof test").
                 self._proof.restart()
@@ -495,7 +540,7 @@ class SafetyCore:
             elif (
                 self._run is None
                 or previous_ns is None
-                or now - previous_ns >= self._config.vsc_timeout_ns
+                or now - previous_ns >= self._vsc_timeout_ns
             ):
                 self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
             else:
@@ -514,7 +559,7 @@ class SafetyCore:
                 self._display.edited_on_remote(message)
         return request
 
-    def _on_link_opened(self, now: int) -> None:
+    def _on_link_opened(self, event: LinkOpened, now: int) -> None:
         # SR-4: a reconnect of the VSC is a new start. Liveness starts over ("never seen since
         # link open" counts as lost, SR-2) and key 85 is read back again (SR-5).
         self._link_open = True
@@ -529,7 +574,7 @@ class SafetyCore:
         self._next_heartbeat_ns = now if self._serial else None
         self._proof.restart()  # SR-4.4 a new start: the VSC's watchdog is proven again
 
-    def _on_link_down(self, event: LinkBroken | LinkClosed) -> None:
+    def _on_link_down(self, event: LinkBroken | LinkClosed, now: int) -> None:
         word = "broken" if isinstance(event, LinkBroken) else "closed"
         self._link_open = False
         self._link_fault = f"{word}: {event.reason}"[:200]
@@ -541,7 +586,7 @@ class SafetyCore:
         self._next_heartbeat_ns = None
         self._proof.restart()
 
-    def _on_prooftest(self, event: ProofTestRequest) -> None:
+    def _on_prooftest(self, event: ProofTestRequest, now: int) -> None:
         """``srcsctl prooftest``: admins only, only while STOPPED, one at a time."""
         if self._proof.policy is ProofTestPolicy.OFF:
             self._refuse(RefusalReason.PROOFTEST_NOT_POSSIBLE, self._config.transport.value, event)
@@ -554,13 +599,13 @@ class SafetyCore:
         else:
             self._proof.restart()
 
-    def _on_connected(self, event: ClientConnected) -> None:
+    def _on_connected(self, event: ClientConnected, now: int) -> None:
         if event.connection in self._connections:
             self._refuse(RefusalReason.DUPLICATE_CONNECTION, str(event.connection), event)
             return
         self._connections[event.connection] = None
 
-    def _on_hello(self, event: ClientHello) -> None:
+    def _on_hello(self, event: ClientHello, now: int) -> None:
         connection, name = event.connection, event.name
         if connection not in self._connections:
             self._refuse(RefusalReason.UNKNOWN_CONNECTION, str(connection), event)
@@ -603,21 +648,21 @@ class SafetyCore:
         name = self._connections.get(connection)
         return {_anonymous(connection)} if name is None else {name, _anonymous(connection)}
 
-    def _on_request(self, event: ClientEstop | ClientHold) -> None:
+    def _on_request(self, event: ClientEstop | ClientHold, now: int) -> None:
         # An e-stop or hold is always honoured, even before hello: it can only add a reason
         # to stop (SR-0). Before hello it is filed under "#<connection>".
         name = self._connections.get(event.connection) or _anonymous(event.connection)
         requests = self._client_estops if isinstance(event, ClientEstop) else self._client_holds
         requests.add(name)
 
-    def _on_release(self, event: ClientRelease) -> None:
+    def _on_release(self, event: ClientRelease, now: int) -> None:
         requests = self._client_estops if event.request is Request.ESTOP else self._client_holds
         mine = self._subjects(event.connection) & requests
         if not mine:
             self._refuse(RefusalReason.NOTHING_TO_RELEASE, event.request.value, event)
         requests.difference_update(mine)
 
-    def _on_disconnected(self, event: ClientDisconnected) -> None:
+    def _on_disconnected(self, event: ClientDisconnected, now: int) -> None:
         connection = event.connection
         if connection not in self._connections:
             self._refuse(RefusalReason.UNKNOWN_CONNECTION, str(connection), event)
@@ -681,21 +726,22 @@ class SafetyCore:
     # ----------------------------------------------------------------- conditions
 
     def _refresh(self, now: int) -> None:
-        """Recompute every lasting condition from the facts (SR-2, SR-3)."""
+        """Recompute every lasting condition from the facts (SR-2, SR-3). A condition's
+        details are built only when it holds: the book reads them only then."""
         self._advance_proof(now)
         book, config = self._book, self._config
         hid = config.transport is Transport.HID
         fault = "hid is not a safety channel" if hid else self._link_fault
         book.set(
-            Cause(CauseKind.TRANSPORT_FAULT),
+            _TRANSPORT_FAULT,
             fault is not None,
             now,
             make_details([("reason", fault)]) if fault else (),
         )
         last = self._last_vsc_ns
-        lost = last is None or now - last >= config.vsc_timeout_ns  # ">=": 200 ms is lost
+        lost = last is None or now - last >= self._vsc_timeout_ns  # ">=": 200 ms is lost
         book.set(
-            Cause(CauseKind.VSC_LINK_LOST),
+            _VSC_LINK_LOST,
             lost,
             now,
             make_details(
@@ -703,24 +749,29 @@ class SafetyCore:
                     ("reason", "no heartbeat since link open" if last is None else "timeout"),
                     ("timeout_ms", str(config.vsc_timeout_ns // NS_PER_MS)),
                 ]
-            ),
+            )
+            if lost
+            else (),
         )
         word = self._vsc_estop_word
         book.set(
-            Cause(CauseKind.VSC_ESTOP),
+            _VSC_ESTOP,
             word != 0,
             now,
-            make_details([("sources", _sources(word)), ("word", f"0x{word:08x}")]),
+            make_details([("sources", _sources(word)), ("word", f"0x{word:08x}")]) if word else (),
         )
         watchdog_off = self._serial and config.require_watchdog and self._key85 != 1
         book.set(
-            Cause(CauseKind.VSC_WATCHDOG_OFF),
+            _VSC_WATCHDOG_OFF,
             watchdog_off,
             now,
-            make_details([("key85", "no answer" if self._key85 is None else str(self._key85))]),
+            make_details([("key85", "no answer" if self._key85 is None else str(self._key85))])
+            if watchdog_off
+            else (),
         )
         proof = self._proof
-        book.set(Cause(CauseKind.VSC_WATCHDOG_UNTESTED), proof.untested, now, proof.details())
+        untested = proof.untested
+        book.set(_VSC_WATCHDOG_UNTESTED, untested, now, proof.details() if untested else ())
         book.sync(CauseKind.CLIENT_LOST, self._lost_clients(now), now)
         book.sync(
             CauseKind.CLIENT_ESTOP,
@@ -728,7 +779,7 @@ class SafetyCore:
             now,
         )
         book.set(
-            Cause(CauseKind.LOCAL_ESTOP),
+            _LOCAL_ESTOP,
             self._local_estop is not None,
             now,
             _caller_details(self._local_estop),
@@ -766,7 +817,7 @@ class SafetyCore:
         heard = (
             self._link_open
             and self._last_vsc_ns is not None
-            and now - self._last_vsc_ns < self._config.vsc_timeout_ns
+            and now - self._last_vsc_ns < self._vsc_timeout_ns
         )
         calm = not self._book.user_estop() and self._local_estop is None
         stopped = self._state is State.STOPPED
@@ -885,15 +936,19 @@ class SafetyCore:
     # ----------------------------------------------------------------- outputs and frames
 
     def _levels(self, state: State) -> MappingProxyType[str, bool]:
-        # SR-1: motion outputs on only in RUN; power outputs on in HOLD and RUN.
-        return MappingProxyType(
-            {
-                o.name: state is State.RUN
-                if o.role is OutputRole.MOTION
-                else state is not State.STOPPED
-                for o in self._config.outputs
-            }
-        )
+        # SR-1: motion outputs on only in RUN; power outputs on in HOLD and RUN. Read-only
+        # and the same for every step in a state, so built once per state.
+        levels = self._levels_by_state.get(state)
+        if levels is None:
+            levels = self._levels_by_state[state] = MappingProxyType(
+                {
+                    o.name: state is State.RUN
+                    if o.role is OutputRole.MOTION
+                    else state is not State.STOPPED
+                    for o in self._config.outputs
+                }
+            )
+        return levels
 
     def _emit_link_frames(self, now: int, estop: int, *, urgent: bool) -> None:
         if not self._link_open:
@@ -908,8 +963,10 @@ class SafetyCore:
             # SR-5: user heartbeat at heartbeat_hz; a new stop goes out at once.
             self._frames.append(UserHeartbeat(estop))
             self._proof.sent(now)
-            self._next_heartbeat_ns = _after(
-                self._next_heartbeat_ns, now, self._config.heartbeat_period_ns, urgent
+            period = self._heartbeat_period_ns
+            # SR-5.1: keep the cadence; an urgent heartbeat restarts it from now.
+            self._next_heartbeat_ns = (
+                now + period if urgent else next_due(self._next_heartbeat_ns, now, period)
             )
         if self._next_key85_ns is not None and now >= self._next_key85_ns:
             self._frames.append(FeedbackGet(FeedbackKey.USER_ESTOP_TIMEOUT))
@@ -918,39 +975,69 @@ class SafetyCore:
 
     def _next_deadline(self, now: int) -> int:
         """The earliest future time at which something falls due; never ``now`` or earlier."""
-        candidates = [now + IDLE_NS]
-        if self._last_vsc_ns is not None:
-            candidates.append(self._last_vsc_ns + self._config.vsc_timeout_ns)
+        # A deadline already passed has been acted on in this step (an expired timeout stays
+        # expired until a new heartbeat), so only future times count.
+        earliest = now + IDLE_NS
+        last = self._last_vsc_ns
+        if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:
+            earliest = due
         for name, beat in self._client_beat_ns.items():
-            if beat is not None:
-                candidates.append(beat + self._required[name].timeout_ns)
+            if beat is not None and now < (due := beat + self._client_timeout_ns[name]) < earliest:
+                earliest = due
         if self._link_open:
-            for due in (
+            for later in (
                 self._next_heartbeat_ns,
                 self._next_key85_ns,
                 self._display.next_due(),
                 self._proof.next_deadline(),
             ):
-                if due is not None:
-                    candidates.append(due)
-        # A deadline already passed has been acted on in this step (an expired timeout stays
-        # expired until a new heartbeat), so only future times count.
-        return min(t for t in candidates if t > now)
+                if later is not None and now < later < earliest:
+                    earliest = later
+        return earliest
 
 
+_Handler = Callable[[SafetyCore, Any, int], "_RearmRequest | None"]
+_HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
+    {
+        Tick: SafetyCore._on_tick,
+        VscReceived: SafetyCore._on_vsc,
+        LinkOpened: SafetyCore._on_link_opened,
+        LinkBroken: SafetyCore._on_link_down,
+        LinkClosed: SafetyCore._on_link_down,
+        ClientConnected: SafetyCore._on_connected,
+        ClientHello: SafetyCore._on_hello,
+        ClientHeartbeat: SafetyCore._on_client_heartbeat,
+        ClientEstop: SafetyCore._on_request,
+        ClientHold: SafetyCore._on_request,
+        ClientRelease: SafetyCore._on_release,
+        ClientDisconnected: SafetyCore._on_disconnected,
+        LocalEstop: SafetyCore._on_local_estop,
+        LocalRelease: SafetyCore._on_local_release,
+        ResetRequest: SafetyCore._on_reset,
+        OutputReadback: SafetyCore._on_readback,
+        InternalFault: SafetyCore._on_internal_fault,
+        Commissioned: SafetyCore._on_commissioned,
+        DisplayUpdate: SafetyCore._on_display,
+        ProofTestRequest: SafetyCore._on_prooftest,
+    }
+)
+"""Step 2's dispatch: each event type to the handler that applies it to the facts. Every type
+of :data:`~supervisord.safety.events.Event` has one (``tests/safety/test_dispatch.py``), so a
+new event cannot be ignored by omission. Keyed by the exact type: events are final."""
+
+
+_TRANSPORT_FAULT = Cause(CauseKind.TRANSPORT_FAULT)
+_VSC_LINK_LOST = Cause(CauseKind.VSC_LINK_LOST)
+_VSC_ESTOP = Cause(CauseKind.VSC_ESTOP)
+_VSC_WATCHDOG_OFF = Cause(CauseKind.VSC_WATCHDOG_OFF)
+_VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
+_LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
 _CHEAP_EVENTS = frozenset({Tick, VscReceived})
+_INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
 """The only event types ``SafetyCore._cheap`` considers; every other takes the full step."""
 _SETTLED_PROOF = frozenset({Phase.OFF, Phase.PASSED})
 """Proof-test phases in which neither time nor an unchanged heartbeat moves the proof test
 (docs/safety.md "The proof test"); in any other the cheap path declines."""
-
-
-def _after(scheduled: int, now: int, period: int, restart: bool) -> int:
-    """The next heartbeat time: keep the cadence, but never fall behind ``now``."""
-    if restart:
-        return now + period
-    following = scheduled + period
-    return following if following > now else now + period
 
 
 def _sources(word: int) -> str:

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from typing import Final
 
 from supervisord.protocol.codes import VscMode
+from supervisord.timebase import NS_PER_MS
 
-NS_PER_MS: Final = 1_000_000
 USER_BITS: Final = 0xC0
 """Bits 6-7 of the VSC's e-stop word: the user computer's e-stop, from its heartbeat's byte
 or from the key-85 watchdog (PR-2.6)."""

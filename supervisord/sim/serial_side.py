@@ -21,7 +21,7 @@ import termios
 from pathlib import Path
 
 from supervisord.protocol.framing import Event, FrameDecoder
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.sim.pty import PtyPort
 
 READ_LIMIT = 4096
 STALE_LIMIT = 1024  # bytes waiting unread in the host's queue before they count as stale

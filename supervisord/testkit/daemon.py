@@ -20,9 +20,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Self
 
+from supervisord.children import kill, terminate
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
-from supervisord.testkit.process import terminate
 
 MINIMAL_CONFIG = """\
 [robot]
@@ -106,9 +106,7 @@ class SrcsdProcess:
         return self.exit_status
 
     def kill(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
+        kill(self.process)
 
     def __enter__(self) -> Self:
         return self if self.process is not None else self.start()

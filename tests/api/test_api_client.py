@@ -14,15 +14,13 @@ from types import TracebackType
 
 import pytest
 
-from supervisord.api.server import Closed, Received, ServerConfig
-from supervisord.api.wire import (
-    ApiError,
+from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.requests import (
     Commission,
     DisplayLabel,
     DisplayModeRequest,
     DisplayRow,
     DisplayValue,
-    ErrorCode,
     Estop,
     Heartbeat,
     Hello,
@@ -34,8 +32,9 @@ from supervisord.api.wire import (
     Subscribe,
     Topic,
     Vibrate,
-    state_push,
 )
+from supervisord.api.server import Closed, Received, ServerConfig
+from supervisord.api.views import state_push
 from supervisord.client import (
     ClientTimeoutError,
     ConnectError,
@@ -44,7 +43,7 @@ from supervisord.client import (
     SupervisorClient,
 )
 from supervisord.protocol.codes import DisplayMode
-from supervisord.safety.events import Request as Releasable
+from supervisord.safety.events import Request
 from tests.api.test_api_server import Loop
 
 
@@ -143,8 +142,8 @@ def test_every_method_sends_its_request(sock_path: Path) -> None:
     assert served.requests() == [
         Estop(),
         Hold(),
-        Release(Releasable.HOLD),
-        Release(Releasable.ESTOP),
+        Release(Request.HOLD),
+        Release(Request.ESTOP),
         DisplayValue(2, -7),
         DisplayLabel(2, "torque"),
         DisplayRow(1, "hello remote"),

@@ -17,13 +17,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from supervisord.api.wire import (
-    message_push,
-    message_topic,
-    record_json,
-    record_push,
-    state_push,
-)
+from supervisord.api.views import message_push, message_topic, record_push, state_push
 from supervisord.config import load_config
 from supervisord.daemon.assemble import build_api, build_supervisor
 from supervisord.daemon.loop import Supervisor
@@ -31,6 +25,7 @@ from supervisord.protocol.codes import MessageType
 from supervisord.protocol.framing import encode_frame
 from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
 from supervisord.protocol.payload import FIXED_LENGTH, decode_payload
+from supervisord.record.format import record_json
 from supervisord.record.jsonl import encode as encode_record
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -42,8 +37,8 @@ from supervisord.safety.events import (
     ResetRequest,
     VscReceived,
 )
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import MINIMAL_CONFIG
-from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
 
 TURN_LIMIT_S = 10.0  # coarse: a shared two-core machine

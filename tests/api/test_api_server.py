@@ -19,6 +19,7 @@ from typing import Any, TypeVar
 import pytest
 
 from supervisord.api.credentials import PeerCredentials, caller, process_groups
+from supervisord.api.requests import Commission, Estop, Hello, Reset, Status, Topic
 from supervisord.api.server import (
     Accepted,
     ApiServer,
@@ -31,17 +32,7 @@ from supervisord.api.server import (
     ServerError,
     core_event,
 )
-from supervisord.api.wire import (
-    Commission,
-    Estop,
-    Hello,
-    Reset,
-    Status,
-    Topic,
-    decision_json,
-    refusal_error,
-    state_push,
-)
+from supervisord.api.views import decision_json, refusal_error, state_push
 from supervisord.errors import ConfigError
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 
+from supervisord.api.requests import Estop, Hello
 from supervisord.api.server import (
     Accepted,
     ApiServer,
@@ -28,7 +29,6 @@ from supervisord.api.server import (
     ServerError,
     core_event,
 )
-from supervisord.api.wire import Estop, Hello
 from supervisord.safety.config import ClientSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import RefusalReason

@@ -1,4 +1,5 @@
-"""The API's message vocabulary: framing, parsing, replies, pushes and core events."""
+"""The API's message vocabulary (supervisord.api: framing, requests, views, translate):
+framing, parsing, replies, pushes and core events."""
 
 from __future__ import annotations
 
@@ -7,43 +8,39 @@ import json
 
 import pytest
 
-from supervisord.api.wire import (
+from supervisord.api.framing import ApiError, ErrorCode, LineReader, encode
+from supervisord.api.requests import (
     OPS,
-    ApiError,
-    ClientInfo,
+    ApiRequest,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
     DisplayRow,
     DisplayValue,
-    ErrorCode,
     Estop,
     Heartbeat,
     Hello,
     Hold,
-    LineReader,
     ProofTest,
     Release,
-    Request,
     Reset,
     Side,
     Status,
     Subscribe,
     Topic,
     Vibrate,
+    parse_request,
+    request_json,
+)
+from supervisord.api.translate import ClientInfo, to_core_event
+from supervisord.api.views import (
     decision_json,
-    encode,
     message_push,
     message_topic,
     ok_reply,
-    parse_request,
-    record_json,
     record_push,
     refusal_error,
-    request_json,
     state_push,
-    to_core_event,
-    trigger_json,
 )
 from supervisord.protocol.codes import DisplayMode
 from supervisord.protocol.j1939 import (
@@ -64,7 +61,7 @@ from supervisord.protocol.messages import (
     RemoteStatus,
     VscHeartbeat,
 )
-from supervisord.record.jsonl import REQUIRED_FIELDS
+from supervisord.record.format import record_json
 from supervisord.record.jsonl import encode as encode_record
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -79,21 +76,20 @@ from supervisord.safety.events import (
     DisplayUpdate,
     LocalEstop,
     LocalRelease,
+    Request,
     ResetRequest,
-    VscReceived,
 )
-from supervisord.safety.events import Request as Releasable
 
 ROOT = Caller(0, 42, "root", True)
 USER = Caller(1000, 43, "robot", False)
 
-EVERY_REQUEST: tuple[Request, ...] = (
+EVERY_REQUEST: tuple[ApiRequest, ...] = (
     Hello("planner"),
     Heartbeat(),
     Estop(),
     Hold(),
-    Release(Releasable.ESTOP),
-    Release(Releasable.HOLD, id=3),
+    Release(Request.ESTOP),
+    Release(Request.HOLD, id=3),
     Status(id="s-1"),
     Subscribe(frozenset({Topic.STATE, Topic.RECORDS})),
     Subscribe(frozenset()),
@@ -184,7 +180,7 @@ def test_encode_refuses_values_json_cannot_hold() -> None:
 
 
 @pytest.mark.parametrize("request_value", EVERY_REQUEST, ids=repr)
-def test_every_request_round_trips(request_value: Request) -> None:
+def test_every_request_round_trips(request_value: ApiRequest) -> None:
     """What request_json writes, parse_request reads back as the same value."""
     line = encode(request_json(request_value))[:-1]
     assert parse_request(line) == request_value
@@ -322,41 +318,6 @@ def test_state_push_describes_the_decision() -> None:
     json.dumps(push, allow_nan=False)
 
 
-def test_record_json_is_a_record_the_store_accepts() -> None:
-    """record_json has every field docs/record.md requires, and the JSON Lines store files it."""
-    (record,) = SafetyCore(SafetyConfig(), 0).decision.records
-    utc = dt.datetime(2026, 3, 1, 12, tzinfo=dt.UTC)
-    obj = record_json(record, utc)
-    assert set(REQUIRED_FIELDS) <= set(obj)
-    assert obj["utc"] == "2026-03-01T12:00:00.000000+00:00"
-    assert obj["from"] == "STOPPED"
-    assert obj["trigger"] == {"event": "tick"}
-    assert encode_record(obj).endswith(b"\n")
-    assert record_push(obj)["event"] == "record"
-
-
-def test_record_kind_and_trigger_follow_the_change() -> None:
-    """A local e-stop while already STOPPED is a cause_raised record naming its caller."""
-    core = SafetyCore(SafetyConfig(), 0)
-    decision = core.handle(LocalEstop(5, ROOT))
-    (record,) = decision.records
-    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.UTC))
-    assert obj["kind"] == "cause_raised"
-    assert obj["trigger"] == {
-        "event": "local_estop",
-        "caller": {"uid": 0, "pid": 42, "name": "root", "admin": True},
-    }
-    assert {"name": "local_estop", "change": "raised"} in obj["changes"]
-
-
-def test_trigger_of_a_vsc_message_uses_the_protocol_json() -> None:
-    """A VSC message in a trigger is shown with the same JSON as srcsctl decode."""
-    obj = trigger_json(VscReceived(1, VscHeartbeat(mode=9)))
-    assert obj["event"] == "vsc_received"
-    assert obj["message"]["type"] == "vsc_heartbeat"
-    assert obj["message"]["vsc_mode_name"] == "operational"
-
-
 def test_message_pushes_use_the_topic_as_event() -> None:
     """Joystick, GPS and remote-status messages are pushed under their topic; others are not."""
     assert message_push(Joystick())["event"] == "joystick"
@@ -405,9 +366,9 @@ ANONYMOUS = ClientInfo(5, ROOT, None)
         (Estop(), ANONYMOUS, LocalEstop(9, ROOT)),
         (Hold(), NAMED, ClientHold(9, 4)),
         (Hold(), ANONYMOUS, ClientHold(9, 5)),
-        (Release(Releasable.ESTOP), NAMED, ClientRelease(9, 4, Releasable.ESTOP)),
-        (Release(Releasable.ESTOP), ANONYMOUS, LocalRelease(9, ROOT)),
-        (Release(Releasable.HOLD), ANONYMOUS, ClientRelease(9, 5, Releasable.HOLD)),
+        (Release(Request.ESTOP), NAMED, ClientRelease(9, 4, Request.ESTOP)),
+        (Release(Request.ESTOP), ANONYMOUS, LocalRelease(9, ROOT)),
+        (Release(Request.HOLD), ANONYMOUS, ClientRelease(9, 5, Request.HOLD)),
         (DisplayValue(3, 42), NAMED, DisplayUpdate(9, FeedbackSet(3, 42))),
         (DisplayLabel(3, "v"), NAMED, DisplayUpdate(9, FeedbackName(3, "v"))),
         (DisplayRow(1, "top"), ANONYMOUS, DisplayUpdate(9, FeedbackName(90, "top"))),
@@ -424,7 +385,7 @@ ANONYMOUS = ClientInfo(5, ROOT, None)
     ids=repr,
 )
 def test_requests_become_core_events(
-    request_value: Request, client: ClientInfo, expected: object
+    request_value: ApiRequest, client: ClientInfo, expected: object
 ) -> None:
     """Each request maps to the safety core's event: a named client's own, else the local one."""
     assert to_core_event(request_value, client, 9) == expected

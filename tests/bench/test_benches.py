@@ -12,11 +12,14 @@ from pathlib import Path
 
 import pytest
 
-from bench import heartbeat_jitter, idle_cost, link_loss, stop_latency
-from bench.rig import NS_PER_MS, percentile
+from bench import heartbeat_jitter, idle_cost, link_loss, rt_budget, stop_latency
+from bench.rig import percentile
+from bench.unit import Scheduling, read_unit, span_us
+from supervisord.timebase import NS_PER_MS
 
 
 def test_percentile_is_a_nearest_rank_measured_value() -> None:
+    """The percentile the benches print is the nearest-rank one: always a measured value."""
     values = list(range(1, 101))
     assert percentile(values, 0.5) == 50
     assert percentile(values, 0.99) == 99
@@ -25,6 +28,8 @@ def test_percentile_is_a_nearest_rank_measured_value() -> None:
 
 
 def test_stop_latency_measures_every_stop_of_both_kinds(tmp_path: Path) -> None:
+    """SR-9.1: every stop asked for is measured, holds and e-stops in order, each output edge
+    after its frame, and the real loop records each."""
     measured = stop_latency.run(tmp_path, stops=6, estop_every=3)
     assert [stop.kind for stop in measured] == ["hold", "hold", "estop"] * 2
     for stop in measured:
@@ -36,6 +41,8 @@ def test_stop_latency_measures_every_stop_of_both_kinds(tmp_path: Path) -> None:
 
 
 def test_stop_latency_back_to_back_and_the_two_models(tmp_path: Path) -> None:
+    """SR-9.1: back-to-back stops with the mirrored level file work for srcsd, the polling model
+    and the bare loop alike."""
     for model in ("supervisor", "poll50", "event"):
         directory = tmp_path / model
         directory.mkdir()
@@ -46,6 +53,7 @@ def test_stop_latency_back_to_back_and_the_two_models(tmp_path: Path) -> None:
 
 
 def test_stop_latency_prints_its_table_and_verdict(capsys: pytest.CaptureFixture[str]) -> None:
+    """SR-9.1: one loop alone prints its table, the e-stop row and the SR-9 verdict."""
     stop_latency.main(["--stops", "3", "--estop-every", "3"])
     out = capsys.readouterr().out
     assert "| all stops | 3 |" in out
@@ -101,6 +109,11 @@ def test_loaded_mode_runs_busy_processes_and_stops_them(
     out = capsys.readouterr().out
     assert f"loaded: {2 * (os.cpu_count() or 1)} busy processes, unpinned" in out
     assert "| all stops | 2 |" in out
+    if os.geteuid() == 0:  # the unit's policy and its RTTIME budget, as systemd applies them
+        unit = read_unit()
+        assert f"SCHED_FIFO {unit.priority}" in out
+        assert unit.soft_us is not None
+        assert f"RLIMIT_RTTIME soft {unit.soft_us / 1e6:g} s (the unit's)" in out
 
 
 def children_commands() -> list[str]:
@@ -133,6 +146,7 @@ def test_steal_share_and_the_units_scheduling(tmp_path: Path) -> None:
 
 
 def test_link_loss_never_stops_before_the_timeout(tmp_path: Path) -> None:
+    """SR-9.2: a link loss stops at or after the timeout, never before it, and within a second."""
     measured = link_loss.run(tmp_path, trials=2, timeout_ms=100)
     assert len(measured) == 2
     assert all(value >= 100 * NS_PER_MS for value in measured)  # the deadline counts from receipt
@@ -140,20 +154,28 @@ def test_link_loss_never_stops_before_the_timeout(tmp_path: Path) -> None:
 
 
 def test_link_loss_prints_its_table(capsys: pytest.CaptureFixture[str]) -> None:
+    """SR-9.2: the link-loss bench prints its table, its early-stop count and the load with the
+    host's steal."""
     link_loss.main(["--trials", "1", "--timeout-ms", "100"])
     out = capsys.readouterr().out
     assert "| silence to off | 1 |" in out
     assert "stopped before the timeout: 0 of 1" in out
+    assert "host steal during the run:" in out
 
 
 def test_heartbeat_jitter_hears_a_steady_heartbeat(capsys: pytest.CaptureFixture[str]) -> None:
+    """SR-9.3: the heartbeat bench prints the periods and their deviation from 50 ms, with the
+    steal."""
     heartbeat_jitter.main(["--seconds", "1"])
     out = capsys.readouterr().out
     assert "| period |" in out
     assert "| deviation from 50 ms |" in out
+    assert "host steal during the run:" in out
 
 
 def test_heartbeat_jitter_periods(tmp_path: Path) -> None:
+    """SR-9.3: over a second in RUN the VSC side hears about twenty heartbeats, never a negative
+    period."""
     periods, stops = heartbeat_jitter.run(tmp_path, seconds=1.0, spin=1, pin=False)
     assert stops >= 0
     assert len(periods) >= 10  # 20 Hz for a second, whatever the scheduling
@@ -163,6 +185,8 @@ def test_heartbeat_jitter_periods(tmp_path: Path) -> None:
 
 
 def test_idle_cost_of_the_real_daemon(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """SR-9.4: the real daemon in RUN uses some CPU and memory, feeds the VSC, and the bench
+    prints its verdicts and the steal."""
     result = idle_cost.run(tmp_path, seconds=1.0)
     assert result["frames"] > 0
     assert result["wall"] >= 1.0
@@ -173,3 +197,73 @@ def test_idle_cost_of_the_real_daemon(capsys: pytest.CaptureFixture[str], tmp_pa
     out = capsys.readouterr().out
     assert "| CPU time / wall time |" in out
     assert "under 40 MB resident" in out
+    assert "host steal during the run:" in out
+
+
+def test_the_unit_file_is_read_as_systemd_reads_its_scheduling(tmp_path: Path) -> None:
+    """SR-9: ``LimitRTTIME=`` is read as systemd reads it (soft:hard, time units, one value
+    for both, infinity), the FIFO priority only with the FIFO policy; the real unit sets a
+    FIFO priority and a finite budget."""
+    assert span_us("1s") == 1_000_000
+    assert span_us("300ms") == 300_000
+    assert span_us("250000") == 250_000
+    assert span_us("infinity") is None
+    with pytest.raises(ValueError, match="time span"):
+        span_us("1min")
+    unit = tmp_path / "srcsd@.service"
+    unit.write_text("[Service]\nNice=-5\nLimitRTTIME=300ms\nCPUSchedulingPriority=7\n")
+    assert read_unit(unit) == Scheduling(-5, 0, 300_000, 300_000)
+    unit.write_text("[Service]\nCPUSchedulingPolicy=fifo\nLimitRTTIME=1s:infinity\n")
+    assert read_unit(unit) == Scheduling(0, 1, 1_000_000, None)
+    real = read_unit()
+    assert real.priority > 0
+    assert real.soft_us is not None
+
+
+TIMEHIST = """\
+           time    cpu  task name                       wait time  sch delay   run time  state
+                        [tid/pid]                          (msec)     (msec)     (msec)
+--------------- ------  ------------------------------  ---------  ---------  ---------  -----
+   100.000000 [0000]  python[500]                         0.000      0.100    150.000      D
+   100.500000 [0001]  python[500]                         0.000      0.000      3.000      R
+   100.510000 [0001]  python[500]                         0.000      0.000      4.000      S
+   100.520000 [0000]  python[501/500]                     0.000      0.000      1.000      S
+   100.600000 [0000]  python[500]                         0.000      0.000      2.000      S
+"""
+
+
+def test_rt_budget_adds_up_runs_until_the_thread_sleeps() -> None:
+    """SR-9: a run that ended in a preemption (R) counts on into the next, as the kernel's
+    RLIMIT_RTTIME count does; a sleep (S, D) ends it; READY=1 splits start-up from service."""
+    found = rt_budget.bursts(TIMEHIST, ready=100.2, pid=500)
+    assert found.startup == {"main": 150.0}
+    assert found.running == {"main": 7.0, "thread 501": 1.0}
+    assert found.long == [(100.0, "main", 150.0), (100.51, "main", 7.0)]
+    assert found.longest == 150.0
+    assert found.switches == 5
+
+
+def test_rt_budget_runs_the_daemon_under_the_units_settings(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """SR-9: the real srcsd, under the unit's FIFO policy and RTTIME budget as root, starts,
+    takes the stops and leaves cleanly (never killed), and its page faults are counted."""
+    rt_budget.main(["--stops", "3", "--no-perf"])
+    out = capsys.readouterr().out
+    assert "3 stops; exit status 0 after SIGTERM" in out
+    assert "| after the last stop |" in out
+    assert "host steal during the run:" in out
+
+
+def test_slow_disk_runs_srcsd_with_and_without_it_side_by_side(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """SR-7.5: ``--slow-disk`` measures srcsd with every record fsync 50 ms slower beside
+    srcsd as it is, in the same blocks, prints both tables and their ratio, and how many
+    records had reached the disk when each block's stops were done."""
+    stop_latency.main(["--stops", "4", "--blocks", "2", "--model", "srcsd", "--slow-disk"])
+    out = capsys.readouterr().out
+    assert out.count("| all stops | 4 |") == 2
+    assert "srcsd-slow: the srcsd loop, every record fsync 50 ms slower" in out
+    assert "| srcsd slow disk / srcsd |" in out
+    assert out.count("slow disk (50 ms more per fsync):") == 2

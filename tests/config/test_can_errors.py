@@ -13,7 +13,7 @@ import pytest
 
 from supervisord.config import CanErrors
 from supervisord.daemon.assemble import build_link
-from supervisord.links.base import LinkBroken
+from supervisord.links.base import LinkBrokenError
 from supervisord.links.can_link import (
     ERROR_LIMIT,
     ERROR_PASSIVE_MS,
@@ -79,7 +79,7 @@ def test_error_limit_and_window_from_the_config_reach_the_link(
         assert drain(link) == [VscHeartbeat(9)]
         assert link.error_frames == 2
         vsc_bus.send(error_frame())
-        with pytest.raises(LinkBroken, match="3 CAN error frames within 500 ms"):
+        with pytest.raises(LinkBrokenError, match="3 CAN error frames within 500 ms"):
             drain(link)
     finally:
         link.close()
@@ -95,7 +95,7 @@ def test_error_passive_time_from_the_config_reaches_the_link(
         drain(link)
         time.sleep(0.08)
         vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
-        with pytest.raises(LinkBroken, match="error-passive for 50 ms"):
+        with pytest.raises(LinkBrokenError, match="error-passive for 50 ms"):
             drain(link)
     finally:
         link.close()
@@ -107,7 +107,7 @@ def test_a_zero_limit_makes_every_error_frame_a_fault(tmp_path: Path, vsc_bus: c
     link = link_from(tmp_path, error_limit=0)
     try:
         vsc_bus.send(error_frame())
-        with pytest.raises(LinkBroken, match="1 CAN error frames"):
+        with pytest.raises(LinkBrokenError, match="1 CAN error frames"):
             drain(link)
     finally:
         link.close()

@@ -9,13 +9,15 @@ from pathlib import Path
 
 import pytest
 
+import supervisord
+from supervisord.cli.demo import DEMO_CONFIG
 from supervisord.config import CanBus, SerialLink, check_config_main, load_config
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
-EXAMPLES = sorted(CONFIG_DIR.glob("*.toml"))
+EXAMPLES = [*sorted(CONFIG_DIR.glob("*.toml")), DEMO_CONFIG]
 
 VALID = """\
 [robot]
@@ -46,12 +48,13 @@ def srcs_admin_exists(name: str) -> bool:
 
 
 def test_the_three_examples_are_shipped() -> None:
-    """config/ holds the serial-GPIO example, the CAN example and the demo's config."""
+    """config/ holds the serial-GPIO and CAN examples; the demo's config is package data."""
     assert [p.name for p in EXAMPLES] == [
-        "demo.toml",
         "example-can.toml",
         "example-serial-gpio.toml",
+        "demo.toml",
     ]
+    assert DEMO_CONFIG.is_relative_to(Path(supervisord.__file__).parent)
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
@@ -105,7 +108,7 @@ def test_can_example_is_the_docs_worked_example() -> None:
 
 def test_demo_config_runs_without_hardware_or_clients(tmp_path: Path) -> None:
     """The demo: serial to a path under the run folder, sim outputs, local reset, no clients."""
-    config = load_config(CONFIG_DIR / "demo.toml", base_dir=tmp_path)
+    config = load_config(DEMO_CONFIG, base_dir=tmp_path)
     assert config.vsc.link == SerialLink(tmp_path / "srcs-demo/vsc", 115_200)
     assert {o.kind for o in config.outputs} == {OutputKind.SIM}
     assert [getattr(o, "path", None) for o in config.outputs] == [
@@ -196,7 +199,9 @@ def test_check_config_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert check_config_main(file) == 1
     out, err = capsys.readouterr()
     assert out == ""
-    assert err.startswith(f"{file}: vsc.transport = 'serail': use \"serial\"")
+    assert err.startswith(
+        f"{file}: vsc.transport = 'serail': did you mean 'serial'? use one of \"serial\""
+    )
 
 
 def test_loading_imports_no_unused_plugin(tmp_path: Path) -> None:
@@ -211,3 +216,14 @@ def test_loading_imports_no_unused_plugin(tmp_path: Path) -> None:
     loaded = set(out.stdout.split())
     assert "gpiod" not in loaded
     assert "can" not in loaded
+
+
+def test_a_huge_value_is_shown_cut(tmp_path: Path) -> None:
+    """SR-11.2: an error names a megabyte-long value by its first characters, not whole: the
+    message stays one short line."""
+    file = write(tmp_path, VALID.replace('name = "bot"', f'name = "{"x" * 1_000_000}"'))
+    with pytest.raises(ConfigError) as caught:
+        load_config(file)
+    message = str(caught.value)
+    assert message.startswith(f"{file}: robot.name = 'xxxx")
+    assert len(message) < len(str(file)) + 200

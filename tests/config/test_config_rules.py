@@ -30,6 +30,7 @@ from supervisord.config import (
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
+from supervisord.strict import shown
 
 DELETE = object()
 """A change that removes the key."""
@@ -127,7 +128,7 @@ def check(tmp_path: Path, changes: Mapping[str, object], key: str, fix: str) -> 
     assert error.key == key
     assert fix in error.fix
     assert error.file == str(tmp_path / "robot.toml")
-    assert str(error).startswith(f"{error.file}: {key} = {error.value!r}: ")
+    assert str(error).startswith(f"{error.file}: {key} = {shown(error.value)}: ")
 
 
 Case = tuple[dict[str, object], str, str]
@@ -176,13 +177,17 @@ def test_sections(tmp_path: Path, changes: dict[str, object], key: str, fix: str
 
 
 ROBOT_CASES: list[Case] = [
-    ({"robot": DELETE}, "robot.name", "give the robot's name"),
-    ({"robot.name": DELETE}, "robot.name", "give the robot's name"),
-    ({"robot.name": ""}, "robot.name", "give the robot's name"),
-    ({"robot.name": "  "}, "robot.name", "give the robot's name"),
-    ({"robot.name": "bad\tname"}, "robot.name", "give the robot's name"),
-    ({"robot.name": 7}, "robot.name", "give the robot's name"),
-    ({"robot.name": "x" * 65}, "robot.name", "shorten it to 64"),
+    ({"robot": DELETE}, "robot.name", 'non-empty string in double quotes, e.g. "mower-3"'),
+    ({"robot.name": DELETE}, "robot.name", 'non-empty string in double quotes, e.g. "mower-3"'),
+    ({"robot.name": ""}, "robot.name", 'non-empty string in double quotes, e.g. "mower-3"'),
+    ({"robot.name": "  "}, "robot.name", 'non-empty string in double quotes, e.g. "mower-3"'),
+    (
+        {"robot.name": "bad\tname"},
+        "robot.name",
+        'non-empty string in double quotes, e.g. "mower-3"',
+    ),
+    ({"robot.name": 7}, "robot.name", 'non-empty string in double quotes, e.g. "mower-3"'),
+    ({"robot.name": "x" * 65}, "robot.name", "use at most 64 characters"),
     ({"robot.nmae": "x"}, "robot.nmae", "did you mean 'name'?"),
 ]
 
@@ -205,8 +210,8 @@ VSC_CASES: list[Case] = [
     ({"vsc": {**CAN_VSC, "port": "/dev/ttyACM0"}}, "vsc.port", 'transport "serial"'),
     ({"vsc.baud": 9600}, "vsc.baud", "fixes the VSC's serial speed at 115200"),
     ({"vsc.baud": "115200"}, "vsc.baud", "115200"),
-    ({"vsc.port": ""}, "vsc.port", "give a non-empty string"),
-    ({"vsc.port": 0}, "vsc.port", "give a non-empty string"),
+    ({"vsc.port": ""}, "vsc.port", "use a non-empty string"),
+    ({"vsc.port": 0}, "vsc.port", "use a non-empty string"),
     ({"vsc.port": "/dev/"}, "vsc.port", "not a directory's"),
     ({"vsc": {"transport": "hid"}}, "vsc.hidraw", '"/dev/hidraw0"'),
     ({"vsc.reopen_min_ms": 5}, "vsc.reopen_min_ms", "from 10 to 10000"),
@@ -228,11 +233,11 @@ VSC_CASES: list[Case] = [
     ({"vsc": {**CAN_VSC, "require_watchdog": True}}, "vsc.require_watchdog", "no key 85"),
     ({"vsc": {**CAN_VSC, "interface": "sockecan"}}, "vsc.interface", "did you mean 'socketcan'?"),
     ({"vsc": {**CAN_VSC, "interface": "zzz"}}, "vsc.interface", "python-can interface"),
-    ({"vsc": {**CAN_VSC, "bitrate": 123_456}}, "vsc.bitrate", "standard rate"),
-    ({"vsc": {**CAN_VSC, "bitrate": "250k"}}, "vsc.bitrate", "whole number"),
-    ({"vsc": {**CAN_VSC, "channel": "can 0"}}, "vsc.channel", "remove the spaces"),
-    ({"vsc": {**CAN_VSC, "channel": ""}}, "vsc.channel", "non-empty string"),
-    ({"vsc": {**CAN_VSC, "channel": -1}}, "vsc.channel", "non-empty string"),
+    ({"vsc": {**CAN_VSC, "bitrate": 123_456}}, "vsc.bitrate", "use one of 10000, 20000"),
+    ({"vsc": {**CAN_VSC, "bitrate": "250k"}}, "vsc.bitrate", "without quotes"),
+    ({"vsc": {**CAN_VSC, "channel": "can 0"}}, "vsc.channel", "a channel name without spaces"),
+    ({"vsc": {**CAN_VSC, "channel": ""}}, "vsc.channel", "a channel name without spaces"),
+    ({"vsc": {**CAN_VSC, "channel": -1}}, "vsc.channel", "a channel name without spaces"),
 ]
 
 
@@ -340,13 +345,21 @@ OUTPUT_CASES: list[Case] = [
     ({"outputs": ["drive"]}, "outputs", "own [[outputs]] table"),
     ({"outputs[0].name": DELETE}, "outputs[0].name", "1 to 32 characters"),
     ({"outputs[0].name": "dr.ive"}, "outputs[0].name", "'_' and '-'"),
-    ({"outputs[0].kind": DELETE}, "outputs[0].kind", '"sim", "gpio", "can"'),
-    ({"outputs[0].kind": "relay"}, "outputs[0].kind", '"sim", "gpio", "can"'),
+    (
+        {"outputs[0].kind": DELETE},
+        "outputs[0].kind",
+        '"sim" (simulated), "gpio" (a GPIO line), "can"',
+    ),
+    (
+        {"outputs[0].kind": "relay"},
+        "outputs[0].kind",
+        '"sim" (simulated), "gpio" (a GPIO line), "can"',
+    ),
     ({"outputs[0].class": "motion"}, "outputs[0].class", "did you mean 'role'?"),
     ({"outputs[0].pathh": "x"}, "outputs[0].pathh", "did you mean 'path'?"),
     ({"outputs[0].chip": "gpiochip0"}, "outputs[0].chip", "unknown key"),
-    ({"outputs[0].role": "drive"}, "outputs[0].role", "'motion', 'power'"),
-    ({"outputs[0].stuck_at": "maybe"}, "outputs[0].stuck_at", "'on', 'off'"),
+    ({"outputs[0].role": "drive"}, "outputs[0].role", '"motion", "power"'),
+    ({"outputs[0].stuck_at": "maybe"}, "outputs[0].stuck_at", '"on", "off"'),
     ({"outputs[0]": {"name": "drive", "kind": "gpio", "line": 17}}, "outputs[0].chip", "string"),
     (
         {"outputs[0]": {"name": "d", **GPIO, "pulse_period_ms": 1}},
@@ -400,7 +413,7 @@ OUTPUT_CASES: list[Case] = [
     (
         {"outputs[0]": {"name": "d", **CAN_OUT}, "output_bus": {"bitrate": 1}},
         "output_bus.bitrate",
-        "standard rate",
+        "use one of 10000, 20000",
     ),
     ({"output_bus": "can1"}, "output_bus", "make it a table"),
 ]
@@ -512,18 +525,18 @@ API_CASES: list[Case] = [
     ({"api.socket": "/run/" + "s" * 103}, "api.socket", "at most 107 bytes"),
     ({"api.socket": 1}, "api.socket", "non-empty string"),
     ({"api.admin_group": "nobody-here"}, "api.admin_group", "groupadd --system nobody-here"),
-    ({"api.admin_group": "bad group"}, "api.admin_group", "give a group name"),
-    ({"api.admin_group": ""}, "api.admin_group", "give a group name"),
+    ({"api.admin_group": "bad group"}, "api.admin_group", "use a group name"),
+    ({"api.admin_group": ""}, "api.admin_group", "use a group name"),
     ({"api.group": "nobody-here"}, "api.group", "groupadd --system nobody-here"),
     ({"api.group": 7}, "api.group", 'e.g. "srcs"'),
-    ({"api.max_clients": 1}, "api.max_clients", "from 2 to 256"),
-    ({"api.max_clients": 257}, "api.max_clients", "from 2 to 256"),
+    ({"api.max_clients": 0}, "api.max_clients", "from 1 to 256"),
+    ({"api.max_clients": 257}, "api.max_clients", "from 1 to 256"),
     (
         {"clients[1]": {"name": "nav"}, "clients[2]": {"name": "map"}, "api.max_clients": 3},
         "api.max_clients",
         "at least 4: the 3 required clients and one srcsctl",
     ),
-    ({"api.max_message_bytes": 1023}, "api.max_message_bytes", "from 1024 to 1048576"),
+    ({"api.max_message_bytes": 255}, "api.max_message_bytes", "from 256 to 1048576"),
     ({"api.admin": "srcs"}, "api.admin", "did you mean 'admin_group'?"),
 ]
 
@@ -562,8 +575,8 @@ def test_missing_values_are_shown_as_not_set(tmp_path: Path) -> None:
 
 BOUND_CLIENT_CASES: list[Case] = [
     ({"clients[0].user": "no-such-user-xyz"}, "clients[0].user", "useradd --system"),
-    ({"clients[0].user": "bad user"}, "clients[0].user", "give a user name"),
-    ({"clients[0].user": 0}, "clients[0].user", "give a user name"),
+    ({"clients[0].user": "bad user"}, "clients[0].user", "use a user name"),
+    ({"clients[0].user": 0}, "clients[0].user", "use a user name"),
     ({"clients[0].uid": -1}, "clients[0].uid", "from 0 to 4294967294"),
     ({"clients[0].uid": 1 << 32}, "clients[0].uid", "from 0 to 4294967294"),
     ({"clients[0].uid": "0"}, "clients[0].uid", "whole number"),
@@ -584,3 +597,19 @@ def test_a_client_is_bound_by_user_name_or_uid_and_unbound_by_default(tmp_path: 
     assert [(c.name, c.uid) for c in config.safety.clients] == [("autonomy", 0), ("nav", None)]
     config = load(tmp_path, {"clients[0].uid": 1234})
     assert config.safety.clients[0].uid == 1234
+
+
+@pytest.mark.parametrize(("value", "accepted"), [(1, True), (256, True), (0, False), (257, False)])
+def test_max_clients_has_one_range(tmp_path: Path, value: int, accepted: bool) -> None:
+    """SR-11.2: the robot's file and the API server built in code accept the same
+    api.max_clients: one range, checked in one place."""
+    from supervisord.api.server import ServerConfig  # noqa: PLC0415
+
+    changes = {"clients": DELETE, "api.max_clients": value}
+    if accepted:
+        assert load(tmp_path, changes).api.max_clients == value
+        assert ServerConfig(tmp_path / "api.sock", max_clients=value).max_clients == value
+    else:
+        assert refused(tmp_path, changes).key == "api.max_clients"
+        with pytest.raises(ConfigError, match=r"api\.max_clients"):
+            ServerConfig(tmp_path / "api.sock", max_clients=value)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from supervisord.protocol.codes import FeedbackKey, MessageType, VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
@@ -22,16 +22,20 @@ from supervisord.protocol.messages import (
     UserHeartbeat,
     VscHeartbeat,
 )
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.sim.pty import PtyPort
 
 KEY85 = FeedbackKey.USER_ESTOP_TIMEOUT
 
 
 class VscPeer:
-    """The VSC end of the pty: heartbeats every 50 ms in the current mode."""
+    """The VSC end of the pty: heartbeats every 50 ms in the current mode, by ``clock``
+    (monotonic seconds; a test that drives the daemon's clock gives the peer the same one)."""
 
-    def __init__(self, port: PtyPort, key85: int = 1) -> None:
+    def __init__(
+        self, port: PtyPort, key85: int = 1, clock: Callable[[], float] = time.monotonic
+    ) -> None:
         self.port = port
+        self.clock = clock
         self.mode = VscMode.LOCAL
         self.estop = 0
         self.silent = False
@@ -42,10 +46,15 @@ class VscPeer:
         self._decoder = FrameDecoder()
         self._next = 0.0
         self._next_status = 0.0
-        self._last_user = time.monotonic()  # the watchdog counts from power-on
+        self._last_user = clock()  # the watchdog counts from power-on
+
+    @property
+    def next_due(self) -> float:
+        """When (by ``clock``) the next heartbeat is due."""
+        return self._next
 
     def serve(self) -> None:
-        now = time.monotonic()
+        now = self.clock()
         if not self.port.plugged:
             return
         for message in self._decoder.feed(self.port.read()):
@@ -64,7 +73,7 @@ class VscPeer:
 
     def _handle(self, message: object) -> None:
         if isinstance(message, UserHeartbeat):
-            self._last_user = time.monotonic()
+            self._last_user = self.clock()
         elif isinstance(message, FeedbackSet) and message.key == KEY85:
             self.key85 = message.value
         elif message == FeedbackGet(KEY85) and self.answers_feedback:

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import SrcsdProcess
-from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsd import CONFIG, wait
 

@@ -20,18 +20,38 @@ from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import UserHeartbeat, VscHeartbeat
-from supervisord.record.jsonl import Record, RecordWriter, read_records
+from supervisord.record.jsonl import RecordWriter, StoredRecord, read_records
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.sim.pty import PtyPort
 from tests.daemon.peer import VscPeer
+
+
+class ManualClock:
+    """The daemon's monotonic clock in these tests (nanoseconds): it stands still until the
+    test moves it, so a deadline (the re-arm hold, the takeover dwell, the link timeout)
+    passes exactly when the test says, with no waiting. ``seconds`` is the same clock for the
+    VSC peer."""
+
+    def __init__(self) -> None:
+        self.now = time.monotonic_ns()  # any start would do; near the real one reads well
+
+    def __call__(self) -> int:
+        return self.now
+
+    def seconds(self) -> float:
+        return self.now / 1e9
+
+    def advance(self, ns: int) -> None:
+        self.now += ns
 
 
 @pytest.fixture
 def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
     port = PtyPort(tmp_path / "vsc")
+    clock = ManualClock()
     outputs = [
         create_output(parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})),
         create_output(
@@ -50,10 +70,25 @@ def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
         outputs,
         RecordWriter(tmp_path / "stops.jsonl"),
         backoff=Backoff(first_ms=20, max_ms=100),
+        clock=clock,
     )
-    yield supervisor, VscPeer(port), tmp_path
+    yield supervisor, VscPeer(port, clock=clock.seconds), tmp_path
     supervisor.shutdown()
     port.close()
+
+
+def turn(supervisor: Supervisor, peer: VscPeer) -> None:
+    """One turn of the peer and the loop. On a ``ManualClock`` the clock first moves to the
+    next thing due ahead, the peer's heartbeat or the core's deadline, so the loop's wait ends
+    at once: it never waits for time that the test can simply let pass."""
+    clock = supervisor.clock
+    if isinstance(clock, ManualClock):
+        due = [int(peer.next_due * 1e9) + 1_000]  # + 1 us: the peer's float seconds, rounded
+        if supervisor.decision is not None:
+            due.append(supervisor.decision.next_deadline)
+        clock.now = min((t for t in due if t > clock.now), default=clock.now + 1_000_000)
+    peer.serve()
+    supervisor.step()
 
 
 def run_until(
@@ -62,17 +97,20 @@ def run_until(
     end = time.monotonic() + limit
     while not done():
         assert time.monotonic() < end, f"timed out in {supervisor.decision}"
-        peer.serve()
-        supervisor.step()
+        turn(supervisor, peer)
 
 
 def serve_for(supervisor: Supervisor, peer: VscPeer, seconds: float) -> None:
-    """Run the loop and the peer for ``seconds`` (e.g. the re-arm hold and the takeover's
-    non-Operational dwell, docs/safety.md "Re-arming")."""
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        peer.serve()
-        supervisor.step()
+    """Run the loop and the peer for ``seconds`` of the loop's clock (e.g. the re-arm hold and
+    the takeover's non-Operational dwell, docs/safety.md "Re-arming")."""
+    if isinstance(clock := supervisor.clock, ManualClock):
+        end = clock.now + int(seconds * 1e9)
+        while clock.now < end:
+            turn(supervisor, peer)
+        return
+    end_s = time.monotonic() + seconds  # the real clock: a test of real time (a hung disk)
+    while time.monotonic() < end_s:
+        turn(supervisor, peer)
 
 
 def level(tmp_path: Path, name: str) -> str:
@@ -123,9 +161,8 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     # Records reach the file on the sink's thread: read it once every record is written.
     run_until(supervisor, peer, lambda: supervisor.sink is not None and not supervisor.sink.pending)
     lines = (tmp / "stops.jsonl").read_text().splitlines()
-    assert len([r for r in read_records(tmp / "stops.jsonl") if isinstance(r, Record)]) == len(
-        lines
-    )
+    stored = [r for r in read_records(tmp / "stops.jsonl") if isinstance(r, StoredRecord)]
+    assert len(stored) == len(lines)
     raised = {
         change["name"]
         for line in lines
@@ -196,20 +233,24 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
     outputs = [
         create_output(parse_output_spec("drive", {"kind": "sim", "path": str(late / "drive")}))
     ]
+    clock = ManualClock()
     supervisor = Supervisor(
         SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
         SerialLink(str(tmp_path / "vsc")),
         outputs,
         None,
+        clock=clock,
     )
     try:
         assert "output_fault:drive" in supervisor.start().active_names
         assert supervisor.info()["outputs_not_acquired"] == ["drive"]
         late.mkdir()  # the device appears
-        end = time.monotonic() + 5
-        while "output_fault:drive" in active(supervisor):
-            assert time.monotonic() < end, "never acquired"
+        for _ in range(50):  # 100 ms of the loop's clock a turn: the retry's backoff passes
+            if "output_fault:drive" not in active(supervisor):
+                break
+            clock.advance(100_000_000)
             supervisor.step()
+        assert "output_fault:drive" not in active(supervisor), "never acquired"
         assert level(late, "drive") == "0"
         assert supervisor.info()["outputs_not_acquired"] == []
         assert supervisor.decision is not None
@@ -238,8 +279,14 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
     run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
     peer.mode, peer.estop = VscMode.LOCAL, 1
     run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
-    # The journal is written on the sink's thread, after the loop has set the outputs.
-    run_until(supervisor, peer, lambda: [to for to, _ in seen][-1] == "STOPPED")
+
+    # The journal is written on the sink's thread, after the loop has set the outputs: wait
+    # for the entry of the stop after RUN (the loop's clock runs ahead of that thread).
+    def stopped_after_run() -> bool:
+        tos = [to for to, _ in seen]
+        return "RUN" in tos and tos[-1] == "STOPPED"
+
+    run_until(supervisor, peer, stopped_after_run)
     after_run = seen[[to for to, _ in seen].index("RUN") :]
     stops = [drive for to, drive in after_run if to == "STOPPED"]
     assert stops
@@ -249,21 +296,11 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
 # ---------------------------------------------------------------- issue 11: the stop path first
 
 
-class _LateClock:
-    """The monotonic clock plus an offset the test moves (a read that takes long)."""
-
-    def __init__(self) -> None:
-        self.offset = 0
-
-    def __call__(self) -> int:
-        return time.monotonic_ns() + self.offset
-
-
 class _SlowReadLink(SerialLink):
     """A serial link whose reads take 50 ms of the daemon's clock once ``slow``; remembers
     when each read that brought an e-stop ended."""
 
-    def __init__(self, path: str, clock: _LateClock) -> None:
+    def __init__(self, path: str, clock: ManualClock) -> None:
         super().__init__(path)
         self.clock = clock
         self.slow = False
@@ -272,7 +309,7 @@ class _SlowReadLink(SerialLink):
     def receive(self) -> list[Any]:
         received = super().receive()
         if self.slow:
-            self.clock.offset += 50 * 1_000_000
+            self.clock.advance(50 * 1_000_000)
         if any(isinstance(m, VscHeartbeat) and m.estop for m in received):
             self.read_ends.append(self.clock())  # when the e-stop's frame had been read
         return received
@@ -293,7 +330,7 @@ def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
     """Issue 11 part 6: a record's ``mono_ns`` is the clock read right after the VSC frame
     that caused it was read, not the start of the loop turn (here every read ends 50 ms of
     the daemon's clock after it began)."""
-    clock = _LateClock()
+    clock = ManualClock()
     with PtyPort(tmp_path / "vsc") as port:
         link = _SlowReadLink(str(port.path), clock)
         supervisor = Supervisor(
@@ -303,7 +340,7 @@ def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
             RecordWriter(tmp_path / "stops.jsonl"),
             clock=clock,
         )
-        peer = VscPeer(port)
+        peer = VscPeer(port, clock=clock.seconds)
         try:
             supervisor.start()
             _arm(supervisor, peer)
@@ -315,11 +352,12 @@ def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
     stop = next(
         r.data
         for r in read_records(tmp_path / "stops.jsonl")
-        if isinstance(r, Record) and r.data["to"] == "STOPPED" and r.data["from"] == "RUN"
+        if isinstance(r, StoredRecord) and r.data["to"] == "STOPPED" and r.data["from"] == "RUN"
     )
     stamp = stop["mono_ns"]
     assert isinstance(stamp, int)
-    assert 0 <= stamp - link.read_ends[0] < 5_000_000, (stamp, link.read_ends)
+    # The clock moves only when the test moves it: the stamp is exactly the read's end.
+    assert stamp == link.read_ends[0], (stamp, link.read_ends)
 
 
 class _StalledWriter(RecordWriter):
@@ -370,12 +408,13 @@ def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: 
             writer.release.set()
         finally:
             supervisor.shutdown()
-    seqs = [r.data["seq"] for r in read_records(tmp_path / "stops.jsonl") if isinstance(r, Record)]
+    stored = [r for r in read_records(tmp_path / "stops.jsonl") if isinstance(r, StoredRecord)]
+    seqs = [r.data["seq"] for r in stored]
     assert seqs == list(range(1, len(seqs) + 1))
     stops = [
         r.data
         for r in read_records(tmp_path / "stops.jsonl")
-        if isinstance(r, Record) and (r.data["from"], r.data["to"]) == ("RUN", "STOPPED")
+        if isinstance(r, StoredRecord) and (r.data["from"], r.data["to"]) == ("RUN", "STOPPED")
     ]
     assert len(stops) == 1
 
@@ -458,6 +497,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
     """SR-7.6, docs/record.md "A full disk": every record fails with ENOSPC (the
     file is /dev/full). The loop counts each failure in ``record_errors`` and raises no
     cause of its own for it; the stops the core decides still happen."""
+    clock = ManualClock()
     with PtyPort(tmp_path / "vsc") as port:
         supervisor = Supervisor(
             SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
@@ -468,8 +508,9 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
                 )
             ],
             RecordWriter("/dev/full"),
+            clock=clock,
         )
-        peer = VscPeer(port)
+        peer = VscPeer(port, clock=clock.seconds)
         try:
             supervisor.start()
             _arm(supervisor, peer)

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import SrcsdProcess
-from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsd import CONFIG
 

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from supervisord.protocol.codes import VscMode
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import MINIMAL_CONFIG
-from supervisord.testkit.pty_port import PtyPort
 from tests.daemon.peer import VscPeer
 
 SRCSD = shutil.which("srcsd") or str(Path(__file__).parents[2] / ".venv/bin/srcsd")

@@ -16,8 +16,8 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
-from supervisord.testkit.faults import wait_until
-from supervisord.testkit.process import terminate
+from supervisord.children import terminate
+from supervisord.testkit.wait import wait_until
 
 PROMETHEUS = shutil.which("prometheus") or "/usr/bin/prometheus"
 PROMTOOL = shutil.which("promtool") or "/usr/bin/promtool"

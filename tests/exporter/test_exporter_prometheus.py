@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from supervisord.exporter.model import SPECS
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 from tests.exporter.stack import DASHBOARD, PROMETHEUS, Exporter, Prometheus, http_get
 
 pytestmark = pytest.mark.skipif(

@@ -32,7 +32,8 @@ from pathlib import Path
 
 from supervisord.client import SupervisorClient
 from supervisord.errors import SrcsError
-from supervisord.testkit.faults import Robot, Stop, wait_until
+from supervisord.testkit.robot import Robot, Stop
+from supervisord.testkit.wait import wait_until
 
 HEARTBEAT = 0x20
 

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 # Every scenario multicasts: only inside the session's private network (docs/testing.md).
 pytestmark = pytest.mark.usefixtures("private_network")

@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 
 from supervisord.client import SupervisorClient
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 CLIENT_TIMEOUT_S = 0.5  # the required client's heartbeat deadline (SR-8 default)
 MAX_CLIENTS = 16  # api.max_clients default (docs/configuration.md)

@@ -17,11 +17,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.safety.budget import RECORDS_PER_CLIENT
-from supervisord.testkit.faults import Robot, wait_until
-from supervisord.testkit.sim import SimControl, SimError
+from supervisord.sim.process import SimControl, SimError
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (SR-5, docs/faults.md)
 HEARTBEAT_MARGIN_S = 0.25  # "well within" the watchdog: at most half of it

@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 
 from supervisord.client import SupervisorClient
-from supervisord.testkit.faults import ALLOWANCE_S, FakeWallClock, OutputDef, Robot, wait_until
+from supervisord.testkit.faketime import FakeWallClock
+from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
+from supervisord.testkit.wait import wait_until
 
 
 @pytest.mark.parametrize("jump_s", [3600, -86400], ids=["forward_1h", "back_1d"])

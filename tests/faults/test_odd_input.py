@@ -22,7 +22,9 @@ from typing import Any
 
 import pytest
 
-from supervisord.testkit.faults import OutputDef, Robot, in_private_mount, wait_until
+from supervisord.testkit.namespaces import in_private_mount
+from supervisord.testkit.robot import OutputDef, Robot
+from supervisord.testkit.wait import wait_until
 
 ODD_NAME = b"r\xe9mi"  # Latin-1, not UTF-8: how a name from an old system arrives
 SHOWN_NAME = "r\\xe9mi"  # the name as records and replies show it: the byte escaped

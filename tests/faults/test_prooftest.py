@@ -15,7 +15,8 @@ from typing import Any
 
 import pytest
 
-from supervisord.testkit.faults import WAIT_S, Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import WAIT_S, wait_until
 
 UNTESTED = "vsc_watchdog_untested"
 CLEAR_MS = 2000  # vsc.prooftest_clear_ms for these robots: a held bit's wait, kept short

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.testkit.faults import Robot
+from supervisord.testkit.robot import Robot
 
 
 @pytest.mark.parametrize(

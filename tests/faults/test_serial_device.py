@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.testkit.faults import ALLOWANCE_S, Robot, Stop, wait_until
+from supervisord.testkit.robot import ALLOWANCE_S, Robot, Stop
+from supervisord.testkit.wait import wait_until
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog trips after 500 ms without our heartbeat (SR-5)
 

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.testkit.faults import ALLOWANCE_S, Robot, wait_until
+from supervisord.testkit.robot import ALLOWANCE_S, Robot
+from supervisord.testkit.wait import wait_until
 
 HEARTBEAT = 0x20  # the VSC heartbeat's message type (manual §8.3.3)
 

@@ -23,7 +23,8 @@ from typing import Any
 
 import pytest
 
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 NOBODY = 65534
 MAX_CLIENTS = 16  # api.max_clients default (docs/configuration.md)

@@ -12,7 +12,8 @@ import pytest
 
 from supervisord.protocol.codes import VscMode
 from supervisord.safety.decision import RefusalReason
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 FLAP_S = 2.0  # twenty times the 100 ms re-arm hold the harness configures
 

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from supervisord.links.base import LinkBroken
+from supervisord.links.base import LinkBrokenError
 from supervisord.links.can_link import CanLink, from_python_can, to_python_can
 from supervisord.protocol.j1939 import (
     FeedbackStringSegment,
@@ -105,7 +105,7 @@ def test_errors_above_the_limit_in_a_window_break_the_link(vsc_bus: can.BusABC) 
     try:
         for _ in range(17):
             vsc_bus.send(error_frame())
-        with pytest.raises(LinkBroken, match="17 CAN error frames"):
+        with pytest.raises(LinkBrokenError, match="17 CAN error frames"):
             drain(link)
     finally:
         link.close()
@@ -114,7 +114,7 @@ def test_errors_above_the_limit_in_a_window_break_the_link(vsc_bus: can.BusABC) 
 def test_bus_off_breaks_the_link_at_once(vsc_bus: can.BusABC, link: CanLink) -> None:
     """An error frame that reports bus-off is a transport fault at the first one."""
     vsc_bus.send(error_frame(0x40))
-    with pytest.raises(LinkBroken, match="bus-off"):
+    with pytest.raises(LinkBrokenError, match="bus-off"):
         drain(link)
 
 
@@ -136,7 +136,7 @@ def test_error_passive_for_too_long_breaks_the_link(vsc_bus: can.BusABC) -> None
         drain(link)
         time.sleep(0.08)
         vsc_bus.send(to_python_can(encode_can(VscHeartbeat(9))))
-        with pytest.raises(LinkBroken, match="error-passive"):
+        with pytest.raises(LinkBrokenError, match="error-passive"):
             drain(link)
     finally:
         link.close()

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.links.base import Backoff, LinkBroken, LinkError
+from supervisord.links.base import Backoff, LinkBrokenError, LinkError
 from supervisord.links.serial_link import SerialLink
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import FeedbackGet, UserHeartbeat, VscHeartbeat
-from supervisord.testkit.pty_port import PtyPort
+from supervisord.sim.pty import PtyPort
 
 
 def receive_until(link: SerialLink, count: int) -> list[object]:
@@ -57,13 +57,13 @@ def test_frames_both_ways(port: PtyPort) -> None:
 
 
 def test_unplug_is_broken_and_replug_reopens(port: PtyPort) -> None:
-    """Closing the device end makes receive raise LinkBroken; a new device at the same path
+    """Closing the device end makes receive raise LinkBrokenError; a new device at the same path
     opens again and its traffic decodes with a fresh decoder."""
     link = SerialLink(str(port.path))
     link.open()
     port.write(encode_frame(VscHeartbeat(9))[:5])  # half a frame, then the plug is pulled
     port.unplug()
-    with pytest.raises(LinkBroken):
+    with pytest.raises(LinkBrokenError):
         receive_until(link, 1)
     link.close()
     with pytest.raises(LinkError):

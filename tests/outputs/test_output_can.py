@@ -25,7 +25,11 @@ def test_open_sends_off_at_once(virtual_buses: Buses) -> None:
     assert frame.arbitration_id == 0x210
     assert not frame.is_extended_id
     assert bytes(frame.data) == bytes.fromhex("00 00 00 00")
-    out.close()
+    closed = out.close()
+    assert closed is not None
+    assert (closed.ok, closed.requested) == (True, False)
+    [last] = watch.drain()
+    assert watch.level(last) is False
 
 
 def test_stop_sends_off_at_once_and_keeps_sending(virtual_buses: Buses) -> None:

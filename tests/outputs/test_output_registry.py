@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -14,12 +16,13 @@ from supervisord.outputs import (
     OutputUsageError,
     Periodic,
     ReadBack,
+    Resources,
     create_output,
     output_class,
     parse_output_spec,
 )
 from supervisord.outputs.can_enable import CanEnableOutput, CanEnableSpec
-from supervisord.outputs.gpio import GpioOutput
+from supervisord.outputs.gpio import GpioOutput, GpioSpec
 from supervisord.outputs.sim import SimOutput, SimSpec
 
 
@@ -119,3 +122,51 @@ def test_periodic_schedule() -> None:
     assert not p.due(10**12)
     with pytest.raises(ValueError, match="positive"):
         Periodic(0)
+
+
+def _imports_of(module: str) -> set[str]:
+    """The supervisord.outputs modules ``module``'s source imports, at any depth of it."""
+    path = Path(__file__).resolve().parents[2] / "supervisord" / "outputs" / f"{module}.py"
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
+            "supervisord.outputs"
+        ):
+            found.add(str(node.module))
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("supervisord.outputs")}
+    return found
+
+
+def test_no_import_cycle_between_base_registry_and_plugins() -> None:
+    """The base class imports no plugin and not the registry; each plugin imports only the
+    base; the registry imports the base and finds the plugins by name (issue 15)."""
+    assert _imports_of("base") == set()
+    for plugin in ("sim", "gpio", "can_enable"):
+        assert _imports_of(plugin) == {"supervisord.outputs.base"}, plugin
+    assert _imports_of("registry") == {"supervisord.outputs.base"}
+
+
+def test_every_spec_names_what_it_holds_exclusively() -> None:
+    """SR-11.1: a GPIO spec claims its chip and line, a CAN spec its identifier, a sim spec its
+    file; a kernel chip name and its device path are one chip."""
+    by_name = GpioSpec(name="a", chip="gpiochip3", line=4).claims()
+    by_path = GpioSpec(name="b", chip="/dev/gpiochip3", line=4).claims()
+    assert [c.identity for c in by_name] == [c.identity for c in by_path]
+    assert by_name[0].option == "line"
+    can_claim = CanEnableSpec(name="d", arbitration_id=0x201, data_on=b"\x01", data_off=b"\x00")
+    assert [c.identity for c in can_claim.claims()] == [("can", 0x201, False)]
+    sim = SimSpec(name="s", path=Path("run/drive"))
+    assert [(c.option, c.path) for c in sim.claims()] == [("path", Path("run/drive"))]
+    assert SimSpec(name="m").claims() == ()
+    assert sim.resolved(Path("/base")).path == Path("/base/run/drive")
+
+
+def test_every_kind_is_built_the_same_way() -> None:
+    """create_output builds every kind through its class's build with the same resources;
+    a kind's spec given to another kind's class is refused."""
+    spec = SimSpec(name="s")
+    built = output_class("sim").build(spec, Resources())
+    assert isinstance(built, SimOutput)
+    with pytest.raises(OutputUsageError):
+        output_class("gpio").build(spec, Resources())

@@ -43,13 +43,21 @@ def test_file_is_replaced_not_rewritten_in_place(tmp_path: Path) -> None:
 
 
 def test_open_overwrites_a_stale_on(tmp_path: Path) -> None:
-    """A file left at 1 by an earlier run reads 0 as soon as the output is opened."""
+    """SR-6: a file left at 1 by an earlier run reads 0 as soon as the output is acquired
+    (opened), the open's read-back says off, and the line stays off through its close."""
     path = tmp_path / "enable"
     path.write_text("1\n")
     out = SimOutput(SimSpec(name="a", path=path))
-    out.open(T0)
+    opened = out.open(T0)
+    assert opened.ok, opened
+    assert (opened.requested, opened.written, opened.observed) == (False, False, False)
     assert path.read_text() == "0\n"
-    out.close()
+    assert out.is_open
+    assert out.device_level is False
+    closed = out.close()
+    assert closed is not None
+    assert closed.ok, closed
+    assert path.read_text() == "0\n"
 
 
 def test_open_fails_when_the_file_cannot_be_written(tmp_path: Path) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.record import BadLine, Record, format_utc, read_records
+from supervisord.record import BadLine, StoredRecord, format_utc, read_records
 
 
 @pytest.fixture(autouse=True)
@@ -50,7 +50,7 @@ def make_record(
     return record
 
 
-def records_in(path: Path) -> list[Record]:
+def records_in(path: Path) -> list[StoredRecord]:
     """The records of ``path`` (all files), asserting there is no bad line but a torn tail."""
     found = []
     for item in read_records(path):

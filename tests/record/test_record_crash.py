@@ -18,8 +18,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from supervisord.record import (
-    Record,
     RecordWriter,
+    StoredRecord,
     jsonl,
     last_record,
     read_records,
@@ -191,4 +191,4 @@ def test_cut_at_any_byte_keeps_every_whole_record(cut: float, count: int) -> Non
             assert w.repaired_bytes == len(kept) - (kept.rfind(b"\n") + 1)
             w.append(make_record(100))
         assert seqs_in(path) == [*range(whole), 100]
-        assert all(isinstance(item, Record) for item in read_records(path))
+        assert all(isinstance(item, StoredRecord) for item in read_records(path))

@@ -3,14 +3,20 @@ a journal socket of our own (supervisord.record.journal)."""
 
 from __future__ import annotations
 
+import array
 import errno
+import fcntl
 import json
+import os
 import shutil
+import socket
 import struct
 import subprocess
 import sys
 import textwrap
+import time
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -25,6 +31,7 @@ from supervisord.record import (
     journal_fields,
     priority,
 )
+from supervisord.record.journal import SEND_TIMEOUT_S, encode_native
 from tests.record.conftest import make_record
 
 
@@ -37,6 +44,7 @@ def test_message_ids_are_fixed_and_distinct() -> None:
         RecordKind.REARM_REFUSED: "2be6051d1b7c43d0a0bfd08ad06caac8",
         RecordKind.COMMISSIONED: "bdd0782d2f2b45a3bdc4e9984db1024d",
         RecordKind.PROOFTEST: "af4347b3c6a741d6a06ce07e58cea85a",
+        RecordKind.HELLO_REFUSED: "31b39d5239c64c748a02ea76dd76a97f",
     }
 
 
@@ -110,111 +118,221 @@ def test_bad_records_are_refused() -> None:
         journal_fields(make_record(0) | {"causes": None})
 
 
+def test_field_names_journald_would_drop_are_refused() -> None:
+    """SR-7.3: encode_native refuses a field name journald would drop (lower case, leading
+    underscore or digit, longer than 64) instead of sending an entry that loses it."""
+    for name in ("message", "_PID", "1ST", "A" * 65, "SRCS-X", ""):
+        with pytest.raises(RecordUsageError):
+            encode_native([(name, "x")])
+    assert encode_native([("A" * 64, "x")]) == b"A" * 64 + b"=x\n"
+
+
+def test_native_encoding_of_plain_and_multiline_values() -> None:
+    """SR-7.3: a value without a newline is KEY=value; one with a newline takes the binary
+    form, KEY, newline, its 64-bit little-endian length, the bytes, newline."""
+    data = encode_native([("MESSAGE", "one"), ("SRCS_TRIGGER", "a\nb"), ("EMPTY", "")])
+    assert data == b"MESSAGE=one\nSRCS_TRIGGER\n" + struct.pack("<Q", 3) + b"a\nb\nEMPTY=\n"
+
+
 def test_sink_without_a_socket_is_unavailable(tmp_path: Path) -> None:
-    """Without a journal socket the sink says why and its writes return False."""
-    sent: list[tuple[str, ...]] = []
-    sink = JournalSink(sendv=lambda *a: sent.append(a), socket_path=str(tmp_path / "nothing"))
-    assert not sink.available
-    assert sink.unavailable_reason is not None
-    assert "no journal socket" in sink.unavailable_reason
-    assert sink.write(make_record(0)) is False
-    assert sent == []
+    """SR-7.3: without a journal socket the sink says why and its writes return False."""
+    with JournalSink(socket_path=str(tmp_path / "nothing")) as sink:
+        assert not sink.available
+        assert sink.unavailable_reason is not None
+        assert "no journal socket" in sink.unavailable_reason
+        assert sink.write(make_record(0)) is False
 
 
 def test_sink_on_a_plain_file_is_unavailable(tmp_path: Path) -> None:
-    """A path that exists but is not a socket does not count as a journal."""
+    """SR-7.3: a path that exists but is not a socket does not count as a journal."""
     (tmp_path / "socket").write_text("")
-    sink = JournalSink(sendv=lambda *a: None, socket_path=str(tmp_path / "socket"))
-    assert not sink.available
+    with JournalSink(socket_path=str(tmp_path / "socket")) as sink:
+        assert not sink.available
+        assert sink.write(make_record(0)) is False
 
 
-def _bound_socket(tmp_path: Path) -> str:
-    import socket  # noqa: PLC0415  (only this helper needs it)
-
-    path = str(tmp_path / "journal.sock")
-    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as s:
-        s.bind(path)
-    return path
-
-
-def test_sink_passes_field_strings_to_sendv(tmp_path: Path) -> None:
-    """With a journal socket, write hands sendv one "FIELD=value" string per field."""
-    sent: list[tuple[str, ...]] = []
-    sink = JournalSink(sendv=lambda *a: sent.append(a), socket_path=_bound_socket(tmp_path))
-    assert sink.available
-    assert sink.write(make_record(3)) is True
-    assert sent == [tuple(f"{k}={v}" for k, v in journal_fields(make_record(3)))]
-
-
-def test_sink_reports_a_refusal(tmp_path: Path) -> None:
-    """An OSError from sendv becomes JournalError with its errno."""
-
-    def refuse(*_: str) -> None:
-        raise OSError(errno.ECONNREFUSED, "Connection refused")
-
-    sink = JournalSink(sendv=refuse, socket_path=_bound_socket(tmp_path))
-    with pytest.raises(JournalError) as e:
-        sink.write(make_record(0))
-    assert e.value.errno == errno.ECONNREFUSED
-
-
-# The real thing: systemd.journal.sendv (libsystemd) always sends to the fixed path
-# /run/systemd/journal/socket. In a private mount namespace with a fresh tmpfs on /run, the
-# child binds that path itself and reads what libsystemd sends: the journal's native protocol.
-NAMESPACE_CHILD = textwrap.dedent(
-    """
-    import os, socket, sys
-    os.makedirs("/run/systemd/journal")
-    s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-    s.bind("/run/systemd/journal/socket")
-    from supervisord.record import JournalSink
-    from tests.record.conftest import make_record
-    sink = JournalSink()
-    assert sink.available, sink.unavailable_reason
-    record = make_record(9, causes=("client_lost:nav", "vsc_estop"))
-    record["trigger"] = "line one\\nline two"
-    assert sink.write(record)
-    sys.stdout.buffer.write(s.recv(1 << 16))
-    """
-)
+# A journal socket of the test's own, read as journald reads it (the native protocol of
+# systemd.io/JOURNAL_NATIVE_PROTOCOL): the sink's bytes are checked against the protocol, not
+# against the sink's own encoder.
 
 
 def _parse_native(data: bytes) -> list[tuple[str, str]]:
-    """Fields of one datagram in the journal's native protocol ("K=V\\n", or "K\\n" + 64-bit
-    little-endian length + value + "\\n" for values with newlines)."""
+    """Fields of one entry in the journal's native protocol ("K=V\n", or "K\n" + 64-bit
+    little-endian length + value + "\n" for values with newlines)."""
     fields = []
     while data:
-        head, _, rest = data.partition(b"\n")
+        head, newline, rest = data.partition(b"\n")
+        assert newline, f"field without its newline: {head[:40]!r}"
         if b"=" in head:
             key, _, value = head.partition(b"=")
             data = rest
         else:
             key, (size,) = head, struct.unpack("<Q", rest[:8])
-            value, data = rest[8 : 8 + size], rest[8 + size + 1 :]
+            value = rest[8 : 8 + size]
+            assert rest[8 + size : 9 + size] == b"\n", "binary value without its newline"
+            data = rest[9 + size :]
         fields.append((key.decode(), value.decode()))
     return fields
 
 
-def test_wire_format_on_a_journal_socket(tmp_path: Path) -> None:
-    """systemd.journal.sendv delivers every field, repeated SRCS_CAUSE and multi-line values
-    included, to a journal socket (our own, in a private mount namespace)."""
+class JournalReader:
+    """A bound datagram socket that takes entries as datagrams or as memfds (SCM_RIGHTS)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = str(path)
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        self.sock.bind(self.path)
+        self.sock.settimeout(5)
+        self.seals: int | None = None
+
+    def receive(self) -> list[tuple[str, str]]:
+        data, ancillary, _, _ = self.sock.recvmsg(1 << 16, socket.CMSG_SPACE(4))
+        self.seals = None
+        for level, kind, payload in ancillary:
+            assert (level, kind) == (socket.SOL_SOCKET, socket.SCM_RIGHTS)
+            (fd,) = array.array("i", payload[:4])
+            try:
+                self.seals = fcntl.fcntl(fd, fcntl.F_GET_SEALS)
+                data = os.pread(fd, os.fstat(fd).st_size, 0)
+            finally:
+                os.close(fd)
+        return _parse_native(data)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.fixture
+def reader(tmp_path: Path) -> Iterator[JournalReader]:
+    """A journal socket of the test's own in ``tmp_path``."""
+    journal = JournalReader(tmp_path / "journal.sock")
+    yield journal
+    journal.close()
+
+
+def test_entry_on_a_journal_socket(reader: JournalReader) -> None:
+    """SR-7.3: the sink sends every field to the journal socket it was given, in journald's
+    native protocol, repeated SRCS_CAUSE and a multi-line value included."""
+    record = make_record(9, causes=("client_lost:nav", "vsc_estop"))
+    record["trigger"] = "line one\nline two"
+    with JournalSink(socket_path=reader.path) as sink:
+        assert sink.available, sink.unavailable_reason
+        assert sink.write(record) is True
+    received = reader.receive()
+    assert received == journal_fields(record)
+    assert uuid.UUID(dict(received)["MESSAGE_ID"]) == MESSAGE_IDS[RecordKind.STATE_CHANGE]
+    assert reader.seals is None, "a small entry goes as a datagram, not a memfd"
+
+
+def test_a_large_entry_goes_through_a_sealed_memfd(reader: JournalReader) -> None:
+    """SR-7.3: an entry too large for one datagram is passed as a sealed memfd (SCM_RIGHTS),
+    as journald's protocol allows, and arrives whole."""
+    record = make_record(10) | {"trigger": "x" * 400_000 + "\nend"}
+    with JournalSink(socket_path=reader.path) as sink:
+        assert sink.write(record) is True
+    assert reader.receive() == journal_fields(record)
+    assert reader.seals is not None, "the large entry did not come as a file descriptor"
+    wanted = fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_WRITE
+    assert reader.seals & wanted == wanted
+
+
+def test_sink_reports_a_refusal(tmp_path: Path) -> None:
+    """SR-7.3: a journal socket nobody listens on any more (journald gone) refuses the entry:
+    JournalError with its errno."""
+    journal = JournalReader(tmp_path / "journal.sock")
+    with JournalSink(socket_path=journal.path) as sink:
+        journal.close()  # the socket file stays, nobody reads it
+        with pytest.raises(JournalError) as e:
+            sink.write(make_record(0))
+    assert e.value.errno == errno.ECONNREFUSED
+
+
+def test_a_stuck_journal_refuses_after_a_bounded_wait(reader: JournalReader) -> None:
+    """SR-7.5: when journald stops reading and its queue is full, a write gives up after
+    SEND_TIMEOUT_S with JournalError instead of holding the sink thread for good."""
+    refusal: JournalError | None = None
+    with JournalSink(socket_path=reader.path) as sink:
+        for seq in range(100_000):  # the queue holds a few hundred entries at most
+            started = time.monotonic()
+            try:
+                sink.write(make_record(seq))
+            except JournalError as error:
+                refusal = error
+                break
+    took = time.monotonic() - started
+    assert refusal is not None, "a journal that reads nothing never refused an entry"
+    assert refusal.errno == errno.EAGAIN
+    assert SEND_TIMEOUT_S * 0.9 <= took < SEND_TIMEOUT_S + 20
+
+
+# The real journald: systemd-journald run as a plain process for a journal namespace of its own
+# (systemd-journald.service(8)), in a private mount namespace whose /run and /var/log are fresh
+# tmpfs: it writes nowhere the host can see. journalctl then reads the fields back.
+JOURNALD_CHILD = textwrap.dedent(
+    """
+    set -eu
+    mount -t tmpfs tmpfs /run
+    mount -t tmpfs tmpfs /var/log
+    "$JOURNALD" srcstest &
+    journald=$!
+    socket=/run/systemd/journal.srcstest/socket
+    for _ in $(seq 100); do [ -S "$socket" ] && break; sleep 0.1; done
+    "$PYTHON" -m tests.record.test_record_journal "$socket"
+    kill -TERM "$journald"
+    wait "$journald" || true
+    exec journalctl --directory /var/log/journal/*.srcstest --all -o json --no-pager \\
+        SYSLOG_IDENTIFIER=srcsd
+    """
+)
+
+
+def _journald_records() -> list[dict[str, object]]:
+    stop = make_record(21, causes=("client_lost:nav", "vsc_estop"))
+    stop["trigger"] = "line one\nline two"
+    large = make_record(22, kind="cause_raised") | {"trigger": "y" * 300_000}
+    return [stop, large]
+
+
+def _send_to(socket_path: str) -> None:
+    """In the journald child: send the records through the sink."""
+    with JournalSink(socket_path=socket_path) as sink:
+        for record in _journald_records():
+            assert sink.write(record), sink.unavailable_reason
+
+
+def test_a_real_journald_stores_every_field() -> None:
+    """SR-7.3: systemd-journald itself (a private instance) stores each entry the sink sends,
+    datagram and memfd alike, with its MESSAGE_ID, PRIORITY, every SRCS_CAUSE and the
+    multi-line value, as journalctl reads them back."""
+    journald = shutil.which("systemd-journald") or "/lib/systemd/systemd-journald"
     unshare = shutil.which("unshare")
-    if unshare is None:
-        pytest.skip("no unshare(1): cannot give the child its own /run")
+    if unshare is None or not Path(journald).exists() or shutil.which("journalctl") is None:
+        pytest.skip("needs unshare(1), systemd-journald and journalctl")
     root = Path(__file__).resolve().parents[2]
-    script = f'mount -t tmpfs tmpfs /run && exec "{sys.executable}" -c "$0"'
     result = subprocess.run(
-        [unshare, "--mount", "--propagation", "private", "sh", "-c", script, NAMESPACE_CHILD],
+        [unshare, "--mount", "--propagation", "private", "sh", "-c", JOURNALD_CHILD],
         capture_output=True,
         cwd=root,
-        timeout=30,
+        env={**os.environ, "JOURNALD": journald, "PYTHON": sys.executable},
+        timeout=60,
         check=False,
     )
     if result.returncode != 0 and b"Operation not permitted" in result.stderr:
         pytest.skip("no permission for a private mount namespace (needs root)")
     assert result.returncode == 0, result.stderr.decode()
-    received = _parse_native(result.stdout)
-    record = make_record(9, causes=("client_lost:nav", "vsc_estop"))
-    record["trigger"] = "line one\nline two"
-    assert received == journal_fields(record)
-    assert uuid.UUID(dict(received)["MESSAGE_ID"]) == MESSAGE_IDS[RecordKind.STATE_CHANGE]
+    entries = [json.loads(line) for line in result.stdout.decode().splitlines()]
+    assert len(entries) == 2, result.stdout.decode()[:2000]
+    for entry, record in zip(entries, _journald_records(), strict=True):
+        expected: dict[str, object] = {}
+        for key, value in journal_fields(record):
+            if key in expected:  # journalctl -o json lists a repeated field as an array
+                before = expected[key]
+                expected[key] = [*(before if isinstance(before, list) else [before]), value]
+            else:
+                expected[key] = value
+        assert {k: entry.get(k) for k in expected} == expected
+        assert entry["_TRANSPORT"] == "journal"
+
+
+if __name__ == "__main__":  # the journald child's sender (test_a_real_journald_stores_every_field)
+    _send_to(sys.argv[1])

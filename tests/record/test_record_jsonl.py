@@ -14,10 +14,10 @@ import pytest
 from supervisord.record import (
     BadLine,
     BadLineReason,
-    Record,
     RecordError,
     RecordUsageError,
     RecordWriter,
+    StoredRecord,
     jsonl,
     last_record,
     read_records,
@@ -196,7 +196,7 @@ def test_reader_reports_torn_tail_without_misreading(tmp_path: Path) -> None:
     ):
         path.write_bytes(good + tail)
         items = list(read_records(path))
-        assert [type(i) for i in items] == [Record, BadLine]
+        assert [type(i) for i in items] == [StoredRecord, BadLine]
         bad = items[1]
         assert isinstance(bad, BadLine)
         assert (bad.reason, bad.line) == (BadLineReason.TORN_TAIL, 2)
@@ -241,7 +241,7 @@ def test_filters_by_time_and_cause(tmp_path: Path) -> None:
     at = [EPOCH + dt.timedelta(seconds=s) for s in range(4)]
 
     def seqs(**filters: object) -> list[int]:
-        return [i.seq for i in read_records(path, **filters) if isinstance(i, Record)]  # type: ignore[arg-type]
+        return [i.seq for i in read_records(path, **filters) if isinstance(i, StoredRecord)]  # type: ignore[arg-type]
 
     assert seqs(since=at[1]) == [1, 2, 3]
     assert seqs(until=at[2]) == [0, 1]

@@ -31,7 +31,8 @@ with warnings.catch_warnings():
     # warning an error. Loading it once here keeps the deprecation out of the tests.
     warnings.simplefilter("ignore", DeprecationWarning)
     import rosidl_generator_py  # noqa: F401
-from supervisord.testkit.faults import WAIT_S, ClientProcess, FaultHarnessError
+from supervisord.testkit.clients import ClientProcess
+from supervisord.testkit.wait import WAIT_S, FaultHarnessError
 
 _DOMAINS = itertools.count()
 

@@ -24,7 +24,8 @@ except ImportError as error:  # rclpy's libraries are not on the library path
         allow_module_level=True,
     )
 
-from supervisord.testkit.faults import Robot, wait_until
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
 
 pytestmark = pytest.mark.usefixtures("private_network")
 

@@ -48,14 +48,20 @@ def test_estop_before_hello_is_honoured() -> None:
 
 
 def test_anonymous_estop_ends_with_its_connection() -> None:
-    """An e-stop made before hello ends (stays latched) when its connection closes."""
+    """SR-1.1, SR-2: an e-stop made before hello ends when its connection closes, and its stop
+    stays latched: STOPPED, the drive off, through healthy inputs until a re-arm."""
     rig = Rig()
     rig.bring_up()
     rig.connect(7, None)
     rig.estop(7)
     decision = rig.disconnect(7)
     assert "client_estop:#7" not in decision.active_names
+    assert "client_estop:#7" in decision.latched_names
     assert decision.state is State.STOPPED
+    later = rig.run_for(1000, OPERATIONAL)  # the VSC healthy, the planner beating
+    assert later.state is State.STOPPED
+    assert "client_estop:#7" in later.latched_names
+    assert later.outputs["drive"] is False
 
 
 def test_named_estop_survives_a_disconnect_until_that_client_releases() -> None:

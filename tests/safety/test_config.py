@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.safety import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
 
@@ -62,35 +65,65 @@ def test_bad_client_and_output_specs_are_refused() -> None:
         OutputSpec("drive", "motion")  # type: ignore[arg-type]
 
 
-def test_from_mapping_reads_a_parsed_file() -> None:
-    """A parsed TOML-like mapping becomes a config with typed clients and outputs."""
-    config = SafetyConfig.from_mapping(
-        {
-            "transport": "can",
-            "require_watchdog": False,
-            "clients": [{"name": "planner", "timeout_ms": 300}],
-            "outputs": [{"name": "drive", "role": "motion"}, {"name": "lamp", "role": "power"}],
-        }
-    )
+ROBOT_FILE = """\
+[robot]
+name = "bot"
+
+[vsc]
+transport = "can"
+require_watchdog = false
+
+[[clients]]
+name = "planner"
+timeout_ms = 300
+
+[[outputs]]
+name = "drive"
+kind = "sim"
+role = "motion"
+
+[[outputs]]
+name = "lamp"
+kind = "sim"
+role = "power"
+"""
+
+
+def test_the_loader_builds_the_safety_config_from_a_file(tmp_path: Path) -> None:
+    """SR-11.2: the robot's file becomes a SafetyConfig with typed clients and outputs."""
+    file = tmp_path / "robot.toml"
+    file.write_text(ROBOT_FILE)
+    config = load_config(file).safety
     assert config.transport is Transport.CAN
     assert config.clients == (ClientSpec("planner", 300),)
-    assert config.outputs[1] == OutputSpec("lamp", OutputRole.POWER)
+    assert [(o.name, o.role) for o in config.outputs] == [
+        ("drive", OutputRole.MOTION),
+        ("lamp", OutputRole.POWER),
+    ]
 
 
 @pytest.mark.parametrize(
-    ("data", "key"),
+    ("old", "new", "key"),
     [
-        ({"heartbeat": 20}, "heartbeat"),
-        ({"transport": "usb"}, "transport"),
-        ({"transport": "can"}, "require_watchdog"),
-        ({"clients": [{"name": "a", "timeout": 3}]}, "clients.timeout"),
-        ({"outputs": [{"name": "a", "role": "laser"}]}, "outputs.a.role"),
-        ({"clients": "planner"}, "clients"),
+        ("require_watchdog = false", "require_watchdog = false\nheartbeat = 20", "vsc.heartbeat"),
+        ('transport = "can"', 'transport = "usb"', "vsc.transport"),
+        ("require_watchdog = false", "", "vsc.require_watchdog"),
+        ("timeout_ms = 300", "timeout = 3", "clients[0].timeout"),
+        ('role = "power"', 'role = "laser"', "outputs[1].role"),
+        (
+            '[[clients]]\nname = "planner"\ntimeout_ms = 300',
+            '[clients]\nname = "planner"',
+            "clients",
+        ),
     ],
 )
-def test_from_mapping_names_the_file_and_key(data: dict[str, object], key: str) -> None:
-    """Unknown keys and bad values in a file are errors naming the file and the key."""
+def test_the_loader_names_the_file_and_key(tmp_path: Path, old: str, new: str, key: str) -> None:
+    """SR-11.2: unknown keys and bad safety values in a file are errors naming the file and
+    the key as the file spells it."""
+    file = tmp_path / "robot.toml"
+    assert old in ROBOT_FILE
+    file.write_text(ROBOT_FILE.replace(old, new, 1))
     with pytest.raises(ConfigError) as caught:
-        SafetyConfig.from_mapping(data, file="robot.toml")
+        load_config(file)
     assert caught.value.key == key
-    assert caught.value.file == "robot.toml"
+    assert caught.value.file == str(file)

@@ -26,7 +26,7 @@ from supervisord.protocol.messages import Axis, FeedbackSet, Joystick, VscHeartb
 from supervisord.sim.can_side import CanSide, can_frames
 from supervisord.sim.engine import Simulator
 from supervisord.sim.model import VscModel
-from supervisord.testkit.sim import SimProcess
+from supervisord.sim.process import SimProcess
 
 
 def to_can(frame: CanFrame) -> can.Message:

@@ -12,7 +12,7 @@ import pytest
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.sim.faults import FaultInjector, FaultPlan
-from supervisord.testkit.sim import SimProcess
+from supervisord.sim.process import SimProcess
 from tests.sim.test_process import Host
 
 LOCAL, OPERATIONAL = VscMode.LOCAL.value, VscMode.OPERATIONAL.value

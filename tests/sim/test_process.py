@@ -27,7 +27,7 @@ from supervisord.protocol.messages import (
     UserHeartbeat,
     VscHeartbeat,
 )
-from supervisord.testkit.sim import SimControl, SimError, SimProcess
+from supervisord.sim.process import SimControl, SimError, SimProcess
 
 
 class Host:

@@ -11,8 +11,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from supervisord.sim.process import SimControl, SimError, SimProcess
 from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
-from supervisord.testkit.sim import SimControl, SimError, SimProcess
 
 
 def wait(done: Callable[[], bool], limit: float = 15.0) -> None:

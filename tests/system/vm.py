@@ -3,7 +3,8 @@
 Three boots (each about 2-8 s before the scenarios start):
 
 1. ``srcs.suite=main``: systemd as PID 1 runs the scenarios in ``guest/scenarios.py`` against
-   ``srcsd@`` as installed by ``guest/prep``, then reboots (qemu exits).
+   ``srcsd@`` from the package (``--deb``), which they install with ``dpkg -i`` in the guest,
+   then reboots (qemu exits).
 2. ``srcs.suite=powercut``: the stop record lives on a virtual ext4 disk; a client in the guest
    prints every record the daemon pushes to it (``SRCS-ACK``) while transitions are driven in
    a burst; after ``--acks`` of them this process kills qemu with SIGKILL: a power cut.
@@ -73,7 +74,7 @@ class Vm:
             # cache=writeback: what the guest flushed has been written to the image file, and
             # what it did not flush may still be in the guest's page cache, lost with qemu.
             cmd += ["-drive", f"file={a.disk},format=raw,if=virtio,cache=writeback"]
-        append = f"console=ttyS0 panic=-1 quiet srcs.opt={a.opt} srcs.out {append}"
+        append = f"console=ttyS0 panic=-1 quiet srcs.deb={a.deb} srcs.out {append}"
         if Path(a.repo).is_relative_to(GUEST_TMP):  # the guest's /tmp is its own: keep the repo
             append = f"srcs.keep={a.repo} {append}"
         return [*cmd, "-append", append]
@@ -156,7 +157,7 @@ def systemd_boot(vm: Vm, suite: str) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    for name in ("repo", "kernel", "initrd", "opt", "disk", "out", "python"):
+    for name in ("repo", "kernel", "initrd", "deb", "disk", "out", "python"):
         parser.add_argument(f"--{name}", required=True)
     parser.add_argument("--started", type=float, default=time.time())
     parser.add_argument("--acks", type=int, default=40, help="records acknowledged before the cut")

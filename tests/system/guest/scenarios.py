@@ -27,12 +27,12 @@ from typing import Any
 
 import can
 
-from supervisord.api.wire import ApiError
+from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
-from supervisord.testkit.sim import SimProcess
+from supervisord.sim.process import SimProcess
 
 MARKER = Path("/.srcs-system-tier")
 GPIO_SIM = Path("/sys/kernel/config/gpio-sim")
@@ -347,19 +347,101 @@ class Bench:
 # ---------------------------------------------------------------------------------- scenarios
 
 
+PACKAGE = "srcs-supervisord"
+PACKAGE_CHECKS: list[str] = []
+"""What the package's remove and purge did, for scenario_install (install() runs first)."""
+PACKAGE_PROBLEMS: list[str] = []
+"""What they did wrong; scenario_install fails with these."""
+PACKAGE_TIMES: Measured = {}
+
+
+def package_file() -> str:
+    """The .deb that tests/system/run built, named on the kernel command line (srcs.deb=)."""
+    for arg in Path("/proc/cmdline").read_text().split():
+        if arg.startswith("srcs.deb="):
+            return arg.split("=", 1)[1]
+    raise Failed("no srcs.deb= on the kernel command line")
+
+
+def dpkg(*args: str) -> float:
+    """dpkg inside the guest only (its root is a tmpfs overlay); the seconds it took. Other
+    packages' triggers (man-db's index) are left pending: minutes under emulation, nothing
+    to do with this package (docs/system-tier.md)."""
+    check(MARKER.exists(), "not inside the system tier's guest")
+    start = time.monotonic()
+    run("dpkg", "--no-triggers", *args)
+    return round(time.monotonic() - start, 1)
+
+
+def known(database: str, name: str) -> bool:
+    """``getent DATABASE NAME`` finds it."""
+    found = subprocess.run(["getent", database, name], check=False, capture_output=True)
+    return found.returncode == 0
+
+
+def package_cycle() -> None:
+    """Remove and purge the installed package, then install it again (docs/install.md
+    "Removing it"): a plain remove stops the instances and keeps the stop record (SR-7.4),
+    the users and /etc/srcs; purge deletes them."""
+    config = write_config(
+        "pkg",
+        '[vsc]\ntransport = "serial"\nport = "/dev/srcs-vsc-absent"\n'
+        '\n[[outputs]]\nname = "drive"\nkind = "sim"\n',
+    )
+    record = Path("/var/lib/srcsd/stops.jsonl")
+    try:
+        run("systemctl", "start", "srcsd@pkg.service")  # STOPPED, its VSC absent
+        wait_for("the startup record", lambda: record.exists() and record.stat().st_size > 0, 60)
+        PACKAGE_TIMES["dpkg -r s"] = dpkg("-r", PACKAGE)
+        active = prop("srcsd@pkg.service", "ActiveState")
+        for problem, bad in (
+            (f"srcsd@pkg still {active} after dpkg -r", active == "active"),
+            ("dpkg -r deleted the stop record", not record.exists()),
+            ("dpkg -r deleted /etc/srcs", not config.exists()),
+            ("dpkg -r left the unit", Path("/usr/lib/systemd/system/srcsd@.service").exists()),
+            ("dpkg -r left /opt/srcsd", Path("/opt/srcsd").exists()),
+        ):
+            if bad:
+                PACKAGE_PROBLEMS.append(problem)
+        run("getent", "passwd", "srcsd")
+        PACKAGE_CHECKS.append("remove: instance stopped, stop record, config and users kept")
+        config.unlink()
+        PACKAGE_TIMES["dpkg -P s"] = dpkg("-P", PACKAGE)
+        for problem, bad in (
+            ("dpkg -P left the stop record", Path("/var/lib/srcsd").exists()),
+            ("dpkg -P left an empty /etc/srcs", Path("/etc/srcs").exists()),
+            ("dpkg -P left the user srcsd", known("passwd", "srcsd")),
+            ("dpkg -P left the group srcs-dev", known("group", "srcs-dev")),
+        ):
+            if bad:
+                PACKAGE_PROBLEMS.append(problem)
+        PACKAGE_CHECKS.append("purge: record, /etc/srcs, users and groups gone")
+    except Exception as error:  # reported by scenario_install; the install below still runs
+        PACKAGE_PROBLEMS.append(describe(error))
+    finally:
+        PACKAGE_TIMES["dpkg -i again s"] = dpkg("-i", package_file())
+
+
 def install() -> None:
-    """The commands of docs/install.md, step 3, that need the running system (the files were
-    copied before the boot by guest/prep)."""
-    run("systemd-sysusers", "srcsd.conf")
-    run("systemd-tmpfiles", "--create", "srcsd.conf")
-    run("udevadm", "control", "--reload")
-    subsystems = ("--subsystem-match=tty", "--subsystem-match=hidraw", "--subsystem-match=gpio")
-    run("udevadm", "trigger", "--action=add", *subsystems)
-    run("systemctl", "daemon-reload")
+    """docs/install.md: the package installed with dpkg -i, whose postinst runs what step 3 of
+    the hand install did (systemd-sysusers, systemd-tmpfiles, udev reload and trigger,
+    daemon-reload). In the main suite, remove and purge are checked first."""
+    PACKAGE_TIMES["dpkg -i s"] = dpkg("-i", package_file())
+    if suite() == "main":
+        package_cycle()
 
 
 def scenario_install(_bench: Bench) -> tuple[str, Measured]:
-    """srcsd@ installed as docs/install.md says: users, directories, units that verify."""
+    """srcsd@ installed from the package: users, directories, units that verify; a remove that
+    keeps the stop record and a purge that deletes it."""
+    check(not PACKAGE_PROBLEMS, "; ".join(PACKAGE_PROBLEMS))
+    status_line = run("dpkg-query", "-W", "-f", "${Status} ${Version}", PACKAGE)
+    check(status_line.startswith("install ok installed"), f"dpkg: {status_line}")
+    version = run("/opt/srcsd/bin/srcsd", "--version")
+    check(status_line.split()[-1] in version, f"srcsd --version: {version}")
+    unit_file = prop("srcsd@gpio-a.service", "FragmentPath")  # /lib is /usr/lib (merged /usr)
+    packaged = Path("/usr/lib/systemd/system/srcsd@.service")
+    check(Path(unit_file).resolve() == packaged.resolve(), f"the unit is {unit_file}")
     verify = subprocess.run(
         ["systemd-analyze", "verify", "srcsd@gpio-a.service"],
         check=False,
@@ -384,9 +466,10 @@ def scenario_install(_bench: Bench) -> tuple[str, Measured]:
         .stdout.strip()
         .splitlines()
     )
-    return "units verify; user, groups, directories and the gpiochip's group are in place", {
+    return f"package {status_line.split()[-1]} installed; {'; '.join(PACKAGE_CHECKS)}", {
         "exposure (running system)": exposure[-1] if exposure else "?",
         "gpiochip": chip,
+        **PACKAGE_TIMES,
     }
 
 
@@ -589,6 +672,160 @@ def scenario_prooftest(bench: Bench) -> tuple[str, Measured]:
     return "start-up proof test passes; an ignoring VSC is caught, STOPPED, CRIT", {
         "restart to proof test passed s": round(took, 2),
         "trip time ms (manual: 500)": trip_ms,
+    }
+
+
+SPIN_DIR = Path(__file__).resolve().parent / "spin"  # its sitecustomize.py: the injection
+SPIN_TRIGGER = Path("/run/srcs-spin")
+SPIN_DROPIN = Path("/etc/systemd/system/srcsd@gpio-a.service.d/spin.conf")
+REALTIME_PROBE = """
+import os
+policy, priority = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+try:
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority + 1))
+    answer = "allowed"
+except OSError as error:
+    answer = "refused"
+print(policy, priority, answer)
+"""
+
+
+def scheduling(pid: int) -> list[tuple[int, int]]:
+    """(policy, priority) of every thread of ``pid``."""
+    return [
+        (os.sched_getscheduler(int(task.name)), os.sched_getparam(int(task.name)).sched_priority)
+        for task in Path(f"/proc/{pid}/task").iterdir()
+    ]
+
+
+def rttime_limits(pid: int) -> tuple[str, str]:
+    """RLIMIT_RTTIME of ``pid``, soft and hard, as /proc/PID/limits shows them (us)."""
+    for line in Path(f"/proc/{pid}/limits").read_text().splitlines():
+        if line.startswith("Max realtime timeout"):
+            fields = line.split()
+            return fields[3], fields[4]
+    raise Failed(f"no realtime timeout in /proc/{pid}/limits")
+
+
+def unit_rttime(unit: str) -> tuple[int, int]:
+    """``LimitRTTIME=`` of the unit's own file (not the guest's drop-in), soft and hard, us."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[3]))  # the repository's bench/
+    from bench.unit import read_unit  # noqa: PLC0415 -- the one parser of the unit's settings
+
+    scheduling = read_unit(Path(prop(unit, "FragmentPath")))
+    if scheduling.soft_us is None or scheduling.hard_us is None:
+        raise Failed(f"the unit sets no finite LimitRTTIME=: {scheduling}")
+    return scheduling.soft_us, scheduling.hard_us
+
+
+def realtime_probe(restrict: bool) -> str:
+    """A transient unit as root with the srcsd unit's policy, with or without
+    RestrictRealtime=yes: its policy, priority, and whether it may raise its priority."""
+    return run(
+        "systemd-run", "--wait", "--pipe", "--quiet",
+        "-p", "CPUSchedulingPolicy=fifo", "-p", "CPUSchedulingPriority=10",
+        "-p", f"RestrictRealtime={'yes' if restrict else 'no'}",
+        sys.executable, "-c", REALTIME_PROBE,
+    )  # fmt: skip
+
+
+def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
+    """SR-9, issue 14 item 2: srcsd runs SCHED_FIFO 10 under RLIMIT_RTTIME, and cannot
+    change that (RestrictRealtime=yes applies after systemd set the policy); a loop that spins
+    without ever blocking, while still pinging the watchdog, is killed by the unit's limit
+    (SIGXCPU, not systemd's watchdog), restarted by systemd STOPPED, again in SCHED_FIFO; the
+    guest's other processes keep running meanwhile. The guest starts srcsd with a larger
+    limit (guest/prep: its imports run 15-35 times slower here); the scenario puts the running
+    daemon under the unit's own limit (prlimit) before it spins."""
+    unit = bench.unit
+    restricted, free = realtime_probe(restrict=True), realtime_probe(restrict=False)
+    check(restricted == f"{os.SCHED_FIFO} 10 refused", f"RestrictRealtime=yes probe: {restricted}")
+    check(free == f"{os.SCHED_FIFO} 10 allowed", f"RestrictRealtime=no probe: {free}")
+    run("systemctl", "reset-failed", unit)  # the start limit counts the earlier scenarios' starts
+    SPIN_DROPIN.parent.mkdir(parents=True, exist_ok=True)
+    SPIN_DROPIN.write_text(f"[Service]\nEnvironment=PYTHONPATH={SPIN_DIR}\n")
+    try:
+        run("systemctl", "daemon-reload")
+        cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
+        run("systemctl", "restart", unit)
+        pid = main_pid(unit)
+        threads = scheduling(pid)
+        check(
+            all(entry == (os.SCHED_FIFO, 10) for entry in threads),
+            f"srcsd's threads (policy, priority): {threads}, expected SCHED_FIFO 10",
+        )
+        started = rttime_limits(pid)
+        wanted = (prop(unit, "LimitRTTIMESoft"), prop(unit, "LimitRTTIME"))
+        check(started == wanted and "unlimited" not in started, f"RLIMIT_RTTIME {started}")
+        soft, hard = unit_rttime(unit)
+        run("prlimit", "--pid", str(pid), f"--rttime={soft}:{hard}")
+        limits = rttime_limits(pid)
+        check(limits == (str(soft), str(hard)), f"RLIMIT_RTTIME {limits}, not the unit's")
+        wait_for("the injection armed", lambda: "srcs-spin: armed" in journal(unit, cursor), 60)
+        armed = next(
+            line for line in journal(unit, cursor).splitlines() if "srcs-spin: armed" in line
+        )
+        check("refused" in armed, f"srcsd raised its own FIFO priority: {armed}")
+        if state(bench.instance) != "RUN":
+            bench.to_run()
+        restarts = int(prop(unit, "NRestarts"))
+        cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
+        gaps: list[float] = []
+        sampling = threading.Event()
+
+        def sample() -> None:  # how long this ordinary process waits for a CPU meanwhile
+            last = time.monotonic()
+            while not sampling.is_set():
+                time.sleep(0.01)
+                now = time.monotonic()
+                gaps.append(now - last)
+                last = now
+
+        sampler = threading.Thread(target=sample)
+        sampler.start()
+        time.sleep(0.3)
+        t0 = time.monotonic()
+        SPIN_TRIGGER.write_text(str(pid))
+        SPIN_TRIGGER.chmod(0o644)
+        try:
+            wait_for("the limit kills it", lambda: not Path(f"/proc/{pid}").exists(), 60, 0.01)
+            dead = time.monotonic() - t0
+        finally:
+            sampling.set()
+            sampler.join()
+        check(bench.levels()[:2] == (0, 1), f"lines not off once dead: {bench.levels()}")
+        new_pid, took = bench.restarted(pid, RESTART_LIMIT_S)
+        told = journal(unit, cursor)
+        log(told[-1500:])
+        check("srcs-spin: spinning" in told, "the loop never started spinning")
+        check("24/XCPU" in told or "9/KILL" in told, "not killed by RLIMIT_RTTIME")
+        check("Watchdog timeout" not in told, "systemd's watchdog acted, not the limit")
+        check(int(prop(unit, "NRestarts")) == restarts + 1, "NRestarts did not grow by one")
+        check(state(bench.instance) == "STOPPED", "restarted supervisor not STOPPED")
+        bench.assert_off("after the restart")
+        again = scheduling(new_pid)
+        check(
+            all(entry == (os.SCHED_FIFO, 10) for entry in again),
+            f"the restarted srcsd's threads: {again}, expected SCHED_FIFO 10",
+        )
+        time.sleep(1.0)
+        check(state(bench.instance) == "STOPPED", "left STOPPED without a takeover")
+        signal_line = next(
+            (line.split(": ", 1)[-1] for line in told.splitlines() if "status=" in line), "?"
+        )
+    finally:
+        SPIN_TRIGGER.unlink(missing_ok=True)
+        SPIN_DROPIN.unlink(missing_ok=True)
+        subprocess.run(["systemctl", "daemon-reload"], check=False)
+        subprocess.run(["systemctl", "restart", unit], check=False)
+    return "FIFO 10 under RLIMIT_RTTIME; a spinning loop is killed by it, restarted STOPPED", {
+        "threads (policy, priority)": threads,
+        "RLIMIT_RTTIME at start (guest), for the spin (unit) us": [started, limits],
+        "RestrictRealtime=yes / =no probe": [restricted, free],
+        "spin to process gone s": round(dead, 2),
+        "how it ended": signal_line,
+        "longest wait of an ordinary process meanwhile s": round(max(gaps, default=0), 2),
+        "gone to restarted and READY s": round(took, 2),
     }
 
 
@@ -847,6 +1084,7 @@ MAIN: list[tuple[str, Scenario]] = [
     ("crash", scenario_crash),
     ("clean_stop", scenario_clean_stop),
     ("prooftest", scenario_prooftest),
+    ("rttime", scenario_rttime),
 ]
 
 

@@ -19,10 +19,12 @@ the rule's deadline plus ``ALLOWANCE_S``, the cause raised in a stop record, and
 ``recover``) no output on between the stop and the re-arm record. ``recover`` checks the
 fourth: after a valid takeover the robot runs again and ``status`` answers.
 
-The faults the simulator cannot make are made here: client processes that are killed,
-stopped or flood the socket (``ClientProcess``), wall-clock jumps (``FakeWallClock``, with
-Debian's libfaketime), a full disk under the record (a size-limited tmpfs in a private mount
-namespace), a private network namespace for CAN (``NetNamespace``).
+The faults the simulator cannot make are made by the rest of the kit: client processes
+that are killed, stopped or flood the socket (``clients.ClientProcess``), wall-clock jumps
+(``faketime.FakeWallClock``, with Debian's libfaketime), a full disk under the record (a
+size-limited tmpfs in a private mount namespace, ``namespaces.in_private_mount``), a private
+network namespace for CAN (``namespaces.NetNamespace``). ``watcher.OutputWatcher`` follows
+the output files (``inotify``); ``wait.wait_until`` is every "until".
 
 Deadlines are coarse on purpose: this is a functional suite on a shared two-core machine.
 The latency the rules ask for (SR-9) is measured by ``bench/``, not here.
@@ -30,35 +32,29 @@ The latency the rules ask for (SR-9) is measured by ``bench/``, not here.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import ctypes
-import ctypes.util
-import glob
 import itertools
-import json
 import os
-import select
 import shutil
-import signal
-import socket
-import struct
 import subprocess
 import sys
-import threading
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal
 
+from supervisord.children import kill, log_tail, terminate
 from supervisord.client import ClientError, SupervisorClient
-from supervisord.errors import SrcsError
-from supervisord.record import Record, read_records
+from supervisord.record import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
-from supervisord.testkit.process import terminate
-from supervisord.testkit.sim import SimControl, SimError, SimProcess
+from supervisord.sim.process import SimControl, SimError, SimProcess
+from supervisord.testkit.clients import ClientProcess
+from supervisord.testkit.faketime import FakeWallClock
+from supervisord.testkit.namespaces import NetNamespace, in_private_mount
+from supervisord.testkit.wait import WAIT_S, FaultHarnessError, wait_until
+from supervisord.testkit.watcher import OutputWatcher
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.
@@ -68,353 +64,6 @@ ALLOWANCE_S = float(os.environ.get("SRCS_FAULTS_ALLOWANCE_S", "0.75"))
 SERIAL_BEAT_S = 0.05  # the VSC heartbeat period on serial (manual table 5: 20 Hz)
 CAN_BEAT_S = 0.1  # on CAN (manual table 23: 10 Hz)
 HOLD_MS = 100  # the shortest re-arm hold the config allows: quick scenarios
-WAIT_S = 10.0  # how long any "until" waits before the scenario fails
-
-Transport = Literal["serial", "can"]
-State = dict[str, Any]
-
-
-class FaultHarnessError(AssertionError):
-    """A scenario's promise did not hold (an AssertionError, so pytest shows it as a failure)."""
-
-
-def wait_until(
-    condition: Callable[[], Any], timeout: float = WAIT_S, poll: float = 0.01, what: str = ""
-) -> Any:
-    """Poll ``condition`` until it returns something true; return that. Raise
-    ``FaultHarnessError`` naming ``what`` after ``timeout`` seconds."""
-    end = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise FaultHarnessError(f"timed out after {timeout} s waiting for {what or condition}")
-        time.sleep(poll)
-
-
-# ------------------------------------------------------------------ watching output files
-
-
-_IN_CLOSE_WRITE = 0x0000_0008
-_IN_MOVED_TO = 0x0000_0080
-_IN_CREATE = 0x0000_0100
-_IN_NONBLOCK = 0o4000
-_IN_CLOEXEC = 0o2000000
-_EVENT = struct.Struct("iIII")
-
-
-class Inotify:
-    """The few inotify calls the watcher needs, through ctypes (no extra dependency)."""
-
-    def __init__(self) -> None:
-        self._libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
-        fd = self._libc.inotify_init1(_IN_NONBLOCK | _IN_CLOEXEC)
-        if fd < 0:
-            raise OSError(ctypes.get_errno(), "inotify_init1 failed")
-        self.fd: int = fd
-
-    def watch(self, folder: Path, mask: int) -> None:
-        if self._libc.inotify_add_watch(self.fd, os.fsencode(folder), mask) < 0:
-            error = ctypes.get_errno()
-            raise OSError(error, f"inotify_add_watch {folder}: {os.strerror(error)}")
-
-    def read(self) -> list[str]:
-        """The names of the files that events arrived for, in order (may repeat)."""
-        try:
-            data = os.read(self.fd, 65536)
-        except BlockingIOError:
-            return []
-        names = []
-        offset = 0
-        while offset + _EVENT.size <= len(data):
-            _, _, _, length = _EVENT.unpack_from(data, offset)
-            raw = data[offset + _EVENT.size : offset + _EVENT.size + length]
-            names.append(raw.split(b"\0", 1)[0].decode(errors="replace"))
-            offset += _EVENT.size + length
-        return names
-
-    def close(self) -> None:
-        os.close(self.fd)
-
-
-@dataclass(frozen=True)
-class Level:
-    """One observed level of an output file: ``t`` (monotonic s) when it was seen, ``on``.
-    ``inferred`` marks a level the watcher did not read but knows must have been there
-    (see ``OutputWatcher``)."""
-
-    t: float
-    on: bool
-    inferred: bool = False
-
-
-class OutputWatcher:
-    """Follows the files of ``kind = "sim"`` outputs with inotify, from a thread, and keeps
-    every level each file showed, with the monotonic time it was seen.
-
-    The simulated output replaces its file atomically, and only when the level changes
-    (``supervisord/outputs/sim.py``); the only exception is the "off" it writes when the
-    output is acquired at a daemon start. So between two daemon starts the levels must
-    alternate: two "off" readings in a row mean an "on" came and went faster than this
-    thread could read it. The watcher records that "on" as ``inferred`` at the second
-    reading's time, so a brief "on" is never missed, only timed late. Call ``daemon_started``
-    before each daemon start."""
-
-    def __init__(self, paths: Sequence[Path]) -> None:
-        self.paths = {path.name: path for path in paths}
-        self.levels: dict[str, list[Level]] = {name: [] for name in self.paths}
-        self._starts: list[float] = []
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._inotify = Inotify()
-        for folder in {path.parent for path in paths}:
-            self._inotify.watch(folder, _IN_MOVED_TO | _IN_CLOSE_WRITE | _IN_CREATE)
-        self._thread = threading.Thread(target=self._run, name="output-watcher", daemon=True)
-        self._thread.start()
-
-    def daemon_started(self) -> None:
-        with self._lock:
-            self._starts.append(time.monotonic())
-
-    def _run(self) -> None:
-        fd = self._inotify.fd
-        while not self._stop.is_set():
-            ready, _, _ = select.select([fd], [], [], 0.05)
-            if not ready:
-                continue
-            seen = time.monotonic()
-            for name in dict.fromkeys(self._inotify.read()):
-                if name in self.paths:
-                    self._sample(name, seen)
-
-    def _sample(self, name: str, seen: float) -> None:
-        try:
-            text = self.paths[name].read_text()
-        except FileNotFoundError:
-            return
-        if text not in ("0\n", "1\n"):
-            return  # never seen: the file is replaced atomically; be safe all the same
-        on = text == "1\n"
-        with self._lock:
-            history = self.levels[name]
-            if history and history[-1].on == on:
-                started = any(history[-1].t <= start <= seen for start in self._starts)
-                if on or not started:
-                    # A missed level in between: the opposite one, for an instant.
-                    history.append(Level(seen, not on, inferred=True))
-                elif not on:
-                    return  # the "off" written when a restarted daemon acquired the output
-            history.append(Level(seen, on))
-
-    def level(self, name: str) -> bool | None:
-        with self._lock:
-            history = self.levels[name]
-            return history[-1].on if history else None
-
-    def level_at(self, name: str, t: float) -> bool | None:
-        """The level last seen before ``t``."""
-        before = [lv for lv in self.history(name) if lv.t < t]
-        return before[-1].on if before else None
-
-    def history(self, name: str) -> list[Level]:
-        with self._lock:
-            return list(self.levels[name])
-
-    def first(self, name: str, on: bool, after: float) -> Level | None:
-        """The first level ``on`` seen at or after ``after``."""
-        return next((lv for lv in self.history(name) if lv.on == on and lv.t >= after), None)
-
-    def wait(self, name: str, on: bool, after: float, timeout: float = WAIT_S) -> Level:
-        """The first level ``on`` of ``name`` seen at or after ``after``; waits for it."""
-        found = wait_until(
-            lambda: self.first(name, on, after),
-            timeout,
-            poll=0.005,
-            what=f"output {name} {'on' if on else 'off'}",
-        )
-        assert isinstance(found, Level)
-        return found
-
-    def ons_between(self, start: float, end: float) -> list[tuple[str, Level]]:
-        """Every "on" seen in ``[start, end)``, on any output."""
-        return [
-            (name, lv)
-            for name in self.paths
-            for lv in self.history(name)
-            if lv.on and start <= lv.t < end
-        ]
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join()
-        self._inotify.close()
-
-
-# ------------------------------------------------------------------ faults made here
-
-
-class NetNamespace:
-    """A private network namespace with only the loopback device and a multicast route, so
-    that ``udp_multicast`` CAN frames of one scenario reach no other test run on the machine.
-    (python-can binds its multicast socket to the port on every address, and Linux delivers a
-    group's datagrams to every socket on that port that any process joined the group for.)
-    Needs root and iproute2; ``available()`` says whether it can work here."""
-
-    _counter = itertools.count()
-
-    def __init__(self) -> None:
-        self.name = f"srcs-faults-{os.getpid()}-{next(self._counter)}"
-        self.ip = shutil.which("ip") or "/usr/sbin/ip"
-        self.created = False
-
-    @staticmethod
-    def available() -> bool:
-        return os.geteuid() == 0 and shutil.which("ip") is not None
-
-    def create(self) -> NetNamespace:
-        for command in (
-            [self.ip, "netns", "add", self.name],
-            [self.ip, "-n", self.name, "link", "set", "lo", "up"],
-            [self.ip, "-n", self.name, "route", "add", "224.0.0.0/4", "dev", "lo"],
-        ):
-            subprocess.run(command, check=True, capture_output=True, timeout=30)  # noqa: S603
-            self.created = True
-        return self
-
-    def prefix(self) -> list[str]:
-        return [self.ip, "netns", "exec", self.name]
-
-    def delete(self) -> None:
-        if self.created:
-            command = [self.ip, "netns", "del", self.name]
-            subprocess.run(command, check=False, capture_output=True, timeout=30)  # noqa: S603
-            self.created = False
-
-
-def in_private_mount(mount: str, target: Path, command: list[str]) -> list[str]:
-    """``command`` in a mount namespace of its own, after the shell line ``mount`` (which
-    names ``target`` as ``$0``) ran there: what it mounts is seen by that process alone and
-    goes away with it. Needs root and ``unshare``."""
-    script = f'{mount} && exec "$@"'
-    return [
-        "unshare",
-        "--mount",
-        "--propagation",
-        "private",
-        "--",
-        "sh",
-        "-c",
-        script,
-        str(target),
-        *command,
-    ]
-
-
-def libfaketime() -> Path | None:
-    """Debian's ``libfaketime`` (package ``faketime``), if installed."""
-    found = sorted(glob.glob("/usr/lib/*/faketime/libfaketime.so.1"))
-    return Path(found[0]) if found else None
-
-
-class FakeWallClock:
-    """Makes a process see its wall clock jump while its monotonic clock runs on untouched.
-
-    The process is started with libfaketime preloaded, reading its offset from a file on every
-    call (``FAKETIME_NO_CACHE``); ``jump`` rewrites the file. ``DONT_FAKE_MONOTONIC`` (and its
-    newer spelling) leave ``CLOCK_MONOTONIC`` alone: it is the clock every deadline uses
-    (SR-2), and the scenario checks from the stop record that it really was left
-    alone."""
-
-    def __init__(self, folder: Path) -> None:
-        library = libfaketime()
-        if library is None:
-            raise FaultHarnessError(
-                "libfaketime is not installed (Debian package 'faketime'): "
-                "a real wall-clock jump needs it"
-            )
-        self.library = library
-        self.path = folder / "faketime.rc"
-        self.offset_s = 0
-        self.path.write_text("+0\n")
-
-    def env(self) -> dict[str, str]:
-        return {
-            "LD_PRELOAD": str(self.library),
-            "FAKETIME_TIMESTAMP_FILE": str(self.path),
-            "FAKETIME_NO_CACHE": "1",
-            "DONT_FAKE_MONOTONIC": "1",
-            "FAKETIME_DONT_FAKE_MONOTONIC": "1",
-        }
-
-    def jump(self, seconds: int) -> None:
-        """Move the wall clock by ``seconds`` (relative to the current fake offset)."""
-        self.offset_s += seconds
-        tmp = self.path.with_suffix(".tmp")
-        tmp.write_text(f"{self.offset_s:+d}\n")
-        os.replace(tmp, self.path)
-
-
-class ClientProcess:
-    """A robot program as a separate process (``python -m supervisord.testkit.faults``):
-
-    - ``client``: says hello as ``name`` and sends a heartbeat every ``period`` s, reconnecting
-      when the daemon closes the connection; ``--estop`` asks for an e-stop once first;
-    - ``flood``: connects and writes one endless line as fast as the socket takes it;
-    - ``subscriber``: subscribes to every topic and never reads a byte.
-
-    It prints one line per event to its log (``hello``, ``closed``, ...). ``kill``, ``stop``
-    and ``cont`` send SIGKILL, SIGSTOP, SIGCONT."""
-
-    def __init__(
-        self,
-        socket_path: Path,
-        mode: str,
-        log: Path,
-        *,
-        name: str = "",
-        period: float = 0.1,
-        extra: Sequence[str] = (),
-    ) -> None:
-        self.log_path = log
-        command = [sys.executable, "-m", "supervisord.testkit.faults", mode, str(socket_path)]
-        if name:
-            command += ["--name", name]
-        command += ["--period", str(period), *extra]
-        self.command = command
-        self.process: subprocess.Popen[bytes] | None = None
-
-    def start(self) -> ClientProcess:
-        with self.log_path.open("ab") as log:
-            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
-                self.command, stdin=subprocess.DEVNULL, stdout=log, stderr=log
-            )
-        return self
-
-    def log(self) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")
-        except FileNotFoundError:
-            return ""
-
-    def wait_log(self, text: str, timeout: float = WAIT_S) -> None:
-        wait_until(lambda: text in self.log(), timeout, what=f"{text!r} in {self.log_path.name}")
-
-    def signal(self, sig: signal.Signals) -> None:
-        assert self.process is not None
-        self.process.send_signal(sig)
-
-    def kill(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.send_signal(signal.SIGCONT)  # a stopped process must die too
-            self.process.kill()
-            self.process.wait()
-
-    def alive(self) -> bool:
-        return self.process is not None and self.process.poll() is None
-
-
-# ------------------------------------------------------------------ the robot
 
 
 def _priority() -> list[str]:
@@ -457,7 +106,7 @@ class Robot:
     ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
 
     workdir: Path
-    transport: Transport = "serial"
+    transport: Literal["serial", "can"] = "serial"
     outputs: Sequence[OutputDef] = DEFAULT_OUTPUTS
     clients: Sequence[str] = ()
     record_tmpfs_bytes: int | None = None
@@ -609,10 +258,7 @@ class Robot:
         return 0 if self.daemon is None else terminate(self.daemon, 15)
 
     def kill_daemon(self) -> None:
-        if self.daemon is not None and self.daemon.poll() is None:
-            self.daemon.send_signal(signal.SIGCONT)
-            self.daemon.kill()
-            self.daemon.wait()
+        kill(self.daemon)
 
     def close(self) -> None:
         """Everything down, in reverse; never raises (a test's own failure shows first)."""
@@ -667,23 +313,20 @@ class Robot:
         return time.monotonic()
 
     def log(self, tail: int = 4000) -> str:
-        try:
-            return self.daemon_log.read_text(errors="replace")[-tail:]
-        except FileNotFoundError:
-            return ""
+        return log_tail(self.daemon_log, tail)
 
     def client(self, timeout: float = 5.0) -> SupervisorClient:
         return SupervisorClient.connect(self.socket_path, timeout=timeout)
 
-    def status(self) -> State:
+    def status(self) -> dict[str, Any]:
         with self.client() as api:
             return api.status()
 
-    def active(self, status: State | None = None) -> set[str]:
+    def active(self, status: dict[str, Any] | None = None) -> set[str]:
         status = status or self.status()
         return {c["name"] for c in status["causes"] if c["active"]}
 
-    def active_stops(self, status: State | None = None) -> set[str]:
+    def active_stops(self, status: dict[str, Any] | None = None) -> set[str]:
         status = status or self.status()
         return {c["name"] for c in status["causes"] if c["active"] and c["severity"] == "stop"}
 
@@ -707,7 +350,9 @@ class Robot:
     def records(self) -> list[dict[str, Any]]:
         """Every record written so far, oldest first, read with the store's own reader."""
         return [
-            dict(item.data) for item in read_records(self.record_path) if isinstance(item, Record)
+            dict(item.data)
+            for item in read_records(self.record_path)
+            if isinstance(item, StoredRecord)
         ]
 
     def records_since(self, t: float) -> list[dict[str, Any]]:
@@ -857,7 +502,7 @@ class Robot:
             if first_on is not None:
                 assert first_on.t >= t_rearm, (name, first_on, t_rearm)
 
-    def assert_serving(self, rearm: dict[str, Any] | None = None) -> State:
+    def assert_serving(self, rearm: dict[str, Any] | None = None) -> dict[str, Any]:
         """Alive and serving: the process runs, ``status`` answers RUN (or HOLD for a power
         output only), and every healthy output is on in the files and in the status."""
         assert self.daemon is not None
@@ -919,7 +564,7 @@ class Robot:
         self.vsc.estop()
         return self.expect_stop("vsc_estop", t, self.beat_s)
 
-    def wait_state(self, state: str, timeout: float = WAIT_S) -> State:
+    def wait_state(self, state: str, timeout: float = WAIT_S) -> dict[str, Any]:
         found = wait_until(
             lambda: (s := self.status())["state"] == state and s,
             timeout,
@@ -953,103 +598,3 @@ class Robot:
         assert self.daemon is not None
         filler = Path(f"/proc/{self.daemon.pid}/root") / self.record_dir.relative_to("/")
         (filler / "filler").unlink()
-
-
-# ------------------------------------------------------------------ the client programs
-
-
-def _client_main(args: argparse.Namespace) -> int:
-    """Hello, then heartbeats, reconnecting whenever the daemon closes the connection.
-    SIGUSR1 makes it stall: it pipelines thousands of requests, never reads a reply, and
-    stops itself (SIGSTOP), as a program hung in the middle of its work."""
-    stall = threading.Event()
-    signal.signal(signal.SIGUSR1, lambda *_: stall.set())
-    while True:
-        try:
-            with SupervisorClient.connect(args.socket, name=args.name, timeout=2.0) as api:
-                _say("hello")
-                if args.estop:
-                    api.estop()
-                    _say("estop")
-                while not stall.is_set():
-                    api.heartbeat()
-                    time.sleep(args.period)
-                _stall(api)
-        except SrcsError as error:  # closed, refused (too_many_clients), timed out
-            _say(f"closed: {type(error).__name__}")
-            time.sleep(0.05)
-
-
-def _stall(api: SupervisorClient) -> None:
-    with socket.socket(fileno=os.dup(api.fileno())) as raw:
-        raw.setblocking(False)
-        pending = b'{"op": "status"}\n' * 4096
-        with contextlib.suppress(OSError):
-            while pending:
-                pending = pending[raw.send(pending) :]
-        _say("stalled")
-        os.kill(os.getpid(), signal.SIGSTOP)
-        time.sleep(3600)
-
-
-def _flood_main(args: argparse.Namespace) -> int:
-    """One endless line: the server must cut it off (``flood``) and carry on."""
-    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
-        sock.connect(args.socket)
-        _say("connected")
-        chunk = b"x" * 65536
-        sent = 0
-        try:
-            while True:
-                sent += sock.send(chunk)
-        except OSError as error:
-            _say(f"closed after {sent} bytes: {type(error).__name__}")
-        with contextlib.suppress(OSError):
-            _say(f"reply {sock.recv(4096)[:200]!r}")
-    return 0
-
-
-def _subscriber_main(args: argparse.Namespace) -> int:
-    """Subscribes to everything and then never reads: the server must drop it, not wait."""
-    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
-        sock.connect(args.socket)
-        topics = ["state", "joystick", "gps", "remote_status", "records"]
-        sock.sendall(json.dumps({"op": "subscribe", "topics": topics}).encode() + b"\n")
-        _say("subscribed")
-        while True:
-            time.sleep(1.0)
-
-
-def _say(text: str) -> None:
-    print(text, flush=True)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m supervisord.testkit.faults",
-        description="Robot programs that misbehave, for fault injection (docs/faults.md).",
-    )
-    parser.add_argument("mode", choices=["client", "flood", "subscriber"])
-    parser.add_argument("socket")
-    parser.add_argument("--name", default=None)
-    parser.add_argument("--period", type=float, default=0.1)
-    parser.add_argument("--estop", action="store_true", help="client: ask for an e-stop first")
-    args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    runs: dict[str, Callable[[argparse.Namespace], int]] = {
-        "client": _client_main,
-        "flood": _flood_main,
-        "subscriber": _subscriber_main,
-    }
-    return runs[args.mode](args)
-
-
-@contextlib.contextmanager
-def robot(workdir: Path, **options: Any) -> Iterator[Robot]:
-    """``Robot(workdir, **options)`` as a context (started, finished, closed)."""
-    with Robot(workdir, **options) as running:
-        yield running
-
-
-if __name__ == "__main__":
-    sys.exit(main())

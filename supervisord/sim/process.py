@@ -1,5 +1,6 @@
-"""Drive ``srcs-sim`` from tests: ``SimProcess`` runs it as a real subprocess, ``SimControl``
-speaks its control API (``docs/simulator.md``).
+"""``srcs-sim`` as a child of another program: ``SimProcess`` runs it as a real subprocess,
+``SimControl`` speaks its control API (``docs/simulator.md``). ``srcsctl demo`` drives the
+simulator with them, and so do the tests and integrators' own tests.
 
     with SimProcess(tmp_path) as sim:          # serial pty at tmp_path / "vsc"
         sim.control.key(85, 1)                 # commission the VSC's watchdog
@@ -27,10 +28,10 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+from supervisord.children import kill, log_tail, terminate
 from supervisord.errors import SrcsError
-from supervisord.testkit.process import terminate
 
-State = dict[str, Any]
+Reply = dict[str, Any]  # one JSON reply of the control socket
 
 
 class SimError(SrcsError):
@@ -61,7 +62,7 @@ class SimControl:
             self._sock, self._buffer = sock, b""
         return self._sock
 
-    def call(self, cmd: str, **fields: Any) -> State:
+    def call(self, cmd: str, **fields: Any) -> Reply:
         """Send ``{"cmd": cmd, **fields}`` and return the reply, ``ok`` true or false."""
         line = json.dumps({"cmd": cmd, **fields}).encode() + b"\n"
         try:
@@ -76,10 +77,10 @@ class SimControl:
             self.close()
             raise SimError(f"control socket {self.path}: {error}") from error
         reply, _, self._buffer = self._buffer.partition(b"\n")
-        decoded: State = json.loads(reply)
+        decoded: Reply = json.loads(reply)
         return decoded
 
-    def request(self, cmd: str, **fields: Any) -> State:
+    def request(self, cmd: str, **fields: Any) -> Reply:
         reply = self.call(cmd, **fields)
         if not reply.get("ok"):
             raise SimError(str(reply.get("error")))  # the simulator's text names the request
@@ -92,53 +93,53 @@ class SimControl:
 
     # -- one method per request (docs/simulator.md) ----------------------------------------
 
-    def state(self) -> State:
+    def state(self) -> Reply:
         return self.request("state")
 
     def lcd(self) -> str:
         return str(self.request("lcd")["lcd"])
 
-    def estop(self) -> State:
+    def estop(self) -> Reply:
         return self.request("estop")
 
-    def release(self) -> State:
+    def release(self) -> Reply:
         return self.request("release")
 
-    def pause(self, reason: str = "button") -> State:
+    def pause(self, reason: str = "button") -> Reply:
         return self.request("pause", reason=reason)
 
-    def takeover(self) -> State:
+    def takeover(self) -> Reply:
         return self.request("takeover")
 
-    def menu(self) -> State:
+    def menu(self) -> Reply:
         return self.request("menu")
 
-    def mode(self, mode: str | int) -> State:
+    def mode(self, mode: str | int) -> Reply:
         return self.request("mode", mode=mode)
 
-    def power(self, on: bool) -> State:
+    def power(self, on: bool) -> Reply:
         return self.request("power", on=on)
 
-    def wired_estop(self, active: bool) -> State:
+    def wired_estop(self, active: bool) -> Reply:
         return self.request("wired_estop", active=active)
 
-    def axes(self, **values: int) -> State:
+    def axes(self, **values: int) -> Reply:
         return self.request("axes", **values)
 
-    def buttons(self, *pressed: str) -> State:
+    def buttons(self, *pressed: str) -> Reply:
         return self.request("buttons", pressed=list(pressed))
 
     def key(self, key: int, value: int | None = None) -> int:
         fields: dict[str, int] = {"key": key} if value is None else {"key": key, "value": value}
         return int(self.request("key", **fields)["value"])
 
-    def unplug(self) -> State:
+    def unplug(self) -> Reply:
         return self.request("unplug")
 
-    def replug(self) -> State:
+    def replug(self) -> Reply:
         return self.request("replug")
 
-    def reboot(self, delay: float | None = None, unplug: bool | None = None) -> State:
+    def reboot(self, delay: float | None = None, unplug: bool | None = None) -> Reply:
         fields: dict[str, Any] = {}
         if delay is not None:
             fields["delay"] = delay
@@ -146,21 +147,21 @@ class SimControl:
             fields["unplug"] = unplug
         return self.request("reboot", **fields)
 
-    def fault(self, **plan: Any) -> State:
+    def fault(self, **plan: Any) -> Reply:
         """Set a fault plan (``FaultPlan`` field names); no fields clears it."""
         if not plan:
             return self.request("fault", clear=True)
         return self.request("fault", plan=plan)
 
-    def silence(self, on: bool = True) -> State:
+    def silence(self, on: bool = True) -> Reply:
         return self.request("silence", on=on)
 
-    def bus_off(self, on: bool = True) -> State:
+    def bus_off(self, on: bool = True) -> Reply:
         return self.request("bus_off", on=on)
 
     def wait_for(
-        self, condition: Callable[[State], bool], timeout: float = 10.0, poll: float = 0.02
-    ) -> State:
+        self, condition: Callable[[Reply], bool], timeout: float = 10.0, poll: float = 0.02
+    ) -> Reply:
         """Poll ``state`` until ``condition`` holds; ``SimError`` with the last state if not."""
         end = time.monotonic() + timeout
         while True:
@@ -248,10 +249,7 @@ class SimProcess:
 
     def log(self, tail: int = 2000) -> str:
         """The end of the simulator's output."""
-        try:
-            return self.log_path.read_text(errors="replace")[-tail:]
-        except FileNotFoundError:
-            return ""
+        return log_tail(self.log_path, tail)
 
     def stop(self, timeout: float = 10.0) -> int:
         """SIGTERM, then wait; the exit status (0 for a clean stop)."""
@@ -260,9 +258,7 @@ class SimProcess:
 
     def kill(self) -> None:
         self.control.close()
-        if self.process is not None and self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
+        kill(self.process)
 
     def __enter__(self) -> SimProcess:
         return self.start()

@@ -1,0 +1,501 @@
+"""The client API's requests (SR-8, ``docs/api.md`` "Requests"): sans-IO.
+
+:func:`parse_request` turns one request line into a frozen request value or raises
+:class:`~supervisord.api.framing.ApiError` with a stable ``code``: garbage from a peer either
+parses or raises ``ApiError``, nothing else. :func:`request_json` is the inverse, for clients.
+
+Nothing here touches a socket or a clock.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Final
+
+from supervisord import strict
+from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode, JsonDict
+from supervisord.protocol.codes import DisplayMode, FeedbackKey
+from supervisord.protocol.messages import I32, NAME_TEXT_LENGTH, check_text
+from supervisord.protocol.text import clean, is_clean
+from supervisord.safety.config import NAME_PATTERN
+from supervisord.safety.events import Request
+
+
+class Topic(enum.Enum):
+    """What a subscriber receives (``docs/api.md`` "Pushes")."""
+
+    STATE = "state"  # every decision that changed the state, the causes or the outputs
+    JOYSTICK = "joystick"  # every joystick message (meaningful only in RUN)
+    GPS = "gps"
+    REMOTE_STATUS = "remote_status"
+    RECORDS = "records"  # every stop record, as written
+
+    @property
+    def event(self) -> str:
+        """The ``event`` field of this topic's pushes."""
+        return "record" if self is Topic.RECORDS else self.value
+
+
+class Side(enum.Enum):
+    """Which handle of the remote vibrates (feedback keys 10-12)."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    BOTH = "both"
+
+    @property
+    def key(self) -> FeedbackKey:
+        return _VIBRATE_KEYS[self]
+
+
+_VIBRATE_KEYS = {
+    Side.LEFT: FeedbackKey.VIBRATE_LEFT,
+    Side.RIGHT: FeedbackKey.VIBRATE_RIGHT,
+    Side.BOTH: FeedbackKey.VIBRATE_BOTH,
+}
+
+RequestId = int | str | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Request:
+    """``id``: the caller's optional tag, echoed in the reply."""
+
+    OP = ""
+    id: RequestId = None
+
+
+@dataclass(frozen=True, slots=True)
+class Hello(_Request):
+    """Name this connection: it becomes the client ``name`` (SR-8)."""
+
+    OP = "hello"
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class Heartbeat(_Request):
+    """A named client is alive."""
+
+    OP = "heartbeat"
+
+
+@dataclass(frozen=True, slots=True)
+class Estop(_Request):
+    """An e-stop: the client's own (``client_estop:NAME``) or, before hello, ``local_estop``."""
+
+    OP = "estop"
+
+
+@dataclass(frozen=True, slots=True)
+class Hold(_Request):
+    """A hold: ``client_hold:NAME`` until this client releases it."""
+
+    OP = "hold"
+
+
+@dataclass(frozen=True, slots=True)
+class Release(_Request):
+    """End this caller's own e-stop or hold request (a stop stays latched until re-armed)."""
+
+    OP = "release"
+    what: Request
+
+
+@dataclass(frozen=True, slots=True)
+class Status(_Request):
+    """The current state, causes and outputs."""
+
+    OP = "status"
+
+
+@dataclass(frozen=True, slots=True)
+class Subscribe(_Request):
+    """Receive pushes of these topics from now on (replaces the previous set; empty: none)."""
+
+    OP = "subscribe"
+    topics: frozenset[Topic]
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayValue(_Request):
+    """Show a number in user value ``key`` (1-9) on the remote."""
+
+    OP = "display"
+    key: int
+    value: int
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayLabel(_Request):
+    """Label user value ``key`` (1-9): at most 20 single-byte characters."""
+
+    OP = "display"
+    key: int
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayRow(_Request):
+    """Text row ``index`` (1-4) of the remote's text page: at most 20 characters."""
+
+    OP = "display"
+    index: int
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayModeRequest(_Request):
+    """Which page the remote shows (feedback key 99)."""
+
+    OP = "display"
+    mode: DisplayMode
+
+
+@dataclass(frozen=True, slots=True)
+class Vibrate(_Request):
+    """Vibrate a handle of the remote once."""
+
+    OP = "vibrate"
+    side: Side
+
+
+@dataclass(frozen=True, slots=True)
+class Reset(_Request):
+    """``srcsctl reset``: a local re-arm (SR-4). Admins only."""
+
+    OP = "reset"
+
+
+@dataclass(frozen=True, slots=True)
+class Commission(_Request):
+    """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently
+    (SR-5). Admins only; the request must carry ``"confirm": true``."""
+
+    OP = "commission"
+
+
+@dataclass(frozen=True, slots=True)
+class ProofTest(_Request):
+    """Run the proof test of the VSC's watchdog again (SR-5.3; docs/safety.md "The proof
+    test"). Admins only; the core refuses it in RUN and HOLD. The reply comes at once; the
+    result follows in ``status`` (``prooftest``) and a ``prooftest`` record."""
+
+    OP = "prooftest"
+
+
+ApiRequest = (
+    Hello
+    | Heartbeat
+    | Estop
+    | Hold
+    | Release
+    | Status
+    | Subscribe
+    | DisplayValue
+    | DisplayLabel
+    | DisplayRow
+    | DisplayModeRequest
+    | Vibrate
+    | Reset
+    | Commission
+    | ProofTest
+)
+"""Any request of the client API. Not :class:`supervisord.safety.events.Request`, the safety
+core's name for what a ``release`` ends, which :class:`Release` carries."""
+
+ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
+"""Requests only an admin may make (SR-8)."""
+NAMED_REQUESTS: Final = (Heartbeat,)
+"""Requests that need a connection that said hello."""
+
+_USER_VALUE_KEYS = range(1, 10)
+_ROWS = range(1, 5)
+
+
+def _reject_constant(name: str) -> object:
+    raise ValueError(f"{name} is not JSON")
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
+    result: dict[str, object] = {}
+    for key, value in pairs:
+        if key in result:
+            raise ValueError(f"duplicate key {_shown(key)}")
+        result[key] = value
+    return result
+
+
+_JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
+_INNERMOST = re.compile(rb"\[[^\[\]{}]*\]|\{[^\[\]{}]*\}")
+
+
+def _too_deep(line: bytes) -> bool:
+    """Whether ``line`` nests arrays and objects deeper than :data:`MAX_NESTING`.
+
+    Decided before parsing, so the answer never depends on how deep the caller's stack is
+    (Python's parser raises ``RecursionError`` near its limit, wherever that is). Brackets
+    inside strings do not count. Cost: a count, and only for lines with many brackets, at
+    most ``MAX_NESTING`` passes of two regular expressions (C speed, linear)."""
+    if line.count(b"[") + line.count(b"{") <= MAX_NESTING:
+        return False
+    rest = _JSON_STRING.sub(b"", line)
+    for _ in range(MAX_NESTING):
+        rest, removed = _INNERMOST.subn(b"", rest)
+        if not removed:
+            return False  # unbalanced, not deep: the parser says what is wrong
+    return b"[" in rest or b"{" in rest
+
+
+def _shown(value: object) -> str:
+    """A short, encodable description of a request's value for an error message: never the
+    repr of a container (unbounded, recursive) or of a huge number (Python limits the digits
+    it converts), text escaped and cut."""
+    if isinstance(value, str):
+        return clean(repr(value[:40]) + ("..." if len(value) > 40 else ""))
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int):
+        return str(value) if -(10**30) < value < 10**30 else "an integer that long"
+    if isinstance(value, float):
+        return repr(value)
+    return "a list" if isinstance(value, list) else "an object"
+
+
+def _load(line: bytes) -> object:
+    if _too_deep(line):
+        raise ApiError(
+            ErrorCode.BAD_JSON, f"arrays and objects may be nested at most {MAX_NESTING} deep"
+        )
+    try:
+        text = line.decode("utf-8")
+        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
+    except UnicodeDecodeError as e:
+        raise ApiError(ErrorCode.BAD_JSON, f"the line is not UTF-8: {e.reason}") from e
+    except RecursionError as e:
+        raise ApiError(ErrorCode.BAD_JSON, "the JSON is nested too deeply") from e
+    except ValueError as e:  # json.JSONDecodeError is a ValueError
+        raise ApiError(ErrorCode.BAD_JSON, f"not JSON: {e}") from e
+
+
+class _Fields:
+    """Reads the fields of one request object through the one strict reader of untrusted
+    tables (``supervisord.strict``), raising ``bad_request`` with its wording: the field's
+    path, its value (shown bounded) and the fix."""
+
+    def __init__(
+        self, obj: Mapping[str, object], op: str, request_id: RequestId, where: str = ""
+    ) -> None:
+        self.obj, self.op, self.id = obj, op, request_id
+        self.fields = strict.Fields(obj, where)
+        if not where:
+            self.fields.used.update({"op": None, "id": None})
+
+    def error(self, message: str) -> ApiError:
+        # clean: a field name from a peer may hold lone surrogates; 200: a bounded reply.
+        return ApiError(ErrorCode.BAD_REQUEST, clean(message)[:200], op=self.op, request_id=self.id)
+
+    def _read(self, key: strict.Key) -> object:
+        try:
+            return self.fields.read(key)
+        except strict.Invalid as e:
+            raise self.error(str(e)) from None
+
+    def get(self, name: str) -> object:
+        value = self.fields.raw(name)
+        if value is strict.MISSING:
+            raise self.error(
+                str(strict.Invalid(self.fields.key(name), value, f"{self.op} needs it"))
+            )
+        return value
+
+    def nested(self, name: str) -> _Fields:
+        value = self.get(name)
+        if not isinstance(value, dict):
+            raise self.error(str(strict.Invalid(self.fields.key(name), value, "make it an object")))
+        return _Fields(value, self.op, self.id, self.fields.key(name))
+
+    def integer(self, name: str, low: int, high: int) -> int:
+        value = self._read(strict.Whole(name=name, doc="", low=low, high=high))
+        assert isinstance(value, int)
+        return value
+
+    def text(self, name: str) -> str:
+        value = self.get(name)
+        try:
+            check_text(name, value, NAME_TEXT_LENGTH)  # type: ignore[arg-type]
+        except ValueError:
+            fix = f"use at most {NAME_TEXT_LENGTH} single-byte characters without NUL, as text"
+            raise self.error(str(strict.Invalid(self.fields.key(name), value, fix))) from None
+        assert isinstance(value, str)
+        return value
+
+    def choice(self, name: str, members: tuple[enum.Enum, ...]) -> enum.Enum:
+        by_value = {str(member.value): member for member in members}
+        value = self._read(strict.Choice(name=name, doc="", values=dict.fromkeys(by_value, "")))
+        return by_value[str(value)]
+
+    def finish(self) -> None:
+        try:
+            self.fields.finish()
+        except strict.Invalid as e:
+            raise self.error(str(e)) from None
+
+
+def _request_id(obj: Mapping[str, object]) -> RequestId:
+    value = obj.get("id")
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | str):
+        raise ApiError(ErrorCode.BAD_REQUEST, "id must be an integer or text")
+    if isinstance(value, str) and len(value) > MAX_ID_LENGTH:
+        raise ApiError(ErrorCode.BAD_REQUEST, f"id text may be at most {MAX_ID_LENGTH} long")
+    if isinstance(value, str) and not is_clean(value):
+        # A lone surrogate ("\ud800") is valid JSON but no UTF-8: it could not be echoed in
+        # the reply, so the request is refused without an id (issue 11).
+        raise ApiError(ErrorCode.BAD_REQUEST, "id text must be Unicode (no lone surrogates)")
+    if isinstance(value, int) and not -(2**63) <= value < 2**63:
+        raise ApiError(ErrorCode.BAD_REQUEST, "id must fit in 64 signed bits")
+    return value
+
+
+def _hello(f: _Fields) -> ApiRequest:
+    name = f.get("name")
+    if not isinstance(name, str) or NAME_PATTERN.fullmatch(name) is None:
+        raise f.error("name must be 1-32 letters, digits, '_', '.' or '-'")
+    return Hello(name, id=f.id)
+
+
+def _release(f: _Fields) -> ApiRequest:
+    what = f.choice("what", tuple(Request))
+    assert isinstance(what, Request)
+    return Release(what, id=f.id)
+
+
+def _subscribe(f: _Fields) -> ApiRequest:
+    topics = f.get("topics")
+    if not isinstance(topics, list) or len(topics) > len(Topic):
+        raise f.error(f"topics must be a list of at most {len(Topic)} topic names")
+    by_value = {t.value: t for t in Topic}
+    chosen = set()
+    for topic in topics:
+        if not isinstance(topic, str) or topic not in by_value:
+            raise f.error(f"unknown topic {topic!r}; topics are {', '.join(by_value)}"[:200])
+        chosen.add(by_value[topic])
+    return Subscribe(frozenset(chosen), id=f.id)
+
+
+_DISPLAY_FORMS = ("value", "label", "row", "mode")
+
+
+def _display(f: _Fields) -> ApiRequest:
+    forms = [form for form in _DISPLAY_FORMS if form in f.obj]
+    if len(forms) != 1:
+        raise f.error(f"display takes exactly one of {', '.join(_DISPLAY_FORMS)}")
+    form = forms[0]
+    if form == "mode":
+        mode = f.integer("mode", 0, max(DisplayMode))
+        return DisplayModeRequest(DisplayMode(mode), id=f.id)
+    inner = f.nested(form)
+    request: ApiRequest
+    if form == "value":
+        key = inner.integer("key", _USER_VALUE_KEYS.start, _USER_VALUE_KEYS.stop - 1)
+        request = DisplayValue(key, inner.integer("value", *I32), id=f.id)
+    elif form == "label":
+        key = inner.integer("key", _USER_VALUE_KEYS.start, _USER_VALUE_KEYS.stop - 1)
+        request = DisplayLabel(key, inner.text("text"), id=f.id)
+    else:
+        index = inner.integer("index", _ROWS.start, _ROWS.stop - 1)
+        request = DisplayRow(index, inner.text("text"), id=f.id)
+    inner.finish()
+    return request
+
+
+def _vibrate(f: _Fields) -> ApiRequest:
+    side = f.choice("side", tuple(Side))
+    assert isinstance(side, Side)
+    return Vibrate(side, id=f.id)
+
+
+def _commission(f: _Fields) -> ApiRequest:
+    if f.get("confirm") is not True:
+        raise f.error('commission writes the VSC permanently: send "confirm": true')
+    return Commission(id=f.id)
+
+
+def _prooftest(f: _Fields) -> ApiRequest:
+    return ProofTest(id=f.id)
+
+
+_PARSERS = {
+    "hello": _hello,
+    "heartbeat": lambda f: Heartbeat(id=f.id),
+    "estop": lambda f: Estop(id=f.id),
+    "hold": lambda f: Hold(id=f.id),
+    "release": _release,
+    "status": lambda f: Status(id=f.id),
+    "subscribe": _subscribe,
+    "display": _display,
+    "vibrate": _vibrate,
+    "reset": lambda f: Reset(id=f.id),
+    "commission": _commission,
+    "prooftest": _prooftest,
+}
+OPS: Final = tuple(_PARSERS)
+"""Every request op, in the order ``docs/api.md`` documents them."""
+
+
+def parse_request(line: bytes) -> ApiRequest:
+    """One request line (without its newline) as a request value.
+
+    Raises :class:`ApiError` (``bad_json``, ``bad_request`` or ``unknown_op``) for anything
+    else; it carries the ``op`` and ``id`` when they could be read, for the error reply.
+    """
+    obj = _load(line)
+    if not isinstance(obj, dict):
+        raise ApiError(ErrorCode.BAD_REQUEST, "a request must be a JSON object")
+    request_id = _request_id(obj)
+    op = obj.get("op")
+    if not isinstance(op, str):
+        raise ApiError(ErrorCode.BAD_REQUEST, "a request needs an op", request_id=request_id)
+    parser = _PARSERS.get(op)
+    if parser is None:
+        shown = op if len(op) <= 40 and op.isprintable() else repr(op[:40])
+        raise ApiError(ErrorCode.UNKNOWN_OP, f"unknown op {shown}", request_id=request_id)
+    fields = _Fields(obj, op, request_id)
+    request = parser(fields)
+    fields.finish()
+    return request
+
+
+def request_json(request: ApiRequest) -> JsonDict:
+    """The request as its JSON object: what a client sends (the inverse of parsing)."""
+    obj: JsonDict = {"op": request.OP}
+    match request:
+        case Hello(name=name):
+            obj["name"] = name
+        case Release(what=what):
+            obj["what"] = what.value
+        case Subscribe(topics=topics):
+            obj["topics"] = sorted(t.value for t in topics)
+        case DisplayValue(key=key, value=value):
+            obj["value"] = {"key": key, "value": value}
+        case DisplayLabel(key=key, text=text):
+            obj["label"] = {"key": key, "text": text}
+        case DisplayRow(index=index, text=text):
+            obj["row"] = {"index": index, "text": text}
+        case DisplayModeRequest(mode=mode):
+            obj["mode"] = int(mode)
+        case Vibrate(side=side):
+            obj["side"] = side.value
+        case Commission():
+            obj["confirm"] = True
+        case _:
+            pass
+    if request.id is not None:
+        obj["id"] = request.id
+    return obj

@@ -1,0 +1,107 @@
+"""Client API requests as safety-core events (SR-8, ``docs/api.md``): sans-IO.
+
+:func:`to_core_event` decides whose request a request is (a named client's own, or before
+hello the local operator's) and what the safety core sees of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from supervisord.api.requests import (
+    ApiRequest,
+    Commission,
+    DisplayLabel,
+    DisplayModeRequest,
+    DisplayRow,
+    DisplayValue,
+    Estop,
+    Heartbeat,
+    Hello,
+    Hold,
+    ProofTest,
+    Release,
+    Reset,
+    Status,
+    Subscribe,
+    Vibrate,
+)
+from supervisord.protocol.codes import FeedbackKey, StringKey
+from supervisord.protocol.messages import FeedbackName, FeedbackSet
+from supervisord.safety.events import (
+    Caller,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientHold,
+    ClientRelease,
+    DisplayUpdate,
+    Event,
+    LocalEstop,
+    LocalRelease,
+    ProofTestRequest,
+    Request,
+    ResetRequest,
+)
+
+_TEXT_ROW_1 = StringKey.TEXT_ROW_1.value
+
+
+def display_message(
+    request: DisplayValue | DisplayLabel | DisplayRow | DisplayModeRequest | Vibrate,
+) -> FeedbackSet | FeedbackName:
+    """The VSC message a display or vibrate request asks for (manual §8.3.7, §8.3.10)."""
+    match request:
+        case DisplayValue(key=key, value=value):
+            return FeedbackSet(key, value)
+        case DisplayLabel(key=key, text=text):
+            return FeedbackName(key, text)
+        case DisplayRow(index=index, text=text):
+            return FeedbackName(_TEXT_ROW_1 + index - 1, text)
+        case DisplayModeRequest(mode=mode):
+            return FeedbackSet(FeedbackKey.DISPLAY_MODE, int(mode))
+        case Vibrate(side=side):
+            return FeedbackSet(side.key, 1)  # PR-2: vibrate takes the value 1
+
+
+@dataclass(frozen=True, slots=True)
+class ClientInfo:
+    """One connection as the safety core knows it: its number, who is at the other end
+    (from the peer credentials) and the name it gave in ``hello`` (``None`` before)."""
+
+    connection: int
+    caller: Caller
+    name: str | None = None
+
+
+def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | None:
+    """The safety-core event for a request from ``client`` received at ``now``, or ``None``
+    for requests the daemon answers itself (``status``, ``subscribe``, ``commission``).
+
+    E-stops and releases of a named client are its own (``client_estop:NAME``); before hello
+    they are the local operator's (``local_estop``, with the caller). A hold before hello is
+    filed by the core under the connection and ends with it. ``reset`` always becomes a
+    :class:`ResetRequest`, also from a non-admin, so that the core records the refusal.
+    """
+    connection, named = client.connection, client.name is not None
+    match request:
+        case Hello(name=name):
+            return ClientHello(now, connection, name)
+        case Heartbeat():
+            return ClientHeartbeat(now, connection) if named else None
+        case Estop():
+            return ClientEstop(now, connection) if named else LocalEstop(now, client.caller)
+        case Hold():
+            return ClientHold(now, connection)
+        case Release(what=Request.ESTOP) if not named:
+            return LocalRelease(now, client.caller)
+        case Release(what=what):
+            return ClientRelease(now, connection, what)
+        case DisplayValue() | DisplayLabel() | DisplayRow() | DisplayModeRequest() | Vibrate():
+            return DisplayUpdate(now, display_message(request))
+        case Reset():
+            return ResetRequest(now, client.caller)
+        case ProofTest():
+            return ProofTestRequest(now, client.caller)
+        case Status() | Subscribe() | Commission():
+            return None

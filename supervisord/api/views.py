@@ -1,0 +1,92 @@
+"""What the client API's server sends (SR-8, ``docs/api.md``): replies and pushes; sans-IO.
+
+Replies answer a request (:func:`ok_reply`, :func:`refusal_error`); pushes carry safety
+decisions, stop records and VSC messages to subscribers. The causes in ``status`` and ``state``
+are the stop record's own cause objects (:func:`supervisord.record.format.cause_json`), so a
+client reads both the same way.
+
+Nothing here touches a socket or a clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Final
+
+from supervisord.api.framing import ApiError, ErrorCode, JsonDict
+from supervisord.api.requests import ApiRequest, Topic
+from supervisord.protocol.jsonview import message_json
+from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
+from supervisord.record.format import cause_json
+from supervisord.safety.decision import Decision, Refusal
+
+# -- replies -------------------------------------------------------------------------------
+
+
+def ok_reply(request: ApiRequest, **fields: object) -> JsonDict:
+    """The success reply to ``request``, with extra ``fields``."""
+    reply: JsonDict = {"ok": True, "op": request.OP}
+    if request.id is not None:
+        reply["id"] = request.id
+    reply.update(fields)
+    return reply
+
+
+def refusal_error(request: ApiRequest, refusal: Refusal) -> ApiError:
+    """The ``refused`` error for a request the safety core declined; ``reason`` is the
+    refusal's stable name in lower case (e.g. ``conditions_active``)."""
+    return ApiError(
+        ErrorCode.REFUSED,
+        refusal.message,
+        op=request.OP,
+        request_id=request.id,
+        extra={"reason": refusal.reason.name.lower()},
+    )
+
+
+# -- the state of the supervisor -----------------------------------------------------------
+
+
+def decision_json(decision: Decision) -> JsonDict:
+    """The state of the supervisor after one decision, for ``status`` and ``state`` pushes."""
+    return {
+        "state": decision.state.name,
+        "mono_ns": decision.now,
+        "causes": [cause_json(c) for c in decision.causes],
+        "outputs": dict(sorted(decision.outputs.items())),
+        "heartbeat_estop": decision.heartbeat_estop,
+        "prooftest": None if decision.prooftest is None else decision.prooftest.json(),
+    }
+
+
+# -- pushes --------------------------------------------------------------------------------
+
+
+def state_push(decision: Decision) -> JsonDict:
+    """The ``state`` push for a decision."""
+    return {"event": Topic.STATE.event, **decision_json(decision)}
+
+
+def record_push(record: Mapping[str, object]) -> JsonDict:
+    """The ``record`` push for a record as written to the store
+    (:func:`supervisord.record.format.record_json`)."""
+    return {"event": Topic.RECORDS.event, **record}
+
+
+_MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {
+    Joystick: Topic.JOYSTICK,
+    Gps: Topic.GPS,
+    RemoteStatus: Topic.REMOTE_STATUS,
+}
+
+
+def message_topic(message: Message) -> Topic | None:
+    """The topic a VSC message is pushed under, or ``None`` for messages that are not pushed."""
+    return _MESSAGE_TOPICS.get(type(message))
+
+
+def message_push(message: Joystick | Gps | RemoteStatus) -> JsonDict:
+    """The push for a joystick, GPS or remote-status message: its ``srcsctl decode`` JSON
+    (``docs/protocol.md``) under ``event``."""
+    topic = _MESSAGE_TOPICS[type(message)]
+    return {"event": topic.event, **message_json(message)}

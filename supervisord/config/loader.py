@@ -1,0 +1,537 @@
+"""The loader: the robot's TOML file, read with ``tomllib``, validated completely into a
+:class:`~supervisord.config.model.DaemonConfig` (SR-11.2).
+
+:func:`load_config` reads every key through its declaration in
+:mod:`supervisord.config.schema` with the one strict reader (:mod:`supervisord.strict`), then
+applies the rules between keys (:data:`~supervisord.config.schema.CROSS_CHECKS`): the
+transport's own keys, the outputs' exclusive claims, path owners, groups and users that must
+exist. It raises :class:`~supervisord.errors.ConfigError` naming the file, the key (a dotted
+path such as ``vsc.timeout_ms`` or ``outputs[1].chip``), the value and the fix; the daemon
+prints it and refuses to start. Only the first error is reported.
+
+A key the schema does not declare is an error, never ignored: a misspelt safety option must not
+silently fall back to its default. Relative paths are resolved against the config file's
+directory (or ``base_dir``), so that a self-contained config such as the demo's works from any
+working directory.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import grp
+import os
+import pwd
+import re
+import tomllib
+from collections.abc import Callable, Hashable, Sequence
+from pathlib import Path
+
+from supervisord import strict
+from supervisord.config.model import (
+    ApiConfig,
+    CanBus,
+    CanErrors,
+    DaemonConfig,
+    HidLink,
+    RecordConfig,
+    Reopen,
+    RobotConfig,
+    SerialLink,
+    VscConfig,
+)
+from supervisord.config.schema import (
+    API,
+    BAUD,
+    CAN_BITRATE,
+    CAN_CHANNEL,
+    CAN_INTERFACE,
+    CLIENTS,
+    ERROR_LIMIT,
+    ERROR_PASSIVE,
+    ERROR_WINDOW,
+    HEARTBEAT_HZ,
+    HIDRAW,
+    OUTPUT_NAME_KEY,
+    PORT,
+    PROOFTEST,
+    PROOFTEST_CLEAR,
+    RECORD,
+    RENAMED,
+    REOPEN_MAX,
+    REOPEN_MIN,
+    REQUIRE_WATCHDOG,
+    ROBOT_NAME,
+    SECTION,
+    SECTIONS,
+    SERIAL_BAUD,
+    SOCKET_PATH_MAX_BYTES,
+    TRANSPORT,
+    VSC_BY_TRANSPORT,
+    VSC_COMMON,
+    VSC_TIMEOUT,
+    Section,
+)
+from supervisord.errors import ConfigError
+from supervisord.outputs.base import DeviceSpec, OutputKind
+from supervisord.outputs.registry import KIND, option_names, read_spec
+from supervisord.record.jsonl import rotated
+from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
+from supervisord.safety.prooftest import ProofTestPolicy
+
+_SAFETY_KEYS = {
+    "transport": "vsc.transport",
+    "vsc_timeout_ms": "vsc.timeout_ms",
+    "heartbeat_hz": "vsc.heartbeat_hz",
+    "require_watchdog": "vsc.require_watchdog",
+    "prooftest": "vsc.prooftest",
+    "prooftest_clear_ms": "vsc.prooftest_clear_ms",
+    "rearm_hold_ms": "rearm.hold_ms",
+    "local_reset": "rearm.local_reset",
+}
+"""SafetyConfig's own key names, and the TOML keys they come from (for its cross-checks)."""
+
+
+def load_config(
+    path: str | Path,
+    *,
+    base_dir: str | Path | None = None,
+    group_exists: Callable[[str], bool] | None = None,
+) -> DaemonConfig:
+    """Read and validate the robot's TOML file at ``path``.
+
+    Relative paths in the file are resolved against ``base_dir`` (default: the file's own
+    directory). ``group_exists`` says whether a group name exists (default: ask the system
+    with ``grp.getgrnam``). Raises :class:`ConfigError` naming ``path``, the key, the value and
+    the fix for the first problem found: a missing or unreadable file, a TOML syntax error
+    (key ``line L, column C``), an unknown section or key, a bad value or a contradiction
+    between sections.
+    """
+    file = str(path)
+    source = Path(path)
+    base = Path(base_dir) if base_dir is not None else source.parent
+    try:
+        data = read_toml(source)
+        return _Loader(source, base.absolute(), group_exists or _group_exists).build(data)
+    except ConfigError as error:
+        raise (error if error.file else error.in_file(file)) from None
+
+
+def _group_exists(name: str) -> bool:
+    try:
+        grp.getgrnam(name)
+    except KeyError:
+        return False
+    return True
+
+
+_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)$")
+
+
+def read_toml(source: Path) -> dict[str, object]:
+    """The parsed file; a syntax error names its line and column (key ``line L, column C``)
+    and carries the text of that line as the value."""
+    try:
+        raw = source.read_bytes()
+    except OSError as error:
+        raise ConfigError(
+            "file", str(source), f"give the path of a readable TOML file ({error.strerror})"
+        ) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = raw.count(b"\n", 0, error.start) + 1
+        column = error.start - (raw.rfind(b"\n", 0, error.start) + 1) + 1
+        raise ConfigError(
+            f"line {line}, column {column}", raw[error.start : error.end], "save the file as UTF-8"
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        message = str(error)
+        lines = text.splitlines() or [""]
+        found = _POSITION.search(message)
+        if found:
+            line, column = int(found[1]), int(found[2])
+        else:  # "(at end of document)"
+            line, column = len(lines), len(lines[-1]) + 1
+        reason = re.sub(r"\s*\(at [^)]*\)$", "", message)
+        shown = lines[line - 1] if line <= len(lines) else ""
+        raise ConfigError(
+            f"line {line}, column {column}",
+            shown,
+            f"correct the TOML syntax there ({reason[:1].lower()}{reason[1:]})",
+        ) from None
+
+
+def _section(root: strict.Fields, section: Section) -> strict.Fields:
+    fields = root.table_at(section.name)
+    fields.check_keys(key.name for key in section.keys)
+    return fields
+
+
+@dataclasses.dataclass
+class _Loader:
+    source: Path
+    base: Path
+    group_exists: Callable[[str], bool]
+
+    def build(self, data: dict[str, object]) -> DaemonConfig:
+        root = strict.Fields(data, error=ConfigError, renamed=RENAMED)
+        root.check_keys(section.name for section in SECTIONS)
+        robot = RobotConfig(_section(root, SECTION["robot"]).text(ROBOT_NAME))
+        vsc_fields = self.vsc_fields(root)
+        vsc = self.vsc(vsc_fields)
+        clients = self.clients(root)
+        outputs = self.outputs(root)
+        rearm = _section(root, SECTION["rearm"])
+        safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
+        output_bus = self.output_bus(root, vsc, outputs)
+        api = self.api(_section(root, SECTION["api"]), len(clients))
+        record = self.record(_section(root, SECTION["record"]))
+        _check_path_owners(vsc, outputs, record, api)
+        return DaemonConfig(
+            source=self.source,
+            robot=robot,
+            vsc=vsc,
+            safety=safety,
+            outputs=outputs,
+            output_bus=output_bus,
+            record=record,
+            api=api,
+        )
+
+    def path(self, fields: strict.Fields, key: strict.Text) -> Path:
+        """A file path; a relative one is resolved against the config file's directory."""
+        path = Path(fields.text(key))
+        return path if path.is_absolute() else self.base / path
+
+    # [vsc] --------------------------------------------------------------------------------
+
+    @staticmethod
+    def vsc_fields(root: strict.Fields) -> strict.Fields:
+        fields = _section(root, SECTION["vsc"])
+        transport = Transport(fields.read(TRANSPORT))
+        allowed = {key.name for key in VSC_COMMON + VSC_BY_TRANSPORT[transport]}
+        for name in fields.table:
+            if name not in allowed:
+                owner = next(
+                    t for t, keys in VSC_BY_TRANSPORT.items() if name in {k.name for k in keys}
+                )
+                raise fields.refuse(
+                    name,
+                    fields.table[name],
+                    f'remove it: it applies to transport "{owner.value}", not "{transport.value}"',
+                )
+        return fields
+
+    def vsc(self, fields: strict.Fields) -> VscConfig:
+        transport = Transport(fields.read(TRANSPORT))
+        link: SerialLink | CanBus | HidLink
+        can_errors = CanErrors()
+        if transport is Transport.SERIAL:
+            port = self.path(fields, PORT)
+            fields.read(BAUD)
+            link = SerialLink(port, SERIAL_BAUD)
+        elif transport is Transport.CAN:
+            link = self.can_bus(fields)
+            can_errors = CanErrors(
+                fields.whole(ERROR_LIMIT), fields.whole(ERROR_WINDOW), fields.whole(ERROR_PASSIVE)
+            )
+        else:
+            link = HidLink(self.path(fields, HIDRAW))
+        low = fields.whole(REOPEN_MIN)
+        high = (
+            fields.whole(REOPEN_MAX)
+            if fields.has(REOPEN_MAX.name)
+            else max(
+                REOPEN_MAX.default,
+                low,  # type: ignore[call-overload]
+            )
+        )
+        if high < low:
+            raise fields.refuse(REOPEN_MAX.name, high, f"make it at least reopen_min_ms ({low})")
+        return VscConfig(transport, link, Reopen(low, high), can_errors)
+
+    @staticmethod
+    def can_bus(fields: strict.Fields) -> CanBus:
+        interface = fields.read(CAN_INTERFACE)
+        channel = fields.read(CAN_CHANNEL)
+        assert isinstance(interface, str)
+        assert isinstance(channel, str | int)
+        return CanBus(interface, channel, fields.whole(CAN_BITRATE))
+
+    # [[clients]] --------------------------------------------------------------------------
+
+    def clients(self, root: strict.Fields) -> tuple[ClientSpec, ...]:
+        section = SECTION["clients"]
+        clients: list[ClientSpec] = []
+        for fields in root.tables_at(section.name, section.example):
+            fields.check_keys(key.name for key in section.keys)
+            name_key, timeout_key, _, _ = CLIENTS
+            name = fields.text(name_key)
+            timeout = fields.whole(timeout_key)
+            for j, earlier in enumerate(clients):
+                if earlier.name == name:
+                    raise fields.refuse("name", name, f"rename it: clients[{j}] has the same name")
+            clients.append(ClientSpec(name, timeout, self.client_user(fields)))
+        return tuple(clients)
+
+    @staticmethod
+    def client_user(fields: strict.Fields) -> int | None:
+        """The uid a client is bound to (``user`` by name or ``uid`` by number), or ``None``:
+        unbound, any user who can reach the socket may say hello under the name
+        (docs/safety.md "Clients bound to a user")."""
+        _, _, user_key, uid_key = CLIENTS
+        user, uid = fields.read(user_key), fields.read(uid_key)
+        if user is not None and uid is not None:
+            raise fields.refuse("uid", uid, "give user or uid, not both")
+        if uid is not None:
+            assert isinstance(uid, int)
+            return uid
+        if user is None:
+            return None
+        assert isinstance(user, str)
+        try:
+            return pwd.getpwnam(user).pw_uid
+        except KeyError:
+            raise fields.refuse(
+                "user",
+                user,
+                f"no such user on this machine: create it (useradd --system {user}) or name "
+                "the user the client runs as",
+            ) from None
+
+    # [[outputs]] --------------------------------------------------------------------------
+
+    def outputs(self, root: strict.Fields) -> tuple[DeviceSpec, ...]:
+        section = SECTION["outputs"]
+        raw = root.table.get(section.name, strict.MISSING)
+        if isinstance(raw, dict) and raw and all(isinstance(v, dict) for v in raw.values()):
+            first = next(iter(raw))
+            raise root.refuse(
+                f"{section.name}.{first}",
+                raw[first],
+                f'write [[outputs]] with name = "{first}" instead of [outputs.{first}]',
+            )
+        entries = root.tables_at(section.name, section.example)
+        if not entries:
+            raise root.refuse(
+                section.name,
+                strict.MISSING,
+                "add at least one [[outputs]] table: without an enable line to gate, the "
+                "supervisor holds nothing",
+            )
+        specs = []
+        for fields in entries:
+            name = fields.text(OUTPUT_NAME_KEY)
+            kind = fields.read(KIND)
+            fields.check_keys(option_names(str(kind)))
+            specs.append(read_spec(name, fields).resolved(self.base))
+        _check_claims(specs)
+        return tuple(specs)
+
+    @staticmethod
+    def output_bus(
+        root: strict.Fields, vsc: VscConfig, outputs: Sequence[DeviceSpec]
+    ) -> CanBus | None:
+        can_outputs = [i for i, spec in enumerate(outputs) if spec.kind is OutputKind.CAN]
+        if not root.has("output_bus"):
+            if can_outputs and vsc.transport is not Transport.CAN:
+                raise root.refuse(
+                    f"outputs[{can_outputs[0]}].kind",
+                    "can",
+                    "add an [output_bus] section (interface, channel, bitrate) for the enable "
+                    'frames: only a VSC on transport = "can" lends its bus to CAN outputs',
+                )
+            return None
+        fields = _section(root, SECTION["output_bus"])
+        bus = _Loader.can_bus(fields)
+        if not can_outputs:
+            raise root.refuse(
+                "output_bus", dict(fields.table), 'remove it: no output has kind = "can"'
+            )
+        if isinstance(vsc.link, CanBus) and (vsc.link.interface, vsc.link.channel) == (
+            bus.interface,
+            bus.channel,
+        ):
+            raise fields.refuse(
+                "channel",
+                bus.channel,
+                "remove [output_bus]: CAN outputs already send on the VSC's bus; give "
+                "[output_bus] only for a second CAN network",
+            )
+        return bus
+
+    # SafetyConfig -------------------------------------------------------------------------
+
+    def safety(
+        self,
+        vsc: VscConfig,
+        fields: strict.Fields,
+        rearm: strict.Fields,
+        clients: tuple[ClientSpec, ...],
+        outputs: Sequence[DeviceSpec],
+    ) -> SafetyConfig:
+        if not any(spec.role is OutputRole.MOTION for spec in outputs):
+            raise ConfigError(
+                "outputs",
+                [f"{spec.name}: {spec.role.value}" for spec in outputs],
+                'give at least one output role = "motion": otherwise a hold (pause, menu, '
+                "a client's hold) leaves motion enabled",
+            )
+        hold, local_reset = (rearm.read(key) for key in SECTION["rearm"].keys)
+        require_watchdog = fields.flag(REQUIRE_WATCHDOG)
+        try:
+            return SafetyConfig(
+                transport=vsc.transport,
+                vsc_timeout_ms=fields.whole(VSC_TIMEOUT),
+                heartbeat_hz=fields.whole(HEARTBEAT_HZ),
+                rearm_hold_ms=hold,  # type: ignore[arg-type]
+                local_reset=local_reset,  # type: ignore[arg-type]
+                require_watchdog=require_watchdog,
+                prooftest=self.prooftest(vsc.transport, require_watchdog, fields),
+                prooftest_clear_ms=fields.whole(PROOFTEST_CLEAR),
+                clients=clients,
+                outputs=tuple(outputs),
+            )
+        except ConfigError as error:
+            key = _SAFETY_KEYS.get(error.key, error.key)
+            raise ConfigError(key, error.value, error.fix) from None
+
+    @staticmethod
+    def prooftest(
+        transport: Transport, require_watchdog: bool, fields: strict.Fields
+    ) -> ProofTestPolicy:
+        """``vsc.prooftest`` (docs/safety.md "The proof test", SR-5.3). The default: ``block``
+        on serial when the watchdog is required, ``record`` on serial when it is not (then a
+        VSC with key 85 off is recorded at every start, and runs), ``off`` on CAN and HID,
+        which have no user heartbeat to withhold."""
+        raw = fields.read(PROOFTEST)
+        if raw is not None:
+            return ProofTestPolicy(raw)
+        if transport is not Transport.SERIAL:
+            return ProofTestPolicy.OFF
+        return ProofTestPolicy.BLOCK if require_watchdog else ProofTestPolicy.RECORD
+
+    # [record], [api] ----------------------------------------------------------------------
+
+    def record(self, fields: strict.Fields) -> RecordConfig:
+        path, max_bytes, keep, journal = RECORD
+        return RecordConfig(
+            path=self.path(fields, path),
+            max_bytes=fields.whole(max_bytes),
+            keep=fields.whole(keep),
+            journal=fields.flag(journal),
+        )
+
+    def group(self, fields: strict.Fields, key: strict.Key) -> str | None:
+        group = fields.read(key)
+        if group is None:
+            return None
+        assert isinstance(group, str)
+        if not self.group_exists(group):
+            raise fields.refuse(
+                key.name,
+                group,
+                f"no such group on this machine: create it (groupadd --system {group}) and "
+                "add the users to it, or name an existing group",
+            )
+        return group
+
+    def api(self, fields: strict.Fields, required_clients: int) -> ApiConfig:
+        socket_key, group_key, admin_key, max_clients_key, max_message_key = API
+        socket = self.path(fields, socket_key)
+        if len(str(socket).encode()) > SOCKET_PATH_MAX_BYTES:
+            raise fields.refuse(
+                "socket",
+                str(socket),
+                f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
+                f'socket address), e.g. "{socket_key.default}"',
+            )
+        group = self.group(fields, group_key)
+        admin_group = self.group(fields, admin_key)
+        max_clients = fields.whole(max_clients_key)
+        if max_clients < required_clients + 1:
+            raise fields.refuse(
+                "max_clients",
+                max_clients,
+                f"raise it to at least {required_clients + 1}: the {required_clients} required "
+                "clients and one srcsctl must fit",
+            )
+        return ApiConfig(
+            socket=socket,
+            group=group,
+            admin_group=admin_group,
+            max_clients=max_clients,
+            max_message_bytes=fields.whole(max_message_key),
+        )
+
+
+def _check_claims(specs: Sequence[DeviceSpec]) -> None:
+    """Names are unique, and no two outputs hold the same device (what each spec claims)."""
+    seen: dict[Hashable, int] = {}
+    for j, spec in enumerate(specs):
+        claims: list[tuple[Hashable, str, object, str]] = [
+            (("name", spec.name), "name", spec.name, "rename it")
+        ]
+        claims += [
+            (claim.identity, claim.option, claim.value, f"give each output its own {claim.what}")
+            for claim in spec.claims()
+            if claim.identity is not None
+        ]
+        for identity, option, value, fix in claims:
+            i = seen.setdefault(identity, j)
+            if i != j:
+                raise ConfigError(
+                    f"outputs[{j}].{option}", value, f"{fix}: outputs[{i}] ({specs[i].name}) has it"
+                )
+
+
+def _path_claims(
+    vsc: VscConfig, outputs: Sequence[DeviceSpec], record: RecordConfig, api: ApiConfig
+) -> list[tuple[str, str, Path, str]]:
+    """(key, value as written, file, what of the owner) for every file the config names, in
+    the order of the file's sections; the record claims its rotated files too."""
+    claims: list[tuple[str, str, Path, str]] = []
+    link = vsc.link
+    if isinstance(link, SerialLink):
+        claims.append(("vsc.port", str(link.port), link.port, ""))
+    elif isinstance(link, HidLink):
+        claims.append(("vsc.hidraw", str(link.hidraw), link.hidraw, ""))
+    for i, spec in enumerate(outputs):
+        claims += [
+            (f"outputs[{i}].{claim.option}", str(claim.value), claim.path, "")
+            for claim in spec.claims()
+            if claim.path is not None
+        ]
+    claims.append(("record.path", str(record.path), record.path, ""))
+    claims += [
+        ("record.path", str(record.path), rotated(record.path, n), f"rotated file {n}")
+        for n in range(1, record.keep + 1)
+    ]
+    claims.append(("api.socket", str(api.socket), api.socket, ""))
+    return claims
+
+
+def _check_path_owners(
+    vsc: VscConfig, outputs: Sequence[DeviceSpec], record: RecordConfig, api: ApiConfig
+) -> None:
+    """Every file has one owner (SR-11.1; docs/configuration.md "One owner per path"): two
+    keys that name one file once relative paths and symlinks are resolved would destroy each
+    other's file (an output's write replacing the record, the socket's start removing an
+    output). The later key is refused, naming the earlier one."""
+    seen: dict[str, tuple[str, str, str]] = {}
+    for key, value, path, part in _path_claims(vsc, outputs, record, api):
+        resolved = os.path.realpath(path)
+        first = seen.setdefault(resolved, (key, value, part))
+        if first == (key, value, part):
+            continue
+        other_key, other_value, other_part = first
+        mine = f"its {part}" if part else "it"
+        other = f"{other_key} = {other_value!r}" + (f" (its {other_part})" if other_part else "")
+        raise ConfigError(
+            key,
+            value,
+            f"give it its own file: {mine} and {other} are one file once relative paths and "
+            "symlinks are resolved (every path in the config has one owner)",
+        )

@@ -1,0 +1,204 @@
+"""The stop record's format (SR-7, ``docs/record.md`` "Fields"): one JSON object per record.
+
+:func:`record_json` turns the safety core's :class:`~supervisord.safety.decision.Record` into
+the object that the JSON Lines store, the journal and the API's ``record`` push all carry;
+:class:`RecordKind` names what a record reports, :func:`record_kind` derives it from the
+core's record and :func:`written_kind` reads it back from a written one. The cause and caller
+objects are shared with the API's ``status`` (``docs/api.md``), so both read the same.
+
+Pure: no clock (the daemon passes the wall-clock time it stamps), no I/O.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import enum
+import re
+from collections.abc import Mapping
+from typing import Any, Final, get_args
+
+from supervisord.compat import StrEnum
+from supervisord.protocol.jsonview import message_json
+from supervisord.protocol.messages import Message
+from supervisord.protocol.text import clean
+from supervisord.record.jsonl import RecordUsageError
+from supervisord.safety.causes import CauseState
+from supervisord.safety.decision import ChangeKind, Record
+from supervisord.safety.events import (
+    Caller,
+    ClientConnected,
+    ClientDisconnected,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientHold,
+    ClientRelease,
+    Commissioned,
+    DisplayUpdate,
+    InternalFault,
+    LinkBroken,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    LocalRelease,
+    OutputReadback,
+    ProofTestRequest,
+    ResetRequest,
+    Tick,
+    VscReceived,
+)
+
+JsonDict = dict[str, Any]
+
+
+class RecordKind(StrEnum):
+    """What a record reports, as its optional ``kind`` field says (absent: a state change)."""
+
+    STATE_CHANGE = "state_change"
+    """The state changed (a stop is a change into STOPPED)."""
+    CAUSE_RAISED = "cause_raised"
+    """A stop or hold cause became active."""
+    CAUSE_CLEARED = "cause_cleared"
+    """A cause's condition cleared."""
+    REARM_REFUSED = "rearm_refused"
+    """A re-arm was asked for and refused."""
+    COMMISSIONED = "commissioned"
+    """Key 85 was written to the VSC (``srcsctl commission``)."""
+    PROOFTEST = "prooftest"
+    """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
+    HELLO_REFUSED = "hello_refused"
+    """A hello as a client bound to another user was refused (SR-8)."""
+
+
+def record_kind(record: Record) -> RecordKind:
+    """``state_change``, ``prooftest``, ``cause_raised``, the record's note
+    (``rearm_refused``, ``commissioned``) or ``cause_cleared``, in that order of precedence
+    (``docs/record.md``)."""
+    if record.previous is not record.state:
+        return RecordKind.STATE_CHANGE
+    if record.prooftest is not None:
+        return RecordKind.PROOFTEST  # its outcome is what the record is about
+    if any(c.kind in (ChangeKind.RAISED, ChangeKind.UPDATED) for c in record.changes):
+        return RecordKind.CAUSE_RAISED
+    if record.note is not None:
+        return RecordKind(record.note.value)  # every note is a kind (tests/record pin it)
+    return RecordKind.CAUSE_CLEARED
+
+
+def written_kind(record: Mapping[str, object]) -> RecordKind:
+    """The kind a written record states (its ``kind`` field; a state change when absent).
+
+    Raises :class:`~supervisord.record.jsonl.RecordUsageError` for an unknown kind."""
+    kind = record.get("kind", RecordKind.STATE_CHANGE.value)
+    if isinstance(kind, str) and kind in RecordKind.__members__.values():
+        return RecordKind(kind)
+    raise RecordUsageError(f"unknown record kind {kind!r}")
+
+
+def caller_json(caller: Caller) -> JsonDict:
+    """The caller; its login name escaped if it is not UTF-8 (``credentials.user_name``
+    escapes it at the source already; this keeps every record and reply encodable)."""
+    return {"uid": caller.uid, "pid": caller.pid, "name": clean(caller.name), "admin": caller.admin}
+
+
+def cause_json(cause: CauseState) -> JsonDict:
+    """One cause: ``name``, ``severity`` (``stop``/``hold``), ``active``, ``latched``, the
+    monotonic times, and ``details`` (text values, e.g. ``{"sources": "remote"}``)."""
+    return {
+        "name": cause.name,
+        "severity": cause.severity.value,
+        "active": cause.active,
+        "latched": cause.latched,
+        "raised_ns": cause.raised_ns,
+        "cleared_ns": cause.cleared_ns,
+        "details": {clean(k): clean(v) for k, v in cause.details},  # may quote input text
+    }
+
+
+def _plain(value: object) -> object:
+    """A trigger's field as JSON: messages through the protocol's JSON view."""
+    if isinstance(value, Caller):
+        return caller_json(value)
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, str):
+        return clean(value)  # e.g. a link's or a fault's reason, which may quote input
+    if isinstance(value, bool | int) or value is None:
+        return value
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, _MESSAGE_TYPES):
+        return message_json(value)
+    return clean(repr(value)[:200])
+
+
+_MESSAGE_TYPES: Final = get_args(Message)
+_CAMEL = re.compile(r"(?<!^)(?=[A-Z])")
+
+TRIGGER_EVENTS: Final[Mapping[type, str]] = {
+    Tick: "tick",
+    VscReceived: "vsc_received",
+    LinkOpened: "link_opened",
+    LinkBroken: "link_broken",
+    LinkClosed: "link_closed",
+    ClientConnected: "client_connected",
+    ClientHello: "client_hello",
+    ClientHeartbeat: "client_heartbeat",
+    ClientEstop: "client_estop",
+    ClientHold: "client_hold",
+    ClientRelease: "client_release",
+    ClientDisconnected: "client_disconnected",
+    LocalEstop: "local_estop",
+    LocalRelease: "local_release",
+    ResetRequest: "reset_request",
+    OutputReadback: "output_readback",
+    InternalFault: "internal_fault",
+    DisplayUpdate: "display_update",
+    Commissioned: "commissioned",
+    ProofTestRequest: "proof_test_request",
+}
+"""A trigger's ``event`` name in the record, per core event type. Written out, not derived
+from the class name, so that renaming a class in the code cannot change the record's format
+(SR-7; ``tests/record/test_record_format.py`` checks every event type has its name)."""
+
+
+def trigger_json(event: object) -> JsonDict:
+    """What triggered a record: ``{"event": "client_estop", "connection": 3, ...}``; the
+    fields of the event but its time, as JSON."""
+    name = TRIGGER_EVENTS.get(type(event))
+    if name is None:  # not a core event (never from the core): its class name, as text
+        name = _CAMEL.sub("_", type(event).__name__).lower()
+    result: JsonDict = {"event": name}
+    if dataclasses.is_dataclass(event) and not isinstance(event, type):
+        for field in dataclasses.fields(event):
+            if field.name != "now":
+                result[field.name] = _plain(getattr(event, field.name))
+    return result
+
+
+def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> JsonDict:
+    """A stop record as JSON, with the fields ``docs/record.md`` requires; ``utc`` (aware) is
+    the wall-clock time the daemon stamped on it. ``seq`` continues after ``sequence_offset``,
+    the last sequence number already in the store (the core counts from 1 at every start)."""
+    result: JsonDict = {
+        "seq": sequence_offset + record.sequence,
+        "mono_ns": record.monotonic_ns,
+        "utc": utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),  # noqa: UP017 -- dt.UTC is 3.11
+        "kind": record_kind(record).value,
+        "from": record.previous.name,
+        "to": record.state.name,
+        "causes": [cause_json(c) for c in record.causes],
+        "changes": [{"name": c.cause.name, "change": c.kind.value} for c in record.changes],
+        "trigger": trigger_json(record.trigger),
+    }
+    if record.reason:
+        result["reason"] = clean(record.reason)
+    if record.prooftest is not None:
+        result["prooftest"] = record.prooftest.json()
+    if record.rearm is not None:
+        rearm: JsonDict = {"kind": record.rearm.kind.value}
+        if record.rearm.caller is not None:
+            rearm["caller"] = caller_json(record.rearm.caller)
+        result["rearm"] = rearm
+    return result

@@ -1,0 +1,150 @@
+"""The service unit's real-time scheduling, bounded (issue 14 item 2; SR-9): ``srcsd@.service``
+runs the daemon in SCHED_FIFO at a modest priority under RLIMIT_RTTIME, keeps
+``RestrictRealtime=yes`` and its offline exposure at or under 1.4; and, as root, the kernel does
+with the unit's own numbers what the unit's comments promise: a real-time process that spins is
+killed by SIGXCPU, one that blocks now and then is never killed however much CPU it uses in all.
+The same, under systemd with the real daemon, is the system tier's ``rttime`` scenario."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.unit import apply_in_child, read_unit
+
+UNIT = Path(__file__).parents[2] / "units" / "srcsd@.service"
+PREEMPT_RT_IRQ_PRIORITY = 50  # PREEMPT_RT's interrupt threads: the VSC's bytes come through them
+
+
+def settings(unit: Path = UNIT) -> dict[str, list[str]]:
+    """Every ``Key=value`` of the unit file, values in order of appearance."""
+    found: dict[str, list[str]] = {}
+    for line in unit.read_text().splitlines():
+        if "=" in line and not line.lstrip().startswith("#"):
+            key, _, value = line.partition("=")
+            found.setdefault(key.strip(), []).append(value.strip())
+    return found
+
+
+def test_the_unit_runs_srcsd_in_fifo_at_a_modest_priority() -> None:
+    """SR-9: CPUSchedulingPolicy=fifo, a priority above SCHED_OTHER and the FIFO 1 kernel
+    threads and below PREEMPT_RT's interrupt threads; RestrictRealtime=yes is kept."""
+    unit = settings()
+    assert unit["CPUSchedulingPolicy"] == ["fifo"]
+    assert 1 < int(unit["CPUSchedulingPriority"][0]) < PREEMPT_RT_IRQ_PRIORITY
+    assert unit["RestrictRealtime"] == ["yes"]
+    assert "CPUSchedulingResetOnFork" not in unit  # the sink thread shares the loop's policy
+
+
+def test_the_unit_bounds_the_real_time_loop_with_rlimit_rttime() -> None:
+    """SR-9: LimitRTTIME= sets a finite soft limit (SIGXCPU) and a finite hard limit (SIGKILL)
+    no lower than it, and the soft one ends a loop that still pings the watchdog no later
+    than systemd's watchdog would end one that does not (WatchdogSec=)."""
+    realtime = read_unit(UNIT)
+    assert realtime.soft_us is not None
+    assert realtime.hard_us is not None
+    assert 0 < realtime.soft_us <= realtime.hard_us
+    watchdog_s = int(settings()["WatchdogSec"][0])
+    assert realtime.soft_us <= watchdog_s * 1_000_000
+
+
+@pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")
+def test_offline_exposure_is_at_most_1_4(tmp_path: Path) -> None:
+    """SR-9: the real-time settings cost the sandbox nothing: ``systemd-analyze security
+    --offline=yes`` rates the unit 1.4 or better, as before issue 14."""
+    copy = tmp_path / "srcsd@robot-a.service"
+    shutil.copy(UNIT, copy)
+    result = subprocess.run(
+        ["systemd-analyze", "security", "--offline=yes", "--no-pager", str(copy)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    match = re.search(r"Overall exposure level for \S+: (\d+\.\d+)", result.stdout)
+    assert match is not None, result.stdout + result.stderr
+    assert float(match.group(1)) <= 1.4
+
+
+FIFO_PROBE = "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))"
+
+
+def _fifo_allowed() -> bool:
+    """Root on a kernel that gives this process SCHED_FIFO (CONFIG_RT_GROUP_SCHED may not)."""
+    if os.geteuid() != 0:
+        return False
+    probe = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))",
+        ],
+        capture_output=True,
+        timeout=30,
+        check=False,
+    )
+    return probe.returncode == 0
+
+
+needs_fifo = pytest.mark.skipif(not _fifo_allowed(), reason="needs root and SCHED_FIFO")
+
+
+@needs_fifo
+def test_rlimit_rttime_kills_a_spinning_fifo_process_with_sigxcpu() -> None:
+    """SR-9: under the unit's policy and limit, a Python loop that never blocks dies of
+    SIGXCPU (Python does not handle it) after about the soft limit of CPU time."""
+    realtime = read_unit(UNIT)
+    assert realtime.soft_us is not None
+    started = time.monotonic()
+    spinner = subprocess.Popen(
+        [sys.executable, "-c", "while True: pass"],
+        preexec_fn=lambda: apply_in_child(realtime),  # noqa: PLW1509 -- no threads here
+    )
+    try:
+        status = spinner.wait(timeout=realtime.soft_us / 1e6 * 10 + 10)
+    finally:
+        spinner.kill()
+        spinner.wait()
+    took = time.monotonic() - started
+    assert status == -signal.SIGXCPU
+    assert took >= realtime.soft_us / 1e6 * 0.9  # not before the soft limit's CPU time
+
+
+BLOCKING = """
+import time
+end = time.monotonic() + {seconds}
+while time.monotonic() < end:
+    burst = time.monotonic() + 0.05
+    while time.monotonic() < burst:
+        pass
+    time.sleep(0.001)
+print(time.process_time())
+"""
+
+
+@needs_fifo
+def test_rlimit_rttime_spares_a_fifo_process_that_blocks_between_bursts() -> None:
+    """SR-9: the count restarts whenever the thread sleeps, so a process that runs 50 ms and
+    then sleeps 1 ms survives more CPU time in all than the hard limit: the budget bounds a
+    run without blocking, which is what the loop's epoll_wait gives every turn."""
+    realtime = read_unit(UNIT)
+    assert realtime.hard_us is not None
+    seconds = realtime.hard_us / 1e6 + 1.0
+    worker = subprocess.run(
+        [sys.executable, "-c", BLOCKING.format(seconds=seconds)],
+        preexec_fn=lambda: apply_in_child(realtime),
+        capture_output=True,
+        text=True,
+        timeout=seconds * 10 + 30,
+        check=False,
+    )
+    assert worker.returncode == 0, worker.returncode
+    assert float(worker.stdout) > realtime.hard_us / 1e6  # more CPU than the hard limit

@@ -1,0 +1,1 @@
+"""The Debian package (packaging/, docs/install.md)."""

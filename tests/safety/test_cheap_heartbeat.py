@@ -1,0 +1,103 @@
+"""The cheap path also sends the user heartbeat when it is the only thing due (SR-9.4).
+
+``tests/safety/test_cheap_path.py`` proves the cheap path equal to the full path over random
+inputs, deadlines included; these tests pin down that the heartbeat tick really takes it, and
+that it still declines when something else falls due at the same time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+from supervisord.protocol.messages import UserHeartbeat
+from supervisord.safety import Decision, SafetyCore, State
+from tests.safety.rig import MS, Rig
+
+HEARTBEAT_MS = 50  # ROBOT's heartbeat_hz 20 (SR-5.1)
+
+
+def _count_refreshes(core: SafetyCore) -> list[int]:
+    """A spy on the full path's recomputation: the times it ran (it still runs for real)."""
+    refreshes: list[int] = []
+    real = SafetyCore._refresh
+
+    def counting(self: SafetyCore, now: int) -> None:
+        refreshes.append(now)
+        real(self, now)
+
+    core._refresh = counting.__get__(core)  # type: ignore[method-assign]
+    return refreshes
+
+
+def test_the_heartbeat_tick_in_run_sends_the_heartbeat_without_recomputing() -> None:
+    """SR-5.1, SR-9.4: in RUN, the tick at the user heartbeat's time sends one heartbeat with
+    byte 0, keeps the 50 ms cadence and recomputes no cause; state and outputs are unchanged."""
+    rig = Rig()
+    rig.bring_up()
+    assert rig.state is State.RUN
+    refreshes = _count_refreshes(rig.core)
+    sent: list[int] = []
+    for _ in range(10):
+        rig.beat()  # the required client stays alive (SR-2.4; a client's beat is a full step)
+        rig.vsc()  # and so does the VSC (SR-2.2)
+        rig.now = rig.last.next_deadline
+        before = len(refreshes)
+        decision = rig.tick()
+        assert len(refreshes) == before  # the tick itself recomputed nothing
+        if decision.frames:
+            assert decision.frames == (UserHeartbeat(0),)
+            sent.append(decision.now)
+        assert decision.state is State.RUN
+        assert decision.outputs == {"drive": True, "lights": True}
+        assert not decision.records
+    assert len(sent) >= 5
+    assert all((b - a) % (HEARTBEAT_MS * MS) == 0 for a, b in itertools.pairwise(sent))
+
+
+def test_the_heartbeat_tick_takes_the_full_path_when_a_timeout_expires_with_it() -> None:
+    """SR-2.2, SR-5.2: when the VSC's 200 ms timeout expires at the very tick the user heartbeat
+    is due, the cheap path declines: the full step raises ``vsc_link_lost`` and the heartbeat
+    of that tick carries byte 1; every heartbeat tick before it was cheap."""
+    rig = Rig()
+    rig.bring_up()
+    while not rig.last.frames:  # to a tick that sent a heartbeat: a heartbeat time
+        rig.beat()
+        rig.vsc()
+        rig.now = rig.last.next_deadline
+        rig.tick()
+    last_vsc = rig.now
+    rig.vsc()  # the VSC's last heartbeat, at a heartbeat time: its timeout falls on one too
+    refreshes = _count_refreshes(rig.core)
+    while True:
+        rig.beat()
+        rig.now = rig.last.next_deadline
+        before = len(refreshes)
+        decision = rig.tick()
+        if decision.state is not State.RUN:
+            break
+        assert len(refreshes) == before  # a cheap heartbeat tick
+        assert decision.frames == (UserHeartbeat(0),)
+    assert decision.now == last_vsc + 200 * MS
+    assert refreshes[before:] == [decision.now, decision.now]  # this tick took the full step
+    assert "vsc_link_lost" in decision.active_names
+    assert decision.frames == (UserHeartbeat(1),)
+
+
+def test_the_cheap_decision_lists_every_field_of_a_decision() -> None:
+    """SR-9.4: the cheap path builds its decision field by field; a field added to
+    ``Decision`` later must be added there too, or this fails (the full path is the reference)."""
+    names = [field.name for field in dataclasses.fields(Decision)]
+    assert names == [
+        "now",
+        "state",
+        "causes",
+        "outputs",
+        "heartbeat_estop",
+        "next_deadline",
+        "frames",
+        "records",
+        "refusals",
+        "rearm",
+        "prooftest",
+    ]

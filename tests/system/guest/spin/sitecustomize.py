@@ -1,0 +1,64 @@
+"""System tier only: make the running srcsd's loop spin, to prove the unit's LimitRTTIME=.
+
+Nothing in the product knows of this file. The ``rttime`` scenario
+(tests/system/guest/scenarios.py) adds a drop-in to srcsd@gpio-a with
+``Environment=PYTHONPATH=`` this directory, so that Python imports this module at start-up
+(``site`` imports ``sitecustomize``), before the daemon's own code. It wraps
+``selectors.EpollSelector.select``, which the loop calls once per turn to wait for its next
+input or deadline. When the file :data:`TRIGGER` holds this process's PID, every wait from
+then on has a timeout of 0: the loop still serves the VSC, its outputs and systemd's
+watchdog, but it never blocks again, as a loop whose next deadline is always in the past
+would. Only RLIMIT_RTTIME can stop that (issue 14 item 2; SR-9).
+
+At start it also asks for a higher SCHED_FIFO priority, once, and prints the answer to
+stderr (the journal): the unit's RestrictRealtime=yes must refuse it.
+"""
+
+from __future__ import annotations
+
+import os
+import selectors
+import sys
+
+TRIGGER = "/run/srcs-spin"
+_select = selectors.EpollSelector.select
+_spinning = False
+
+
+def _told() -> bool:
+    try:
+        with open(TRIGGER) as trigger:
+            return trigger.read().strip() == str(os.getpid())
+    except OSError:
+        return False
+
+
+def _spin_select(
+    self: selectors.EpollSelector, timeout: float | None = None
+) -> list[tuple[selectors.SelectorKey, int]]:
+    global _spinning  # noqa: PLW0603 -- one flag for the process
+    if not _spinning and _told():
+        _spinning = True
+        print("srcs-spin: spinning from now on (every wait has timeout 0)", file=sys.stderr)
+        sys.stderr.flush()
+    return _select(self, 0 if _spinning else timeout)
+
+
+selectors.EpollSelector.select = _spin_select  # type: ignore[assignment,method-assign]
+
+try:
+    policy = os.sched_getscheduler(0)
+    priority = os.sched_getparam(0).sched_priority
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority + 1))
+        answer = "allowed"
+    except OSError as error:
+        answer = f"refused ({error.strerror})"
+    print(
+        f"srcs-spin: armed; policy {policy} priority {priority}; "
+        f"raising the FIFO priority: {answer}",
+        file=sys.stderr,
+    )
+    sys.stderr.flush()
+except Exception as error:  # never stop the daemon from starting
+    print(f"srcs-spin: {error}", file=sys.stderr)

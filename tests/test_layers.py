@@ -1,0 +1,89 @@
+"""The package's layers: the product never leans on its test kit (issue 15).
+
+``supervisord/testkit/`` is for tests, the product's and integrators'; it may import the
+product, never the reverse, so that what ships to a robot works without it and a change to the
+kit cannot change the supervisor.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "supervisord"
+KIT = "supervisord.testkit"
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(source: str, module: str, is_package: bool = False) -> Iterator[tuple[int, str]]:
+    """Every module ``source`` (the text of ``module``) names: its imports, relative ones
+    resolved, and string constants that spell a module of the package (``python -m``
+    commands, ``importlib``)."""
+    package = module.split(".") if is_package else module.split(".")[:-1]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                parent = ".".join([*base, node.module] if node.module else base)
+            else:
+                parent = node.module or ""
+            yield node.lineno, parent
+            for alias in node.names:
+                yield node.lineno, f"{parent}.{alias.name}"
+        elif isinstance(node, ast.Constant) and str(node.value).startswith("supervisord."):
+            yield node.lineno, str(node.value).split()[0]
+
+
+def _file_imports(path: Path) -> Iterator[tuple[int, str]]:
+    return _imports(path.read_text(), _module(path), path.name == "__init__.py")
+
+
+def _leans_on_kit(name: str) -> bool:
+    return name == KIT or name.startswith(KIT + ".")
+
+
+def product_files() -> list[Path]:
+    kit = PACKAGE / "testkit"
+    return sorted(p for p in PACKAGE.rglob("*.py") if kit not in p.parents)
+
+
+def test_nothing_outside_the_test_kit_imports_it() -> None:
+    """No module of ``supervisord/`` outside ``supervisord/testkit/`` imports the test kit,
+    directly, relatively or by name in a string."""
+    files = product_files()
+    assert len(files) > 50  # the walk found the package
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}: {name}"
+        for path in files
+        for line, name in _file_imports(path)
+        if _leans_on_kit(name)
+    ]
+    assert found == []
+
+
+def test_the_walk_sees_every_kind_of_import() -> None:
+    """The check above would catch each way of naming the kit: ``import``, ``from ... import``,
+    a relative import from a sibling package and a ``python -m`` string; and only the kit."""
+    lines = {
+        "import supervisord.testkit.robot": True,
+        "from supervisord.testkit.wait import wait_until": True,
+        "from supervisord import testkit": True,
+        "from ..testkit import robot": True,
+        "from ..testkit.robot import Robot": True,
+        "from . import testkit": False,  # supervisord.sim.testkit: not the kit
+        "from ..sim import pty": False,
+        "import supervisord.testkits": False,
+        "COMMAND = ['python', '-m', 'supervisord.testkit.clients']": True,
+        "COMMAND = ['python', '-m', 'supervisord.cli.srcsd']": False,
+    }
+    for source, leans in lines.items():
+        names = [name for _, name in _imports(source, "supervisord.sim.sample")]
+        assert any(_leans_on_kit(n) for n in names) is leans, (source, names)
