@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from bench.rig import Rig, load, machine, ms, percentile, realtime, table
+from bench.rig import Rig, load, machine, ms, percentile, realtime, spread_table
 from bench.stop_latency import CpuTimes, steal_text
 from supervisord.timebase import NS_PER_MS
 
@@ -107,18 +107,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"WARNING: the supervisor stopped {stops} time(s) during the run (starved?)")
     print()
     deviations = [abs(period - NOMINAL_NS) for period in periods]
-    rows = [
-        [
-            name,
-            len(values),
-            ms(min(values)),
-            ms(percentile(values, 0.5)),
-            ms(percentile(values, 0.99)),
-            ms(max(values)),
-        ]
-        for name, values in (("period", periods), ("deviation from 50 ms", deviations))
-    ]
-    print(table(["ms", "n", "min", "p50", "p99", "max"], rows))
+    print(spread_table((("period", periods), ("deviation from 50 ms", deviations))))
     p99 = percentile(deviations, 0.99)
     verdict = "PASS" if p99 < TARGET_NS else "FAIL"
     print()

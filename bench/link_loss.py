@@ -19,7 +19,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.rig import Rig, RigError, load, machine, ms, percentile, realtime, table
+from bench.rig import Rig, RigError, load, machine, ms, realtime, spread_table
 from bench.stop_latency import CpuTimes, steal_text
 from supervisord.protocol.codes import VscMode
 from supervisord.timebase import NS_PER_MS
@@ -69,18 +69,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         f"(timeout_ms = {args.timeout_ms}{fifo})"
     )
     print()
-    rows = [
-        [
-            name,
-            len(values),
-            ms(min(values)),
-            ms(percentile(values, 0.5)),
-            ms(percentile(values, 0.99)),
-            ms(max(values)),
-        ]
-        for name, values in (("silence to off", measured), ("after the timeout", late))
-    ]
-    print(table(["ms", "n", "min", "p50", "p99", "max"], rows))
+    print(spread_table((("silence to off", measured), ("after the timeout", late))))
     worst = max(measured)
     margin = timeout_ns + SLACK_NS - worst
     early = sum(value < timeout_ns for value in measured)

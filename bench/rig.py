@@ -598,6 +598,22 @@ def ms(ns: float) -> str:
     return f"{ns / NS_PER_MS:.3f}"
 
 
+def spread_table(named: Sequence[tuple[str, Sequence[float]]]) -> str:
+    """The min, p50, p99 and max of each named series of nanoseconds, in ms, as one table."""
+    rows = [
+        [
+            name,
+            len(values),
+            ms(min(values)),
+            ms(percentile(values, 0.5)),
+            ms(percentile(values, 0.99)),
+            ms(max(values)),
+        ]
+        for name, values in named
+    ]
+    return table(["ms", "n", "min", "p50", "p99", "max"], rows)
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["flood"]:
         sys.exit(flood_main(sys.argv[2]))

@@ -1,11 +1,16 @@
 """The child processes a command starts (the demo's simulator and supervisor, and the test
-kit's): ending them politely first and for good if need be, and reading their logs."""
+kit's): starting them and waiting until they are ready, ending them politely first and for
+good if need be, and reading their logs."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
+import time
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Literal
 
 
 def terminate(process: subprocess.Popen[bytes], timeout: float = 10.0) -> int:
@@ -37,3 +42,36 @@ def log_tail(path: Path, tail: int | None = None) -> str:
     except FileNotFoundError:
         return ""
     return text if tail is None else text[-tail:]
+
+
+def spawn(
+    command: Sequence[str], log: Path | None, env: Mapping[str, str] | None = None
+) -> subprocess.Popen[bytes]:
+    """Start ``command`` with no stdin and its output appended to ``log`` (discarded if None)."""
+    with open(log or os.devnull, "ab") as out:
+        return subprocess.Popen(  # noqa: S603 - the callers run our own interpreter and modules
+            list(command), stdin=subprocess.DEVNULL, stdout=out, stderr=out, env=env
+        )
+
+
+def wait_started(
+    process: subprocess.Popen[bytes],
+    ready: Callable[[], bool],
+    timeout: float,
+    interval: float,
+    serve: Callable[[], object] = lambda: None,
+) -> Literal["ready", "exited", "timeout"]:
+    """Poll a child just started until ``ready()`` (``"ready"``), until it exits
+    (``"exited"``), or for ``timeout`` seconds, after which it is killed (``"timeout"``).
+    ``serve`` runs between polls (a peer the child needs answered to get ready)."""
+    end = time.monotonic() + timeout
+    while True:
+        if ready():
+            return "ready"
+        if process.poll() is not None:
+            return "exited"
+        if time.monotonic() > end:
+            kill(process)
+            return "timeout"
+        serve()
+        time.sleep(interval)

@@ -27,8 +27,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Final
 
+from supervisord.testkit.namespaces import loopback_only
+
 CLONE_NEWNET: Final = 0x40000000  # <sched.h>; os.unshare arrives only in Python 3.12
-MULTICAST_ROUTE: Final = "224.0.0.0/4"
 AUDITED_EVENTS: Final = frozenset(
     {"socket.bind", "socket.connect", "socket.sendto", "socket.sendmsg"}
 )
@@ -57,10 +58,7 @@ def enter_private_namespace() -> str | None:
     libc = ctypes.CDLL(None, use_errno=True)
     if libc.unshare(CLONE_NEWNET) != 0:
         return f"unshare(CLONE_NEWNET) failed: {os.strerror(ctypes.get_errno())}"
-    for command in (
-        [ip, "link", "set", "lo", "up", "multicast", "on"],
-        [ip, "route", "add", MULTICAST_ROUTE, "dev", "lo"],
-    ):
+    for command in loopback_only(ip):
         subprocess.run(command, check=True, capture_output=True, timeout=30)
     return None
 

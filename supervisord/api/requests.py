@@ -18,7 +18,7 @@ from typing import Final
 
 from supervisord import strict
 from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode, JsonDict
-from supervisord.protocol.codes import DisplayMode, FeedbackKey
+from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey
 from supervisord.protocol.messages import I32, NAME_TEXT_LENGTH, check_text
 from supervisord.protocol.text import clean, is_clean
 from supervisord.safety.config import NAME_PATTERN
@@ -213,7 +213,6 @@ ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
 NAMED_REQUESTS: Final = (Heartbeat,)
 """Requests that need a connection that said hello."""
 
-_USER_VALUE_KEYS = range(1, 10)
 _ROWS = range(1, 5)
 
 
@@ -403,10 +402,10 @@ def _display(f: _Fields) -> ApiRequest:
     inner = f.nested(form)
     request: ApiRequest
     if form == "value":
-        key = inner.integer("key", _USER_VALUE_KEYS.start, _USER_VALUE_KEYS.stop - 1)
+        key = inner.integer("key", USER_VALUE_KEYS.start, USER_VALUE_KEYS.stop - 1)
         request = DisplayValue(key, inner.integer("value", *I32), id=f.id)
     elif form == "label":
-        key = inner.integer("key", _USER_VALUE_KEYS.start, _USER_VALUE_KEYS.stop - 1)
+        key = inner.integer("key", USER_VALUE_KEYS.start, USER_VALUE_KEYS.stop - 1)
         request = DisplayLabel(key, inner.text("text"), id=f.id)
     else:
         index = inner.integer("index", _ROWS.start, _ROWS.stop - 1)

@@ -15,6 +15,7 @@ from typing import Final
 
 from supervisord.api.framing import ApiError, ErrorCode, JsonDict
 from supervisord.api.requests import ApiRequest, Topic
+from supervisord.histogram import Histogram
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
 from supervisord.record.format import cause_json
@@ -57,6 +58,23 @@ def decision_json(decision: Decision) -> JsonDict:
         "heartbeat_estop": decision.heartbeat_estop,
         "prooftest": None if decision.prooftest is None else decision.prooftest.json(),
     }
+
+
+def histograms_json(histograms: Mapping[str, Histogram]) -> JsonDict:
+    """The ``histograms`` of ``status``'s ``daemon`` object (docs/api.md, docs/fleet.md):
+    for each, the buckets' upper bounds in seconds (``le``), the cumulative count at each
+    (``counts``; the ``+Inf`` bucket is ``count``), the ``sum`` in seconds and the ``count``,
+    all since the daemon started."""
+    out: JsonDict = {}
+    for name, histogram in histograms.items():
+        snapshot = histogram.snapshot()
+        out[name] = {
+            "le": list(snapshot.le),
+            "counts": list(snapshot.counts),
+            "sum": round(snapshot.sum, 9),
+            "count": snapshot.count,
+        }
+    return out
 
 
 # -- pushes --------------------------------------------------------------------------------

@@ -31,14 +31,16 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from supervisord import __version__
+from supervisord.api.views import histograms_json
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import Sink, Written
+from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
-from supervisord.protocol.messages import Message
+from supervisord.protocol.messages import Message, UserHeartbeat, VscHeartbeat
 from supervisord.record.format import record_json
 from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.causes import CauseState
@@ -82,6 +84,26 @@ class Counters:
 
     def reject(self, reason: str) -> None:
         self.rejections[reason] = self.rejections.get(reason, 0) + 1
+
+
+@dataclass
+class Timings:
+    """The loop's own timing, on its monotonic clock, since the daemon started (issue 13;
+    docs/fleet.md "Timing histograms")."""
+
+    vsc_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
+    user_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
+    stop_to_off: Histogram = field(default_factory=lambda: Histogram(STOP_TO_OFF_BOUNDS_NS))
+    last_vsc_heartbeat_ns: int | None = None  # the read stamp of the last VSC heartbeat
+    last_user_heartbeat_ns: int | None = None  # when the last user heartbeat's write returned
+
+    def histograms(self) -> dict[str, Histogram]:
+        """By their names on the wire (docs/api.md)."""
+        return {
+            "vsc_heartbeat_period_seconds": self.vsc_heartbeat_period,
+            "user_heartbeat_period_seconds": self.user_heartbeat_period,
+            "stop_to_off_seconds": self.stop_to_off,
+        }
 
 
 class Listener:
@@ -156,6 +178,7 @@ class Supervisor:
         self.wall_clock = wall_clock
         self.backoff = backoff or Backoff()
         self.counters = Counters()
+        self.timings = Timings()
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -210,6 +233,7 @@ class Supervisor:
             "journal_errors": self.sink.journal_errors if self.sink is not None else 0,
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
+            "histograms": histograms_json(self.timings.histograms()),
         }
 
     # ----------------------------------------------------------------- start and stop
@@ -413,7 +437,9 @@ class Supervisor:
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
             assert self.core is not None
-            self._apply(self.core.tick(now))
+            # A stop at a deadline (a link or client timeout) started at the deadline, not
+            # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
+            self._apply(self.core.tick(now), since=self.decision.next_deadline)
         for output in self.outputs.values():
             deadline = output.next_deadline() if output.is_open else None
             if deadline is not None and now >= deadline:
@@ -462,6 +488,9 @@ class Supervisor:
         self.backoff.succeeded()
         self.counters.link_opens += 1
         self._link_since_ns = now
+        # A period across a reopen would measure the outage, not the cadence: start afresh
+        # (the outage shows in the link's counters).
+        self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
         log.info("%s: open", self.link.description)
         self._apply(self._feed(LinkOpened(now)))
 
@@ -480,6 +509,13 @@ class Supervisor:
                 continue
             self.counters.messages += 1
             self.listener.received(item)
+            if type(item) is VscHeartbeat:
+                # The period as the loop read them: integer arithmetic on the read stamp, on
+                # every heartbeat (the cheap path too, SR-9.4).
+                timings = self.timings
+                if timings.last_vsc_heartbeat_ns is not None:
+                    timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
+                timings.last_vsc_heartbeat_ns = now
             if not isinstance(item, HidInput):
                 self._apply(self._feed(VscReceived(now, item)))
 
@@ -497,6 +533,17 @@ class Supervisor:
             self.link.send(list(frames))
         except LinkBrokenError as error:
             self._link_broken(now, error.reason)
+            return
+        for frame in frames:
+            if type(frame) is UserHeartbeat:
+                # When the write returned: the period the VSC's watchdog sees, to the loop's
+                # accuracy (SR-5.1, SR-9.3). One clock read per heartbeat, 20 to 50 a second.
+                sent = self.clock()
+                timings = self.timings
+                if timings.last_user_heartbeat_ns is not None:
+                    timings.user_heartbeat_period.observe(sent - timings.last_user_heartbeat_ns)
+                timings.last_user_heartbeat_ns = sent
+                break
 
     # ----------------------------------------------------------------- decisions
 
@@ -516,12 +563,13 @@ class Supervisor:
             observed = readback.written  # CAN: a frame that went out is the read-back
         return OutputReadback(now, readback.name, readback.requested, observed)
 
-    def _apply(self, decision: Decision) -> None:
+    def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).
 
         Setting outputs yields read-backs, which go back to the core; every decision that
         comes of them is applied in turn, so none of their records is lost (a read-back fault
-        is a stop of its own, SR-7)."""
+        is a stop of its own, SR-7). ``since`` is when the input (or deadline) that led to
+        ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
         pending, fed, outputs = [decision], 0, self.outputs
         while pending:
             decision = pending.pop(0)
@@ -532,7 +580,21 @@ class Supervisor:
                 and output.is_open
                 and output.requested != on
             ]
-            self._finish(decision)
+            previous = self.decision
+            if (
+                readbacks
+                and decision.state is State.STOPPED
+                and previous is not None
+                and previous.state is not State.STOPPED
+            ):
+                # A change into STOPPED that switched outputs off: the clock when the writes
+                # returned, observed only after the frames are sent (SR-6, SR-10).
+                off_ns = self.clock()
+                self._finish(decision)
+                start = decision.now if since is None else min(since, decision.now)
+                self.timings.stop_to_off.observe(off_ns - start)
+            else:
+                self._finish(decision)
             if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
                 fed += 1
                 if readbacks:

@@ -16,10 +16,12 @@ from prometheus_client import start_http_server
 from prometheus_client.core import (
     CounterMetricFamily,
     GaugeMetricFamily,
+    HistogramMetricFamily,
     InfoMetricFamily,
     Metric,
 )
 from prometheus_client.registry import Collector, CollectorRegistry
+from prometheus_client.utils import floatToGoString
 
 from supervisord.exporter.model import Family, Kind
 
@@ -32,7 +34,8 @@ class ModelCollector(Collector):
 
     def collect(self) -> Iterator[Metric]:
         for family in self._families():
-            if family.samples:  # a family without samples would only add comment lines
+            # A family without samples would only add comment lines.
+            if family.samples or family.histogram is not None:
                 yield _metric(family)
 
     def describe(self) -> Iterator[Metric]:
@@ -40,6 +43,15 @@ class ModelCollector(Collector):
 
 
 def _metric(family: Family) -> Metric:
+    if family.histogram is not None:
+        # The daemon's cumulative buckets as they are: a custom collector's histogram, since
+        # the values are counted by srcsd, not observed here (docs/fleet.md).
+        histogram = family.histogram
+        buckets = [(_le(le), float(n)) for le, n in histogram.buckets]
+        buckets.append(("+Inf", float(histogram.count)))
+        return HistogramMetricFamily(
+            family.name, family.help, buckets=buckets, sum_value=histogram.sum
+        )
     names = tuple(dict.fromkeys(k for s in family.samples for k, _ in s.labels))
     metric: GaugeMetricFamily | CounterMetricFamily | InfoMetricFamily
     if family.kind is Kind.INFO:
@@ -55,6 +67,12 @@ def _metric(family: Family) -> Metric:
         labels = dict(sample.labels)
         metric.add_metric([labels[n] for n in names], sample.value)
     return metric
+
+
+def _le(bound: float) -> str:
+    """A bucket bound as prometheus-client writes its own (``0.05``, ``1.0``)."""
+    text: str = floatToGoString(bound)  # type: ignore[no-untyped-call]
+    return text
 
 
 def serve(

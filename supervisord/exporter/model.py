@@ -19,6 +19,7 @@ Two kinds of values (docs/fleet.md "Metrics"):
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final, Protocol
@@ -44,6 +45,7 @@ class Kind(enum.Enum):
     GAUGE = "gauge"
     COUNTER = "counter"  # ``name`` without ``_total``; the serving edge adds it
     INFO = "info"  # ``name`` without ``_info``; one sample of value 1
+    HISTOGRAM = "histogram"  # ``name`` without ``_bucket``/``_sum``/``_count``; no samples
 
 
 Labels = tuple[tuple[str, str], ...]
@@ -56,13 +58,25 @@ class Sample:
 
 
 @dataclass(frozen=True, slots=True)
+class HistogramValue:
+    """A histogram the daemon measured (docs/api.md "status" ``histograms``): cumulative
+    counts at each upper bound ``le`` (seconds), the sum in seconds and the count (``+Inf``)."""
+
+    buckets: tuple[tuple[float, int], ...]
+    sum: float
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
 class Family:
-    """One metric family: its name, type, help text and samples."""
+    """One metric family: its name, type, help text and samples (a histogram family: its
+    ``histogram`` instead)."""
 
     name: str
     kind: Kind
     help: str
     samples: tuple[Sample, ...] = ()
+    histogram: HistogramValue | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,15 +91,28 @@ class Spec:
     @property
     def scraped(self) -> str:
         """The sample name Prometheus stores (``_total`` and ``_info`` added)."""
+        return self.scraped_names[0]
+
+    @property
+    def scraped_names(self) -> tuple[str, ...]:
+        """Every sample name Prometheus stores for this family (a histogram has three)."""
+        if self.kind is Kind.HISTOGRAM:
+            return tuple(self.name + suffix for suffix in ("_bucket", "_sum", "_count"))
         suffix = {Kind.COUNTER: "_total", Kind.INFO: "_info", Kind.GAUGE: ""}[self.kind]
-        return self.name + suffix
+        return (self.name + suffix,)
 
 
 def _specs(*specs: Spec) -> dict[str, Spec]:
     return {spec.name: spec for spec in specs}
 
 
-G, C, INFO = Kind.GAUGE, Kind.COUNTER, Kind.INFO
+G, C, INFO, H = Kind.GAUGE, Kind.COUNTER, Kind.INFO, Kind.HISTOGRAM
+HISTOGRAMS: Final = {
+    "vsc_heartbeat_period_seconds": "srcs_vsc_heartbeat_period_seconds",
+    "user_heartbeat_period_seconds": "srcs_user_heartbeat_period_seconds",
+    "stop_to_off_seconds": "srcs_stop_to_off_seconds",
+}
+"""The daemon's histograms (``status``'s ``daemon.histograms``) and their metric names."""
 SPECS: Final = _specs(
     Spec("srcs_up", G, "1 while the exporter is connected to srcsd's API socket, else 0"),
     Spec("srcs_daemon", INFO, "the daemon this exporter reads (from its status reply)", ("robot",)),
@@ -116,6 +143,21 @@ SPECS: Final = _specs(
     ),
     Spec("srcs_record_errors", C, "stop records that could not be written (since srcsd started)"),
     Spec("srcs_internal_faults", C, "internal faults the loop caught (since srcsd started)"),
+    Spec(
+        "srcs_vsc_heartbeat_period_seconds",
+        H,
+        "time between successive VSC heartbeats as srcsd's loop read them (since it started)",
+    ),
+    Spec(
+        "srcs_user_heartbeat_period_seconds",
+        H,
+        "time between successive user heartbeats srcsd sent to the VSC (since it started)",
+    ),
+    Spec(
+        "srcs_stop_to_off_seconds",
+        H,
+        "from the input or deadline that stopped the robot to its outputs written off",
+    ),
     Spec("srcs_remote_battery_percent", G, "the remote's battery level (10 % steps)"),
     Spec("srcs_remote_battery_charging", G, "1 while the remote's battery charges"),
     Spec(
@@ -186,6 +228,7 @@ class DaemonInfo:
     record_errors: int | None = None
     internal_faults: int | None = None
     outputs_not_acquired: int | None = None
+    histograms: tuple[tuple[str, HistogramValue], ...] = ()  # by metric name
 
 
 @dataclass(frozen=True, slots=True)
@@ -231,6 +274,36 @@ def _mapping(value: object) -> Mapping[str, object]:
 
 def _list(value: object) -> list[object]:
     return value if isinstance(value, list) else []
+
+
+def _number(value: object) -> float | None:
+    """A finite int or float (not a bool) as a float, or ``None``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    number = float(value)
+    return number if math.isfinite(number) else None
+
+
+def _histogram(value: object) -> HistogramValue | None:
+    """A histogram of the ``status`` reply, or ``None`` if it is not one a Prometheus
+    histogram can be: bounds that increase, cumulative counts that do not decrease, one per
+    bound, none above ``count``."""
+    obj = _mapping(value)
+    bounds = [_number(b) for b in _list(obj.get("le"))]
+    counts = [_int(c) for c in _list(obj.get("counts"))]
+    total, count = _number(obj.get("sum")), _int(obj.get("count"))
+    if total is None or count is None or len(bounds) != len(counts):
+        return None
+    buckets: list[tuple[float, int]] = []
+    for bound, cumulative in zip(bounds, counts, strict=True):
+        if bound is None or cumulative is None:
+            return None
+        if buckets and (bound <= buckets[-1][0] or cumulative < buckets[-1][1]):
+            return None
+        buckets.append((bound, cumulative))
+    if buckets and buckets[-1][1] > count:
+        return None
+    return HistogramValue(tuple(buckets), total, count)
 
 
 class ExporterModel:
@@ -349,6 +422,11 @@ class ExporterModel:
             if value is not None:
                 label = self._reason_labels.admit(reason)
                 rejections[label] = rejections.get(label, 0) + value
+        histograms: list[tuple[str, HistogramValue]] = []
+        for key, metric in HISTOGRAMS.items():
+            parsed = _histogram(_mapping(daemon.get("histograms")).get(key))
+            if parsed is not None:
+                histograms.append((metric, parsed))
         self.daemon = DaemonInfo(
             robot=_text(daemon.get("robot")),
             pid=pid,
@@ -364,6 +442,7 @@ class ExporterModel:
                 if isinstance(daemon.get("outputs_not_acquired"), list)
                 else None
             ),
+            histograms=tuple(histograms),
         )
 
     def _record(self, record: Mapping[str, object]) -> None:
@@ -438,8 +517,11 @@ class ExporterModel:
         if self.up:
             self._daemon_values(put)
             self._remote_values(put, now_ns)
+        histograms = dict(self.daemon.histograms) if self.up and self.daemon else {}
         return [
-            Family(spec.name, spec.kind, spec.help, tuple(out[spec.name]))
+            Family(
+                spec.name, spec.kind, spec.help, tuple(out[spec.name]), histograms.get(spec.name)
+            )
             for spec in SPECS.values()
         ]
 
@@ -506,5 +588,6 @@ class _Put(Protocol):
 
 
 def scraped_names() -> Iterable[str]:
-    """Every sample name a scrape may show (``_total`` and ``_info`` included)."""
-    return (spec.scraped for spec in SPECS.values())
+    """Every sample name a scrape may show (``_total``, ``_info`` and a histogram's
+    ``_bucket``, ``_sum`` and ``_count`` included)."""
+    return (name for spec in SPECS.values() for name in spec.scraped_names)

@@ -9,7 +9,7 @@ protocol requirements of ``docs/requirements.md``; ``docs/protocol.md`` collects
 from __future__ import annotations
 
 import enum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
@@ -95,21 +95,24 @@ def estop_sources(word: int) -> frozenset[EstopSource]:
     return frozenset(found)
 
 
+USER_VALUE_KEYS: Final = range(1, 10)
+"""Keys 1-9 of both key tables (manual tables 13 and 18): the nine user values, named
+``user_value_N``. They are kept apart from the two enums below, which name only the keys
+each table has alone, so that the shared keys have one definition (PR-2)."""
+
+
+def user_value_name(key: int) -> str | None:
+    """``user_value_N`` for a user-value key, else ``None``."""
+    return f"user_value_{key}" if key in USER_VALUE_KEYS else None
+
+
 class FeedbackKey(_Parsable):
-    """Keys of the User Feedback Set/Get messages (manual table 13, PR-2).
+    """Keys of the User Feedback Set/Get messages (manual table 13, PR-2), beyond the user
+    values (``USER_VALUE_KEYS``).
 
     The manual prints key 81 twice; the second one (inactivity pause enable) is 84.
     """
 
-    USER_VALUE_1 = 1
-    USER_VALUE_2 = 2
-    USER_VALUE_3 = 3
-    USER_VALUE_4 = 4
-    USER_VALUE_5 = 5
-    USER_VALUE_6 = 6
-    USER_VALUE_7 = 7
-    USER_VALUE_8 = 8
-    USER_VALUE_9 = 9
     VIBRATE_LEFT = 10
     VIBRATE_RIGHT = 11
     VIBRATE_BOTH = 12
@@ -123,17 +126,9 @@ class FeedbackKey(_Parsable):
 
 
 class StringKey(_Parsable):
-    """Keys of the User Feedback Name String message (manual table 18)."""
+    """Keys of the User Feedback Name String message (manual table 18), beyond the user
+    values' labels (``USER_VALUE_KEYS``)."""
 
-    USER_VALUE_1 = 1
-    USER_VALUE_2 = 2
-    USER_VALUE_3 = 3
-    USER_VALUE_4 = 4
-    USER_VALUE_5 = 5
-    USER_VALUE_6 = 6
-    USER_VALUE_7 = 7
-    USER_VALUE_8 = 8
-    USER_VALUE_9 = 9
     TEXT_ROW_1 = 90
     TEXT_ROW_2 = 91
     TEXT_ROW_3 = 92

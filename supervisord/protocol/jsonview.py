@@ -16,6 +16,7 @@ from supervisord.protocol.codes import (
     StringKey,
     VscMode,
     estop_sources,
+    user_value_name,
 )
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidOutput, HidRejection
@@ -72,7 +73,8 @@ def buttons_json(buttons: DPad | NumberedButtons) -> JsonDict:
 
 
 def _key(key: int, table: type[FeedbackKey | StringKey]) -> JsonDict:
-    return {"user_feedback_key": key, "user_feedback_key_name": _name(table, key)}
+    name = user_value_name(key) or _name(table, key)
+    return {"user_feedback_key": key, "user_feedback_key_name": name}
 
 
 def message_json(message: Message | CanMessage) -> JsonDict:

@@ -377,6 +377,7 @@ class FeedbackSet:
 
     @property
     def known_key(self) -> FeedbackKey | None:
+        """The key's name; ``None`` for a user value (``USER_VALUE_KEYS``) or an unknown key."""
         return FeedbackKey.parse(self.key)
 
 
@@ -397,6 +398,8 @@ class FeedbackName:
 
     @property
     def known_key(self) -> StringKey | None:
+        """The key's name; ``None`` for a user value's label (``USER_VALUE_KEYS``) or an
+        unknown key."""
         return StringKey.parse(self.key)
 
 
@@ -416,6 +419,7 @@ class FeedbackGet:
 
     @property
     def known_key(self) -> FeedbackKey | None:
+        """The key's name; ``None`` for a user value (``USER_VALUE_KEYS``) or an unknown key."""
         return FeedbackKey.parse(self.key)
 
 

@@ -16,7 +16,7 @@ from supervisord import strict
 from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError
 from supervisord.safety.prooftest import ProofTestPolicy
-from supervisord.timebase import NS_PER_MS
+from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 """Client and output names: they become part of cause names such as ``client_lost:NAME``."""
@@ -201,7 +201,7 @@ class SafetyConfig:
 
     @property
     def heartbeat_period_ns(self) -> int:
-        return 1_000_000_000 // self.heartbeat_hz
+        return NS_PER_S // self.heartbeat_hz
 
     @property
     def rearm_hold_ns(self) -> int:

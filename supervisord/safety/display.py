@@ -8,18 +8,18 @@ one string frame per 250 ms. Internal to the core.
 
 from __future__ import annotations
 
-from supervisord.protocol.codes import DisplayMode, FeedbackKey, StringKey
+from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey, StringKey
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 from supervisord.safety.decision import RefusalReason
 
 VALUE_PERIOD_NS = 50_000_000  # values at most 20 Hz
 STRING_PERIOD_NS = 250_000_000  # strings at most 4 Hz
 
-_KEPT_VALUE_KEYS = frozenset(range(1, 10)) | {FeedbackKey.DISPLAY_MODE.value}
+_KEPT_VALUE_KEYS = frozenset(USER_VALUE_KEYS) | {FeedbackKey.DISPLAY_MODE.value}
 _VIBRATE_KEYS = frozenset(
     {FeedbackKey.VIBRATE_LEFT, FeedbackKey.VIBRATE_RIGHT, FeedbackKey.VIBRATE_BOTH}
 )
-_NAME_KEYS = frozenset(k.value for k in StringKey)
+_NAME_KEYS = frozenset(USER_VALUE_KEYS) | {k.value for k in StringKey}
 _DISPLAY_MODES = frozenset(m.value for m in DisplayMode)
 
 

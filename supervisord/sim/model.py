@@ -38,7 +38,13 @@ from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 from supervisord.errors import SrcsError
-from supervisord.protocol.codes import DisplayMode, FieldStatus, MessageType, VscMode
+from supervisord.protocol.codes import (
+    USER_VALUE_KEYS,
+    DisplayMode,
+    FieldStatus,
+    MessageType,
+    VscMode,
+)
 from supervisord.protocol.j1939 import SEGMENT_COUNT, FeedbackStringSegment
 from supervisord.protocol.messages import (
     Axis,
@@ -118,7 +124,6 @@ EMIT_ORDER = (
 KEY_DEFAULTS: dict[int, int] = {80: 4, 81: 1, 82: 1, 83: 1, 84: 1, 85: 0}
 KEY_RANGES: dict[int, tuple[int, int]] = {80: (0, 10), 81: (0, 1), 82: (0, 1), 83: (0, 1)}
 KEY_RANGES |= {84: (0, 1), 85: (0, 1)}
-USER_VALUE_KEYS = range(1, 10)
 VIBRATION_KEYS = {10: "left", 11: "right", 12: "both"}
 DISPLAY_KEY = 99
 TEXT_ROW_KEYS = (90, 91, 92, 93)

@@ -17,7 +17,6 @@ waits until the control socket answers; a simulator that exits or never answers 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import socket
 import subprocess
@@ -28,8 +27,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from supervisord.children import kill, log_tail, terminate
+from supervisord.children import kill, log_tail, spawn, terminate, wait_started
 from supervisord.errors import SrcsError
+from supervisord.polling import poll_until
 
 Reply = dict[str, Any]  # one JSON reply of the control socket
 
@@ -163,15 +163,11 @@ class SimControl:
         self, condition: Callable[[Reply], bool], timeout: float = 10.0, poll: float = 0.02
     ) -> Reply:
         """Poll ``state`` until ``condition`` holds; ``SimError`` with the last state if not."""
-        end = time.monotonic() + timeout
-        while True:
-            state = self.state()
-            if condition(state):
-                return state
-            if time.monotonic() > end:
-                summary = {k: state.get(k) for k in ("mode_name", "estop", "user_heartbeat_age")}
-                raise SimError(f"timed out after {timeout} s waiting; state: {summary}")
-            time.sleep(poll)
+        held, state = poll_until(self.state, condition, timeout, time.sleep, poll)
+        if not held:
+            summary = {k: state.get(k) for k in ("mode_name", "estop", "user_heartbeat_age")}
+            raise SimError(f"timed out after {timeout} s waiting; state: {summary}")
+        return state
 
     def __enter__(self) -> SimControl:
         return self
@@ -230,22 +226,23 @@ class SimProcess:
     def start(self) -> SimProcess:
         """Start it and wait until its control socket answers."""
         self.workdir.mkdir(parents=True, exist_ok=True)
-        with self.log_path.open("ab") as log:
-            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
-                self.command, stdin=subprocess.DEVNULL, stdout=log, stderr=log
-            )
-        end = time.monotonic() + self.ready_timeout
-        while True:
-            if self.process.poll() is not None:
-                raise SimError(f"srcs-sim exited with {self.process.returncode}: {self.log()}")
-            if self.control_path.exists():
-                with contextlib.suppress(SimError):
-                    self.control.state()
-                    return self
-            if time.monotonic() > end:
-                self.kill()
-                raise SimError(f"srcs-sim did not answer in {self.ready_timeout} s: {self.log()}")
-            time.sleep(0.02)
+        self.process = spawn(self.command, self.log_path)
+        started = wait_started(self.process, self._answers, self.ready_timeout, 0.02)
+        if started == "exited":
+            raise SimError(f"srcs-sim exited with {self.process.returncode}: {self.log()}")
+        if started == "timeout":
+            self.kill()
+            raise SimError(f"srcs-sim did not answer in {self.ready_timeout} s: {self.log()}")
+        return self
+
+    def _answers(self) -> bool:
+        if not self.control_path.exists():
+            return False
+        try:
+            self.control.state()
+        except SimError:
+            return False
+        return True
 
     def log(self, tail: int = 2000) -> str:
         """The end of the simulator's output."""

@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Self
 
-from supervisord.children import kill, terminate
+from supervisord.children import kill, spawn, terminate, wait_started
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
 
@@ -72,23 +71,16 @@ class SrcsdProcess:
     def start(self, *, serve: Callable[[], object] = lambda: None) -> Self:
         """Start it and wait until its API socket exists; ``serve`` runs while waiting (e.g.
         a test's own VSC peer, which must answer for the daemon to get anywhere)."""
-        with open(self.log or "/dev/null", "ab") as out:
-            self.process = subprocess.Popen(  # noqa: S603 - our own interpreter and module
-                [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config)],
-                stdin=subprocess.DEVNULL,
-                stdout=out,
-                stderr=out,
-                env=self.env,
-            )
-        end = time.monotonic() + self.ready_timeout
-        while not self.socket.exists():
-            if self.process.poll() is not None:
-                raise DaemonError(f"srcsd exited with {self.process.returncode}")
-            if time.monotonic() > end:
-                self.kill()
-                raise DaemonError(f"srcsd did not open {self.socket} in {self.ready_timeout} s")
-            serve()
-            time.sleep(0.005)
+        self.process = spawn(
+            [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config)],
+            self.log,
+            self.env,
+        )
+        started = wait_started(self.process, self.socket.exists, self.ready_timeout, 0.005, serve)
+        if started == "exited":
+            raise DaemonError(f"srcsd exited with {self.process.returncode}")
+        if started == "timeout":
+            raise DaemonError(f"srcsd did not open {self.socket} in {self.ready_timeout} s")
         return self
 
     @property

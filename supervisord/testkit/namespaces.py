@@ -9,6 +9,19 @@ import shutil
 import subprocess
 from pathlib import Path
 
+MULTICAST_ROUTE = "224.0.0.0/4"
+
+
+def loopback_only(ip: str, *, netns: str | None = None) -> list[list[str]]:
+    """The ``ip`` commands that make a new network namespace (``netns``, or the caller's own)
+    loopback only and multicast-capable: ``lo`` up with multicast on, and every multicast
+    group routed to it, so ``udp_multicast`` CAN frames stay inside (docs/testing.md)."""
+    target = [] if netns is None else ["-n", netns]
+    return [
+        [ip, *target, "link", "set", "lo", "up", "multicast", "on"],
+        [ip, *target, "route", "add", MULTICAST_ROUTE, "dev", "lo"],
+    ]
+
 
 class NetNamespace:
     """A private network namespace with only the loopback device and a multicast route, so
@@ -31,8 +44,7 @@ class NetNamespace:
     def create(self) -> NetNamespace:
         for command in (
             [self.ip, "netns", "add", self.name],
-            [self.ip, "-n", self.name, "link", "set", "lo", "up"],
-            [self.ip, "-n", self.name, "route", "add", "224.0.0.0/4", "dev", "lo"],
+            *loopback_only(self.ip, netns=self.name),
         ):
             subprocess.run(command, check=True, capture_output=True, timeout=30)  # noqa: S603
             self.created = True

@@ -67,10 +67,12 @@ HOLD_MS = 100  # the shortest re-arm hold the config allows: quick scenarios
 
 
 def _priority() -> list[str]:
-    """``nice -n -5`` as root: the daemon's unit runs it at ``Nice=-5`` (units/srcsd@.service),
-    and the simulated VSC stands for hardware that is never late. Without it a busy shared
+    """``nice -n -5`` as root, a milder stand-in for the unit's scheduling (SCHED_FIFO 10 in
+    units/srcsd@.service, with ``Nice=-5`` only as the fallback when a drop-in turns FIFO
+    off): the simulated VSC stands for hardware that is never late. Without it a busy shared
     machine can hold either process back past the 250 ms overrun or the 200 ms link timeout,
-    a stop the scenario did not inject."""
+    a stop the scenario did not inject. Real-time scheduling is not used here so that a test
+    process spinning by mistake cannot starve the machine's other work."""
     nice = shutil.which("nice")
     return [nice, "-n", "-5"] if nice and os.geteuid() == 0 else []
 
@@ -358,6 +360,17 @@ class Robot:
     def records_since(self, t: float) -> list[dict[str, Any]]:
         t_ns = int(t * 1e9)
         return [r for r in self.records() if r["mono_ns"] >= t_ns]
+
+    def refused_takeover(self) -> dict[str, Any]:
+        """Put the remote in Operational (from Local: what a takeover looks like) and return
+        the ``rearm_refused`` record that answers it (SR-4.1, SR-4.2: a stop still active)."""
+        t = self.now()
+        self.vsc.mode("operational")
+        refused = wait_until(
+            lambda: [r for r in self.records_since(t) if r.get("kind") == "rearm_refused"],
+            what="the refused takeover",
+        )
+        return dict(refused[0])
 
     # ------------------------------------------------------------- arming
 

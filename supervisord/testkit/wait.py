@@ -10,6 +10,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from supervisord.polling import poll_until
+
 WAIT_S = 10.0  # how long any "until" waits before the scenario fails
 
 
@@ -18,15 +20,16 @@ class FaultHarnessError(AssertionError):
 
 
 def wait_until(
-    condition: Callable[[], Any], timeout: float = WAIT_S, poll: float = 0.01, what: str = ""
+    condition: Callable[[], Any],
+    timeout: float = WAIT_S,
+    poll: float = 0.01,
+    what: str = "",
+    pause: Callable[[float], object] = time.sleep,
 ) -> Any:
     """Poll ``condition`` until it returns something true; return that. Raise
-    ``FaultHarnessError`` naming ``what`` after ``timeout`` seconds."""
-    end = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise FaultHarnessError(f"timed out after {timeout} s waiting for {what or condition}")
-        time.sleep(poll)
+    ``FaultHarnessError`` naming ``what`` after ``timeout`` seconds. ``pause(poll)`` runs
+    between polls (a ROS 2 node spins its executor there instead of sleeping)."""
+    held, value = poll_until(condition, bool, timeout, pause, poll)
+    if not held:
+        raise FaultHarnessError(f"timed out after {timeout} s waiting for {what or condition}")
+    return value

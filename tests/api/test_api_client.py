@@ -4,11 +4,10 @@ the client blocks, the daemon's loop must keep turning meanwhile)."""
 from __future__ import annotations
 
 import contextlib
-import os
 import socket
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 
@@ -45,15 +44,6 @@ from supervisord.client import (
 from supervisord.protocol.codes import DisplayMode
 from supervisord.safety.events import Request
 from tests.api.test_api_server import Loop
-
-
-@pytest.fixture(autouse=True)
-def no_descriptor_left_open() -> Iterator[None]:
-    """Fail any test that leaves a file descriptor open (a client or server not closed)."""
-    before = set(os.listdir("/proc/self/fd"))
-    yield
-    leaked = set(os.listdir("/proc/self/fd")) - before
-    assert not leaked, f"file descriptors left open: {sorted(leaked)}"
 
 
 class Served:

@@ -50,15 +50,6 @@ READ, WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
 T = TypeVar("T")
 
 
-@pytest.fixture(autouse=True)
-def no_descriptor_left_open() -> Iterator[None]:
-    """Fail any test that leaves a file descriptor open (a socket or selector not closed)."""
-    before = set(os.listdir("/proc/self/fd"))
-    yield
-    leaked = set(os.listdir("/proc/self/fd")) - before
-    assert not leaked, f"file descriptors left open: {sorted(leaked)}"
-
-
 class Loop:
     """The daemon's loop in miniature: one selector, the server, and a stand-in for the
     daemon that answers every request ``ok`` (``status`` with the safety core's state)."""

@@ -39,15 +39,6 @@ from tests.api.test_api_server import NOBODY, Loop, Peer, shared_dir  # noqa: F4
 REPO = Path(__file__).parents[2]
 
 
-@pytest.fixture(autouse=True)
-def no_descriptor_left_open() -> Iterator[None]:
-    """Fail any test that leaves a file descriptor open (a socket or selector not closed)."""
-    before = set(os.listdir("/proc/self/fd"))
-    yield
-    leaked = set(os.listdir("/proc/self/fd")) - before
-    assert not leaked, f"file descriptors left open: {sorted(leaked)}"
-
-
 @pytest.fixture
 def made(tmp_path: Path) -> Iterator[Callable[..., Loop]]:
     """Loops over ``tmp_path/api.sock`` built from ServerConfig keywords, closed at the end."""

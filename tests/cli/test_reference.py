@@ -93,32 +93,30 @@ def missing_from_page(command: Command, page: str) -> list[str]:
     return missing
 
 
-@pytest.fixture(scope="module")
-def man_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The pages as the package build writes them, through the command line it calls."""
-    out = tmp_path_factory.mktemp("man")
+def _built(tmp_path_factory: pytest.TempPathFactory, kind: str) -> Path:
+    """What the package build writes (``man`` or ``completion``), through the command line
+    it calls."""
+    out = tmp_path_factory.mktemp(kind)
     subprocess.run(
-        [sys.executable, "-m", "supervisord.cli.reference", "man", str(out)],
+        [sys.executable, "-m", "supervisord.cli.reference", kind, str(out)],
         check=True,
         capture_output=True,
         cwd=REPO,
         timeout=60,
     )
     return out
+
+
+@pytest.fixture(scope="module")
+def man_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The pages as the package build writes them, through the command line it calls."""
+    return _built(tmp_path_factory, "man")
 
 
 @pytest.fixture(scope="module")
 def completion_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The completion files as the package build writes them, through its command line."""
-    out = tmp_path_factory.mktemp("completion")
-    subprocess.run(
-        [sys.executable, "-m", "supervisord.cli.reference", "completion", str(out)],
-        check=True,
-        capture_output=True,
-        cwd=REPO,
-        timeout=60,
-    )
-    return out
+    return _built(tmp_path_factory, "completion")
 
 
 def test_the_command_line_writes_the_files_the_package_build_installs(

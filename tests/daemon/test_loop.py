@@ -132,14 +132,7 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     supervisor.start()
     assert (level(tmp, "drive"), level(tmp, "lamp")) == ("0", "0")
 
-    run_until(
-        supervisor,
-        peer,
-        lambda: supervisor.decision is not None and not supervisor.decision.stop_active,
-    )
-    serve_for(supervisor, peer, 0.3)  # clear for the re-arm hold, non-Operational long enough
-    peer.mode = VscMode.OPERATIONAL
-    run_until(supervisor, peer, lambda: state(supervisor) is State.RUN)
+    _arm(supervisor, peer)
     assert (level(tmp, "drive"), level(tmp, "lamp")) == ("1", "1")
     run_until(supervisor, peer, lambda: UserHeartbeat(0) in peer.received)
 

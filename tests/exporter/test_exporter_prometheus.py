@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.exporter.model import SPECS
+from supervisord.exporter.model import scraped_names
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 from tests.exporter.stack import DASHBOARD, PROMETHEUS, Exporter, Prometheus, http_get
@@ -93,6 +93,31 @@ def test_a_remote_estop_is_a_stop_prometheus_sees(private_network: None, stack: 
     assert prom.value('srcs_remote_link_strength{seen_by="remote"}') == 1
 
 
+def test_the_loops_timing_histograms_reach_prometheus(private_network: None, stack: Stack) -> None:
+    """The daemon's VSC and user heartbeat periods arrive as Prometheus histograms whose
+    median (histogram_quantile over the _bucket series) is near the sim's 50 ms and the
+    default 20 Hz; a remote e-stop in RUN adds one stop-to-off observation, under 100 ms
+    (issue 13 item 6; docs/fleet.md "Timing histograms")."""
+    robot, prom = stack.robot, stack.prometheus
+    prom.wait_value('srcs_state{state="RUN"}', 1)  # the module's first test ends in RUN
+    for name in ("srcs_vsc_heartbeat_period_seconds", "srcs_user_heartbeat_period_seconds"):
+        count = f"{name}_count"
+        wait_until(lambda: (prom.value(count) or 0) >= 20, what=f"{name} counted")  # noqa: B023
+        median = prom.value(f"histogram_quantile(0.5, {name}_bucket)")
+        # Generous around 50 ms: the sim and the daemon share two busy cores.
+        assert median is not None, name
+        assert 0.03 <= median <= 0.075, (name, median)
+    stops = prom.value("srcs_stop_to_off_seconds_count") or 0
+    robot.sim.control.estop()
+    prom.wait_value("srcs_stop_to_off_seconds_count", stops + 1)
+    assert prom.value('srcs_stop_to_off_seconds_bucket{le="+Inf"}') == stops + 1
+    assert prom.value('srcs_stop_to_off_seconds_bucket{le="0.1"}') == stops + 1
+    assert (prom.value("srcs_stop_to_off_seconds_sum") or 0) > 0
+    robot.sim.control.release()
+    robot.rearm()
+    prom.wait_value('srcs_state{state="RUN"}', 1)
+
+
 def test_srcsd_gone_is_srcs_up_zero_and_no_state(private_network: None, stack: Stack) -> None:
     """Killing srcsd: the exporter still answers (up 1), srcs_up is 0, no state series is
     left, and the SrcsSupervisorDown alert is pending; a new srcsd is followed again, with
@@ -123,7 +148,7 @@ def test_every_dashboard_query_runs(private_network: None, stack: Stack) -> None
     and every srcs_* name the dashboard uses is one the exporter serves."""
     prom = stack.prometheus
     dashboard = json.loads(DASHBOARD.read_text())
-    served = {spec.scraped for spec in SPECS.values()}
+    served = set(scraped_names())
     exprs = [t["expr"] for p in dashboard["panels"] for t in p["targets"]]
     assert exprs
     for expr in exprs:

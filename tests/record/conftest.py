@@ -3,23 +3,10 @@
 from __future__ import annotations
 
 import datetime as dt
-import os
-from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
 from supervisord.record import BadLine, StoredRecord, format_utc, read_records
-
-
-@pytest.fixture(autouse=True)
-def no_descriptor_left_open() -> Iterator[None]:
-    """Fail any test that leaves a file descriptor open (a writer not closed)."""
-    before = set(os.listdir("/proc/self/fd"))
-    yield
-    leaked = set(os.listdir("/proc/self/fd")) - before
-    assert not leaked, f"file descriptors left open: {sorted(leaked)}"
-
+from tests.descriptors import no_descriptor_left_open  # noqa: F401 -- an autouse fixture
 
 EPOCH = dt.datetime(2026, 3, 1, 12, 0, tzinfo=dt.UTC)
 

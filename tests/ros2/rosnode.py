@@ -7,7 +7,6 @@ from __future__ import annotations
 import itertools
 import os
 import sys
-import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -32,7 +31,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", DeprecationWarning)
     import rosidl_generator_py  # noqa: F401
 from supervisord.testkit.clients import ClientProcess
-from supervisord.testkit.wait import WAIT_S, FaultHarnessError
+from supervisord.testkit.wait import WAIT_S, wait_until
 
 _DOMAINS = itertools.count()
 
@@ -99,14 +98,13 @@ class RosPeer:
     ) -> Any:
         """Spin until ``condition`` returns something true; that value, or a failure naming
         ``what`` after ``timeout`` seconds."""
-        end = time.monotonic() + timeout
-        while True:
-            value = condition()
-            if value:
-                return value
-            if time.monotonic() > end:
-                raise FaultHarnessError(f"timed out after {timeout} s waiting for {what}")
-            self.executor.spin_once(timeout_sec=0.02)
+        return wait_until(
+            condition,
+            timeout,
+            poll=0.02,
+            what=what,
+            pause=lambda seconds: self.executor.spin_once(timeout_sec=seconds),
+        )
 
     def call(self, service: str) -> Trigger.Response:
         """Call one of the bridge's Trigger services and wait for its response."""

@@ -124,16 +124,42 @@ class Rig:
                 self.beat(connection)
         return self.last
 
+    def take_over(self, local_ms: int, clients: tuple[int, ...] = (1,)) -> Decision:
+        """The remote's takeover: ``local_ms`` in Local with the clients beating, then
+        Operational 50 ms later (SR-4.2)."""
+        self.run_for(local_ms, LOCAL, clients)
+        self.advance(50)
+        return self.vsc(OPERATIONAL)
+
     def bring_up(self) -> Decision:
         """From startup to RUN the normal way: link, key 85, client, clear hold, takeover."""
         self.open_link()
         self.key85(1)
         self.connect()
-        self.run_for(600, LOCAL)
-        self.advance(50)
-        decision = self.vsc(OPERATIONAL)
+        decision = self.take_over(600)
         assert decision.state is State.RUN, decision.causes
         return decision
+
+    def stopped_and_cleared(self) -> Decision:
+        """RUN, then the client's e-stop and its release: STOPPED, every condition clear."""
+        self.bring_up()
+        self.advance(10)
+        self.estop()
+        self.advance(10)
+        return self.release()
+
+    def count_refreshes(self) -> list[int]:
+        """A spy on the full path's recomputation: the times it runs from now on (it still
+        runs for real)."""
+        refreshes: list[int] = []
+        real = SafetyCore._refresh
+
+        def counting(core: SafetyCore, now: int) -> None:
+            refreshes.append(now)
+            real(core, now)
+
+        self.core._refresh = counting.__get__(self.core)  # type: ignore[method-assign]
+        return refreshes
 
     def frames(self) -> list[Message]:
         """Every frame the core asked to send so far."""

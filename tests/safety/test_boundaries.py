@@ -54,9 +54,7 @@ def test_client_deadline_is_exactly_the_timeout() -> None:
     rig = Rig(dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False))
     rig.open_link()
     rig.connect()
-    rig.run_for(600, LOCAL)
-    rig.advance(50)
-    assert rig.vsc(OPERATIONAL).state is State.RUN
+    assert rig.take_over(600).state is State.RUN
     beat_at = rig.now
     rig.beat()
     rig.advance(250)
@@ -128,9 +126,7 @@ def test_required_client_that_never_connected_keeps_stopped() -> None:
     rig = Rig()
     rig.open_link()
     rig.key85(1)
-    rig.run_for(1000, LOCAL, clients=())
-    rig.advance(50)
-    decision = rig.vsc(OPERATIONAL)
+    decision = rig.take_over(1000, clients=())
     assert decision.state is State.STOPPED
     lost = decision.cause("client_lost:planner")
     assert lost is not None

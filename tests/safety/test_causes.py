@@ -121,9 +121,7 @@ def test_internal_fault_is_momentary_but_latches() -> None:
     assert state.latched
     assert state.detail("reason") == "loop overran by 30 ms"
     assert decision.state is State.STOPPED
-    rig.run_for(600, LOCAL)
-    rig.advance(50)
-    assert rig.vsc(OPERATIONAL).state is State.RUN
+    assert rig.take_over(600).state is State.RUN
 
 
 HOLDS = [

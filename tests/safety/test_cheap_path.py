@@ -111,15 +111,8 @@ def test_a_joystick_frame_in_run_skips_the_recomputation() -> None:
     rig = Rig()
     rig.bring_up()
     assert rig.state is State.RUN
-    refreshes: list[int] = []
-    real = SafetyCore._refresh  # a spy: counts calls, returns the real result
-
-    def counting(core: SafetyCore, now: int) -> None:
-        refreshes.append(now)
-        real(core, now)
-
     before = rig.last
-    rig.core._refresh = counting.__get__(rig.core)  # type: ignore[method-assign]
+    refreshes = rig.count_refreshes()
     rig.advance(1)
     decision = rig.from_vsc(JOYSTICK)
     assert refreshes == []
@@ -136,14 +129,7 @@ def test_a_changed_heartbeat_takes_the_full_path() -> None:
     decision (RUN -> HOLD): the cheap path never swallows a change."""
     rig = Rig()
     rig.bring_up()
-    refreshes: list[int] = []
-    real = SafetyCore._refresh  # a spy: counts calls, returns the real result
-
-    def counting(core: SafetyCore, now: int) -> None:
-        refreshes.append(now)
-        real(core, now)
-
-    rig.core._refresh = counting.__get__(rig.core)  # type: ignore[method-assign]
+    refreshes = rig.count_refreshes()
     rig.advance(1)
     decision = rig.vsc(mode=0x0B)  # Pause
     assert refreshes
@@ -158,14 +144,7 @@ def test_an_identical_heartbeat_still_moves_the_link_deadline() -> None:
     config = dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False, clients=())
     rig = Rig(config)
     rig.bring_up()
-    refreshes: list[int] = []
-    real = SafetyCore._refresh  # a spy: counts calls, returns the real result
-
-    def counting(core: SafetyCore, now: int) -> None:
-        refreshes.append(now)
-        real(core, now)
-
-    rig.core._refresh = counting.__get__(rig.core)  # type: ignore[method-assign]
+    refreshes = rig.count_refreshes()
     for _ in range(12):
         rig.advance(250)
         decision = rig.vsc()

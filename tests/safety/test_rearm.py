@@ -18,23 +18,12 @@ from tests.safety.rig import ADMIN, LOCAL, NOBODY, OPERATIONAL, ROBOT, Rig
 LOCAL_RESET = dataclasses.replace(ROBOT, local_reset=True)
 
 
-def _stopped_and_cleared(rig: Rig) -> None:
-    """Bring the rig up, e-stop from the client, release: STOPPED, all conditions clear."""
-    rig.bring_up()
-    rig.advance(10)
-    rig.estop()
-    rig.advance(10)
-    rig.release()
-
-
 def test_takeover_rearms_after_the_hold_time() -> None:
     """A takeover (Local then Operational) given after the conditions were clear for the whole
     hold time ends STOPPED, and the record names the takeover."""
     rig = Rig()
-    _stopped_and_cleared(rig)
-    rig.run_for(500, LOCAL)
-    rig.advance(50)
-    decision = rig.vsc(OPERATIONAL)
+    rig.stopped_and_cleared()
+    decision = rig.take_over(500)
     assert decision.state is State.RUN
     (record,) = decision.records
     assert record.rearm is not None
@@ -45,7 +34,7 @@ def test_takeover_rearms_after_the_hold_time() -> None:
 def test_takeover_at_exactly_the_hold_time_counts() -> None:
     """Clear for exactly ``rearm_hold`` (500 ms) is enough; 499 ms is not."""
     early = Rig()
-    _stopped_and_cleared(early)
+    early.stopped_and_cleared()
     early.run_for(450, LOCAL)
     early.advance(49)
     refused = early.vsc(OPERATIONAL)
@@ -54,26 +43,19 @@ def test_takeover_at_exactly_the_hold_time_counts() -> None:
     assert "clear for 499 ms of 500 ms" in refused.refusals[0].message
 
     exact = Rig()
-    _stopped_and_cleared(exact)
-    exact.run_for(450, LOCAL)
-    exact.advance(50)
-    assert exact.vsc(OPERATIONAL).state is State.RUN
+    exact.stopped_and_cleared()
+    assert exact.take_over(450).state is State.RUN
 
 
 def test_refused_takeover_can_be_repeated_later() -> None:
     """After a too-early takeover the operator goes back to Local and takes over again."""
     rig = Rig()
-    _stopped_and_cleared(rig)
-    rig.run_for(250, LOCAL)  # Local for the takeover dwell (rule 4), but before the hold
-    rig.advance(50)
-    assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [
-        RefusalReason.HOLD_TIME_NOT_ELAPSED
-    ]
+    rig.stopped_and_cleared()
+    # Local for the takeover dwell (rule 4), but before the hold
+    assert [r.reason for r in rig.take_over(250).refusals] == [RefusalReason.HOLD_TIME_NOT_ELAPSED]
     rig.run_for(600, OPERATIONAL)
     assert rig.state is State.STOPPED  # staying in Operational is no new takeover
-    rig.run_for(250, LOCAL)
-    rig.advance(50)
-    assert rig.vsc(OPERATIONAL).state is State.RUN
+    assert rig.take_over(250).state is State.RUN
 
 
 def test_no_takeover_after_the_stop_keeps_stopped() -> None:
@@ -97,9 +79,7 @@ def test_takeover_while_a_condition_is_active_is_refused_and_does_not_count() ->
     rig.bring_up()
     rig.advance(10)
     rig.estop()
-    rig.run_for(600, LOCAL)
-    rig.advance(50)
-    refused = rig.vsc(OPERATIONAL)
+    refused = rig.take_over(600)
     assert refused.state is State.STOPPED
     assert [r.reason for r in refused.refusals] == [RefusalReason.CONDITIONS_ACTIVE]
     assert "client_estop:planner" in refused.refusals[0].detail
@@ -112,7 +92,7 @@ def test_new_cause_during_the_takeover_aborts_it() -> None:
     """SR-4.3: a stop cause raised between the Local heartbeat and the Operational one aborts the
     takeover, even if the cause is momentary."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, LOCAL)
     rig.advance(10)
     rig.feed(InternalFault(rig.now, "overrun"))
@@ -126,7 +106,7 @@ def test_local_reset_rearms_when_allowed_and_admin() -> None:
     """``srcsctl reset`` by an admin re-arms when the config allows it; with the VSC still in
     Local the state becomes HOLD, and RUN follows when the operator goes Operational."""
     rig = Rig(LOCAL_RESET)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(500, LOCAL)
     decision = rig.reset()
     assert decision.state is State.HOLD
@@ -141,7 +121,7 @@ def test_local_reset_rearms_when_allowed_and_admin() -> None:
 def test_local_reset_goes_straight_to_run_when_nothing_holds() -> None:
     """A local reset while the VSC is Operational and nothing holds goes to RUN."""
     rig = Rig(LOCAL_RESET)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(500, OPERATIONAL)
     assert rig.reset().state is State.RUN
 
@@ -149,7 +129,7 @@ def test_local_reset_goes_straight_to_run_when_nothing_holds() -> None:
 def test_local_reset_refused_when_the_config_does_not_allow_it() -> None:
     """With ``local_reset = false`` (the default) a reset is refused, even from an admin."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(600, LOCAL)
     decision = rig.reset()
     assert decision.state is State.STOPPED
@@ -159,7 +139,7 @@ def test_local_reset_refused_when_the_config_does_not_allow_it() -> None:
 def test_local_reset_refused_for_a_caller_outside_the_admin_group() -> None:
     """A reset from a caller who is not in the admin group is refused and names the caller."""
     rig = Rig(LOCAL_RESET)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(600, LOCAL)
     decision = rig.reset(NOBODY)
     assert decision.state is State.STOPPED
@@ -214,9 +194,8 @@ def test_client_reconnection_is_a_new_start() -> None:
     decision = rig.run_for(1000, OPERATIONAL, clients=(2,))
     assert decision.state is State.STOPPED
     assert decision.latched_names == {"client_lost:planner"}
-    rig.run_for(250, LOCAL, clients=(2,))  # the takeover dwell (rule 4)
-    rig.advance(50)
-    assert rig.vsc(OPERATIONAL).state is State.RUN
+    # the takeover dwell (rule 4)
+    assert rig.take_over(250, clients=(2,)).state is State.RUN
 
 
 def test_every_refused_rearm_is_recorded_with_its_reason() -> None:
@@ -237,7 +216,7 @@ def test_every_refused_rearm_is_recorded_with_its_reason() -> None:
 def test_a_granted_rearm_is_not_noted_as_refused() -> None:
     """The note is for refusals only: a granted reset is an ordinary change of state."""
     rig = Rig(LOCAL_RESET)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(500, LOCAL)
     [record] = rig.reset().records
     assert record.note is None

@@ -25,15 +25,6 @@ DWELL_MS = TAKEOVER_DWELL_NS // MS
 FASTEST_MS = VSC_MIN_INTERVAL_NS // MS
 
 
-def _stopped_and_cleared(rig: Rig) -> None:
-    """RUN, then the client's e-stop and its release: STOPPED, every condition clear."""
-    rig.bring_up()
-    rig.advance(10)
-    rig.estop()
-    rig.advance(10)
-    rig.release()
-
-
 def _beat(rig: Rig, mode: int, beat_client: bool = True) -> None:
     rig.vsc(mode)
     if beat_client:
@@ -49,7 +40,7 @@ def test_the_flapping_vsc_of_issue_11_never_rearms() -> None:
     Local/Operational every 10 ms (a heartbeat at each change) re-armed the robot by itself.
     For three seconds, long past the re-arm hold, it never leaves STOPPED."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     since = len(rig.decisions)
     for i in range(300):
         rig.advance(10)
@@ -63,7 +54,7 @@ def test_one_non_operational_heartbeat_in_an_operational_stream_is_no_takeover()
     """A single heartbeat that says Local in a stream of Operational ones (a glitch) is no
     takeover, whatever its spacing: the non-Operational mode must be seen twice."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, OPERATIONAL)
     rig.advance(50)
     _beat(rig, LOCAL)
@@ -79,7 +70,7 @@ def test_takeover_needs_the_dwell_exactly() -> None:
     apart: 199 ms is refused, 200 ms re-arms (boundaries inclusive, docs/safety.md choice 1)."""
     for span_ms, runs in ((DWELL_MS - 1, False), (DWELL_MS, True)):
         rig = Rig()
-        _stopped_and_cleared(rig)
+        rig.stopped_and_cleared()
         rig.run_for(1000, OPERATIONAL)
         rig.advance(50)
         _beat(rig, PAUSE)
@@ -101,7 +92,7 @@ def test_heartbeats_faster_than_the_vsc_can_send_are_no_takeover() -> None:
     """A run of Local heartbeats every 5 ms (four times the fastest rate the manual lets a
     VSC be set to, one per 20 ms) spanning well over the dwell is refused as too fast."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, OPERATIONAL)
     for i in range(100):
         rig.advance(5)
@@ -116,7 +107,7 @@ def test_heartbeats_read_together_still_make_a_takeover() -> None:
     """Frames that arrive in one read share one time: a 20 Hz VSC whose heartbeats are read
     two at a time (a busy loop) still re-arms by the operator's takeover."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, OPERATIONAL)
     for _ in range(6):
         rig.advance(100)
@@ -133,18 +124,15 @@ def test_a_silent_gap_starts_the_run_again() -> None:
     is counted again from the first heartbeat after it (fresh evidence after a lost link)."""
     config = dataclasses.replace(ROBOT, rearm_hold_ms=100)
     rig = Rig(config)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, LOCAL)
     rig.advance(250)  # a gap past the 200 ms timeout: vsc_link_lost
     rig.beat()
-    rig.run_for(150, LOCAL)  # conditions clear for 150 ms >= the 100 ms hold
-    rig.advance(50)
-    refused = rig.vsc(OPERATIONAL)
+    # conditions clear for 150 ms >= the 100 ms hold
+    refused = rig.take_over(150)
     assert refused.state is State.STOPPED
     assert [r.reason for r in refused.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
-    rig.run_for(300, LOCAL)
-    rig.advance(50)
-    assert rig.vsc(OPERATIONAL).state is State.RUN
+    assert rig.take_over(300).state is State.RUN
 
 
 def test_a_reconnect_starts_the_run_again() -> None:
@@ -155,9 +143,7 @@ def test_a_reconnect_starts_the_run_again() -> None:
     rig.run_for(1000, LOCAL)
     rig.feed(LinkOpened(rig.now))
     rig.key85(1)
-    rig.run_for(150, LOCAL)
-    rig.advance(50)
-    refused = rig.vsc(OPERATIONAL)
+    refused = rig.take_over(150)
     assert refused.state is State.STOPPED
     assert [r.reason for r in refused.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
 
@@ -166,7 +152,7 @@ def test_refusals_of_a_flapping_vsc_are_recorded_at_most_once_a_second() -> None
     """A flapping VSC cannot fill the record with refused takeovers (its rotation would drop
     the stop they are about): the same refusal is reported at most once a second."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, OPERATIONAL)
     since = len(rig.decisions)
     for i in range(500):  # five seconds of a 100 Hz flap: 250 takeovers too short
@@ -186,7 +172,7 @@ def test_a_different_refusal_is_reported_at_once() -> None:
     """Quieting a repeated refusal never hides a new reason: a takeover too short, then one
     refused for another reason right after, are both reported."""
     rig = Rig()
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(1000, OPERATIONAL)
     rig.advance(50)
     _beat(rig, LOCAL)
@@ -194,9 +180,7 @@ def test_a_different_refusal_is_reported_at_once() -> None:
     assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
     rig.advance(10)
     rig.estop()
-    rig.run_for(300, LOCAL)
-    rig.advance(50)
-    assert [r.reason for r in rig.vsc(OPERATIONAL).refusals] == [RefusalReason.CONDITIONS_ACTIVE]
+    assert [r.reason for r in rig.take_over(300).refusals] == [RefusalReason.CONDITIONS_ACTIVE]
 
 
 def _flap_feed(rig: Rig, runs: list[list[int]]) -> None:
@@ -229,7 +213,7 @@ def test_a_vsc_flapping_faster_than_the_dwell_never_rearms(
     spanning the dwell (heartbeats 1-49 ms apart) never ends STOPPED after a stop, however
     long the conditions have been clear."""
     rig = Rig(config)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(600, OPERATIONAL)
     since = len(rig.decisions)
     _flap_feed(rig, runs)
@@ -255,7 +239,7 @@ def test_an_operators_takeover_rearms(
     if transport is Transport.CAN:
         config = dataclasses.replace(ROBOT, transport=transport, require_watchdog=False)
     rig = Rig(config)
-    _stopped_and_cleared(rig)
+    rig.stopped_and_cleared()
     rig.run_for(600, from_mode)
     step = 2 * period_ms if read_together else period_ms
     elapsed = 0

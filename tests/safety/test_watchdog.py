@@ -6,7 +6,7 @@ import dataclasses
 
 from supervisord.protocol.messages import FeedbackGet
 from supervisord.safety import LinkOpened, State, Transport
-from tests.safety.rig import LOCAL, MS, OPERATIONAL, ROBOT, Rig
+from tests.safety.rig import LOCAL, MS, ROBOT, Rig
 
 QUERY = FeedbackGet(85)
 
@@ -52,9 +52,7 @@ def test_unanswered_key85_keeps_stopped() -> None:
     rig = Rig()
     rig.open_link()
     rig.connect()
-    rig.run_for(2000, LOCAL)
-    rig.advance(50)
-    decision = rig.vsc(OPERATIONAL)
+    decision = rig.take_over(2000)
     assert decision.state is State.STOPPED
     assert "vsc_watchdog_off" in decision.refusals[0].detail
 
@@ -84,9 +82,7 @@ def test_hid_never_leaves_stopped() -> None:
     rig = Rig(dataclasses.replace(ROBOT, transport=Transport.HID))
     rig.open_link()
     rig.connect()
-    rig.run_for(1000, LOCAL)
-    rig.advance(50)
-    decision = rig.vsc(OPERATIONAL)
+    decision = rig.take_over(1000)
     assert decision.state is State.STOPPED
     fault = decision.cause("transport_fault")
     assert fault is not None
