@@ -34,7 +34,7 @@ from supervisord import __version__
 from supervisord.sim.can_side import CanSide
 from supervisord.sim.control import ControlServer
 from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Simulator, load_eeprom
-from supervisord.sim.model import LINK_DELAY_S, REMOTE_OFF_REPORTS, Transport, VscModel
+from supervisord.sim.model import LINK_DELAY_S, REMOTE_OFF_REPORTS, SimTransport, VscModel
 from supervisord.sim.serial_side import SerialSide
 
 POLL_S = 0.05  # the longest wait: state the model changes on its own shows within this
@@ -191,7 +191,7 @@ def _make_side(args: argparse.Namespace, scratch: Path) -> SerialSide | CanSide:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    transport: Transport = "can" if args.can is not None else "serial"
+    transport: SimTransport = "can" if args.can is not None else "serial"
     eeprom_path = Path(args.eeprom) if args.eeprom else None
     try:
         eeprom = load_eeprom(eeprom_path, transport)

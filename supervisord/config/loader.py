@@ -32,11 +32,11 @@ from supervisord.config.model import (
     CanBus,
     CanErrors,
     DaemonConfig,
-    HidLink,
+    HidDevice,
     RecordConfig,
     Reopen,
     RobotConfig,
-    SerialLink,
+    SerialPort,
     VscConfig,
 )
 from supervisord.config.schema import (
@@ -226,19 +226,19 @@ class _Loader:
 
     def vsc(self, fields: strict.Fields) -> VscConfig:
         transport = Transport(fields.read(TRANSPORT))
-        link: SerialLink | CanBus | HidLink
+        link: SerialPort | CanBus | HidDevice
         can_errors = CanErrors()
         if transport is Transport.SERIAL:
             port = self.path(fields, PORT)
             fields.read(BAUD)
-            link = SerialLink(port, SERIAL_BAUD)
+            link = SerialPort(port, SERIAL_BAUD)
         elif transport is Transport.CAN:
             link = self.can_bus(fields)
             can_errors = CanErrors(
                 fields.whole(ERROR_LIMIT), fields.whole(ERROR_WINDOW), fields.whole(ERROR_PASSIVE)
             )
         else:
-            link = HidLink(self.path(fields, HIDRAW))
+            link = HidDevice(self.path(fields, HIDRAW))
         low = fields.whole(REOPEN_MIN)
         high = (
             fields.whole(REOPEN_MAX)
@@ -494,9 +494,9 @@ def _path_claims(
     the order of the file's sections; the record claims its rotated files too."""
     claims: list[tuple[str, str, Path, str]] = []
     link = vsc.link
-    if isinstance(link, SerialLink):
+    if isinstance(link, SerialPort):
         claims.append(("vsc.port", str(link.port), link.port, ""))
-    elif isinstance(link, HidLink):
+    elif isinstance(link, HidDevice):
         claims.append(("vsc.hidraw", str(link.hidraw), link.hidraw, ""))
     for i, spec in enumerate(outputs):
         claims += [

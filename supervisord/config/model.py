@@ -36,7 +36,7 @@ class RobotConfig:
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
-class SerialLink:
+class SerialPort:
     """``[vsc]`` with ``transport = "serial"``: the VSC's USB CDC or RS-232 port."""
 
     port: Path = Path(DEFAULT_SERIAL_PORT)
@@ -58,7 +58,7 @@ class CanBus:
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
-class HidLink:
+class HidDevice:
     """``[vsc]`` with ``transport = "hid"``: the VSC's hidraw device (never a safety channel)."""
 
     hidraw: Path
@@ -90,7 +90,7 @@ class VscConfig:
     heartbeat rate, watchdog) are in :attr:`DaemonConfig.safety`."""
 
     transport: Transport
-    link: SerialLink | CanBus | HidLink
+    link: SerialPort | CanBus | HidDevice
     reopen: Reopen = Reopen()
     can_errors: CanErrors = CanErrors()
     """Used only on CAN (``[output_bus]`` errors are not read: it only sends)."""

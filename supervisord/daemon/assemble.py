@@ -6,13 +6,13 @@ import logging
 from typing import TYPE_CHECKING
 
 from supervisord.api.server import ApiServer, ServerConfig
-from supervisord.config import CanBus, DaemonConfig, HidLink, SerialLink
+from supervisord.config import CanBus, DaemonConfig, HidDevice, SerialPort
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
-from supervisord.links.hid_link import HidLink as HidLinkImpl
-from supervisord.links.serial_link import SerialLink as SerialLinkImpl
+from supervisord.links.hid_link import HidLink
+from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import Output, create_output
 from supervisord.outputs.base import OutputKind
 from supervisord.record.journal import JournalSink
@@ -30,8 +30,8 @@ log = logging.getLogger("srcsd")
 
 def build_link(config: DaemonConfig) -> Link:
     settings = config.vsc.link
-    if isinstance(settings, SerialLink):
-        return SerialLinkImpl(str(settings.port))
+    if isinstance(settings, SerialPort):
+        return SerialLink(str(settings.port))
     if isinstance(settings, CanBus):
         from supervisord.links.can_link import CanLink  # noqa: PLC0415 -- CAN only
 
@@ -44,8 +44,8 @@ def build_link(config: DaemonConfig) -> Link:
             error_window_ms=errors.window_ms,
             error_passive_ms=errors.passive_ms,
         )
-    assert isinstance(settings, HidLink)
-    return HidLinkImpl(str(settings.hidraw))
+    assert isinstance(settings, HidDevice)
+    return HidLink(str(settings.hidraw))
 
 
 def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.BusABC | None]:
@@ -85,7 +85,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
     )
     return ApiListener(
         server,
-        has_key85=isinstance(config.vsc.link, SerialLink),
+        has_key85=isinstance(config.vsc.link, SerialPort),
         robot=config.robot.name,
         required={c.name: c.timeout_ms for c in config.safety.clients},
     )

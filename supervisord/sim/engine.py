@@ -26,7 +26,7 @@ from supervisord.sim.model import (
     Eeprom,
     EstopBit,
     SimRefused,
-    Transport,
+    SimTransport,
     VscModel,
 )
 from supervisord.sim.serial_side import SerialSide
@@ -41,7 +41,7 @@ class RequestError(Exception):
     """A control request that cannot be done as asked; its text is the error reply."""
 
 
-def load_eeprom(path: Path | None, transport: Transport) -> Eeprom:
+def load_eeprom(path: Path | None, transport: SimTransport) -> Eeprom:
     """The EEPROM saved at ``path``, factory defaults if there is no file yet. A file that
     cannot be read raises ``ValueError`` naming it: the simulator refuses to start rather
     than silently forget a test's settings."""

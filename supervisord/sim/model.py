@@ -63,7 +63,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.protocol.nmea import parse_nmea
 
-Transport = Literal["serial", "can"]
+SimTransport = Literal["serial", "can"]
 RemoteOffReport = Literal["searching", "local"]
 REMOTE_OFF_REPORTS: tuple[RemoteOffReport, ...] = ("searching", "local")
 
@@ -141,7 +141,7 @@ class Eeprom:
     keys: dict[int, int]
 
     @classmethod
-    def defaults(cls, transport: Transport) -> Eeprom:
+    def defaults(cls, transport: SimTransport) -> Eeprom:
         table = SERIAL_SCHEDULE if transport == "serial" else CAN_SCHEDULE
         return cls(dict(table), dict(KEY_DEFAULTS))
 
@@ -155,7 +155,7 @@ class Eeprom:
         }
 
     @classmethod
-    def from_json(cls, data: object, transport: Transport) -> Eeprom:
+    def from_json(cls, data: object, transport: SimTransport) -> Eeprom:
         """Read what ``to_json`` wrote; raise ``ValueError`` naming the bad field. Rows and
         keys missing from ``data`` keep their factory defaults."""
         if not isinstance(data, dict):
@@ -217,7 +217,7 @@ class VscModel:
         self,
         now: float,
         *,
-        transport: Transport = "serial",
+        transport: SimTransport = "serial",
         eeprom: Eeprom | None = None,
         newer_firmware: bool = False,
         link_delay: float = LINK_DELAY_S,
@@ -226,7 +226,7 @@ class VscModel:
     ) -> None:
         if remote_off_reports not in REMOTE_OFF_REPORTS:
             raise ValueError(f"remote_off_reports must be one of {REMOTE_OFF_REPORTS}")
-        self.transport: Transport = transport
+        self.transport: SimTransport = transport
         self.remote_off_reports = remote_off_reports
         self.eeprom = eeprom or Eeprom.defaults(transport)
         self.eeprom_version = 0  # bumped on every change the edge must save

@@ -11,7 +11,7 @@ import pytest
 
 import supervisord
 from supervisord.cli.demo import DEMO_CONFIG
-from supervisord.config import CanBus, SerialLink, check_config_main, load_config
+from supervisord.config import CanBus, SerialPort, check_config_main, load_config
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
@@ -80,7 +80,7 @@ def test_serial_gpio_example(tmp_path: Path) -> None:
     """The serial example: a serial VSC, two GPIO outputs (motion, pulsed power), two clients."""
     config = load_config(CONFIG_DIR / "example-serial-gpio.toml", group_exists=srcs_admin_exists)
     assert config.vsc.transport is Transport.SERIAL
-    assert isinstance(config.vsc.link, SerialLink)
+    assert isinstance(config.vsc.link, SerialPort)
     assert [(o.kind, o.role) for o in config.outputs] == [
         (OutputKind.GPIO, OutputRole.MOTION),
         (OutputKind.GPIO, OutputRole.POWER),
@@ -109,7 +109,7 @@ def test_can_example_is_the_docs_worked_example() -> None:
 def test_demo_config_runs_without_hardware_or_clients(tmp_path: Path) -> None:
     """The demo: serial to a path under the run folder, sim outputs, local reset, no clients."""
     config = load_config(DEMO_CONFIG, base_dir=tmp_path)
-    assert config.vsc.link == SerialLink(tmp_path / "srcs-demo/vsc", 115_200)
+    assert config.vsc.link == SerialPort(tmp_path / "srcs-demo/vsc", 115_200)
     assert {o.kind for o in config.outputs} == {OutputKind.SIM}
     assert [getattr(o, "path", None) for o in config.outputs] == [
         tmp_path / "srcs-demo/drive",

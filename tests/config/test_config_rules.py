@@ -23,8 +23,8 @@ from supervisord.config import (
     SERIAL_BAUD,
     CanBus,
     DaemonConfig,
-    HidLink,
-    SerialLink,
+    HidDevice,
+    SerialPort,
     load_config,
 )
 from supervisord.errors import ConfigError
@@ -138,7 +138,7 @@ def test_base_config_is_valid(tmp_path: Path) -> None:
     """The starting point of every case loads, with the documented defaults filled in."""
     config = load(tmp_path, {})
     assert config.robot.name == "test-bot"
-    assert config.vsc.link == SerialLink(Path("/dev/ttyACM0"), SERIAL_BAUD)
+    assert config.vsc.link == SerialPort(Path("/dev/ttyACM0"), SERIAL_BAUD)
     assert config.safety.effective_vsc_timeout_ms == 200
     assert config.safety.heartbeat_hz == 20
     assert config.safety.require_watchdog is True
@@ -250,7 +250,7 @@ def test_vsc(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> 
 def test_serial_defaults_and_fixed_baud(tmp_path: Path) -> None:
     """A serial VSC defaults to the udev symlink and accepts baud = 115200 said aloud."""
     config = load(tmp_path, {"vsc": {"transport": "serial", "baud": 115_200}})
-    assert config.vsc.link == SerialLink(Path(DEFAULT_SERIAL_PORT), SERIAL_BAUD)
+    assert config.vsc.link == SerialPort(Path(DEFAULT_SERIAL_PORT), SERIAL_BAUD)
 
 
 def test_can_vsc_defaults(tmp_path: Path) -> None:
@@ -284,7 +284,7 @@ def test_can_channel_may_be_a_number(tmp_path: Path) -> None:
 def test_hid_loads_with_a_warning(tmp_path: Path) -> None:
     """transport "hid" is accepted, with its hidraw path and a warning that it never runs."""
     config = load(tmp_path, {"vsc": {"transport": "hid", "hidraw": "/dev/hidraw3"}})
-    assert config.vsc.link == HidLink(Path("/dev/hidraw3"))
+    assert config.vsc.link == HidDevice(Path("/dev/hidraw3"))
     assert any("never a safety channel" in note for note in config.warnings())
 
 
@@ -489,7 +489,7 @@ def test_relative_paths_follow_the_config_file(tmp_path: Path) -> None:
             "api": {"socket": "run/api.sock"},
         },
     )
-    assert config.vsc.link == SerialLink(tmp_path / "run/vsc", SERIAL_BAUD)
+    assert config.vsc.link == SerialPort(tmp_path / "run/vsc", SERIAL_BAUD)
     assert getattr(config.outputs[0], "path", None) == tmp_path / "run/drive"
     assert config.record.path == tmp_path / "run/stops.jsonl"
     assert config.api.socket == tmp_path / "run/api.sock"
@@ -499,7 +499,7 @@ def test_base_dir_overrides_the_config_folder(tmp_path: Path) -> None:
     """``base_dir`` replaces the file's folder as the root of relative paths."""
     run = tmp_path / "elsewhere"
     config = load(tmp_path, {"vsc.port": "vsc", "outputs[0].path": "drive"}, base_dir=run)
-    assert config.vsc.link == SerialLink(run / "vsc", SERIAL_BAUD)
+    assert config.vsc.link == SerialPort(run / "vsc", SERIAL_BAUD)
     assert getattr(config.outputs[0], "path", None) == run / "drive"
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.daemon.test_field import CONFIG
+from tests.daemon.test_srcsd import CONFIG
 
 # In a private mount namespace whose /run and /var/log are fresh tmpfs: nothing the host sees.
 JOURNALD_CHILD = textwrap.dedent(
