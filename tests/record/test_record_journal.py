@@ -8,12 +8,9 @@ import errno
 import fcntl
 import json
 import os
-import shutil
 import socket
 import struct
-import subprocess
 import sys
-import textwrap
 import time
 import uuid
 from collections.abc import Iterator
@@ -32,6 +29,7 @@ from supervisord.record import (
     priority,
 )
 from supervisord.record.journal import SEND_TIMEOUT_S, encode_native
+from tests.journald import journal_entries
 from tests.record.conftest import make_record
 
 
@@ -265,25 +263,7 @@ def test_a_stuck_journal_refuses_after_a_bounded_wait(reader: JournalReader) -> 
     assert SEND_TIMEOUT_S * 0.9 <= took < SEND_TIMEOUT_S + 20
 
 
-# The real journald: systemd-journald run as a plain process for a journal namespace of its own
-# (systemd-journald.service(8)), in a private mount namespace whose /run and /var/log are fresh
-# tmpfs: it writes nowhere the host can see. journalctl then reads the fields back.
-JOURNALD_CHILD = textwrap.dedent(
-    """
-    set -eu
-    mount -t tmpfs tmpfs /run
-    mount -t tmpfs tmpfs /var/log
-    "$JOURNALD" srcstest &
-    journald=$!
-    socket=/run/systemd/journal.srcstest/socket
-    for _ in $(seq 100); do [ -S "$socket" ] && break; sleep 0.1; done
-    "$PYTHON" -m tests.record.test_record_journal "$socket"
-    kill -TERM "$journald"
-    wait "$journald" || true
-    exec journalctl --directory /var/log/journal/*.srcstest --all -o json --no-pager \\
-        SYSLOG_IDENTIFIER=srcsd
-    """
-)
+# The real journald (tests/journald.py): the sink's entries read back with journalctl.
 
 
 def _journald_records() -> list[dict[str, object]]:
@@ -304,24 +284,8 @@ def test_a_real_journald_stores_every_field() -> None:
     """SR-7.3: systemd-journald itself (a private instance) stores each entry the sink sends,
     datagram and memfd alike, with its MESSAGE_ID, PRIORITY, every SRCS_CAUSE and the
     multi-line value, as journalctl reads them back."""
-    journald = shutil.which("systemd-journald") or "/lib/systemd/systemd-journald"
-    unshare = shutil.which("unshare")
-    if unshare is None or not Path(journald).exists() or shutil.which("journalctl") is None:
-        pytest.skip("needs unshare(1), systemd-journald and journalctl")
-    root = Path(__file__).resolve().parents[2]
-    result = subprocess.run(
-        [unshare, "--mount", "--propagation", "private", "sh", "-c", JOURNALD_CHILD],
-        capture_output=True,
-        cwd=root,
-        env={**os.environ, "JOURNALD": journald, "PYTHON": sys.executable},
-        timeout=60,
-        check=False,
-    )
-    if result.returncode != 0 and b"Operation not permitted" in result.stderr:
-        pytest.skip("no permission for a private mount namespace (needs root)")
-    assert result.returncode == 0, result.stderr.decode()
-    entries = [json.loads(line) for line in result.stdout.decode().splitlines()]
-    assert len(entries) == 2, result.stdout.decode()[:2000]
+    entries = journal_entries('"$PYTHON" -m tests.record.test_record_journal "$SOCKET"')
+    assert len(entries) == 2, [entry.get("MESSAGE_ID") for entry in entries]
     for entry, record in zip(entries, _journald_records(), strict=True):
         expected: dict[str, object] = {}
         for key, value in journal_fields(record):
