@@ -97,6 +97,15 @@ VSC_MIN_INTERVAL_NS = 20 * NS_PER_MS
 """The shortest interval a VSC can be set to send its heartbeat at (manual §8.3.6 message
 control: 20 ms; the manual's rates are 20 Hz serial, 10 Hz CAN). Faster heartbeats are not
 a VSC's, and are no evidence of a takeover (rule 4)."""
+VSC_SLOWEST_RATE_INTERVAL_NS = 100 * NS_PER_MS
+"""The longest heartbeat interval of the manual's documented rates (10 Hz on CAN, table 23;
+20 Hz on serial, table 5)."""
+TAKEOVER_MIN_HEARTBEATS = TAKEOVER_DWELL_NS // VSC_SLOWEST_RATE_INTERVAL_NS + 1
+"""Re-arm rule 4: the non-Operational heartbeats a run must hold, however long its span (3:
+what a VSC at its slowest documented rate sends in the dwell). A span is measured between read
+stamps, and a loop that was starved reads a heartbeat late, stretching the span; the number of
+heartbeats cannot be stretched (seen: a VSC flapping every 100 ms, Local at 0 and 50 ms, the
+50 ms one read at 210 ms, re-armed a starved supervisor)."""
 READ_TOGETHER_ALLOWANCE = 2
 """Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
 read in one loop turn share one time, so a late read makes a span look shorter."""
@@ -921,6 +930,12 @@ class SafetyCore:
                 RefusalReason.TAKEOVER_TOO_SHORT,
                 f"not Operational for {span // NS_PER_MS} ms in {beats}; "
                 f"{TAKEOVER_DWELL_NS // NS_PER_MS} ms needed",
+            )
+        if run.heartbeats < TAKEOVER_MIN_HEARTBEATS:  # rule 4: a late read stretches a span
+            return (
+                RefusalReason.TAKEOVER_TOO_SHORT,
+                f"not Operational in only {run.heartbeats} heartbeats over "
+                f"{span // NS_PER_MS} ms; {TAKEOVER_MIN_HEARTBEATS} needed",
             )
         heartbeats = run.heartbeats + 1  # with the Operational one
         window = self._now - run.first_ns

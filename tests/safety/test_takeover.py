@@ -88,6 +88,31 @@ def test_takeover_needs_the_dwell_exactly() -> None:
             assert [r.reason for r in decision.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
 
 
+def test_a_late_read_cannot_stretch_a_run_into_a_takeover() -> None:
+    """SR-4.5: with a 300 ms link timeout (CAN's default), a starved loop reads a Local
+    heartbeat 250 ms after the one before, though the VSC sent it 100 ms later and went
+    Operational 100 ms after that (read in the same late turn): a span of 250 ms in two
+    heartbeats is refused, since a VSC at its slowest rate (10 Hz) sends three in the dwell.
+    Three heartbeats over the same span re-arm."""
+    config = dataclasses.replace(ROBOT, vsc_timeout_ms=300)
+    for local_beats, runs in ((2, False), (3, True)):
+        rig = Rig(config)
+        rig.stopped_and_cleared()
+        rig.run_for(1000, OPERATIONAL)
+        rig.advance(50)
+        _beat(rig, LOCAL)
+        rig.advance(150)
+        for _ in range(local_beats - 2):
+            _beat(rig, LOCAL)
+        rig.advance(100)
+        _beat(rig, LOCAL)  # read with the Operational one, in one late turn
+        decision = rig.vsc(OPERATIONAL)
+        assert (decision.state is State.RUN) is runs, (local_beats, decision.refusals)
+        if not runs:
+            assert [r.reason for r in decision.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+            assert "2 heartbeats" in decision.refusals[0].detail
+
+
 def test_heartbeats_faster_than_the_vsc_can_send_are_no_takeover() -> None:
     """A run of Local heartbeats every 5 ms (four times the fastest rate the manual lets a
     VSC be set to, one per 20 ms) spanning well over the dwell is refused as too fast."""
