@@ -149,9 +149,10 @@ class Vm:
 def systemd_boot(vm: Vm, suite: str) -> str:
     a = vm.args
     prep = Path(a.repo, "tests/system/guest/prep")
+    chosen = f" srcs.scenarios={a.scenarios}" if a.scenarios and suite == "main" else ""
     return (
         f"srcs.mode=systemd srcs.prep={prep} systemd.unit=srcs-system-tier.target "
-        f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}"
+        f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}{chosen}"
     )
 
 
@@ -162,6 +163,9 @@ def main() -> int:
     parser.add_argument("--started", type=float, default=time.time())
     parser.add_argument("--acks", type=int, default=40, help="records acknowledged before the cut")
     parser.add_argument("--only", choices=("main", "powercut"), help="one part of the tier")
+    parser.add_argument(
+        "--scenarios", help="comma-separated names: only these of the main boot (install runs)"
+    )
     args = parser.parse_args()
     vm = Vm(args)
     outcomes: dict[str, bool] = {}

@@ -1073,6 +1073,201 @@ def powercut_check(acked_file: str) -> int:
         return 1
 
 
+# ---------------------------------------------------------------------------------- slow disk
+
+SLOW_DELAY_MS = 50  # dm-delay on every write and flush: a slow SD card's fsync (issue 14 item 3)
+SLOW_INSTANCE = "slow"
+SLOW_MOUNT = Path("/var/lib/srcsd", SLOW_INSTANCE)  # in the unit's StateDirectory
+SLOW_IMAGE = Path("/run/srcs-tier/slow-disk.img")  # in guest memory
+SLOW_BLOCKS = 6  # alternating blocks: normal disk, slow disk, normal, slow, ...
+SLOW_STOPS = 8  # stops per block
+SLOW_MARGIN_S = SLOW_DELAY_MS / 1000  # what one stop behind one record fsync would add at least
+
+
+class SlowDisk:
+    """ext4 on a dm-delay device over a loop device over a file in the guest's tmpfs: every
+    write and every flush (the record's fsync) waits ``SLOW_DELAY_MS``, reads do not."""
+
+    def __init__(self) -> None:
+        check(MARKER.exists(), "not inside the system tier's guest")
+        SLOW_IMAGE.parent.mkdir(parents=True, exist_ok=True)
+        with SLOW_IMAGE.open("wb") as image:
+            image.truncate(32 * 1024 * 1024)
+        self.loop = run("losetup", "--find", "--show", str(SLOW_IMAGE))
+        # mkfs on the loop device itself: only the file system's use is to be slow
+        run("mkfs.ext4", "-q", "-F", "-L", "srcs-slow", self.loop)
+        sectors = run("blockdev", "--getsz", self.loop)
+        # delay <read dev> <offset> <ms> <write dev> <offset> <ms>: with six arguments the
+        # flush class takes the write's (drivers/md/dm-delay.c in 6.1), so a flush waits too.
+        table = f"0 {sectors} delay {self.loop} 0 0 {self.loop} 0 {SLOW_DELAY_MS}"
+        subprocess.run(
+            ["dmsetup", "create", "--noudevsync", "slow", "--table", table],
+            check=True, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        subprocess.run(["dmsetup", "mknodes", "slow"], check=False, timeout=60)
+        self.device = "/dev/mapper/slow"
+        wait_for("/dev/mapper/slow", lambda: Path(self.device).exists(), 30, 0.1)
+        self.table = run("dmsetup", "table", "slow")
+        SLOW_MOUNT.mkdir(parents=True, exist_ok=True)
+        run("mount", "-t", "ext4", self.device, str(SLOW_MOUNT))
+        run("chown", "srcsd:srcsd", str(SLOW_MOUNT))
+        SLOW_MOUNT.chmod(0o750)
+
+    def close(self) -> None:
+        subprocess.run(["umount", str(SLOW_MOUNT)], check=False)
+        subprocess.run(["dmsetup", "remove", "--noudevsync", "slow"], check=False, timeout=60)
+        subprocess.run(["losetup", "-d", self.loop], check=False)
+        SLOW_IMAGE.unlink(missing_ok=True)
+
+
+def fsync_ms(folder: Path, count: int = 6) -> list[float]:
+    """How long an fsync of a small append takes on the file system at ``folder``, ms."""
+    probe = folder / "fsync-probe"
+    times = []
+    fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o600)
+    try:
+        for _ in range(count):
+            os.write(fd, b"x" * 200 + b"\n")  # about one record line
+            start = time.perf_counter()
+            os.fsync(fd)
+            times.append(round((time.perf_counter() - start) * 1000, 1))
+    finally:
+        os.close(fd)
+        probe.unlink()
+    return times
+
+
+def estop_records(path: Path) -> int:
+    """Records of a RUN -> STOPPED change caused by the VSC's e-stop in the file at ``path``."""
+    if not path.exists():
+        return 0
+    count = 0
+    for item in read_records(path):
+        if isinstance(item, BadLine):
+            continue
+        data: dict[str, Any] = dict(item.data)
+        causes = [c.get("name") for c in data.get("causes") or [] if isinstance(c, dict)]
+        count += data.get("from") == "RUN" and data.get("to") == "STOPPED" and "vsc_estop" in causes
+    return count
+
+
+def spread(values: list[float]) -> dict[str, float]:
+    ordered = sorted(values)
+    return {
+        "n": len(ordered),
+        "p50": ordered[len(ordered) // 2] if ordered else 0,
+        "max": ordered[-1] if ordered else 0,
+    }
+
+
+def scenario_slowdisk(bench: Bench) -> tuple[str, Measured]:
+    """SR-7.5, issue 14 item 3: with the stop record on ext4 over dm-delay (50 ms on every write
+    and flush, an fsync measured >= 50 ms), remote e-stops drop the drive line as soon as with
+    the record in memory (blocks alternating between two srcsd@ instances, one per disk; the
+    stop lands right after the takeover's record was handed to the disk), and every stop is in
+    its instance's record afterwards."""
+    normal = Bench.instance
+    slow_config = GPIO_CONFIG.replace(f"/{normal}/", f"/{SLOW_INSTANCE}/")
+    # The witness output's file stays in memory: only the record is to be on the slow disk.
+    slow_config = slow_config.replace(
+        f"/var/lib/srcsd/{SLOW_INSTANCE}/witness", f"/run/srcsd/{SLOW_INSTANCE}/witness"
+    )
+    check(f'path = "{SLOW_MOUNT}/stops.jsonl"' in slow_config, "slow config has no record path")
+    records = {
+        normal: Path("/var/lib/srcsd", normal, "stops.jsonl"),
+        SLOW_INSTANCE: SLOW_MOUNT / "stops.jsonl",
+    }
+    run("systemctl", "stop", bench.unit)
+    disk = SlowDisk()
+    write_config(SLOW_INSTANCE, slow_config)
+    before = {name: estop_records(path) for name, path in records.items()}
+    fsync_before = {
+        normal: fsync_ms(records[normal].parent.parent),
+        SLOW_INSTANCE: fsync_ms(SLOW_MOUNT),
+    }
+    check(
+        min(fsync_before[SLOW_INSTANCE]) >= SLOW_DELAY_MS,
+        f"an fsync on the slow disk took {fsync_before[SLOW_INSTANCE]} ms, not >= {SLOW_DELAY_MS}",
+    )
+    off: dict[str, list[float]] = {normal: [], SLOW_INSTANCE: []}
+    pending: dict[str, list[int]] = {normal: [], SLOW_INSTANCE: []}
+    stops = {normal: 0, SLOW_INSTANCE: 0}
+    try:
+        for block in range(SLOW_BLOCKS):
+            name = (normal, SLOW_INSTANCE)[block % 2]
+            bench.instance, bench.unit = name, f"srcsd@{name}.service"
+            # The start limit counts earlier starts; a unit that is not loaded has none.
+            subprocess.run(["systemctl", "reset-failed", bench.unit], check=False)
+            run("systemctl", "start", bench.unit)
+            wait_state(name, "STOPPED", 60)
+            for _ in range(SLOW_STOPS):
+                bench.to_run()
+                # At once: the takeover's records were just handed to the sink, their fsync
+                # (>= 2 x 50 ms on the slow disk) is under way when the stop arrives.
+                t0 = time.monotonic()
+                bench.sim.control.estop()
+                wait_for(
+                    "drive off after the e-stop", lambda: bench.gpio.value(DRIVE) == 0, 10, 0.002
+                )
+                off[name].append(round((time.monotonic() - t0) * 1000, 1))
+                stops[name] += 1
+                with contextlib.suppress(Exception):  # a measurement, not a check
+                    pending[name].append(int(status(name)["daemon"]["records_pending"]))
+                wait_state(name, "STOPPED", 10)
+                bench.sim.control.release()
+            run("systemctl", "stop", bench.unit)  # the record is whole once it has exited
+            log(
+                f"slowdisk block {block} ({name}): e-stop to drive off ms {off[name][-SLOW_STOPS:]}"
+            )
+        fsync_after = {
+            normal: fsync_ms(records[normal].parent.parent),
+            SLOW_INSTANCE: fsync_ms(SLOW_MOUNT),
+        }
+        recorded = {name: estop_records(path) - before[name] for name, path in records.items()}
+        table = disk.table
+    finally:
+        bench.instance, bench.unit = Bench.instance, Bench.unit
+        subprocess.run(["systemctl", "stop", f"srcsd@{SLOW_INSTANCE}.service"], check=False)
+        disk.close()
+        subprocess.run(["systemctl", "start", bench.unit], check=False)
+    for name in records:
+        check(
+            recorded[name] == stops[name],
+            f"{name}: {stops[name]} stops, {recorded[name]} e-stop records in its file",
+        )
+    # The stops must have met the disk busy, or the comparison shows nothing: right after
+    # the drive line went off, the stop's own record was still waiting for its fsync.
+    check(
+        any(count >= 1 for count in pending[SLOW_INSTANCE]),
+        f"no record pending at any stop on the slow disk: {pending[SLOW_INSTANCE]}",
+    )
+    fast, slow = spread(off[normal]), spread(off[SLOW_INSTANCE])
+    check(
+        slow["p50"] <= fast["p50"] + SLOW_MARGIN_S * 1000,
+        f"e-stop to drive off: slow disk p50 {slow['p50']} ms vs {fast['p50']} ms on the "
+        f"normal one: the stops waited for the disk",
+    )
+    return f"{sum(stops.values())} stops; the slow disk's fsync delays no stop; all recorded", {
+        "dm table": table,
+        "fsync ms before, normal (tmpfs overlay) / slow (ext4 on dm-delay)": [
+            fsync_before[normal],
+            fsync_before[SLOW_INSTANCE],
+        ],
+        "fsync ms after, normal / slow": [fsync_after[normal], fsync_after[SLOW_INSTANCE]],
+        "e-stop to drive off ms, normal disk": fast,
+        "e-stop to drive off ms, slow disk": slow,
+        "ratio slow/normal p50, max": [
+            round(slow["p50"] / fast["p50"], 2) if fast["p50"] else None,
+            round(slow["max"] / fast["max"], 2) if fast["max"] else None,
+        ],
+        "records pending just after drive off, normal / slow": [
+            pending[normal],
+            pending[SLOW_INSTANCE],
+        ],
+        "e-stop records, normal / slow": [recorded[normal], recorded[SLOW_INSTANCE]],
+    }
+
+
 # ---------------------------------------------------------------------------------- runner
 
 Scenario = Callable[[Bench], tuple[str, Measured]]
@@ -1085,6 +1280,7 @@ MAIN: list[tuple[str, Scenario]] = [
     ("clean_stop", scenario_clean_stop),
     ("prooftest", scenario_prooftest),
     ("rttime", scenario_rttime),
+    ("slowdisk", scenario_slowdisk),
 ]
 
 
@@ -1095,13 +1291,23 @@ def describe(error: BaseException) -> str:
     return "".join(traceback.format_exception_only(error)).strip()
 
 
+def selected() -> list[tuple[str, Scenario]]:
+    """MAIN, or the scenarios named by srcs.scenarios=a,b (vm.py --scenarios, for work on one)."""
+    for arg in Path("/proc/cmdline").read_text().split():
+        if arg.startswith("srcs.scenarios="):
+            names = arg.split("=", 1)[1].split(",")
+            return [(name, scenario) for name, scenario in MAIN if name in names]
+    return MAIN
+
+
 def run_main() -> int:
-    print("SRCS-PLAN " + " ".join(name for name, _ in MAIN), flush=True)
+    scenarios = selected()
+    print("SRCS-PLAN " + " ".join(name for name, _ in scenarios), flush=True)
     install()
     bench = Bench()
     failed = 0
     try:
-        for name, scenario in MAIN:
+        for name, scenario in scenarios:
             log(f"scenario {name}")
             t0 = time.monotonic()
             try:
