@@ -15,6 +15,7 @@ import grp
 import itertools
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -675,7 +676,10 @@ def scenario_prooftest(bench: Bench) -> tuple[str, Measured]:
     }
 
 
-SPIN_DIR = Path(__file__).resolve().parent / "spin"  # its sitecustomize.py: the injection
+SPIN_SOURCE = Path(__file__).resolve().parent / "spin"  # its sitecustomize.py: the injection
+# Where the unit can read it: the repository may be under /var/tmp, which PrivateTmp=yes hides
+# from the service (and /home and /root are ProtectHome=yes). A copy in the guest's overlay.
+SPIN_DIR = Path("/usr/local/lib/srcs-system-tier/spin")
 SPIN_TRIGGER = Path("/run/srcs-spin")
 SPIN_DROPIN = Path("/etc/systemd/system/srcsd@gpio-a.service.d/spin.conf")
 REALTIME_PROBE = """
@@ -742,6 +746,7 @@ def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
     check(restricted == f"{os.SCHED_FIFO} 10 refused", f"RestrictRealtime=yes probe: {restricted}")
     check(free == f"{os.SCHED_FIFO} 10 allowed", f"RestrictRealtime=no probe: {free}")
     run("systemctl", "reset-failed", unit)  # the start limit counts the earlier scenarios' starts
+    shutil.copytree(SPIN_SOURCE, SPIN_DIR, dirs_exist_ok=True)
     SPIN_DROPIN.parent.mkdir(parents=True, exist_ok=True)
     SPIN_DROPIN.write_text(f"[Service]\nEnvironment=PYTHONPATH={SPIN_DIR}\n")
     try:
