@@ -416,6 +416,9 @@ class SafetyCore:
         self._emit_link_frames(now, estop, urgent=raised_user_estop)
         causes = self._book.snapshot()
         proof, self._proof_outcome = self._proof_outcome, None
+        # A note of the event's own (a commissioning) and a proof test's outcome in one step are
+        # two records: each kind is what its record is about (SR-7.1).
+        proof_apart = proof if proof is not None and self._note is not None else None
         if proof is not None and self._note is None:
             self._note = (RecordNote.PROOFTEST, proof.text)  # a record even if nothing changed
         records: tuple[Record, ...] = ()
@@ -424,6 +427,7 @@ class SafetyCore:
             self._sequence += 1
             if (client := self._client_key(event)) is not None:
                 self._budget.charge(client, now)
+            carried = None if proof_apart is not None else proof
             records = (
                 Record(
                     self._sequence,
@@ -436,7 +440,24 @@ class SafetyCore:
                     self._rearm,
                     note,
                     reason,
-                    proof,
+                    carried,
+                ),
+            )
+        if proof_apart is not None:
+            self._sequence += 1
+            records += (
+                Record(
+                    self._sequence,
+                    now,
+                    self._state,
+                    self._state,
+                    causes,
+                    (),
+                    event,
+                    None,
+                    RecordNote.PROOFTEST,
+                    proof_apart.text,
+                    proof_apart,
                 ),
             )
         return Decision(
