@@ -12,8 +12,8 @@ from supervisord.errors import ConfigError
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
 from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, VscReceived
 from supervisord.safety.config import SafetyConfig, Transport
-from supervisord.safety.decision import Decision, RefusalReason
-from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.decision import Decision, RecordNote, RefusalReason
+from supervisord.safety.events import Commissioned, ProofTestRequest
 from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
 
 from .rig import ADMIN, LOCAL, MS, NOBODY, OPERATIONAL, PAUSE, ROBOT, START_NS
@@ -272,3 +272,26 @@ def test_can_and_hid_cannot_have_a_proof_test() -> None:
     assert core.decision.prooftest is not None
     assert core.decision.prooftest.phase is Phase.OFF
     assert UNTESTED not in core.handle(Tick(START_NS + 1)).active_names
+
+
+def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> None:
+    """SR-7.1: a commissioning that ends in the very step in which the proof test fails (its
+    clear limit falls due then) gives two records, each of its own kind, the outcome only in
+    the proof test's (seen in the daemon: the commissioning was filed as a prooftest record)."""
+    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
+    vsc.never_clears = True
+    proof = vsc.core._proof  # the one deadline this test needs exactly
+    while proof.phase is not Phase.RESUMED:
+        vsc.beat()
+    due = proof.next_deadline()
+    assert due is not None
+    while vsc.now + 50 * MS < due:
+        vsc.beat()
+    vsc.now = due
+    decision = vsc.feed(Commissioned(due, ADMIN, None, remote_status=False))
+    assert vsc.status().phase is Phase.FAILED
+    notes = [r.note for r in decision.records]
+    assert notes == [RecordNote.COMMISSIONED, RecordNote.PROOFTEST], notes
+    assert decision.records[0].prooftest is None
+    assert decision.records[1].prooftest is not None
+    assert decision.records[1].sequence == decision.records[0].sequence + 1
