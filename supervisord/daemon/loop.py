@@ -509,15 +509,15 @@ class Supervisor:
                 continue
             self.counters.messages += 1
             self.listener.received(item)
+            if not isinstance(item, HidInput):
+                self._apply(self._feed(VscReceived(now, item)))
             if type(item) is VscHeartbeat:
-                # The period as the loop read them: integer arithmetic on the read stamp, on
-                # every heartbeat (the cheap path too, SR-9.4).
+                # The period as the loop read them, on the read stamp, after the heartbeat's
+                # decision is applied: a heartbeat with an e-stop bit waits for nothing (SR-9).
                 timings = self.timings
                 if timings.last_vsc_heartbeat_ns is not None:
                     timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
                 timings.last_vsc_heartbeat_ns = now
-            if not isinstance(item, HidInput):
-                self._apply(self._feed(VscReceived(now, item)))
 
     def _link_broken(self, now: int, reason: str) -> None:
         log.warning("%s: broken: %s", self.link.description, reason)
