@@ -17,6 +17,7 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
+from supervisord.api.names import uid_text
 from supervisord.errors import ConfigError
 from supervisord.protocol.text import ascii_digits, clean
 from supervisord.safety.events import Caller
@@ -81,7 +82,8 @@ def group_id(name: str | None, key: str = "api.admin_group") -> int | None:
 
 
 def user_name(uid: int) -> str:
-    """The login name of ``uid``, or the number as text when it has none.
+    """The login name of ``uid``, or the number as text when it has none. It may wait on
+    another process (NSS): call it only off the loop, as :mod:`supervisord.api.names` does.
 
     A name that is not UTF-8 (the password database holds bytes; Python hands the bad ones on
     as lone surrogates) is escaped here, at its source: ``r\\xe9mi``. Raw, it would reach the
@@ -90,7 +92,7 @@ def user_name(uid: int) -> str:
     try:
         return clean(pwd.getpwuid(uid).pw_name)
     except KeyError:
-        return str(uid)
+        return uid_text(uid)
 
 
 def is_admin(
@@ -112,7 +114,11 @@ def caller(
     proc: Path = PROC,
     *,
     own_uid: int | None = None,
+    name: str | None = None,
 ) -> Caller:
-    """The safety core's view of the peer: uid, pid, login name and admin flag."""
+    """The safety core's view of the peer: uid, pid, login name (``name``: as looked up off
+    the loop; ``None``: not known yet, the uid stands in) and admin flag. Reads only the
+    kernel's numbers (``/proc``), never the user database: it cannot wait (SR-8.8)."""
     admin = is_admin(credentials, process_groups(credentials, proc), admin_gid, own_uid)
-    return Caller(credentials.uid, credentials.pid, user_name(credentials.uid), admin)
+    shown = uid_text(credentials.uid) if name is None else name
+    return Caller(credentials.uid, credentials.pid, shown, admin)

@@ -35,13 +35,12 @@ import errno
 import os
 import socket
 import stat
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
-from supervisord.api.credentials import caller, group_id, peer_credentials
+from supervisord.api.credentials import caller, group_id, peer_credentials, user_name
 from supervisord.api.framing import (
     DEFAULT_MAX_DISCARD,
     DEFAULT_MAX_LINE,
@@ -50,6 +49,7 @@ from supervisord.api.framing import (
     LineReader,
     encode,
 )
+from supervisord.api.names import NAME_WAIT_NS, UserNames
 from supervisord.api.requests import (
     ADMIN_REQUESTS,
     ApiRequest,
@@ -90,6 +90,12 @@ DEFAULT_REQUESTS_PER_CALL: Final = 8
 DEFAULT_REQUESTS_PER_TURN: Final = 64
 SLOT_REQUESTS: Final = (Estop, Status)
 """What an e-stop slot serves: the operator's stop and a look at the state (docs/api.md)."""
+NAMELESS_REQUESTS: Final = (Estop, Status)
+"""What a connection is served while its user's name is being looked up (SR-10.3): what
+needs no name. Its other requests wait, in order, until the name is known."""
+MAX_DEFERRED: Final = 64
+"""Requests read and kept waiting for a name, per connection; past it the rest stay in the
+socket (read once the name is known)."""
 
 
 class ServerError(SrcsError):
@@ -218,9 +224,12 @@ def core_event(result: Result, now: int) -> Event | None:
 class _Connection:
     __slots__ = (
         "accepted",
+        "credentials",
         "dead",
+        "deferred",
         "info",
         "last_ns",
+        "naming_until",
         "out",
         "reader",
         "slot",
@@ -231,6 +240,8 @@ class _Connection:
 
     def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
         self.sock, self.info, self.reader = sock, info, reader
+        self.naming_until: int | None = None  # its user's name is awaited until then (SR-10.3)
+        self.deferred: list[ApiRequest] = []  # requests that wait for that name, in order
         self.out = bytearray()
         self.topics: frozenset[Topic] = frozenset()
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
@@ -238,6 +249,10 @@ class _Connection:
         self.slot = False  # an e-stop slot: estop and status only, never reported to the core
         self.last_ns = 0  # when it was accepted or last sent a request (e-stop slots expire)
         self.taken = 0  # requests handled in this turn (the read budget)
+
+    @property
+    def naming(self) -> bool:
+        return self.naming_until is not None
 
 
 class ApiServer:
@@ -253,8 +268,11 @@ class ApiServer:
     watch list before the number can be reused by a new connection.
     """
 
-    def __init__(self, config: ServerConfig) -> None:
+    def __init__(self, config: ServerConfig, names: UserNames | None = None) -> None:
         self.config = config
+        # Login names are looked up off the loop (SR-10.3); the users known ahead are asked for
+        # now, so their connections never wait.
+        self._names = names if names is not None else UserNames(user_name)
         self._admin_gid = group_id(config.admin_group)
         socket_gid = group_id(config.group, "api.group")
         self._own_uid = os.geteuid()
@@ -267,47 +285,64 @@ class ApiServer:
         self._turn_left = config.requests_per_turn
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
+        self._names_fd = self._names.fileno()
+        for uid in (0, self._own_uid, *config.bound_users.values()):
+            self._names.ask(uid)
 
     # -- the loop's side ------------------------------------------------------------------
 
-    def descriptors(self) -> list[tuple[int, bool]]:
-        """``(fd, wants_write)`` for every descriptor to watch now: the listening socket and
-        each connection (always for reading). Releases the descriptors of ended connections,
-        so call it once per turn, before the wait, and watch exactly what it returns."""
-        for sock in self._ended:
-            sock.close()
-        self._ended.clear()
+    def descriptors(self, now: int) -> list[tuple[int, bool]]:
+        """``(fd, wants_write)`` for every descriptor to watch now: the listening socket, the
+        name lookups' wake-up and each connection (always for reading). Releases the
+        descriptors of ended connections, so call it once per turn, before the wait, and watch
+        exactly what it returns. ``now``: the loop's clock, as for every method here."""
+        self._release_ended()
         if self._closed:
             return []
-        self._new_turn(time.monotonic_ns())
-        watched = [(self._listen_fd, False)]
+        self._new_turn(now)
+        watched = [(self._listen_fd, False), (self._names_fd, False)]
         watched += [(fd, bool(conn.out)) for fd, conn in self._by_fd.items()]
         return watched
 
     def next_deadline(self) -> int | None:
-        """When an idle e-stop slot must be closed (``time.monotonic_ns``), if any is open: the
-        loop should not sleep past it (it is checked in :meth:`descriptors`)."""
+        """When :meth:`due` has work: an idle e-stop slot to close (checked in
+        :meth:`descriptors`) or a name waited for long enough, if any."""
         idle = self.config.slot_idle_ms * NS_PER_MS
-        ends = [c.last_ns + idle for c in self._connections.values() if c.slot]
+        ends = [
+            end
+            for c in self._connections.values()
+            if (end := c.last_ns + idle if c.slot else c.naming_until) is not None
+        ]
         return min(ends) if ends else None
+
+    def due(self, now: int) -> list[Result]:
+        """Connections whose user's name did not come within ``NAME_WAIT_NS`` go on under
+        their uid (SR-10.3): what they sent meanwhile is handled now."""
+        results: list[Result] = []
+        for conn in list(self._connections.values()):
+            if conn.naming_until is not None and now >= conn.naming_until:
+                results += self._named(conn, conn.info.caller.name)
+        return results
 
     def turn_limit(self) -> int:
         """The most requests one turn can hand to the loop: ``requests_per_turn``, or one per
         connection when there are more connections than that (every one gets its turn)."""
         return max(self.config.requests_per_turn, len(self._connections))
 
-    def handle(self, fd: int, readable: bool, writable: bool) -> list[Result]:
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> list[Result]:
         """Act on one ready descriptor and return what happened (in order)."""
         if fd == self._listen_fd:
-            return self.accept() if readable and not self._closed else []
+            return self.accept(now) if readable and not self._closed else []
+        if fd == self._names_fd:
+            return self._names_known(now) if not self._closed else []
         results: list[Result] = []
         if writable:
             results += self.on_writable(fd)
         if readable:
-            results += self.on_readable(fd)
+            results += self.on_readable(fd, now)
         return results
 
-    def accept(self) -> list[Result]:
+    def accept(self, now: int) -> list[Result]:
         """Accept the waiting connections (a bounded number per call)."""
         results: list[Result] = []
         for _ in range(ACCEPTS_PER_CALL):
@@ -317,12 +352,12 @@ class ApiServer:
                 break
             except OSError:  # e.g. out of descriptors: try again on the next turn
                 break
-            accepted = self._adopt(sock)
+            accepted = self._adopt(sock, now)
             if accepted is not None:
                 results.append(accepted)
         return results
 
-    def on_readable(self, fd: int) -> list[Result]:
+    def on_readable(self, fd: int, now: int) -> list[Result]:
         """Read what one connection sent and return its requests (and its end, if it ended).
 
         At most the connection's share of this turn's budget is read: lines past it stay in
@@ -332,7 +367,7 @@ class ApiServer:
         if conn is None:
             return []
         allowed = min(self._share - conn.taken, self._turn_left)
-        if allowed <= 0:
+        if allowed <= 0 or len(conn.deferred) >= MAX_DEFERRED:
             return []  # its share of this turn is used: the rest waits in the socket
         try:
             data = self._receive_lines(conn.sock, allowed)
@@ -352,7 +387,7 @@ class ApiServer:
             if isinstance(item, ApiError):
                 results += self._queue(conn, encode(item.reply()))
             else:
-                results += self._dispatch(conn, item)
+                results += self._dispatch(conn, item, now)
             if conn.dead:  # ended while answering: nothing more to read
                 return results
         if conn.reader.flooded:
@@ -418,8 +453,9 @@ class ApiServer:
         closed: list[Closed] = []
         for conn in list(self._connections.values()):
             closed += self._end(conn, CloseReason.SHUTDOWN)
-        self.descriptors()  # releases the ended descriptors
+        self._release_ended()
         self._listener.close()
+        self._names.close()
         _unlink_if_ours(self.config.path, self._identity)
         return closed
 
@@ -447,6 +483,11 @@ class ApiServer:
             return sock.recv(1)  # the end of the stream (or an error), as a plain read says
         return sock.recv(end)
 
+    def _release_ended(self) -> None:
+        for sock in self._ended:
+            sock.close()
+        self._ended.clear()
+
     def _new_turn(self, now: int) -> None:
         """A turn begins: the read budget is shared anew and idle e-stop slots are closed."""
         config = self.config
@@ -459,18 +500,23 @@ class ApiServer:
             if conn.slot and now - conn.last_ns >= idle:
                 self._refuse_slot(conn, "an e-stop slot left idle is closed")
 
-    def _adopt(self, sock: socket.socket) -> Accepted | None:
+    def _adopt(self, sock: socket.socket, now: int) -> Accepted | None:
         sock.setblocking(False)
         try:
-            who = caller(peer_credentials(sock), self._admin_gid, own_uid=self._own_uid)
+            credentials = peer_credentials(sock)
         except OSError:
             sock.close()
             return None
+        # The name from the cache, or not yet: the lookup is made off the loop (SR-10.3).
+        name = self._names.name(credentials.uid, now)
+        who = caller(credentials, self._admin_gid, own_uid=self._own_uid, name=name)
         number = self._next_number
         self._next_number += 1
         reader = LineReader(self.config.max_line, self.config.discard_limit)
         conn = _Connection(sock, ClientInfo(number, who), reader)
-        conn.last_ns = time.monotonic_ns()
+        conn.last_ns = now
+        if name is None:
+            conn.naming_until = now + NAME_WAIT_NS
         ordinary = sum(not c.slot for c in self._connections.values())
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
@@ -497,14 +543,43 @@ class ApiServer:
         self._queue(conn, encode(error.reply()))
         self._end(conn, CloseReason.EVICTED)
 
-    def _dispatch(self, conn: _Connection, line: bytes) -> list[Result]:
+    def _names_known(self, now: int) -> list[Result]:
+        """Names the lookup thread found: each waiting connection of those users goes on, and
+        a connection already going on under its uid is named from now on."""
+        results: list[Result] = []
+        for uid, name in self._names.take(now):
+            for conn in list(self._connections.values()):
+                if conn.info.caller.uid == uid:
+                    results += self._named(conn, name)
+        return results
+
+    def _named(self, conn: _Connection, name: str) -> list[Result]:
+        """``conn``'s caller is ``name`` from now on; the requests it kept waiting are handled,
+        in the order they came."""
+        if name != conn.info.caller.name:
+            conn.info = replace(conn.info, caller=replace(conn.info.caller, name=name))
+        waiting, conn.deferred, conn.naming_until = conn.deferred, [], None
+        results: list[Result] = []
+        for request in waiting:
+            if conn.dead:
+                break
+            results += self._serve(conn, request)
+        return results
+
+    def _dispatch(self, conn: _Connection, line: bytes, now: int) -> list[Result]:
         if not line.strip():
             return []  # blank lines are allowed (handy when typing requests by hand)
         try:
             request = parse_request(line)
         except ApiError as e:
             return list(self._queue(conn, encode(e.reply())))
-        conn.last_ns = time.monotonic_ns()
+        conn.last_ns = now
+        if conn.naming and not conn.slot and not isinstance(request, NAMELESS_REQUESTS):
+            conn.deferred.append(request)  # served once the name is known (SR-10.3)
+            return []
+        return self._serve(conn, request)
+
+    def _serve(self, conn: _Connection, request: ApiRequest) -> list[Result]:
         error = self._check(conn, request)
         if error is not None:
             answered: list[Result] = []

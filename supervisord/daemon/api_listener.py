@@ -11,7 +11,6 @@ seconds later; the loop meanwhile goes on as ever.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 
@@ -38,7 +37,8 @@ from supervisord.safety.events import ClientDisconnected, Event
 class ApiListener(Listener):
     """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission);
     ``robot``: the configured robot name, for ``status``; ``required``: the required clients'
-    names and timeouts (ms), for ``status``; ``clock``: the loop's clock."""
+    names and timeouts (ms), for ``status``. Time comes from the loop, as ``now`` (SR-2.11):
+    the listener keeps no clock of its own."""
 
     def __init__(
         self,
@@ -47,13 +47,11 @@ class ApiListener(Listener):
         has_key85: bool = True,
         robot: str | None = None,
         required: Mapping[str, int] | None = None,
-        clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.server = server
         self.has_key85 = has_key85
         self.robot = robot
         self.required = dict(required or {})
-        self.clock = clock
         # For ``status`` (issue 13; docs/api.md): each connection's last accepted heartbeat,
         # the latest remote status and when it came, and when the current state began.
         self._beats: dict[int, int] = {}
@@ -65,13 +63,13 @@ class ApiListener(Listener):
         self._closed: list[Closed] = []
         self._commissioning: tuple[Commissioning, Received] | None = None
 
-    def descriptors(self) -> Iterable[tuple[int, bool]]:
-        return self.server.descriptors()
+    def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
+        return self.server.descriptors(now)
 
     def handle(
         self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
     ) -> None:
-        for result in self.server.handle(fd, readable, writable):
+        for result in self.server.handle(fd, readable, writable, now):
             self._result(result, now, feed)
 
     def take_events(self, now: int) -> list[Event]:
@@ -155,6 +153,10 @@ class ApiListener(Listener):
         self._commissioning = (Commissioning(result.client.caller, now), result)
 
     def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
+        server_due = self.server.next_deadline()
+        if server_due is not None and now >= server_due:
+            for result in self.server.due(now):
+                self._result(result, now, feed)
         if self._commissioning is None:
             return []
         procedure, result = self._commissioning
@@ -206,12 +208,12 @@ class ApiListener(Listener):
         if self.server.subscribed(Topic.RECORDS):
             self._closed += self.server.broadcast(Topic.RECORDS, record_push(entry))
 
-    def received(self, message: Message | HidInput) -> None:
+    def received(self, message: Message | HidInput, now: int) -> None:
         if isinstance(message, HidInput):
             return
         if isinstance(message, RemoteStatus):
             # Its values stay as the VSC last sent them (PR-2.10): the age says how old.
-            self._remote = (message, self.clock())
+            self._remote = (message, now)
         if self._commissioning is not None:
             self._commissioning[0].received(message)
         topic = message_topic(message)

@@ -26,12 +26,12 @@ import select
 import selectors
 import signal
 import socket
-import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from supervisord import __version__
 from supervisord.api.views import histograms_json
+from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import Sink, Written
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
@@ -113,8 +113,8 @@ class Listener:
     clients see state, records and traffic as they happen.
     """
 
-    def descriptors(self) -> Iterable[tuple[int, bool]]:
-        """(fd, wants_write) pairs to watch now."""
+    def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
+        """(fd, wants_write) pairs to watch now (``now``: the loop's clock, as everywhere)."""
         return ()
 
     def handle(
@@ -142,8 +142,8 @@ class Listener:
         """A stop-record entry is finished: on disk, or counted as not written. Called in
         record order, after the decision that made it."""
 
-    def received(self, message: Message | HidInput) -> None:
-        """A valid message arrived from the VSC."""
+    def received(self, message: Message | HidInput, now: int) -> None:
+        """A valid message arrived from the VSC, read at ``now``."""
 
     def close(self) -> None:
         """Release everything."""
@@ -162,7 +162,7 @@ class Supervisor:
         journal: Callable[[Mapping[str, object]], object] | None = None,
         listener: Listener | None = None,
         notifier: Notifier | None = None,
-        clock: Callable[[], int] = time.monotonic_ns,
+        clock: Clock = MONOTONIC,
         wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.UTC),
         backoff: Backoff | None = None,
         release: list[Callable[[], object]] | None = None,
@@ -332,9 +332,9 @@ class Supervisor:
         VSC, the core's and the outputs' timers, the record sink's news, and at most
         :data:`MAX_CLIENTS_PER_TURN` client descriptors (issue 11; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
-        deadline = self._next_deadline()
-        timeout = max(0.0, (deadline - self.clock()) / 1e9)
-        self._sync_watches()
+        before = self.clock()
+        timeout = max(0.0, (self._next_deadline() - before) / 1e9)
+        self._sync_watches(before)
         ready = self._selector.select(timeout)
         now = self.clock()
         try:
@@ -415,12 +415,12 @@ class Supervisor:
             deadline = listener_deadline
         return deadline
 
-    def _sync_watches(self) -> None:
+    def _sync_watches(self, now: int) -> None:
         wanted: dict[int, int] = {}
         fd = self.link.fileno() if self.link.is_open else None
         if fd is not None:
             wanted[fd] = selectors.EVENT_READ
-        for api_fd, wants_write in self.listener.descriptors():
+        for api_fd, wants_write in self.listener.descriptors(now):
             wanted[api_fd] = selectors.EVENT_READ | (selectors.EVENT_WRITE if wants_write else 0)
         if wanted == self._watched:
             return  # the usual turn: nothing to register again (SR-9.4)
@@ -508,7 +508,7 @@ class Supervisor:
                 )
                 continue
             self.counters.messages += 1
-            self.listener.received(item)
+            self.listener.received(item, now)
             if not isinstance(item, HidInput):
                 self._apply(self._feed(VscReceived(now, item)))
             if type(item) is VscHeartbeat:

@@ -33,6 +33,7 @@ from supervisord.api.server import (
     core_event,
 )
 from supervisord.api.views import decision_json, refusal_error, state_push
+from supervisord.clock import MONOTONIC
 from supervisord.errors import ConfigError
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -54,8 +55,14 @@ class Loop:
     """The daemon's loop in miniature: one selector, the server, and a stand-in for the
     daemon that answers every request ``ok`` (``status`` with the safety core's state)."""
 
-    def __init__(self, config: ServerConfig, answer: bool = True) -> None:
+    def __init__(
+        self,
+        config: ServerConfig,
+        answer: bool = True,
+        clock: Callable[[], int] = MONOTONIC,
+    ) -> None:
         self.server = ApiServer(config)
+        self.clock = clock  # the loop's clock: the real one unless a test drives it
         self.selector = selectors.DefaultSelector()
         self.watched: dict[int, int] = {}
         self.answer = answer
@@ -65,7 +72,9 @@ class Loop:
 
     def sync(self) -> None:
         """Watch exactly what the server asks for, as the daemon's loop does."""
-        wanted = {fd: READ | (WRITE if out else 0) for fd, out in self.server.descriptors()}
+        wanted = {
+            fd: READ | (WRITE if out else 0) for fd, out in self.server.descriptors(self.clock())
+        }
         for fd in set(self.watched) - set(wanted):
             self.selector.unregister(fd)
         for fd, events in wanted.items():
@@ -79,7 +88,8 @@ class Loop:
         self.sync()
         new: list[Result] = []
         for key, mask in self.selector.select(timeout):
-            new += self.server.handle(key.fd, bool(mask & READ), bool(mask & WRITE))
+            now = self.clock()
+            new += self.server.handle(key.fd, bool(mask & READ), bool(mask & WRITE), now)
         for result in list(new):
             if isinstance(result, Received) and self.before_reply is not None:
                 new += self.before_reply(result)

@@ -423,7 +423,7 @@ class _RecordingListener(Listener):
             ours.setblocking(False)
         self.order = order
 
-    def descriptors(self) -> Iterable[tuple[int, bool]]:
+    def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
         return [(ours.fileno(), False) for ours, _ in self.pairs]
 
     def handle(
