@@ -270,9 +270,6 @@ class ApiServer:
 
     def __init__(self, config: ServerConfig, names: UserNames | None = None) -> None:
         self.config = config
-        # Login names are looked up off the loop (SR-10.3); the users known ahead are asked for
-        # now, so their connections never wait.
-        self._names = names if names is not None else UserNames(user_name)
         self._admin_gid = group_id(config.admin_group)
         socket_gid = group_id(config.group, "api.group")
         self._own_uid = os.geteuid()
@@ -285,6 +282,9 @@ class ApiServer:
         self._turn_left = config.requests_per_turn
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
+        # Login names are looked up off the loop (SR-10.3); the users known ahead are asked for
+        # now, so their connections never wait. Made once the socket is ours: nothing to undo.
+        self._names = names if names is not None else UserNames(user_name)
         self._names_fd = self._names.fileno()
         for uid in (0, self._own_uid, *config.bound_users.values()):
             self._names.ask(uid)

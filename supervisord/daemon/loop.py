@@ -501,6 +501,7 @@ class Supervisor:
             self._link_broken(self.clock(), error.reason)
             return
         now = self.clock()  # what was read counts as received now: right after the read (SR-2)
+        heartbeat = False
         for item in received:
             if isinstance(item, _REJECTIONS):
                 self.counters.reject(
@@ -511,13 +512,16 @@ class Supervisor:
             self.listener.received(item, now)
             if not isinstance(item, HidInput):
                 self._apply(self._feed(VscReceived(now, item)))
-            if type(item) is VscHeartbeat:
-                # The period as the loop read them, on the read stamp, after the heartbeat's
-                # decision is applied: a heartbeat with an e-stop bit waits for nothing (SR-9).
-                timings = self.timings
-                if timings.last_vsc_heartbeat_ns is not None:
-                    timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
-                timings.last_vsc_heartbeat_ns = now
+            heartbeat = heartbeat or type(item) is VscHeartbeat
+        if heartbeat:
+            # One period per read that brought heartbeats, on its read stamp: the time the
+            # link-loss timer saw between two signs of life (SR-2.2). Heartbeats read together
+            # (after a stall) are one sign, not periods of 0 (docs/fleet.md). Observed after
+            # the decisions are applied: a heartbeat with an e-stop bit waits for nothing (SR-9).
+            timings = self.timings
+            if timings.last_vsc_heartbeat_ns is not None:
+                timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
+            timings.last_vsc_heartbeat_ns = now
 
     def _link_broken(self, now: int, reason: str) -> None:
         log.warning("%s: broken: %s", self.link.description, reason)

@@ -42,6 +42,7 @@ class VscPeer:
         self.key85 = key85
         self.answers_feedback = True
         self.remote_status_ms: int | None = None  # off, as the VSC ships (manual table 5)
+        self.burst = 1  # heartbeats sent back to back in one write (a VSC's queue after a stall)
         self.received: list[object] = []
         self._decoder = FrameDecoder()
         self._next = 0.0
@@ -53,36 +54,44 @@ class VscPeer:
         """When (by ``clock``) the next heartbeat is due."""
         return self._next
 
-    def serve(self) -> None:
+    def serve(self) -> bool:
+        """Read what the daemon sent, answer it, send what is due; whether anything was sent."""
         now = self.clock()
         if not self.port.plugged:
-            return
+            return False
+        sent = False
         for message in self._decoder.feed(self.port.read()):
             self.received.append(message)
-            self._handle(message)
+            sent = self._handle(message) or sent
         if self.silent:
-            return
+            return sent
         if now >= self._next:
             self._next = now + 0.05
             timed_out = self.key85 == 1 and now - self._last_user >= 0.5
             word = self.estop | (0x80 if timed_out else 0)
-            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, word)))
+            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, word)) * self.burst)
+            sent = True
         if self.remote_status_ms is not None and now >= self._next_status:
             self._next_status = now + self.remote_status_ms / 1000
             self.port.write(encode_frame(RemoteStatus(80)))
+            sent = True
+        return sent
 
-    def _handle(self, message: object) -> None:
+    def _handle(self, message: object) -> bool:
+        """Act on one message from the daemon; whether an answer was sent."""
         if isinstance(message, UserHeartbeat):
             self._last_user = self.clock()
         elif isinstance(message, FeedbackSet) and message.key == KEY85:
             self.key85 = message.value
         elif message == FeedbackGet(KEY85) and self.answers_feedback:
             self.port.write(encode_frame(FeedbackSet(KEY85, self.key85)))
+            return True
         elif (
             isinstance(message, MessageControl)
             and message.message_type == MessageType.REMOTE_STATUS
         ):
             self.remote_status_ms = message.interval if message.enabled else None
+        return False
 
     @contextlib.contextmanager
     def serving(self) -> Iterator[None]:

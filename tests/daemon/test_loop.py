@@ -4,6 +4,7 @@ JSON Lines stop record. A small VSC peer in the test answers key 85 and sends he
 from __future__ import annotations
 
 import json
+import select
 import socket
 import threading
 import time
@@ -28,15 +29,19 @@ from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
 from tests.daemon.peer import VscPeer
 
+START_OFFSET_NS = 10 * 3600 * 1_000_000_000
+"""A manual clock starts this far from the real one: a part of the loop that read the real
+clock instead of the loop's would see its deadlines hours away and fail the test (SR-2.11)."""
+
 
 class ManualClock:
     """The daemon's monotonic clock in these tests (nanoseconds): it stands still until the
     test moves it, so a deadline (the re-arm hold, the takeover dwell, the link timeout)
     passes exactly when the test says, with no waiting. ``seconds`` is the same clock for the
-    VSC peer."""
+    VSC peer. It starts hours away from the real clock: the loop has one clock."""
 
     def __init__(self) -> None:
-        self.now = time.monotonic_ns()  # any start would do; near the real one reads well
+        self.now = time.monotonic_ns() + START_OFFSET_NS
 
     def __call__(self) -> int:
         return self.now
@@ -80,15 +85,27 @@ def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
 def turn(supervisor: Supervisor, peer: VscPeer) -> None:
     """One turn of the peer and the loop. On a ``ManualClock`` the clock first moves to the
     next thing due ahead, the peer's heartbeat or the core's deadline, so the loop's wait ends
-    at once: it never waits for time that the test can simply let pass."""
+    at once: it never waits for time that the test can simply let pass. What the peer sent is
+    then let arrive before the loop turns (the kernel hands a pty's bytes over on its own
+    time): each frame is read on the manual clock's instant it was sent, however busy the
+    machine is."""
     clock = supervisor.clock
     if isinstance(clock, ManualClock):
         due = [int(peer.next_due * 1e9) + 1_000]  # + 1 us: the peer's float seconds, rounded
         if supervisor.decision is not None:
             due.append(supervisor.decision.next_deadline)
         clock.now = min((t for t in due if t > clock.now), default=clock.now + 1_000_000)
-    peer.serve()
+    if peer.serve() and isinstance(clock, ManualClock):
+        arrived(supervisor)
     supervisor.step()
+
+
+def arrived(supervisor: Supervisor, limit: float = 10.0) -> None:
+    """Wait (in real time: the manual clock stands still) until the link has bytes to read."""
+    fd = supervisor.link.fileno() if supervisor.link.is_open else None
+    if fd is not None:
+        readable, _, _ = select.select([fd], [], [], limit)
+        assert readable, f"nothing arrived on the link in {limit} s"
 
 
 def run_until(

@@ -144,6 +144,32 @@ def test_status_carries_the_heartbeat_periods_the_loop_saw(
     assert _count_at(user, 0.055) == user["count"]
 
 
+def test_heartbeats_read_together_are_one_period_never_a_zero(
+    timed: tuple[Supervisor, VscPeer, ManualClock],
+) -> None:
+    """SR-2.2, docs/fleet.md "Timing histograms": the VSC period is measured between reads
+    that brought heartbeats. A peer that sends its heartbeats two at a time, in one write,
+    adds one 50 ms period per write: no period of 0, and the periods add up to the time
+    between the first and the last read."""
+    supervisor, peer, _ = timed
+    supervisor.start()
+    serve_for(supervisor, peer, 0.3)
+    before = _histogram(supervisor, "vsc_heartbeat_period_seconds")
+    first = supervisor.timings.last_vsc_heartbeat_ns
+    peer.burst = 2
+    serve_for(supervisor, peer, 0.5)
+    after = _histogram(supervisor, "vsc_heartbeat_period_seconds")
+    added = cast(int, after["count"]) - cast(int, before["count"])
+    assert added >= 9  # one per write: 0.5 s of 50 ms writes
+    assert _count_at(after, 0.045) == _count_at(before, 0.045) == 0
+    assert _count_at(after, 0.055) - _count_at(before, 0.055) == added
+    last = supervisor.timings.last_vsc_heartbeat_ns
+    assert first is not None
+    assert last is not None
+    summed = cast(float, after["sum"]) - cast(float, before["sum"])
+    assert summed == pytest.approx((last - first) / 1e9)
+
+
 def test_a_remote_estop_is_one_stop_to_off_observation(
     timed: tuple[Supervisor, VscPeer, ManualClock],
 ) -> None:
