@@ -118,7 +118,7 @@ def caller(
 ) -> Caller:
     """The safety core's view of the peer: uid, pid, login name (``name``: as looked up off
     the loop; ``None``: not known yet, the uid stands in) and admin flag. Reads only the
-    kernel's numbers (``/proc``), never the user database: it cannot wait (SR-8.8)."""
+    kernel's numbers (``/proc``), never the user database: it cannot wait (SR-10.3)."""
     admin = is_admin(credentials, process_groups(credentials, proc), admin_gid, own_uid)
     shown = uid_text(credentials.uid) if name is None else name
     return Caller(credentials.uid, credentials.pid, shown, admin)

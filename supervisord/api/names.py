@@ -1,4 +1,4 @@
-"""Login names of the clients' users, looked up off the loop (SR-8.8).
+"""Login names of the clients' users, looked up off the loop (SR-10.3).
 
 A uid's name comes from the system's user database through NSS, which may ask another
 process: Debian's default ``nsswitch.conf`` asks systemd's userdb service for a uid that

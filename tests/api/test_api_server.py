@@ -19,6 +19,7 @@ from typing import Any, TypeVar
 import pytest
 
 from supervisord.api.credentials import PeerCredentials, caller, process_groups
+from supervisord.api.names import UserNames
 from supervisord.api.requests import Commission, Estop, Hello, Reset, Status, Topic
 from supervisord.api.server import (
     Accepted,
@@ -60,8 +61,9 @@ class Loop:
         config: ServerConfig,
         answer: bool = True,
         clock: Callable[[], int] = MONOTONIC,
+        names: UserNames | None = None,
     ) -> None:
-        self.server = ApiServer(config)
+        self.server = ApiServer(config, names)
         self.clock = clock  # the loop's clock: the real one unless a test drives it
         self.selector = selectors.DefaultSelector()
         self.watched: dict[int, int] = {}
@@ -90,6 +92,9 @@ class Loop:
         for key, mask in self.selector.select(timeout):
             now = self.clock()
             new += self.server.handle(key.fd, bool(mask & READ), bool(mask & WRITE), now)
+        due = self.server.next_deadline()
+        if due is not None and self.clock() >= due:
+            new += self.server.due(self.clock())
         for result in list(new):
             if isinstance(result, Received) and self.before_reply is not None:
                 new += self.before_reply(result)
