@@ -6,6 +6,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.clock import MONOTONIC, Clock
 from supervisord.config import CanBus, DaemonConfig, HidDevice, SerialPort
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
@@ -91,7 +92,10 @@ def build_api(config: DaemonConfig) -> ApiListener:
     )
 
 
-def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> Supervisor:
+def build_supervisor(
+    config: DaemonConfig, listener: Listener | None = None, clock: Clock = MONOTONIC
+) -> Supervisor:
+    """The daemon from its configuration; ``clock`` is the loop's one clock (SR-2.11)."""
     for warning in config.warnings():
         log.warning("%s", warning)
     link = build_link(config)
@@ -118,6 +122,7 @@ def build_supervisor(config: DaemonConfig, listener: Listener | None = None) -> 
         journal=journal,
         listener=listener,
         notifier=Notifier(),
+        clock=clock,
         backoff=Backoff(config.vsc.reopen.min_ms, config.vsc.reopen.max_ms),
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )

@@ -40,6 +40,7 @@ from supervisord.safety.events import (
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import MINIMAL_CONFIG
 from tests.daemon.peer import VscPeer
+from tests.daemon.test_loop import ManualClock, turn
 
 TURN_LIMIT_S = 10.0  # coarse: a shared two-core machine
 
@@ -59,8 +60,7 @@ class Rig:
     peer: VscPeer
 
     def turn(self) -> None:
-        self.peer.serve()
-        self.supervisor.step()
+        turn(self.supervisor, self.peer)
 
     def connect(self) -> socket.socket:
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -115,9 +115,12 @@ def daemon_rig(folder: Path) -> Iterator[Rig]:
     (which drains the record) on exit."""
     (folder / "robot.toml").write_text(MINIMAL_CONFIG)
     with PtyPort(folder / "vsc") as port:
-        peer = VscPeer(port)
+        # The loop's clock is the test's (SR-2.11): it moves to the next thing due each turn,
+        # so however long the test's own work between turns takes, the loop is never late.
+        clock = ManualClock()
+        peer = VscPeer(port, clock=clock.seconds)
         config = load_config(folder / "robot.toml")
-        supervisor = build_supervisor(config, build_api(config))
+        supervisor = build_supervisor(config, build_api(config), clock)
         supervisor.start()
         try:
             yield Rig(folder, supervisor, peer)
