@@ -43,6 +43,7 @@ class VscPeer:
         self.answers_feedback = True
         self.remote_status_ms: int | None = None  # off, as the VSC ships (manual table 5)
         self.burst = 1  # heartbeats sent back to back in one write (a VSC's queue after a stall)
+        self.written = 0  # bytes sent so far (a test waits until the daemon's side has them)
         self.received: list[object] = []
         self._decoder = FrameDecoder()
         self._next = 0.0
@@ -69,13 +70,17 @@ class VscPeer:
             self._next = now + 0.05
             timed_out = self.key85 == 1 and now - self._last_user >= 0.5
             word = self.estop | (0x80 if timed_out else 0)
-            self.port.write(encode_frame(VscHeartbeat(self.mode, 0, word)) * self.burst)
+            self._send(encode_frame(VscHeartbeat(self.mode, 0, word)) * self.burst)
             sent = True
         if self.remote_status_ms is not None and now >= self._next_status:
             self._next_status = now + self.remote_status_ms / 1000
-            self.port.write(encode_frame(RemoteStatus(80)))
+            self._send(encode_frame(RemoteStatus(80)))
             sent = True
         return sent
+
+    def _send(self, data: bytes) -> None:
+        self.port.write(data)
+        self.written += len(data)
 
     def _handle(self, message: object) -> bool:
         """Act on one message from the daemon; whether an answer was sent."""
@@ -84,7 +89,7 @@ class VscPeer:
         elif isinstance(message, FeedbackSet) and message.key == KEY85:
             self.key85 = message.value
         elif message == FeedbackGet(KEY85) and self.answers_feedback:
-            self.port.write(encode_frame(FeedbackSet(KEY85, self.key85)))
+            self._send(encode_frame(FeedbackSet(KEY85, self.key85)))
             return True
         elif (
             isinstance(message, MessageControl)

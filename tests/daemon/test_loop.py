@@ -3,9 +3,11 @@ JSON Lines stop record. A small VSC peer in the test answers key 85 and sends he
 
 from __future__ import annotations
 
+import fcntl
 import json
-import select
 import socket
+import struct
+import termios
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -95,17 +97,26 @@ def turn(supervisor: Supervisor, peer: VscPeer) -> None:
         if supervisor.decision is not None:
             due.append(supervisor.decision.next_deadline)
         clock.now = min((t for t in due if t > clock.now), default=clock.now + 1_000_000)
+    written = peer.written
     if peer.serve() and isinstance(clock, ManualClock):
-        arrived(supervisor)
+        arrived(supervisor, peer.written - written)
     supervisor.step()
 
 
-def arrived(supervisor: Supervisor, limit: float = 10.0) -> None:
-    """Wait (in real time: the manual clock stands still) until the link has bytes to read."""
+def arrived(supervisor: Supervisor, count: int, limit: float = 10.0) -> None:
+    """Wait (in real time: the manual clock stands still) until the link has at least
+    ``count`` bytes to read: a pty may hand a write over in parts."""
     fd = supervisor.link.fileno() if supervisor.link.is_open else None
-    if fd is not None:
-        readable, _, _ = select.select([fd], [], [], limit)
-        assert readable, f"nothing arrived on the link in {limit} s"
+    end = time.monotonic() + limit
+    while fd is not None and _waiting(fd) < count:
+        assert time.monotonic() < end, f"{count} bytes did not arrive on the link in {limit} s"
+        time.sleep(0.0005)
+
+
+def _waiting(fd: int) -> int:
+    """Bytes waiting to be read on a tty (``FIONREAD``)."""
+    (count,) = struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, bytes(4)))
+    return int(count)
 
 
 def run_until(
