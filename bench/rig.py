@@ -30,6 +30,7 @@ import os
 import platform
 import random
 import select
+import selectors
 import signal
 import socket
 import struct
@@ -130,7 +131,64 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
         listener.daemon_info = supervisor.info
     if args.fsync_delay_ms:
         slow_disk(args.fsync_delay_ms / 1000, supervisor)
-    return supervisor.run()
+    if not args.api_socket:
+        return supervisor.run()
+    turns = TurnStats(supervisor)
+    status = supervisor.run()
+    Path(f"{args.record}{TURNS_SUFFIX}").write_text(json.dumps(turns.summary()))
+    return status
+
+
+TURNS_SUFFIX = ".turns.json"
+"""With the client API (``--client-flood``), the loop's turns are written to the record's path
+plus this suffix when the child ends (:class:`TurnStats`)."""
+
+
+class TurnStats:
+    """The loop's turns, from its wait returning to its next wait: the longest in wall-clock
+    and in the thread's own CPU time, and the share of the time spent in turns (busy). A turn
+    serves at most ``requests_per_turn`` client requests (docs/api.md "Limits"): its CPU time
+    is the loop's own cost; wall time beyond it is time the machine did not give the loop.
+
+    Bench instrumentation only: it wraps the loop's selector of this one process."""
+
+    def __init__(self, supervisor: Supervisor) -> None:
+        self.turns = 0
+        self.max_wall_ns = self.max_cpu_ns = self.busy_ns = 0
+        self._first_ns: int | None = None
+        self._woke: tuple[int, int] | None = None
+        selector = supervisor._selector  # measured from outside: the loop has no hook
+        wait = selector.select
+
+        def select(timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
+            self._turn_ends()
+            ready = wait(timeout)
+            self._woke = (time.monotonic_ns(), time.thread_time_ns())
+            return ready
+
+        selector.select = select  # type: ignore[method-assign]
+
+    def _turn_ends(self) -> None:
+        now = time.monotonic_ns()
+        if self._first_ns is None:
+            self._first_ns = now
+        if self._woke is None:
+            return
+        wall, cpu = now - self._woke[0], time.thread_time_ns() - self._woke[1]
+        self.turns += 1
+        self.busy_ns += wall
+        self.max_wall_ns = max(self.max_wall_ns, wall)
+        self.max_cpu_ns = max(self.max_cpu_ns, cpu)
+        self._woke = None
+
+    def summary(self) -> dict[str, float]:
+        span = time.monotonic_ns() - (self._first_ns or time.monotonic_ns())
+        return {
+            "turns": self.turns,
+            "max_wall_ms": self.max_wall_ns / 1e6,
+            "max_cpu_ms": self.max_cpu_ns / 1e6,
+            "busy": self.busy_ns / span if span else 0.0,
+        }
 
 
 def slow_disk(delay_s: float, supervisor: Supervisor) -> None:

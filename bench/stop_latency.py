@@ -43,6 +43,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import itertools
+import json
 import os
 import random
 import subprocess
@@ -52,10 +53,12 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from bench.rig import (
     MODELS,
     REPO,
+    TURNS_SUFFIX,
     Edge,
     Rig,
     RigError,
@@ -182,13 +185,36 @@ def run(
             note = (
                 f"flood: {alive}; {daemon['rate_limited']} requests refused by the record "
                 f"budget, {daemon['record_errors']} record errors, "
-                f"{daemon['internal_faults']} internal faults"
+                f"{daemon['internal_faults']} internal faults; srcsd's own user heartbeat "
+                f"period at most {_worst_bucket_ms(daemon['histograms'])} ms (its histogram)"
             )
             if notes is None:
                 print(note)
             else:
                 notes.append(note)
+    if api_socket is not None:  # the child has ended and written its turns
+        turns = json.loads((directory / f"stops.jsonl{TURNS_SUFFIX}").read_text())
+        note = (
+            f"flood: srcsd's loop made {turns['turns']} turns, busy {turns['busy']:.0%} of the "
+            f"time; its longest turn took {turns['max_wall_ms']:.1f} ms, its most CPU in one "
+            f"turn {turns['max_cpu_ms']:.1f} ms"
+        )
+        if notes is None:
+            print(note)
+        else:
+            notes.append(note)
     return measured
+
+
+def _worst_bucket_ms(histograms: dict[str, Any]) -> str:
+    """The upper bound of the highest non-empty bucket of srcsd's user-heartbeat periods, as
+    the loop saw them when each write returned (docs/fleet.md "Timing histograms"): the
+    daemon's side of a gap, to compare with the VSC's."""
+    periods = histograms["user_heartbeat_period_seconds"]
+    for le, cumulative in zip(periods["le"], periods["counts"], strict=True):
+        if cumulative == periods["count"]:
+            return f"{le * 1000:g}"
+    return "inf"
 
 
 def _measure(

@@ -15,7 +15,6 @@ import contextlib
 import io
 import json
 import os
-import signal
 import string
 import sys
 from collections.abc import Iterable, Iterator
@@ -25,6 +24,7 @@ import can
 import serial
 
 from supervisord.cli import capture
+from supervisord.cli.log import interruptible
 from supervisord.protocol.framing import FrameDecoder, Rejection
 from supervisord.protocol.hid import (
     INPUT_LENGTH,
@@ -46,49 +46,12 @@ class BadLine(ValueError):
     """A line of the capture that is not in the expected format."""
 
 
-def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add ``decode`` to ``srcsctl``'s parser."""
-    decode = commands.add_parser(
-        "decode",
-        help="decode a capture of VSC traffic into JSON lines",
-        description="Decode a capture into one JSON object per frame or rejection, each "
-        "flushed as it is decoded (docs/protocol.md, 'srcsctl decode'). Exit status 2 when "
-        "any input was unreadable.",
-    )
-    decode.add_argument(
-        "file",
-        nargs="?",
-        default="-",
-        help="the capture (default: stdin); with --follow, the serial port or CAN channel",
-    )
-    formats = decode.add_mutually_exclusive_group()
-    for flag, what in (
-        ("--raw", "binary serial bytes"),
-        (
-            "--can",
-            "CAN frames: candump lines (ID#DATA, candump's default or -L formats, .log), or "
-            "a .asc, .blf, .csv, .db, .trc or .mf4 file (also .gz) read by python-can",
-        ),
-        ("--hid", "one HID report per line, in hex (9 bytes input, 26 bytes output)"),
-    ):
-        formats.add_argument(flag, dest="mode", action="store_const", const=flag[2:], help=what)
-    decode.set_defaults(mode="hex")
-    decode.add_argument(
-        "--follow",
-        action="store_true",
-        help="read a live serial port (--raw) or CAN channel (--can) until Ctrl-C; never "
-        "writes to the port or sends on the bus",
-    )
-    decode.add_argument(
-        "--interface",
-        default="socketcan",
-        metavar="NAME",
-        help="with --can --follow: python-can's interface (default: socketcan)",
-    )
-
-
 def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     """Run ``srcsctl decode`` with its parsed arguments; return the exit status."""
+    # Ctrl-C and SIGTERM end decode (exit 0, the lines so far out) also when it was started
+    # with SIGINT ignored, as a background job of a script is: Python then installs no
+    # handler, and a live pipe's decode ignored the SIGINT for ever (SR-8.9).
+    interruptible()
     try:
         return _run(args, out, errors)
     except BrokenPipeError:
@@ -330,8 +293,9 @@ def run_decode(path: str, mode: str, out: IO[str], errors: IO[str]) -> int:
             objects = run.hid_objects(text)
         else:
             objects = _frame_events(FrameDecoder(), run.hex_chunks(text))
-        # Ctrl-C is how a live pipe (candump -L can0 | srcsctl decode --can) ends: the lines
-        # so far are out, so it ends as the end of the input would, without a traceback.
+        # Ctrl-C (or SIGTERM) is how a live pipe (candump -L can0 | srcsctl decode --can)
+        # ends: the lines so far are out, so it ends as the end of the input would, without
+        # a traceback.
         with contextlib.suppress(KeyboardInterrupt):
             _write(objects, out)
         text.detach()
@@ -342,8 +306,8 @@ def run_follow(source: str, mode: str, interface: str, out: IO[str], errors: IO[
     """Decode a live serial port (``raw``) or CAN channel (``can``) until Ctrl-C or SIGTERM
     (exit 0), or until the source fails (exit 2). Read-only: see :mod:`capture`."""
     run = _Run(source if mode == "raw" else f"{interface}:{source}", errors)
-    # SIGTERM ends the run as Ctrl-C does: the port or bus is closed on the way out.
-    previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # Ctrl-C and SIGTERM raise KeyboardInterrupt here (``run``): the port or bus is closed
+    # on the way out.
     try:
         if mode == "raw":
             with capture.open_port(source) as port:
@@ -359,6 +323,4 @@ def run_follow(source: str, mode: str, interface: str, out: IO[str], errors: IO[
         run.fail(str(error) or type(error).__name__)
     except (ValueError, ImportError) as error:  # python-can: unknown interface or options
         run.fail(str(error))
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     return EXIT_BAD_INPUT

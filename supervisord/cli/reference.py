@@ -108,6 +108,11 @@ COMMANDS: tuple[Command, ...] = (
                 "unit's RestartPreventExitStatus=78 makes it fail at once instead of "
                 "restarting",
             ),
+            (
+                "128+N",
+                "stopped by another signal N (SIGHUP, SIGQUIT, SIGUSR1, ...), every output off "
+                "as for SIGTERM; systemd restarts it, STOPPED",
+            ),
         ),
         files=(CONFIG_FILE, API_SOCKET, RECORD_FILE, DOCS),
         see_also=(

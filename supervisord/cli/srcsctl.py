@@ -8,8 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from supervisord import __version__
-from supervisord.cli import control, decode
-from supervisord.cli.demo import run_demo
+from supervisord.cli import control, decode_options
 from supervisord.cli.log import run_log
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -41,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    decode.add_arguments(commands)
+    decode_options.add_arguments(commands)
 
     log = commands.add_parser(
         "log",
@@ -86,13 +85,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
+    # decode and demo are imported only when asked for: decode needs python-can, demo the
+    # simulator, and the operator's estop, status and hold need neither (SR-8.8).
     if args.command == "decode":
+        try:
+            from supervisord.cli import decode  # noqa: PLC0415
+        except ImportError as error:
+            print(f"srcsctl decode: needs python-can and pyserial: {error}", file=sys.stderr)
+            return 1  # the action failed (docs/srcsctl.md "Exit status")
         return decode.run(args, sys.stdout, sys.stderr)
     if args.command == "log":
         return _log(args)
     if args.command in control.COMMANDS:
         return control.run(args, sys.stdout, sys.stderr)
     if args.command == "demo":
+        from supervisord.cli.demo import run_demo  # noqa: PLC0415
+
         return run_demo(sys.stdout, speed=args.speed, auto=args.auto or None, config=args.config)
     return 2  # pragma: no cover - argparse rejects unknown commands first
 

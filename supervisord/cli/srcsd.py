@@ -11,6 +11,7 @@ from typing import Final, TextIO
 
 from supervisord import __version__
 from supervisord.config import check_config_main, load_config
+from supervisord.daemon import signals
 from supervisord.errors import ConfigError, SrcsError
 
 EXIT_CONFIG: Final = 78
@@ -92,14 +93,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Interrupted(BaseException):
+    """A stopping signal before the loop runs (a BaseException, as KeyboardInterrupt: no
+    ``except Exception`` of a library being imported swallows it)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signals.name(signum))
+        self.signum = signum
+
+
+def _interrupt(signum: int) -> None:
+    raise Interrupted(signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.check_config:
         return check_config_main(args.check_config)
     setup_logging(args.verbose)
     log = logging.getLogger("srcsd")
+    # Every signal has its meaning from here on (SR-6.6): before the loop runs, nothing is
+    # on yet, so a stopping signal ends the start (the socket removed) with the exit status
+    # of a stop on that signal; the loop then puts its own handlers in their place.
+    signals.install(_interrupt)
     try:
-        config = load_config(args.config)
+        return _serve(args.config, log)
+    except Interrupted as stop:
+        log.warning("%s: stopping before the start", stop)
+        return signals.exit_status(stop.signum)
+
+
+def _serve(path: str, log: logging.Logger) -> int:
+    try:
+        config = load_config(path)
     except ConfigError as error:
         # The daemon refuses to start on a bad configuration (docs/configuration.md), with
         # EX_CONFIG so that systemd does not restart it (RestartPreventExitStatus=78).
@@ -112,12 +138,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         api = build_api(config)
         supervisor = build_supervisor(config, api)
-    except (SrcsError, OSError) as error:
+    except (SrcsError, OSError, Interrupted) as error:
         # A start that fails after the socket was made removes it (issue 11: a failed start
         # left a stale api.sock; the next start would replace it, but clients saw a path that
         # looked served). close() removes the file only if it is still ours.
         if api is not None:
             api.close()
+        if isinstance(error, Interrupted):
+            raise
         log.error("cannot start: %s", error)
         return EXIT_CANNOT_START
     log.info(

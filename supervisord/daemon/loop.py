@@ -24,7 +24,6 @@ import logging
 import os
 import select
 import selectors
-import signal
 import socket
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -32,6 +31,7 @@ from dataclasses import dataclass, field
 from supervisord import __version__
 from supervisord.api.views import histograms_json
 from supervisord.clock import MONOTONIC, Clock
+from supervisord.daemon import signals
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import Sink, Written
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
@@ -185,6 +185,7 @@ class Supervisor:
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         self._stop_requested = False
+        self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
         self._status = ""
         self._status_causes: tuple[CauseState, ...] | None = None  # what ``_status`` is of
         self._status_state: State | None = None
@@ -273,8 +274,11 @@ class Supervisor:
         self.notifier.send(READY="1", STATUS=self._status_text(self.decision))
         return self.decision
 
-    def request_stop(self) -> None:
-        """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop)."""
+    def request_stop(self, signum: int | None = None) -> None:
+        """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop).
+        The first signal asked for decides the exit status (SR-6.6)."""
+        if self._stop_signal is None:
+            self._stop_signal = signum
         self._stop_requested = True
         with contextlib.suppress(OSError):
             self._wake_w.send(b"\0")
@@ -306,11 +310,11 @@ class Supervisor:
         self.notifier.close()
 
     def run(self) -> int:
-        """Start, loop until SIGTERM/SIGINT, shut down. Exit status 0 on a clean stop."""
-        previous = {
-            sig: signal.signal(sig, lambda *_: self.request_stop())
-            for sig in (signal.SIGTERM, signal.SIGINT)
-        }
+        """Start, loop until a stopping signal, shut down. Every signal that would end the
+        process ends it this way, outputs off and the record drained, except those with a
+        purpose of their own (SR-6.6, :mod:`~supervisord.daemon.signals`). Exit status 0
+        after SIGTERM or SIGINT, 128 + N after another signal N."""
+        previous = signals.install(self.request_stop)
         try:
             self.start()
             if self.sink is not None:
@@ -319,11 +323,18 @@ class Supervisor:
                 self.sink.capture_logging(logging.getLogger())
             while not self._stop_requested:
                 self.step()
+            if self._stop_signal is not None:
+                # Before the shutdown, so that the sink drains it with the records.
+                level = logging.INFO if self._stop_signal in signals.CLEAN_EXIT else logging.WARNING
+                log.log(level, "%s: stopping, every output off", signals.name(self._stop_signal))
         finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-            self.shutdown()
-        return 0
+            try:
+                # A second signal during the shutdown changes nothing: the handlers stay
+                # until the outputs are off and the record is drained.
+                self.shutdown()
+            finally:
+                signals.restore(previous)
+        return 0 if self._stop_signal is None else signals.exit_status(self._stop_signal)
 
     # ----------------------------------------------------------------- the loop
 

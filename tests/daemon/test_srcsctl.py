@@ -243,7 +243,7 @@ def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
 
 
 def test_watch_ends_on_sigint_even_when_started_with_sigint_ignored(robot: Robot) -> None:
-    """Ctrl-C (SIGINT) ends ``watch`` with status 0 also when it was started from a script
+    """SR-8.9: Ctrl-C (SIGINT) ends ``watch`` with status 0 also when it was started from a script
     in the background, which starts it with SIGINT ignored (the cause of a timed-out
     test_watch_follows_a_stop_live); SIGTERM ends it too."""
     for sig in (signal.SIGINT, signal.SIGTERM):
