@@ -51,7 +51,7 @@ from supervisord.protocol.codes import DisplayMode
 from supervisord.safety.events import Request
 
 if TYPE_CHECKING:
-    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
+    from typing_extensions import Self
 
 DEFAULT_TIMEOUT: Final = 5.0
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")

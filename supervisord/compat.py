@@ -6,10 +6,11 @@ Pure: the safety core imports it (``tests/safety/test_purity.py``)."""
 
 from __future__ import annotations
 
+import datetime as dt
 import enum
 
 
-class StrEnum(str, enum.Enum):  # noqa: UP042 -- enum.StrEnum itself is 3.11
+class StrEnum(str, enum.Enum):
     """What Python 3.11's ``enum.StrEnum`` does for explicit values: a member is its value
     wherever it is used as text (``str()``, f-strings, JSON)."""
 
@@ -18,3 +19,12 @@ class StrEnum(str, enum.Enum):  # noqa: UP042 -- enum.StrEnum itself is 3.11
 
     def __format__(self, spec: str) -> str:
         return str(self.value).__format__(spec)
+
+
+def from_iso(text: str) -> dt.datetime:
+    """``datetime.fromisoformat`` with the UTC designator ``Z`` that people type and Python
+    3.11 reads (``2026-11-24T14:02Z``); 3.10 takes only an offset, so ``Z`` becomes ``+00:00``.
+    Raises ``ValueError`` as ``fromisoformat`` does."""
+    if text[-1:] in ("Z", "z"):
+        text = text[:-1] + "+00:00"
+    return dt.datetime.fromisoformat(text)

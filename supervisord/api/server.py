@@ -68,7 +68,7 @@ from supervisord.safety.events import ClientConnected, ClientDisconnected, Clien
 from supervisord.timebase import NS_PER_MS
 
 if TYPE_CHECKING:
-    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
+    from typing_extensions import Self
 
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 DEFAULT_MODE: Final = 0o660

@@ -507,7 +507,7 @@ def format_push(
 ) -> str:
     """One line for a push: the time of day (local, or UTC with ``utc``: the rule of
     ``log``), then what happened."""
-    when = (now or dt.datetime.now(dt.UTC)).astimezone(zone(utc))
+    when = (now or dt.datetime.now(dt.timezone.utc)).astimezone(zone(utc))
     stamp = when.strftime("%H:%M:%S.%f")[:-3] + ("Z" if utc else "")
     if event == "state":
         causes = ", ".join(_short_cause(c) for c in data.get("causes") or []) or "no causes"

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Final
 
+from supervisord.compat import from_iso
 from supervisord.record.jsonl import BadLine, StoredRecord, read_records
 
 EXIT_BAD_INPUT = 2
@@ -33,7 +34,7 @@ class BadTime(ValueError):
 
 def zone(utc: bool) -> dt.tzinfo | None:
     """The zone times are shown and read in: UTC with ``--utc``, else local (``None``)."""
-    return dt.UTC if utc else None
+    return dt.timezone.utc if utc else None
 
 
 def parse_time(text: str, now: dt.datetime, *, utc: bool = False) -> dt.datetime:
@@ -47,24 +48,24 @@ def parse_time(text: str, now: dt.datetime, *, utc: bool = False) -> dt.datetime
         midnight = now.astimezone(zone(utc)).replace(hour=0, minute=0, second=0, microsecond=0)
         return midnight - dt.timedelta(days=1 if text == "yesterday" else 0)
     try:
-        when = dt.datetime.fromisoformat(text)
+        when = from_iso(text)
     except ValueError as error:
         raise BadTime(
             f"not a time: {text!r} (use ISO 8601, today, yesterday or an age like 10m, -2h, 3d)"
         ) from error
     if when.tzinfo:
         return when
-    return when.replace(tzinfo=dt.UTC) if utc else when.astimezone()
+    return when.replace(tzinfo=dt.timezone.utc) if utc else when.astimezone()
 
 
 def show_time(utc_text: object, *, utc: bool = False) -> str:
     """A record's ``utc`` in the display zone, to the millisecond, with its offset."""
     try:
-        when = dt.datetime.fromisoformat(str(utc_text))
+        when = from_iso(str(utc_text))
     except ValueError:
         return str(utc_text)
     if when.tzinfo is None:
-        when = when.replace(tzinfo=dt.UTC)
+        when = when.replace(tzinfo=dt.timezone.utc)
     return when.astimezone(zone(utc)).isoformat(timespec="milliseconds")
 
 
@@ -111,7 +112,7 @@ def run_log(
 ) -> int:
     """Print the records (the ``last`` N of them when given); with ``follow``, then every
     record appended after, until Ctrl-C or SIGTERM (exit 0)."""
-    now = dt.datetime.now(dt.UTC)
+    now = dt.datetime.now(dt.timezone.utc)
     try:
         start = parse_time(since, now, utc=utc) if since else None
         end = parse_time(until, now, utc=utc) if until else None

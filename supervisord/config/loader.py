@@ -22,11 +22,11 @@ import grp
 import os
 import pwd
 import re
-import tomllib
 from collections.abc import Callable, Hashable, Sequence
 from pathlib import Path
 
 from supervisord import strict
+from supervisord.config import toml
 from supervisord.config.model import (
     ApiConfig,
     CanBus,
@@ -145,8 +145,8 @@ def read_toml(source: Path) -> dict[str, object]:
             f"line {line}, column {column}", raw[error.start : error.end], "save the file as UTF-8"
         ) from None
     try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
+        return toml.loads(text)
+    except toml.TOMLDecodeError as error:
         message = str(error)
         lines = text.splitlines() or [""]
         found = _POSITION.search(message)

@@ -163,7 +163,7 @@ class Supervisor:
         listener: Listener | None = None,
         notifier: Notifier | None = None,
         clock: Clock = MONOTONIC,
-        wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.UTC),
+        wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.timezone.utc),
         backoff: Backoff | None = None,
         release: list[Callable[[], object]] | None = None,
     ) -> None:

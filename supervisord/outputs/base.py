@@ -27,7 +27,7 @@ import abc
 import dataclasses
 from collections.abc import Hashable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar, Self
+from typing import TYPE_CHECKING, ClassVar
 
 from supervisord import strict
 from supervisord.compat import StrEnum
@@ -37,6 +37,7 @@ from supervisord.timebase import next_due
 
 if TYPE_CHECKING:
     from can import BusABC
+    from typing_extensions import Self
 
 
 class OutputKind(StrEnum):

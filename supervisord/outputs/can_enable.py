@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from collections.abc import Mapping
-from typing import ClassVar, Final, Self
+from typing import TYPE_CHECKING, ClassVar, Final
 
 import can
 
@@ -44,6 +44,9 @@ from supervisord.outputs.base import (
 )
 from supervisord.safety.config import OutputRole
 from supervisord.timebase import NS_PER_MS
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 PERIOD_MS_RANGE: Final = (5, 1000)
 """Allowed ``period_ms``."""

@@ -24,7 +24,7 @@ import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import ClassVar, Final, Self
+from typing import TYPE_CHECKING, ClassVar, Final
 
 from supervisord import strict
 from supervisord.compat import StrEnum
@@ -38,6 +38,9 @@ from supervisord.outputs.base import (
     ReadBack,
 )
 from supervisord.safety.config import OutputRole
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 
 class Level(StrEnum):

@@ -12,7 +12,7 @@ import enum
 from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
-    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
+    from typing_extensions import Self
 
 
 class _Parsable(enum.IntEnum):

@@ -24,7 +24,7 @@ from supervisord.protocol.codes import (
 from supervisord.protocol.nmea import GpsFix, parse_nmea
 
 if TYPE_CHECKING:
-    from typing_extensions import Self  # noqa: UP035 -- typing.Self is 3.11 (compat.py)
+    from typing_extensions import Self
 
 U8 = (0, 0xFF)
 U16 = (0, 0xFFFF)

@@ -62,7 +62,7 @@ def _time(field: str) -> dt.time | None:
     hour, minute, second = int(whole[0:2]), int(whole[2:4]), int(whole[4:6])
     micro = round(int(fraction[:7].ljust(7, "0")) / 10) if fraction else 0
     try:
-        return dt.time(hour, minute, second, min(micro, 999_999), tzinfo=dt.timezone.utc)  # noqa: UP017 -- dt.UTC is 3.11
+        return dt.time(hour, minute, second, min(micro, 999_999), tzinfo=dt.timezone.utc)
     except ValueError:  # 25:61:61: a time that does not exist
         return None
 

@@ -184,7 +184,7 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
     result: JsonDict = {
         "seq": sequence_offset + record.sequence,
         "mono_ns": record.monotonic_ns,
-        "utc": utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),  # noqa: UP017 -- dt.UTC is 3.11
+        "utc": utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),
         "kind": record_kind(record).value,
         "from": record.previous.name,
         "to": record.state.name,

@@ -39,10 +39,13 @@ import os
 import re
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Final, Self
+from typing import TYPE_CHECKING, Final
 
-from supervisord.compat import StrEnum
+from supervisord.compat import StrEnum, from_iso
 from supervisord.errors import SrcsError
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 REQUIRED_FIELDS: Final = ("seq", "mono_ns", "utc", "from", "to", "causes", "trigger")
 """Fields every record has (``docs/record.md`` describes each)."""
@@ -98,7 +101,7 @@ def parse_utc(value: object) -> dt.datetime | None:
     if not isinstance(value, str):
         return None
     try:
-        when = dt.datetime.fromisoformat(value)
+        when = from_iso(value)
     except ValueError:
         return None
     return when if when.tzinfo is not None else None
@@ -106,7 +109,7 @@ def parse_utc(value: object) -> dt.datetime | None:
 
 def format_utc(when: dt.datetime) -> str:
     """``when`` (aware) as the ISO 8601 text records carry, in UTC with microseconds."""
-    return when.astimezone(dt.UTC).isoformat(timespec="microseconds")
+    return when.astimezone(dt.timezone.utc).isoformat(timespec="microseconds")
 
 
 def cause_names(record: Mapping[str, object]) -> tuple[str, ...] | None:

@@ -17,11 +17,14 @@ import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import TYPE_CHECKING
 
 from supervisord.children import kill, spawn, terminate, wait_started
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 MINIMAL_CONFIG = """\
 [robot]

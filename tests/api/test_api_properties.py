@@ -298,7 +298,7 @@ def test_every_push_of_arbitrary_vsc_payloads_encodes(
     gives ``gps``/``joystick``/``remote_status``, ``state`` and ``record`` pushes that the
     strictest encoder takes, and records the store's own encoder files."""
     core = SafetyCore(SafetyConfig(), 0)
-    utc = dt.datetime(2026, 3, 1, tzinfo=dt.UTC)
+    utc = dt.datetime(2026, 3, 1, tzinfo=dt.timezone.utc)
     now = 1
     decisions = [core.handle(LinkOpened(now)), core.handle(LocalEstop(2, caller))]
     for message in messages:

@@ -541,7 +541,7 @@ def test_a_record_and_a_status_naming_an_odd_user_encode_strictly() -> None:
     core = SafetyCore(SafetyConfig(), 0)
     decision = core.handle(LocalEstop(5, ODD_USER))
     (record,) = decision.records
-    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.UTC))
+    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.timezone.utc))
     assert encode_record(obj).endswith(b"\n")
     strict_utf8(obj)
     assert obj["trigger"]["caller"]["name"] == "r\\xe9mi"

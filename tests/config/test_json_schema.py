@@ -14,7 +14,6 @@ import copy
 import json
 import subprocess
 import sys
-import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,7 +22,7 @@ import pytest
 
 from supervisord import strict
 from supervisord.cli.demo import DEMO_CONFIG
-from supervisord.config import load_config
+from supervisord.config import load_config, toml
 from supervisord.config.schema import (
     CROSS_CHECKS,
     SECTION,
@@ -62,7 +61,7 @@ TEST_CONFIGS: dict[str, dict[str, object]] = {
 def corpus_files() -> dict[str, dict[str, object]]:
     """Every config file shipped (config/ and the demo's) and every test config, parsed."""
     shipped = [*sorted((REPO / "config").glob("*.toml")), DEMO_CONFIG]
-    files = {p.name: tomllib.loads(p.read_text()) for p in shipped}
+    files = {p.name: toml.loads(p.read_text()) for p in shipped}
     return files | {f"test:{name}": data for name, data in TEST_CONFIGS.items()}
 
 

@@ -343,7 +343,7 @@ def _records(tmp_path: Path) -> Path:
     active and one latched-cleared cause."""
     import datetime as dt  # noqa: PLC0415
 
-    now = dt.datetime.now(dt.UTC)
+    now = dt.datetime.now(dt.timezone.utc)
     base = {
         "mono_ns": 1,
         "kind": "state_change",

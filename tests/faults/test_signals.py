@@ -27,7 +27,7 @@ STOPPING = (
     signal.SIGUSR2,
     signal.SIGALRM,
     signal.SIGTERM,
-    signal.SIGSTKFLT,
+    signal.Signals(16),  # SIGSTKFLT on Linux (the name is Python 3.11)
     signal.SIGVTALRM,
     signal.SIGPROF,
     signal.SIGIO,

@@ -11,10 +11,11 @@ import re
 import shutil
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+
+from supervisord.config import toml
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter")
@@ -22,7 +23,7 @@ LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter")
 
 def _version() -> str:
     with (ROOT / "pyproject.toml").open("rb") as handle:
-        return str(tomllib.load(handle)["project"]["version"])
+        return str(toml.load(handle)["project"]["version"])
 
 
 @pytest.fixture(scope="session")

@@ -18,7 +18,7 @@ def test_gga_gives_time_position_and_quality() -> None:
     """A GGA sentence gives UTC time, signed decimal degrees and the fix quality."""
     fix = Gps(1, GGA).fix
     assert fix is not None
-    assert fix.utc_time == dt.time(12, 35, 19, tzinfo=dt.UTC)
+    assert fix.utc_time == dt.time(12, 35, 19, tzinfo=dt.timezone.utc)
     assert fix.latitude == pytest.approx(48.1173)
     assert fix.longitude == pytest.approx(11.516667)
     assert fix.fix_quality == 1
@@ -31,7 +31,7 @@ def test_rmc_south_west_and_validity() -> None:
     assert fix is not None
     assert fix.latitude == pytest.approx(-33.868667)
     assert fix.longitude == pytest.approx(-151.21)
-    assert fix.utc_time == dt.time(1, 2, 3, 500_000, tzinfo=dt.UTC)
+    assert fix.utc_time == dt.time(1, 2, 3, 500_000, tzinfo=dt.timezone.utc)
     assert not fix.valid
 
 

@@ -25,7 +25,7 @@ from supervisord.safety.decision import Record, RecordNote
 from supervisord.safety.events import EVENT_TYPES, Caller, ClientHello, LocalEstop, VscReceived
 from supervisord.safety.transitions import State
 
-UTC = dt.datetime(2026, 3, 1, 12, tzinfo=dt.UTC)
+UTC = dt.datetime(2026, 3, 1, 12, tzinfo=dt.timezone.utc)
 ROOT = Caller(0, 42, "root", True)
 
 TRIGGERS = {
@@ -57,7 +57,7 @@ def test_record_json_is_a_record_the_store_accepts() -> None:
     """SR-7: record_json has every field docs/record.md requires, and the JSON Lines store
     files it."""
     (record,) = SafetyCore(SafetyConfig(), 0).decision.records
-    utc = dt.datetime(2026, 3, 1, 12, tzinfo=dt.UTC)
+    utc = dt.datetime(2026, 3, 1, 12, tzinfo=dt.timezone.utc)
     obj = record_json(record, utc)
     assert set(REQUIRED_FIELDS) <= set(obj)
     assert obj["utc"] == "2026-03-01T12:00:00.000000+00:00"
@@ -71,7 +71,7 @@ def test_record_kind_and_trigger_follow_the_change() -> None:
     core = SafetyCore(SafetyConfig(), 0)
     decision = core.handle(LocalEstop(5, ROOT))
     (record,) = decision.records
-    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.UTC))
+    obj = record_json(record, dt.datetime(2026, 3, 1, tzinfo=dt.timezone.utc))
     assert obj["kind"] == "cause_raised"
     assert obj["trigger"] == {
         "event": "local_estop",
