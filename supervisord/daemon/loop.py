@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from supervisord import __version__
 from supervisord.api.views import histograms_json
 from supervisord.daemon.notify import Notifier
-from supervisord.daemon.sink import Sink, Written
+from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
@@ -229,8 +229,8 @@ class Supervisor:
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,
             "records_dropped": counters.records_dropped,
-            "records_pending": self.sink.pending if self.sink is not None else 0,
-            "journal_errors": self.sink.journal_errors if self.sink is not None else 0,
+            # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens
+            **(self.sink.status() if self.sink is not None else IDLE_STATUS),
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
             "histograms": histograms_json(self.timings.histograms()),
@@ -281,7 +281,8 @@ class Supervisor:
 
     def shutdown(self) -> None:
         """All outputs off, then release the link; drain the record (every queued record
-        written and fsynced, and pushed to subscribers), then the socket (SIGTERM path)."""
+        written and fsynced, and pushed to subscribers, within the sink's deadline), then the
+        socket (SIGTERM path)."""
         self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
         now = self.clock()
         for output in self.outputs.values():
@@ -294,12 +295,15 @@ class Supervisor:
             with contextlib.suppress(Exception):
                 release()
         if self.sink is not None:
-            self.sink.close()
+            # The records first, with a deadline well inside the unit's stop timeout, then
+            # pushed; then journal copies and log lines, best effort (SR-7.7).
+            self.sink.drain_records()
             with contextlib.suppress(Exception):
                 self._take_written()
-        self.listener.close()
-        if self.writer is not None:
+            self.sink.close()  # closes the writer, unless a write is stuck in the disk
+        elif self.writer is not None:
             self.writer.close()
+        self.listener.close()
         self._selector.close()
         self._wake_r.close()
         self._wake_w.close()

@@ -37,6 +37,7 @@ import errno as errno_codes
 import json
 import os
 import re
+import stat
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Final, Self
@@ -70,6 +71,32 @@ class RecordError(SrcsError):
     def disk_full(self) -> bool:
         """True when the file system is out of space (or quota)."""
         return self.errno in (errno_codes.ENOSPC, errno_codes.EDQUOT)
+
+
+def _file_kind(mode: int) -> str | None:
+    """What a file of ``mode`` is, when it is not a regular file (``None`` when it is)."""
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+    )
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
+def not_a_regular_file(path: Path | str) -> str | None:
+    """What ``path`` is when something other than a regular file is there (a FIFO, a symbolic
+    link, a device...), else ``None`` (a regular file, or nothing). Never opens it: a FIFO or a
+    device must not be opened to find out (SR-7.9)."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    return _file_kind(mode)
 
 
 class RecordUsageError(SrcsError, ValueError):
@@ -192,7 +219,12 @@ class RecordWriter:
         self.path = Path(path)
         self.max_bytes, self.keep = max_bytes, keep
         self.repaired_bytes = 0
+        self.reopens = 0
+        """How often the current file was found removed or replaced and opened again."""
+        self.last_reopen: str | None = None
+        """Why it was opened again the last time (``removed``, ``replaced``), for the log."""
         self._fd: int | None = None
+        self._identity = (0, 0)  # (st_dev, st_ino) of the open file
         self._size = 0  # bytes of acknowledged records in the current file
         self._dirty = False  # a failed write may have left bytes past _size
         self._closed = False
@@ -241,8 +273,17 @@ class RecordWriter:
     def _append(self, line: bytes) -> None:
         if self._fd is None:
             self._open_current()
-        elif self._dirty:
-            self._cut_back()
+        else:
+            self._follow_path()
+            if self._dirty:
+                self._cut_back()
+        self._write(line)
+        if self._follow_path():
+            # Removed or replaced while we wrote: the line is in a file no reader finds.
+            # Write it again into the file now at the path (SR-7.9).
+            self._write(line)
+
+    def _write(self, line: bytes) -> None:
         if self._size > 0 and self._size + len(line) > self.max_bytes:
             self._rotate()
         fd = self._fd
@@ -254,10 +295,43 @@ class RecordWriter:
         os.fsync(fd)
         self._size += len(line)
 
-    def _open_current(self) -> None:
-        """Open (creating if needed) the current file and truncate a torn tail."""
-        fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o640)
+    def _follow_path(self) -> bool:
+        """If the file at ``path`` is no longer the one open (a cleanup job removed it, a
+        log rotation renamed it and created another), open the one at ``path`` (creating it)
+        and say so: ``True``. One ``lstat``, so cheap enough for every record (SR-7.9)."""
         try:
+            now = os.lstat(self.path)
+            reason = None if (now.st_dev, now.st_ino) == self._identity else "replaced"
+        except FileNotFoundError:
+            reason = "removed"
+        if reason is None:
+            return False
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)  # every acknowledged record in it is on disk already
+        self.reopens += 1
+        self.last_reopen = reason
+        self._open_current()
+        return True
+
+    def _open_current(self) -> None:
+        """Open (creating if needed) the current file and truncate a torn tail.
+
+        Only a regular file is taken: whatever else is at the path (a FIFO, whose read would
+        never return; a symlink; a device) is refused without being opened, and the open
+        itself neither blocks nor follows a link, in case one appears meanwhile (SR-7.9)."""
+        kind = not_a_regular_file(self.path)
+        if kind is not None:
+            raise OSError(errno_codes.EINVAL, f"{kind} is there, not a regular file")
+        flags = os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC
+        flags |= os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
+        fd = os.open(self.path, flags, 0o640)
+        try:
+            info = os.fstat(fd)
+            kind = _file_kind(info.st_mode)
+            if kind is not None:  # it changed between the look and the open
+                raise OSError(errno_codes.EINVAL, f"{kind} is there, not a regular file")
+            os.set_blocking(fd, True)
             # The file's name (new, or renamed by an interrupted rotation) must be durable
             # before any record goes into it; once per open, so cheap.
             fsync_dir(self.path.parent)
@@ -267,6 +341,7 @@ class RecordWriter:
             os.close(fd)
             raise
         self._fd, self._dirty = fd, False
+        self._identity = (info.st_dev, info.st_ino)
 
     @staticmethod
     def _truncate_torn_tail(fd: int) -> int:
@@ -329,6 +404,9 @@ class BadLineReason(StrEnum):
     """A line that is not a JSON object, not at the end of a file (damage)."""
     NOT_A_RECORD = "not_a_record"
     """A JSON object that lacks the fields the store needs."""
+    NOT_A_FILE = "not_a_file"
+    """Something other than a regular file (a FIFO, a device, a symlink) has a record file's
+    name; it is not opened (a FIFO would never answer). Reported as line 0 (SR-7.9)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -392,12 +470,26 @@ def _is_record(obj: object) -> bool:
 
 def scan_file(file: Path) -> Iterator[StoredRecord | BadLine]:
     """Every line of one record file, as a :class:`StoredRecord` or a :class:`BadLine`, unfiltered.
-    A file that does not exist (rotated away meanwhile) has no lines."""
+    A file that does not exist (rotated away meanwhile) has no lines; something other than a
+    regular file is one ``NOT_A_FILE`` bad line, never read (SR-7.9)."""
+    kind = not_a_regular_file(file)
+    if kind is not None:
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, kind)
+        return
+    flags = os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
     try:
-        handle = file.open("rb")
+        fd = os.open(file, flags)
     except FileNotFoundError:
         return  # rotated away while we listed: the next listing shows it under a new name
-    with handle:
+    except OSError as error:  # a symlink put there since the look (ELOOP)
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, str(error))
+        return
+    kind = _file_kind(os.fstat(fd).st_mode)
+    if kind is not None:  # replaced since the look
+        os.close(fd)
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, kind)
+        return
+    with os.fdopen(fd, "rb") as handle:
         lines = iter(handle)
         current = next(lines, None)
         number = 0

@@ -97,7 +97,7 @@ def test_close_drains_every_queued_record_and_joins_the_thread(tmp_path: Path) -
     sink.close()
     writer.close()
     assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 201))
-    assert not [t for t in threading.enumerate() if t.name == "srcsd-sink"]
+    assert not [t for t in threading.enumerate() if t.name.startswith("srcsd-")]
 
 
 def test_log_lines_go_through_the_thread_and_the_handlers_come_back(tmp_path: Path) -> None:
@@ -120,6 +120,6 @@ def test_log_lines_go_through_the_thread_and_the_handlers_come_back(tmp_path: Pa
     logger.warning("value %s", values)
     values.append(2)  # changed after logging: the line keeps what was logged
     sink.close()
-    assert seen == [("srcsd-sink", "value [1]")]
+    assert seen == [("srcsd-log", "value [1]")]
     assert logger.handlers == [handler]
     logger.removeHandler(handler)
