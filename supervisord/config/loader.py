@@ -74,7 +74,7 @@ from supervisord.config.schema import (
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
-from supervisord.record.jsonl import rotated
+from supervisord.record.jsonl import not_a_regular_file, rotated
 from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
 from supervisord.safety.prooftest import ProofTestPolicy
 
@@ -416,13 +416,27 @@ class _Loader:
     # [record], [api] ----------------------------------------------------------------------
 
     def record(self, fields: strict.Fields) -> RecordConfig:
-        path, max_bytes, keep, journal = RECORD
-        return RecordConfig(
-            path=self.path(fields, path),
+        path_key, max_bytes, keep, journal = RECORD
+        config = RecordConfig(
+            path=self.path(fields, path_key),
             max_bytes=fields.whole(max_bytes),
             keep=fields.whole(keep),
             journal=fields.flag(journal),
         )
+        # The record and its rotated files are regular files or nothing yet (SR-7.9): a FIFO
+        # there would hang the start (its last record is read), a symlink would be rotated
+        # away, a device written to. Looked at, never opened.
+        for n in range(config.keep + 1):
+            file = rotated(config.path, n)
+            kind = not_a_regular_file(file)
+            if kind is not None:
+                name = "it" if n == 0 else f"its rotated file {file}"
+                raise fields.refuse(
+                    path_key.name,
+                    str(config.path),
+                    f"{name} is {kind}, not a regular file: remove it, or name another path",
+                )
+        return config
 
     def group(self, fields: strict.Fields, key: strict.Key) -> str | None:
         group = fields.read(key)
