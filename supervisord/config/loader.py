@@ -74,7 +74,7 @@ from supervisord.config.schema import (
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
-from supervisord.record.jsonl import not_a_regular_file, rotated
+from supervisord.record.jsonl import not_a_regular_file, record_paths
 from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
 from supervisord.safety.prooftest import ProofTestPolicy
 
@@ -426,11 +426,10 @@ class _Loader:
         # The record and its rotated files are regular files or nothing yet (SR-7.9): a FIFO
         # there would hang the start (its last record is read), a symlink would be rotated
         # away, a device written to. Looked at, never opened.
-        for n in range(config.keep + 1):
-            file = rotated(config.path, n)
+        for file, part in record_paths(config.path, config.keep):
             kind = not_a_regular_file(file)
             if kind is not None:
-                name = "it" if n == 0 else f"its rotated file {file}"
+                name = f"its {part} {file}" if part else "it"
                 raise fields.refuse(
                     path_key.name,
                     str(config.path),
@@ -518,10 +517,9 @@ def _path_claims(
             for claim in spec.claims()
             if claim.path is not None
         ]
-    claims.append(("record.path", str(record.path), record.path, ""))
     claims += [
-        ("record.path", str(record.path), rotated(record.path, n), f"rotated file {n}")
-        for n in range(1, record.keep + 1)
+        ("record.path", str(record.path), file, part)
+        for file, part in record_paths(record.path, record.keep)
     ]
     claims.append(("api.socket", str(api.socket), api.socket, ""))
     return claims

@@ -161,6 +161,33 @@ def encode(record: Mapping[str, object]) -> bytes:
     return text.encode() + b"\n"  # json.dumps escapes newlines: one record, one line
 
 
+def transitions_path(path: Path | str) -> Path:
+    """Where the stop transitions of ``path`` are kept apart (``stops.jsonl.transitions``,
+    rotated as ``stops.jsonl.transitions.N``): a flood of other records cannot rotate them
+    away (SR-7.8, ``docs/record.md`` "Rotation")."""
+    path = Path(path)
+    return path.with_name(f"{path.name}.transitions")
+
+
+def record_paths(path: Path | str, keep: int) -> list[tuple[Path, str]]:
+    """Every file the record of ``path`` may use, each with what it is: the current file, its
+    rotated files, the stop transitions' file and its rotated files."""
+    path, stops = Path(path), transitions_path(path)
+    files = [(path, "")] + [(rotated(path, n), f"rotated file {n}") for n in range(1, keep + 1)]
+    files.append((stops, "stop transitions file"))
+    files += [(rotated(stops, n), f"stop transitions file {n}") for n in range(1, keep + 1)]
+    return files
+
+
+def is_stop_transition(record: Mapping[str, object]) -> bool:
+    """Whether ``record`` is a change of state into or out of STOPPED: a stop, or the re-arm
+    that ended one (SR-7.8). Their rate is bounded by the re-arm rules, not by clients."""
+    if record.get("kind", "state_change") != "state_change":
+        return False
+    before, after = (str(record.get(key, "")).upper() for key in ("from", "to"))
+    return before != after and "STOPPED" in (before, after)
+
+
 def rotated(path: Path, n: int) -> Path:
     """The ``n``-th rotated file of ``path`` (``n`` = 0 is ``path`` itself)."""
     return path if n == 0 else path.with_name(f"{path.name}.{n}")
@@ -209,7 +236,12 @@ class RecordWriter:
     """
 
     def __init__(
-        self, path: Path | str, max_bytes: int = DEFAULT_MAX_BYTES, keep: int = DEFAULT_KEEP
+        self,
+        path: Path | str,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        keep: int = DEFAULT_KEEP,
+        *,
+        keep_transitions: bool = True,
     ) -> None:
         low, high = MAX_BYTES_RANGE
         if not low <= max_bytes <= high:
@@ -229,6 +261,15 @@ class RecordWriter:
         self._dirty = False  # a failed write may have left bytes past _size
         self._closed = False
         self._guard("open", self._open_current)
+        self._transitions: RecordWriter | None = None
+        if keep_transitions:  # SR-7.8: a second series of the same size, for stops alone
+            try:
+                self._transitions = RecordWriter(
+                    transitions_path(self.path), max_bytes, keep, keep_transitions=False
+                )
+            except BaseException:
+                self.close()
+                raise
 
     # -- public ---------------------------------------------------------------------------
 
@@ -242,13 +283,17 @@ class RecordWriter:
             raise RecordUsageError(f"record writer for {self.path} is closed")
         line = encode(record)
         self._guard("append to", lambda: self._append(line))
+        if self._transitions is not None and is_stop_transition(record):
+            self._transitions.append(record)
 
     def close(self) -> None:
-        """Close the file. Every acknowledged record is already on disk. Idempotent."""
+        """Close the files. Every acknowledged record is already on disk. Idempotent."""
         self._closed = True
         fd, self._fd = self._fd, None
         if fd is not None:
             os.close(fd)
+        if self._transitions is not None:
+            self._transitions.close()
 
     @property
     def size(self) -> int:
@@ -524,32 +569,63 @@ def read_records(
     until: dt.datetime | None = None,
     cause: str | None = None,
 ) -> Iterator[StoredRecord | BadLine]:
-    """The records of ``path`` and its rotated files, oldest first, with the bad lines met.
+    """The records of ``path`` and its rotated files, oldest first, with the bad lines met;
+    before them, the stop transitions older than the oldest of those files' records, from
+    the transitions' own files (SR-7.8: what rotation dropped, the stops stay).
 
     Only records with ``since <= utc < until`` (aware datetimes) and, when ``cause`` is given,
     a matching cause (:meth:`StoredRecord.matches_cause`) are yielded; bad lines are always yielded,
     so that the caller can report them. Safe to run while the writer appends or rotates: a
     file rotated away between listing and opening is skipped.
     """
-    for file in record_files(Path(path)):
-        for item in scan_file(file):
-            if isinstance(item, BadLine):
-                yield item
-                continue
-            if since is not None and item.utc < since:
-                continue
-            if until is not None and item.utc >= until:
-                continue
-            if cause is not None and not item.matches_cause(cause):
-                continue
+    files = record_files(Path(path))
+    oldest = _first_seq(files)
+    for item in _older_transitions(Path(path), oldest):
+        if isinstance(item, BadLine) or _wanted(item, since, until, cause):
             yield item
+    for file in files:
+        for item in scan_file(file):
+            if isinstance(item, BadLine) or _wanted(item, since, until, cause):
+                yield item
+
+
+def _wanted(
+    item: StoredRecord, since: dt.datetime | None, until: dt.datetime | None, cause: str | None
+) -> bool:
+    if since is not None and item.utc < since:
+        return False
+    if until is not None and item.utc >= until:
+        return False
+    return cause is None or item.matches_cause(cause)
+
+
+def _first_seq(files: list[Path]) -> int | None:
+    """The sequence number of the oldest record in ``files`` (oldest first)."""
+    for file in files:
+        for item in scan_file(file):
+            if isinstance(item, StoredRecord):
+                return item.seq
+    return None
+
+
+def _older_transitions(path: Path, oldest: int | None) -> Iterator[StoredRecord | BadLine]:
+    """The kept stop transitions of ``path`` from before ``oldest`` (all if ``None``)."""
+    for file in record_files(transitions_path(path)):
+        for item in scan_file(file):
+            if isinstance(item, BadLine) or oldest is None or item.seq < oldest:
+                yield item
 
 
 def last_record(path: Path | str) -> StoredRecord | None:
-    """The newest record of ``path`` (to continue its ``seq`` after a restart), or ``None``.
+    """The newest record of ``path`` or of its kept stop transitions (to continue its ``seq``
+    after a restart), or ``None``. Reads only the newest file of each that holds a record."""
+    found = [_last_in(record_files(p)) for p in (Path(path), transitions_path(path))]
+    records = [record for record in found if record is not None]
+    return max(records, key=lambda record: record.seq) if records else None
 
-    Reads only the newest file that holds a record."""
-    for file in reversed(record_files(Path(path))):
+
+def _last_in(files: list[Path]) -> StoredRecord | None:
+    for file in reversed(files):
         found = None
         for item in scan_file(file):
             if isinstance(item, StoredRecord):

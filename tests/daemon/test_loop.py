@@ -3,11 +3,9 @@ JSON Lines stop record. A small VSC peer in the test answers key 85 and sends he
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import socket
-import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -30,6 +28,7 @@ from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
 from tests.daemon.peer import VscPeer
+from tests.record.conftest import full_disk
 
 
 class ManualClock:
@@ -489,29 +488,13 @@ def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_pat
     assert len(served) == 40
 
 
-@contextlib.contextmanager
-def _full_disk(folder: Path) -> Iterator[Path]:
-    """A one-page tmpfs at ``folder``, filled to the last byte: every write to a new file
-    there fails with ENOSPC (a real full file system; the record refuses a device such as
-    /dev/full, SR-7.9). Unmounted on leaving."""
-    folder.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4k", "srcs-full", str(folder)], check=True)
-    try:
-        with contextlib.suppress(OSError), (folder / "filler").open("wb", buffering=0) as filler:
-            while True:
-                filler.write(b"\0" * 512)
-        yield folder / "stops.jsonl"
-    finally:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
-
-
 @pytest.mark.skipif(os.geteuid() != 0, reason="mounting a tmpfs needs root")
 def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None:
     """SR-7.6, docs/record.md "A full disk": every record fails with ENOSPC (the
     file is on a full tmpfs). The loop counts each failure in ``record_errors`` and raises no
     cause of its own for it; the stops the core decides still happen."""
     clock = ManualClock()
-    with _full_disk(tmp_path / "full") as record, PtyPort(tmp_path / "vsc") as port:
+    with full_disk(tmp_path / "full") as record, PtyPort(tmp_path / "vsc") as port:
         supervisor = Supervisor(
             SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
             SerialLink(str(port.path)),
