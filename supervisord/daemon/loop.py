@@ -9,11 +9,11 @@ bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when t
 more to read or a deadline has come), so no client can push the VSC's next frame or the user
 heartbeat back (issue 11, ``docs/safety.md`` "The stop path first").
 
-Records, journal entries and log lines leave the loop through one :class:`~supervisord.daemon.
-sink.Sink` that it never waits for (its one thread writes and fsyncs); a record is pushed to
-subscribers once the sink says it is on disk. The user heartbeat, the outputs and the link are
-served only by this loop, so if it hangs, the heartbeat stops and the VSC's key-85 watchdog
-opens its relays (SR-5).
+Records, journal entries and log lines leave the loop through the :class:`~supervisord.daemon.
+sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
+a record is pushed to subscribers once the sink says it is on disk. The user heartbeat, the
+outputs and the link are served only by this loop, so if it hangs, the heartbeat stops and
+the VSC's key-85 watchdog opens its relays (SR-5).
 """
 
 from __future__ import annotations
@@ -630,7 +630,7 @@ class Supervisor:
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
-        (outputs first, SR-6); the record follows on the sink's thread."""
+        (outputs first, SR-6); the record follows on the sink's record lane."""
         entry = record_json(record, self.wall_clock(), self.sequence_offset)
         if self._version_due:
             # The first record of a start (the startup stop) names the build that made it, so

@@ -228,10 +228,11 @@ class RecordWriter:
     Opening creates the file if needed (mode 0640; the directory must exist) and truncates a
     torn tail; ``repaired_bytes`` says how many bytes that removed. ``max_bytes`` bounds each
     file (a single record larger than that gets a file of its own); ``keep`` rotated files are
-    kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``.
-    Raises :class:`RecordError` if the file cannot be opened.
+    kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``,
+    and as much again for the stop transitions kept apart (``keep_transitions``, SR-7.8).
+    Raises :class:`RecordError` if the file cannot be opened or is not a regular file.
 
-    One writer per path, used by one thread at a time: in the daemon, the record sink's
+    One writer per path, used by one thread at a time: in the daemon, the sink's record lane
     thread (``supervisord/daemon/sink.py``) is the only writer.
     """
 

@@ -123,3 +123,88 @@ def test_log_lines_go_through_the_thread_and_the_handlers_come_back(tmp_path: Pa
     assert seen == [("srcsd-log", "value [1]")]
     assert logger.handlers == [handler]
     logger.removeHandler(handler)
+
+
+def test_a_hung_journal_holds_no_record_and_close_does_not_wait_for_it(tmp_path: Path) -> None:
+    """SR-7.5, SR-7.7: the journal never answers. Every record is still written and
+    acknowledged (the journal copy has a lane of its own); close() returns although the
+    journal still hangs (a deadline, not a join), and the copies it never sent are counted
+    in ``journal_dropped``."""
+    hung = threading.Event()
+    writer = RecordWriter(tmp_path / "stops.jsonl")
+    sink = Sink(writer, lambda entry: hung.wait(), journal_capacity=4)
+    sink.start()
+    try:
+        for seq in range(1, 21):
+            assert sink.record(make_record(seq))
+        taken = _wait_written(sink, 20)
+        assert all(w.acknowledged for w in taken)
+        assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 21))
+        sink.drain_records()
+        sink.close(timeout_s=0.0)
+        assert (
+            sink.status()["journal_dropped"] >= 20 - 4 - 1
+        )  # all but the queued and the one in hand
+    finally:
+        hung.set()
+        sink.close()
+        writer.close()
+
+
+def test_a_stuck_log_handler_holds_no_record(tmp_path: Path) -> None:
+    """SR-7.5, SR-7.7: a log handler that never returns (a stderr nobody reads): records are
+    still written, log lines past the lane's queue are counted in ``log_lines_dropped``, and
+    close() returns without giving the logger its stuck handler back (the next line logged
+    would hang the thread that logs it)."""
+    stuck = threading.Event()
+
+    class Stuck(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            stuck.wait()
+
+    logger = logging.getLogger("test-sink-stuck")
+    logger.propagate = False
+    handler = Stuck()
+    logger.addHandler(handler)
+    writer = RecordWriter(tmp_path / "stops.jsonl")
+    sink = Sink(writer, log_capacity=8)
+    sink.start()
+    sink.capture_logging(logger)
+    try:
+        for n in range(50):
+            logger.warning("line %d", n)
+        for seq in range(1, 11):
+            assert sink.record(make_record(seq))
+        assert all(w.acknowledged for w in _wait_written(sink, 10))
+        assert sink.status()["log_lines_dropped"] >= 50 - 8 - 1
+        sink.close(timeout_s=0.0)
+        assert handler not in logger.handlers
+    finally:
+        stuck.set()
+        sink.close()
+        writer.close()
+        for extra in list(logger.handlers):
+            logger.removeHandler(extra)
+
+
+def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(tmp_path: Path) -> None:
+    """SR-7.7: at exit the disk does not answer. drain_records() returns at its deadline
+    (False: not everything was written); the records it could not write come back as not
+    written (dropped, with the reason), in order; the one in the hung write is neither."""
+    writer = _GatedWriter(tmp_path / "stops.jsonl")
+    sink = Sink(writer)
+    sink.start()
+    try:
+        for seq in range(1, 6):
+            assert sink.record(make_record(seq))
+        assert not sink.drain_records(timeout_s=0.0)
+        lost = sink.take_written()
+        assert [w.entry["seq"] for w in lost] == list(range(2, 6)) or [
+            w.entry["seq"] for w in lost
+        ] == list(range(1, 6))
+        assert all(w.dropped and "exit" in (w.error or "") for w in lost)
+        assert not sink.record(make_record(6))  # nothing is taken after the drain
+    finally:
+        writer.gate.set()
+        sink.close()
+        writer.close()

@@ -306,7 +306,7 @@ def test_a_slow_disk_delays_records_never_the_stop_and_loses_none(tmp_path: Path
 # ----------------------------------------------------------------------------- the file itself
 
 
-@pytest.mark.parametrize("how", ["removed", "replaced"])
+@pytest.mark.parametrize("how", ["removed", "replaced"], ids=["removed", "replaced"])
 def test_a_record_file_removed_or_replaced_is_opened_again(tmp_path: Path, how: str) -> None:
     """SR-7.9: a cleanup job removes the record file, or a log rotation renames it and
     creates an empty one, while the robot runs. The next stop's record is in the file at the
