@@ -48,6 +48,8 @@ RECORD_CAPACITY: Final = 4096
 record budget allows on a disk that takes 10 ms per fsync)."""
 JOURNAL_CAPACITY: Final = 1024
 """Journal copies waiting at most; past it copies are dropped (counted), never records."""
+RECORD_BATCH: Final = 256
+"""Records queued together go to the file with one write and one fsync, up to this many."""
 LOG_CAPACITY: Final = 1024
 """Log lines waiting at most; past it log lines are dropped (counted), never records."""
 RECORD_DRAIN_S: Final = 4.0
@@ -88,17 +90,19 @@ class Written:
 
 class Lane(Generic[T]):
     """A bounded queue and one daemon thread that serves its items in order with ``serve``
-    (which must not raise). :meth:`put` never waits; :meth:`finish` waits at most until a
-    deadline. The thread is a daemon thread: one stuck in a device (a pipe nobody reads) never
-    holds the process's exit."""
+    (which must not raise), up to ``batch`` of them at a time. :meth:`put` never waits;
+    :meth:`finish` waits at most until a deadline. The thread is a daemon thread: one stuck in
+    a device (a pipe nobody reads) never holds the process's exit."""
 
-    def __init__(self, name: str, capacity: int, serve: Callable[[T], None]) -> None:
-        self.capacity = capacity
+    def __init__(
+        self, name: str, capacity: int, serve: Callable[[list[T]], None], batch: int = 1
+    ) -> None:
+        self.capacity, self.batch = capacity, batch
         self.dropped = 0
         """Items refused (queue full, or closed) or left unserved at :meth:`finish`."""
         self._serve = serve
         self._items: collections.deque[T] = collections.deque()
-        self._busy = False  # an item is being served
+        self._busy = 0  # items being served
         self._closed = False
         self._cond = threading.Condition()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -155,13 +159,13 @@ class Lane(Generic[T]):
                     self._cond.wait()
                 if not self._items:
                     return  # finished, and everything is served
-                item = self._items.popleft()
-                self._busy = True
+                taken = [self._items.popleft() for _ in range(min(self.batch, len(self._items)))]
+                self._busy = len(taken)
             try:
-                self._serve(item)
+                self._serve(taken)
             finally:
                 with self._cond:
-                    self._busy = False
+                    self._busy = 0
                     self._cond.notify_all()
 
 
@@ -185,7 +189,9 @@ class Sink:
     ) -> None:
         self.writer, self.journal = writer, journal
         self.journal_errors = 0
-        self._records: Lane[Mapping[str, object]] = Lane("srcsd-record", capacity, self._write)
+        self._records: Lane[Mapping[str, object]] = Lane(
+            "srcsd-record", capacity, self._write, RECORD_BATCH
+        )
         self._journal: Lane[Mapping[str, object]] = Lane(
             "srcsd-journal", journal_capacity, self._send_journal
         )
@@ -300,45 +306,73 @@ class Sink:
 
     # -- the lanes -------------------------------------------------------------------------
 
-    def _write(self, entry: Mapping[str, object]) -> None:
-        written = Written(entry)
-        if self.writer is not None:
-            reopens = self.writer.reopens
-            try:
-                self.writer.append(entry)
-            except RecordError as error:
-                written = Written(entry, str(error), disk_full=error.disk_full)
-            except RecordUsageError as error:
-                written = Written(entry, str(error))
-            except Exception as error:  # the lane must outlive any failure: counted, not lost
-                written = Written(entry, f"{type(error).__name__}: {error}")
-            if self.writer.reopens != reopens:
-                # SR-7.9: said at error priority and counted (``record_reopens``).
-                log.error(
-                    "record file %s was %s: opened it again; the record with seq %s and those "
-                    "after it are in the new file",
-                    self.writer.path,
-                    self.writer.last_reopen,
-                    entry.get("seq"),
-                )
-        self._finished(written)
+    def _write(self, entries: list[Mapping[str, object]]) -> None:
+        """The records queued together: as many as fit go to the file with one fsync
+        (:meth:`RecordWriter.append_fitting`); after a failure, one alone, for its own
+        outcome (a full disk, a record the store cannot file)."""
+        while entries:
+            if self.writer is None:
+                done, outcomes = len(entries), [Written(entry) for entry in entries]
+            elif len(entries) == 1:
+                done, outcomes = 1, [self._write_one(entries[0])]
+            else:
+                reopens = self.writer.reopens
+                try:
+                    done = self.writer.append_fitting(entries)
+                    outcomes = [Written(entry) for entry in entries[:done]]
+                except Exception:
+                    done, outcomes = 1, [self._write_one(entries[0])]
+                self._said_reopened(reopens, entries[0])
+            for written in outcomes:
+                self._finished(written)
+            entries = entries[done:]
+
+    def _write_one(self, entry: Mapping[str, object]) -> Written:
+        assert self.writer is not None
+        reopens = self.writer.reopens
+        try:
+            self.writer.append(entry)
+            written = Written(entry)
+        except RecordError as error:
+            written = Written(entry, str(error), disk_full=error.disk_full)
+        except RecordUsageError as error:
+            written = Written(entry, str(error))
+        except Exception as error:  # the lane must outlive any failure: counted, not lost
+            written = Written(entry, f"{type(error).__name__}: {error}")
+        self._said_reopened(reopens, entry)
+        return written
+
+    def _said_reopened(self, before: int, entry: Mapping[str, object]) -> None:
+        """SR-7.9: a record file found removed or replaced is said at error priority (and
+        counted by the writer: ``record_reopens``)."""
+        assert self.writer is not None
+        if self.writer.reopens != before:
+            log.error(
+                "record file %s was %s: opened it again; the record with seq %s and those "
+                "after it are in the new file",
+                self.writer.path,
+                self.writer.last_reopen,
+                entry.get("seq"),
+            )
 
     def _finished(self, written: Written) -> None:
         self._written.append(written)
         with contextlib.suppress(OSError):  # full (the loop will read) or closed (exiting)
             self._wake_w.send(b"\0")
 
-    def _send_journal(self, entry: Mapping[str, object]) -> None:
+    def _send_journal(self, entries: list[Mapping[str, object]]) -> None:
         assert self.journal is not None
-        try:
-            self.journal(entry)
-        except Exception:  # the journal is a copy; the file is the record (docs/record.md)
-            self.journal_errors += 1
+        for entry in entries:
+            try:
+                self.journal(entry)
+            except Exception:  # the journal is a copy; the file is the record (docs/record.md)
+                self.journal_errors += 1
 
-    def _emit(self, record: logging.LogRecord) -> None:
-        for handler in self._handlers:
-            with contextlib.suppress(Exception):
-                _emit_unlocked(handler, record)
+    def _emit(self, lines: list[logging.LogRecord]) -> None:
+        for line in lines:
+            for handler in self._handlers:
+                with contextlib.suppress(Exception):
+                    _emit_unlocked(handler, line)
 
 
 def _emit_unlocked(handler: logging.Handler, record: logging.LogRecord) -> None:

@@ -5,10 +5,13 @@ leaves the loop")."""
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+
+import pytest
 
 from supervisord.daemon.sink import Sink, Written
 from supervisord.record.jsonl import RecordWriter
@@ -21,10 +24,12 @@ class _GatedWriter(RecordWriter):
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.gate = threading.Event()
+        self.entered = threading.Event()  # a write is waiting at the gate
 
-    def append(self, record: Mapping[str, object]) -> None:
+    def append_fitting(self, records: Sequence[Mapping[str, object]]) -> int:
+        self.entered.set()
         self.gate.wait(10)
-        super().append(record)
+        return super().append_fitting(records)
 
 
 def _wait_written(sink: Sink, count: int) -> list[Written]:
@@ -65,25 +70,28 @@ def test_a_full_queue_drops_at_once_and_never_waits(tmp_path: Path) -> None:
     sink = Sink(writer, capacity=3)
     sink.start()
     try:
-        for seq in range(1, 4):
+        assert sink.record(make_record(1))
+        assert writer.entered.wait(10)  # record 1 is in the hung write: 2 and 3 wait
+        for seq in range(2, 5):
             assert sink.record(make_record(seq))
         started = time.monotonic()
-        assert not sink.record(make_record(4))  # records 1-3 wait for the hung disk
+        assert not sink.record(make_record(5))  # records 2-4 wait behind the hung disk
         assert time.monotonic() - started < 0.05
         dropped = sink.take_written()
-        assert [(w.entry["seq"], w.dropped) for w in dropped] == [(4, True)]
+        assert [(w.entry["seq"], w.dropped) for w in dropped] == [(5, True)]
         writer.gate.set()
-        later = _wait_written(sink, 3)
+        later = _wait_written(sink, 4)
         assert [(w.entry["seq"], w.acknowledged) for w in later] == [
             (1, True),
             (2, True),
             (3, True),
+            (4, True),
         ]
     finally:
         writer.gate.set()
         sink.close()
         writer.close()
-    assert seqs_in(tmp_path / "stops.jsonl") == [1, 2, 3]
+    assert seqs_in(tmp_path / "stops.jsonl") == [1, 2, 3, 4]
 
 
 def test_close_drains_every_queued_record_and_joins_the_thread(tmp_path: Path) -> None:
@@ -189,22 +197,57 @@ def test_a_stuck_log_handler_holds_no_record(tmp_path: Path) -> None:
 
 def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(tmp_path: Path) -> None:
     """SR-7.7: at exit the disk does not answer. drain_records() returns at its deadline
-    (False: not everything was written); the records it could not write come back as not
-    written (dropped, with the reason), in order; the one in the hung write is neither."""
+    (False: not everything was written); the records queued behind the hung write come back
+    as not written (dropped, with the reason), in order; the one in the hung write is
+    neither (the disk may still take it)."""
     writer = _GatedWriter(tmp_path / "stops.jsonl")
     sink = Sink(writer)
     sink.start()
     try:
-        for seq in range(1, 6):
+        assert sink.record(make_record(1))
+        assert writer.entered.wait(10)  # record 1 is in the hung write
+        for seq in range(2, 6):
             assert sink.record(make_record(seq))
         assert not sink.drain_records(timeout_s=0.0)
         lost = sink.take_written()
-        assert [w.entry["seq"] for w in lost] == list(range(2, 6)) or [
-            w.entry["seq"] for w in lost
-        ] == list(range(1, 6))
+        assert [w.entry["seq"] for w in lost] == [2, 3, 4, 5]
         assert all(w.dropped and "exit" in (w.error or "") for w in lost)
         assert not sink.record(make_record(6))  # nothing is taken after the drain
     finally:
         writer.gate.set()
         sink.close()
         writer.close()
+
+
+def test_records_queued_together_share_one_fsync(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SR-7.7: records that queued up behind a slow write go to the file with one fsync,
+    not one each (at the exit's deadline, a queue on a slow disk is written in one go); each
+    is acknowledged, in order."""
+    writer = _GatedWriter(tmp_path / "stops.jsonl")
+    sink = Sink(writer)
+    sink.start()
+    try:
+        assert sink.record(make_record(1))
+        assert writer.entered.wait(10)
+        for seq in range(2, 102):
+            assert sink.record(make_record(seq))
+        synced: list[int] = []
+        real_fsync = os.fsync
+
+        def fsync(fd: int) -> None:
+            synced.append(fd)
+            real_fsync(fd)
+
+        monkeypatch.setattr(os, "fsync", fsync)
+        writer.gate.set()
+        taken = _wait_written(sink, 101)
+        assert [w.entry["seq"] for w in taken if w.acknowledged] == list(range(1, 102))
+        # record 1, then 2-101 together; each a stop, also in the transitions' file
+        assert len(synced) <= 2 * 2
+    finally:
+        writer.gate.set()
+        sink.close()
+        writer.close()
+    assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 102))
