@@ -323,7 +323,8 @@ def test_a_record_file_removed_or_replaced_is_opened_again(tmp_path: Path, how: 
         stop = robot.remote_estop()
         assert stop.record["seq"] > 1
         assert robot.counters()["record_reopens"] == 1
-        assert f"record file {path} was {how}" in robot.log()
+        said = f"record file {path} was {how}"
+        wait_until(lambda: said in robot.log(), what="the reopening logged")
 
 
 def _srcsd(folder: Path, *args: str) -> subprocess.CompletedProcess[str]:
