@@ -91,6 +91,7 @@ class RecordRobot(Robot):
         said += f"SIGTERM; systemd kills it at {limit:g} s and its queue is lost"
         assert code == 0, said
         assert took < limit, said
+        print(f"SIGTERM to exit: {took:.2f} s (the unit allows {limit:g} s)")
         return took
 
 
