@@ -203,6 +203,7 @@ class Sink:
         self._handlers: list[logging.Handler] = []
         self._logger: logging.Logger | None = None
         self._closed = False
+        self._records_drained = False
 
     # -- the loop's side -------------------------------------------------------------------
 
@@ -272,12 +273,15 @@ class Sink:
     def drain_records(self, timeout_s: float = RECORD_DRAIN_S) -> bool:
         """At exit, first: wait until the record file has taken every queued record, at most
         ``timeout_s``. Records still queued then come back as not written (``dropped``);
-        ``True`` when every record was finished. Idempotent."""
-        left = self._records.finish(time.monotonic() + timeout_s)
-        for entry in left:
-            reason = f"the record file took no record within {timeout_s:g} s of the exit"
-            self._finished(Written(entry, reason, dropped=True))
-        return not left and self._records.idle
+        ``True`` when every record was finished. Idempotent: the records get their time once
+        (a second call, from :meth:`close`, does not wait again for a disk that hangs)."""
+        if not self._records_drained:
+            self._records_drained = True
+            left = self._records.finish(time.monotonic() + timeout_s)
+            for entry in left:
+                reason = f"the record file did not take it within {timeout_s:g} s of the exit"
+                self._finished(Written(entry, reason, dropped=True))
+        return self._records.idle
 
     def close(self, timeout_s: float = SIDE_DRAIN_S) -> None:
         """At exit, after :meth:`drain_records` (called here if it was not): journal copies
