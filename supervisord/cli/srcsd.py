@@ -66,8 +66,9 @@ def setup_logging(verbose: bool, stream: TextIO = sys.stderr) -> logging.Handler
     """Log lines to ``stream``: with their syslog priority prefix when it is the journal
     (issue 13: `journalctl -p warning` must see the daemon's warnings), else as
     ``srcsd: LEVEL: message`` for a person at a terminal. The prefixes need nothing but
-    stderr: no journal library, no compiler on the robot. The sink thread
-    (``daemon/sink.py``) later re-emits every line on this same handler, formatter and all."""
+    stderr: no journal library, no compiler on the robot. The sink's log lane
+    (``daemon/sink.py``) later writes every line with this handler's formatter to its stream's
+    descriptor (SR-7.7)."""
     handler = logging.StreamHandler(stream)
     if stderr_is_journal(stream):
         handler.setFormatter(JournalPrefixFormatter("%(message)s"))

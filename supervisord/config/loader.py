@@ -74,7 +74,7 @@ from supervisord.config.schema import (
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
-from supervisord.record.jsonl import rotated
+from supervisord.record.jsonl import not_a_regular_file, record_paths
 from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
 from supervisord.safety.prooftest import ProofTestPolicy
 
@@ -416,13 +416,26 @@ class _Loader:
     # [record], [api] ----------------------------------------------------------------------
 
     def record(self, fields: strict.Fields) -> RecordConfig:
-        path, max_bytes, keep, journal = RECORD
-        return RecordConfig(
-            path=self.path(fields, path),
+        path_key, max_bytes, keep, journal = RECORD
+        config = RecordConfig(
+            path=self.path(fields, path_key),
             max_bytes=fields.whole(max_bytes),
             keep=fields.whole(keep),
             journal=fields.flag(journal),
         )
+        # The record and its rotated files are regular files or nothing yet (SR-7.9): a FIFO
+        # there would hang the start (its last record is read), a symlink would be rotated
+        # away, a device written to. Looked at, never opened.
+        for file, part in record_paths(config.path, config.keep):
+            kind = not_a_regular_file(file)
+            if kind is not None:
+                name = f"its {part} {file}" if part else "it"
+                raise fields.refuse(
+                    path_key.name,
+                    str(config.path),
+                    f"{name} is {kind}, not a regular file: remove it, or name another path",
+                )
+        return config
 
     def group(self, fields: strict.Fields, key: strict.Key) -> str | None:
         group = fields.read(key)
@@ -504,10 +517,9 @@ def _path_claims(
             for claim in spec.claims()
             if claim.path is not None
         ]
-    claims.append(("record.path", str(record.path), record.path, ""))
     claims += [
-        ("record.path", str(record.path), rotated(record.path, n), f"rotated file {n}")
-        for n in range(1, record.keep + 1)
+        ("record.path", str(record.path), file, part)
+        for file, part in record_paths(record.path, record.keep)
     ]
     claims.append(("api.socket", str(api.socket), api.socket, ""))
     return claims

@@ -9,11 +9,11 @@ bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when t
 more to read or a deadline has come), so no client can push the VSC's next frame or the user
 heartbeat back (issue 11, ``docs/safety.md`` "The stop path first").
 
-Records, journal entries and log lines leave the loop through one :class:`~supervisord.daemon.
-sink.Sink` that it never waits for (its one thread writes and fsyncs); a record is pushed to
-subscribers once the sink says it is on disk. The user heartbeat, the outputs and the link are
-served only by this loop, so if it hangs, the heartbeat stops and the VSC's key-85 watchdog
-opens its relays (SR-5).
+Records, journal entries and log lines leave the loop through the :class:`~supervisord.daemon.
+sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
+a record is pushed to subscribers once the sink says it is on disk. The user heartbeat, the
+outputs and the link are served only by this loop, so if it hangs, the heartbeat stops and
+the VSC's key-85 watchdog opens its relays (SR-5).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from supervisord.api.views import histograms_json
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
 from supervisord.daemon.notify import Notifier
-from supervisord.daemon.sink import Sink, Written
+from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
@@ -230,8 +230,8 @@ class Supervisor:
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,
             "records_dropped": counters.records_dropped,
-            "records_pending": self.sink.pending if self.sink is not None else 0,
-            "journal_errors": self.sink.journal_errors if self.sink is not None else 0,
+            # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens
+            **(self.sink.status() if self.sink is not None else IDLE_STATUS),
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
             "histograms": histograms_json(self.timings.histograms()),
@@ -285,7 +285,8 @@ class Supervisor:
 
     def shutdown(self) -> None:
         """All outputs off, then release the link; drain the record (every queued record
-        written and fsynced, and pushed to subscribers), then the socket (SIGTERM path)."""
+        written and fsynced, and pushed to subscribers, within the sink's deadline), then the
+        socket (SIGTERM path)."""
         self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
         now = self.clock()
         for output in self.outputs.values():
@@ -298,12 +299,15 @@ class Supervisor:
             with contextlib.suppress(Exception):
                 release()
         if self.sink is not None:
-            self.sink.close()
+            # The records first, with a deadline well inside the unit's stop timeout, then
+            # pushed; then journal copies and log lines, best effort (SR-7.7).
+            self.sink.drain_records()
             with contextlib.suppress(Exception):
                 self._take_written()
-        self.listener.close()
-        if self.writer is not None:
+            self.sink.close()  # closes the writer, unless a write is stuck in the disk
+        elif self.writer is not None:
             self.writer.close()
+        self.listener.close()
         self._selector.close()
         self._wake_r.close()
         self._wake_w.close()
@@ -641,7 +645,7 @@ class Supervisor:
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
-        (outputs first, SR-6); the record follows on the sink's thread."""
+        (outputs first, SR-6); the record follows on the sink's record lane."""
         entry = record_json(record, self.wall_clock(), self.sequence_offset)
         if self._version_due:
             # The first record of a start (the startup stop) names the build that made it, so

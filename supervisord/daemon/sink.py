@@ -1,20 +1,31 @@
-"""The one way slow work leaves the loop: the stop record (with its fsync), the journal and
-log lines (issue 11, ``docs/record.md`` "How a record leaves the loop").
+"""The ways slow work leaves the loop: the stop record (with its fsync), the journal copy of
+each record, and log lines, each on a lane of its own (SR-7.5, SR-7.7; ``docs/record.md`` "How
+a record leaves the loop").
 
-The loop hands work to :class:`Sink` and never waits for it: :meth:`Sink.record` and the log
-handler put an item on a bounded queue and return at once. One owned, named thread
-(``srcsd-sink``) takes the items in order: for a record, it appends it to the JSON Lines file
-(write and fsync: the record is acknowledged only then), then sends it to the journal; for a
-log line, it hands it to the handlers the process had. Each record's outcome comes back to
-the loop as a :class:`Written` through :meth:`Sink.take_written`, in the order the records
-were given, and a byte on :meth:`Sink.fileno` wakes the loop for it; only then does the loop
-push the record to the API's subscribers, so a pushed record is an acknowledged one
-(SR-7, the power-cut scenario of ``docs/system-tier.md``).
+The loop hands work to :class:`Sink` and never waits for it: every hand-over puts an item on a
+bounded queue and returns at once. Each kind of work has a :class:`Lane`, a queue and one owned
+thread that serves it in order:
 
-A full queue never blocks the loop: the record is not written, and comes back at once as a
-:class:`Written` with ``dropped`` set (counted in ``status`` as ``record_errors`` and
-``records_dropped``). :meth:`Sink.close` drains every queued item and joins the thread (the
-SIGTERM path).
+- ``srcsd-record``: the JSON Lines file (write and fsync: a record is acknowledged only then);
+- ``srcsd-journal``: the journal copy of each record (a stuck journald costs up to 2 s each);
+- ``srcsd-log``: log lines, written to the descriptors of the handlers the process had.
+
+No lane waits for another, so a journald or a stderr that nobody reads costs journal copies
+and log lines, counted (``journal_dropped``, ``log_lines_dropped`` in ``status``), never a
+record. Each record's outcome comes back to the loop as a :class:`Written` through
+:meth:`Sink.take_written`, in the order the records were given, and a byte on
+:meth:`Sink.fileno` wakes the loop for it; only then does the loop push the record to the
+API's subscribers, so a pushed record is an acknowledged one (SR-7.4).
+
+A full queue never blocks the loop: a record that does not fit comes back at once as a
+:class:`Written` with ``dropped`` set (``record_errors``, ``records_dropped``).
+
+Shutdown has a deadline well inside the unit's stop timeout (``TimeoutStopSec=10``):
+:meth:`Sink.drain_records` first gives the record file up to :data:`RECORD_DRAIN_S` to take
+every queued record, then :meth:`Sink.close` gives the journal copies and log lines what is
+left of :data:`SIDE_DRAIN_S`, best effort. What is still queued then is counted, not waited
+for: a daemon that systemd has to kill loses everything, a deadline loses only what a stuck
+device would never have taken.
 """
 
 from __future__ import annotations
@@ -22,21 +33,44 @@ from __future__ import annotations
 import collections
 import contextlib
 import logging
+import os
 import socket
 import threading
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Final
+from typing import Final, Generic, TypeVar
 
 from supervisord.record.jsonl import RecordError, RecordUsageError, RecordWriter
 
 RECORD_CAPACITY: Final = 4096
 """Records waiting for the disk at most (about a minute of the worst client traffic the
 record budget allows on a disk that takes 10 ms per fsync)."""
+JOURNAL_CAPACITY: Final = 1024
+"""Journal copies waiting at most; past it copies are dropped (counted), never records."""
+RECORD_BATCH: Final = 256
+"""Records queued together go to the file with one write and one fsync, up to this many."""
 LOG_CAPACITY: Final = 1024
-"""Log lines waiting at most; past it log lines are dropped (counted) before any record."""
+"""Log lines waiting at most; past it log lines are dropped (counted), never records."""
+RECORD_DRAIN_S: Final = 4.0
+"""At exit, how long the record file may take to write what is queued (SR-7.7)."""
+SIDE_DRAIN_S: Final = 1.0
+"""At exit, after the records, how long journal copies and log lines may take together. With
+:data:`RECORD_DRAIN_S`, 5 s: half the unit's ``TimeoutStopSec=10`` (units/srcsd@.service)."""
+
+IDLE_STATUS: Final[Mapping[str, int]] = {
+    "records_pending": 0,
+    "journal_errors": 0,
+    "journal_dropped": 0,
+    "log_lines_dropped": 0,
+    "record_reopens": 0,
+}
+"""What :meth:`Sink.status` says before the sink exists."""
 
 JournalWrite = Callable[[Mapping[str, object]], object]
+
+log = logging.getLogger("srcsd")
+T = TypeVar("T")
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,12 +88,94 @@ class Written:
         return self.error is None and not self.dropped
 
 
+class Lane(Generic[T]):
+    """A bounded queue and one daemon thread that serves its items in order with ``serve``
+    (which must not raise), up to ``batch`` of them at a time. :meth:`put` never waits;
+    :meth:`finish` waits at most until a deadline. The thread is a daemon thread: one stuck in
+    a device (a pipe nobody reads) never holds the process's exit."""
+
+    def __init__(
+        self, name: str, capacity: int, serve: Callable[[list[T]], None], batch: int = 1
+    ) -> None:
+        self.capacity, self.batch = capacity, batch
+        self.dropped = 0
+        """Items refused (queue full, or closed) or left unserved at :meth:`finish`."""
+        self._serve = serve
+        self._items: collections.deque[T] = collections.deque()
+        self._busy = 0  # items being served
+        self._closed = False
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def put(self, item: T) -> bool:
+        """Queue ``item``; ``False`` (counted in :attr:`dropped`) when full or finished."""
+        with self._cond:
+            if self._closed or len(self._items) >= self.capacity:
+                self.dropped += 1
+                return False
+            self._items.append(item)
+            self._cond.notify_all()
+        return True
+
+    @property
+    def pending(self) -> int:
+        """Items queued or being served."""
+        with self._cond:
+            return len(self._items) + self._busy
+
+    @property
+    def idle(self) -> bool:
+        """Nothing queued, nothing being served."""
+        return self.pending == 0
+
+    def finish(self, deadline: float) -> list[T]:
+        """Take no more items, and wait until every queued item is served or the monotonic
+        ``deadline`` (seconds) has passed. Returns the items left unserved, which are taken
+        out of the queue (never served later) and counted in :attr:`dropped`."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+            while (self._items or self._busy) and self._thread.is_alive():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._cond.wait(remaining)
+            left = list(self._items)
+            self._items.clear()
+            self.dropped += len(left)
+            self._cond.notify_all()
+            ending = self._thread.is_alive() and not self._busy
+        if ending:  # nothing left: the thread ends at once
+            self._thread.join(max(0.0, deadline - time.monotonic()))
+        return left
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._items and not self._closed:
+                    self._cond.wait()
+                if not self._items:
+                    return  # finished, and everything is served
+                taken = [self._items.popleft() for _ in range(min(self.batch, len(self._items)))]
+                self._busy = len(taken)
+            try:
+                self._serve(taken)
+            finally:
+                with self._cond:
+                    self._busy = 0
+                    self._cond.notify_all()
+
+
 class Sink:
-    """The bounded queue and its writer thread (see the module docstring).
+    """The record, journal and log lanes (see the module docstring).
 
     ``writer``: the record file (``None``: no file, records are acknowledged as they come);
     ``journal``: a callable sending one record to the journal (its failures are counted in
-    ``journal_errors``, never raised). Construct, then :meth:`start`; :meth:`close` once.
+    ``journal_errors``, never raised). Construct, then :meth:`start`; at the end
+    :meth:`drain_records`, then :meth:`close`.
     """
 
     def __init__(
@@ -68,53 +184,51 @@ class Sink:
         journal: JournalWrite | None = None,
         *,
         capacity: int = RECORD_CAPACITY,
+        journal_capacity: int = JOURNAL_CAPACITY,
         log_capacity: int = LOG_CAPACITY,
     ) -> None:
         self.writer, self.journal = writer, journal
-        self.capacity, self.log_capacity = capacity, log_capacity
         self.journal_errors = 0
-        self.logs_dropped = 0
-        self._items: collections.deque[tuple[str, object]] = collections.deque()
-        self._records_queued = 0
-        self._logs_queued = 0
+        self._records: Lane[Mapping[str, object]] = Lane(
+            "srcsd-record", capacity, self._write, RECORD_BATCH
+        )
+        self._journal: Lane[Mapping[str, object]] = Lane(
+            "srcsd-journal", journal_capacity, self._send_journal
+        )
+        self._logs: Lane[logging.LogRecord] = Lane("srcsd-log", log_capacity, self._emit)
         self._written: collections.deque[Written] = collections.deque()
-        self._cond = threading.Condition()
-        self._closing = False
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
-        self._thread = threading.Thread(target=self._run, name="srcsd-sink")
         self._handlers: list[logging.Handler] = []
         self._logger: logging.Logger | None = None
+        self._closed = False
+        self._records_drained = False
 
     # -- the loop's side -------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start the writer thread."""
-        self._thread.start()
+        """Start the lanes' threads."""
+        self._records.start()
+        if self.journal is not None:
+            self._journal.start()
+        self._logs.start()
 
     def record(self, entry: Mapping[str, object]) -> bool:
-        """Queue one record; never waits. ``False``: the queue was full, the record is not
-        written, and its :class:`Written` (``dropped``) is ready at once."""
-        with self._cond:
-            if self._closing or self._records_queued >= self.capacity:
-                self._written.append(Written(entry, "the record queue is full", dropped=True))
-                self._wake()
-                return False
-            self._items.append(("record", entry))
-            self._records_queued += 1
-            self._cond.notify()
-        return True
+        """Queue one record for the file and its copy for the journal; never waits.
+        ``False``: the record queue was full, the record is not written, and its
+        :class:`Written` (``dropped``) is ready at once (its journal copy is still sent)."""
+        if self.journal is not None:
+            self._journal.put(entry)  # a full journal lane counts the copy, nothing more
+        if self._records.put(entry):
+            return True
+        self._finished(Written(entry, "the record queue is full", dropped=True))
+        return False
 
     def log(self, record: logging.LogRecord) -> None:
-        """Queue one log line for the handlers captured by :meth:`capture_logging`."""
-        with self._cond:
-            if self._closing or self._logs_queued >= self.log_capacity:
-                self.logs_dropped += 1
-                return
-            self._items.append(("log", record))
-            self._logs_queued += 1
-            self._cond.notify()
+        """Queue one log line for the handlers captured by :meth:`capture_logging` (any
+        thread); a full queue drops it, counted in ``log_lines_dropped``."""
+        self._logs.put(record)
 
     def take_written(self) -> list[Written]:
         """The outcomes of the records finished since the last call, in order."""
@@ -133,88 +247,170 @@ class Sink:
     @property
     def pending(self) -> int:
         """Records queued and not yet finished."""
-        return self._records_queued
+        return self._records.pending
+
+    def status(self) -> dict[str, int]:
+        """The counters ``status`` shows (docs/api.md)."""
+        return {
+            "records_pending": self.pending,
+            "journal_errors": self.journal_errors,
+            "journal_dropped": self._journal.dropped,
+            "log_lines_dropped": self._logs.dropped,
+            "record_reopens": self.writer.reopens if self.writer is not None else 0,
+        }
 
     def capture_logging(self, logger: logging.Logger) -> None:
         """Route ``logger``'s lines (the root logger: every line of the process) through the
-        queue: its handlers are replaced by one that queues, and run on the thread."""
+        log lane: its handlers are replaced by one that queues, and run on the lane."""
         self._logger = logger
         self._handlers = list(logger.handlers)
         for handler in self._handlers:
+            with contextlib.suppress(Exception):
+                handler.flush()  # what they hold goes out before the lane writes past them
             logger.removeHandler(handler)
         logger.addHandler(_QueueHandler(self))
 
-    def close(self) -> None:
-        """Finish every queued item, join the thread, give the logger its handlers back.
-        Idempotent. The outcomes of the last records stay available to take_written."""
-        with self._cond:
-            if self._closing and not self._thread.is_alive():
-                return
-            self._closing = True
-            self._cond.notify()
-        if self._thread.is_alive():
-            self._thread.join()
-        if self._logger is not None:
+    def drain_records(self, timeout_s: float = RECORD_DRAIN_S) -> bool:
+        """At exit, first: wait until the record file has taken every queued record, at most
+        ``timeout_s``. Records still queued then come back as not written (``dropped``);
+        ``True`` when every record was finished. Idempotent: the records get their time once
+        (a second call, from :meth:`close`, does not wait again for a disk that hangs)."""
+        if not self._records_drained:
+            self._records_drained = True
+            left = self._records.finish(time.monotonic() + timeout_s)
+            for entry in left:
+                reason = f"the record file did not take it within {timeout_s:g} s of the exit"
+                self._finished(Written(entry, reason, dropped=True))
+        return self._records.idle
+
+    def close(self, timeout_s: float = SIDE_DRAIN_S) -> None:
+        """At exit, after :meth:`drain_records` (called here if it was not): journal copies
+        and log lines get ``timeout_s`` together, best effort; what is left is counted. The
+        logger gets its handlers back only when every line was written (else a stuck stderr
+        would hold the exit of the thread that logs next); the writer is closed only when no
+        write is in progress. Idempotent. The last outcomes stay available to take_written."""
+        if self._closed:
+            return
+        self._closed = True
+        self.drain_records()
+        deadline = time.monotonic() + timeout_s
+        self._journal.finish(deadline)
+        self._logs.finish(deadline)
+        if self._logger is not None and self._logs.idle:
             for handler in list(self._logger.handlers):
                 if isinstance(handler, _QueueHandler):
                     self._logger.removeHandler(handler)
             for handler in self._handlers:
                 self._logger.addHandler(handler)
             self._logger = None
+        if self.writer is not None and self._records.idle:
+            self.writer.close()
         self._wake_r.close()
         self._wake_w.close()
 
-    # -- the thread ------------------------------------------------------------------------
+    # -- the lanes -------------------------------------------------------------------------
 
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                while not self._items and not self._closing:
-                    self._cond.wait()
-                if not self._items:
-                    return  # closing, and everything is done
-                kind, item = self._items.popleft()
-            if kind == "record":
-                assert isinstance(item, Mapping)
-                written = self._write(item)
-                with self._cond:
-                    self._records_queued -= 1
-                    self._written.append(written)
-                self._wake()
+    def _write(self, entries: list[Mapping[str, object]]) -> None:
+        """The records queued together: as many as fit go to the file with one fsync
+        (:meth:`RecordWriter.append_fitting`); after a failure, one alone, for its own
+        outcome (a full disk, a record the store cannot file)."""
+        while entries:
+            if self.writer is None:
+                done, outcomes = len(entries), [Written(entry) for entry in entries]
+            elif len(entries) == 1:
+                done, outcomes = 1, [self._write_one(entries[0])]
             else:
-                assert isinstance(item, logging.LogRecord)
-                with self._cond:
-                    self._logs_queued -= 1
-                for handler in self._handlers:
-                    with contextlib.suppress(Exception):
-                        handler.handle(item)
+                reopens = self.writer.reopens
+                try:
+                    done = self.writer.append_fitting(entries)
+                    outcomes = [Written(entry) for entry in entries[:done]]
+                except Exception:
+                    done, outcomes = 1, [self._write_one(entries[0])]
+                self._said_reopened(reopens, entries[0])
+            for written in outcomes:
+                self._finished(written)
+            entries = entries[done:]
 
-    def _write(self, entry: Mapping[str, object]) -> Written:
-        written = Written(entry)
-        if self.writer is not None:
-            try:
-                self.writer.append(entry)
-            except RecordError as error:
-                written = Written(entry, str(error), disk_full=error.disk_full)
-            except RecordUsageError as error:
-                written = Written(entry, str(error))
-            except Exception as error:  # the thread must outlive any failure: counted, not lost
-                written = Written(entry, f"{type(error).__name__}: {error}")
-        if self.journal is not None:
+    def _write_one(self, entry: Mapping[str, object]) -> Written:
+        assert self.writer is not None
+        reopens = self.writer.reopens
+        try:
+            self.writer.append(entry)
+            written = Written(entry)
+        except RecordError as error:
+            written = Written(entry, str(error), disk_full=error.disk_full)
+        except RecordUsageError as error:
+            written = Written(entry, str(error))
+        except Exception as error:  # the lane must outlive any failure: counted, not lost
+            written = Written(entry, f"{type(error).__name__}: {error}")
+        self._said_reopened(reopens, entry)
+        return written
+
+    def _said_reopened(self, before: int, entry: Mapping[str, object]) -> None:
+        """SR-7.9: a record file found removed or replaced is said at error priority (and
+        counted by the writer: ``record_reopens``)."""
+        assert self.writer is not None
+        if self.writer.reopens != before:
+            log.error(
+                "record file %s was %s: opened it again; the record with seq %s and those "
+                "after it are in the new file",
+                self.writer.path,
+                self.writer.last_reopen,
+                entry.get("seq"),
+            )
+
+    def _finished(self, written: Written) -> None:
+        self._written.append(written)
+        with contextlib.suppress(OSError):  # full (the loop will read) or closed (exiting)
+            self._wake_w.send(b"\0")
+
+    def _send_journal(self, entries: list[Mapping[str, object]]) -> None:
+        assert self.journal is not None
+        for entry in entries:
             try:
                 self.journal(entry)
             except Exception:  # the journal is a copy; the file is the record (docs/record.md)
                 self.journal_errors += 1
-        return written
 
-    def _wake(self) -> None:
-        with contextlib.suppress(BlockingIOError, OSError):
-            self._wake_w.send(b"\0")
+    def _emit(self, lines: list[logging.LogRecord]) -> None:
+        for line in lines:
+            for handler in self._handlers:
+                with contextlib.suppress(Exception):
+                    _emit_unlocked(handler, line)
+
+
+def _emit_unlocked(handler: logging.Handler, record: logging.LogRecord) -> None:
+    """Hand one line to ``handler``. A handler that writes to a descriptor (stderr) gets the
+    line written there directly, holding none of its locks: a write that never returns (a
+    pipe nobody reads) must not hold what the exit takes (logging's shutdown takes every
+    handler's lock; the interpreter flushes ``sys.stderr``). Others get ``handle``."""
+    if record.levelno < handler.level or not handler.filter(record):
+        return
+    fd = _descriptor(handler)
+    if fd is None:
+        handler.handle(record)
+        return
+    assert isinstance(handler, logging.StreamHandler)
+    encoding = getattr(handler.stream, "encoding", None) or "utf-8"
+    data = (handler.format(record) + handler.terminator).encode(encoding, "backslashreplace")
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _descriptor(handler: logging.Handler) -> int | None:
+    if not isinstance(handler, logging.StreamHandler):
+        return None
+    try:
+        fd = handler.stream.fileno()
+    except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation is both
+        return None
+    return fd if isinstance(fd, int) else None
 
 
 class _QueueHandler(logging.Handler):
-    """Queues a log line for the sink's thread; the message is formatted here, in the loop,
-    so that later changes to its arguments cannot change it."""
+    """Queues a log line for the log lane; the message is formatted here, in the thread
+    that logs, so that later changes to its arguments cannot change it."""
 
     def __init__(self, sink: Sink) -> None:
         super().__init__()

@@ -150,8 +150,8 @@ characters (systemd.journal-fields(7))."""
 
 SEND_TIMEOUT_S: Final = 2.0
 """How long a write may wait for room in journald's queue. journald drains it in milliseconds;
-a journald that is stuck must not stall the sink thread, and with it every later record, for
-longer than this (SR-7.5): the entry is refused and counted, the file keeps the record."""
+a journald that is stuck must not stall the journal lane for longer than this per entry
+(SR-7.5): the entry is refused and counted; records have a lane of their own (SR-7.7)."""
 
 _SEALS: Final = fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL
 

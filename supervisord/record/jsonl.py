@@ -37,7 +37,8 @@ import errno as errno_codes
 import json
 import os
 import re
-from collections.abc import Callable, Iterator, Mapping
+import stat
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
@@ -73,6 +74,32 @@ class RecordError(SrcsError):
     def disk_full(self) -> bool:
         """True when the file system is out of space (or quota)."""
         return self.errno in (errno_codes.ENOSPC, errno_codes.EDQUOT)
+
+
+def _file_kind(mode: int) -> str | None:
+    """What a file of ``mode`` is, when it is not a regular file (``None`` when it is)."""
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+    )
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
+def not_a_regular_file(path: Path | str) -> str | None:
+    """What ``path`` is when something other than a regular file is there (a FIFO, a symbolic
+    link, a device...), else ``None`` (a regular file, or nothing). Never opens it: a FIFO or a
+    device must not be opened to find out (SR-7.9)."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    return _file_kind(mode)
 
 
 class RecordUsageError(SrcsError, ValueError):
@@ -137,6 +164,33 @@ def encode(record: Mapping[str, object]) -> bytes:
     return text.encode() + b"\n"  # json.dumps escapes newlines: one record, one line
 
 
+def transitions_path(path: Path | str) -> Path:
+    """Where the stop transitions of ``path`` are kept apart (``stops.jsonl.transitions``,
+    rotated as ``stops.jsonl.transitions.N``): a flood of other records cannot rotate them
+    away (SR-7.8, ``docs/record.md`` "Rotation")."""
+    path = Path(path)
+    return path.with_name(f"{path.name}.transitions")
+
+
+def record_paths(path: Path | str, keep: int) -> list[tuple[Path, str]]:
+    """Every file the record of ``path`` may use, each with what it is: the current file, its
+    rotated files, the stop transitions' file and its rotated files."""
+    path, stops = Path(path), transitions_path(path)
+    files = [(path, "")] + [(rotated(path, n), f"rotated file {n}") for n in range(1, keep + 1)]
+    files.append((stops, "stop transitions file"))
+    files += [(rotated(stops, n), f"stop transitions file {n}") for n in range(1, keep + 1)]
+    return files
+
+
+def is_stop_transition(record: Mapping[str, object]) -> bool:
+    """Whether ``record`` is a change of state into or out of STOPPED: a stop, or the re-arm
+    that ended one (SR-7.8). Their rate is bounded by the re-arm rules, not by clients."""
+    if record.get("kind", "state_change") != "state_change":
+        return False
+    before, after = (str(record.get(key, "")).upper() for key in ("from", "to"))
+    return before != after and "STOPPED" in (before, after)
+
+
 def rotated(path: Path, n: int) -> Path:
     """The ``n``-th rotated file of ``path`` (``n`` = 0 is ``path`` itself)."""
     return path if n == 0 else path.with_name(f"{path.name}.{n}")
@@ -177,15 +231,21 @@ class RecordWriter:
     Opening creates the file if needed (mode 0640; the directory must exist) and truncates a
     torn tail; ``repaired_bytes`` says how many bytes that removed. ``max_bytes`` bounds each
     file (a single record larger than that gets a file of its own); ``keep`` rotated files are
-    kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``.
-    Raises :class:`RecordError` if the file cannot be opened.
+    kept besides the current one, so the record takes at most about ``(keep + 1) * max_bytes``,
+    and as much again for the stop transitions kept apart (``keep_transitions``, SR-7.8).
+    Raises :class:`RecordError` if the file cannot be opened or is not a regular file.
 
-    One writer per path, used by one thread at a time: in the daemon, the record sink's
+    One writer per path, used by one thread at a time: in the daemon, the sink's record lane
     thread (``supervisord/daemon/sink.py``) is the only writer.
     """
 
     def __init__(
-        self, path: Path | str, max_bytes: int = DEFAULT_MAX_BYTES, keep: int = DEFAULT_KEEP
+        self,
+        path: Path | str,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+        keep: int = DEFAULT_KEEP,
+        *,
+        keep_transitions: bool = True,
     ) -> None:
         low, high = MAX_BYTES_RANGE
         if not low <= max_bytes <= high:
@@ -195,11 +255,25 @@ class RecordWriter:
         self.path = Path(path)
         self.max_bytes, self.keep = max_bytes, keep
         self.repaired_bytes = 0
+        self.reopens = 0
+        """How often the current file was found removed or replaced and opened again."""
+        self.last_reopen: str | None = None
+        """Why it was opened again the last time (``removed``, ``replaced``), for the log."""
         self._fd: int | None = None
+        self._identity = (0, 0)  # (st_dev, st_ino) of the open file
         self._size = 0  # bytes of acknowledged records in the current file
         self._dirty = False  # a failed write may have left bytes past _size
         self._closed = False
         self._guard("open", self._open_current)
+        self._transitions: RecordWriter | None = None
+        if keep_transitions:  # SR-7.8: a second series of the same size, for stops alone
+            try:
+                self._transitions = RecordWriter(
+                    transitions_path(self.path), max_bytes, keep, keep_transitions=False
+                )
+            except BaseException:
+                self.close()
+                raise
 
     # -- public ---------------------------------------------------------------------------
 
@@ -209,17 +283,33 @@ class RecordWriter:
         Raises :class:`RecordUsageError` (nothing written) for a record the store cannot file,
         :class:`RecordError` for an OS error (not acknowledged; the next append first cuts
         off whatever part of it reached the file)."""
+        self.append_fitting([record])
+
+    def append_fitting(self, records: Sequence[Mapping[str, object]]) -> int:
+        """Write the first of ``records`` and as many after it as fit in the current file,
+        with one write and one fsync for them all; return how many that is. Each is
+        acknowledged when this returns: a queue of records costs one fsync, not one each
+        (SR-7.7: at the exit's deadline, on a slow disk). Errors as :meth:`append`; then none
+        of them is acknowledged. ``records`` must not be empty."""
         if self._closed:
             raise RecordUsageError(f"record writer for {self.path} is closed")
-        line = encode(record)
-        self._guard("append to", lambda: self._append(line))
+        lines = [encode(record) for record in records]  # a bad record: nothing written
+        written: list[int] = []
+        self._guard("append to", lambda: written.append(self._append(lines)))
+        if self._transitions is not None:
+            stops = [record for record in records[: written[0]] if is_stop_transition(record)]
+            while stops:
+                stops = stops[self._transitions.append_fitting(stops) :]
+        return written[0]
 
     def close(self) -> None:
-        """Close the file. Every acknowledged record is already on disk. Idempotent."""
+        """Close the files. Every acknowledged record is already on disk. Idempotent."""
         self._closed = True
         fd, self._fd = self._fd, None
         if fd is not None:
             os.close(fd)
+        if self._transitions is not None:
+            self._transitions.close()
 
     @property
     def size(self) -> int:
@@ -241,11 +331,28 @@ class RecordWriter:
             self._dirty = True
             raise RecordError(self.path, action, e) from e
 
-    def _append(self, line: bytes) -> None:
+    def _append(self, lines: list[bytes]) -> int:
         if self._fd is None:
             self._open_current()
-        elif self._dirty:
-            self._cut_back()
+        else:
+            self._follow_path()
+            if self._dirty:
+                self._cut_back()
+        if self._size > 0 and self._size + len(lines[0]) > self.max_bytes:
+            self._rotate()
+        count, size = 1, self._size + len(lines[0])
+        while count < len(lines) and size + len(lines[count]) <= self.max_bytes:
+            size += len(lines[count])
+            count += 1
+        data = b"".join(lines[:count])
+        self._write(data)
+        if self._follow_path():
+            # Removed or replaced while we wrote: the lines are in a file no reader finds.
+            # Write them again into the file now at the path (SR-7.9).
+            self._write(data)
+        return count
+
+    def _write(self, line: bytes) -> None:
         if self._size > 0 and self._size + len(line) > self.max_bytes:
             self._rotate()
         fd = self._fd
@@ -257,10 +364,43 @@ class RecordWriter:
         os.fsync(fd)
         self._size += len(line)
 
-    def _open_current(self) -> None:
-        """Open (creating if needed) the current file and truncate a torn tail."""
-        fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o640)
+    def _follow_path(self) -> bool:
+        """If the file at ``path`` is no longer the one open (a cleanup job removed it, a
+        log rotation renamed it and created another), open the one at ``path`` (creating it)
+        and say so: ``True``. One ``lstat``, so cheap enough for every record (SR-7.9)."""
         try:
+            now = os.lstat(self.path)
+            reason = None if (now.st_dev, now.st_ino) == self._identity else "replaced"
+        except FileNotFoundError:
+            reason = "removed"
+        if reason is None:
+            return False
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)  # every acknowledged record in it is on disk already
+        self.reopens += 1
+        self.last_reopen = reason
+        self._open_current()
+        return True
+
+    def _open_current(self) -> None:
+        """Open (creating if needed) the current file and truncate a torn tail.
+
+        Only a regular file is taken: whatever else is at the path (a FIFO, whose read would
+        never return; a symlink; a device) is refused without being opened, and the open
+        itself neither blocks nor follows a link, in case one appears meanwhile (SR-7.9)."""
+        kind = not_a_regular_file(self.path)
+        if kind is not None:
+            raise OSError(errno_codes.EINVAL, f"{kind} is there, not a regular file")
+        flags = os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC
+        flags |= os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
+        fd = os.open(self.path, flags, 0o640)
+        try:
+            info = os.fstat(fd)
+            kind = _file_kind(info.st_mode)
+            if kind is not None:  # it changed between the look and the open
+                raise OSError(errno_codes.EINVAL, f"{kind} is there, not a regular file")
+            os.set_blocking(fd, True)
             # The file's name (new, or renamed by an interrupted rotation) must be durable
             # before any record goes into it; once per open, so cheap.
             fsync_dir(self.path.parent)
@@ -270,6 +410,7 @@ class RecordWriter:
             os.close(fd)
             raise
         self._fd, self._dirty = fd, False
+        self._identity = (info.st_dev, info.st_ino)
 
     @staticmethod
     def _truncate_torn_tail(fd: int) -> int:
@@ -332,6 +473,9 @@ class BadLineReason(StrEnum):
     """A line that is not a JSON object, not at the end of a file (damage)."""
     NOT_A_RECORD = "not_a_record"
     """A JSON object that lacks the fields the store needs."""
+    NOT_A_FILE = "not_a_file"
+    """Something other than a regular file (a FIFO, a device, a symlink) has a record file's
+    name; it is not opened (a FIFO would never answer). Reported as line 0 (SR-7.9)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -395,12 +539,26 @@ def _is_record(obj: object) -> bool:
 
 def scan_file(file: Path) -> Iterator[StoredRecord | BadLine]:
     """Every line of one record file, as a :class:`StoredRecord` or a :class:`BadLine`, unfiltered.
-    A file that does not exist (rotated away meanwhile) has no lines."""
+    A file that does not exist (rotated away meanwhile) has no lines; something other than a
+    regular file is one ``NOT_A_FILE`` bad line, never read (SR-7.9)."""
+    kind = not_a_regular_file(file)
+    if kind is not None:
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, kind)
+        return
+    flags = os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
     try:
-        handle = file.open("rb")
+        fd = os.open(file, flags)
     except FileNotFoundError:
         return  # rotated away while we listed: the next listing shows it under a new name
-    with handle:
+    except OSError as error:  # a symlink put there since the look (ELOOP)
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, str(error))
+        return
+    kind = _file_kind(os.fstat(fd).st_mode)
+    if kind is not None:  # replaced since the look
+        os.close(fd)
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, kind)
+        return
+    with os.fdopen(fd, "rb") as handle:
         lines = iter(handle)
         current = next(lines, None)
         number = 0
@@ -435,32 +593,63 @@ def read_records(
     until: dt.datetime | None = None,
     cause: str | None = None,
 ) -> Iterator[StoredRecord | BadLine]:
-    """The records of ``path`` and its rotated files, oldest first, with the bad lines met.
+    """The records of ``path`` and its rotated files, oldest first, with the bad lines met;
+    before them, the stop transitions older than the oldest of those files' records, from
+    the transitions' own files (SR-7.8: what rotation dropped, the stops stay).
 
     Only records with ``since <= utc < until`` (aware datetimes) and, when ``cause`` is given,
     a matching cause (:meth:`StoredRecord.matches_cause`) are yielded; bad lines are always yielded,
     so that the caller can report them. Safe to run while the writer appends or rotates: a
     file rotated away between listing and opening is skipped.
     """
-    for file in record_files(Path(path)):
-        for item in scan_file(file):
-            if isinstance(item, BadLine):
-                yield item
-                continue
-            if since is not None and item.utc < since:
-                continue
-            if until is not None and item.utc >= until:
-                continue
-            if cause is not None and not item.matches_cause(cause):
-                continue
+    files = record_files(Path(path))
+    oldest = _first_seq(files)
+    for item in _older_transitions(Path(path), oldest):
+        if isinstance(item, BadLine) or _wanted(item, since, until, cause):
             yield item
+    for file in files:
+        for item in scan_file(file):
+            if isinstance(item, BadLine) or _wanted(item, since, until, cause):
+                yield item
+
+
+def _wanted(
+    item: StoredRecord, since: dt.datetime | None, until: dt.datetime | None, cause: str | None
+) -> bool:
+    if since is not None and item.utc < since:
+        return False
+    if until is not None and item.utc >= until:
+        return False
+    return cause is None or item.matches_cause(cause)
+
+
+def _first_seq(files: list[Path]) -> int | None:
+    """The sequence number of the oldest record in ``files`` (oldest first)."""
+    for file in files:
+        for item in scan_file(file):
+            if isinstance(item, StoredRecord):
+                return item.seq
+    return None
+
+
+def _older_transitions(path: Path, oldest: int | None) -> Iterator[StoredRecord | BadLine]:
+    """The kept stop transitions of ``path`` from before ``oldest`` (all if ``None``)."""
+    for file in record_files(transitions_path(path)):
+        for item in scan_file(file):
+            if isinstance(item, BadLine) or oldest is None or item.seq < oldest:
+                yield item
 
 
 def last_record(path: Path | str) -> StoredRecord | None:
-    """The newest record of ``path`` (to continue its ``seq`` after a restart), or ``None``.
+    """The newest record of ``path`` or of its kept stop transitions (to continue its ``seq``
+    after a restart), or ``None``. Reads only the newest file of each that holds a record."""
+    found = [_last_in(record_files(p)) for p in (Path(path), transitions_path(path))]
+    records = [record for record in found if record is not None]
+    return max(records, key=lambda record: record.seq) if records else None
 
-    Reads only the newest file that holds a record."""
-    for file in reversed(record_files(Path(path))):
+
+def _last_in(files: list[Path]) -> StoredRecord | None:
+    for file in reversed(files):
         found = None
         for item in scan_file(file):
             if isinstance(item, StoredRecord):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import os
 import socket
 import struct
 import termios
@@ -30,6 +31,7 @@ from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
 from tests.daemon.peer import VscPeer
+from tests.record.conftest import full_disk
 
 START_OFFSET_NS = 10 * 3600 * 1_000_000_000
 """A manual clock starts this far from the real one: a part of the loop that read the real
@@ -519,12 +521,13 @@ def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_pat
     assert len(served) == 40
 
 
+@pytest.mark.skipif(os.geteuid() != 0, reason="mounting a tmpfs needs root")
 def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None:
     """SR-7.6, docs/record.md "A full disk": every record fails with ENOSPC (the
-    file is /dev/full). The loop counts each failure in ``record_errors`` and raises no
+    file is on a full tmpfs). The loop counts each failure in ``record_errors`` and raises no
     cause of its own for it; the stops the core decides still happen."""
     clock = ManualClock()
-    with PtyPort(tmp_path / "vsc") as port:
+    with full_disk(tmp_path / "full") as record, PtyPort(tmp_path / "vsc") as port:
         supervisor = Supervisor(
             SafetyConfig(rearm_hold_ms=100, outputs=(OutputSpec("drive", OutputRole.MOTION),)),
             SerialLink(str(port.path)),
@@ -533,7 +536,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
                     parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})
                 )
             ],
-            RecordWriter("/dev/full"),
+            RecordWriter(record),
             clock=clock,
         )
         peer = VscPeer(port, clock=clock.seconds)

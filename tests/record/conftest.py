@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
+import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 from supervisord.record import BadLine, StoredRecord, format_utc, read_records
@@ -51,3 +54,19 @@ def records_in(path: Path) -> list[StoredRecord]:
 def seqs_in(path: Path) -> list[int]:
     """The sequence numbers of ``path``'s records, oldest first."""
     return [r.seq for r in records_in(path)]
+
+
+@contextlib.contextmanager
+def full_disk(folder: Path) -> Iterator[Path]:
+    """A one-page tmpfs at ``folder``, filled to the last byte: every write to a new file
+    there fails with ENOSPC (a real full file system; the record refuses a device such as
+    /dev/full, SR-7.9). Yields the record's path there; unmounted on leaving. Needs root."""
+    folder.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4k", "srcs-full", str(folder)], check=True)
+    try:
+        with contextlib.suppress(OSError), (folder / "filler").open("wb", buffering=0) as filler:
+            while True:
+                filler.write(b"\0" * 512)
+        yield folder / "stops.jsonl"
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
