@@ -82,7 +82,6 @@ from supervisord.safety.prooftest import (
     Phase,
     ProofTest,
     ProofTestPolicy,
-    trip_late_ns,
 )
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 from supervisord.timebase import NS_PER_MS, NS_PER_S, next_due
@@ -192,7 +191,6 @@ class SafetyCore:
         self._proof = ProofTest(
             config.prooftest if self._serial else ProofTestPolicy.OFF,
             config.prooftest_clear_ns,
-            trip_late_ns(config.vsc_timeout_ns),
         )
         self._proof_outcome: Outcome | None = None  # finished in this step, for its record
         # Clients (SR-8).
