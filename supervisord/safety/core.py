@@ -105,6 +105,12 @@ what a VSC at its slowest documented rate sends in the dwell). A span is measure
 stamps, and a loop that was starved reads a heartbeat late, stretching the span; the number of
 heartbeats cannot be stretched (seen: a VSC flapping every 100 ms, Local at 0 and 50 ms, the
 50 ms one read at 210 ms, re-armed a starved supervisor)."""
+SETTLE_DWELL_NS = TAKEOVER_DWELL_NS
+"""docs/safety.md "Leaving a hold of the VSC's mode" (SR-3.3): after a non-Operational mode
+that was no operator's act (a glitch, a flap), the hold ends once the VSC has reported
+Operational in an unbroken run of heartbeats at least this far apart (and at least
+``TAKEOVER_MIN_HEARTBEATS``): the takeover's own evidence, in Operational. The same 200 ms also
+spaces the renames of the hold when the VSC flaps between two modes that are not Operational."""
 READ_TOGETHER_ALLOWANCE = 2
 """Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
 read in one loop turn share one time, so a late read makes a span look shorter."""
@@ -181,6 +187,11 @@ class SafetyCore:
         self._last_vsc_ns: int | None = None
         self._vsc_mode: int | None = None
         self._run: _Run | None = None  # the current non-Operational run (re-arm rule 4)
+        # The hold of the VSC's mode (SR-3.1, SR-3.3): the mode it names, since when it has
+        # named it, and the Operational run that may end it after a glitch or a flap.
+        self._held_mode: int | None = None
+        self._held_since = 0
+        self._settling: _Run | None = None
         self._quiet: tuple[RefusalReason, int] | None = None  # the last takeover refusal
         self._vsc_estop_word = 0
         self._remote_linked = False
@@ -280,6 +291,7 @@ class SafetyCore:
                     or now - last >= self._vsc_timeout_ns  # this one clears the timeout
                     or message.mode != self._vsc_mode
                     or message.estop != self._vsc_estop_word
+                    or self._settling is not None  # it may end the hold (SR-3.3)
                 ):
                     return None
             elif type(message) not in _INERT_TYPES:
@@ -558,21 +570,8 @@ class SafetyCore:
                 self._proof.restart()
             self._proof.heartbeat(message.mode, message.estop, now)
             self._vsc_estop_word = message.estop
-            previous_mode = self._vsc_mode
-            if message.mode == VscMode.OPERATIONAL:
-                if previous_mode is not None and previous_mode != VscMode.OPERATIONAL:
-                    # SR-4: the operator's takeover, not Operational followed by Operational;
-                    # whether the run before it is an operator's act is rule 4 (_check_rearm).
-                    request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
-                self._run = None
-            elif (
-                self._run is None
-                or previous_ns is None
-                or now - previous_ns >= self._vsc_timeout_ns
-            ):
-                self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
-            else:
-                self._run = self._run.then(now)
+            unbroken = previous_ns is not None and now - previous_ns < self._vsc_timeout_ns
+            request = self._on_mode(message.mode, now, unbroken)
             self._vsc_mode = message.mode
             linked = VscMode.parse(message.mode) in LINKED_MODES
             if linked and not self._remote_linked:
@@ -587,6 +586,57 @@ class SafetyCore:
                 self._display.edited_on_remote(message)
         return request
 
+    def _on_mode(self, mode: int, now: int, unbroken: bool) -> _RearmRequest | None:
+        """The mode of a VSC heartbeat at ``now`` (``unbroken``: less than ``vsc_timeout``
+        after the one before): the takeover run (SR-4.5) and the mode's hold (SR-3)."""
+        request = None
+        if mode == VscMode.OPERATIONAL:
+            previous = self._vsc_mode
+            if previous is not None and previous != VscMode.OPERATIONAL:
+                # SR-4: the operator's takeover, not Operational followed by Operational;
+                # whether the run before it is an operator's act is rule 4 (_check_rearm).
+                request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
+            self._settle(now, unbroken)
+            self._run = None
+        else:
+            self._hold_mode(mode, now)
+            if self._run is None or not unbroken:
+                self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
+            else:
+                self._run = self._run.then(now)
+        return request
+
+    def _hold_mode(self, mode: int, now: int) -> None:
+        """A heartbeat in ``mode``, not Operational: the hold names it (SR-3.1). A hold that
+        has named another mode for less than the dwell keeps that name, so a VSC flapping
+        between two such modes renames it at most once per 200 ms (SR-3.3)."""
+        self._settling = None
+        if self._held_mode is None or (
+            mode != self._held_mode and now - self._held_since >= SETTLE_DWELL_NS
+        ):
+            self._held_mode, self._held_since = mode, now
+
+    def _settle(self, now: int, unbroken: bool) -> None:
+        """An Operational heartbeat at ``now`` while the mode's hold may be on (SR-3.3): it
+        ends at once when the run before it was an operator's act (re-arm rule 4: a pause and
+        its end), else once Operational has been reported for the dwell, unbroken."""
+        if self._held_mode is None:
+            return
+        settling = self._settling
+        if settling is None:
+            run = self._run
+            if run is not None and self._act_refusal(run) is None:
+                self._held_mode = None  # the operator resumed: no wait
+                return
+            self._settling = _Run(now, now, 1)
+            return
+        self._settling = settling = settling.then(now) if unbroken else _Run(now, now, 1)
+        if (
+            settling.last_ns - settling.first_ns >= SETTLE_DWELL_NS
+            and settling.heartbeats >= TAKEOVER_MIN_HEARTBEATS
+        ):
+            self._held_mode = self._settling = None
+
     def _on_link_opened(self, event: LinkOpened, now: int) -> None:
         # SR-4: a reconnect of the VSC is a new start. Liveness starts over ("never seen since
         # link open" counts as lost, SR-2) and key 85 is read back again (SR-5).
@@ -596,6 +646,7 @@ class SafetyCore:
         self._last_vsc_ns = None
         self._vsc_mode = None
         self._run = None
+        self._held_mode = self._settling = None
         self._remote_linked = False
         self._key85 = None
         self._next_key85_ns = now if self._serial else None
@@ -609,6 +660,7 @@ class SafetyCore:
         self._last_vsc_ns = None
         self._vsc_mode = None
         self._run = None
+        self._held_mode = self._settling = None
         self._remote_linked = False
         self._next_key85_ns = None
         self._next_heartbeat_ns = None
@@ -817,7 +869,7 @@ class SafetyCore:
             {Cause(CauseKind.OUTPUT_FAULT, n): d for n, d in self._output_faults.items()},
             now,
         )
-        mode = self._vsc_mode
+        mode = self._held_mode
         book.sync(
             CauseKind.VSC_MODE,
             {}
@@ -942,6 +994,11 @@ class SafetyCore:
         if run is None or (last_stop is not None and run.last_ns < last_stop):
             # Rule 2 and 3: the non-Operational heartbeat must come after the last stop began.
             return RefusalReason.NEW_CAUSE_DURING_REARM, ""
+        return self._act_refusal(run)
+
+    def _act_refusal(self, run: _Run) -> tuple[RefusalReason, str] | None:
+        """Re-arming rule 4: why the non-Operational run before this Operational heartbeat
+        (``self._now``) is no operator's act, or ``None`` when it is one."""
         span = run.last_ns - run.first_ns
         if span < TAKEOVER_DWELL_NS:  # rule 4: two heartbeats at least the dwell apart
             beats = f"{run.heartbeats} heartbeat{'s' if run.heartbeats != 1 else ''}"
