@@ -36,7 +36,7 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.safety.book import CauseBook
-from supervisord.safety.budget import RecordBudget
+from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import NAME_PATTERN, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
@@ -134,9 +134,14 @@ def mode_name(mode: int) -> str:
     return known.name.lower() if known is not None else f"unknown_0x{mode:02x}"
 
 
-def _anonymous(connection: int) -> str:
-    # '#' cannot appear in a configured name (NAME_PATTERN), so this never clashes with one.
-    return f"#{connection}"
+@dataclass(slots=True)
+class _Unnamed:
+    """A request (e-stop or hold) made before hello, filed under its user (choice 11): the
+    connections that asked for it and have not released it. With none left it ends, unless
+    the user is past its record budget: then it ends once the budget allows (SR-8.5)."""
+
+    uid: Uid
+    holders: set[int]
 
 
 @dataclass(frozen=True, slots=True)
@@ -211,10 +216,14 @@ class SafetyCore:
         self._ever_connected: set[str] = set()
         self._client_estops: set[str] = set()
         self._client_holds: set[str] = set()
+        self._uid_of: dict[int, Uid] = {}  # connection -> the peer's uid (SR-8.5)
+        self._unnamed: dict[tuple[Request, str], _Unnamed] = {}  # requests before hello
+        self._limited = False  # the input's user is past its record budget (SR-8.5)
+        self._charged: tuple[Uid] | None = None  # whom the step's records are charged to
         self._local_estop: Caller | None = None
         self._output_faults: dict[str, Details] = {}
         self._display = DisplayStore()
-        self._budget = RecordBudget()  # records per client (docs/safety.md, issue 11)
+        self._budget = RecordBudget()  # records per user (SR-8.5)
         # Per-step scratch.
         self._frames: list[Message] = []
         self._refusals: list[Refusal] = []
@@ -275,6 +284,8 @@ class SafetyCore:
         """
         if type(event) not in _CHEAP_EVENTS or self._proof.phase not in _SETTLED_PROOF:
             return None  # a proof test pending or running moves with time and heartbeats
+        if self._pending_ends():
+            return None  # a deferred end moves with time (SR-8.5)
         previous = self.decision
         now = event.now if event.now > self._now else self._now
         beat_due = now >= previous.next_deadline
@@ -369,6 +380,7 @@ class SafetyCore:
         self._frames, self._refusals = [], []
         self._rearm = None
         self._note = None
+        self._charged, self._limited = None, False
         request: _RearmRequest | None = None
         if not is_event(event):
             self._refuse(RefusalReason.NOT_AN_EVENT, type(event).__name__, event)
@@ -384,10 +396,19 @@ class SafetyCore:
                 steady and now < self.decision.next_deadline and self._proof.phase in _SETTLED_PROOF
             ):
                 self._refresh(now)  # 1. time passes
-            if self._over_budget(event, now):  # 2. the event, unless its client is past budget
+            # 2. the event, unless its user is past its record budget and it would take a
+            # reason to stop away (SR-8.5)
+            # Whom to charge is read before the event is applied (a disconnection forgets
+            # its connection's uid).
+            self._charged = (self._uid(event),) if isinstance(event, _CLIENT_EVENTS) else None
+            self._limited = self._charged is not None and self._budget.exhausted(
+                self._charged[0], now
+            )
+            if self._limited and isinstance(event, _LIMITED_EVENTS):
                 self._refuse(RefusalReason.RATE_LIMITED, type(event).__name__, event)
             else:
                 request = self._apply(event, now)
+        self._end_unnamed_due(now)
         self._refresh(now)  # 3. conditions
         if request is not None:  # 4. re-arm (SR-4)
             refused = len(self._refusals)
@@ -435,8 +456,8 @@ class SafetyCore:
         if changes or previous is not self._state or self._note is not None:
             note, reason = self._note or (None, "")
             self._sequence += 1
-            if (client := self._client_key(event)) is not None:
-                self._budget.charge(client, now)
+            if self._charged is not None:
+                self._budget.charge(self._charged[0], now)
             carried = None if proof_apart is not None else proof
             records = (
                 Record(
@@ -530,7 +551,10 @@ class SafetyCore:
             self._client_beat_ns[name] = now
 
     def _on_local_estop(self, event: LocalEstop, now: int) -> None:
-        self._local_estop = event.caller
+        # Past the budget an active local e-stop keeps its caller: a new one would only
+        # change the record's words (SR-8.5); the stop stands either way.
+        if self._local_estop is None or not self._limited:
+            self._local_estop = event.caller
 
     def _on_local_release(self, event: LocalRelease, now: int) -> None:
         if self._local_estop is None:
@@ -684,6 +708,7 @@ class SafetyCore:
             self._refuse(RefusalReason.DUPLICATE_CONNECTION, str(event.connection), event)
             return
         self._connections[event.connection] = None
+        self._uid_of[event.connection] = event.uid
 
     def _on_hello(self, event: ClientHello, now: int) -> None:
         connection, name = event.connection, event.name
@@ -724,23 +749,65 @@ class SafetyCore:
             self._refuse(RefusalReason.NO_HELLO, str(connection), event)
         return name
 
-    def _subjects(self, connection: int) -> set[str]:
-        name = self._connections.get(connection)
-        return {_anonymous(connection)} if name is None else {name, _anonymous(connection)}
+    def _unnamed_name(self, connection: int) -> str:
+        """Where a request before hello is filed (choice 11): under the peer's uid, so that
+        no number of connections multiplies its records (SR-8.5); under the connection when
+        the uid is not known. '#' cannot appear in a configured name (NAME_PATTERN)."""
+        uid = self._uid_of.get(connection)
+        return f"#{connection}" if uid is None else f"#uid{uid}"
+
+    def _requests(self, kind: Request) -> set[str]:
+        return self._client_estops if kind is Request.ESTOP else self._client_holds
 
     def _on_request(self, event: ClientEstop | ClientHold, now: int) -> None:
         # An e-stop or hold is always honoured, even before hello: it can only add a reason
-        # to stop (SR-0). Before hello it is filed under "#<connection>".
-        name = self._connections.get(event.connection) or _anonymous(event.connection)
-        requests = self._client_estops if isinstance(event, ClientEstop) else self._client_holds
-        requests.add(name)
+        # to stop (SR-0). Before hello it is filed under the user ("#uid<UID>"), held by
+        # every connection of that user that asked for it.
+        connection = event.connection
+        kind = Request.ESTOP if isinstance(event, ClientEstop) else Request.HOLD
+        name = self._connections.get(connection)
+        if name is None:
+            name = self._unnamed_name(connection)
+            entry = self._unnamed.setdefault(
+                (kind, name), _Unnamed(self._uid_of.get(connection), set())
+            )
+            entry.holders.add(connection)
+        self._requests(kind).add(name)
 
     def _on_release(self, event: ClientRelease, now: int) -> None:
-        requests = self._client_estops if event.request is Request.ESTOP else self._client_holds
-        mine = self._subjects(event.connection) & requests
-        if not mine:
-            self._refuse(RefusalReason.NOTHING_TO_RELEASE, event.request.value, event)
-        requests.difference_update(mine)
+        connection, kind = event.connection, event.request
+        requests = self._requests(kind)
+        name = self._connections.get(connection)
+        released = name is not None and name in requests
+        if released:
+            requests.discard(name)
+        unnamed = self._unnamed_name(connection)
+        entry = self._unnamed.get((kind, unnamed))
+        if entry is not None and connection in entry.holders:
+            released = True
+            entry.holders.discard(connection)
+            if not entry.holders:
+                self._end_unnamed(kind, unnamed)
+        if not released:
+            self._refuse(RefusalReason.NOTHING_TO_RELEASE, kind.value, event)
+
+    def _end_unnamed(self, kind: Request, name: str) -> None:
+        del self._unnamed[(kind, name)]
+        self._requests(kind).discard(name)
+
+    def _pending_ends(self) -> list[tuple[Request, str]]:
+        """Requests before hello whose connections all closed while their user was past its
+        record budget: they end once it allows (SR-8.5)."""
+        return [key for key, entry in self._unnamed.items() if not entry.holders]
+
+    def _end_unnamed_due(self, now: int) -> None:
+        """End the deferred requests whose user is within its budget again, charging it the
+        record their end makes (SR-8.5)."""
+        for kind, name in self._pending_ends():
+            uid = self._unnamed[(kind, name)].uid
+            if not self._budget.exhausted(uid, now):
+                self._end_unnamed(kind, name)
+                self._budget.charge(uid, now)
 
     def _on_disconnected(self, event: ClientDisconnected, now: int) -> None:
         connection = event.connection
@@ -748,10 +815,15 @@ class SafetyCore:
             self._refuse(RefusalReason.UNKNOWN_CONNECTION, str(connection), event)
             return
         name = self._connections.pop(connection)
-        # Requests made before hello end with their connection (nobody could release them);
-        # their stop stays latched. Named requests wait for a client of that name to release.
-        self._client_estops.discard(_anonymous(connection))
-        self._client_holds.discard(_anonymous(connection))
+        # Requests made before hello end with the last connection that asked for them
+        # (nobody else can release them); their stop stays latched. Past the user's record
+        # budget the end waits until the budget allows (SR-8.5): the robot stays held or
+        # stopped meanwhile, the safe side. Named requests wait for a client of that name.
+        for (kind, unnamed), entry in list(self._unnamed.items()):
+            entry.holders.discard(connection)
+            if not entry.holders and not self._limited:
+                self._end_unnamed(kind, unnamed)
+        self._uid_of.pop(connection, None)
         if name is not None:
             del self._by_name[name]
             if name in self._client_beat_ns:
@@ -779,26 +851,17 @@ class SafetyCore:
             # SR-6: the condition clears when a later read-back matches what was set.
             self._output_faults.pop(event.output, None)
 
-    def _client_key(self, event: Event) -> tuple[str, object] | None:
-        """Who an input counts against for the records it causes (docs/safety.md, "How many
-        records one client may cause"): a named client by name (a reconnection does not
-        reset it), a connection before hello by number, a local command by uid and pid."""
-        if isinstance(event, LocalEstop | LocalRelease | ResetRequest):
-            return ("caller", (event.caller.uid, event.caller.pid))
+    def _uid(self, event: Event) -> Uid:
+        """Whom the records a client's input causes are charged to (SR-8.5; docs/safety.md
+        "How many records the clients may cause"): the user at the other end, whatever its
+        connection, name or process, as the kernel reported it."""
+        caller = getattr(event, "caller", None)
+        if isinstance(caller, Caller):
+            return caller.uid
+        if isinstance(event, ClientConnected):
+            return event.uid
         connection = getattr(event, "connection", None)
-        if not isinstance(connection, int):
-            return None
-        name = self._connections.get(connection)
-        return ("name", name) if name is not None else ("connection", connection)
-
-    def _over_budget(self, event: Event, now: int) -> bool:
-        """A release or a reset from a client past its record budget. E-stops, holds,
-        heartbeats and disconnections are never limited: they can only add a reason to stop
-        or keep a client's liveness true (SR-0, SR-8); refusing a release errs on the safe side."""
-        if not isinstance(event, ClientRelease | LocalRelease | ResetRequest):
-            return False
-        client = self._client_key(event)
-        return client is not None and self._budget.exhausted(client, now)
+        return self._uid_of.get(connection) if isinstance(connection, int) else None
 
     def _refuse(self, reason: RefusalReason, detail: str, event: object) -> None:
         self._refusals.append(Refusal(reason, detail, event))
@@ -1069,6 +1132,10 @@ class SafetyCore:
         # A deadline already passed has been acted on in this step (an expired timeout stays
         # expired until a new heartbeat), so only future times count.
         earliest = now + IDLE_NS
+        for kind, name in self._pending_ends():
+            free = self._budget.free_at(self._unnamed[(kind, name)].uid, now)
+            if free is not None and now < free < earliest:
+                earliest = free
         last = self._last_vsc_ns
         if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:
             earliest = due
@@ -1124,6 +1191,25 @@ _VSC_WATCHDOG_OFF = Cause(CauseKind.VSC_WATCHDOG_OFF)
 _VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
 _LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
 _CHEAP_EVENTS = frozenset({Tick, VscReceived})
+_CLIENT_EVENTS = (
+    ClientConnected,
+    ClientHello,
+    ClientHeartbeat,
+    ClientEstop,
+    ClientHold,
+    ClientRelease,
+    ClientDisconnected,
+    LocalEstop,
+    LocalRelease,
+    ResetRequest,
+    ProofTestRequest,
+    Commissioned,
+)
+"""Inputs from the client socket: the records they cause are charged to their user (SR-8.5)."""
+_LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
+"""Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
+away (a release, a re-arm, a hello that ends a required client's loss or names a new
+requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""
 _INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
 """The only event types ``SafetyCore._cheap`` considers; every other takes the full step."""
 _SETTLED_PROOF = frozenset({Phase.OFF, Phase.PASSED})
