@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -136,25 +137,49 @@ def _flap(robot: Robot, **fault: object) -> tuple[float, float]:
     return t0, t1
 
 
+STALL_CAUSES = frozenset({"vsc_link_lost", "vsc_watchdog_untested", "internal"})
+"""The stop causes a stalled machine raises by itself, whatever the VSC's mode: a VSC heartbeat
+read 200 ms after the one before (``vsc_link_lost``, SR-2.2, and the proof test due again
+after that silence, ``vsc_watchdog_untested``), or the loop waking 250 ms late (``internal``).
+Seen once with this scenario on a machine at load 12 with two more busy processes."""
+
+
+def _stalled(record: dict[str, Any]) -> bool:
+    raised = {c["name"] for c in record["changes"] if c["change"] == "raised"}
+    return record["to"] == "STOPPED" and bool(raised) and raised <= STALL_CAUSES
+
+
 def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
     """What a mode flap in RUN may do (SR-3.1, SR-3.3): the drive goes off at the first
     heartbeat in the flapping mode, within one VSC heartbeat period and the scheduling
     allowance; it comes on at most 5 times a second and the flap writes at most 15 records a
-    second (the rule's bound, not a timing window: no scheduling can break it); no record
-    goes to STOPPED and the power output stays on (HOLD, never STOPPED); once the VSC stays
-    Operational the robot runs again by itself (holds clear by themselves)."""
+    second (the rule's bound, not a timing window: no scheduling can break it); no record goes
+    to STOPPED for a cause of the flap's own, so the power output stays on (HOLD, never
+    STOPPED); once the VSC stays Operational the robot runs again by itself (holds clear by
+    themselves).
+
+    A stop the machine's own stall explains (``STALL_CAUSES``: the VSC's silence, the loop's
+    overrun) is the supervisor doing its duty (SR-2.2, SR-2.9), not the flap's doing: the pure
+    core proves that no mode sequence stops the robot (``tests/safety/test_mode_hold.py``).
+    Then the power check and the bounds cover the flap up to that stop, and the robot is
+    re-armed by the operator's takeover instead of running again by itself."""
     assert robot.watcher is not None
     first = robot.watcher.wait("drive", False, t0)
     assert first.t - t0 <= robot.beat_s + ALLOWANCE_S
     records = robot.records_since(t0)
-    stops = [r for r in records if r["to"] == "STOPPED"]
-    assert not stops, f"a mode flap stopped the robot: {stops}"
-    assert robot.watcher.first("power", False, t0) is None, robot.watcher.history("power")
-    during = [r for r in records if r["mono_ns"] <= t1 * 1e9]
-    assert 1 <= len(during) <= RECORDS_PER_S * FLAP_S + 1, during
+    stops = [r for r in records if r["to"] == "STOPPED" and r["from"] != "STOPPED"]
+    assert all(_stalled(r) for r in stops), f"a mode flap stopped the robot: {stops}"
+    end = min([t1, *(r["mono_ns"] / 1e9 for r in stops)])
+    power_off = robot.watcher.first("power", False, t0)
+    assert power_off is None or power_off.t >= end, robot.watcher.history("power")
+    during = [r for r in records if r["mono_ns"] < end * 1e9]
+    assert len(during) <= RECORDS_PER_S * FLAP_S + 1, during
     assert any(c["name"] == f"vsc_mode:{mode}" for r in during for c in r["changes"]), during
-    ons = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= t1 and lv.on]
+    ons = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= end and lv.on]
     assert len(ons) <= RUN_ENTRIES_PER_S * FLAP_S + 1, robot.watcher.history("drive")
+    if stops:
+        robot.assert_serving(robot.rearm())
+        return
     robot.wait_state("RUN")
     robot.assert_serving()
 
@@ -165,9 +190,11 @@ def test_mode_flapping_holds_motion_and_keeps_power(tmp_path: Path) -> None:
     operator's act) nor 100 ms of Operational (less than the dwell) ends the hold, so the drive
     goes off once and stays off; the power output stays on. This test once saw the power go
     off in a full run: the pure core proves that no mode sequence leaves HOLD or RUN for
-    STOPPED (``tests/safety/test_mode_hold.py``), so such a stop can only come from a
-    starved machine (a VSC heartbeat 200 ms late); the assertion now names the stop's record
-    if it ever happens again."""
+    STOPPED (``tests/safety/test_mode_hold.py``, on the old core too), and such a stop was
+    reproduced with the 10 ms flap below on a loaded machine as ``vsc_link_lost`` (a VSC
+    heartbeat read 200 ms after the one before): the supervisor's duty on a stalled machine,
+    not the flap's doing. So a
+    stop is accepted only for those stall causes, and any other fails naming its record."""
     with Robot(tmp_path) as robot:
         robot.arm()
         t0, t1 = _flap(robot, flap_mode=0x0B, flap_period_s=0.1)
