@@ -207,7 +207,7 @@ def core_event(result: Result, now: int) -> Event | None:
     the core refuses it and the refusal is recorded (SR-4, SR-7)."""
     match result:
         case Accepted(client=client):
-            return ClientConnected(now, client.connection)
+            return ClientConnected(now, client.connection, client.caller.uid)  # SR-8.5
         case Closed(client=client):
             return ClientDisconnected(now, client.connection)
         case (

@@ -80,7 +80,8 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
 
     E-stops and releases of a named client are its own (``client_estop:NAME``); before hello
     they are the local operator's (``local_estop``, with the caller). A hold before hello is
-    filed by the core under the connection and ends with it. ``reset`` always becomes a
+    filed by the core under the peer's user and ends with the last of that user's connections
+    that asked for it (docs/safety.md choice 11). ``reset`` always becomes a
     :class:`ResetRequest`, also from a non-admin, so that the core records the refusal.
     """
     connection, named = client.connection, client.name is not None

@@ -1,55 +1,91 @@
-"""How many records one client may cause (docs/safety.md, "How many records one client may
-cause"): a sliding window per client, pure (time is an argument).
+"""How many records the clients may cause (docs/safety.md, "How many records the clients may
+cause"): a sliding window per user and one for all of them together, pure (time is an
+argument).
 
-Every record is fsynced to disk, journalled and pushed to subscribers; a client that could
+Every record is fsynced to disk, journalled and pushed to subscribers; clients that could
 cause one per request at any rate could fill the record, wear the disk and make the motion
-output switch as fast as it sends. So each client (a named client by its name, an unnamed
-connection by its number, a local command by its caller's uid and pid) may cause at most
-:data:`RECORDS_PER_CLIENT` records in any :data:`BUDGET_WINDOW_NS`. The core asks
-:meth:`RecordBudget.exhausted` before an input that would take a reason to stop away.
+output switch as fast as they send. So the records caused by the inputs of one user (the uid
+the kernel reports for the peer, ``SO_PEERCRED``: whatever connection, named or not, and
+whatever process of that user sent them) count against :data:`RECORDS_PER_UID` in any
+:data:`BUDGET_WINDOW_NS`, and the records of all clients together against
+:data:`RECORDS_OF_ALL_CLIENTS`. A uid cannot be forged or multiplied by opening connections,
+which a connection number or a client's name could. The core asks :meth:`RecordBudget.exhausted`
+before an input that would take a reason to stop away, and defers the end of a request made
+before hello whose last connection closed while its user is past the budget.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Hashable
 from typing import Final
 
 from supervisord.timebase import NS_PER_S
 
-RECORDS_PER_CLIENT: Final = 20
-"""Records one client may cause in any window (10 hold/release pairs a second)."""
+RECORDS_PER_UID: Final = 20
+"""Records the inputs of one user may cause in any window (10 hold/release pairs a second)."""
+RECORDS_OF_ALL_CLIENTS: Final = 640
+"""Records the inputs of all users together may cause in any window (32 users' worth); the
+record sink's queue (4096) absorbs six seconds of it."""
 BUDGET_WINDOW_NS: Final = NS_PER_S
 """The window: one second of the monotonic clock."""
+KEPT: Final = 4
+"""Each window keeps the times of up to this many times its limit of records: a user's stops
+and holds are never refused (SR-0), so it can pass its limit by a few (one per connection it
+holds), and a window that forgot them would open early."""
 MAX_TRACKED: Final = 4096
-"""Clients remembered at once; the oldest are forgotten first (a bound on memory)."""
+"""Users remembered at once; the least recently charged are forgotten first (a bound on
+memory: more users than this cannot be in one window, since all share
+``RECORDS_OF_ALL_CLIENTS``)."""
+
+Uid = int | None
+"""Whom a record is charged to: the peer's uid, ``None`` when it is not known (one budget for
+every such input)."""
 
 
 class RecordBudget:
-    """The records each client caused within the last window."""
+    """The records each user, and all users together, caused within the last window."""
 
-    def __init__(self, limit: int = RECORDS_PER_CLIENT, window_ns: int = BUDGET_WINDOW_NS) -> None:
-        self.limit, self.window_ns = limit, window_ns
-        self._times: dict[Hashable, deque[int]] = {}
+    def __init__(
+        self,
+        limit: int = RECORDS_PER_UID,
+        total: int = RECORDS_OF_ALL_CLIENTS,
+        window_ns: int = BUDGET_WINDOW_NS,
+    ) -> None:
+        self.limit, self.total, self.window_ns = limit, total, window_ns
+        self._times: dict[Uid, deque[int]] = {}
+        self._all: deque[int] = deque(maxlen=KEPT * total)
 
-    def exhausted(self, client: Hashable, now: int) -> bool:
-        """Whether ``client`` has caused ``limit`` records in the window ending at ``now``."""
-        times = self._times.get(client)
-        if times is None:
-            return False
+    def _recent(self, times: deque[int], now: int) -> int:
         while times and now - times[0] >= self.window_ns:
             times.popleft()
-        if not times:
-            del self._times[client]
-            return False
-        return len(times) >= self.limit
+        return len(times)
 
-    def charge(self, client: Hashable, now: int) -> None:
-        """``client`` caused a record at ``now``."""
-        times = self._times.pop(client, None)
+    def exhausted(self, uid: Uid, now: int) -> bool:
+        """Whether ``uid`` has caused ``limit`` records, or all users ``total``, in the window
+        ending at ``now`` (a record exactly one window old no longer counts)."""
+        if self._recent(self._all, now) >= self.total:
+            return True
+        times = self._times.get(uid)
+        return times is not None and self._recent(times, now) >= self.limit
+
+    def free_at(self, uid: Uid, now: int) -> int | None:
+        """When ``uid`` will be within its budget again, if it is past it at ``now``."""
+        if not self.exhausted(uid, now):
+            return None
+        due = [
+            times[len(times) - cap] + self.window_ns  # when all but cap - 1 have aged out
+            for times, cap in ((self._all, self.total), (self._times.get(uid), self.limit))
+            if times is not None and self._recent(times, now) >= cap
+        ]
+        return max(due)
+
+    def charge(self, uid: Uid, now: int) -> None:
+        """``uid`` caused a record at ``now``."""
+        times = self._times.pop(uid, None)
         if times is None:
-            times = deque(maxlen=self.limit)
+            times = deque(maxlen=KEPT * self.limit)
             if len(self._times) >= MAX_TRACKED:
                 del self._times[next(iter(self._times))]
         times.append(now)
-        self._times[client] = times  # re-inserted: the dict stays ordered by last use
+        self._times[uid] = times  # re-inserted: the dict stays ordered by last use
+        self._all.append(now)

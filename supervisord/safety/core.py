@@ -36,7 +36,7 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.safety.book import CauseBook
-from supervisord.safety.budget import RecordBudget
+from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import NAME_PATTERN, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
@@ -82,7 +82,6 @@ from supervisord.safety.prooftest import (
     Phase,
     ProofTest,
     ProofTestPolicy,
-    trip_late_ns,
 )
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 from supervisord.timebase import NS_PER_MS, NS_PER_S, next_due
@@ -106,6 +105,12 @@ what a VSC at its slowest documented rate sends in the dwell). A span is measure
 stamps, and a loop that was starved reads a heartbeat late, stretching the span; the number of
 heartbeats cannot be stretched (seen: a VSC flapping every 100 ms, Local at 0 and 50 ms, the
 50 ms one read at 210 ms, re-armed a starved supervisor)."""
+SETTLE_DWELL_NS = TAKEOVER_DWELL_NS
+"""docs/safety.md "Leaving a hold of the VSC's mode" (SR-3.3): after a non-Operational mode
+that was no operator's act (a glitch, a flap), the hold ends once the VSC has reported
+Operational in an unbroken run of heartbeats at least this far apart (and at least
+``TAKEOVER_MIN_HEARTBEATS``): the takeover's own evidence, in Operational. The same 200 ms also
+spaces the renames of the hold when the VSC flaps between two modes that are not Operational."""
 READ_TOGETHER_ALLOWANCE = 2
 """Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
 read in one loop turn share one time, so a late read makes a span look shorter."""
@@ -129,9 +134,14 @@ def mode_name(mode: int) -> str:
     return known.name.lower() if known is not None else f"unknown_0x{mode:02x}"
 
 
-def _anonymous(connection: int) -> str:
-    # '#' cannot appear in a configured name (NAME_PATTERN), so this never clashes with one.
-    return f"#{connection}"
+@dataclass(slots=True)
+class _Unnamed:
+    """A request (e-stop or hold) made before hello, filed under its user (choice 11): the
+    connections that asked for it and have not released it. With none left it ends, unless
+    the user is past its record budget: then it ends once the budget allows (SR-8.5)."""
+
+    uid: Uid
+    holders: set[int]
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,6 +192,11 @@ class SafetyCore:
         self._last_vsc_ns: int | None = None
         self._vsc_mode: int | None = None
         self._run: _Run | None = None  # the current non-Operational run (re-arm rule 4)
+        # The hold of the VSC's mode (SR-3.1, SR-3.3): the mode it names, since when it has
+        # named it, and the Operational run that may end it after a glitch or a flap.
+        self._held_mode: int | None = None
+        self._held_since = 0
+        self._settling: _Run | None = None
         self._quiet: tuple[RefusalReason, int] | None = None  # the last takeover refusal
         self._vsc_estop_word = 0
         self._remote_linked = False
@@ -192,7 +207,6 @@ class SafetyCore:
         self._proof = ProofTest(
             config.prooftest if self._serial else ProofTestPolicy.OFF,
             config.prooftest_clear_ns,
-            trip_late_ns(config.vsc_timeout_ns),
         )
         self._proof_outcome: Outcome | None = None  # finished in this step, for its record
         # Clients (SR-8).
@@ -202,10 +216,14 @@ class SafetyCore:
         self._ever_connected: set[str] = set()
         self._client_estops: set[str] = set()
         self._client_holds: set[str] = set()
+        self._uid_of: dict[int, Uid] = {}  # connection -> the peer's uid (SR-8.5)
+        self._unnamed: dict[tuple[Request, str], _Unnamed] = {}  # requests before hello
+        self._limited = False  # the input's user is past its record budget (SR-8.5)
+        self._charged: tuple[Uid] | None = None  # whom the step's records are charged to
         self._local_estop: Caller | None = None
         self._output_faults: dict[str, Details] = {}
         self._display = DisplayStore()
-        self._budget = RecordBudget()  # records per client (docs/safety.md, issue 11)
+        self._budget = RecordBudget()  # records per user (SR-8.5)
         # Per-step scratch.
         self._frames: list[Message] = []
         self._refusals: list[Refusal] = []
@@ -266,6 +284,8 @@ class SafetyCore:
         """
         if type(event) not in _CHEAP_EVENTS or self._proof.phase not in _SETTLED_PROOF:
             return None  # a proof test pending or running moves with time and heartbeats
+        if self._pending_ends():
+            return None  # a deferred end moves with time (SR-8.5)
         previous = self.decision
         now = event.now if event.now > self._now else self._now
         beat_due = now >= previous.next_deadline
@@ -282,6 +302,7 @@ class SafetyCore:
                     or now - last >= self._vsc_timeout_ns  # this one clears the timeout
                     or message.mode != self._vsc_mode
                     or message.estop != self._vsc_estop_word
+                    or self._settling is not None  # it may end the hold (SR-3.3)
                 ):
                     return None
             elif type(message) not in _INERT_TYPES:
@@ -359,6 +380,7 @@ class SafetyCore:
         self._frames, self._refusals = [], []
         self._rearm = None
         self._note = None
+        self._charged, self._limited = None, False
         request: _RearmRequest | None = None
         if not is_event(event):
             self._refuse(RefusalReason.NOT_AN_EVENT, type(event).__name__, event)
@@ -374,10 +396,19 @@ class SafetyCore:
                 steady and now < self.decision.next_deadline and self._proof.phase in _SETTLED_PROOF
             ):
                 self._refresh(now)  # 1. time passes
-            if self._over_budget(event, now):  # 2. the event, unless its client is past budget
+            # 2. the event, unless its user is past its record budget and it would take a
+            # reason to stop away (SR-8.5)
+            # Whom to charge is read before the event is applied (a disconnection forgets
+            # its connection's uid).
+            self._charged = (self._uid(event),) if isinstance(event, _CLIENT_EVENTS) else None
+            self._limited = self._charged is not None and self._budget.exhausted(
+                self._charged[0], now
+            )
+            if self._limited and isinstance(event, _LIMITED_EVENTS):
                 self._refuse(RefusalReason.RATE_LIMITED, type(event).__name__, event)
             else:
                 request = self._apply(event, now)
+        self._end_unnamed_due(now)
         self._refresh(now)  # 3. conditions
         if request is not None:  # 4. re-arm (SR-4)
             refused = len(self._refusals)
@@ -425,8 +456,8 @@ class SafetyCore:
         if changes or previous is not self._state or self._note is not None:
             note, reason = self._note or (None, "")
             self._sequence += 1
-            if (client := self._client_key(event)) is not None:
-                self._budget.charge(client, now)
+            if self._charged is not None:
+                self._budget.charge(self._charged[0], now)
             carried = None if proof_apart is not None else proof
             records = (
                 Record(
@@ -520,7 +551,10 @@ class SafetyCore:
             self._client_beat_ns[name] = now
 
     def _on_local_estop(self, event: LocalEstop, now: int) -> None:
-        self._local_estop = event.caller
+        # Past the budget an active local e-stop keeps its caller: a new one would only
+        # change the record's words (SR-8.5); the stop stands either way.
+        if self._local_estop is None or not self._limited:
+            self._local_estop = event.caller
 
     def _on_local_release(self, event: LocalRelease, now: int) -> None:
         if self._local_estop is None:
@@ -560,21 +594,8 @@ class SafetyCore:
                 self._proof.restart()
             self._proof.heartbeat(message.mode, message.estop, now)
             self._vsc_estop_word = message.estop
-            previous_mode = self._vsc_mode
-            if message.mode == VscMode.OPERATIONAL:
-                if previous_mode is not None and previous_mode != VscMode.OPERATIONAL:
-                    # SR-4: the operator's takeover, not Operational followed by Operational;
-                    # whether the run before it is an operator's act is rule 4 (_check_rearm).
-                    request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
-                self._run = None
-            elif (
-                self._run is None
-                or previous_ns is None
-                or now - previous_ns >= self._vsc_timeout_ns
-            ):
-                self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
-            else:
-                self._run = self._run.then(now)
+            unbroken = previous_ns is not None and now - previous_ns < self._vsc_timeout_ns
+            request = self._on_mode(message.mode, now, unbroken)
             self._vsc_mode = message.mode
             linked = VscMode.parse(message.mode) in LINKED_MODES
             if linked and not self._remote_linked:
@@ -589,6 +610,57 @@ class SafetyCore:
                 self._display.edited_on_remote(message)
         return request
 
+    def _on_mode(self, mode: int, now: int, unbroken: bool) -> _RearmRequest | None:
+        """The mode of a VSC heartbeat at ``now`` (``unbroken``: less than ``vsc_timeout``
+        after the one before): the takeover run (SR-4.5) and the mode's hold (SR-3)."""
+        request = None
+        if mode == VscMode.OPERATIONAL:
+            previous = self._vsc_mode
+            if previous is not None and previous != VscMode.OPERATIONAL:
+                # SR-4: the operator's takeover, not Operational followed by Operational;
+                # whether the run before it is an operator's act is rule 4 (_check_rearm).
+                request = _RearmRequest(RearmKind.TAKEOVER, None, self._run)
+            self._settle(now, unbroken)
+            self._run = None
+        else:
+            self._hold_mode(mode, now)
+            if self._run is None or not unbroken:
+                self._run = _Run(now, now, 1)  # rule 4: a silent gap starts the run again
+            else:
+                self._run = self._run.then(now)
+        return request
+
+    def _hold_mode(self, mode: int, now: int) -> None:
+        """A heartbeat in ``mode``, not Operational: the hold names it (SR-3.1). A hold that
+        has named another mode for less than the dwell keeps that name, so a VSC flapping
+        between two such modes renames it at most once per 200 ms (SR-3.3)."""
+        self._settling = None
+        if self._held_mode is None or (
+            mode != self._held_mode and now - self._held_since >= SETTLE_DWELL_NS
+        ):
+            self._held_mode, self._held_since = mode, now
+
+    def _settle(self, now: int, unbroken: bool) -> None:
+        """An Operational heartbeat at ``now`` while the mode's hold may be on (SR-3.3): it
+        ends at once when the run before it was an operator's act (re-arm rule 4: a pause and
+        its end), else once Operational has been reported for the dwell, unbroken."""
+        if self._held_mode is None:
+            return
+        settling = self._settling
+        if settling is None:
+            run = self._run
+            if run is not None and self._act_refusal(run) is None:
+                self._held_mode = None  # the operator resumed: no wait
+                return
+            self._settling = _Run(now, now, 1)
+            return
+        self._settling = settling = settling.then(now) if unbroken else _Run(now, now, 1)
+        if (
+            settling.last_ns - settling.first_ns >= SETTLE_DWELL_NS
+            and settling.heartbeats >= TAKEOVER_MIN_HEARTBEATS
+        ):
+            self._held_mode = self._settling = None
+
     def _on_link_opened(self, event: LinkOpened, now: int) -> None:
         # SR-4: a reconnect of the VSC is a new start. Liveness starts over ("never seen since
         # link open" counts as lost, SR-2) and key 85 is read back again (SR-5).
@@ -598,6 +670,7 @@ class SafetyCore:
         self._last_vsc_ns = None
         self._vsc_mode = None
         self._run = None
+        self._held_mode = self._settling = None
         self._remote_linked = False
         self._key85 = None
         self._next_key85_ns = now if self._serial else None
@@ -611,6 +684,7 @@ class SafetyCore:
         self._last_vsc_ns = None
         self._vsc_mode = None
         self._run = None
+        self._held_mode = self._settling = None
         self._remote_linked = False
         self._next_key85_ns = None
         self._next_heartbeat_ns = None
@@ -634,6 +708,7 @@ class SafetyCore:
             self._refuse(RefusalReason.DUPLICATE_CONNECTION, str(event.connection), event)
             return
         self._connections[event.connection] = None
+        self._uid_of[event.connection] = event.uid
 
     def _on_hello(self, event: ClientHello, now: int) -> None:
         connection, name = event.connection, event.name
@@ -674,23 +749,65 @@ class SafetyCore:
             self._refuse(RefusalReason.NO_HELLO, str(connection), event)
         return name
 
-    def _subjects(self, connection: int) -> set[str]:
-        name = self._connections.get(connection)
-        return {_anonymous(connection)} if name is None else {name, _anonymous(connection)}
+    def _unnamed_name(self, connection: int) -> str:
+        """Where a request before hello is filed (choice 11): under the peer's uid, so that
+        no number of connections multiplies its records (SR-8.5); under the connection when
+        the uid is not known. '#' cannot appear in a configured name (NAME_PATTERN)."""
+        uid = self._uid_of.get(connection)
+        return f"#{connection}" if uid is None else f"#uid{uid}"
+
+    def _requests(self, kind: Request) -> set[str]:
+        return self._client_estops if kind is Request.ESTOP else self._client_holds
 
     def _on_request(self, event: ClientEstop | ClientHold, now: int) -> None:
         # An e-stop or hold is always honoured, even before hello: it can only add a reason
-        # to stop (SR-0). Before hello it is filed under "#<connection>".
-        name = self._connections.get(event.connection) or _anonymous(event.connection)
-        requests = self._client_estops if isinstance(event, ClientEstop) else self._client_holds
-        requests.add(name)
+        # to stop (SR-0). Before hello it is filed under the user ("#uid<UID>"), held by
+        # every connection of that user that asked for it.
+        connection = event.connection
+        kind = Request.ESTOP if isinstance(event, ClientEstop) else Request.HOLD
+        name = self._connections.get(connection)
+        if name is None:
+            name = self._unnamed_name(connection)
+            entry = self._unnamed.setdefault(
+                (kind, name), _Unnamed(self._uid_of.get(connection), set())
+            )
+            entry.holders.add(connection)
+        self._requests(kind).add(name)
 
     def _on_release(self, event: ClientRelease, now: int) -> None:
-        requests = self._client_estops if event.request is Request.ESTOP else self._client_holds
-        mine = self._subjects(event.connection) & requests
-        if not mine:
-            self._refuse(RefusalReason.NOTHING_TO_RELEASE, event.request.value, event)
-        requests.difference_update(mine)
+        connection, kind = event.connection, event.request
+        requests = self._requests(kind)
+        name = self._connections.get(connection)
+        released = name is not None and name in requests
+        if released:
+            requests.discard(name)
+        unnamed = self._unnamed_name(connection)
+        entry = self._unnamed.get((kind, unnamed))
+        if entry is not None and connection in entry.holders:
+            released = True
+            entry.holders.discard(connection)
+            if not entry.holders:
+                self._end_unnamed(kind, unnamed)
+        if not released:
+            self._refuse(RefusalReason.NOTHING_TO_RELEASE, kind.value, event)
+
+    def _end_unnamed(self, kind: Request, name: str) -> None:
+        del self._unnamed[(kind, name)]
+        self._requests(kind).discard(name)
+
+    def _pending_ends(self) -> list[tuple[Request, str]]:
+        """Requests before hello whose connections all closed while their user was past its
+        record budget: they end once it allows (SR-8.5)."""
+        return [key for key, entry in self._unnamed.items() if not entry.holders]
+
+    def _end_unnamed_due(self, now: int) -> None:
+        """End the deferred requests whose user is within its budget again, charging it the
+        record their end makes (SR-8.5)."""
+        for kind, name in self._pending_ends():
+            uid = self._unnamed[(kind, name)].uid
+            if not self._budget.exhausted(uid, now):
+                self._end_unnamed(kind, name)
+                self._budget.charge(uid, now)
 
     def _on_disconnected(self, event: ClientDisconnected, now: int) -> None:
         connection = event.connection
@@ -698,10 +815,15 @@ class SafetyCore:
             self._refuse(RefusalReason.UNKNOWN_CONNECTION, str(connection), event)
             return
         name = self._connections.pop(connection)
-        # Requests made before hello end with their connection (nobody could release them);
-        # their stop stays latched. Named requests wait for a client of that name to release.
-        self._client_estops.discard(_anonymous(connection))
-        self._client_holds.discard(_anonymous(connection))
+        # Requests made before hello end with the last connection that asked for them
+        # (nobody else can release them); their stop stays latched. Past the user's record
+        # budget the end waits until the budget allows (SR-8.5): the robot stays held or
+        # stopped meanwhile, the safe side. Named requests wait for a client of that name.
+        for (kind, unnamed), entry in list(self._unnamed.items()):
+            entry.holders.discard(connection)
+            if not entry.holders and not self._limited:
+                self._end_unnamed(kind, unnamed)
+        self._uid_of.pop(connection, None)
         if name is not None:
             del self._by_name[name]
             if name in self._client_beat_ns:
@@ -729,26 +851,17 @@ class SafetyCore:
             # SR-6: the condition clears when a later read-back matches what was set.
             self._output_faults.pop(event.output, None)
 
-    def _client_key(self, event: Event) -> tuple[str, object] | None:
-        """Who an input counts against for the records it causes (docs/safety.md, "How many
-        records one client may cause"): a named client by name (a reconnection does not
-        reset it), a connection before hello by number, a local command by uid and pid."""
-        if isinstance(event, LocalEstop | LocalRelease | ResetRequest):
-            return ("caller", (event.caller.uid, event.caller.pid))
+    def _uid(self, event: Event) -> Uid:
+        """Whom the records a client's input causes are charged to (SR-8.5; docs/safety.md
+        "How many records the clients may cause"): the user at the other end, whatever its
+        connection, name or process, as the kernel reported it."""
+        caller = getattr(event, "caller", None)
+        if isinstance(caller, Caller):
+            return caller.uid
+        if isinstance(event, ClientConnected):
+            return event.uid
         connection = getattr(event, "connection", None)
-        if not isinstance(connection, int):
-            return None
-        name = self._connections.get(connection)
-        return ("name", name) if name is not None else ("connection", connection)
-
-    def _over_budget(self, event: Event, now: int) -> bool:
-        """A release or a reset from a client past its record budget. E-stops, holds,
-        heartbeats and disconnections are never limited: they can only add a reason to stop
-        or keep a client's liveness true (SR-0, SR-8); refusing a release errs on the safe side."""
-        if not isinstance(event, ClientRelease | LocalRelease | ResetRequest):
-            return False
-        client = self._client_key(event)
-        return client is not None and self._budget.exhausted(client, now)
+        return self._uid_of.get(connection) if isinstance(connection, int) else None
 
     def _refuse(self, reason: RefusalReason, detail: str, event: object) -> None:
         self._refusals.append(Refusal(reason, detail, event))
@@ -819,7 +932,7 @@ class SafetyCore:
             {Cause(CauseKind.OUTPUT_FAULT, n): d for n, d in self._output_faults.items()},
             now,
         )
-        mode = self._vsc_mode
+        mode = self._held_mode
         book.sync(
             CauseKind.VSC_MODE,
             {}
@@ -944,6 +1057,11 @@ class SafetyCore:
         if run is None or (last_stop is not None and run.last_ns < last_stop):
             # Rule 2 and 3: the non-Operational heartbeat must come after the last stop began.
             return RefusalReason.NEW_CAUSE_DURING_REARM, ""
+        return self._act_refusal(run)
+
+    def _act_refusal(self, run: _Run) -> tuple[RefusalReason, str] | None:
+        """Re-arming rule 4: why the non-Operational run before this Operational heartbeat
+        (``self._now``) is no operator's act, or ``None`` when it is one."""
         span = run.last_ns - run.first_ns
         if span < TAKEOVER_DWELL_NS:  # rule 4: two heartbeats at least the dwell apart
             beats = f"{run.heartbeats} heartbeat{'s' if run.heartbeats != 1 else ''}"
@@ -1014,6 +1132,10 @@ class SafetyCore:
         # A deadline already passed has been acted on in this step (an expired timeout stays
         # expired until a new heartbeat), so only future times count.
         earliest = now + IDLE_NS
+        for kind, name in self._pending_ends():
+            free = self._budget.free_at(self._unnamed[(kind, name)].uid, now)
+            if free is not None and now < free < earliest:
+                earliest = free
         last = self._last_vsc_ns
         if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:
             earliest = due
@@ -1069,6 +1191,25 @@ _VSC_WATCHDOG_OFF = Cause(CauseKind.VSC_WATCHDOG_OFF)
 _VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
 _LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
 _CHEAP_EVENTS = frozenset({Tick, VscReceived})
+_CLIENT_EVENTS = (
+    ClientConnected,
+    ClientHello,
+    ClientHeartbeat,
+    ClientEstop,
+    ClientHold,
+    ClientRelease,
+    ClientDisconnected,
+    LocalEstop,
+    LocalRelease,
+    ResetRequest,
+    ProofTestRequest,
+    Commissioned,
+)
+"""Inputs from the client socket: the records they cause are charged to their user (SR-8.5)."""
+_LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
+"""Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
+away (a release, a re-arm, a hello that ends a required client's loss or names a new
+requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""
 _INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
 """The only event types ``SafetyCore._cheap`` considers; every other takes the full step."""
 _SETTLED_PROOF = frozenset({Phase.OFF, Phase.PASSED})

@@ -82,7 +82,9 @@ class RefusalReason(enum.Enum):
     DISPLAY_VALUE_OUT_OF_RANGE = "the display value is out of range for its key"
     NOT_AN_EVENT = "the input is not a safety event"
     WRONG_USER = "this client name is bound to another user"
-    RATE_LIMITED = "this client caused too many records in the last second; try again shortly"
+    RATE_LIMITED = (
+        "this user's clients caused too many records in the last second; try again shortly"
+    )
     # srcsctl prooftest (docs/safety.md "The proof test").
     PROOFTEST_NOT_POSSIBLE = "no proof test here: the link has no user heartbeat, or it is off"
     PROOFTEST_NOT_STOPPED = "the proof test runs only while STOPPED, never in RUN or HOLD"

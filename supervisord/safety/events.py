@@ -64,9 +64,12 @@ class LinkClosed(_Event):
 
 @dataclass(frozen=True, slots=True)
 class ClientConnected(_Event):
-    """A client opened a connection on the local socket (SR-8)."""
+    """A client opened a connection on the local socket (SR-8); ``uid`` is the peer's user as
+    the kernel reported it (``SO_PEERCRED``), whom the records its inputs cause are charged
+    to (SR-8.5); ``None``: not known, one budget for all such connections."""
 
     connection: int
+    uid: int | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -499,7 +499,8 @@ def test_reply_to_a_gone_connection_is_dropped(loop: Loop, peers: Callable[[], P
 
 
 def test_results_become_core_events(loop: Loop, peers: Callable[[], Peer]) -> None:
-    """Connect, an e-stop before and after hello, and the end map to the core's events."""
+    """Connect (with the peer's uid, whom its records are charged to: SR-8.5), an e-stop
+    before and after hello, and the end map to the core's events."""
     peer = peers()
     peer.ask(loop, {"op": "estop"})
     peer.ask(loop, {"op": "hello", "name": "nav"})
@@ -509,7 +510,7 @@ def test_results_become_core_events(loop: Loop, peers: Callable[[], Peer]) -> No
     events = [core_event(r, 5) for r in loop.results]
     number = loop.of_type(Accepted)[0].client.connection
     caller_ = loop.of_type(Received)[0].client.caller  # named by then (SR-10.3)
-    assert events[0] == ClientConnected(5, number)
+    assert events[0] == ClientConnected(5, number, os.getuid())
     assert events[1] == LocalEstop(5, caller_)
     assert events[3] == ClientEstop(5, number)
     assert events[-1] == ClientDisconnected(5, number)

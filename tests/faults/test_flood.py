@@ -19,7 +19,7 @@ from typing import Any
 
 from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
-from supervisord.safety.budget import RECORDS_PER_CLIENT
+from supervisord.safety.budget import RECORDS_PER_UID
 from supervisord.sim.process import SimControl, SimError
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
@@ -73,12 +73,13 @@ while True:
 
 def _release_hold(robot: Robot, name: str) -> bool:
     """End the hold a killed client left (docs/safety.md choice 12: it outlives the client);
-    past the client's record budget the release is refused for a while (``rate_limited``)."""
-    with SupervisorClient.connect(robot.socket_path, name=name) as client:
-        try:
+    past the user's record budget the hello and the release are refused for a while
+    (``rate_limited``, SR-8.5)."""
+    try:
+        with SupervisorClient.connect(robot.socket_path, name=name) as client:
             client.release("hold")
-        except (ApiError, ClientError) as error:
-            return "no such request" in str(error)
+    except (ApiError, ClientError) as error:
+        return "no such request" in str(error)
     return True
 
 
@@ -160,9 +161,9 @@ def test_client_flood_neither_delays_the_estop_nor_starves_the_heartbeat(tmp_pat
         assert beats.worst_age < HEARTBEAT_MARGIN_S, beats.worst_age
         during = [r for r in robot.records_since(t_flood) if r["mono_ns"] < stop.record["mono_ns"]]
         seconds = stop.t_fault - t_flood
-        # Two budgets: the flood's name (hold/release) and its process as a local caller
-        # (reset); a few records of the VSC's own besides.
-        assert len(during) <= (2 * RECORDS_PER_CLIENT + 5) * (seconds + 1), len(during)
+        # One budget, the flood's user (hold/release as a named client, reset as a local
+        # caller: SR-8.5); a few records of the VSC's own besides.
+        assert len(during) <= (RECORDS_PER_UID + 5) * (seconds + 1), len(during)
         counters = robot.counters()
         assert counters["rate_limited"] > 0
         assert counters["internal_faults"] == 0

