@@ -97,8 +97,8 @@ def not_a_regular_file(path: Path | str) -> str | None:
     device must not be opened to find out (SR-7.9)."""
     try:
         mode = os.lstat(path).st_mode
-    except FileNotFoundError:
-        return None
+    except OSError:  # nothing there, or not reachable (a file where a folder should be): the
+        return None  # open that follows says what is wrong, never this look
     return _file_kind(mode)
 
 
