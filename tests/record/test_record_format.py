@@ -34,7 +34,7 @@ TRIGGERS = {
     "link_opened": (),
     "link_broken": ("reason",),
     "link_closed": ("reason",),
-    "client_connected": ("connection",),
+    "client_connected": ("connection", "uid"),
     "client_hello": ("connection", "name", "caller"),
     "client_heartbeat": ("connection",),
     "client_estop": ("connection",),
