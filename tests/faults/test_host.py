@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from supervisord.client import SupervisorClient
-from supervisord.testkit.faketime import FakeWallClock
+from supervisord.testkit.faketime import SEEN_WITHIN_S, FakeWallClock
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
 
@@ -23,12 +23,17 @@ def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
     nothing": the daemon's wall clock jumps an hour forward or a day back while the robot
     runs. No stop, no output off. A remote e-stop afterwards is still off at once; its record
     carries the jumped UTC time (so the daemon really saw the jump) and a monotonic time that
-    agrees with ours (so its deadlines did not move)."""
+    agrees with ours (so its deadlines did not move).
+
+    The window without a stop is counted from the rule's side: the daemon sees the jump at
+    its next wall-clock read within ``SEEN_WITHIN_S`` of ``jump`` (libfaketime's cache), and a
+    deadline on the wall clock would then trip within its own length (200 ms for the link,
+    250 ms for the loop) plus the allowance; the window is longer than both together."""
     clock = FakeWallClock(tmp_path)
     with Robot(tmp_path, clock=clock) as robot:
         robot.arm()
         clock.jump(jump_s)
-        robot.stays_running(1.0)
+        robot.stays_running(SEEN_WITHIN_S + robot.vsc_timeout_s + ALLOWANCE_S)
         stop = robot.remote_estop()
         utc = dt.datetime.fromisoformat(stop.record["utc"])
         shift = (utc - dt.datetime.now(dt.UTC)).total_seconds()
