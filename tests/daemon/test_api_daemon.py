@@ -6,6 +6,7 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -82,7 +83,7 @@ def _daemon(tmp_path: Path, peer: VscPeer | None = None) -> SrcsdProcess:
     return SrcsdProcess(tmp_path / "robot.toml").start(serve=peer.serve if peer else lambda: None)
 
 
-def _commissionings(tmp_path: Path) -> list[dict[str, object]]:
+def _commissionings(tmp_path: Path) -> list[dict[str, Any]]:
     """The records a commissioning made, found by their trigger: the record's ``kind`` is
     ``commissioned`` unless a cause changed in the same step (docs/record.md: ``cause_raised``
     comes first), as when a late turn also finds the VSC silent on a busy machine."""
