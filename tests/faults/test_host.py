@@ -16,6 +16,8 @@ from supervisord.testkit.faketime import SEEN_WITHIN_S, FakeWallClock
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
 
+LINK_TIMEOUT_MS = 1000  # vsc.timeout_ms at its largest (docs/configuration.md)
+
 
 @pytest.mark.parametrize("jump_s", [3600, -86400], ids=["forward_1h", "back_1d"])
 def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
@@ -25,15 +27,18 @@ def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
     carries the jumped UTC time (so the daemon really saw the jump) and a monotonic time that
     agrees with ours (so its deadlines did not move).
 
-    The window without a stop is counted from the rule's side: the daemon sees the jump at
-    its next wall-clock read within ``SEEN_WITHIN_S`` of ``jump`` (libfaketime's cache), and a
-    deadline on the wall clock would then trip within its own length (200 ms for the link,
-    250 ms for the loop) plus the allowance; the window is longer than both together."""
+    The margins come from the jump: an hour (or a day) is far longer than any deadline, so
+    a deadline kept on the wall clock would trip at the jump whatever its length. The link
+    timeout is therefore the longest the configuration allows (1 s, SR-2.2), so that a busy
+    machine's scheduling does not stop the robot in the scenario's stead. The window without
+    a stop is counted from the rule's side: the daemon sees the jump at its next wall-clock
+    read within ``SEEN_WITHIN_S`` of ``jump`` (libfaketime's cache), and a deadline on the
+    wall clock would then trip within its own length plus the allowance."""
     clock = FakeWallClock(tmp_path)
-    with Robot(tmp_path, clock=clock) as robot:
+    with Robot(tmp_path, clock=clock, extra_vsc=f"timeout_ms = {LINK_TIMEOUT_MS}") as robot:
         robot.arm()
         clock.jump(jump_s)
-        robot.stays_running(SEEN_WITHIN_S + robot.vsc_timeout_s + ALLOWANCE_S)
+        robot.stays_running(SEEN_WITHIN_S + LINK_TIMEOUT_MS / 1000 + ALLOWANCE_S)
         stop = robot.remote_estop()
         utc = dt.datetime.fromisoformat(stop.record["utc"])
         shift = (utc - dt.datetime.now(dt.UTC)).total_seconds()
