@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from supervisord.daemon.loop import OVERRUN_NS
 from supervisord.daemon.sink import RECORD_DRAIN_S, Sink, Written
 from supervisord.record.jsonl import RecordWriter
 from tests.record.conftest import make_record, seqs_in
@@ -65,7 +66,12 @@ def test_records_are_written_in_order_and_reported_once_fsynced(tmp_path: Path) 
 def test_a_full_queue_drops_at_once_and_never_waits(tmp_path: Path) -> None:
     """With the disk hung and the queue full, queuing another record returns at once with
     ``False``; that record comes back as dropped and is counted as such; the queued ones are
-    written, in order, once the disk answers."""
+    written, in order, once the disk answers.
+
+    "At once" takes its margin from the loop's rule: a call that held the loop for its overrun
+    limit (``OVERRUN_NS``, 250 ms) would itself be an ``internal`` stop (SR-2.9), while the
+    disk here stays hung for 10 s, so any wait for it shows; a busy machine's preemption of a
+    few tens of milliseconds does not."""
     writer = _GatedWriter(tmp_path / "stops.jsonl")
     sink = Sink(writer, capacity=3)
     sink.start()
@@ -74,9 +80,9 @@ def test_a_full_queue_drops_at_once_and_never_waits(tmp_path: Path) -> None:
         assert writer.entered.wait(10)  # record 1 is in the hung write: 2 and 3 wait
         for seq in range(2, 5):
             assert sink.record(make_record(seq))
-        started = time.monotonic()
+        started = time.monotonic_ns()
         assert not sink.record(make_record(5))  # records 2-4 wait behind the hung disk
-        assert time.monotonic() - started < 0.05
+        assert time.monotonic_ns() - started < OVERRUN_NS
         dropped = sink.take_written()
         assert [(w.entry["seq"], w.dropped) for w in dropped] == [(5, True)]
         writer.gate.set()

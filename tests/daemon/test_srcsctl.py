@@ -8,7 +8,7 @@ import shutil
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -191,18 +191,31 @@ def test_no_daemon_and_bad_config_have_their_own_exit_status(tmp_path: Path) -> 
 # -- issue 13: status in full, and srcsctl without sharp edges ------------------------------
 
 
-def _lines_for(proc: subprocess.Popen[str], seconds: float) -> list[str]:
-    """The lines ``proc`` prints within ``seconds`` (read without blocking past the end)."""
-    assert proc.stdout is not None
-    fd = proc.stdout.fileno()
-    os.set_blocking(fd, False)
-    data, end = b"", time.monotonic() + seconds
-    while time.monotonic() < end:
-        try:
-            data += os.read(fd, 65536)
-        except BlockingIOError:
-            time.sleep(0.05)
-    return data.decode().splitlines()
+class _Output:
+    """What a running command prints, read without blocking, kept whole lines at a time."""
+
+    def __init__(self, proc: subprocess.Popen[str]) -> None:
+        assert proc.stdout is not None
+        self.fd = proc.stdout.fileno()
+        os.set_blocking(self.fd, False)
+        self.data = b""
+
+    @property
+    def lines(self) -> list[str]:
+        return self.data.decode().split("\n")[:-1]  # whole lines only
+
+    def until(self, done: Callable[[list[str]], bool], limit: float = 10.0) -> list[str]:
+        """Every line so far, once ``done`` holds for them; fails after ``limit`` seconds, a
+        coarse deadline (the command's interpreter may take a while to start on a busy
+        machine)."""
+        end = time.monotonic() + limit
+        while not done(lines := self.lines):
+            assert time.monotonic() < end, lines
+            try:
+                self.data += os.read(self.fd, 65536)
+            except BlockingIOError:
+                time.sleep(0.05)
+        return lines
 
 
 def _settled(robot: Robot) -> None:
@@ -217,22 +230,26 @@ def _settled(robot: Robot) -> None:
 @pytest.mark.parametrize("as_json", [False, True])
 def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
     """``watch`` shows the state it starts in once, not once from ``status`` and again from
-    the subscription's push; with --json every line is a push (``event``), never a reply."""
+    the subscription's push; with --json every line is a push (``event``), never a reply.
+
+    No window of time: a hold taken once the first state is shown makes a new state push,
+    which the ordered stream delivers after any second copy of the first."""
     _settled(robot)
     args = [SRCSCTL, "watch", "--config", str(robot.config), *(["--json"] if as_json else [])]
     with subprocess.Popen(args, stdout=subprocess.PIPE, text=True) as watcher:
         try:
-            lines = _lines_for(watcher, 1.5)
+            output = _Output(watcher)
+            output.until(lambda lines: len(_states(lines, as_json)) >= 1)
+            assert robot.ctl("hold").returncode == 0
+            lines = output.until(lambda lines: len(set(_states(lines, as_json))) >= 2)
         finally:
             watcher.send_signal(signal.SIGINT)
             watcher.wait(timeout=10)
     if as_json:
         objects = [json.loads(line) for line in lines]
-        assert objects, lines
         assert all("event" in o and "ok" not in o for o in objects), lines
         # A state the daemon decided once (one mono_ns) is shown once.
-        decided = [o["mono_ns"] for o in objects if o["event"] == "state"]
-        assert decided, lines
+        decided = _states(lines, as_json)
         assert len(decided) == len(set(decided)), lines
     else:
         # The daemon's own line, then the state, from the subscription's push alone (the
@@ -240,6 +257,14 @@ def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
         assert len(lines) >= 2, lines
         assert " STOPPED " in lines[1], lines
         assert lines[0].startswith("# srcsd "), lines  # the daemon's own line first
+
+
+def _states(lines: list[str], as_json: bool) -> list[str]:
+    """The states ``watch`` showed: each push's decision time (--json), or each line."""
+    if as_json:
+        pushes = [json.loads(line) for line in lines]
+        return [str(p["mono_ns"]) for p in pushes if p.get("event") == "state"]
+    return [line for line in lines if " STOPPED " in line]
 
 
 def test_watch_ends_on_sigint_even_when_started_with_sigint_ignored(robot: Robot) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from supervisord.exporter.model import scraped_names
-from supervisord.testkit.robot import Robot
+from supervisord.testkit.robot import ALLOWANCE_S, Robot
 from supervisord.testkit.wait import wait_until
 from tests.exporter.stack import DASHBOARD, PROMETHEUS, Exporter, Prometheus, http_get
 
@@ -96,8 +96,10 @@ def test_a_remote_estop_is_a_stop_prometheus_sees(private_network: None, stack: 
 def test_the_loops_timing_histograms_reach_prometheus(private_network: None, stack: Stack) -> None:
     """The daemon's VSC and user heartbeat periods arrive as Prometheus histograms whose
     median (histogram_quantile over the _bucket series) is near the sim's 50 ms and the
-    default 20 Hz; a remote e-stop in RUN adds one stop-to-off observation, under 100 ms
-    (issue 13 item 6; docs/fleet.md "Timing histograms")."""
+    default 20 Hz; a remote e-stop in RUN adds one stop-to-off observation, in seconds
+    (docs/fleet.md "Timing histograms"). Its bound is the fault kit's "at once"
+    (``ALLOWANCE_S``, a busy machine's scheduling): how fast a stop is, under 2 ms at p99
+    (SR-9.1), is the benches' to measure."""
     robot, prom = stack.robot, stack.prometheus
     prom.wait_value('srcs_state{state="RUN"}', 1)  # the module's first test ends in RUN
     for name in ("srcs_vsc_heartbeat_period_seconds", "srcs_user_heartbeat_period_seconds"):
@@ -111,7 +113,8 @@ def test_the_loops_timing_histograms_reach_prometheus(private_network: None, sta
     robot.sim.control.estop()
     prom.wait_value("srcs_stop_to_off_seconds_count", stops + 1)
     assert prom.value('srcs_stop_to_off_seconds_bucket{le="+Inf"}') == stops + 1
-    assert prom.value('srcs_stop_to_off_seconds_bucket{le="0.1"}') == stops + 1
+    assert ALLOWANCE_S <= 1.0  # the largest finite bucket: in seconds, not milliseconds
+    assert prom.value('srcs_stop_to_off_seconds_bucket{le="1.0"}') == stops + 1
     assert (prom.value("srcs_stop_to_off_seconds_sum") or 0) > 0
     robot.sim.control.release()
     robot.rearm()

@@ -12,9 +12,11 @@ from pathlib import Path
 import pytest
 
 from supervisord.client import SupervisorClient
-from supervisord.testkit.faketime import FakeWallClock
+from supervisord.testkit.faketime import SEEN_WITHIN_S, FakeWallClock
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+
+LINK_TIMEOUT_MS = 1000  # vsc.timeout_ms at its largest (docs/configuration.md)
 
 
 @pytest.mark.parametrize("jump_s", [3600, -86400], ids=["forward_1h", "back_1d"])
@@ -23,12 +25,20 @@ def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
     nothing": the daemon's wall clock jumps an hour forward or a day back while the robot
     runs. No stop, no output off. A remote e-stop afterwards is still off at once; its record
     carries the jumped UTC time (so the daemon really saw the jump) and a monotonic time that
-    agrees with ours (so its deadlines did not move)."""
+    agrees with ours (so its deadlines did not move).
+
+    The margins come from the jump: an hour (or a day) is far longer than any deadline, so
+    a deadline kept on the wall clock would trip at the jump whatever its length. The link
+    timeout is therefore the longest the configuration allows (1 s, SR-2.2), so that a busy
+    machine's scheduling does not stop the robot in the scenario's stead. The window without
+    a stop is counted from the rule's side: the daemon sees the jump at its next wall-clock
+    read within ``SEEN_WITHIN_S`` of ``jump`` (libfaketime's cache), and a deadline on the
+    wall clock would then trip within its own length plus the allowance."""
     clock = FakeWallClock(tmp_path)
-    with Robot(tmp_path, clock=clock) as robot:
+    with Robot(tmp_path, clock=clock, extra_vsc=f"timeout_ms = {LINK_TIMEOUT_MS}") as robot:
         robot.arm()
         clock.jump(jump_s)
-        robot.stays_running(1.0)
+        robot.stays_running(SEEN_WITHIN_S + LINK_TIMEOUT_MS / 1000 + ALLOWANCE_S)
         stop = robot.remote_estop()
         utc = dt.datetime.fromisoformat(stop.record["utc"])
         shift = (utc - dt.datetime.now(dt.timezone.utc)).total_seconds()
