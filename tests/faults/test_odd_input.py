@@ -153,7 +153,9 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
     ``status`` stopped answering and later records were lost (the name carried surrogates into
     the record and reply encoders). Now the e-stop answers, turns the output off, is recorded
     as ``local_estop`` naming the user (the undecodable byte escaped), and ``status`` answers,
-    also to that user."""
+    also to that user. The user's name is looked up off the loop when the user first connects
+    (SR-10.3): a ``hello`` of that user first, answered once the name is known, so that the
+    e-stop, served at once whatever the lookup, finds it known."""
     uid = _free_uid()
     passwd = tmp_path / "passwd"
     passwd.write_bytes(
@@ -168,6 +170,19 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
             as_user = ["setpriv", f"--reuid={uid}", "--regid=0", "--clear-groups", "--"]
             srcsctl = [sys.executable, "-m", "supervisord.cli.srcsctl"]
             socket_arg = ["--socket", str(robot.socket_path)]
+            hello = (
+                "from supervisord.client import SupervisorClient\n"
+                f"with SupervisorClient.connect({str(robot.socket_path)!r}) as api:\n"
+                "    api.hello('odd-user')\n"
+            )
+            named = subprocess.run(
+                [*as_user, sys.executable, "-c", hello],
+                capture_output=True,
+                timeout=30,
+                check=False,
+                env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+            )
+            assert named.returncode == 0, named.stderr.decode(errors="replace")
             t0 = robot.now()
             estop = subprocess.run(
                 [*as_user, *srcsctl, "estop", *socket_arg],
