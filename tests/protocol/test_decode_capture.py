@@ -14,7 +14,7 @@ import signal
 import subprocess
 import time
 import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -214,19 +214,6 @@ def test_a_pipe_shows_each_frame_before_the_input_ends(flags: list[str], line: b
         process.stdin.close()
         assert process.wait(timeout=60) == 0
     assert json.loads(first)["type"] in ("vsc_heartbeat", "user_heartbeat")
-
-
-@pytest.fixture
-def pty_pair() -> Iterator[tuple[int, str]]:
-    """A real pseudo-terminal: the master's descriptor (the VSC's side) and the port's path."""
-    master, slave = os.openpty()
-    tty.setraw(master)
-    path = os.ttyname(slave)
-    os.close(slave)
-    try:
-        yield master, path
-    finally:
-        os.close(master)
 
 
 def test_follow_a_serial_port_reads_and_never_writes(pty_pair: tuple[int, str]) -> None:

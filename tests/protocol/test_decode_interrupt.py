@@ -14,8 +14,6 @@ import os
 import signal
 import subprocess
 import time
-import tty
-from collections.abc import Iterator
 
 import pytest
 
@@ -29,19 +27,6 @@ END_WAIT_S = 30.0  # coarse: decode ends within one read (a pipe's EINTR, a port
 
 def _ignoring_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell does for a script's `cmd &`
-
-
-@pytest.fixture
-def port() -> Iterator[tuple[int, str]]:
-    """A real pseudo-terminal: the master's descriptor and the port's path."""
-    master, slave = os.openpty()
-    tty.setraw(master)
-    path = os.ttyname(slave)
-    os.close(slave)
-    try:
-        yield master, path
-    finally:
-        os.close(master)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["sigint", "sigterm"])
@@ -74,11 +59,11 @@ def test_a_live_pipe_ends_on_the_signal_when_started_with_sigint_ignored(
 
 
 def test_following_a_port_ends_on_ctrl_c_when_started_with_sigint_ignored(
-    port: tuple[int, str],
+    pty_pair: tuple[int, str],
 ) -> None:
     """SR-8.9: ``decode --raw --follow PORT``, started with SIGINT ignored, ends on SIGINT
     with exit 0 once it is decoding."""
-    master, path = port
+    master, path = pty_pair
     with subprocess.Popen(
         [SRCSCTL, "decode", "--raw", "--follow", path],
         stdout=subprocess.PIPE,
