@@ -12,6 +12,10 @@ Every method sends one request and waits for its reply. A refused request raises
 :class:`~supervisord.api.framing.ApiError` with the server's stable ``code``; pushes that arrive
 meanwhile are kept for :meth:`SupervisorClient.next_event`. Every exception raised on purpose
 is a :class:`~supervisord.errors.SrcsError`. Not thread-safe: one client per thread.
+
+It imports only the standard library and a small, named set of this package's modules, none
+of the daemon's dependencies, so that it also runs on a ROS installation's own Python inside
+the ROS 2 bridge's package (docs/ros2.md "The client library"; tests/ros2/test_imports.py).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from supervisord.api.framing import ApiError, encode
-from supervisord.api.requests import (
+from supervisord.api.ops import (
     ApiRequest,
     Commission,
     DisplayLabel,
@@ -48,7 +52,7 @@ from supervisord.api.requests import (
 )
 from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
-from supervisord.safety.events import Request
+from supervisord.release import Request
 
 if TYPE_CHECKING:
     from typing_extensions import Self

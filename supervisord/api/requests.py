@@ -2,7 +2,9 @@
 
 :func:`parse_request` turns one request line into a frozen request value or raises
 :class:`~supervisord.api.framing.ApiError` with a stable ``code``: garbage from a peer either
-parses or raises ``ApiError``, nothing else. :func:`request_json` is the inverse, for clients.
+parses or raises ``ApiError``, nothing else. The values and :func:`request_json`, the inverse
+for clients, live in :mod:`supervisord.api.ops` (the client library imports only that) and
+are re-exported here.
 
 Nothing here touches a socket or a clock.
 """
@@ -13,200 +15,64 @@ import enum
 import json
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode, JsonDict
-from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey
+from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode
+from supervisord.api.ops import (
+    ApiRequest,
+    Commission,
+    DisplayLabel,
+    DisplayModeRequest,
+    DisplayRow,
+    DisplayValue,
+    Estop,
+    Heartbeat,
+    Hello,
+    Hold,
+    ProofTest,
+    Release,
+    RequestId,
+    Reset,
+    Side,
+    Status,
+    Subscribe,
+    Topic,
+    Vibrate,
+    request_json,
+)
+from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode
 from supervisord.protocol.messages import I32, NAME_TEXT_LENGTH, check_text
 from supervisord.protocol.text import clean, is_clean
+from supervisord.release import Request
 from supervisord.safety.config import NAME_PATTERN
-from supervisord.safety.events import Request
 
-
-class Topic(enum.Enum):
-    """What a subscriber receives (``docs/api.md`` "Pushes")."""
-
-    STATE = "state"  # every decision that changed the state, the causes or the outputs
-    JOYSTICK = "joystick"  # every joystick message (meaningful only in RUN)
-    GPS = "gps"
-    REMOTE_STATUS = "remote_status"
-    RECORDS = "records"  # every stop record, as written
-
-    @property
-    def event(self) -> str:
-        """The ``event`` field of this topic's pushes."""
-        return "record" if self is Topic.RECORDS else self.value
-
-
-class Side(enum.Enum):
-    """Which handle of the remote vibrates (feedback keys 10-12)."""
-
-    LEFT = "left"
-    RIGHT = "right"
-    BOTH = "both"
-
-    @property
-    def key(self) -> FeedbackKey:
-        return _VIBRATE_KEYS[self]
-
-
-_VIBRATE_KEYS = {
-    Side.LEFT: FeedbackKey.VIBRATE_LEFT,
-    Side.RIGHT: FeedbackKey.VIBRATE_RIGHT,
-    Side.BOTH: FeedbackKey.VIBRATE_BOTH,
-}
-
-RequestId = int | str | None
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class _Request:
-    """``id``: the caller's optional tag, echoed in the reply."""
-
-    OP = ""
-    id: RequestId = None
-
-
-@dataclass(frozen=True, slots=True)
-class Hello(_Request):
-    """Name this connection: it becomes the client ``name`` (SR-8)."""
-
-    OP = "hello"
-    name: str
-
-
-@dataclass(frozen=True, slots=True)
-class Heartbeat(_Request):
-    """A named client is alive."""
-
-    OP = "heartbeat"
-
-
-@dataclass(frozen=True, slots=True)
-class Estop(_Request):
-    """An e-stop: the client's own (``client_estop:NAME``) or, before hello, ``local_estop``."""
-
-    OP = "estop"
-
-
-@dataclass(frozen=True, slots=True)
-class Hold(_Request):
-    """A hold: ``client_hold:NAME`` until this client releases it."""
-
-    OP = "hold"
-
-
-@dataclass(frozen=True, slots=True)
-class Release(_Request):
-    """End this caller's own e-stop or hold request (a stop stays latched until re-armed)."""
-
-    OP = "release"
-    what: Request
-
-
-@dataclass(frozen=True, slots=True)
-class Status(_Request):
-    """The current state, causes and outputs."""
-
-    OP = "status"
-
-
-@dataclass(frozen=True, slots=True)
-class Subscribe(_Request):
-    """Receive pushes of these topics from now on (replaces the previous set; empty: none)."""
-
-    OP = "subscribe"
-    topics: frozenset[Topic]
-
-
-@dataclass(frozen=True, slots=True)
-class DisplayValue(_Request):
-    """Show a number in user value ``key`` (1-9) on the remote."""
-
-    OP = "display"
-    key: int
-    value: int
-
-
-@dataclass(frozen=True, slots=True)
-class DisplayLabel(_Request):
-    """Label user value ``key`` (1-9): at most 20 single-byte characters."""
-
-    OP = "display"
-    key: int
-    text: str
-
-
-@dataclass(frozen=True, slots=True)
-class DisplayRow(_Request):
-    """Text row ``index`` (1-4) of the remote's text page: at most 20 characters."""
-
-    OP = "display"
-    index: int
-    text: str
-
-
-@dataclass(frozen=True, slots=True)
-class DisplayModeRequest(_Request):
-    """Which page the remote shows (feedback key 99)."""
-
-    OP = "display"
-    mode: DisplayMode
-
-
-@dataclass(frozen=True, slots=True)
-class Vibrate(_Request):
-    """Vibrate a handle of the remote once."""
-
-    OP = "vibrate"
-    side: Side
-
-
-@dataclass(frozen=True, slots=True)
-class Reset(_Request):
-    """``srcsctl reset``: a local re-arm (SR-4). Admins only."""
-
-    OP = "reset"
-
-
-@dataclass(frozen=True, slots=True)
-class Commission(_Request):
-    """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently
-    (SR-5). Admins only; the request must carry ``"confirm": true``."""
-
-    OP = "commission"
-
-
-@dataclass(frozen=True, slots=True)
-class ProofTest(_Request):
-    """Run the proof test of the VSC's watchdog again (SR-5.3; docs/safety.md "The proof
-    test"). Admins only; the core refuses it in RUN and HOLD. The reply comes at once; the
-    result follows in ``status`` (``prooftest``) and a ``prooftest`` record."""
-
-    OP = "prooftest"
-
-
-ApiRequest = (
-    Hello
-    | Heartbeat
-    | Estop
-    | Hold
-    | Release
-    | Status
-    | Subscribe
-    | DisplayValue
-    | DisplayLabel
-    | DisplayRow
-    | DisplayModeRequest
-    | Vibrate
-    | Reset
-    | Commission
-    | ProofTest
-)
-"""Any request of the client API. Not :class:`supervisord.safety.events.Request`, the safety
-core's name for what a ``release`` ends, which :class:`Release` carries."""
+__all__ = [
+    "ADMIN_REQUESTS",
+    "NAMED_REQUESTS",
+    "OPS",
+    "ApiRequest",
+    "Commission",
+    "DisplayLabel",
+    "DisplayModeRequest",
+    "DisplayRow",
+    "DisplayValue",
+    "Estop",
+    "Heartbeat",
+    "Hello",
+    "Hold",
+    "ProofTest",
+    "Release",
+    "RequestId",
+    "Reset",
+    "Side",
+    "Status",
+    "Subscribe",
+    "Topic",
+    "Vibrate",
+    "parse_request",
+    "request_json",
+]
 
 ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
 """Requests only an admin may make (SR-8)."""
@@ -469,32 +335,3 @@ def parse_request(line: bytes) -> ApiRequest:
     request = parser(fields)
     fields.finish()
     return request
-
-
-def request_json(request: ApiRequest) -> JsonDict:
-    """The request as its JSON object: what a client sends (the inverse of parsing)."""
-    obj: JsonDict = {"op": request.OP}
-    match request:
-        case Hello(name=name):
-            obj["name"] = name
-        case Release(what=what):
-            obj["what"] = what.value
-        case Subscribe(topics=topics):
-            obj["topics"] = sorted(t.value for t in topics)
-        case DisplayValue(key=key, value=value):
-            obj["value"] = {"key": key, "value": value}
-        case DisplayLabel(key=key, text=text):
-            obj["label"] = {"key": key, "text": text}
-        case DisplayRow(index=index, text=text):
-            obj["row"] = {"index": index, "text": text}
-        case DisplayModeRequest(mode=mode):
-            obj["mode"] = int(mode)
-        case Vibrate(side=side):
-            obj["side"] = side.value
-        case Commission():
-            obj["confirm"] = True
-        case _:
-            pass
-    if request.id is not None:
-        obj["id"] = request.id
-    return obj

@@ -10,10 +10,10 @@ Clients are named by the daemon's connection number (``connection``) until they 
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 from typing import TypeGuard, get_args
 
+from supervisord import release
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
 
@@ -103,11 +103,8 @@ class ClientHold(_Event):
     connection: int
 
 
-class Request(enum.Enum):
-    """What a client's release ends."""
-
-    ESTOP = "estop"
-    HOLD = "hold"
+Request = release.Request
+"""What a client's release ends: one enum with the client API's (``supervisord.release``)."""
 
 
 @dataclass(frozen=True, slots=True)

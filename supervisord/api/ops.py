@@ -1,0 +1,232 @@
+"""The client API's requests as values, and their JSON: what a client sends (SR-8,
+``docs/api.md`` "Requests"). Sans-IO.
+
+The client library (:mod:`supervisord.client`, and through it the ROS 2 bridge) builds these
+and sends :func:`request_json`; the daemon reads them back with
+:func:`supervisord.api.requests.parse_request`, which re-exports every name here. This module
+imports only the small set the client library is allowed (docs/ros2.md "The client library"):
+never the parser's strict reader, the VSC's messages or the safety core.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from supervisord.api.framing import JsonDict
+from supervisord.protocol.codes import DisplayMode, FeedbackKey
+from supervisord.release import Request
+
+
+class Topic(enum.Enum):
+    """What a subscriber receives (``docs/api.md`` "Pushes")."""
+
+    STATE = "state"  # every decision that changed the state, the causes or the outputs
+    JOYSTICK = "joystick"  # every joystick message (meaningful only in RUN)
+    GPS = "gps"
+    REMOTE_STATUS = "remote_status"
+    RECORDS = "records"  # every stop record, as written
+
+    @property
+    def event(self) -> str:
+        """The ``event`` field of this topic's pushes."""
+        return "record" if self is Topic.RECORDS else self.value
+
+
+class Side(enum.Enum):
+    """Which handle of the remote vibrates (feedback keys 10-12)."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    BOTH = "both"
+
+    @property
+    def key(self) -> FeedbackKey:
+        return _VIBRATE_KEYS[self]
+
+
+_VIBRATE_KEYS = {
+    Side.LEFT: FeedbackKey.VIBRATE_LEFT,
+    Side.RIGHT: FeedbackKey.VIBRATE_RIGHT,
+    Side.BOTH: FeedbackKey.VIBRATE_BOTH,
+}
+
+RequestId = int | str | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Request:
+    """``id``: the caller's optional tag, echoed in the reply."""
+
+    OP = ""
+    id: RequestId = None
+
+
+@dataclass(frozen=True, slots=True)
+class Hello(_Request):
+    """Name this connection: it becomes the client ``name`` (SR-8)."""
+
+    OP = "hello"
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class Heartbeat(_Request):
+    """A named client is alive."""
+
+    OP = "heartbeat"
+
+
+@dataclass(frozen=True, slots=True)
+class Estop(_Request):
+    """An e-stop: the client's own (``client_estop:NAME``) or, before hello, ``local_estop``."""
+
+    OP = "estop"
+
+
+@dataclass(frozen=True, slots=True)
+class Hold(_Request):
+    """A hold: ``client_hold:NAME`` until this client releases it."""
+
+    OP = "hold"
+
+
+@dataclass(frozen=True, slots=True)
+class Release(_Request):
+    """End this caller's own e-stop or hold request (a stop stays latched until re-armed)."""
+
+    OP = "release"
+    what: Request
+
+
+@dataclass(frozen=True, slots=True)
+class Status(_Request):
+    """The current state, causes and outputs."""
+
+    OP = "status"
+
+
+@dataclass(frozen=True, slots=True)
+class Subscribe(_Request):
+    """Receive pushes of these topics from now on (replaces the previous set; empty: none)."""
+
+    OP = "subscribe"
+    topics: frozenset[Topic]
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayValue(_Request):
+    """Show a number in user value ``key`` (1-9) on the remote."""
+
+    OP = "display"
+    key: int
+    value: int
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayLabel(_Request):
+    """Label user value ``key`` (1-9): at most 20 single-byte characters."""
+
+    OP = "display"
+    key: int
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayRow(_Request):
+    """Text row ``index`` (1-4) of the remote's text page: at most 20 characters."""
+
+    OP = "display"
+    index: int
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class DisplayModeRequest(_Request):
+    """Which page the remote shows (feedback key 99)."""
+
+    OP = "display"
+    mode: DisplayMode
+
+
+@dataclass(frozen=True, slots=True)
+class Vibrate(_Request):
+    """Vibrate a handle of the remote once."""
+
+    OP = "vibrate"
+    side: Side
+
+
+@dataclass(frozen=True, slots=True)
+class Reset(_Request):
+    """``srcsctl reset``: a local re-arm (SR-4). Admins only."""
+
+    OP = "reset"
+
+
+@dataclass(frozen=True, slots=True)
+class Commission(_Request):
+    """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently
+    (SR-5). Admins only; the request must carry ``"confirm": true``."""
+
+    OP = "commission"
+
+
+@dataclass(frozen=True, slots=True)
+class ProofTest(_Request):
+    """Run the proof test of the VSC's watchdog again (SR-5.3; docs/safety.md "The proof
+    test"). Admins only; the core refuses it in RUN and HOLD. The reply comes at once; the
+    result follows in ``status`` (``prooftest``) and a ``prooftest`` record."""
+
+    OP = "prooftest"
+
+
+ApiRequest = (
+    Hello
+    | Heartbeat
+    | Estop
+    | Hold
+    | Release
+    | Status
+    | Subscribe
+    | DisplayValue
+    | DisplayLabel
+    | DisplayRow
+    | DisplayModeRequest
+    | Vibrate
+    | Reset
+    | Commission
+    | ProofTest
+)
+"""Any request of the client API. Not :class:`supervisord.release.Request` (what a
+``release`` ends; the safety core's ``supervisord.safety.events.Request``), which
+:class:`Release` carries."""
+
+
+def request_json(request: ApiRequest) -> JsonDict:
+    """The request as its JSON object: what a client sends (the inverse of parsing)."""
+    obj: JsonDict = {"op": request.OP}
+    match request:
+        case Hello(name=name):
+            obj["name"] = name
+        case Release(what=what):
+            obj["what"] = what.value
+        case Subscribe(topics=topics):
+            obj["topics"] = sorted(t.value for t in topics)
+        case DisplayValue(key=key, value=value):
+            obj["value"] = {"key": key, "value": value}
+        case DisplayLabel(key=key, text=text):
+            obj["label"] = {"key": key, "text": text}
+        case DisplayRow(index=index, text=text):
+            obj["row"] = {"index": index, "text": text}
+        case DisplayModeRequest(mode=mode):
+            obj["mode"] = int(mode)
+        case Vibrate(side=side):
+            obj["side"] = side.value
+        case Commission():
+            obj["confirm"] = True
+        case _:
+            pass
+    if request.id is not None:
+        obj["id"] = request.id
+    return obj
