@@ -1,0 +1,1 @@
+../../supervisord/__init__.py

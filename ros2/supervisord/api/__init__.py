@@ -1,0 +1,1 @@
+../../../supervisord/api/__init__.py

@@ -1,0 +1,1 @@
+../../../supervisord/cli/__init__.py

@@ -1,0 +1,1 @@
+../../../supervisord/cli/ros2.py

@@ -1,0 +1,1 @@
+../../../supervisord/protocol/__init__.py

@@ -1,0 +1,1 @@
+../../../supervisord/protocol/codes.py
