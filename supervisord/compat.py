@@ -1,6 +1,6 @@
 """Names newer than Python 3.10, for the modules that the client library (and so the ROS 2
-bridge) imports: a ROS installation brings its own Python, 3.10 on Humble to 3.12 on Jazzy
-(docs/ros2.md "Python versions"). The daemon itself runs on Debian 12's 3.11.
+bridge) imports: a ROS installation brings its own Python, 3.10 on Humble to 3.14 on Lyrical
+(docs/ros2.md "Python versions"). The daemon runs on 3.10 to 3.14 too (docs/install.md).
 
 Pure: the safety core imports it (``tests/safety/test_purity.py``)."""
 

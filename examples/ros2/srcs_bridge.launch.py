@@ -1,7 +1,7 @@
 """Start the SRCS bridge (docs/ros2.md): ``ros2 launch srcs_bridge.launch.py``.
 
-The bridge is the ``srcs-ros2`` program of srcs-supervisord, not a ROS package, so the launch
-file starts it as a process with its parameters file. Remap the velocity gate onto the
+The bridge is the ``srcs-ros2`` program (the ``python3-srcs-ros2`` package, or ``srcs_ros2`` built
+with colcon), started here as a process with its parameters file. Remap the velocity gate onto the
 robot's own topics here: the teleop or planner publishes to ``cmd_vel_in``, the base
 controller listens on ``cmd_vel_out``.
 """
