@@ -413,10 +413,15 @@ class Robot:
             sim = control.wait_for(
                 lambda s: s["linked"] and not s["booting"] and s["estop"] == 0, timeout=WAIT_S
             )
-            if sim["mode_name"] == "operational":
-                control.pause()
-            elif sim["mode_name"] == "menu":
-                control.menu()
+            try:
+                if sim["mode_name"] == "operational":
+                    control.pause()
+                elif sim["mode_name"] == "menu":
+                    control.menu()
+            except SimError:
+                # The VSC left that mode since the snapshot: our stop's e-stop byte reached it
+                # and it reverted to Local (manual §6.6), which is what the pause was for.
+                continue
             # the hold time, a non-Operational heartbeat seen after the last stop (SR-4.2), and
             # heartbeats in it spanning the takeover dwell (docs/safety.md re-arm rule 4)
             time.sleep(max(HOLD_MS / 1000, TAKEOVER_DWELL_NS / 1e9) + 2 * self.beat_s + 0.05)
