@@ -1,17 +1,24 @@
 """The Debian package that ``./dev deb`` builds (packaging/build_deb.py, docs/install.md): its
 files where Debian puts them (SR-0.2: the units, users, directories and udev rule that put the
 supervisor in its place), no compiler or -dev dependency, maintainer scripts that parse and
-never delete the stop record on a plain remove (SR-7.4), and launchers that run from an
-unpacked tree. Built once per session; nothing is ever installed on this machine (the system
-tier installs it in its guest, docs/system-tier.md)."""
+never delete the stop record on a plain remove (SR-7.4), launchers that run from an unpacked
+tree, every Python from 3.10 to 3.14, lintian's approval, a copyright file that covers every
+bundled distribution, no path of the build machine, and the same bytes from two builds. Built
+once per session, and once more to compare; nothing is ever installed on this machine (the
+system tier installs it in its guest, docs/system-tier.md)."""
 
 from __future__ import annotations
 
+import gzip
+import importlib.util
+import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -19,6 +26,11 @@ from supervisord.config import toml
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter")
+PYTHONS = ("3.10", "3.11", "3.12", "3.13", "3.14")
+SITE = "opt/srcsd/lib/python3/site-packages"
+DOC = "usr/share/doc/srcs-supervisord"
+SOMEONE_ELSE = "someone.else@build.invalid"
+"""DEBEMAIL while the package is built: the Maintainer field must not take it."""
 
 
 def _version() -> str:
@@ -26,12 +38,15 @@ def _version() -> str:
         return str(toml.load(handle)["project"]["version"])
 
 
-@pytest.fixture(scope="session")
-def deb(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The package built from this tree, once per session, in a directory of the session's own."""
-    if shutil.which("dpkg-deb") is None:
-        pytest.fail("dpkg-deb is missing: the package cannot be built or checked")
-    out = tmp_path_factory.mktemp("deb")
+def _packaged_env() -> dict[str, str]:
+    """The environment without the developer's PYTHON* settings (PYTHONPATH names this tree):
+    the packaged programs must find everything in their own tree, as on a robot."""
+    return {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+
+
+def _build(out: Path) -> Path:
+    """packaging/build_deb.py into ``out/dist``, working in ``out/work``, as ./dev deb runs it."""
+    env = {**_packaged_env(), "DEBEMAIL": SOMEONE_ELSE, "DEBFULLNAME": "Someone Else"}
     result = subprocess.run(
         [
             sys.executable,
@@ -39,6 +54,7 @@ def deb(tmp_path_factory: pytest.TempPathFactory) -> Path:
             *("--out", str(out / "dist"), "--work", str(out / "work")),
         ],
         cwd=ROOT,
+        env=env,
         capture_output=True,
         text=True,
         timeout=600,
@@ -46,6 +62,14 @@ def deb(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
     assert result.returncode == 0, result.stderr
     return Path(result.stdout.strip())
+
+
+@pytest.fixture(scope="session")
+def deb(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The package built from this tree, once per session, in a directory of the session's own."""
+    if shutil.which("dpkg-deb") is None:
+        pytest.fail("dpkg-deb is missing: the package cannot be built or checked")
+    return _build(tmp_path_factory.mktemp("deb"))
 
 
 @pytest.fixture(scope="session")
@@ -61,13 +85,17 @@ def listing(deb: Path) -> dict[str, str]:
     return paths
 
 
-@pytest.fixture(scope="session")
-def unpacked(deb: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The package's files unpacked into a directory (``dpkg-deb -x``), not installed."""
-    root = tmp_path_factory.mktemp("unpacked")
+def _unpack(deb: Path, root: Path) -> Path:
+    """The package's files unpacked into ``root`` (``dpkg-deb -x`` and ``-e``), not installed."""
     subprocess.run(["dpkg-deb", "-x", str(deb), str(root)], check=True)
     subprocess.run(["dpkg-deb", "-e", str(deb), str(root / "DEBIAN")], check=True)
     return root
+
+
+@pytest.fixture(scope="session")
+def unpacked(deb: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The package's files unpacked into a directory (``dpkg-deb -x``), not installed."""
+    return _unpack(deb, tmp_path_factory.mktemp("unpacked"))
 
 
 def field(deb: Path, name: str) -> str:
@@ -89,12 +117,13 @@ def test_name_version_and_architecture(deb: Path) -> None:
 
 
 def test_depends_on_no_compiler_and_no_dev_package(deb: Path) -> None:
-    """SR-0.2: the robot needs Python, systemd and udev, and no compiler, headers or -dev
-    package (nothing is built on the robot)."""
+    """SR-0.2: the robot needs Python 3.10 to 3.14, the C library, systemd and udev, and no
+    compiler, headers or -dev package (nothing is built on the robot)."""
     depends = [d.strip() for d in field(deb, "Depends").split(",")]
     names = {re.split(r"[ (]", d)[0] for d in depends}
-    assert {"python3", "systemd", "udev"} <= names
-    assert "python3 (>= 3.11)" in depends, depends
+    assert {"python3", "libc6", "systemd", "udev"} <= names
+    assert "python3 (>= 3.10)" in depends, depends
+    assert "python3 (<< 3.15)" in depends, depends
     compilers = {"gcc", "cc", "build-essential", "pkg-config", "cpp", "clang"}
     assert not names & compilers, names
     assert not [n for n in names if n.endswith("-dev")], names
@@ -115,6 +144,8 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         "/opt/srcsd/pyvenv.cfg",
         "/opt/srcsd/bin/python3",
         f"{doc}/copyright",
+        f"{doc}/changelog.gz",
+        "/usr/share/lintian/overrides/srcs-supervisord",
         f"{doc}/README.md",
         f"{doc}/docs/install.md",
         f"{doc}/examples/example-serial-gpio.toml",
@@ -130,9 +161,12 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         "/usr/bin/srcsctl",
     }
     expected |= {f"/opt/srcsd/bin/{name}" for name in LAUNCHERS}
+    expected |= {f"/opt/srcsd/lib/python{version}" for version in PYTHONS}
     expected |= {f"/usr/share/bash-completion/completions/{name}" for name in LAUNCHERS}
     assert not expected - listing.keys(), sorted(expected - listing.keys())
     assert not [p for p in listing if p.startswith(("/etc", "/usr/local", "/var", "/run"))]
+    # No byte-code: postinst compiles for the robot's python3 (test_postinst_compiles_...).
+    assert not [p for p in listing if "__pycache__" in p or p.endswith(".pyc")]
     assert all(" root/root " in line for line in listing.values())
     assert "/opt/srcsd/bin/srcsd -> " not in listing["/opt/srcsd/bin/srcsd"]  # a file
     assert listing["/usr/sbin/srcsd"].endswith("-> /opt/srcsd/bin/srcsd")
@@ -201,6 +235,7 @@ def test_launchers_run_from_the_unpacked_tree(unpacked: Path, name: str) -> None
     each prints the package's version."""
     result = subprocess.run(
         [str(unpacked / "opt/srcsd/bin" / name), "--version"],
+        env=_packaged_env(),
         capture_output=True,
         text=True,
         timeout=60,
@@ -223,6 +258,7 @@ def test_the_environment_is_its_own(unpacked: Path) -> None:
     # cwd: -c and -m put the working directory first on the path; not this repository.
     result = subprocess.run(
         [str(python), "-c", probe],
+        env=_packaged_env(),
         capture_output=True,
         text=True,
         cwd=unpacked,
@@ -236,6 +272,7 @@ def test_the_environment_is_its_own(unpacked: Path) -> None:
     assert dist_packages == "False"
     again = subprocess.run(
         [executable, "-m", "supervisord.cli.sim", "--version"],
+        env=_packaged_env(),
         capture_output=True,
         text=True,
         cwd=unpacked,
@@ -247,14 +284,240 @@ def test_the_environment_is_its_own(unpacked: Path) -> None:
 
 
 def test_extensions_for_every_supported_python(unpacked: Path) -> None:
-    """SR-0.2: every compiled extension is there for Python 3.11 (Debian 12) and 3.12 (Ubuntu
-    24.04), and no journal library is packaged (the journal is written directly)."""
-    site = unpacked / "opt/srcsd/lib/python3/site-packages"
-    built = {p.relative_to(site) for p in site.rglob("*.so")}
-    for_311 = {p for p in built if ".cpython-311-" in p.name}
-    assert for_311, "no extension modules found"
-    for path in for_311:
-        assert path.with_name(path.name.replace("-311-", "-312-")) in built, path
+    """SR-0.2: every compiled extension is there for each Python from 3.10 (Ubuntu 22.04) to
+    3.14 (Ubuntu 26.04), and lib/python3.X is the one site-packages for each; tomli, the TOML
+    reader the program needs on 3.10 only, is bundled; no journal library is packaged (the
+    journal is written directly)."""
+    site = unpacked / SITE
+    built: dict[Path, set[str]] = {}
+    for path in site.rglob("*.so"):
+        named = re.fullmatch(r"(.+)\.cpython-(\d+)-[\w-]+\.so", path.name)
+        assert named is not None, f"{path}: not named for one Python version"
+        built.setdefault(path.parent.relative_to(site) / named[1], set()).add(named[2])
+    assert {Path("gpiod/_ext"), Path("msgpack/_cmsgpack"), Path("wrapt/_wrappers")} <= set(built)
+    every = {version.replace(".", "") for version in PYTHONS}
+    assert {module: tags for module, tags in built.items() if tags != every} == {}
+    for version in PYTHONS:
+        assert (unpacked / f"opt/srcsd/lib/python{version}").resolve() == site.parent
+    assert list(site.glob("tomli-*.dist-info"))
     assert not (site / "systemd").exists()
-    assert (unpacked / "opt/srcsd/lib/python3.11").resolve() == site.parent
-    assert (unpacked / "opt/srcsd/lib/python3.12").resolve() == site.parent
+
+
+def _glibc(text: str) -> tuple[int, int]:
+    major, minor = text.split(".")[:2]
+    return int(major), int(minor)
+
+
+def test_libc_dependency_is_what_the_wheels_need(deb: Path, unpacked: Path) -> None:
+    """SR-0.2: Depends names libc6 (>= X), X the newest C library a bundled wheel needs by its
+    manylinux tags (a wheel: the oldest its tags name, for each Python, whose tags the merged
+    WHEEL files keep); no extension module asks for a newer glibc symbol; and X is at most
+    2.35, Ubuntu 22.04's, the oldest of the targets."""
+    depends = [d.strip() for d in field(deb, "Depends").split(",")]
+    (libc,) = [d for d in depends if d.startswith("libc6")]
+    declared = re.fullmatch(r"libc6 \(>= (\d+\.\d+)\)", libc)
+    assert declared is not None, libc
+    legacy = {"manylinux1": "2.5", "manylinux2010": "2.12", "manylinux2014": "2.17"}
+    needed = (0, 0)
+    for wheel in (unpacked / SITE).glob("*.dist-info/WHEEL"):
+        by_python: dict[str, list[tuple[int, int]]] = {}
+        for line in wheel.read_text().splitlines():
+            if not line.startswith("Tag:"):
+                continue
+            python, _, platforms = line[4:].strip().split("-")
+            for platform in platforms.split("."):
+                numbered = re.match(r"manylinux_(\d+)_(\d+)_", platform)
+                if numbered is not None:
+                    by_python.setdefault(python, []).append((int(numbered[1]), int(numbered[2])))
+                elif platform != "any":
+                    by_python.setdefault(python, []).append(_glibc(legacy[platform.split("_")[0]]))
+        needed = max([needed, *(min(tags) for tags in by_python.values())])
+    assert _glibc(declared[1]) == needed
+    symbols = set()
+    for module in (unpacked / SITE).rglob("*.so"):
+        symbols |= {
+            _glibc(v.decode()) for v in re.findall(rb"GLIBC_(\d+\.\d+)", module.read_bytes())
+        }
+    assert symbols, "no glibc symbol versions found in the extension modules"
+    assert max(symbols) <= needed <= (2, 35)
+
+
+def test_no_path_of_the_build_machine(deb: Path, tmp_path: Path) -> None:
+    """SR-0.2: no file of the package (binaries and control files included) and no link names
+    the build's work directory, this repository or the build's Python environment: pip's
+    scripts of the dependencies and its direct_url.json once did."""
+    root = _unpack(deb, tmp_path / "root")
+    work = deb.parent.parent / "work"
+    places = (work, ROOT, Path(sys.prefix))
+    needles = {str(path).encode() for place in places for path in (place, place.resolve())}
+    hits = []
+    for path in sorted(root.rglob("*")):
+        if path.is_symlink():
+            data = os.readlink(path).encode()
+        elif path.is_file():
+            data = path.read_bytes()
+        else:
+            continue
+        hits += [f"{path.relative_to(root)}: {n.decode()}" for n in sorted(needles) if n in data]
+    assert hits == []
+
+
+def test_two_builds_are_the_same_bytes(deb: Path, tmp_path: Path) -> None:
+    """SR-0.2: a second build of the same tree, in another work directory, gives the same .deb
+    byte for byte: every time is SOURCE_DATE_EPOCH's, the package holds no byte-code and no
+    local path."""
+    again = _build(tmp_path)
+    if again.read_bytes() != deb.read_bytes():
+        sums = [
+            set(
+                subprocess.run(
+                    ["dpkg-deb", "-I", str(d), "md5sums"],
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                ).stdout.splitlines()
+            )
+            for d in (deb, again)
+        ]
+        pytest.fail(f"the builds differ; files: {sorted(sums[0] ^ sums[1])[:10]}")
+
+
+def test_lintian_finds_no_error_and_no_warning(deb: Path) -> None:
+    """SR-0.2: Debian's checker passes the package: no error and no warning but those the
+    package's overrides file overrides, and none of its overrides unused."""
+    if shutil.which("lintian") is None:
+        pytest.fail("lintian is missing (./dev test installs it)")
+    result = subprocess.run(
+        ["lintian", "--info", "--display-info", "--fail-on", "error,warning", str(deb)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    tags = [line for line in result.stdout.splitlines() if re.match(r"[EWIPX]: ", line)]
+    bad = [t for t in tags if t.startswith(("E:", "W:")) or "-override" in t]
+    assert bad == []
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_every_lintian_override_says_why(unpacked: Path) -> None:
+    """SR-0.2: each override in the package's lintian overrides file follows a comment that
+    says why (a group of overrides may share one)."""
+    text = (unpacked / "usr/share/lintian/overrides/srcs-supervisord").read_text()
+    previous = ""
+    overrides = 0
+    for line in text.splitlines():
+        if line and not line.startswith("#"):
+            assert line.startswith("srcs-supervisord: "), line
+            assert previous.startswith(("#", "srcs-supervisord: ")), f"no reason for {line}"
+            overrides += 1
+        previous = line
+    assert overrides
+
+
+def test_changelog_and_maintainer(deb: Path, unpacked: Path) -> None:
+    """SR-0.2: the package carries packaging/changelog as changelog.gz (a native package's
+    name), in Debian's format, its top entry at pyproject.toml's version; its Maintainer is the
+    project's fixed address, the changelog's, whatever DEBEMAIL the build ran with."""
+    changelog = ROOT / "packaging/changelog"
+    if shutil.which("dpkg-parsechangelog") is None:
+        pytest.fail("dpkg-parsechangelog is missing (dpkg-dev, which lintian brings)")
+    parsed = {
+        name: subprocess.run(
+            ["dpkg-parsechangelog", "-l", str(changelog), "-S", name],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        for name in ("Source", "Version", "Maintainer")
+    }
+    assert parsed["Source"] == "srcs-supervisord"
+    assert parsed["Version"] == _version()
+    assert gzip.decompress((unpacked / DOC / "changelog.gz").read_bytes()) == changelog.read_bytes()
+    maintainer = field(deb, "Maintainer")
+    assert maintainer == parsed["Maintainer"]
+    assert re.fullmatch(r"[^<>]+ <[^@<>\s]+@[\w-]+(\.[\w-]+)+>", maintainer), maintainer
+    assert SOMEONE_ELSE not in maintainer
+    assert "localhost" not in maintainer
+    assert "root@" not in maintainer
+
+
+def _build_deb() -> ModuleType:
+    """packaging/build_deb.py as a module, for its copyright check."""
+    spec = importlib.util.spec_from_file_location("build_deb", ROOT / "packaging/build_deb.py")
+    assert spec is not None
+    assert spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_copyright_covers_every_bundled_distribution(unpacked: Path) -> None:
+    """SR-0.2: the copyright file is machine-readable (DEP-5), names each distribution bundled
+    in the environment in a paragraph with its licence, and gives every licence's text or the
+    common-licenses file that has it; the build's own check fails when a paragraph is missing
+    (here wrapt's)."""
+    text = (unpacked / DOC / "copyright").read_text()
+    assert text == (ROOT / "packaging/copyright").read_text()
+    assert text.startswith(
+        "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/\n"
+    )
+    site = unpacked / SITE
+    bundled = set()
+    for info in site.glob("*.dist-info"):
+        name = re.search(r"^Name: (\S+)$", (info / "METADATA").read_text(), re.MULTILINE)
+        assert name is not None, info
+        bundled.add(name[1])
+    named = set(re.findall(r"^Distribution: (\S+)$", text, re.MULTILINE))
+    assert named == bundled - {"srcs-supervisord"}
+    paragraphs = text.split("\n\n")
+    texts = {
+        p.split("\n")[0].removeprefix("License: ") for p in paragraphs if p.startswith("License:")
+    }
+    for paragraph in paragraphs:
+        if paragraph.startswith("Files:"):
+            licence = re.search(r"^License: (.+)((?:\n .*)*)", paragraph, re.MULTILINE)
+            assert licence is not None, paragraph
+            names = re.split(r" or | and ", licence[1])
+            assert licence[2].strip() or set(names) <= texts, paragraph
+    build_deb = _build_deb()
+    build_deb.check_copyright(site, text)
+    without = re.sub(r"\n\nFiles: [^\n]*/wrapt/\*.*?(?=\n\n)", "", text, flags=re.DOTALL)
+    assert "Distribution: wrapt" not in without
+    with pytest.raises(build_deb.BuildError, match="wrapt"):
+        build_deb.check_copyright(site, without)
+
+
+def test_postinst_compiles_for_the_installed_python(deb: Path, tmp_path: Path) -> None:
+    """SR-0.2: postinst's byte-compile, run on an unpacked tree, compiles every module of the
+    environment for the python3 the environment links to (here this machine's): the package
+    carries byte-code for no version, as it serves every one from 3.10 to 3.14."""
+    root = _unpack(deb, tmp_path / "root")
+    postinst = (root / "DEBIAN/postinst").read_text()
+    (command,) = re.findall(
+        r"^\s*(/opt/srcsd/bin/python3 -m compileall [^>\n]*?)\s*>", postinst, re.MULTILINE
+    )
+    args = [arg.replace("/opt/srcsd", str(root / "opt/srcsd")) for arg in shlex.split(command)]
+    subprocess.run(args, env=_packaged_env(), capture_output=True, timeout=300, check=True)
+    probe = (
+        "import importlib.util, pathlib, sys\n"
+        "site = pathlib.Path(sys.argv[1])\n"
+        "modules = sorted(site.rglob('*.py'))\n"
+        "compiled = [pathlib.Path(importlib.util.cache_from_source(p)) for p in modules]\n"
+        "missing = [p for p, pyc in zip(modules, compiled) if not pyc.is_file()]\n"
+        "print(sys.implementation.cache_tag, len(modules), len(missing), *missing[:5])\n"
+    )
+    result = subprocess.run(
+        [str(root / "opt/srcsd/bin/python3"), "-c", probe, str(root / SITE)],
+        env=_packaged_env(),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    tag, modules, missing, *names = result.stdout.split()
+    assert tag.removeprefix("cpython-") in {v.replace(".", "") for v in PYTHONS}
+    assert int(modules) > 100
+    assert (int(missing), names) == (0, [])
+    assert (root / SITE / f"supervisord/__pycache__/__init__.{tag}.pyc").is_file()
