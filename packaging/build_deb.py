@@ -61,8 +61,8 @@ MANYLINUX_LEGACY = {"manylinux1": (2, 5), "manylinux2010": (2, 12), "manylinux20
 MACHINES = {"amd64": "x86_64", "arm64": "aarch64"}
 """Debian architecture -> the wheels' machine name."""
 LEFT_OUT = {"srcs-ros2"}
-"""Console scripts not packaged: the ROS 2 bridge needs rclpy from a ROS installation and is
-installed into a venv on ROS's own Python (docs/ros2.md)."""
+"""Console scripts not packaged: the ROS 2 bridge is its own package, run by ROS's Python and
+rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install")."""
 MAINTAINER = "srcs-supervisord maintainers <srcs-supervisord@example.com>"
 """The package's Maintainer: fixed here, whoever builds it."""
 CHANGELOG = REPO / "packaging/changelog"
