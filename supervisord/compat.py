@@ -21,6 +21,18 @@ class StrEnum(str, enum.Enum):
         return str(self.value).__format__(spec)
 
 
+class IntEnum(enum.IntEnum):
+    """What Python 3.11's ``enum.IntEnum`` does: a member is its number wherever it is used as
+    text, ``str()`` as well as f-strings. On 3.10 ``str()`` gives ``MessageType.JOYSTICK``,
+    which a file written there (the simulator's EEPROM) cannot be read back from."""
+
+    def __str__(self) -> str:
+        return int.__repr__(self)
+
+    def __format__(self, spec: str) -> str:
+        return int.__format__(int(self), spec)
+
+
 def from_iso(text: str) -> dt.datetime:
     """``datetime.fromisoformat`` with the UTC designator ``Z`` that people type and Python
     3.11 reads (``2026-11-24T14:02Z``); 3.10 takes only an offset, so ``Z`` becomes ``+00:00``.

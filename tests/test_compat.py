@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import ast
 import datetime as dt
+from pathlib import Path
 
 import pytest
 
+import supervisord
 from supervisord.compat import from_iso
 from supervisord.config import toml
+from supervisord.protocol.codes import MessageType
 
 
 def test_an_iso_time_with_z_is_utc() -> None:
@@ -28,3 +32,24 @@ def test_toml_reads_and_refuses_as_tomllib_does() -> None:
     assert toml.loads('[robot]\nname = "r"\n') == {"robot": {"name": "r"}}
     with pytest.raises(toml.TOMLDecodeError):
         toml.loads("[robot\n")
+
+
+def test_an_int_enum_reads_as_its_number_on_every_python() -> None:
+    """SR-0.3: a member of every integer enum of the program is its number as text, ``str()``
+    and f-strings alike, as Python 3.11 made it: on 3.10 ``str()`` of a plain ``IntEnum`` is
+    ``MessageType.JOYSTICK``, and the simulator's EEPROM file, keyed by ``str(kind)``, could not
+    be read back there (seen on a real 3.10). Each enum derives from ``compat.IntEnum``, which
+    is checked in the source, since on 3.11 and later the plain one behaves the same."""
+    root = Path(supervisord.__file__).parent
+    plain = [
+        f"{path.relative_to(root)}:{node.lineno}"
+        for path in sorted(root.rglob("*.py"))
+        if path.name != "compat.py"
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ClassDef)
+        for base in node.bases
+        if isinstance(base, ast.Attribute) and base.attr == "IntEnum"
+    ]
+    assert plain == [], f"derive from supervisord.compat.IntEnum: {plain}"
+    joystick = MessageType.JOYSTICK
+    assert (str(joystick), f"{joystick}", f"{joystick:#04x}") == ("16", "16", "0x10")

@@ -11,11 +11,13 @@ from __future__ import annotations
 import enum
 from typing import TYPE_CHECKING, Final
 
+from supervisord.compat import IntEnum
+
 if TYPE_CHECKING:
     from typing_extensions import Self
 
 
-class _Parsable(enum.IntEnum):
+class _Parsable(IntEnum):
     @classmethod
     def parse(cls, value: int) -> Self | None:
         """The member for ``value``, or ``None`` when the value has no name."""

@@ -7,10 +7,10 @@ for a device that declares none; multi-byte fields are little-endian like the re
 
 from __future__ import annotations
 
-import enum
 import struct
 from dataclasses import dataclass
 
+from supervisord.compat import IntEnum
 from supervisord.protocol.messages import I32, U8, check_range, check_text
 
 INPUT_LENGTH = 9
@@ -23,7 +23,7 @@ _INPUT = struct.Struct("<6bBBB")
 _OUTPUT_HEAD = struct.Struct("<BiB")
 
 
-class DPadDirection(enum.IntEnum):
+class DPadDirection(IntEnum):
     """The D-pad nibble: clockwise from up in eighths (manual table 38); 8 = not pressed."""
 
     UP = 0

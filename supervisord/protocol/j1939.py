@@ -19,6 +19,7 @@ import enum
 import struct
 from dataclasses import dataclass
 
+from supervisord.compat import IntEnum
 from supervisord.protocol.codes import FieldStatus
 from supervisord.protocol.messages import (
     Axis,
@@ -68,7 +69,7 @@ def j1939_axis(axis: Axis) -> Axis:
     return Axis(axis.neutral, axis.negative, axis.positive, MAGNITUDE_MAX)
 
 
-class CanId(enum.IntEnum):
+class CanId(IntEnum):
     """The 29-bit ids of manual table 23 and PR-3 (priority 3)."""
 
     LEFT_BASIC = 0x0CFDD633

@@ -17,7 +17,6 @@ return ``False``: the JSON Lines file stays the record that counts.
 from __future__ import annotations
 
 import array
-import enum
 import errno
 import fcntl
 import json
@@ -30,6 +29,7 @@ import uuid
 from collections.abc import Iterable, Mapping
 from typing import Final
 
+from supervisord.compat import IntEnum
 from supervisord.errors import SrcsError
 from supervisord.record.format import RecordKind, written_kind
 from supervisord.record.jsonl import RecordUsageError, cause_names
@@ -51,7 +51,7 @@ MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
 alerting depend on them (``docs/record.md`` lists them)."""
 
 
-class Priority(enum.IntEnum):
+class Priority(IntEnum):
     """syslog priorities the sink uses."""
 
     CRIT = 2

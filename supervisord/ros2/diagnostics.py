@@ -7,11 +7,11 @@ strength, RSSI). docs/ros2.md "Diagnostics" lists every key.
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
+from supervisord.compat import IntEnum
 from supervisord.ros2.mapping import State, state_of
 
 SUPERVISOR_NAME: Final = "srcs: supervisor"
@@ -19,7 +19,7 @@ REMOTE_NAME: Final = "srcs: remote"
 LOW_BATTERY_PERCENT: Final = 20
 
 
-class Level(enum.IntEnum):
+class Level(IntEnum):
     """``diagnostic_msgs/DiagnosticStatus`` levels."""
 
     OK = 0

@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
+from supervisord.compat import IntEnum
+
 AXES: Final = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
 """``sensor_msgs/Joy`` axes 0-5, the order of the public drivers (docs/ros2.md "joy")."""
 BUTTONS: Final = (
@@ -88,7 +90,7 @@ def joy_values(push: Mapping[str, Any]) -> JoyValues:
     return JoyValues(axes, tuple(buttons))
 
 
-class FixStatus(enum.IntEnum):
+class FixStatus(IntEnum):
     """``sensor_msgs/NavSatStatus`` ``status`` values."""
 
     NO_FIX = -1
