@@ -162,6 +162,8 @@ class Demo:
             self.notes,
             reach=f"srcsctl --demo status|watch|log talks to this demo (socket {self.socket})",
             width=width,
+            now_ns=time.monotonic_ns(),  # the daemon's clock: CLOCK_MONOTONIC of this machine
+            hold_ms=round(self.hold_s * 1000),
         )
 
     @property

@@ -35,8 +35,17 @@ WAITING: Final[Mapping[str, str]] = {
 """Stop conditions that clear by themselves, and what the operator is waiting for."""
 
 
-def next_step(sim: Mapping[str, Any], status: Mapping[str, Any] | None) -> str:
-    """The one thing to do now, or what is being waited for."""
+def next_step(
+    sim: Mapping[str, Any],
+    status: Mapping[str, Any] | None,
+    *,
+    now_ns: int | None = None,
+    hold_ms: int = 0,
+) -> str:
+    """The one thing to do now, or what is being waited for. ``now_ns`` is the monotonic
+    clock the daemon stamps its causes with (one machine, one clock) and ``hold_ms`` the
+    re-arm hold: a takeover before every stop condition has been clear that long is refused
+    (SR-4), so until then the step is to wait."""
     if status is None:
         return "wait: the supervisor is not answering yet"
     if not sim.get("plugged"):
@@ -57,6 +66,15 @@ def next_step(sim: Mapping[str, Any], status: Mapping[str, Any] | None) -> str:
     if active:
         why = next((WAITING[name] for name in active if name in WAITING), None)
         return f"wait: {why or ', '.join(active) + ' still active'}"
+    cleared = [
+        when
+        for c in causes
+        if isinstance(c, Mapping)
+        and c.get("latched")
+        and isinstance(when := c.get("cleared_ns"), int)
+    ]
+    if now_ns is not None and cleared and now_ns < max(cleared) + hold_ms * 1_000_000:
+        return f"wait: the stop conditions must stay clear for {hold_ms} ms (the re-arm hold)"
     return "press [t] to take over: the supervisor goes to RUN and the outputs come on"
 
 
@@ -69,11 +87,15 @@ def screen(
     *,
     reach: str = "",
     width: int = 0,
+    now_ns: int | None = None,
+    hold_ms: int = 0,
 ) -> list[str]:
     """The whole screen, top to bottom; ``reach`` says how ``srcsctl`` finds this demo;
-    each line at most ``width`` characters (0: as long as it is)."""
+    each line at most ``width`` characters (0: as long as it is); ``now_ns`` and ``hold_ms``
+    as :func:`next_step` takes them."""
     lines = ["SRCS safety supervisor - live demo (srcs-sim + srcsd)", ""]
-    lines += fold(f"NEXT: {next_step(sim, status)}", width, "      ")
+    step = next_step(sim, status, now_ns=now_ns, hold_ms=hold_ms)
+    lines += fold(f"NEXT: {step}", width, "      ")
     for note in notes[-NOTES_SHOWN:]:
         lines += fold(f"> {note}", width, "  ")
     lines.append("")

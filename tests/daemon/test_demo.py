@@ -11,6 +11,7 @@ import re
 import select
 import struct
 import subprocess
+import tempfile
 import termios
 import time
 from pathlib import Path
@@ -179,8 +180,10 @@ def _notes(lines: list[str]) -> list[str]:
     return notes
 
 
-def _srcsctl(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([SRCSCTL, *args], capture_output=True, text=True, timeout=30, check=False)
+def _srcsctl(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [SRCSCTL, *args], capture_output=True, text=True, timeout=30, check=False, env=env
+    )
 
 
 def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
@@ -189,11 +192,19 @@ def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
     supervisor may re-arm, and the screen names the socket; ``srcsctl --demo`` finds the
     running demo by itself (status, and the log from record #1 with the proof test's verdict
     and the commissioning); a takeover while the supervisor proves the VSC's watchdog again
-    after a restored link is shown refused, with its reason, in the notes under that line."""
+    after a restored link is shown refused, with its reason, in the notes under that line.
+
+    The demo and ``srcsctl --demo`` share a temporary directory of the test's own ($TMPDIR,
+    short: the socket's path must fit), so that another demo on the machine is not found."""
+    with tempfile.TemporaryDirectory(prefix="sd-", dir="/tmp") as private:
+        _screen_and_refusal({**os.environ, "TMPDIR": private})
+
+
+def _screen_and_refusal(env: dict[str, str]) -> None:
     controller, terminal = pty.openpty()
     fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 50, WIDTH, 0, 0))
     with subprocess.Popen(
-        [SRCSCTL, "demo"], stdin=terminal, stdout=terminal, stderr=subprocess.PIPE
+        [SRCSCTL, "demo"], stdin=terminal, stdout=terminal, stderr=subprocess.PIPE, env=env
     ) as demo:
         os.close(terminal)
         screen = Screen(controller)
@@ -203,10 +214,10 @@ def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
             assert first[2].startswith("NEXT: press [t] to take over"), first
             assert any("srcsctl --demo status" in line for line in first), first
 
-            status = _srcsctl("--demo", "status")
+            status = _srcsctl("--demo", "status", env=env)
             assert status.returncode == 0, status.stderr
             assert status.stdout.startswith("robot demo: STOPPED")
-            log = _srcsctl("log", "--demo")
+            log = _srcsctl("log", "--demo", env=env)
             assert log.returncode == 0, log.stderr
             assert re.search(r"  #1 +STOPPED +cause_raised +raised startup\*", log.stdout)
             assert "commissioned: key85=1 remote_status=on" in log.stdout
@@ -225,7 +236,7 @@ def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
                     break
             assert refused is not None, screen.frames()[-1:]
             assert all(len(line) <= WIDTH for line in refused), refused
-            recorded = _srcsctl("log", "--demo", "-o", "json")
+            recorded = _srcsctl("log", "--demo", "-o", "json", env=env)
             records = [json.loads(line) for line in recorded.stdout.splitlines()]
             last = [r for r in records if r["kind"] == "rearm_refused"][-1]
             # The note, folded onto as many lines as it needs, says the record's reason, and
@@ -239,6 +250,6 @@ def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
                 demo.terminate()
                 demo.wait(timeout=20)
             os.close(controller)
-    gone = _srcsctl("--demo", "status")
+    gone = _srcsctl("--demo", "status", env=env)
     assert gone.returncode == 2
     assert "no demo is running (start one with: srcsctl demo)" in gone.stderr
