@@ -26,9 +26,14 @@ def default_config(directory: Path = CONFIG_DIR) -> Path:
     if len(found) == 1:
         return found[0]
     if not found:
-        raise LookupError(f"no config in {directory}; name one with --config FILE or --file PATH")
+        raise LookupError(
+            f"no config in {directory}; name one with --robot NAME, --config FILE, --file PATH "
+            "or --demo"
+        )
     names = ", ".join(str(path) for path in found)
-    raise LookupError(f"{len(found)} configs in {directory} ({names}); name one with --config")
+    raise LookupError(
+        f"{len(found)} configs in {directory} ({names}); name one with --robot NAME or --config"
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
