@@ -20,7 +20,16 @@ from typing import Any, Final, TextIO
 
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.api.requests import ProofTest
-from supervisord.cli.log import cause_mark, interruptible, zone
+from supervisord.cli.log import interruptible
+from supervisord.cli.record_text import (
+    MARK_MEANS,
+    cause_set,
+    marked,
+    record_line,
+    uses_mark,
+    verdict,
+)
+from supervisord.cli.times import clock, clock_of
 from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -42,32 +51,40 @@ DISPLAY_MODES: Final[Mapping[str, DisplayMode]] = {
 
 
 def socket_options(*, record: bool = False) -> argparse.ArgumentParser:
-    """``--config`` and ``--socket`` (only ``--config`` for the record), for every level of
-    the parser: before the command, after it, after a subcommand's arguments (issue 13). The
+    """Which daemon (or, for the record, which robot's record): ``--config``, ``--robot``
+    (``-R``), ``--demo`` and, except for the record, ``--socket``; for every level of the
+    parser: before the command, after it, after a subcommand's arguments (issue 13). The
     defaults are suppressed so that a level where the option is absent keeps what another
     level set; read them with ``getattr(args, "socket", None)``."""
     options = argparse.ArgumentParser(add_help=False)
-    if record:
-        options.add_argument(
-            "--config",
-            metavar="FILE",
-            default=argparse.SUPPRESS,
-            help="the robot's config (its [record] path)",
-        )
-        return options
     where = options.add_mutually_exclusive_group()
+    what = "its [record] path" if record else "its [api] socket"
     where.add_argument(
         "--config",
         metavar="FILE",
         default=argparse.SUPPRESS,
-        help="the robot's config (its [api] socket)",
+        help=f"the robot's config ({what})",
     )
     where.add_argument(
-        "--socket",
-        metavar="PATH",
+        "-R",
+        "--robot",
+        metavar="NAME",
         default=argparse.SUPPRESS,
-        help=f"the API socket (default $SRCS_SOCKET or {DEFAULT_SOCKET_PATH})",
+        help="the robot of srcsd@NAME: its config /etc/srcs/NAME.toml",
     )
+    where.add_argument(
+        "--demo",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="the running srcsctl demo (its config in its private directory)",
+    )
+    if not record:
+        where.add_argument(
+            "--socket",
+            metavar="PATH",
+            default=argparse.SUPPRESS,
+            help=f"the API socket (default $SRCS_SOCKET or {DEFAULT_SOCKET_PATH})",
+        )
     return options
 
 
@@ -94,16 +111,21 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     status.add_argument("--json", action="store_true", help="the daemon's reply as JSON")
     watch = add(
         "watch",
-        "follow state changes and stop records live (Ctrl-C ends; * after a cause: its "
-        "condition has cleared and the stop waits for a re-arm)",
+        "follow the daemon live: a line when the state or an output changes, one per stop "
+        "record (as srcsctl log prints it), Ctrl-C ends; * after a cause: it has cleared and "
+        "its latch holds the stop until a re-arm",
         utc,
     )
     watch.add_argument("--json", action="store_true", help="every push as a JSON line")
+    watch.add_argument("-o", "--output", choices=("short", "json"), help="json: as --json")
+    watch.add_argument(
+        "--causes", action="store_true", help="also every cause of each record, and its trigger"
+    )
     watch.add_argument(
         "--joystick", action="store_true", help="also show the sticks and buttons as they come"
     )
     add("estop", "stop now: local_estop, or client_estop:NAME with --name", named)
-    add("hold", "hold motion (client_hold:NAME) until `srcsctl release hold`", named)
+    add("hold", "hold motion (client_hold:NAME) until 'srcsctl release hold'", named)
     release = add("release", "end an e-stop or hold you asked for (a stop stays latched)", named)
     release.add_argument("what", nargs="?", choices=("estop", "hold"), default="estop")
     add("reset", "re-arm from the vehicle computer (admin; needs rearm.local_reset = true)")
@@ -279,7 +301,7 @@ def _prooftest(client: SupervisorClient, out: TextIO) -> int:
         proof = client.status().get("prooftest") or {}
         if proof.get("phase") in ("passed", "failed"):
             last = proof.get("last") or {}
-            print(f"prooftest: {last.get('text')}", file=out)
+            print(f"prooftest: {verdict(last)}", file=out)
             return 0 if proof.get("phase") == "passed" else EXIT_REFUSED
         time.sleep(0.1)
     print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({proof.get('phase')})", file=out)
@@ -340,13 +362,16 @@ def format_status(status: Mapping[str, Any]) -> str:
     for index, cause in enumerate(causes):
         label = "causes" if index == 0 else ""
         lines.append(f"  {label:8} {_cause_text(cause)}")
+    if uses_mark(causes):
+        lines.append(f"           {MARK_MEANS}")
     outputs = status.get("outputs") or {}
     levels = " ".join(f"{name}={'ON' if on else 'off'}" for name, on in outputs.items())
     lines.append(f"  outputs  {levels or 'none'}")
     lines.append(f"  to VSC   heartbeat e-stop byte {status.get('heartbeat_estop')}")
     if proof := status.get("prooftest"):
-        last = (proof.get("last") or {}).get("text") or "none yet"
-        lines.append(f"  proof    watchdog proof test {proof.get('phase')}; last: {last}")
+        last = proof.get("last")
+        result = verdict(last) if isinstance(last, Mapping) else "none yet"
+        lines.append(f"  proof    {proof.get('phase')}; last: {result}")
     if "messages" in daemon:
         rejected = ", ".join(f"{k} {v}" for k, v in (daemon.get("rejections") or {}).items())
         lines.append(
@@ -402,12 +427,11 @@ def remote_text(remote: Mapping[str, Any]) -> str:
 
 
 def _cause_text(cause: Mapping[str, Any]) -> str:
-    flags = [
-        w for w, on in (("active", cause.get("active")), ("latched", cause.get("latched"))) if on
-    ]
+    """``vsc_estop (stop, active) sources=remote``; a cleared cause its latch still holds is
+    marked as everywhere (``vsc_estop* (stop)``, docs/srcsctl.md "Marks")."""
+    state = ", active" if cause.get("active") else ""
     details = " ".join(f"{k}={v}" for k, v in (cause.get("details") or {}).items())
-    text = f"{cause.get('name')} ({cause.get('severity')}, {', '.join(flags) or 'clear'})"
-    return f"{text} {details}".rstrip()
+    return f"{marked(cause)} ({cause.get('severity')}{state}) {details}".rstrip()
 
 
 # -- watch ---------------------------------------------------------------------------------
@@ -427,12 +451,13 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         *([] if args.json else ["remote_status"]),
     ]
     utc = bool(getattr(args, "utc", False))
+    args.json = args.json or args.output == "json"
 
     def show(event: str, data: Mapping[str, Any]) -> str:
         return (
             json.dumps(dict(data), sort_keys=True)
             if args.json
-            else format_push(event, data, utc=utc)
+            else format_push(event, data, utc=utc, causes=args.causes)
         )
 
     said_waiting = False
@@ -444,17 +469,19 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
                     if not args.json:
                         print(daemon_line(client.status()), file=out, flush=True)
                     client.subscribe(*topics)
-                    remote: object = None
+                    last: dict[str, object] = {}
                     while True:
                         push = client.next_event(timeout=3600)
                         if push is None:
                             continue
-                        if push.event == "remote_status" and not args.json:
-                            # One line when battery or link strength change, not one a second.
-                            seen = tuple(push.data.get(k) for k in _REMOTE_SHOWN)
-                            if seen == remote:
+                        if not args.json and push.event in _SHOWN_WHEN:
+                            # A remote status: when battery or link strength change, not
+                            # once a second. A state: when the state or an output changes;
+                            # each cause raised or cleared has its record's line.
+                            seen = tuple(push.data.get(k) for k in _SHOWN_WHEN[push.event])
+                            if seen == last.get(push.event):
                                 continue
-                            remote = seen
+                            last[push.event] = seen
                         print(show(push.event, push.data), file=out, flush=True)
             except ConnectError as error:
                 if isinstance(error.__cause__, PermissionError):
@@ -467,12 +494,16 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         return 0
 
 
-_REMOTE_SHOWN: Final = (
-    "battery_level",
-    "battery_charging",
-    "connection_strength_vsc",
-    "connection_strength_src",
-)
+_SHOWN_WHEN: Final[Mapping[str, tuple[str, ...]]] = {
+    "remote_status": (
+        "battery_level",
+        "battery_charging",
+        "connection_strength_vsc",
+        "connection_strength_src",
+    ),
+    "state": ("state", "outputs"),
+}
+"""The fields whose change makes ``watch`` print a push of that kind again."""
 
 
 def _waiting(error: Exception, said: bool, err: TextIO) -> bool:
@@ -503,25 +534,25 @@ def daemon_line(status: Mapping[str, Any]) -> str:
 
 
 def format_push(
-    event: str, data: Mapping[str, Any], *, utc: bool = False, now: dt.datetime | None = None
+    event: str,
+    data: Mapping[str, Any],
+    *,
+    utc: bool = False,
+    now: dt.datetime | None = None,
+    causes: bool = False,
 ) -> str:
     """One line for a push: the time of day (local, or UTC with ``utc``: the rule of
-    ``log``), then what happened."""
-    when = (now or dt.datetime.now(dt.timezone.utc)).astimezone(zone(utc))
-    stamp = when.strftime("%H:%M:%S.%f")[:-3] + ("Z" if utc else "")
+    ``log``), then what happened. A record is the line ``log`` prints for it, at its own
+    time; a state is the state, its causes (marked as everywhere) and the outputs."""
+    stamp = clock(now or dt.datetime.now(dt.timezone.utc), utc=utc)
     if event == "state":
-        causes = ", ".join(_short_cause(c) for c in data.get("causes") or []) or "no causes"
+        names = cause_set(data.get("causes")) if data.get("causes") else "no causes"
         outputs = " ".join(
             f"{k}={'ON' if v else 'off'}" for k, v in (data.get("outputs") or {}).items()
         )
-        return f"{stamp} {data.get('state'):8} {causes} | {outputs}"
+        return f"{stamp} {data.get('state'):8} {names} | {outputs}"
     if event == "record":
-        reason = f" ({data['reason']})" if data.get("reason") else ""
-        names = ", ".join(c.get("name", "?") for c in data.get("causes") or []) or "none"
-        return (
-            f"{stamp} record #{data.get('seq')} {data.get('kind')}: "
-            f"{data.get('from')} -> {data.get('to')}; causes {names}{reason}"
-        )
+        return record_line(data, clock_of(data.get("utc"), utc=utc), causes=causes)
     if event == "remote_status":
         return f"{stamp} remote {remote_text(data)}"
     if event == "joystick":
@@ -538,7 +569,3 @@ def format_push(
         ]
         return f"{stamp} joystick {axes} pressed {','.join(pressed) or '-'}"
     return f"{stamp} {event} {json.dumps(dict(data), sort_keys=True)}"
-
-
-def _short_cause(cause: Mapping[str, Any]) -> str:
-    return f"{cause.get('name')}{cause_mark(cause)}"

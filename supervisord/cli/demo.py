@@ -28,18 +28,22 @@ from typing import Any, Final, TextIO
 
 from supervisord.api.framing import ApiError
 from supervisord.children import terminate
-from supervisord.cli.demo_view import record_line, screen
+from supervisord.cli.demo_find import CONFIG, PREFIX, RUN
+from supervisord.cli.demo_view import demo_record_line, screen
+from supervisord.cli.record_text import happening
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError, SrcsError
+from supervisord.record.jsonl import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
 
 # Package data next to this module, so that an installed wheel or the Debian package runs the
 # demo without the repository (issue 13).
 DEMO_CONFIG: Final = Path(__file__).resolve().with_name("demo.toml")
-RUN: Final = "srcs-demo"  # the directory demo.toml names for its files
 FRAME_S: Final = 0.1
+TAKEOVER_TRIES: Final = 3
+"""The story's takeovers: a refused one is shown with its reason, then tried again."""
 
 
 class DemoError(SrcsError):
@@ -55,12 +59,14 @@ class Demo:
         self.speed = speed
         self.notes: list[str] = []
         self.records: list[dict[str, Any]] = []
+        self._seqs: set[object] = set()
         self.status: dict[str, Any] | None = None
         (run_dir / RUN).mkdir(parents=True, exist_ok=True)
-        self.config = run_dir / "demo.toml"
+        self.config = run_dir / CONFIG  # where srcsctl --demo finds it (demo_find)
         shutil.copyfile(config, self.config)
         loaded = load_config(self.config)  # validated before anything starts
         self.socket = loaded.api.socket
+        self.record_path = loaded.record.path
         self.hold_s = loaded.safety.rearm_hold_ms / 1000
         self.sim = SimProcess(run_dir / RUN, serial="vsc", eeprom="eeprom.json")
         self.daemon: subprocess.Popen[bytes] | None = None
@@ -88,6 +94,12 @@ class Demo:
                 raise DemoError(f"srcsd did not open {self.socket}: see {self.run_dir}/srcsd.log")
             time.sleep(0.05)
         self.client.subscribe("records")
+        # The records of the start came before the subscription: read them from the file
+        # (each is there before its push, docs/record.md), so the numbers start at #1.
+        for item in read_records(self.record_path):
+            if isinstance(item, StoredRecord):
+                self._add_record(dict(item.data))
+        self.note(f"srcsctl finds this demo: srcsctl --demo status (socket {self.socket})")
         self.refresh()
 
     def close(self) -> None:
@@ -115,8 +127,7 @@ class Demo:
         self.status = self.client.status()
         while (push := self.client.next_event(timeout=0)) is not None:
             if push.event == "record":
-                self.records.append(push.data)
-                self.on_record(push.data)
+                self._add_record(push.data)
         if self._sticks_at is not None:  # a slow circle on the left stick, while asked
             phase = time.monotonic() - self._sticks_at
             x, y = int(600 * math.cos(phase)), int(600 * math.sin(phase))
@@ -126,16 +137,33 @@ class Demo:
         assert self.client is not None
         return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
 
-    def on_record(self, record: dict[str, Any]) -> None:
-        """Hook for the story mode, which prints each record as it comes."""
+    def _add_record(self, record: dict[str, Any]) -> None:
+        if record.get("seq") in self._seqs:
+            return  # read from the file and pushed as well
+        self._seqs.add(record.get("seq"))
+        self.records.append(record)
+        self.on_record(record)
 
-    def view(self) -> list[str]:
+    def on_record(self, record: dict[str, Any]) -> None:
+        """A re-arm and a refused one are said where the operator looks: in the notes."""
+        kind = record.get("kind")
+        if kind == "rearm_refused":
+            self.note(happening(record))
+        elif record.get("rearm") and record.get("to") == "RUN":
+            self.note(f"{happening(record)}: RUN, the outputs are on")
+
+    def view(self, width: int = 0) -> list[str]:
+        sim = self.sim.control.state()
         return screen(
-            self.sim.control.state(),
+            sim,
             self.status,
             self.records,
             self.sim.control.lcd(),
             self.notes,
+            reach=f"srcsctl --demo status|watch|log talks to this demo (socket {self.socket})",
+            width=width,
+            now_ns=time.monotonic_ns(),  # the daemon's clock: CLOCK_MONOTONIC of this machine
+            hold_ms=round(self.hold_s * 1000),
         )
 
     @property
@@ -178,7 +206,7 @@ class Demo:
                 time.sleep(0.02)
             time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.1)  # the dwell, and one heartbeat more
         self.sim.control.takeover()
-        self.note("takeover on the remote (to Operational)")
+        self.note("takeover pressed on the remote: the supervisor decides (see the record)")
 
     def toggle_link(self) -> None:
         if self.sim.control.state().get("plugged"):
@@ -186,7 +214,10 @@ class Demo:
             self.note("VSC unplugged: the link is cut")
         else:
             self.sim.control.replug()
-            self.note("VSC plugged in again: a new start, take over [t] to re-arm")
+            self.note(
+                "VSC plugged in again: a new start; the supervisor proves the VSC's watchdog "
+                "again before a takeover"
+            )
 
     def toggle_sticks(self) -> None:
         if self._sticks_at is None:
@@ -210,7 +241,7 @@ def run_demo(
     # are stopped and its directory removed, never left running.
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _interrupt)
-    with tempfile.TemporaryDirectory(prefix="srcs-demo-") as run_dir:
+    with tempfile.TemporaryDirectory(prefix=PREFIX) as run_dir:
         try:
             demo: Demo = (Demo if interactive else StoryDemo)(
                 Path(run_dir), config or DEMO_CONFIG, out, speed
@@ -256,11 +287,11 @@ def _interactive(demo: Demo) -> int:
         "l": demo.toggle_link,
         "s": demo.toggle_sticks,
     }
-    demo.note("press [t] to take over: the supervisor goes to RUN and the outputs come on")
     with _raw_terminal():
         while True:
             demo.refresh()
-            demo.out.write("\x1b[H\x1b[2J" + "\n".join(demo.view()) + "\n")
+            width = shutil.get_terminal_size().columns
+            demo.out.write("\x1b[H\x1b[2J" + "\n".join(demo.view(width)) + "\n")
             demo.out.flush()
             ready, _, _ = select.select([sys.stdin], [], [], FRAME_S)
             if ready:
@@ -286,7 +317,26 @@ class StoryDemo(Demo):
         return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
 
     def on_record(self, record: dict[str, Any]) -> None:
-        print(f"  record {record_line(record)}", file=self.out, flush=True)
+        print(f"  record {demo_record_line(record)}", file=self.out, flush=True)
+        super().on_record(record)
+
+    def takeover(self) -> None:
+        """A takeover, and its answer: RUN, or a refusal shown with its reason and tried
+        again once the stop conditions have settled (SR-4)."""
+        for _ in range(TAKEOVER_TRIES):
+            seen = len(self.records)
+            super().takeover()
+            end = time.monotonic() + 3.0
+            while time.monotonic() < end:
+                self.refresh()
+                fresh = self.records[seen:]
+                if any(r.get("kind") == "rearm_refused" for r in fresh):
+                    break
+                if self.state == "RUN":
+                    return
+                time.sleep(0.02)
+            self.settle()
+        raise DemoError(f"the supervisor refused {TAKEOVER_TRIES} takeovers")
 
     def wait(self, seconds: float) -> None:
         end = time.monotonic() + seconds / self.speed

@@ -1,4 +1,4 @@
-"""``srcs-exporter``: srcsd's state and counters as Prometheus metrics (docs/fleet.md)."""
+"""srcs-exporter: srcsd's state and counters as Prometheus metrics (docs/fleet.md)."""
 
 from __future__ import annotations
 

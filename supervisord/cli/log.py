@@ -1,100 +1,41 @@
 """``srcsctl log``: the record of stops, filtered by time and cause, as text or JSON lines.
 
-One time rule with ``watch`` (issue 13, docs/srcsctl.md "Times"): times are shown in local
-time with their UTC offset, or in UTC with ``--utc``; a time typed without a zone is read the
-same way. One marker: ``*`` after a cause means its condition has cleared and the stop waits
-for a re-arm (SR-4), in ``log`` as in ``watch``.
+journalctl's habits (docs/srcsctl.md "log"): ``-n`` alone is the last 10, ``-f`` prints the
+last 10 and then each record as it is written (the file is watched, :mod:`follow`), ``-r``
+newest first, ``-o json`` as ``--json``, and journalctl's relative times. One time rule with
+``watch`` (:mod:`times`), one line per record with ``watch`` and the demo (:mod:`record_text`).
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import json
-import re
 import signal
 import sys
-import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, Final
+from typing import IO, Any, Final
 
-from supervisord.compat import from_iso
+from supervisord.cli.follow import Follower
+from supervisord.cli.record_text import record_line
+from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.jsonl import BadLine, StoredRecord, read_records
 
-EXIT_BAD_INPUT = 2
-FOLLOW_POLL_S: Final = 0.25
-"""How often ``log -f`` looks for new records (the file is appended and fsynced per record)."""
-_RELATIVE = re.compile(r"-?(\d+)([smhd])")
-_UNITS = {"s": "seconds", "m": "minutes", "h": "hours", "d": "days"}
+EXIT_BAD_INPUT: Final = 2
+FOLLOW_LAST: Final = 10
+"""What ``-n`` alone and ``-f`` without ``-n`` show first: the last 10, as journalctl."""
 
 
-class BadTime(ValueError):
-    pass
-
-
-def zone(utc: bool) -> dt.tzinfo | None:
-    """The zone times are shown and read in: UTC with ``--utc``, else local (``None``)."""
-    return dt.timezone.utc if utc else None
-
-
-def parse_time(text: str, now: dt.datetime, *, utc: bool = False) -> dt.datetime:
-    """ISO 8601 (a time without a zone is local, or UTC with ``utc``), ``today`` or
-    ``yesterday`` (midnight, in the same zone), or an age such as ``10m``, ``-1h``, ``3d``."""
-    relative = _RELATIVE.fullmatch(text)
-    if relative:
-        amount, unit = int(relative.group(1)), relative.group(2)
-        return now - dt.timedelta(**{_UNITS[unit]: amount})
-    if text in ("today", "yesterday"):
-        midnight = now.astimezone(zone(utc)).replace(hour=0, minute=0, second=0, microsecond=0)
-        return midnight - dt.timedelta(days=1 if text == "yesterday" else 0)
-    try:
-        when = from_iso(text)
-    except ValueError as error:
-        raise BadTime(
-            f"not a time: {text!r} (use ISO 8601, today, yesterday or an age like 10m, -2h, 3d)"
-        ) from error
-    if when.tzinfo:
-        return when
-    return when.replace(tzinfo=dt.timezone.utc) if utc else when.astimezone()
-
-
-def show_time(utc_text: object, *, utc: bool = False) -> str:
-    """A record's ``utc`` in the display zone, to the millisecond, with its offset."""
-    try:
-        when = from_iso(str(utc_text))
-    except ValueError:
-        return str(utc_text)
-    if when.tzinfo is None:
-        when = when.replace(tzinfo=dt.timezone.utc)
-    return when.astimezone(zone(utc)).isoformat(timespec="milliseconds")
-
-
-def cause_mark(cause: Mapping[str, object]) -> str:
-    """The one marker of ``log`` and ``watch``: ``*`` when the cause's condition has cleared
-    and only its latch holds the stop (it waits for a re-arm, SR-4), else nothing."""
-    return "" if cause.get("active") else "*"
-
-
-def _causes(data: Mapping[str, object]) -> str:
-    causes = data.get("causes")
-    if not isinstance(causes, list):
-        return ""
-    names = []
-    for cause in causes:
-        if isinstance(cause, dict):
-            names.append(f"{cause.get('name')}{cause_mark(cause)}")
-    return ", ".join(names)
-
-
-def format_record(data: Mapping[str, object], *, utc: bool = False) -> str:
-    """One line: time, sequence, transition, trigger, causes (* = cleared, waits for a re-arm)."""
-    trigger = data.get("trigger")
-    event = trigger.get("event", "?") if isinstance(trigger, dict) else "?"
-    rearm = data.get("rearm")
-    how = f" re-armed by {rearm.get('kind')}" if isinstance(rearm, dict) else ""
-    move = f"{str(data.get('from')).upper()} -> {str(data.get('to')).upper()}"
-    when = show_time(data.get("utc"), utc=utc)
-    return f"{when}  #{data.get('seq')}  {move:18} {event}{how}  [{_causes(data)}]"
+def format_record(
+    data: Mapping[str, Any],
+    *,
+    utc: bool = False,
+    previous: Mapping[str, Any] | None = None,
+    causes: bool = False,
+) -> str:
+    """One line: the time (local with its offset, or UTC), then what happened
+    (:func:`~supervisord.cli.record_text.record_line`)."""
+    return record_line(data, show_time(data.get("utc"), utc=utc), previous=previous, causes=causes)
 
 
 def run_log(
@@ -109,9 +50,11 @@ def run_log(
     utc: bool = False,
     last: int | None = None,
     follow: bool = False,
+    reverse: bool = False,
+    causes: bool = False,
 ) -> int:
-    """Print the records (the ``last`` N of them when given); with ``follow``, then every
-    record appended after, until Ctrl-C or SIGTERM (exit 0)."""
+    """Print the records (the ``last`` N of them when given; newest first with ``reverse``);
+    with ``follow``, then every record appended after, until Ctrl-C or SIGTERM (exit 0)."""
     now = dt.datetime.now(dt.timezone.utc)
     try:
         start = parse_time(since, now, utc=utc) if since else None
@@ -119,51 +62,105 @@ def run_log(
     except BadTime as error:
         print(f"srcsctl log: {error}", file=errors)
         return EXIT_BAD_INPUT
-    if not path.exists() and not follow:
-        print(f"srcsctl log: {path}: no record yet", file=errors)
+    refused = _refusal(path, follow=follow, reverse=reverse)
+    if refused:
+        print(f"srcsctl log: {refused}", file=errors)
         return EXIT_BAD_INPUT
-
-    reported: set[tuple[str, int]] = set()
-
-    def scan() -> list[StoredRecord]:
-        found: list[StoredRecord] = []
-        if not path.exists():
-            return found
-        for item in read_records(path, since=start, until=end, cause=cause):
-            if isinstance(item, BadLine):
-                if (str(item.file), item.line) not in reported:
-                    reported.add((str(item.file), item.line))
-                    print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
-            elif isinstance(item, StoredRecord):
-                found.append(item)
-        return found
-
-    def show(records: list[StoredRecord]) -> None:
-        for record in records:
-            data = record.data
-            out.write(json.dumps(data) + "\n" if as_json else format_record(data, utc=utc) + "\n")
-        out.flush()  # a pipe sees each record as it comes (line by line, not at exit)
-
-    records = scan()
-    show(records[-last:] if last is not None else records)
-    if not follow:
-        return 0
-    interruptible()
-    seen = records[-1].seq if records else 0
+    if follow and last is None and since is None and until is None:
+        last = FOLLOW_LAST
+    printer = _Printer(out, as_json=as_json, utc=utc, causes=causes)
+    if follow:
+        interruptible()
+    follower = Follower(path) if follow else None  # opened first: nothing falls between
     try:
-        while True:
-            time.sleep(FOLLOW_POLL_S)
-            # A record's seq only grows (docs/record.md); a restart continues it. A lower
-            # number than seen means the file was replaced: start over from it.
-            fresh = scan()
-            newer = [r for r in fresh if r.seq > seen]
-            if fresh and fresh[-1].seq < seen:
-                newer = fresh
-            if newer:
-                show(newer)
-                seen = newer[-1].seq
+        records = _scan(path, start, end, cause, errors)
+        shown = [] if last == 0 else records[-last:] if last is not None else records
+        if len(records) > len(shown) and shown:  # the one before: what the first changed
+            printer.previous = records[-len(shown) - 1].data
+        printer.show(shown, reverse=reverse)
+        if follower is None:
+            return 0
+        # A record written between the follower's start and the scan is in both: shown once.
+        # Known by seq and monotonic time, so that a numbering started again is still shown.
+        scanned = {_identity(record) for record in records}
+        for fresh in follower:
+            wanted = [
+                r for r in fresh if _identity(r) not in scanned and _wanted(r, start, end, cause)
+            ]
+            if wanted:
+                printer.show(wanted)
     except KeyboardInterrupt:
         return 0
+    finally:
+        if follower is not None:
+            follower.close()
+    return 0  # pragma: no cover - the follower never ends by itself
+
+
+def _refusal(path: Path, *, follow: bool, reverse: bool) -> str | None:
+    """Why these options cannot be served, or ``None``."""
+    if follow and reverse:
+        return "-r and -f do not go together (as in journalctl)"
+    if not path.exists() and not follow:
+        return f"{path}: no record yet"
+    if follow and not path.parent.is_dir():
+        return f"{path.parent}: no such directory"
+    return None
+
+
+class _Printer:
+    """Prints records as lines (or JSON), each line saying what changed since the one
+    before it (:attr:`previous`, for records that do not say it themselves)."""
+
+    def __init__(self, out: IO[str], *, as_json: bool, utc: bool, causes: bool) -> None:
+        self.out, self.as_json, self.utc, self.causes = out, as_json, utc, causes
+        self.previous: Mapping[str, Any] | None = None
+
+    def show(self, records: list[StoredRecord], *, reverse: bool = False) -> None:
+        lines = []
+        for record in records:
+            if self.as_json:
+                lines.append(json.dumps(record.data))
+                continue
+            lines.append(
+                format_record(record.data, utc=self.utc, previous=self.previous, causes=self.causes)
+            )
+            self.previous = record.data
+        for line in reversed(lines) if reverse else lines:
+            self.out.write(line + "\n")
+        self.out.flush()  # a pipe sees each record as it comes (line by line, not at exit)
+
+
+def _scan(
+    path: Path,
+    start: dt.datetime | None,
+    end: dt.datetime | None,
+    cause: str | None,
+    errors: IO[str],
+) -> list[StoredRecord]:
+    found: list[StoredRecord] = []
+    if not path.exists():
+        return found
+    for item in read_records(path, since=start, until=end, cause=cause):
+        if isinstance(item, BadLine):
+            print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
+        elif isinstance(item, StoredRecord):
+            found.append(item)
+    return found
+
+
+def _identity(record: StoredRecord) -> tuple[object, object]:
+    return record.seq, record.data.get("mono_ns")
+
+
+def _wanted(
+    record: StoredRecord, start: dt.datetime | None, end: dt.datetime | None, cause: str | None
+) -> bool:
+    if start is not None and record.utc < start:
+        return False
+    if end is not None and record.utc >= end:
+        return False
+    return cause is None or record.matches_cause(cause)
 
 
 def interruptible() -> None:

@@ -1,4 +1,4 @@
-"""``srcsctl``: the operator's and integrator's tool."""
+"""srcsctl: the operator's and integrator's tool for srcsd, the safety supervisor."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 
 from supervisord import __version__
 from supervisord.cli import control, decode_options
-from supervisord.cli.log import run_log
+from supervisord.cli.demo_find import NoDemo, demo_config
+from supervisord.cli.log import FOLLOW_LAST, run_log
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 
@@ -25,9 +26,14 @@ def default_config(directory: Path = CONFIG_DIR) -> Path:
     if len(found) == 1:
         return found[0]
     if not found:
-        raise LookupError(f"no config in {directory}; name one with --config FILE or --file PATH")
+        raise LookupError(
+            f"no config in {directory}; name one with --robot NAME, --config FILE, --file PATH "
+            "or --demo"
+        )
     names = ", ".join(str(path) for path in found)
-    raise LookupError(f"{len(found)} configs in {directory} ({names}); name one with --config")
+    raise LookupError(
+        f"{len(found)} configs in {directory} ({names}); name one with --robot NAME or --config"
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="srcsctl",
         description=__doc__,
         parents=[control.socket_options()],
-        epilog="--config and --socket may also come after the command and its arguments.",
+        epilog="--config, --robot, --demo and --socket may also come after the command and "
+        "its arguments.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -45,24 +52,43 @@ def build_parser() -> argparse.ArgumentParser:
     log = commands.add_parser(
         "log",
         help="show the record of stops",
-        description="Show the record of stops, oldest first (docs/record.md). A time is ISO "
-        "8601 (local time unless it names a zone; UTC with --utc), today, yesterday, or an "
-        "age such as 10m, -2h, 3d. A * after a cause: its condition has cleared and the stop "
-        "waits for a re-arm. Without --config or --file: the only config in /etc/srcs.",
+        description="Show the record of stops, oldest first, one line each: the time, the "
+        "state change, the kind, the causes raised or cleared and the reason "
+        "(docs/srcsctl.md). A time is ISO 8601 (local time unless it names a zone; UTC with "
+        "--utc), a time of day, now, today, yesterday, or an age such as '5 min ago', "
+        "-5min, 2h, 3d. A * after a cause: its condition has cleared and its latch holds the "
+        "stop until a re-arm. Without --config, --robot or --file: the only config in "
+        "/etc/srcs.",
         parents=[control.socket_options(record=True)],
     )
     log.add_argument("--file", metavar="PATH", help="the record file itself")
-    log.add_argument("--since", metavar="TIME", help="records at or after TIME")
-    log.add_argument("--until", metavar="TIME", help="records before TIME")
+    log.add_argument("-S", "--since", metavar="TIME", help="records at or after TIME")
+    log.add_argument("-U", "--until", metavar="TIME", help="records before TIME")
     log.add_argument(
         "--cause",
         metavar="NAME",
         help="records with this cause (client_lost matches client_lost:autonomy)",
     )
     log.add_argument("--json", action="store_true", help="the records as JSON lines")
-    log.add_argument("-n", "--lines", type=int, metavar="N", help="only the last N records")
+    log.add_argument("-o", "--output", choices=("short", "json"), help="json: as --json")
     log.add_argument(
-        "-f", "--follow", action="store_true", help="then print new records as they come"
+        "-n",
+        "--lines",
+        type=int,
+        nargs="?",
+        const=FOLLOW_LAST,
+        metavar="N",
+        help=f"only the last N records (alone: {FOLLOW_LAST})",
+    )
+    log.add_argument(
+        "-f",
+        "--follow",
+        action="store_true",
+        help=f"the last {FOLLOW_LAST} (or -n N), then each new record as it is written",
+    )
+    log.add_argument("-r", "--reverse", action="store_true", help="newest first")
+    log.add_argument(
+        "--causes", action="store_true", help="also every cause of each record, and its trigger"
     )
     log.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
 
@@ -85,6 +111,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
+    if args.command != "demo":
+        try:
+            chosen = chosen_config(args)
+        except LookupError as error:
+            print(f"srcsctl {args.command}: {error}", file=sys.stderr)
+            return 2  # a usage error (docs/srcsctl.md "Exit status")
+        if chosen is not None:
+            args.config = str(chosen)
     # decode and demo are imported only when asked for: decode needs python-can, demo the
     # simulator, and the operator's estop, status and hold need neither (SR-8.8).
     if args.command == "decode":
@@ -105,11 +139,45 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 2  # pragma: no cover - argparse rejects unknown commands first
 
 
+def robot_config(name: str, directory: Path = CONFIG_DIR) -> Path:
+    """``/etc/srcs/NAME.toml`` for ``--robot NAME`` (also ``srcsd@NAME`` or
+    ``srcsd@NAME.service``, as systemctl names the unit). Raises :class:`LookupError` naming
+    the robots there when it does not exist."""
+    name = name.removeprefix("srcsd@").removesuffix(".service")
+    path = directory / f"{name}.toml"
+    if path.is_file():
+        return path
+    robots = ", ".join(p.stem for p in sorted(directory.glob("*.toml"))) or "none"
+    raise LookupError(f"no robot {name!r}: {path} does not exist (robots here: {robots})")
+
+
+def chosen_config(args: argparse.Namespace) -> Path | None:
+    """The config that ``--robot`` or ``--demo`` stands for, or ``None`` when neither is
+    given. Raises :class:`LookupError` when the robot or demo is not there, or when more
+    than one way of naming the daemon was given (at different places of the line)."""
+    given = [
+        option
+        for option, dest in (("--config", "config"), ("--robot", "robot"), ("--demo", "demo"))
+        if getattr(args, dest, None)
+    ]
+    given += ["--socket"] if getattr(args, "socket", None) else []
+    if len(given) > 1:
+        raise LookupError(f"give one of {', '.join(given)}, not several")
+    if getattr(args, "robot", None):
+        return robot_config(args.robot)
+    if getattr(args, "demo", False):
+        try:
+            return demo_config()
+        except NoDemo as error:
+            raise LookupError(str(error)) from None
+    return None
+
+
 def _ages_as_values(argv: Sequence[str]) -> list[str]:
     """``--since -1h`` as ``--since=-1h``: argparse would take ``-1h`` for an option."""
     out: list[str] = []
     for arg in argv:
-        if out and out[-1] in ("--since", "--until") and arg.startswith("-"):
+        if out and out[-1] in ("--since", "--until", "-S", "-U") and arg.startswith("-"):
             out[-1] = f"{out[-1]}={arg}"
         else:
             out.append(arg)
@@ -136,10 +204,12 @@ def _log(args: argparse.Namespace) -> int:
         since=args.since,
         until=args.until,
         cause=args.cause,
-        as_json=args.json,
+        as_json=args.json or args.output == "json",
         utc=args.utc,
         last=args.lines,
         follow=args.follow,
+        reverse=args.reverse,
+        causes=args.causes,
     )
 
 

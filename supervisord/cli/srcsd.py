@@ -1,4 +1,4 @@
-"""``srcsd``: the safety supervisor service (one per robot configuration)."""
+"""srcsd: the safety supervisor service, one per robot configuration."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ from typing import Final, TextIO
 
 from supervisord import __version__
 from supervisord.config import check_config_main, load_config
+from supervisord.config.check import report_lines
+from supervisord.config.collect import collect
 from supervisord.daemon import signals
 from supervisord.errors import ConfigError, SrcsError
 
@@ -88,7 +90,16 @@ def build_parser() -> argparse.ArgumentParser:
     group = parser.add_mutually_exclusive_group(required=True)
     group.add_argument("--config", metavar="FILE", help="run with this robot configuration")
     group.add_argument(
-        "--check-config", metavar="FILE", help="validate the configuration and exit (0 = valid)"
+        "--check-config",
+        metavar="FILE",
+        help="list every mistake of the configuration, in file order with its line, and exit "
+        "(0 = valid); a user or group missing on this machine is a warning",
+    )
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="with --check-config: a user or group missing on this machine is an error, as "
+        "it is for the daemon's start",
     )
     parser.add_argument("--verbose", action="store_true", help="log every link event")
     return parser
@@ -110,7 +121,7 @@ def _interrupt(signum: int) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.check_config:
-        return check_config_main(args.check_config)
+        return check_config_main(args.check_config, strict_machine=args.strict)
     setup_logging(args.verbose)
     log = logging.getLogger("srcsd")
     # Every signal has its meaning from here on (SR-6.6): before the loop runs, nothing is
@@ -129,8 +140,12 @@ def _serve(path: str, log: logging.Logger) -> int:
         config = load_config(path)
     except ConfigError as error:
         # The daemon refuses to start on a bad configuration (docs/configuration.md), with
-        # EX_CONFIG so that systemd does not restart it (RestartPreventExitStatus=78).
-        log.error("%s", error)
+        # EX_CONFIG so that systemd does not restart it (RestartPreventExitStatus=78). It
+        # names every mistake, each with its line, as --check-config --strict does.
+        report = collect(path, strict_machine=True)
+        lines = report_lines(path, report) if report.findings else [str(error)]
+        for line in lines:
+            log.error("%s", line)
         return EXIT_CONFIG
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415

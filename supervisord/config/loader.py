@@ -6,8 +6,11 @@
 applies the rules between keys (:data:`~supervisord.config.schema.CROSS_CHECKS`): the
 transport's own keys, the outputs' exclusive claims, path owners, groups and users that must
 exist. It raises :class:`~supervisord.errors.ConfigError` naming the file, the key (a dotted
-path such as ``vsc.timeout_ms`` or ``outputs[1].chip``), the value and the fix; the daemon
-prints it and refuses to start. Only the first error is reported.
+path such as ``vsc.timeout_ms`` or ``outputs[1].chip``), the value and the fix, for the first
+mistake it meets; the daemon refuses to start. (``--check-config`` and the daemon's refusal
+list every mistake at once: :mod:`supervisord.config.collect` runs this loader again past
+each one.) Each key is read on its own before the rules between sections are applied, so
+that a rule between sections never hides a mistake in one key.
 
 A key the schema does not declare is an error, never ignored: a misspelt safety option must not
 silently fall back to its default. Relative paths are resolved against the config file's
@@ -91,6 +94,16 @@ _SAFETY_KEYS = {
 """SafetyConfig's own key names, and the TOML keys they come from (for its cross-checks)."""
 
 
+class NotOnMachine(ConfigError):
+    """A user or group the config names does not exist on this machine: a mistake of the
+    machine (a package not installed yet, a developer's laptop) rather than of the file.
+    The daemon refuses to start all the same; ``--check-config`` calls it a warning unless
+    ``--strict`` (docs/configuration.md "Checking a config")."""
+
+    def in_file(self, file: str) -> ConfigError:
+        return NotOnMachine(self.key, self.value, self.fix, file)
+
+
 def load_config(
     path: str | Path,
     *,
@@ -106,14 +119,27 @@ def load_config(
     (key ``line L, column C``), an unknown section or key, a bad value or a contradiction
     between sections.
     """
-    file = str(path)
     source = Path(path)
-    base = Path(base_dir) if base_dir is not None else source.parent
     try:
         data = read_toml(source)
+    except ConfigError as error:
+        raise (error if error.file else error.in_file(str(path))) from None
+    return build_config(data, source, base_dir=base_dir, group_exists=group_exists)
+
+
+def build_config(
+    data: dict[str, object],
+    source: Path,
+    *,
+    base_dir: str | Path | None = None,
+    group_exists: Callable[[str], bool] | None = None,
+) -> DaemonConfig:
+    """:func:`load_config` of the parsed ``data`` of the file ``source``."""
+    base = Path(base_dir) if base_dir is not None else source.parent
+    try:
         return _Loader(source, base.absolute(), group_exists or _group_exists).build(data)
     except ConfigError as error:
-        raise (error if error.file else error.in_file(file)) from None
+        raise (error if error.file else error.in_file(str(source))) from None
 
 
 def _group_exists(name: str) -> bool:
@@ -130,6 +156,11 @@ _POSITION = re.compile(r"\(at line (\d+), column (\d+)\)$")
 def read_toml(source: Path) -> dict[str, object]:
     """The parsed file; a syntax error names its line and column (key ``line L, column C``)
     and carries the text of that line as the value."""
+    return read_toml_text(source)[1]
+
+
+def read_toml_text(source: Path) -> tuple[str, dict[str, object]]:
+    """The file's text and what it parses to (:func:`read_toml`)."""
     try:
         raw = source.read_bytes()
     except OSError as error:
@@ -145,7 +176,7 @@ def read_toml(source: Path) -> dict[str, object]:
             f"line {line}, column {column}", raw[error.start : error.end], "save the file as UTF-8"
         ) from None
     try:
-        return toml.loads(text)
+        return text, toml.loads(text)
     except toml.TOMLDecodeError as error:
         message = str(error)
         lines = text.splitlines() or [""]
@@ -184,10 +215,11 @@ class _Loader:
         clients = self.clients(root)
         outputs = self.outputs(root)
         rearm = _section(root, SECTION["rearm"])
-        safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
-        output_bus = self.output_bus(root, vsc, outputs)
         api = self.api(_section(root, SECTION["api"]), len(clients))
         record = self.record(_section(root, SECTION["record"]))
+        # The rules between sections last: every key has been read on its own by now.
+        safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
+        output_bus = self.output_bus(root, vsc, outputs)
         _check_path_owners(vsc, outputs, record, api)
         return DaemonConfig(
             source=self.source,
@@ -294,8 +326,8 @@ class _Loader:
         try:
             return pwd.getpwnam(user).pw_uid
         except KeyError:
-            raise fields.refuse(
-                "user",
+            raise NotOnMachine(
+                fields.key("user"),
                 user,
                 f"no such user on this machine: create it (useradd --system {user}) or name "
                 "the user the client runs as",
@@ -372,6 +404,11 @@ class _Loader:
         clients: tuple[ClientSpec, ...],
         outputs: Sequence[DeviceSpec],
     ) -> SafetyConfig:
+        hold, local_reset = (rearm.read(key) for key in SECTION["rearm"].keys)
+        require_watchdog = fields.flag(REQUIRE_WATCHDOG)
+        timeout, heartbeat_hz = fields.whole(VSC_TIMEOUT), fields.whole(HEARTBEAT_HZ)
+        prooftest = self.prooftest(vsc.transport, require_watchdog, fields)
+        prooftest_clear = fields.whole(PROOFTEST_CLEAR)
         if not any(spec.role is OutputRole.MOTION for spec in outputs):
             raise ConfigError(
                 "outputs",
@@ -379,18 +416,16 @@ class _Loader:
                 'give at least one output role = "motion": otherwise a hold (pause, menu, '
                 "a client's hold) leaves motion enabled",
             )
-        hold, local_reset = (rearm.read(key) for key in SECTION["rearm"].keys)
-        require_watchdog = fields.flag(REQUIRE_WATCHDOG)
         try:
             return SafetyConfig(
                 transport=vsc.transport,
-                vsc_timeout_ms=fields.whole(VSC_TIMEOUT),
-                heartbeat_hz=fields.whole(HEARTBEAT_HZ),
+                vsc_timeout_ms=timeout,
+                heartbeat_hz=heartbeat_hz,
                 rearm_hold_ms=hold,  # type: ignore[arg-type]
                 local_reset=local_reset,  # type: ignore[arg-type]
                 require_watchdog=require_watchdog,
-                prooftest=self.prooftest(vsc.transport, require_watchdog, fields),
-                prooftest_clear_ms=fields.whole(PROOFTEST_CLEAR),
+                prooftest=prooftest,
+                prooftest_clear_ms=prooftest_clear,
                 clients=clients,
                 outputs=tuple(outputs),
             )
@@ -443,8 +478,8 @@ class _Loader:
             return None
         assert isinstance(group, str)
         if not self.group_exists(group):
-            raise fields.refuse(
-                key.name,
+            raise NotOnMachine(
+                fields.key(key.name),
                 group,
                 f"no such group on this machine: create it (groupadd --system {group}) and "
                 "add the users to it, or name an existing group",

@@ -194,13 +194,16 @@ def test_check_config_counts_in_plural(tmp_path: Path, capsys: pytest.CaptureFix
 
 
 def test_check_config_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """--check-config prints the error to stderr, nothing to stdout, and returns 1."""
+    """--check-config prints the error to stderr with its line and the value as TOML writes
+    it, nothing to stdout, and returns 1."""
     file = write(tmp_path, VALID.replace('"serial"', '"serail"'))
     assert check_config_main(file) == 1
     out, err = capsys.readouterr()
     assert out == ""
+    line = 1 + VALID.splitlines().index('transport = "serial"')
     assert err.startswith(
-        f"{file}: vsc.transport = 'serail': did you mean 'serial'? use one of \"serial\""
+        f"{file}:{line}: error: vsc.transport = \"serail\": did you mean 'serial'? use one of "
+        '"serial"'
     )
 
 

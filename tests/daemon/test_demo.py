@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import fcntl
+import json
 import os
 import pty
 import re
 import select
+import struct
 import subprocess
+import tempfile
+import termios
 import time
 from pathlib import Path
+from zoneinfo import ZoneInfo
 
 from tests.daemon.test_srcsctl import SRCSCTL
 
@@ -39,11 +46,20 @@ def _children(pid: int) -> list[int]:
 
 
 def test_the_story_shows_stops_and_rearms() -> None:
-    """Without a terminal the demo plays its story: commissioning, a takeover to RUN, a
-    remote e-stop, a cut link and a pause, each followed by a re-arm, with the stop records
-    as they are written; it cleans up and exits 0."""
+    """SR-7.1: without a terminal the demo plays its story: commissioning, a takeover to RUN,
+    a remote e-stop, a cut link and a pause, each followed by a re-arm, with every stop record
+    from the first (#1, written before the demo could subscribe) as one line each: the local
+    time (the zone of TZ), the state change, the kind and which cause was raised or cleared,
+    never the whole cause set again; it cleans up and exits 0."""
+    zone = "Asia/Kolkata"  # +05:30: a time of day in UTC is hours away from it
+    before = dt.datetime.now(ZoneInfo(zone))
     done = subprocess.run(
-        [SRCSCTL, "demo", "--speed", "4"], capture_output=True, timeout=120, check=False, text=True
+        [SRCSCTL, "demo", "--speed", "4"],
+        capture_output=True,
+        timeout=120,
+        check=False,
+        text=True,
+        env={**os.environ, "TZ": zone},
     )
     assert done.returncode == 0, done.stderr
     states = re.findall(r"supervisor: (\w+); outputs drive (\w+)", done.stdout)
@@ -56,10 +72,22 @@ def test_the_story_shows_stops_and_rearms() -> None:
         ("RUN", "ON"),
         ("RUN", "ON"),
     ]
-    assert "[commissioned]" in done.stdout
-    assert re.search(r"RUN -> STOPPED \[state_change\] causes: vsc_estop", done.stdout)
-    assert re.search(r"RUN -> STOPPED \[state_change\] causes: transport_fault", done.stdout)
-    assert "RUN -> HOLD [state_change] causes: vsc_mode:pause" in done.stdout
+    records = re.findall(r"^  record (\d\d):(\d\d):\S+  #(\d+) ", done.stdout, re.M)
+    assert [int(seq) for _, _, seq in records] == list(range(1, len(records) + 1))
+    hour, minute = int(records[0][0]), int(records[0][1])
+    apart = (before.replace(hour=hour, minute=minute) - before).total_seconds() % 86400
+    assert min(apart, 86400 - apart) < 600, (records[0], before)  # local time, not UTC
+    assert re.search(r"STOPPED +commissioned +commissioned: key85=1 remote_status=on", done.stdout)
+    assert re.search(
+        r"prooftest +proof test passed: tripped after \d+ ms, limit 700 ms", done.stdout
+    )
+    assert re.search(
+        r"RUN -> STOPPED +state_change +raised vsc_estop \(sources=remote\)", done.stdout
+    )
+    assert re.search(r"RUN -> STOPPED +state_change +raised transport_fault", done.stdout)
+    assert re.search(r"RUN -> HOLD +state_change +raised vsc_mode:pause$", done.stdout, re.M)
+    assert re.search(r"STOPPED -> RUN +state_change +re-armed by takeover", done.stdout)
+    assert "[demo] srcsctl finds this demo: srcsctl --demo status (socket " in done.stdout
 
 
 SEEN: list[bytes] = [b""]
@@ -106,3 +134,122 @@ def test_keys_in_a_terminal_take_over_and_stop() -> None:
                 demo.terminate()
                 demo.wait(timeout=20)
             os.close(controller)
+
+
+WIDTH = 100  # columns of the demo's terminal: a line wider than this would wrap and tear
+
+
+class Screen:
+    """The demo's terminal as a person sees it: the last whole frame it drew."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.data = b""
+
+    def frames(self) -> list[str]:
+        # Each frame starts by homing the cursor and clearing the screen.
+        return self.data.decode(errors="replace").split("\x1b[H\x1b[2J")[1:-1]
+
+    def until(self, pattern: str, limit: float = 30.0) -> list[str]:
+        """The lines of the first whole frame after now that matches ``pattern``."""
+        start = len(self.frames())
+        end = time.monotonic() + limit
+        while True:
+            for frame in self.frames()[start:]:
+                if re.search(pattern, frame, re.M):
+                    return frame.splitlines()
+            assert time.monotonic() < end, self.frames()[-1:]
+            ready, _, _ = select.select([self.fd], [], [], 0.2)
+            if ready:
+                self.data += os.read(self.fd, 65536)
+
+    def press(self, key: str) -> None:
+        os.write(self.fd, key.encode())
+
+
+def _notes(lines: list[str]) -> list[str]:
+    """The notes under NEXT (lines starting ``> ``, with their folded continuations)."""
+    notes: list[str] = []
+    for line in lines[3:]:
+        if line.startswith("> "):
+            notes.append(line[2:])
+        elif line.startswith("  ") and notes:
+            notes[-1] += " " + line.strip()
+        else:
+            break
+    return notes
+
+
+def _srcsctl(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [SRCSCTL, *args], capture_output=True, text=True, timeout=30, check=False, env=env
+    )
+
+
+def test_the_screen_says_what_to_do_and_shows_a_refused_takeover() -> None:
+    """SR-4 (the refusal's reason), SR-7.1: in a 100-column terminal every line of the demo
+    fits (nothing wraps); the first screen's top line says the one thing to do once the
+    supervisor may re-arm, and the screen names the socket; ``srcsctl --demo`` finds the
+    running demo by itself (status, and the log from record #1 with the proof test's verdict
+    and the commissioning); a takeover while the supervisor proves the VSC's watchdog again
+    after a restored link is shown refused, with its reason, in the notes under that line.
+
+    The demo and ``srcsctl --demo`` share a temporary directory of the test's own ($TMPDIR,
+    short: the socket's path must fit), so that another demo on the machine is not found."""
+    with tempfile.TemporaryDirectory(prefix="sd-", dir="/tmp") as private:
+        _screen_and_refusal({**os.environ, "TMPDIR": private})
+
+
+def _screen_and_refusal(env: dict[str, str]) -> None:
+    controller, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 50, WIDTH, 0, 0))
+    with subprocess.Popen(
+        [SRCSCTL, "demo"], stdin=terminal, stdout=terminal, stderr=subprocess.PIPE, env=env
+    ) as demo:
+        os.close(terminal)
+        screen = Screen(controller)
+        try:
+            first = screen.until(r"^NEXT: press \[t\] to take over")
+            assert all(len(line) <= WIDTH for line in first), first
+            assert first[2].startswith("NEXT: press [t] to take over"), first
+            assert any("srcsctl --demo status" in line for line in first), first
+
+            status = _srcsctl("--demo", "status", env=env)
+            assert status.returncode == 0, status.stderr
+            assert status.stdout.startswith("robot demo: STOPPED")
+            log = _srcsctl("log", "--demo", env=env)
+            assert log.returncode == 0, log.stderr
+            assert re.search(r"  #1 +STOPPED +cause_raised +raised startup\*", log.stdout)
+            assert "commissioned: key85=1 remote_status=on" in log.stdout
+            assert re.search(r"proof test passed: tripped after \d+ ms, limit 700 ms", log.stdout)
+
+            refused = None
+            for _ in range(5):  # until one takeover comes while the proof test runs
+                screen.press("l")
+                screen.until(r"^NEXT: the link is cut")
+                screen.press("l")
+                screen.until(r"^NEXT: wait: the supervisor is proving the VSC's watchdog")
+                screen.press("t")
+                shown = screen.until(r"^> takeover refused: |^NEXT: RUN")
+                if any(line.startswith("> takeover refused: ") for line in shown):
+                    refused = shown
+                    break
+            assert refused is not None, screen.frames()[-1:]
+            assert all(len(line) <= WIDTH for line in refused), refused
+            recorded = _srcsctl("log", "--demo", "-o", "json", env=env)
+            records = [json.loads(line) for line in recorded.stdout.splitlines()]
+            last = [r for r in records if r["kind"] == "rearm_refused"][-1]
+            # The note, folded onto as many lines as it needs, says the record's reason, and
+            # is among the notes right under NEXT, where the operator looks.
+            notes = _notes(refused)
+            assert f"takeover refused: {last['reason']}" in notes, refused
+            screen.press("q")
+            assert demo.wait(timeout=20) == 0
+        finally:
+            if demo.poll() is None:
+                demo.terminate()
+                demo.wait(timeout=20)
+            os.close(controller)
+    gone = _srcsctl("--demo", "status", env=env)
+    assert gone.returncode == 2
+    assert "no demo is running (start one with: srcsctl demo)" in gone.stderr

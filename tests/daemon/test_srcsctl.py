@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -67,8 +69,9 @@ def robot(tmp_path: Path) -> Iterator[Robot]:
 
 
 def test_status_in_both_forms(robot: Robot) -> None:
-    """The human form names the robot, the state, each cause and each output; --json is the
-    API's reply with the daemon's own part (link, counters)."""
+    """The human form names the robot, the state, each cause (the startup stop cleared, held
+    by its latch: marked ``*`` as everywhere, with the marker's meaning once) and each output;
+    --json is the API's reply with the daemon's own part (link, counters)."""
     status = robot.status()
     assert status["state"] == "STOPPED"
     daemon = status["daemon"]
@@ -79,7 +82,8 @@ def test_status_in_both_forms(robot: Robot) -> None:
     assert human.returncode == 0
     assert human.stdout.startswith("robot test-robot: STOPPED for ")
     assert "outputs  drive=off" in human.stdout
-    assert "startup (stop, " in human.stdout
+    assert "startup* (stop)" in human.stdout
+    assert human.stdout.count("* cleared; its latch holds the stop until a re-arm") == 1
     assert f"link     serial {robot.dir / 'vsc'}" in human.stdout
 
 
@@ -156,9 +160,11 @@ def test_watch_follows_a_stop_live(robot: Robot) -> None:
             assert " STOPPED " in first
             assert robot.ctl("estop").returncode == 0
             lines: list[str] = []
-            while not any("local_estop" in line and "record #" in line for line in lines):
+            while not any("raised local_estop" in line for line in lines):
                 lines.append(watcher.stdout.readline())
                 assert lines[-1], "watch ended early"
+            (record,) = [line for line in lines if "raised local_estop" in line]
+            assert re.search(r"#\d+ +STOPPED +cause_raised +raised local_estop", record), record
             watcher.send_signal(signal.SIGINT)
             assert watcher.wait(timeout=10) == 0
         finally:
@@ -231,9 +237,11 @@ def _settled(robot: Robot) -> None:
 def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
     """``watch`` shows the state it starts in once, not once from ``status`` and again from
     the subscription's push; with --json every line is a push (``event``), never a reply.
+    The human form shows a state again only when the state or an output changes: a hold in
+    STOPPED is its record's line alone (what was raised), not the whole state once more.
 
-    No window of time: a hold taken once the first state is shown makes a new state push,
-    which the ordered stream delivers after any second copy of the first."""
+    No window of time: a hold taken once the first state is shown makes a new state push and
+    a record, which the ordered stream delivers after any second copy of the first."""
     _settled(robot)
     args = [SRCSCTL, "watch", "--config", str(robot.config), *(["--json"] if as_json else [])]
     with subprocess.Popen(args, stdout=subprocess.PIPE, text=True) as watcher:
@@ -241,7 +249,10 @@ def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
             output = _Output(watcher)
             output.until(lambda lines: len(_states(lines, as_json)) >= 1)
             assert robot.ctl("hold").returncode == 0
-            lines = output.until(lambda lines: len(set(_states(lines, as_json))) >= 2)
+            if as_json:
+                lines = output.until(lambda lines: len(set(_states(lines, as_json))) >= 2)
+            else:
+                lines = output.until(lambda lines: any("raised client_hold" in x for x in lines))
         finally:
             watcher.send_signal(signal.SIGINT)
             watcher.wait(timeout=10)
@@ -252,19 +263,20 @@ def test_watch_prints_the_first_state_once(robot: Robot, as_json: bool) -> None:
         decided = _states(lines, as_json)
         assert len(decided) == len(set(decided)), lines
     else:
-        # The daemon's own line, then the state, from the subscription's push alone (the
-        # human and the JSON form share that path; the JSON form pins the duplicate down).
-        assert len(lines) >= 2, lines
-        assert " STOPPED " in lines[1], lines
+        # The daemon's own line, then the state, from the subscription's push alone, once.
         assert lines[0].startswith("# srcsd "), lines  # the daemon's own line first
+        assert _states(lines, as_json) == [lines[1]], lines
+        (hold,) = [line for line in lines if "client_hold" in line]
+        assert re.search(r"#\d+ +STOPPED +cause_raised +raised client_hold:srcsctl$", hold), hold
 
 
 def _states(lines: list[str], as_json: bool) -> list[str]:
-    """The states ``watch`` showed: each push's decision time (--json), or each line."""
+    """The states ``watch`` showed: each push's decision time (--json), or each state line
+    (the time of day, then the state; a record's line has its ``#N`` there)."""
     if as_json:
         pushes = [json.loads(line) for line in lines]
         return [str(p["mono_ns"]) for p in pushes if p.get("event") == "state"]
-    return [line for line in lines if " STOPPED " in line]
+    return [line for line in lines if re.match(r"\S+ STOPPED ", line)]
 
 
 def test_watch_ends_on_sigint_even_when_started_with_sigint_ignored(robot: Robot) -> None:
@@ -404,11 +416,14 @@ def _log(*args: str, tz: str = "UTC") -> subprocess.CompletedProcess[str]:
 
 def test_log_marks_and_time_zone_agree_with_watch(tmp_path: Path) -> None:
     """In ``log`` as in ``watch``, ``*`` marks a latched cause whose condition has cleared;
-    times are local unless ``--utc``."""
+    times are local unless ``--utc``. A record that names no change shows its causes; the
+    whole set is ``--causes`` away for every record."""
     path = _records(tmp_path)
     local = _log("--file", str(path), tz="Asia/Kolkata")
     assert local.returncode == 0, local.stderr
-    assert "[local_estop, vsc_estop*]" in local.stdout
+    assert "causes local_estop, vsc_estop*" in local.stdout
+    full = _log("--file", str(path), "--causes")
+    assert "[causes: local_estop, vsc_estop*; trigger tick]" in full.stdout
     assert "+05:30" in local.stdout.splitlines()[0]
     utc = _log("--file", str(path), "--utc", tz="Asia/Kolkata")
     assert "+00:00" in utc.stdout.splitlines()[0]
@@ -474,3 +489,135 @@ def test_log_without_a_config_names_the_choices(tmp_path: Path) -> None:
     (tmp_path / "robot-b.toml").write_text("")
     with pytest.raises(LookupError, match=r"robot-a\.toml, .*robot-b\.toml"):
         default_config(tmp_path)
+
+
+# -- records in words, and journalctl's habits ------------------------------------------------
+
+
+def _lines(result: subprocess.CompletedProcess[str]) -> list[str]:
+    assert result.returncode == 0, result.stderr
+    return result.stdout.splitlines()
+
+
+def test_log_says_what_each_record_did(robot: Robot) -> None:
+    """SR-7.1, SR-4: with the real ``srcsd``, ``log`` shows each record as one line: the state
+    change if any, the record's kind, which cause was raised (with its details: who asked) or
+    cleared (not the whole set again) and, for a refused reset, the core's reason; a cause
+    that cleared and stays latched is marked ``*``, in ``log`` as in ``status``; ``-o json``
+    is ``--json``."""
+    _settled(robot)
+    for command in ("estop", "release"):
+        assert robot.ctl(command).returncode == 0
+    assert robot.ctl("reset").returncode == 1
+    log = _lines(robot.ctl("log", "-n", "3"))
+    caller = r"\(caller=\w+; pid=\d+; uid=\d+\)"  # who pressed it: the cause's details
+    assert re.search(rf"#\d+ +STOPPED +cause_raised +raised local_estop {caller}$", log[0]), log
+    assert re.search(r"#\d+ +STOPPED +cause_cleared +cleared local_estop\*$", log[1]), log
+    assert re.search(
+        r"#\d+ +STOPPED +rearm_refused +reset refused: local reset is not allowed by the "
+        r"config \(local_reset = false\)$",
+        log[2],
+    ), log
+    assert "startup" not in log[0]  # the causes that did not change are not repeated
+    full = _lines(robot.ctl("log", "-n", "1", "--causes"))
+    assert re.search(r"\[causes: .*local_estop\*.*; trigger reset_request\]$", full[0]), full
+    assert "local_estop* (stop)" in robot.ctl("status").stdout
+    as_json = robot.ctl("log", "-n", "3", "--json").stdout
+    assert robot.ctl("log", "-n", "3", "-o", "json").stdout == as_json
+    assert [json.loads(line)["kind"] for line in as_json.splitlines()] == [
+        "cause_raised",
+        "cause_cleared",
+        "rearm_refused",
+    ]
+
+
+def _timed_records(tmp_path: Path, ages_min: list[int]) -> Path:
+    """A record file with one record per age (minutes before now), seq 1, 2, ..."""
+    now = dt.datetime.now(dt.timezone.utc)
+    path = tmp_path / "stops.jsonl"
+    with path.open("w") as out:
+        for seq, age in enumerate(ages_min, 1):
+            cause = {"name": f"client_hold:n{seq}", "severity": "hold", "active": True}
+            entry = {
+                "seq": seq,
+                "mono_ns": seq,
+                "utc": (now - dt.timedelta(minutes=age)).isoformat(),
+                "kind": "cause_raised",
+                "from": "STOPPED",
+                "to": "STOPPED",
+                "causes": [{**cause, "latched": False, "details": {}}],
+                "changes": [{"name": f"client_hold:n{seq}", "change": "raised"}],
+                "trigger": {"event": "client_hold"},
+            }
+            out.write(json.dumps(entry) + "\n")
+    return path
+
+
+def _seqs(result: subprocess.CompletedProcess[str]) -> list[int]:
+    return [int(line.split()[1].lstrip("#")) for line in _lines(result)]
+
+
+def test_log_takes_journalctls_habits(tmp_path: Path) -> None:
+    """``-n`` alone is the last 10, ``-r`` newest first, and ``--since``/``-S`` take
+    journalctl's relative times ("5 min ago", -5min, "2 hours ago", yesterday, today)."""
+    ages = [60 * 30, 300, 130, 90, 50, 40, 30, 20, 12, 8, 4, 1]  # minutes ago, oldest first
+    path = _timed_records(tmp_path, ages)
+    file = ["--file", str(path)]
+    assert _seqs(_log(*file, "-n")) == list(range(3, 13))
+    assert _seqs(_log(*file, "-n", "3", "-r")) == [12, 11, 10]
+    assert _seqs(_log(*file, "--since", "5 min ago")) == [11, 12]
+    assert _seqs(_log(*file, "-S", "-5min")) == [11, 12]
+    assert _seqs(_log(*file, "--since", "2 hours ago")) == list(range(4, 13))
+    assert _seqs(_log(*file, "--since", "1h 40min ago", "--until", "-10min")) == list(range(4, 10))
+    assert _seqs(_log(*file, "-S", "yesterday"))[-11:] == list(range(2, 13))
+    assert 1 not in _seqs(_log(*file, "-S", "today"))
+    both = _log(*file, "-r", "-f")
+    assert both.returncode == 2
+    assert "-r and -f do not go together" in both.stderr
+
+
+def test_log_follow_prints_the_last_10_then_watches_the_file(tmp_path: Path) -> None:
+    """SR-8.9, SR-7.2: ``log -f`` prints the last 10 records (not the whole history), then
+    each record as it is appended, through rotation (the file renamed to ``.1``, a new one
+    made), watching the file with inotify rather than reading it again and again; SIGINT ends
+    it with exit 0."""
+    path = _timed_records(tmp_path, list(range(24, 0, -2)))
+    with subprocess.Popen(
+        [SRCSCTL, "log", "--file", str(path), "-f"], stdout=subprocess.PIPE, text=True
+    ) as follower:
+        try:
+            output = _Output(follower)
+            first = output.until(lambda lines: len(lines) >= 10)
+            assert [int(line.split()[1].lstrip("#")) for line in first] == list(range(3, 13))
+            fds = Path(f"/proc/{follower.pid}/fdinfo")
+            assert any("inotify wd:" in info.read_text() for info in fds.iterdir())
+            last = json.loads(path.read_text().splitlines()[-1])
+            with path.open("a") as out:
+                out.write(json.dumps({**last, "seq": 13, "mono_ns": 13}) + "\n")
+            output.until(lambda lines: any(" #13 " in line for line in lines))
+            path.rename(tmp_path / "stops.jsonl.1")  # rotation, as the writer does it
+            path.write_text(json.dumps({**last, "seq": 14, "mono_ns": 14}) + "\n")
+            lines = output.until(lambda lines: any(" #14 " in line for line in lines))
+            assert [int(line.split()[1].lstrip("#")) for line in lines] == list(range(3, 15))
+            follower.send_signal(signal.SIGINT)
+            assert follower.wait(timeout=10) == 0
+        finally:
+            if follower.poll() is None:
+                follower.kill()
+
+
+def test_a_robot_is_chosen_by_its_name(tmp_path: Path) -> None:
+    """``--robot NAME`` (``-R``, also ``srcsd@NAME``) stands for ``/etc/srcs/NAME.toml`` in
+    every command, before or after it; a robot that is not there is a usage error (exit 2)
+    naming the file and the robots that are."""
+    from supervisord.cli.srcsctl import robot_config  # noqa: PLC0415
+
+    (tmp_path / "robot-a.toml").write_text("")
+    assert robot_config("robot-a", tmp_path) == tmp_path / "robot-a.toml"
+    assert robot_config("srcsd@robot-a.service", tmp_path) == tmp_path / "robot-a.toml"
+    with pytest.raises(LookupError, match=r"robot-b\.toml does not exist \(robots here: robot-a\)"):
+        robot_config("robot-b", tmp_path)
+    for args in (["-R", "srcs-test-none", "status"], ["log", "--robot", "srcsd@srcs-test-none"]):
+        missing = subprocess.run([SRCSCTL, *args], capture_output=True, text=True, check=False)
+        assert missing.returncode == 2, missing.stderr
+        assert "/etc/srcs/srcs-test-none.toml does not exist" in missing.stderr

@@ -148,7 +148,7 @@ def test_record_continues_across_restarts_and_srcsctl_log_reads_it(tmp_path: Pat
     )
     lines = listing.stdout.splitlines()
     assert [line.split()[1] for line in lines] == [f"#{seq}" for seq in seqs]
-    assert sum(" tick " in line for line in lines) == 2  # one startup record per start
+    assert sum("raised startup*" in line for line in lines) == 2  # one startup record per start
     # One marker everywhere (docs/srcsctl.md): * = condition cleared, waiting for a re-arm.
     assert "startup*" in listing.stdout  # a pulse: raised and cleared at once
     assert "transport_fault*" not in listing.stdout  # no VSC: still active

@@ -1,0 +1,42 @@
+"""The demo's NEXT line (``supervisord/cli/demo_view.py``): the one thing to do, and never a
+takeover the supervisor would refuse as too early (docs/srcsctl.md "The demo")."""
+
+from __future__ import annotations
+
+from supervisord.cli.demo_view import next_step
+
+PLUGGED = {"plugged": True, "remote_estop": False}
+MS = 1_000_000
+
+
+def _stopped(*causes: dict[str, object]) -> dict[str, object]:
+    return {"state": "STOPPED", "causes": list(causes)}
+
+
+def test_next_waits_for_the_proof_test_and_the_rearm_hold() -> None:
+    """SR-4: while a stop condition holds, NEXT says what it waits for; once none does, it
+    waits out the re-arm hold from the last clearing (a takeover before it is refused), then
+    says to take over."""
+    proving = {"name": "vsc_watchdog_untested", "severity": "stop", "active": True}
+    assert next_step(PLUGGED, _stopped(proving), now_ns=0, hold_ms=500) == (
+        "wait: the supervisor is proving the VSC's watchdog (about 1 s)"
+    )
+    cleared = {"name": "vsc_estop", "severity": "stop", "active": False, "latched": True}
+    status = _stopped({**cleared, "cleared_ns": 1_000 * MS})
+    assert next_step(PLUGGED, status, now_ns=1_499 * MS, hold_ms=500).startswith(
+        "wait: the stop conditions must stay clear for 500 ms"
+    )
+    assert next_step(PLUGGED, status, now_ns=1_500 * MS, hold_ms=500).startswith(
+        "press [t] to take over"
+    )
+
+
+def test_next_names_what_the_operator_must_undo_first() -> None:
+    """A cut link and a pressed e-stop come before anything else; RUN and HOLD say what the
+    keys do there."""
+    assert next_step({"plugged": False}, _stopped()).startswith("the link is cut: press [l]")
+    pressed = {"plugged": True, "remote_estop": True}
+    assert next_step(pressed, _stopped()).startswith("the remote's e-stop is pressed: press [e]")
+    assert next_step(PLUGGED, {"state": "RUN"}).startswith("RUN, the outputs are on")
+    assert next_step(PLUGGED, {"state": "HOLD"}).startswith("HOLD (motion off, power on)")
+    assert next_step(PLUGGED, None) == "wait: the supervisor is not answering yet"
