@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import enum
+import re
 
 
 class StrEnum(str, enum.Enum):
@@ -36,7 +37,13 @@ class IntEnum(enum.IntEnum):
 def from_iso(text: str) -> dt.datetime:
     """``datetime.fromisoformat`` with the UTC designator ``Z`` that people type and Python
     3.11 reads (``2026-11-24T14:02Z``); 3.10 takes only an offset, so ``Z`` becomes ``+00:00``.
-    Raises ``ValueError`` as ``fromisoformat`` does."""
+    3.10 also reads a fraction of a second only as 3 or 6 digits (``14:02:00.5`` fails there,
+    seen on a real 3.10): it is given 6, as 3.11 reads it. Raises ``ValueError`` as
+    ``fromisoformat`` does."""
     if text[-1:] in ("Z", "z"):
         text = text[:-1] + "+00:00"
+    text = _FRACTION.sub(lambda digits: "." + digits[1][:6].ljust(6, "0"), text, count=1)
     return dt.datetime.fromisoformat(text)
+
+
+_FRACTION = re.compile(r"\.(\d+)")
