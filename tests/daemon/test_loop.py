@@ -11,7 +11,7 @@ import struct
 import termios
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -385,22 +385,30 @@ def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
 
 class _StalledWriter(RecordWriter):
     """A record file on a disk that hangs: every append waits until released (or 60 s);
-    ``hung`` is set while an append is waiting."""
+    ``hung`` is set while an append is waiting. Both ways in hang: one record alone, and the
+    records queued together (which the sink writes at once when its lane wakes late)."""
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.release = threading.Event()
         self.hung = threading.Event()
 
-    def append(self, record: Mapping[str, object]) -> None:
+    def _hang(self) -> None:
         self.hung.set()
         self.release.wait(60.0)
         self.hung.clear()
+
+    def append(self, record: Mapping[str, object]) -> None:
+        self._hang()
         super().append(record)
+
+    def append_fitting(self, records: Sequence[Mapping[str, object]]) -> int:
+        self._hang()
+        return super().append_fitting(records)
 
 
 def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: Path) -> None:
-    """Issue 11 part 1, SR-5, SR-6, SR-7: while the record's disk hangs, the loop goes
+    """SR-5, SR-6, SR-7: while the record's disk hangs, the loop goes
     on: a remote e-stop turns the output off at once and the user heartbeat keeps its
     period (one per 50 ms of the loop's clock, which the test drives while the disk is still
     hung); once the disk answers, every record is in the file, in order, and a clean stop
