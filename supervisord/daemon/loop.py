@@ -13,9 +13,9 @@ Records, journal entries and log lines leave the loop through the :class:`~super
 sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
 a record is pushed to subscribers once the sink says it is on disk. Every input the core is
 given also goes into the flight recorder's ring, and each stop's window leaves through the
-sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user heartbeat, the
-outputs and the link are served only by this loop, so if it hangs, the heartbeat stops and
-the VSC's key-85 watchdog opens its relays (SR-5).
+sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user
+heartbeat, the outputs and the link are served only by this loop, so if it hangs, the
+heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 """
 
 from __future__ import annotations
