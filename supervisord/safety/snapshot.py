@@ -67,7 +67,8 @@ MODULES: Final[tuple[ModuleType, ...]] = (
     messages,
 )
 """The modules whose classes a snapshot may hold: the core's own and the protocol's messages
-and codes (a decoded VSC message is part of a decision and of the core's display store)."""
+and codes (a decoded VSC message is part of a decision and of the core's display store), with
+the package's classes they import."""
 
 Json = Any
 """A plain JSON value: ``None``, ``bool``, ``int``, ``float``, ``str``, lists and objects."""
@@ -79,16 +80,19 @@ class SnapshotError(ValueError):
 
 
 def _classes() -> dict[str, type]:
+    """The package's classes these modules define or name (a vocabulary they import from a
+    module of its own, such as a release's ``Request``), by where each is defined."""
     found: dict[str, type] = {}
     for module in MODULES:
         for value in vars(module).values():
-            if isinstance(value, type) and value.__module__ == module.__name__:
-                found[f"{module.__name__}:{value.__qualname__}"] = value
+            if isinstance(value, type) and value.__module__.startswith("supervisord."):
+                found[f"{value.__module__}:{value.__qualname__}"] = value
     return found
 
 
 CLASSES: Final[dict[str, type]] = _classes()
-"""Every class :func:`restore` may make, by ``module:qualname``."""
+"""Every class :func:`restore` may make, by ``module:qualname``: nothing from outside the
+package, and nothing of it that the core's and the messages' modules do not name."""
 
 
 def _name(cls: type) -> str:
