@@ -41,7 +41,7 @@ MANUALS = {1: "User Commands", 8: "System Administration Commands"}
 
 FILE_METAVARS = frozenset({"FILE", "PATH", "SOCKET", "SYMLINK"})
 """Options whose value is a path: completed with file names (shtab.FILE)."""
-FILE_POSITIONALS = frozenset({("srcsctl decode", "file")})
+FILE_POSITIONALS = frozenset({("srcsctl decode", "file"), ("srcsctl replay", "window")})
 """Positional arguments that name a file, by (parser, dest)."""
 
 
@@ -132,8 +132,10 @@ COMMANDS: tuple[Command, ...] = (
             "srcsctl talks to a running srcsd(8) over its API socket: its state and causes "
             "(status, watch), a stop or hold from the vehicle computer (estop, hold, release, "
             "reset), the remote's screen and vibration, the VSC's watchdog (commission, "
-            "prooftest). It also reads files: the record of stops (log) and captures of VSC "
-            "traffic (decode). The demo runs the supervisor against the simulated VSC.",
+            "prooftest). It also reads files: the record of stops (log), the flight "
+            "recorder's window of a stop, replayed through a fresh safety core and checked "
+            "against the record (replay), and captures of VSC traffic (decode). The demo runs "
+            "the supervisor against the simulated VSC.",
             "The daemon is the one at --socket PATH, else the [api] socket of --config FILE, "
             "else $SRCS_SOCKET, else /run/srcsd/api.sock. Times are local with their offset, "
             "or UTC with --utc. A * after a cause means its condition has cleared and the "
@@ -144,9 +146,13 @@ COMMANDS: tuple[Command, ...] = (
             (
                 "1",
                 "the daemon refused or the action failed (the reason is printed), or a "
-                "commissioning was not confirmed",
+                "commissioning was not confirmed; replay: the replay differs from the record",
             ),
-            ("2", "usage or configuration error; decode: some input was unreadable"),
+            (
+                "2",
+                "usage or configuration error; decode: some input was unreadable; replay: the "
+                "window cannot be read or replayed",
+            ),
             ("3", "no daemon answers at the socket"),
             ("4", "the socket exists but this user may not open it"),
         ),
@@ -157,10 +163,14 @@ COMMANDS: tuple[Command, ...] = (
             API_SOCKET,
             (
                 "/etc/srcs/*.toml",
-                "the robots' configurations: log reads the only one there when given "
-                "neither --config nor --file",
+                "the robots' configurations: log and replay read the only one there when "
+                "given neither --config nor --file",
             ),
             RECORD_FILE,
+            (
+                "/var/lib/srcsd/stops.jsonl.flight/SEQ.jsonl",
+                "the flight recorder's window of stop record SEQ, which replay reads",
+            ),
             DOCS,
         ),
         see_also=("srcsd(8)", "srcs-sim(1)", "srcs-exporter(8)"),

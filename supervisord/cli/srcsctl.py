@@ -11,6 +11,7 @@ from supervisord import __version__
 from supervisord.cli import control, decode_options
 from supervisord.cli.demo_find import NoDemo, demo_config
 from supervisord.cli.log import FOLLOW_LAST, run_log
+from supervisord.cli.replay import run_replay
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 
@@ -92,6 +93,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
     log.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
 
+    replay = commands.add_parser(
+        "replay",
+        help="replay a stop's flight recorder window and check it against the record",
+        description="Run the inputs the supervisor's safety core was given before a stop (its "
+        "flight recorder window, written beside the record) through a fresh core with the "
+        "recorded configuration, and show step by step that it makes the recorded decisions "
+        "(docs/record.md). Exit 1 at the first record that differs. Without --config, "
+        "--robot or --file: the only config in /etc/srcs.",
+        parents=[control.socket_options(record=True)],
+    )
+    replay.add_argument(
+        "window",
+        nargs="?",
+        metavar="SEQ|FILE",
+        help="the stop record's sequence number, or a window file (default: the newest window)",
+    )
+    replay.add_argument("--file", metavar="PATH", help="the record file itself")
+    replay.add_argument(
+        "--all", action="store_true", help="a line for every input, not only those that decide"
+    )
+
     control.add_arguments(commands)
 
     demo = commands.add_parser(
@@ -130,6 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return decode.run(args, sys.stdout, sys.stderr)
     if args.command == "log":
         return _log(args)
+    if args.command == "replay":
+        return _replay(args)
     if args.command in control.COMMANDS:
         return control.run(args, sys.stdout, sys.stderr)
     if args.command == "demo":
@@ -184,16 +208,33 @@ def _ages_as_values(argv: Sequence[str]) -> list[str]:
     return out
 
 
-def _log(args: argparse.Namespace) -> int:
-    config = getattr(args, "config", None)
+def _record_path(args: argparse.Namespace, command: str) -> Path | None:
+    """The record file ``--file`` names, else ``--config``'s, else the one config's in
+    /etc/srcs; ``None`` after printing why there is none."""
     if args.file:
-        path = Path(args.file)
-    else:
-        try:
-            path = load_config(config or default_config()).record.path
-        except (ConfigError, LookupError) as error:
-            print(f"srcsctl log: {error}", file=sys.stderr)
+        return Path(args.file)
+    try:
+        return load_config(getattr(args, "config", None) or default_config()).record.path
+    except (ConfigError, LookupError) as error:
+        print(f"srcsctl {command}: {error}", file=sys.stderr)
+        return None
+
+
+def _replay(args: argparse.Namespace) -> int:
+    record: Path | None = None
+    named = args.file or getattr(args, "config", None)
+    if named or args.window is None or args.window.isdigit():
+        # A window file alone names its record by its folder (PATH.flight).
+        record = _record_path(args, "replay")
+        if record is None:
             return 2
+    return run_replay(args.window, record, sys.stdout, sys.stderr, show_all=args.all)
+
+
+def _log(args: argparse.Namespace) -> int:
+    path = _record_path(args, "log")
+    if path is None:
+        return 2
     if args.lines is not None and args.lines < 0:
         print("srcsctl log: -n needs a number of records, 0 or more", file=sys.stderr)
         return 2

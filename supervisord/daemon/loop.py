@@ -11,9 +11,11 @@ heartbeat back (issue 11, ``docs/safety.md`` "The stop path first").
 
 Records, journal entries and log lines leave the loop through the :class:`~supervisord.daemon.
 sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
-a record is pushed to subscribers once the sink says it is on disk. The user heartbeat, the
-outputs and the link are served only by this loop, so if it hangs, the heartbeat stops and
-the VSC's key-85 watchdog opens its relays (SR-5).
+a record is pushed to subscribers once the sink says it is on disk. Every input the core is
+given also goes into the flight recorder's ring, and each stop's window leaves through the
+sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user
+heartbeat, the outputs and the link are served only by this loop, so if it hangs, the
+heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from supervisord import __version__
 from supervisord.api.views import histograms_json
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
+from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
@@ -41,6 +44,7 @@ from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message, UserHeartbeat, VscHeartbeat
+from supervisord.record.flight import FlightWriter
 from supervisord.record.format import record_json
 from supervisord.record.jsonl import RecordWriter
 from supervisord.safety.causes import CauseState
@@ -53,6 +57,7 @@ from supervisord.safety.events import (
     LinkBroken,
     LinkOpened,
     OutputReadback,
+    Tick,
     VscReceived,
 )
 from supervisord.safety.transitions import State
@@ -166,6 +171,7 @@ class Supervisor:
         wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.timezone.utc),
         backoff: Backoff | None = None,
         release: list[Callable[[], object]] | None = None,
+        flight: FlightSettings | None = FlightSettings(),  # noqa: B008 -- frozen
     ) -> None:
         self.safety = safety
         self.link = link
@@ -202,6 +208,12 @@ class Supervisor:
         self._version_due = True  # the first record of this start names the version
         self._link_since_ns: int | None = None  # when the link last opened or broke
         self._link_error: str | None = None  # why it last broke or failed to open
+        # The flight recorder (SR-7.10): beside a record file only, as its windows are.
+        self.flight: FlightRecorder | None = None
+        self._flight_writer: FlightWriter | None = None
+        if writer is not None and flight is not None:
+            self.flight = FlightRecorder(safety, flight)
+            self._flight_writer = FlightWriter(writer.path, writer.max_bytes, writer.keep)
 
     def info(self) -> dict[str, object]:
         """What ``status`` adds about the daemon itself: its version and uptime, the link and
@@ -230,12 +242,19 @@ class Supervisor:
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,
             "records_dropped": counters.records_dropped,
-            # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens
-            **(self.sink.status() if self.sink is not None else IDLE_STATUS),
+            # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
+            # flight_windows, flight_errors (a snapshot's too) and flight_dropped
+            **self._sink_status(),
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
             "histograms": histograms_json(self.timings.histograms()),
         }
+
+    def _sink_status(self) -> dict[str, int]:
+        status = dict(self.sink.status() if self.sink is not None else IDLE_STATUS)
+        if self.flight is not None:
+            status["flight_errors"] += self.flight.snapshot_errors
+        return status
 
     # ----------------------------------------------------------------- start and stop
 
@@ -249,7 +268,7 @@ class Supervisor:
         """
         now = self.clock()
         self._started_ns = self._link_since_ns = now
-        self.sink = Sink(self.writer, self.journal)
+        self.sink = Sink(self.writer, self.journal, flight=self._flight_writer)
         self.sink.start()
         events: list[Event] = []
         for output in self.outputs.values():
@@ -261,6 +280,8 @@ class Supervisor:
                 self._acquiring[output.name] = backoff = Backoff(ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS)
                 backoff.failed(now)
         self.core = SafetyCore(self.safety, now)
+        if self.flight is not None:
+            self.flight.start(now, self.sequence_offset)  # a window can start from here
         self._apply(self.core.decision)  # the startup decision, with the first record
         for event in events:
             self._apply(self._feed(event))
@@ -348,6 +369,8 @@ class Supervisor:
         :data:`MAX_CLIENTS_PER_TURN` client descriptors (issue 11; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
         before = self.clock()
+        if self.flight is not None and self.flight.due(before):
+            self._rebase_flight(before)  # before the wait: never between an input and its outputs
         timeout = max(0.0, (self._next_deadline() - before) / 1e9)
         self._sync_watches(before)
         ready = self._selector.select(timeout)
@@ -454,7 +477,7 @@ class Supervisor:
             assert self.core is not None
             # A stop at a deadline (a link or client timeout) started at the deadline, not
             # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
-            self._apply(self.core.tick(now), since=self.decision.next_deadline)
+            self._apply(self._feed(Tick(now)), since=self.decision.next_deadline)
         for output in self.outputs.values():
             deadline = output.next_deadline() if output.is_open else None
             if deadline is not None and now >= deadline:
@@ -567,8 +590,24 @@ class Supervisor:
     # ----------------------------------------------------------------- decisions
 
     def _feed(self, event: Event) -> Decision:
+        """Every input of the core goes through here, and into the flight recorder's ring (a
+        reference appended and counted: SR-7.10)."""
         assert self.core is not None
+        flight = self.flight
+        if flight is not None:
+            flight.inputs.append(event)
+            flight.count += 1
         return self.core.handle(event)
+
+    def _rebase_flight(self, now: int) -> None:
+        """A snapshot of the core for the flight recorder's next windows (SR-7.11)."""
+        assert self.flight is not None
+        if self.core is None:
+            return
+        error = self.flight.rebase(self.core, now)
+        if error is not None:
+            name = type(error).__name__
+            log.error("flight recorder: no snapshot of the core: %s: %s", name, error)
 
     def _feed_and_apply(self, event: Event) -> Decision:
         decision = self._feed(event)
@@ -657,6 +696,12 @@ class Supervisor:
             return
         if not self.sink.record(entry):
             self._take_written()  # the dropped record is pushed in its place in the order
+        flight = self.flight
+        if flight is not None:
+            flight.last_seq = entry["seq"]
+            if record.state is State.STOPPED and record.previous is not State.STOPPED:
+                # A stop: its window goes to the flight lane, after the record (SR-7.12).
+                self.sink.window(flight.window(entry, self.sequence_offset))
 
     def _take_written(self) -> None:
         if self.sink is not None:

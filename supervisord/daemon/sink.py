@@ -8,7 +8,9 @@ thread that serves it in order:
 
 - ``srcsd-record``: the JSON Lines file (write and fsync: a record is acknowledged only then);
 - ``srcsd-journal``: the journal copy of each record (a stuck journald costs up to 2 s each);
-- ``srcsd-log``: log lines, written to the descriptors of the handlers the process had.
+- ``srcsd-log``: log lines, written to the descriptors of the handlers the process had;
+- ``srcsd-flight``: the flight recorder's window of each stop (encoded, written, fsynced and
+  renamed into place beside the record: ``supervisord/record/flight.py``, SR-7.12).
 
 No lane waits for another, so a journald or a stderr that nobody reads costs journal copies
 and log lines, counted (``journal_dropped``, ``log_lines_dropped`` in ``status``), never a
@@ -41,6 +43,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Final, Generic, TypeVar
 
+from supervisord.record.flight import FlightError, FlightWriter, Window
 from supervisord.record.jsonl import RecordError, RecordUsageError, RecordWriter
 
 RECORD_CAPACITY: Final = 4096
@@ -52,6 +55,9 @@ RECORD_BATCH: Final = 256
 """Records queued together go to the file with one write and one fsync, up to this many."""
 LOG_CAPACITY: Final = 1024
 """Log lines waiting at most; past it log lines are dropped (counted), never records."""
+FLIGHT_CAPACITY: Final = 2
+"""Windows waiting at most (each holds a tuple of up to a ring's inputs); past it a window is
+dropped (``flight_dropped``). Stops come no faster than their re-arms allow (SR-7.8)."""
 RECORD_DRAIN_S: Final = 4.0
 """At exit, how long the record file may take to write what is queued (SR-7.7)."""
 SIDE_DRAIN_S: Final = 1.0
@@ -64,6 +70,9 @@ IDLE_STATUS: Final[Mapping[str, int]] = {
     "journal_dropped": 0,
     "log_lines_dropped": 0,
     "record_reopens": 0,
+    "flight_windows": 0,
+    "flight_errors": 0,
+    "flight_dropped": 0,
 }
 """What :meth:`Sink.status` says before the sink exists."""
 
@@ -174,8 +183,9 @@ class Sink:
 
     ``writer``: the record file (``None``: no file, records are acknowledged as they come);
     ``journal``: a callable sending one record to the journal (its failures are counted in
-    ``journal_errors``, never raised). Construct, then :meth:`start`; at the end
-    :meth:`drain_records`, then :meth:`close`.
+    ``journal_errors``, never raised); ``flight``: where the flight recorder's windows go
+    (``None``: nowhere). Construct, then :meth:`start`; at the end :meth:`drain_records`,
+    then :meth:`close`.
     """
 
     def __init__(
@@ -183,12 +193,15 @@ class Sink:
         writer: RecordWriter | None,
         journal: JournalWrite | None = None,
         *,
+        flight: FlightWriter | None = None,
         capacity: int = RECORD_CAPACITY,
         journal_capacity: int = JOURNAL_CAPACITY,
         log_capacity: int = LOG_CAPACITY,
+        flight_capacity: int = FLIGHT_CAPACITY,
     ) -> None:
-        self.writer, self.journal = writer, journal
+        self.writer, self.journal, self.flight = writer, journal, flight
         self.journal_errors = 0
+        self.flight_windows = self.flight_errors = 0
         self._records: Lane[Mapping[str, object]] = Lane(
             "srcsd-record", capacity, self._write, RECORD_BATCH
         )
@@ -196,6 +209,7 @@ class Sink:
             "srcsd-journal", journal_capacity, self._send_journal
         )
         self._logs: Lane[logging.LogRecord] = Lane("srcsd-log", log_capacity, self._emit)
+        self._flight: Lane[Window] = Lane("srcsd-flight", flight_capacity, self._write_windows)
         self._written: collections.deque[Written] = collections.deque()
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
@@ -212,6 +226,8 @@ class Sink:
         self._records.start()
         if self.journal is not None:
             self._journal.start()
+        if self.flight is not None:
+            self._flight.start()
         self._logs.start()
 
     def record(self, entry: Mapping[str, object]) -> bool:
@@ -224,6 +240,11 @@ class Sink:
             return True
         self._finished(Written(entry, "the record queue is full", dropped=True))
         return False
+
+    def window(self, window: Window) -> bool:
+        """Queue a stop's flight recorder window; never waits. ``False``: none is written (no
+        flight writer, or the queue is full: ``flight_dropped``)."""
+        return self.flight is not None and self._flight.put(window)
 
     def log(self, record: logging.LogRecord) -> None:
         """Queue one log line for the handlers captured by :meth:`capture_logging` (any
@@ -257,6 +278,9 @@ class Sink:
             "journal_dropped": self._journal.dropped,
             "log_lines_dropped": self._logs.dropped,
             "record_reopens": self.writer.reopens if self.writer is not None else 0,
+            "flight_windows": self.flight_windows,
+            "flight_errors": self.flight_errors,
+            "flight_dropped": self._flight.dropped,
         }
 
     def capture_logging(self, logger: logging.Logger) -> None:
@@ -294,6 +318,7 @@ class Sink:
         self._closed = True
         self.drain_records()
         deadline = time.monotonic() + timeout_s
+        self._flight.finish(deadline)  # its failure's log line still goes out below
         self._journal.finish(deadline)
         self._logs.finish(deadline)
         if self._logger is not None and self._logs.idle:
@@ -363,6 +388,21 @@ class Sink:
         self._written.append(written)
         with contextlib.suppress(OSError):  # full (the loop will read) or closed (exiting)
             self._wake_w.send(b"\0")
+
+    def _write_windows(self, windows: list[Window]) -> None:
+        """The flight lane: each window to its file (SR-7.12). A failure is counted and logged,
+        never raised: a window is evidence, as a record is (SR-7.6)."""
+        assert self.flight is not None
+        for window in windows:
+            try:
+                self.flight.write(window)
+                self.flight_windows += 1
+            except FlightError as error:
+                self.flight_errors += 1
+                log.error("flight recorder window not written: %s", error)
+            except Exception as error:  # the lane must outlive any failure: counted, not lost
+                self.flight_errors += 1
+                log.error("flight recorder window not written: %s: %s", type(error).__name__, error)
 
     def _send_journal(self, entries: list[Mapping[str, object]]) -> None:
         assert self.journal is not None

@@ -1,0 +1,216 @@
+"""``srcsctl replay``: run a flight recorder window through a fresh safety core and show, step by
+step, that it makes the decisions the record holds (SR-7.13; docs/record.md "Replay",
+docs/srcsctl.md).
+
+Exit 0 when every record the replay makes that the record holds is the same, the stop record
+included; 1 at the first that differs (the step and the fields are printed); 2 when the window
+cannot be read or replayed (another version's snapshot, a window whose start the bound cut).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import IO, Any, Final
+
+from supervisord import __version__
+from supervisord.protocol.jsonview import message_json
+from supervisord.protocol.messages import VscHeartbeat
+from supervisord.record.flight import LoadedWindow, read_window, record_of, window_path, windows
+from supervisord.record.flight_codec import FlightFormatError
+from supervisord.record.format import trigger_json
+from supervisord.record.jsonl import StoredRecord, read_records
+from supervisord.record.replay import Mismatch, Replay, ReplayError, Step, differing, replay
+from supervisord.safety.events import Event, VscReceived
+
+EXIT_MISMATCH: Final = 1
+EXIT_BAD_INPUT: Final = 2
+INPUT_WIDTH: Final = 64
+
+Json = Any
+
+
+def find_window(which: str | None, record: Path | None) -> Path:
+    """The window file: ``which`` as a record's sequence number (its window beside ``record``)
+    or a path; with neither, the newest window of ``record``. Raises ``LookupError``."""
+    if which is not None and not which.isdigit():
+        return Path(which)
+    if record is None:
+        raise LookupError("name the record (--config FILE or --file PATH) or a window file")
+    if which is not None:
+        path = window_path(record, int(which))
+        if not path.exists():
+            raise LookupError(f"no window of record {which}: {path} does not exist")
+        return path
+    found = windows(record)
+    if not found:
+        raise LookupError(f"no flight recorder window beside {record} yet")
+    return found[-1][1]
+
+
+def recorded_records(record: Path | None, after: int) -> dict[int, Mapping[str, Json]]:
+    """The records of ``record`` (all its files) numbered after ``after``, by number."""
+    if record is None or not record.exists():
+        return {}
+    return {
+        item.seq: item.data
+        for item in read_records(record)
+        if isinstance(item, StoredRecord) and item.seq > after
+    }
+
+
+def describe(event: Event | None) -> str:
+    """One input as a short line: its record name and fields, a VSC message by its content."""
+    if event is None:
+        return "start (a fresh core)"
+    if isinstance(event, VscReceived):
+        message = event.message
+        if isinstance(message, VscHeartbeat):
+            view = message_json(message)
+            return f"vsc_received heartbeat {view['vsc_mode_name']} e-stop 0x{message.estop:08x}"
+        return f"vsc_received {_compact(message_json(message))}"
+    fields = trigger_json(event)
+    name = fields.pop("event")
+    return f"{name} {_compact(fields)}" if fields else str(name)
+
+
+def _compact(value: Json) -> str:
+    return json.dumps(value, separators=(",", ":"), ensure_ascii=False)
+
+
+def _cut(text: str, width: int = INPUT_WIDTH) -> str:
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def _causes(record: Mapping[str, Json]) -> str:
+    causes = record.get("causes")
+    names = [c.get("name", "?") for c in causes if isinstance(c, dict)] if causes else []
+    return ", ".join(str(n) for n in names)
+
+
+def _record_line(record: Mapping[str, Json]) -> str:
+    return (
+        f"#{record.get('seq')} {record.get('from')} -> {record.get('to')} "
+        f"{record.get('kind', 'state_change')} [{_causes(record)}]"
+    )
+
+
+class _Printer:
+    def __init__(self, out: IO[str], stop_ns: int, show_all: bool) -> None:
+        self.out, self.stop_ns, self.show_all = out, stop_ns, show_all
+        self.quiet = 0  # inputs passed without a line
+
+    def time(self, step: Step | None) -> str:
+        """When the input came, in seconds from the stop."""
+        if step is None or step.event is None:
+            return "      start"
+        return f"{(step.event.now - self.stop_ns) / 1e9:+9.3f} s"
+
+    def step(self, step: Step) -> None:
+        changed = step.previous is not step.decision.state
+        if not (self.show_all or step.records or changed or step.event is None):
+            self.quiet += 1
+            return
+        self.flush()
+        state = step.decision.state.name
+        move = f"{step.previous.name} -> {state}" if changed else state
+        line = f"{step.number:>6} {self.time(step)}  {_cut(describe(step.event)):<{INPUT_WIDTH}}"
+        self.out.write(f"{line}  {move}\n")
+        for replayed, recorded in step.records:
+            verdict = "as recorded" if recorded is not None else "(not in the record files)"
+            if recorded is not None and not _same(recorded, replayed):
+                verdict = "DIFFERS"
+            self.out.write(f"{'':>20}{_record_line(replayed)}  {verdict}\n")
+
+    def flush(self) -> None:
+        if self.quiet:
+            plural = "s" if self.quiet > 1 else ""
+            self.out.write(f"{'':>20}... {self.quiet} input{plural}, no record\n")
+            self.quiet = 0
+
+
+def _same(recorded: Mapping[str, Json], replayed: Mapping[str, Json]) -> bool:
+    return not differing(recorded, replayed)
+
+
+def _header(window: LoadedWindow, out: IO[str]) -> int:
+    header, base = window.header, window.base
+    stop_ns = window.stop.get("mono_ns")
+    stop_ns = stop_ns if isinstance(stop_ns, int) else 0
+    first = window.inputs[0].now if window.inputs else stop_ns
+    start = base.get("now_ns")
+    start = start if isinstance(start, int) else first
+    kind = {"start": "a fresh core at the daemon's start", "snapshot": "a snapshot of the core"}
+    out.write(
+        f"window of record #{window.seq} ({window.path}), written by srcsd {header.get('srcsd')}: "
+        f"{len(window.inputs)} inputs over {(stop_ns - start) / 1e9:.3f} s before the stop, "
+        f"from {kind.get(str(base.get('kind')), str(base.get('kind')))}\n"
+    )
+    out.write(f"the stop: {_record_line(window.stop)}\n")
+    if header.get("srcsd") != __version__:
+        out.write(
+            f"note: recorded by srcsd {header.get('srcsd')}, replayed by {__version__}: "
+            "a core that changed since may decide otherwise\n"
+        )
+    return stop_ns
+
+
+def _mismatch(mismatch: Mismatch, result: Replay, printer: _Printer, out: IO[str]) -> None:
+    where = "at the end of the window"
+    if mismatch.step is not None:
+        step = mismatch.step
+        where = f"at step {step.number} ({printer.time(step).strip()}, {describe(step.event)})"
+    out.write(f"MISMATCH {where}: record #{mismatch.seq}\n")
+    recorded, replayed = mismatch.recorded, mismatch.replayed
+    if replayed is None:
+        out.write(f"  recorded: {_record_line(recorded or {})}\n")
+        ended = result.steps[-1].decision.state.name if result.steps else "?"
+        out.write(f"  replayed: no such record (the replay is in {ended} there)\n")
+        return
+    out.write(f"  differing fields: {', '.join(mismatch.fields)}\n")
+    for field in mismatch.fields:
+        was = (recorded or {}).get(field)
+        out.write(f"  {field}: recorded {_compact(was)}\n")
+        out.write(f"  {' ' * len(field)}  replayed {_compact(replayed.get(field))}\n")
+
+
+def run_replay(
+    which: str | None,
+    record: Path | None,
+    out: IO[str],
+    errors: IO[str],
+    *,
+    show_all: bool = False,
+) -> int:
+    """``srcsctl replay``: see the module docstring."""
+    try:
+        path = find_window(which, record)
+        window = read_window(path)
+    except (LookupError, FlightFormatError, OSError) as error:
+        print(f"srcsctl replay: {error}", file=errors)
+        return EXIT_BAD_INPUT
+    record = record or record_of(path)
+    after = window.base.get("after_seq")
+    recorded = recorded_records(record, after if isinstance(after, int) else 0)
+    stop_ns = _header(window, out)
+    try:
+        result: Replay = replay(window, recorded)
+    except ReplayError as error:
+        print(f"srcsctl replay: {error}", file=errors)
+        return EXIT_BAD_INPUT
+    printer = _Printer(out, stop_ns, show_all)
+    for step in result.steps:
+        printer.step(step)
+    printer.flush()
+    if result.mismatch is not None:
+        _mismatch(result.mismatch, result, printer, out)
+        out.flush()
+        return EXIT_MISMATCH
+    unchecked = f" ({result.not_compared} not in the record files)" if result.not_compared else ""
+    out.write(
+        f"replay matches the record: {result.compared} records compared{unchecked}; "
+        f"the stop {_record_line(window.stop)} reproduced\n"
+    )
+    out.flush()
+    return 0

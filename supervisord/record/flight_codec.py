@@ -1,0 +1,255 @@
+"""The flight recorder's encoding of the safety core's inputs and configuration as JSON, both ways
+(SR-7.10, ``docs/record.md`` "The flight recorder"): stable and versioned.
+
+Every input event type of :mod:`supervisord.safety.events` has one entry in :data:`FIELDS`: its
+name in the file (the same fixed names as a record's ``trigger``, ``TRIGGER_EVENTS``, never a
+class name) and each of its fields with the kind of value it holds. A VSC message is written
+as its wire bytes (the type and the payload of its HRI packet, PR-2), the most stable encoding
+there is. ``tests/record/test_flight_codec.py`` fails when an event type, or a field of one,
+has no entry, and round-trips every type.
+
+:data:`VERSION` counts incompatible changes of this encoding; a reader refuses any other.
+Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any, Final
+
+from supervisord.protocol.codes import MessageType
+from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+from supervisord.protocol.payload import decode_payload, encode_payload, payload_length_ok
+from supervisord.record.format import TRIGGER_EVENTS
+from supervisord.safety.config import (
+    ClientSpec,
+    OutputRole,
+    OutputSpec,
+    SafetyConfig,
+    Transport,
+)
+from supervisord.safety.events import EVENT_TYPES, Caller, Event, Request
+from supervisord.safety.prooftest import ProofTestPolicy
+
+VERSION: Final = 1
+"""The encoding's version: a reader takes only this one."""
+
+JsonDict = dict[str, Any]
+
+
+class FlightFormatError(ValueError):
+    """A value this encoding cannot write, or a line that is not one it wrote."""
+
+
+def _int(value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise FlightFormatError(f"not an integer: {value!r}")
+    return value
+
+
+def _optional_int(value: object) -> int | None:
+    return None if value is None else _int(value)
+
+
+def _flag(value: object) -> bool:
+    if not isinstance(value, bool):
+        raise FlightFormatError(f"not true or false: {value!r}")
+    return value
+
+
+def _optional_flag(value: object) -> bool | None:
+    return None if value is None else _flag(value)
+
+
+def _text(value: object) -> str:
+    if not isinstance(value, str):
+        raise FlightFormatError(f"not text: {value!r}")
+    return value
+
+
+def caller_to_json(caller: Caller) -> JsonDict:
+    return {"uid": caller.uid, "pid": caller.pid, "name": caller.name, "admin": caller.admin}
+
+
+def caller_from_json(value: object) -> Caller:
+    if not isinstance(value, dict):
+        raise FlightFormatError(f"not a caller: {value!r}")
+    return Caller(
+        _int(value.get("uid")),
+        _int(value.get("pid")),
+        _text(value.get("name")),
+        _flag(value.get("admin")),
+    )
+
+
+def message_to_json(message: Message) -> JsonDict:
+    """A VSC message as its HRI packet's type and payload (hex): the wire's own encoding."""
+    return {"type": int(message.TYPE), "payload": encode_payload(message).hex()}
+
+
+def message_from_json(value: object) -> Message:
+    if not isinstance(value, dict):
+        raise FlightFormatError(f"not a message: {value!r}")
+    known = MessageType.parse(_int(value.get("type")))
+    try:
+        payload = bytes.fromhex(_text(value.get("payload")))
+    except ValueError as error:
+        raise FlightFormatError(f"a message payload that is not hex: {error}") from error
+    if known is None or not payload_length_ok(known, len(payload)):
+        raise FlightFormatError(f"not an HRI packet: type {value.get('type')!r}, {payload.hex()}")
+    try:
+        return decode_payload(known, payload)
+    except ValueError as error:
+        raise FlightFormatError(f"not an HRI packet: {error}") from error
+
+
+def _display_from_json(value: object) -> FeedbackSet | FeedbackName:
+    message = message_from_json(value)
+    if not isinstance(message, FeedbackSet | FeedbackName):
+        raise FlightFormatError(f"not display content: {type(message).__name__}")
+    return message
+
+
+def _request_from_json(value: object) -> Request:
+    try:
+        return Request(_text(value))
+    except ValueError as error:
+        raise FlightFormatError(str(error)) from error
+
+
+@dataclasses.dataclass(frozen=True)
+class Kind:
+    """How one field's value is written and read."""
+
+    write: Callable[[Any], Any]
+    read: Callable[[Any], Any]
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+INT = Kind(_same, _int)
+OPTIONAL_INT = Kind(_same, _optional_int)
+FLAG = Kind(_same, _flag)
+OPTIONAL_FLAG = Kind(_same, _optional_flag)
+TEXT = Kind(_text, _text)
+CALLER = Kind(caller_to_json, caller_from_json)
+OPTIONAL_CALLER = Kind(
+    lambda c: None if c is None else caller_to_json(c),
+    lambda v: None if v is None else caller_from_json(v),
+)
+MESSAGE = Kind(message_to_json, message_from_json)
+DISPLAY = Kind(message_to_json, _display_from_json)
+REQUEST = Kind(lambda r: r.value, _request_from_json)
+
+_CONNECTION = (("connection", INT),)
+_CALLER = (("caller", CALLER),)
+
+FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
+    "tick": (),
+    "vsc_received": (("message", MESSAGE),),
+    "link_opened": (),
+    "link_broken": (("reason", TEXT),),
+    "link_closed": (("reason", TEXT),),
+    "client_connected": (("connection", INT), ("uid", OPTIONAL_INT)),
+    "client_hello": (("connection", INT), ("name", TEXT), ("caller", OPTIONAL_CALLER)),
+    "client_heartbeat": _CONNECTION,
+    "client_estop": _CONNECTION,
+    "client_hold": _CONNECTION,
+    "client_release": (("connection", INT), ("request", REQUEST)),
+    "client_disconnected": _CONNECTION,
+    "local_estop": _CALLER,
+    "local_release": _CALLER,
+    "reset_request": _CALLER,
+    "output_readback": (("output", TEXT), ("requested", FLAG), ("read_back", OPTIONAL_FLAG)),
+    "internal_fault": (("reason", TEXT),),
+    "display_update": (("message", DISPLAY),),
+    "commissioned": (("caller", CALLER), ("key85", OPTIONAL_INT), ("remote_status", FLAG)),
+    "proof_test_request": _CALLER,
+}
+"""Each input's fields by its name in the file (the field names are the file's keys too, so a
+field renamed in the code needs its old key here: ``tests/record/test_flight_codec.py``)."""
+
+CLASSES: Final[Mapping[str, type]] = {
+    name: cls for cls, name in TRIGGER_EVENTS.items() if cls in EVENT_TYPES
+}
+
+
+def event_to_json(event: Event) -> JsonDict:
+    """One input as a JSON object: ``{"event": NAME, "now": NS, FIELD: VALUE...}``."""
+    name = TRIGGER_EVENTS.get(type(event))
+    spec = FIELDS.get(name) if name is not None else None
+    if name is None or spec is None:
+        raise FlightFormatError(f"no encoding for {type(event).__name__}")
+    result: JsonDict = {"event": name, "now": event.now}
+    for key, kind in spec:
+        result[key] = kind.write(getattr(event, key))
+    return result
+
+
+def event_from_json(data: object) -> Event:
+    """The input :func:`event_to_json` wrote. Raises :class:`FlightFormatError`."""
+    if not isinstance(data, dict):
+        raise FlightFormatError(f"not an input: {str(data)[:80]}")
+    name = data.get("event")
+    cls = CLASSES.get(name) if isinstance(name, str) else None
+    if cls is None or not isinstance(name, str):
+        raise FlightFormatError(f"unknown input {name!r}")
+    values = {key: kind.read(data.get(key)) for key, kind in FIELDS[name]}
+    try:
+        event: Event = cls(now=_int(data.get("now")), **values)
+    except (TypeError, ValueError) as error:
+        raise FlightFormatError(f"{name}: {error}") from error
+    return event
+
+
+def config_to_json(config: SafetyConfig) -> JsonDict:
+    """The safety core's configuration (only what the core reads: an output's name and role,
+    not the output kind's own options)."""
+    return {
+        "transport": config.transport.value,
+        "vsc_timeout_ms": config.vsc_timeout_ms,
+        "heartbeat_hz": config.heartbeat_hz,
+        "rearm_hold_ms": config.rearm_hold_ms,
+        "local_reset": config.local_reset,
+        "require_watchdog": config.require_watchdog,
+        "clients": [
+            {"name": c.name, "timeout_ms": c.timeout_ms, "uid": c.uid} for c in config.clients
+        ],
+        "outputs": [{"name": o.name, "role": o.role.value} for o in config.outputs],
+        "prooftest": config.prooftest.value,
+        "prooftest_clear_ms": config.prooftest_clear_ms,
+    }
+
+
+def config_from_json(data: object) -> SafetyConfig:
+    """The configuration :func:`config_to_json` wrote, validated again as any other
+    (``ConfigError`` for a value the core would refuse; :class:`FlightFormatError` for a
+    shape that is not one)."""
+    if not isinstance(data, dict):
+        raise FlightFormatError("no configuration")
+    clients, outputs = data.get("clients"), data.get("outputs")
+    if not isinstance(clients, list) or not isinstance(outputs, list):
+        raise FlightFormatError("the configuration's clients and outputs are not lists")
+    try:
+        return SafetyConfig(
+            transport=Transport(data.get("transport")),
+            vsc_timeout_ms=_optional_int(data.get("vsc_timeout_ms")),
+            heartbeat_hz=_int(data.get("heartbeat_hz")),
+            rearm_hold_ms=_int(data.get("rearm_hold_ms")),
+            local_reset=_flag(data.get("local_reset")),
+            require_watchdog=_flag(data.get("require_watchdog")),
+            clients=tuple(
+                ClientSpec(_text(c.get("name")), _int(c.get("timeout_ms")), c.get("uid"))
+                for c in clients
+            ),
+            outputs=tuple(
+                OutputSpec(_text(o.get("name")), OutputRole(o.get("role"))) for o in outputs
+            ),
+            prooftest=ProofTestPolicy(data.get("prooftest")),
+            prooftest_clear_ms=_int(data.get("prooftest_clear_ms")),
+        )
+    except (AttributeError, ValueError) as error:  # ConfigError is a ValueError too
+        raise FlightFormatError(f"not a configuration: {error}") from error

@@ -1,0 +1,302 @@
+"""The safety core's whole state as plain JSON values, and a core made again from them: what a
+flight recorder's window starts from when it does not reach back to the daemon's start
+(SR-7.11; ``docs/record.md`` "The flight recorder").
+
+The core is a pure state machine: from the same state, the same inputs give the same decisions.
+A window of its inputs can therefore be replayed only from the state the core was in when the
+window began, which is not its start state (clients connected, causes latched, a proof test
+half done, a record budget spent). :func:`snapshot` writes that state down and :func:`restore`
+builds a core in exactly that state.
+
+Generic on purpose: it walks the core's object graph (every attribute of every object, the
+dictionaries, sets, deques and read-only mappings between them) instead of naming the core's
+fields, so a field added to the core tomorrow is in the snapshot without anyone remembering to
+add it, and a round trip test (``tests/record/test_snapshot.py``) catches what it cannot hold.
+Objects shared within the graph stay shared (each is written once, then referred to).
+
+The configuration is not part of it: the window stores that once, in its stable form
+(``supervisord/record/flight_codec.py``), and :func:`restore` takes it back. The daemon's
+configuration holds the output kinds' own specifications (a GPIO chip, a file path), which the
+core never reads and a snapshot need not know.
+
+Safe to read from a file: :func:`restore` makes only instances of the classes defined in the
+core's own modules and the protocol's message modules (:data:`MODULES`), sets only plain
+attribute names on them, and never calls a constructor, a method or anything named in the
+data. Tied to the code that wrote it: the state of one version of the core is not a state of
+another, which the window's header says (``srcsd`` version) and ``srcsctl replay`` checks.
+
+Pure, as the rest of the core (``tests/safety/test_purity.py``).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections import deque
+from collections.abc import Callable, Iterator
+from types import MappingProxyType, ModuleType
+from typing import Any, Final
+
+from supervisord.protocol import codes, messages
+from supervisord.safety import (
+    book,
+    budget,
+    causes,
+    config,
+    core,
+    decision,
+    display,
+    events,
+    prooftest,
+    transitions,
+)
+from supervisord.safety.config import SafetyConfig
+from supervisord.safety.core import SafetyCore
+
+MODULES: Final[tuple[ModuleType, ...]] = (
+    book,
+    budget,
+    causes,
+    config,
+    core,
+    decision,
+    display,
+    events,
+    prooftest,
+    transitions,
+    codes,
+    messages,
+)
+"""The modules whose classes a snapshot may hold: the core's own and the protocol's messages
+and codes (a decoded VSC message is part of a decision and of the core's display store), with
+the package's classes they import."""
+
+Json = Any
+"""A plain JSON value: ``None``, ``bool``, ``int``, ``float``, ``str``, lists and objects."""
+
+
+class SnapshotError(ValueError):
+    """The core holds something a snapshot cannot write, or the data is no snapshot this code
+    can restore (another version of the core, or damaged)."""
+
+
+def _classes() -> dict[str, type]:
+    """The package's classes these modules define or name (a vocabulary they import from a
+    module of its own, such as a release's ``Request``), by where each is defined."""
+    found: dict[str, type] = {}
+    for module in MODULES:
+        for value in vars(module).values():
+            if isinstance(value, type) and value.__module__.startswith("supervisord."):
+                found[f"{value.__module__}:{value.__qualname__}"] = value
+    return found
+
+
+CLASSES: Final[dict[str, type]] = _classes()
+"""Every class :func:`restore` may make, by ``module:qualname``: nothing from outside the
+package, and nothing of it that the core's and the messages' modules do not name."""
+
+
+def _name(cls: type) -> str:
+    name = f"{cls.__module__}:{cls.__qualname__}"
+    if CLASSES.get(name) is not cls:
+        raise SnapshotError(f"a snapshot cannot hold a {name}: not a class of the core")
+    return name
+
+
+def _attributes(obj: object) -> Iterator[tuple[str, object]]:
+    """Every attribute ``obj`` holds: its slots (through its classes) and its ``__dict__``."""
+    for cls in type(obj).__mro__:
+        for slot in cls.__dict__.get("__slots__", ()):
+            if slot not in ("__dict__", "__weakref__") and hasattr(obj, slot):
+                yield slot, getattr(obj, slot)
+    yield from getattr(obj, "__dict__", {}).items()
+
+
+class _Writer:
+    """One walk of the graph; each container or object gets a number, met again a reference."""
+
+    def __init__(self) -> None:
+        self.numbers: dict[int, int] = {}
+        self.kept: list[object] = []  # alive until the walk ends, so no id() is reused
+        self.by_type: dict[type, Callable[[Any, int], Json]] = {
+            tuple: lambda v, n: {"t": "tuple", "i": n, "v": [self.value(x) for x in v]},
+            list: lambda v, n: {"t": "list", "i": n, "v": [self.value(x) for x in v]},
+            set: lambda v, n: {"t": "set", "i": n, "v": [self.value(x) for x in v]},
+            frozenset: lambda v, n: {"t": "frozenset", "i": n, "v": [self.value(x) for x in v]},
+            dict: lambda v, n: {"t": "dict", "i": n, "v": self.pairs(v)},
+            MappingProxyType: lambda v, n: {"t": "proxy", "i": n, "v": self.pairs(v)},
+            deque: lambda v, n: {
+                "t": "deque",
+                "i": n,
+                "v": [self.value(x) for x in v],
+                "maxlen": v.maxlen,
+            },
+        }
+
+    def pairs(self, mapping: Any) -> list[Json]:
+        return [[self.value(k), self.value(v)] for k, v in mapping.items()]
+
+    def value(self, value: object) -> Json:
+        kind = type(value)
+        if value is None or kind is bool or kind is int or kind is str:
+            return value
+        if isinstance(value, enum.Enum):
+            return {"t": "enum", "c": _name(kind), "v": value.value}
+        if kind is float:
+            return value
+        number = self.numbers.get(id(value))
+        if number is not None:
+            return {"t": "ref", "i": number}
+        number = self.numbers[id(value)] = len(self.numbers)
+        self.kept.append(value)
+        write = self.by_type.get(kind)
+        if write is not None:
+            return write(value, number)
+        if isinstance(value, type) or callable(value):
+            raise SnapshotError(f"a snapshot cannot hold {value!r}")
+        name = _name(kind)
+        return {
+            "t": "obj",
+            "c": name,
+            "i": number,
+            "f": {key: self.value(v) for key, v in _attributes(value)},
+        }
+
+
+CONFIG: Final = "_config"
+"""The core's attribute that holds its configuration: left out, given back to :func:`restore`."""
+
+
+def snapshot(safety: SafetyCore) -> Json:
+    """The core's whole state but its configuration, as plain JSON values (:func:`restore`
+    makes it again). Raises :class:`SnapshotError` if the core holds something no snapshot can
+    (it never does: only values of the core's own classes, the protocol's messages and the
+    builtin containers)."""
+    writer = _Writer()
+    state = {name: writer.value(value) for name, value in vars(safety).items() if name != CONFIG}
+    return {"t": "obj", "c": _name(SafetyCore), "i": -1, "f": state}
+
+
+class _Reader:
+    def __init__(self) -> None:
+        self.made: dict[int, object] = {}
+
+    def value(self, data: Json) -> Any:
+        if data is None or isinstance(data, bool | int | str | float):
+            return data
+        if not isinstance(data, dict):
+            raise SnapshotError(f"not a snapshot value: {str(data)[:60]}")
+        tag = data.get("t")
+        if tag == "enum":
+            return self.enum(data)
+        if tag == "ref":
+            number = data.get("i")
+            if not isinstance(number, int) or number not in self.made:
+                raise SnapshotError(f"a reference to nothing: {number!r}")
+            return self.made[number]
+        number = data.get("i")
+        if not isinstance(number, int) or number in self.made:
+            raise SnapshotError(f"a value without a number of its own: {str(data)[:60]}")
+        if tag == "obj":
+            return self.obj(data, number)
+        if tag in ("dict", "proxy"):
+            return self.mapping(data, number, proxy=tag == "proxy")
+        if tag in ("list", "set", "deque"):
+            return self.mutable(data, number, tag)
+        if tag in ("tuple", "frozenset"):
+            # Immutable: made from its items, so it cannot be part of a cycle (neither can
+            # it in the core: a tuple is built from values that exist already).
+            values = [self.value(item) for item in self.items(data.get("v"))]
+            result = tuple(values) if tag == "tuple" else frozenset(values)
+            self.made[number] = result
+            return result
+        raise SnapshotError(f"unknown snapshot value {tag!r}")
+
+    def enum(self, data: dict[str, Json]) -> enum.Enum:
+        cls = self.cls(data)
+        if not issubclass(cls, enum.Enum):
+            raise SnapshotError(f"{data.get('c')} is not an enumeration")
+        try:
+            return cls(data.get("v"))
+        except ValueError as error:
+            raise SnapshotError(str(error)) from error
+
+    def mapping(self, data: dict[str, Json], number: int, *, proxy: bool) -> object:
+        made: dict[object, object] = {}
+        self.made[number] = made
+        for pair in self.items(data.get("v")):
+            if not isinstance(pair, list) or len(pair) != 2:
+                raise SnapshotError("a mapping entry is not a pair")
+            made[self.value(pair[0])] = self.value(pair[1])
+        if proxy:
+            self.made[number] = view = MappingProxyType(made)
+            return view
+        return made
+
+    def mutable(self, data: dict[str, Json], number: int, tag: str) -> object:
+        container: list[object] | set[object] | deque[object]
+        if tag == "list":
+            container = []
+        elif tag == "set":
+            container = set()
+        else:
+            maxlen = data.get("maxlen")
+            if maxlen is not None and (not isinstance(maxlen, int) or maxlen < 0):
+                raise SnapshotError(f"a deque's maxlen: {maxlen!r}")
+            container = deque(maxlen=maxlen)
+        self.made[number] = container
+        add = container.add if isinstance(container, set) else container.append
+        for item in self.items(data.get("v")):
+            add(self.value(item))
+        return container
+
+    @staticmethod
+    def items(items: Json) -> list[Json]:
+        if not isinstance(items, list):
+            raise SnapshotError("a container's items are not a list")
+        return items
+
+    @staticmethod
+    def cls(data: dict[str, Json]) -> type:
+        name = data.get("c")
+        cls = CLASSES.get(name) if isinstance(name, str) else None
+        if cls is None:
+            raise SnapshotError(f"not a class of the core: {name!r}")
+        return cls
+
+    def obj(self, data: dict[str, Json], number: int) -> object:
+        cls = self.cls(data)
+        if issubclass(cls, enum.Enum | BaseException):
+            raise SnapshotError(f"{data.get('c')} is not made from attributes")
+        made = object.__new__(cls)
+        self.made[number] = made
+        attributes = data.get("f")
+        if not isinstance(attributes, dict):
+            raise SnapshotError(f"{data.get('c')} without attributes")
+        for key, value in attributes.items():
+            if not key.isidentifier() or key.startswith("__"):
+                raise SnapshotError(f"not an attribute name: {key!r}")
+            try:
+                object.__setattr__(made, key, self.value(value))
+            except (AttributeError, TypeError) as error:
+                raise SnapshotError(f"{data.get('c')}.{key}: {error}") from error
+        return made
+
+
+def restore(data: Json, config: SafetyConfig) -> SafetyCore:
+    """The core in the state :func:`snapshot` wrote, with ``config`` (the one it ran with).
+    Raises :class:`SnapshotError` for data that is not a snapshot of a core this code can make
+    (another version's, or damaged)."""
+    if not isinstance(data, dict) or data.get("c") != _name(SafetyCore):
+        raise SnapshotError("the snapshot is not of a safety core")
+    try:
+        made = _Reader().value(data)
+    except SnapshotError:
+        raise
+    except RecursionError as error:
+        raise SnapshotError("a snapshot nested too deep") from error
+    except (TypeError, ValueError) as error:  # e.g. an unhashable key: damaged
+        raise SnapshotError(f"not a snapshot: {error}") from error
+    if not isinstance(made, SafetyCore) or CONFIG in vars(made):
+        raise SnapshotError("the snapshot is not of a safety core")
+    object.__setattr__(made, CONFIG, config)
+    return made
