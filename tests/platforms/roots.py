@@ -13,8 +13,10 @@ stay read-only, so every run starts from the same tree.
 
 Every command in a root runs through ``tests/platforms/enter``: a private mount and PID
 namespace (and a network namespace where asked), a fresh ``/proc``, a private ``/dev``, and
-``policy-rc.d``. Nothing is mounted on the host and nothing of the host's root is touched
-(docs/platforms.md).
+``policy-rc.d``. The one exception is ``debootstrap`` itself, which chroots into the root it
+makes: it runs inside a private mount and PID namespace too, with ``policy-rc.d`` in the root
+before the first package. Nothing is mounted on the host and nothing of the host's root is
+touched (docs/platforms.md).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -207,22 +210,29 @@ def base(suite: str, arch: str, *, log: bool = True) -> Path:
         return path
     source = mirror()
     partial = path.with_name(name + ".partial")
-    shutil.rmtree(partial, ignore_errors=True)
-    partial.parent.mkdir(parents=True, exist_ok=True)
-    # policy-rc.d before anything is installed, so that no maintainer script starts a
-    # service. debootstrap chroots into the root and mounts /proc and /sys there itself:
-    # inside a private mount and PID namespace, those mounts (and every process it leaves)
-    # end with it. The device nodes it makes are its own, in the root's /dev, never the
-    # host's. Not --foreign: the second stage would parse the package lists under qemu too,
-    # which doubles an arm64 bootstrap.
-    policy = partial / "usr/sbin/policy-rc.d"
-    policy.parent.mkdir(parents=True)
-    policy.write_text("#!/bin/sh\n# srcs-platforms: no service starts in this root\nexit 101\n")
-    policy.chmod(0o755)
+    # debootstrap chroots into the root and mounts /proc and /sys there itself: inside a
+    # private mount and PID namespace, those mounts (and every process it leaves) end with
+    # it. The device nodes it makes are its own, in the root's /dev, never the host's. Not
+    # --foreign: the second stage would parse the package lists under qemu too, which doubles
+    # an arm64 bootstrap.
     private = ["unshare", "--mount", "--propagation", "private", "--pid", "--fork", "--kill-child"]
     options = ["--variant=minbase", f"--arch={arch}", f"--include={','.join(BASE_PACKAGES)}"]
-    bootstrap = run([*private, "debootstrap", *options, suite, partial, source], timeout=1800)
-    if bootstrap.returncode != 0:
+    for attempt in (1, 2):
+        # Twice, from nothing: a download cut short (seen once as an InRelease that did not
+        # come, then "Error executing gpgv") fails a whole bootstrap.
+        shutil.rmtree(partial, ignore_errors=True)
+        # policy-rc.d before anything is installed: no maintainer script starts a service.
+        policy = partial / "usr/sbin/policy-rc.d"
+        policy.parent.mkdir(parents=True)
+        policy.write_text("#!/bin/sh\n# srcs-platforms: no service starts in this root\nexit 101\n")
+        policy.chmod(0o755)
+        bootstrap = run([*private, "debootstrap", *options, suite, partial, source], timeout=1800)
+        if bootstrap.returncode == 0:
+            break
+        if attempt == 1:
+            print(f"roots: debootstrap {suite} {arch} failed; once more", flush=True)
+            time.sleep(10)
+    else:
         raise _fail(f"debootstrap {suite} {arch}", bootstrap)
     (partial / "etc/apt/apt.conf.d/99srcs-platforms").write_text(APT_CONF)
     # The package lists come with the root: a job installs from them without fetching them.

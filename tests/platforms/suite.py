@@ -31,7 +31,7 @@ from tests.platforms.roots import REPO, RootError, base, enter, host_ca, layer, 
 
 LEFT_OUT = {
     "tests/ros2": "rclpy and the ROS 2 message wheels (requirements/ros2.txt) exist for 3.11/3.12",
-    "tests/packaging": "builds the package on the host; package.py installs it in each root",
+    "tests/packaging": "builds and lints the .deb on the host; package.py runs it in each root",
     "tests/bench": "the benches' smoke tests time the host; benches run on real hardware",
     # A loop device: the root's private /dev has none (the host's is never bound in).
     "tests/faults/test_record_faults.py::"
