@@ -7,7 +7,7 @@ packages the tests call (the list below, as ``./dev`` installs them on the host)
 environment is a cached layer over the base root (``roots.layer``), remade when a lock file,
 ``pyproject.toml`` or this recipe changes. Each run copies the tracked files of this tree to
 ``/src`` in a fresh upper layer and runs pytest there, inside a network namespace of its own
-(loopback only; the session's own namespace rule, docs/testing.md "Network", finds it
+(loopback only; the test run's own namespace rule, docs/testing.md "Network", finds it
 private already).
 
 What runs, what is left out and why (docs/platforms.md "The test suite under 3.13 and 3.14"):
@@ -80,12 +80,13 @@ mkdir -p /src/supervisord
 cp /srv/repo/pyproject.toml /srv/repo/README.md /src/
 cp -r /srv/repo/supervisord/. /src/supervisord/
 python3 -m venv /src/.venv
-/src/.venv/bin/pip install -q --disable-pip-version-check --require-hashes \\
+/src/.venv/bin/pip install -q --disable-pip-version-check --no-cache-dir --require-hashes \\
     -r /srv/repo/requirements/build.txt
-/src/.venv/bin/pip install -q --disable-pip-version-check --no-build-isolation \\
+/src/.venv/bin/pip install -q --disable-pip-version-check --no-cache-dir --no-build-isolation \\
     --require-hashes -r /srv/repo/requirements/dev.txt
-/src/.venv/bin/pip install -q --disable-pip-version-check --no-build-isolation --no-deps -e /src
-rm -rf /src/supervisord /src/pyproject.toml /src/README.md /root/.cache/pip
+/src/.venv/bin/pip install -q --disable-pip-version-check --no-cache-dir --no-build-isolation \\
+    --no-deps -e /src
+rm -rf /src/supervisord /src/pyproject.toml /src/README.md
 """
 CA = "/etc/ssl/srcs-platforms-host-ca.crt"
 """Where the host's certificate authorities are bound while pip runs (``roots.host_ca``)."""
