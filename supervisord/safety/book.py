@@ -116,6 +116,16 @@ class CauseBook:
             for c, e in sorted(self._entries.items(), key=lambda item: item[0].name)
         )
 
+    def canonical(self) -> tuple[object, ...]:
+        """Each cause's name, whether active and latched, and its details (docs/verification.md).
+        Raise and clear times are left out: only the latest clearing of a latched stop is read
+        (``stops_clear_since``, a clock of the core's), and the latest raise of a stop only
+        against the takeover's run (a fact of the core's). ``_changes`` is empty between steps."""
+        return tuple(
+            (c.name, e.active, e.latched, e.details)
+            for c, e in sorted(self._entries.items(), key=lambda item: item[0].name)
+        )
+
     def take_changes(self) -> tuple[CauseChange, ...]:
         changes, self._changes = tuple(self._changes), []
         return changes

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Final
 
+from supervisord.safety.canonical import Clock, clock
 from supervisord.timebase import NS_PER_S
 
 RECORDS_PER_UID: Final = 20
@@ -78,6 +79,21 @@ class RecordBudget:
             if times is not None and self._recent(times, now) >= cap
         ]
         return max(due)
+
+    def canonical(self, now: int) -> tuple[Clock, ...]:
+        """Every record still inside the window, per user and for all, as a clock
+        (docs/verification.md): older ones never count again. ``limit``, ``total`` and
+        ``window_ns`` are constants."""
+        window = self.window_ns
+        users = sorted(self._times.items(), key=lambda item: (item[0] is None, item[0] or 0))
+        clocks = [
+            clock(f"budget:{uid}", t, now, window)
+            for uid, times in users
+            for t in times
+            if now - t < window
+        ]
+        clocks += [clock("budget:all", t, now, window) for t in self._all if now - t < window]
+        return tuple(clocks)
 
     def charge(self, uid: Uid, now: int) -> None:
         """``uid`` caused a record at ``now``."""

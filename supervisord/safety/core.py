@@ -37,6 +37,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget, Uid
+from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import NAME_PATTERN, OutputRole, SafetyConfig, Transport
 from supervisord.safety.decision import (
@@ -114,6 +115,11 @@ spaces the renames of the hold when the VSC flaps between two modes that are not
 READ_TOGETHER_ALLOWANCE = 2
 """Heartbeats a run may hold beyond what its span allows at ``VSC_MIN_INTERVAL_NS``: frames
 read in one loop turn share one time, so a late read makes a span look shorter."""
+RATE_SLACK_NS = 3 * VSC_MIN_INTERVAL_NS
+"""Where ``canonical`` clips the run's rate clock (rule 4), above and below: a run that could
+take three more heartbeats at once than the VSC's fastest rate allows counts as the same state
+as one that could take more, and one three heartbeats past it as one further past it
+(docs/verification.md "The one inexact clip")."""
 REFUSAL_QUIET_NS = NS_PER_S
 """The same takeover refusal is reported (and recorded) at most once per this: a flapping VSC
 would otherwise fill the record, whose rotation drops the stop the refusals are about."""
@@ -247,6 +253,136 @@ class SafetyCore:
         """No input arrived by the deadline: let time pass to ``now``."""
         return self.handle(Tick(now))
 
+    def canonical(self, now: int | None = None) -> Canonical:
+        """The state as the exhaustive exploration compares it (``verify/``, docs/verification.md
+        "The time abstraction"): every fact a later input can depend on, and every time kept
+        as a clock clipped above the largest constant its guards compare it with. Two states
+        with the same form answer every later input alike, ``now`` and the record's text
+        aside. ``now`` (default: the latest input's) may only be later than that.
+
+        Left out: the config and what is computed from it once, the per-step scratch, the
+        record's sequence number and ``decision`` but for its deadline (``_NOT_CANONICAL``;
+        ``tests/safety/test_canonical.py`` checks that every other attribute is read here).
+        Two guards are not of the form ``age >= constant`` and are kept as facts or clocks of
+        their own: the span of the takeover's run (first to last heartbeat, a fact once the
+        run stops growing) and its rate (``_act_refusal``: a count against the age of its
+        first heartbeat, kept as the age at which the count is allowed, clipped at
+        ``RATE_SLACK_NS``: the one inexact clip, docs/verification.md).
+        """
+        now = self._now if now is None else max(now, self._now)
+        book = self._book
+        clocks: list[Clock] = []
+
+        def keep(name: str, at: int | None, *limits: int) -> None:
+            if at is not None:
+                clocks.append(clock(name, at, now, *limits))
+
+        run = self._run
+        run_facts: object = None
+        if run is not None:
+            last_stop = book.last_stop_raised_ns
+            run_facts = (
+                min(run.heartbeats, TAKEOVER_MIN_HEARTBEATS),
+                run.last_ns - run.first_ns >= TAKEOVER_DWELL_NS,
+                last_stop is not None and run.last_ns < last_stop,  # SR-4.3 against the run
+            )
+            keep("run:first", run.first_ns, TAKEOVER_DWELL_NS)
+            # The rate (rule 4) allows the run's count once ``now - first`` reaches this; the
+            # one clock clipped below too, as a flood of heartbeats can push it back for ever.
+            allowed = run.first_ns + VSC_MIN_INTERVAL_NS * (
+                run.heartbeats - READ_TOGETHER_ALLOWANCE
+            )
+            slack = max(now - allowed, -RATE_SLACK_NS)
+            clocks.append(
+                clock("run:rate", now - slack, now, 0, VSC_MIN_INTERVAL_NS, RATE_SLACK_NS)
+            )
+        settling = self._settling
+        if settling is not None:
+            keep("settling:first", settling.first_ns, SETTLE_DWELL_NS)
+        if self._held_mode is not None:
+            keep("held_since", self._held_since, SETTLE_DWELL_NS)
+        quiet = self._quiet
+        if quiet is not None:
+            keep("quiet", quiet[1], REFUSAL_QUIET_NS)
+        keep("vsc:last", self._last_vsc_ns, self._vsc_timeout_ns)
+        keep("key85:next", self._next_key85_ns, 0)
+        keep("heartbeat:next", self._next_heartbeat_ns, 0, self._heartbeat_period_ns)
+        keep("clear_since", book.stops_clear_since(), self._config.rearm_hold_ns)
+        if self._steady:  # read only by the cheap path and step 1, after a normal step
+            keep("decision:next", self.decision.next_deadline, 0)
+        for name, beat in sorted(self._client_beat_ns.items()):
+            keep(f"client:{name}", beat, self._client_timeout_ns[name])
+        proof_facts, proof_clocks = self._proof.canonical(now, self._key85)
+        display_facts, display_clocks = self._display.canonical(now)
+        clocks += [*proof_clocks, *display_clocks, *self._budget.canonical(now)]
+        facts = (
+            ("state", self._state),
+            ("cheap_path", self.cheap_path),
+            ("steady", self._steady),
+            ("steady_estop", self._steady and self._steady_estop),
+            ("causes", book.canonical()),
+            ("link_open", self._link_open),
+            ("link_fault", self._link_fault),
+            ("vsc_mode", self._vsc_mode),
+            ("vsc_estop_word", self._vsc_estop_word),
+            ("remote_linked", self._remote_linked),
+            ("key85", self._key85),
+            ("held_mode", self._held_mode),
+            ("run", run_facts),
+            (
+                "settling",
+                None if settling is None else min(settling.heartbeats, TAKEOVER_MIN_HEARTBEATS),
+            ),
+            ("quiet", None if quiet is None else quiet[0]),
+            ("connections", tuple(sorted(self._connections.items()))),
+            ("by_name", tuple(sorted(self._by_name.items()))),
+            ("beaten", tuple(sorted((n, b is None) for n, b in self._client_beat_ns.items()))),
+            ("ever_connected", tuple(sorted(self._ever_connected))),
+            ("client_estops", tuple(sorted(self._client_estops))),
+            ("client_holds", tuple(sorted(self._client_holds))),
+            ("uid_of", tuple(sorted(self._uid_of.items(), key=lambda item: item[0]))),
+            (
+                "unnamed",
+                tuple(
+                    sorted(
+                        (kind.value, name, entry.uid, tuple(sorted(entry.holders)))
+                        for (kind, name), entry in self._unnamed.items()
+                    )
+                ),
+            ),
+            ("local_estop", self._local_estop),
+            ("output_faults", tuple(sorted(self._output_faults.items()))),
+            ("proof", proof_facts),
+            ("display", display_facts),
+        )
+        return facts, tuple(clocks)
+
+    _NOT_CANONICAL = frozenset(
+        {
+            # The config, and what is computed from it once (constants of the exploration).
+            "_config",
+            "_required",
+            "_output_names",
+            "_levels_by_state",
+            "_vsc_timeout_ns",
+            "_heartbeat_period_ns",
+            "_client_timeout_ns",
+            "_serial",
+            # The reference every clock is measured from; the record's sequence number.
+            "_now",
+            "_sequence",
+            # Per-step scratch, reset at the start of every step.
+            "_frames",
+            "_refusals",
+            "_rearm",
+            "_note",
+            "_charged",
+            "_limited",
+            "_proof_outcome",
+        }
+    )
+    """Attributes ``canonical`` leaves out, and why (``decision`` is read for its deadline)."""
+
     cheap_path = True
     """Answer inputs that cannot change a decision without the full step (``_cheap``). The
     full path is the reference: ``tests/safety/test_cheap_path.py`` switches this off on one
@@ -274,7 +410,8 @@ class SafetyCore:
         (:meth:`_only_heartbeat_due`). Then no timeout expires and no other frame is due
         (``_next_deadline`` lists every one of them), so step 1 of the full path changes
         nothing; such an input changes no condition (a heartbeat after an expired timeout
-        clears ``vsc_link_lost`` and is not cheap) (step 3), asks no re-arm (the mode did not
+        clears ``vsc_link_lost`` and is not cheap, and so is one while the mode's hold names
+        another mode, which it renames after the dwell) (step 3), asks no re-arm (the mode did not
         change, step 4), so the state is the previous step's fixed point (step 5) and no
         record follows (step 6); the one frame is the user heartbeat at its cadence, with the
         byte of the conditions (SR-5.1, SR-5.2). What can differ is ``now``, the facts the
@@ -303,6 +440,8 @@ class SafetyCore:
                     or message.mode != self._vsc_mode
                     or message.estop != self._vsc_estop_word
                     or self._settling is not None  # it may end the hold (SR-3.3)
+                    # the hold names another mode: after the dwell it takes this one's name
+                    or (self._held_mode is not None and message.mode != self._held_mode)
                 ):
                     return None
             elif type(message) not in _INERT_TYPES:
@@ -352,7 +491,7 @@ class SafetyCore:
                 return False
         key85 = self._next_key85_ns
         display = self._display.next_due()
-        proof = self._proof.next_deadline()
+        proof = self._proof.next_deadline(self._key85)
         return (
             (key85 is None or key85 > now)
             and (display is None or display > now)
@@ -1147,7 +1286,7 @@ class SafetyCore:
                 self._next_heartbeat_ns,
                 self._next_key85_ns,
                 self._display.next_due(),
-                self._proof.next_deadline(),
+                self._proof.next_deadline(self._key85),
             ):
                 if later is not None and now < later < earliest:
                     earliest = later

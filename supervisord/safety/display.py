@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey, StringKey
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.decision import RefusalReason
 
 VALUE_PERIOD_NS = 50_000_000  # values at most 20 Hz
@@ -91,6 +92,18 @@ class DisplayStore:
         if self._pending_values and self._next_value_ns is not None:
             times.append(self._next_value_ns)
         return min(times) if times else None
+
+    def canonical(self, now: int) -> Canonical:
+        """The content kept and waiting, in order, and the rate slots as clocks that matter
+        only once they have come (docs/verification.md)."""
+        facts = (
+            tuple(self._values.items()),
+            tuple(self._names.items()),
+            tuple(self._pending_values.items()),
+            tuple(self._pending_names.items()),
+        )
+        slots = (("display:value", self._next_value_ns), ("display:name", self._next_name_ns))
+        return facts, tuple(clock(name, at, now, 0) for name, at in slots if at is not None)
 
     @property
     def pending(self) -> bool:

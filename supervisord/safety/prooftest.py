@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Final
 
 from supervisord.protocol.codes import VscMode
+from supervisord.safety.canonical import Canonical, clock
 from supervisord.timebase import NS_PER_MS
 
 USER_BITS: Final = 0xC0
@@ -201,12 +202,67 @@ class ProofTest:
         """For ``status``: the phase and the latest result."""
         return ProofStatus(self.policy, self.phase, self.last)
 
-    def next_deadline(self) -> int | None:
+    def next_deadline(self, key85: int | None) -> int | None:
+        """When the test next moves with time alone; ``key85`` is the core's answer to key 85
+        (while none came, the wait for it ends 3 s after the VSC was first heard)."""
+        if self.phase is Phase.WAITING and key85 is None and self._heard_ns is not None:
+            return self._heard_ns + KEY85_WAIT_NS
         if self.phase is Phase.WITHHOLDING and self._withheld_from is not None:
             return self._withheld_from + WITHHOLD_LIMIT_NS
         if self.phase is Phase.RESUMED and self._resumed_ns is not None:
             return self._resumed_ns + self.clear_limit_ns
         return None
+
+    def canonical(self, now: int, key85: int | None) -> Canonical:
+        """The phase and every fact a later step reads, the times as clocks while a guard can
+        still read them (docs/verification.md). ``key85`` is the core's answer to key 85, which
+        decides whether the wait for it runs. Outcomes keep whether they passed and why not:
+        their measured times are the record's text (a failure's text is also the cause's
+        details, which the core's book keeps); the trip keeps only whether it was late.
+        ``policy``, ``clear_limit_ns`` and ``late_tries`` are constants."""
+        if self.policy is ProofTestPolicy.OFF:
+            return (self.phase,), ()  # no test ever runs: the times it keeps are never read
+
+        def outcome(done: Outcome | None) -> object:
+            return None if done is None else (done.passed, done.failure)
+
+        phase = self.phase
+        trip, withheld = self._trip_ns, self._withheld_from
+        live = {
+            # name: (time, its constants, whether a guard can still read it)
+            "proof:heard": (
+                self._heard_ns,
+                (KEY85_WAIT_NS,),
+                phase is Phase.WAITING and key85 is None,
+            ),
+            "proof:sent": (
+                self._sent_ns,
+                (WITHHOLD_LIMIT_NS,),
+                True,
+            ),  # becomes the withholding's start
+            "proof:withheld": (
+                withheld,
+                (EARLY_NS, TRIP_LATE_NS, WITHHOLD_LIMIT_NS),
+                phase is Phase.WITHHOLDING,
+            ),
+            "proof:resumed": (self._resumed_ns, (self.clear_limit_ns,), phase is Phase.RESUMED),
+        }
+        facts = (
+            phase,
+            self._late,
+            self._again,
+            self._was_operational,
+            outcome(self.last),
+            outcome(self._new),
+            None if trip is None else withheld is None or trip - withheld > TRIP_LATE_NS,
+            tuple(at is not None for at, _, _ in live.values()),  # the rest read only whether set
+        )
+        clocks = tuple(
+            clock(name, at, now, *limits)
+            for name, (at, limits, read) in live.items()
+            if at is not None and read
+        )
+        return facts, clocks
 
     # -- inputs
 

@@ -127,3 +127,37 @@ def test_the_loader_names_the_file_and_key(tmp_path: Path, old: str, new: str, k
         load_config(file)
     assert caught.value.key == key
     assert caught.value.file == str(file)
+
+
+@pytest.mark.parametrize(
+    ("key", "lowest", "highest"),
+    [
+        ("vsc_timeout_ms", 50, 1000),
+        ("heartbeat_hz", 20, 50),
+        ("rearm_hold_ms", 100, 60_000),
+        ("prooftest_clear_ms", 1_000, 600_000),
+    ],
+)
+def test_each_range_takes_its_ends_and_refuses_one_past_them(
+    key: str, lowest: int, highest: int
+) -> None:
+    """SR-11.2, SR-2.2, SR-5.1: every range is inclusive at both ends, as docs/configuration.md
+    gives it, and one past either end is refused naming the key."""
+    for value in (lowest, highest):
+        SafetyConfig(**{key: value})  # type: ignore[arg-type]
+    for value in (lowest - 1, highest + 1):
+        with pytest.raises(ConfigError) as caught:
+            SafetyConfig(**{key: value})  # type: ignore[arg-type]
+        assert caught.value.key == key
+
+
+def test_a_client_timeout_and_uid_take_their_ends_and_refuse_one_past_them() -> None:
+    """SR-11.2, SR-2.4, SR-8.6: a client's timeout is 20 to 10000 ms and its uid 0 to 2^32 - 2
+    ((uid_t) -1 means "no user"), both inclusive."""
+    for timeout in (20, 10_000):
+        ClientSpec("a", timeout_ms=timeout)
+    for uid in (0, (1 << 32) - 2):
+        ClientSpec("a", uid=uid)
+    for kwargs in ({"timeout_ms": 19}, {"timeout_ms": 10_001}, {"uid": -1}, {"uid": (1 << 32) - 1}):
+        with pytest.raises(ConfigError):
+            ClientSpec("a", **kwargs)

@@ -6,7 +6,7 @@ import itertools
 
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
 from supervisord.safety import DisplayUpdate, RefusalReason
-from tests.safety.rig import LOCAL, MS, OPERATIONAL, SEARCHING, Rig
+from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, SEARCHING, Rig
 
 
 def _ready() -> Rig:
@@ -76,6 +76,23 @@ def test_display_is_sent_again_after_the_remote_relinks() -> None:
     _run_deadlines(rig, 500)
     again = [f for _, f in _sent(rig)[first:]]
     assert again == [FeedbackName(1, "speed"), FeedbackSet(99, 2)]
+
+
+def test_display_is_not_sent_again_while_the_remote_stays_linked() -> None:
+    """PR-2.12, choice 18: only a re-link (a linked mode after Searching, an unknown mode or
+    no heartbeat) sends the display again; heartbeats in linked modes, one mode after
+    another, do not."""
+    rig = _ready()
+    rig.feed(DisplayUpdate(rig.now, FeedbackName(1, "speed")))
+    rig.feed(DisplayUpdate(rig.now, FeedbackSet(99, 2)))
+    _run_deadlines(rig, 500)
+    first = len(_sent(rig))
+    assert first == 2
+    for mode in (LOCAL, OPERATIONAL, PAUSE, LOCAL, OPERATIONAL):
+        rig.advance(50)
+        rig.vsc(mode)
+        _run_deadlines(rig, 40)
+    assert _sent(rig)[first:] == []
 
 
 def test_a_value_edited_on_the_remote_is_not_overwritten_on_relink() -> None:

@@ -131,6 +131,28 @@ def test_a_vsc_flapping_between_two_holding_modes_renames_the_hold_at_most_every
     assert names == {"vsc_mode:local", "vsc_mode:menu"}
 
 
+def test_a_repeated_heartbeat_renames_the_hold_once_the_dwell_has_passed() -> None:
+    """SR-3.3, SR-7.1: a hold named after Local for 200 ms takes the name of the mode the VSC
+    has reported since (Pause) with the first heartbeat after the dwell, with its record, even
+    when that heartbeat repeats the one before it (found by the exhaustive exploration: such a
+    heartbeat took the cheap path, which left the stale name in the decision and delayed the
+    record until another input took the full step)."""
+    rig = Rig(FREE)
+    rig.open_link()
+    rig.key85(1)
+    rig.vsc(LOCAL)  # the hold is named vsc_mode:local from here
+    for mode in (OPERATIONAL, OPERATIONAL, PAUSE):
+        rig.advance(50)
+        rig.vsc(mode)
+    assert "vsc_mode:local" in rig.last.active_names  # 150 ms: too soon to rename
+    rig.advance(50)
+    decision = rig.vsc(PAUSE)  # 200 ms, the same mode and word as the heartbeat before
+    assert "vsc_mode:pause" in decision.active_names
+    assert "vsc_mode:local" not in decision.active_names
+    changes = {(c.cause.name, c.kind.value) for r in decision.records for c in r.changes}
+    assert changes == {("vsc_mode:local", "cleared"), ("vsc_mode:pause", "raised")}
+
+
 _MODES = st.sampled_from([OPERATIONAL, OPERATIONAL, LOCAL, PAUSE, MENU])
 
 

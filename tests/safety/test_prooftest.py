@@ -15,8 +15,10 @@ from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
 from supervisord.safety.prooftest import (
+    KEY85_WAIT_NS,
     LATE_TRIES,
     TRIP_LATE_NS,
+    WITHHOLD_LIMIT_NS,
     Failure,
     Phase,
     ProofStatus,
@@ -355,7 +357,7 @@ def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> No
     proof = vsc.core._proof  # the one deadline this test needs exactly
     while proof.phase is not Phase.RESUMED:
         vsc.beat()
-    due = proof.next_deadline()
+    due = proof.next_deadline(1)  # key 85 read as 1
     assert due is not None
     while vsc.now + 50 * MS < due:
         vsc.beat()
@@ -367,3 +369,71 @@ def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> No
     assert decision.records[0].prooftest is None
     assert decision.records[1].prooftest is not None
     assert decision.records[1].sequence == decision.records[0].sequence + 1
+
+
+THIRTY_HZ = replace(BLOCK, heartbeat_hz=30)  # 3 s is no whole number of its periods
+
+
+def _unanswered_key85() -> tuple[SafetyCore, int, list[Decision]]:
+    """A core whose VSC is heard once and never answers key 85, with a user heartbeat whose
+    cadence does not fall on 3 s after that; then only what the core asks for: a tick at each
+    decision's deadline, as the daemon's loop does."""
+    core = SafetyCore(THIRTY_HZ, START_NS)
+    core.handle(LinkOpened(START_NS))
+    heard = START_NS + 20 * MS
+    decisions = [core.handle(VscReceived(heard, VscHeartbeat(LOCAL)))]
+    while decisions[-1].now < heard + KEY85_WAIT_NS + 100 * MS:
+        decisions.append(core.tick(decisions[-1].next_deadline))
+    return core, heard, decisions
+
+
+def test_key85_unanswered_fails_the_proof_test_at_3_s_exactly() -> None:
+    """SR-5.7, SR-10.1: key 85 not answered within 3 s of the VSC being heard fails the proof
+    test (``key85_off``) at exactly 3 s: the core asks to be woken then (found by the
+    exhaustive exploration: the wait was no deadline, so the failure came with the next user
+    heartbeat, up to 50 ms late), and not 1 ns before."""
+    _, heard, decisions = _unanswered_key85()
+    failed = [d for d in decisions for r in d.records if r.prooftest is not None]
+    assert [d.now for d in failed] == [heard + KEY85_WAIT_NS]
+    status = failed[0].prooftest
+    assert status is not None
+    assert status.last is not None
+    assert status.last.failure is Failure.KEY85_OFF
+    core = SafetyCore(THIRTY_HZ, START_NS)
+    core.handle(LinkOpened(START_NS))
+    core.handle(VscReceived(heard, VscHeartbeat(LOCAL)))
+    before = core.tick(heard + KEY85_WAIT_NS - 1)
+    assert before.prooftest is not None
+    assert before.prooftest.phase is Phase.WAITING
+
+
+def test_every_deadline_is_ahead_of_now_through_a_proof_test() -> None:
+    """SR-10.1, docs/safety.md choice 17: while the user heartbeat is withheld its schedule
+    stays in the past, and a step at its very time still asks for a later deadline, as every
+    step does, before, during and after the proof test."""
+    vsc = Vsc()
+    vsc.run(1500)
+    assert vsc.status().phase is Phase.PASSED
+    assert all(d.next_deadline > d.now for d in vsc.decisions)
+
+
+def test_a_passed_proof_test_asks_for_no_more_deadlines() -> None:
+    """SR-9.4, SR-10.1: once the proof test has passed it falls due at no time: no decision
+    asks to be woken at the end of the withholding it no longer does (a 30 Hz heartbeat, so
+    that the end falls between the user heartbeat's deadlines)."""
+    vsc = Vsc(THIRTY_HZ)
+    while vsc.status().phase is not Phase.WITHHOLDING:
+        vsc.beat()
+    withheld = vsc.core._proof._withheld_from  # the start the withholding's limit counts from
+    assert withheld is not None
+    while vsc.status().phase is not Phase.PASSED:
+        vsc.beat()
+    passed = len(vsc.decisions)
+    end = withheld + WITHHOLD_LIMIT_NS
+    while vsc.now < end + 100 * MS:
+        if vsc.decisions[-1].next_deadline < vsc.now + 50 * MS:
+            vsc.feed(Tick(vsc.decisions[-1].next_deadline))
+        else:
+            vsc.beat()
+    assert vsc.status().phase is Phase.PASSED
+    assert end not in [d.next_deadline for d in vsc.decisions[passed:]]

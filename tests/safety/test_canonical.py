@@ -1,0 +1,95 @@
+"""The canonical form the exhaustive exploration compares states by (docs/verification.md "The
+time abstraction"): it reads every attribute that can change a later decision, it does not
+depend on when the core started, and it tells apart exactly what its guards tell apart."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import textwrap
+
+import pytest
+
+from supervisord.safety import SafetyCore
+from supervisord.safety.book import CauseBook
+from supervisord.safety.budget import RecordBudget
+from supervisord.safety.display import DisplayStore
+from supervisord.safety.prooftest import ProofTest
+from tests.safety.rig import MS, ROBOT, START_NS, Rig
+
+LEFT_OUT: dict[type, frozenset[str]] = {
+    SafetyCore: SafetyCore._NOT_CANONICAL,
+    # the last clearing is read through stops_clear_since, the last raise by the core against
+    # the takeover's run; the changes are empty between steps
+    CauseBook: frozenset({"_changes", "last_stop_raised_ns"}),
+    RecordBudget: frozenset({"limit", "total"}),  # constants (the window is each clock's limit)
+    ProofTest: frozenset({"late_tries"}),  # a constant
+    DisplayStore: frozenset(),
+}
+
+
+def _read(cls: type) -> set[str]:
+    """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls.canonical)))  # type: ignore[attr-defined]
+    return {
+        node.attr
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute)
+        and isinstance(node.value, ast.Name)
+        and node.value.id == "self"
+    }
+
+
+def _instances() -> dict[type, object]:
+    rig = Rig()
+    rig.bring_up()
+    core = rig.core
+    return {
+        SafetyCore: core,
+        CauseBook: core._book,
+        RecordBudget: core._budget,
+        ProofTest: core._proof,
+        DisplayStore: core._display,
+    }
+
+
+@pytest.mark.parametrize("cls", list(LEFT_OUT), ids=lambda c: c.__name__)
+def test_canonical_reads_every_attribute_but_those_it_names(cls: type) -> None:
+    """SR-8.7: a state attribute added later and forgotten in ``canonical`` would merge states
+    that differ, and the exploration would stop looking; every attribute of a live instance
+    is read by ``canonical`` or named as left out (with the reason beside it)."""
+    instance = _instances()[cls]
+    names = set(vars(instance)) if hasattr(instance, "__dict__") else set()
+    names |= {s for c in cls.__mro__ for s in getattr(c, "__slots__", ())}
+    assert names
+    missing = names - _read(cls) - LEFT_OUT[cls]
+    assert missing == set()
+    assert LEFT_OUT[cls] <= names  # nothing named that does not exist
+
+
+def test_the_form_does_not_depend_on_when_the_core_started() -> None:
+    """SR-2.11: the same inputs an hour later give the same form: every time is an age."""
+    forms = []
+    for shift in (0, 3_600_000 * MS):
+        rig = Rig()
+        rig.now = START_NS
+        rig.core = SafetyCore(ROBOT, START_NS + shift)
+        rig.now += shift
+        rig.bring_up()
+        forms.append(rig.core.canonical())
+    assert forms[0] == forms[1]
+
+
+def test_ages_are_exact_below_their_limit_and_alike_above_it() -> None:
+    """SR-2.2: the VSC's last heartbeat is told apart 1 ns before its 200 ms timeout and not
+    after it: a guard sees the difference before, none after."""
+    rig = Rig()
+    rig.bring_up()
+    last = rig.now
+
+    def age(at: int) -> int:
+        (found,) = [a for n, a, _ in rig.core.canonical(at)[1] if n == "vsc:last"]
+        return found
+
+    assert age(last + 200 * MS - 2) != age(last + 200 * MS - 1)
+    assert age(last + 200 * MS) == age(last + 200 * MS + 1) == age(last + 900 * MS)

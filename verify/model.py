@@ -1,0 +1,371 @@
+"""What the exploration feeds the core: the configs and the finite alphabet of inputs
+(docs/verification.md "The model").
+
+An input is a function of the time it arrives at. Every input is offered at the current
+instant; at a boundary of a clock (one nanosecond before, at and after each constant it is
+compared with) only the inputs whose handling can see that clock or the state it changes
+(:data:`SEEN_BY`; docs/verification.md "The time model"), the others following at that
+instant after a tick. Every input is printed as the Python that builds it, so a
+counterexample is a test anyone can run (``verify.explore``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
+from supervisord.safety import (
+    Caller,
+    ClientConnected,
+    ClientDisconnected,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientHold,
+    ClientRelease,
+    ClientSpec,
+    Event,
+    InternalFault,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    LocalRelease,
+    OutputReadback,
+    OutputRole,
+    OutputSpec,
+    Request,
+    ResetRequest,
+    SafetyConfig,
+    SafetyCore,
+    Tick,
+    Transport,
+    VscReceived,
+)
+from supervisord.safety.budget import RECORDS_OF_ALL_CLIENTS, RecordBudget
+from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.prooftest import ProofTestPolicy
+
+START_NS = 1_000_000_000_000
+"""The core's start on the monotonic clock (any value: every clock is relative)."""
+
+OPERATIONAL = VscMode.OPERATIONAL.value
+LOCAL = VscMode.LOCAL.value
+PAUSE = VscMode.PAUSE.value
+SEARCHING = VscMode.SEARCHING.value
+REMOTE_ESTOP = 0x01  # e-stop word: the remote's button (PR-2.6)
+USER_ESTOP = 0x80  # e-stop word: the user bits, as the VSC's watchdog raises them (PR-2.6)
+
+REQUIRED = "r"  # the required client, connection 1
+OPTIONAL = "o"  # a client the config does not name, connection 2
+REQUIRED_CONNECTION, OPTIONAL_CONNECTION = 1, 2
+REQUIRED_UID, OPTIONAL_UID = 1001, 1002
+ADMIN = Caller(uid=0, pid=1, name="root", admin=True)
+
+_OUTPUTS = (OutputSpec("drive", OutputRole.MOTION), OutputSpec("lights", OutputRole.POWER))
+_REQUIRED_SPEC = ClientSpec(REQUIRED, timeout_ms=500)
+BASE = SafetyConfig(
+    transport=Transport.SERIAL,
+    vsc_timeout_ms=200,
+    heartbeat_hz=20,
+    rearm_hold_ms=100,
+    local_reset=True,
+    require_watchdog=True,
+    outputs=_OUTPUTS,
+)
+"""Serial, a motion and a power output, a local reset allowed, the VSC's watchdog required, the
+shortest re-arm hold; the VSC's timeout at its default (docs/verification.md "Models")."""
+
+SMALL = dataclasses.replace(
+    BASE,
+    clients=(_REQUIRED_SPEC,),
+    prooftest=ProofTestPolicy.BLOCK,
+    prooftest_clear_ms=1000,
+)
+"""Everything together: one required client (and one the config does not name), the proof
+test blocking, its shortest wait for the bits to clear."""
+
+
+@dataclass(frozen=True)
+class Input:
+    """One letter of the alphabet: ``build(now)`` is the event; ``kind`` says at which
+    boundaries it is offered (:data:`SEEN_BY`)."""
+
+    name: str
+    build: Callable[[int], Event]
+    kind: str
+    connection: int | None = None  # a client's input: offered only while it is connected,
+    connects: bool = False  # or, for its connection, only while it is not (the API's order)
+
+
+TICK, VSC, BEAT, CLIENT, REARM, PROOF, KEY85_ANSWER, OTHER = (
+    "tick",
+    "vsc",
+    "beat",
+    "client",
+    "rearm",
+    "proof",
+    "key85",
+    "other",
+)
+TIMED = frozenset({TICK, VSC, BEAT, REARM, PROOF})
+"""Inputs offered one grid step on directly, not only after a tick: their handling reads the
+time or the state, which a tick at that instant could change first."""
+GRID_NS = 50_000_000
+"""The time grid the exploration continues on (docs/verification.md "The time model"): one VSC
+heartbeat interval at the manual's 20 Hz, and the user heartbeat's period; every constant a
+clock of the core is compared with is a whole number of grid steps but the 20 ms of the
+takeover's rate."""
+_STATE_READERS = frozenset({VSC, REARM, PROOF})  # handlers that read the state (a takeover, a
+# reset, a proof test's request), so a tick before them at the same instant can change them
+SEEN_BY: dict[str, frozenset[str]] = {
+    # the VSC's silence changes the state; the next heartbeat reads its age
+    "vsc": frozenset({TICK, BEAT}) | _STATE_READERS,
+    # the takeover's run, the mode's hold and its settling, the refusal's quiet: heartbeats
+    "run": frozenset({VSC}),
+    "settling": frozenset({VSC}),
+    "held_since": frozenset({VSC}),
+    "quiet": frozenset({VSC}),
+    "clear_since": frozenset({VSC, REARM}),
+    # the required client's silence changes the state
+    "client": frozenset({TICK, BEAT}) | _STATE_READERS,
+    # what falls due by itself: a tick
+    "key85": frozenset({TICK}),
+    "heartbeat": frozenset({TICK}),
+    "decision": frozenset({TICK}),
+    "display": frozenset({TICK}),
+    # the proof test: a tick for its limits, the VSC's heartbeats for the trip and the clearing
+    "proof:heard": frozenset({TICK, KEY85_ANSWER}),
+    "proof:withheld": frozenset({TICK, VSC}),
+    "proof:resumed": frozenset({TICK, VSC}),
+    "proof:sent": frozenset(),
+    # the record budget: the inputs it limits or charges, and a deferred end
+    "budget": frozenset({TICK, BEAT, CLIENT, REARM, PROOF}),
+}
+"""For each clock (by the start of its name), the kinds of input offered at its boundaries."""
+
+
+def seen_by(name: str) -> frozenset[str]:
+    """The kinds of input offered at the boundaries of the clock called ``name``."""
+    for prefix, kinds in SEEN_BY.items():
+        if name.startswith(prefix):
+            return kinds
+    raise KeyError(f"clock {name!r} is not in verify.model.SEEN_BY")
+
+
+def _vsc(mode: int, word: int) -> Input:
+    mode_name = VscMode(mode).name.lower()
+    return Input(
+        f"vsc {mode_name} {word:#04x}",
+        lambda now: VscReceived(now, VscHeartbeat(mode, 0, word)),
+        VSC,
+    )
+
+
+def client(name: str, connection: int, uid: int, beat: str = CLIENT) -> list[Input]:
+    """A client's inputs on its connection: connect, hello, heartbeat, e-stop, hold, the two
+    releases and its end; each only while connected, as the API server sends them."""
+    return [
+        Input(
+            f"{name} connect",
+            lambda now: ClientConnected(now, connection, uid),
+            CLIENT,
+            connection,
+            connects=True,
+        ),
+        Input(f"{name} hello", lambda now: ClientHello(now, connection, name), CLIENT, connection),
+        Input(f"{name} beat", lambda now: ClientHeartbeat(now, connection), beat, connection),
+        Input(f"{name} estop", lambda now: ClientEstop(now, connection), CLIENT, connection),
+        Input(f"{name} hold", lambda now: ClientHold(now, connection), CLIENT, connection),
+        Input(
+            f"{name} release estop",
+            lambda now: ClientRelease(now, connection, Request.ESTOP),
+            CLIENT,
+            connection,
+        ),
+        Input(
+            f"{name} release hold",
+            lambda now: ClientRelease(now, connection, Request.HOLD),
+            CLIENT,
+            connection,
+        ),
+        Input(f"{name} bye", lambda now: ClientDisconnected(now, connection), CLIENT, connection),
+    ]
+
+
+def vsc(modes: tuple[int, ...], words: tuple[int, ...]) -> list[Input]:
+    """The VSC's heartbeats: each mode with each e-stop word."""
+    return [_vsc(mode, word) for mode in modes for word in words]
+
+
+KEY85 = [
+    Input("key85 1", lambda now: VscReceived(now, FeedbackSet(85, 1)), KEY85_ANSWER),
+    Input("key85 0", lambda now: VscReceived(now, FeedbackSet(85, 0)), KEY85_ANSWER),
+]
+LINK = [
+    Input("link open", LinkOpened, OTHER),
+    Input("link close", lambda now: LinkClosed(now, "reopen"), OTHER),
+]
+LOCAL_COMMANDS = [
+    Input("local estop", lambda now: LocalEstop(now, ADMIN), CLIENT),
+    Input("local release", lambda now: LocalRelease(now, ADMIN), CLIENT),
+    Input("reset", lambda now: ResetRequest(now, ADMIN), REARM),
+]
+PROOF_REQUEST = [Input("prooftest", lambda now: ProofTestRequest(now, ADMIN), PROOF)]
+FAULTS = [
+    Input("internal fault", lambda now: InternalFault(now, "overrun"), OTHER),
+    Input("drive fails", lambda now: OutputReadback(now, "drive", True, None), OTHER),
+    Input("drive reads back", lambda now: OutputReadback(now, "drive", False, False), OTHER),
+]
+TICKS = [Input("tick", Tick, TICK)]
+REQUIRED_CLIENT = client(REQUIRED, REQUIRED_CONNECTION, REQUIRED_UID, BEAT)
+OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
+ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)
+ALL_WORDS = (0, REMOTE_ESTOP, USER_ESTOP)
+
+
+def alphabet() -> tuple[Input, ...]:
+    """Every input of every model: each VSC mode with each e-stop word that matters (none,
+    the remote's, the user bits), key 85's answers, the link, both clients, the local
+    commands, the proof test's request, a fault, an output's read-back and a tick."""
+    return (
+        *vsc(ALL_MODES, ALL_WORDS),
+        *KEY85,
+        *LINK,
+        *REQUIRED_CLIENT,
+        *OPTIONAL_CLIENT,
+        *LOCAL_COMMANDS,
+        *PROOF_REQUEST,
+        *FAULTS,
+        *TICKS,
+    )
+
+
+def code(value: object, start: str = "START_NS") -> str:
+    """``value`` (an event or anything in one) as the Python that builds it; times (the field
+    ``now``) relative to ``start``."""
+    if isinstance(value, enum.Enum):
+        return f"{type(value).__name__}.{value.name}"
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = []
+        for field in dataclasses.fields(value):
+            item = getattr(value, field.name)
+            if field.name == "now" and isinstance(item, int):
+                fields.append(f"{start} + {item - START_NS:_}")
+            else:
+                fields.append(code(item, start))
+        return f"{type(value).__name__}({', '.join(fields)})"
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 9:
+        return f"{value:#x}" if 0 < value < 0x100 else f"{value:_}"
+    return repr(value)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A config and the inputs explored with it. ``budget_limit`` is the records a user may
+    cause per second in the explored core (the product's 20, ``RecordBudget``'s own
+    parameter); ``None``: out of reach, and the budget's clocks are left out of the state."""
+
+    name: str
+    config: SafetyConfig
+    inputs: tuple[Input, ...]
+    budget_limit: int | None = None
+    what: str = ""
+    grid_ns: int = GRID_NS
+    depth: int | None = None  # levels ``./dev verify`` explores; None: until no state is new
+
+    def start(self, core_class: type[SafetyCore] = SafetyCore) -> SafetyCore:
+        """The core at its start, with this model's record budget."""
+        core = core_class(self.config, START_NS)
+        limit = UNREACHABLE if self.budget_limit is None else self.budget_limit
+        core._budget = RecordBudget(limit=limit, total=max(limit, RECORDS_OF_ALL_CLIENTS))
+        return core
+
+
+UNREACHABLE = 1 << 40  # records a second: a budget no exploration exhausts
+
+
+MODELS = {
+    m.name: m
+    for m in (
+        Model(
+            "takeover",
+            dataclasses.replace(BASE, require_watchdog=False),
+            (*vsc(ALL_MODES, (0,)), *LINK, *LOCAL_COMMANDS, *TICKS),
+            what="takeovers, the mode's holds, the VSC's silence and the link",
+        ),
+        Model(
+            "can",
+            dataclasses.replace(BASE, transport=Transport.CAN, require_watchdog=False),
+            (*vsc(ALL_MODES, (0, REMOTE_ESTOP)), *LINK, *LOCAL_COMMANDS, *TICKS),
+            what="the same on CAN: no user heartbeat, so no deadline hides another",
+        ),
+        Model(
+            "vsc",
+            BASE,
+            (
+                *vsc(ALL_MODES, (0, REMOTE_ESTOP)),
+                *KEY85,
+                *LINK,
+                *LOCAL_COMMANDS,
+                FAULTS[0],
+                *TICKS,
+            ),
+            what="the VSC, the link, key 85 and the local commands: takeovers, holds, silence",
+        ),
+        Model(
+            "clients",
+            dataclasses.replace(BASE, clients=(_REQUIRED_SPEC,), require_watchdog=False),
+            (
+                _vsc(OPERATIONAL, 0),
+                LINK[0],
+                *REQUIRED_CLIENT,
+                *[i for i in OPTIONAL_CLIENT if "estop" not in i.name and "beat" not in i.name],
+                LOCAL_COMMANDS[2],
+                *TICKS,
+            ),
+            what="a required client and an optional one (holds: its e-stops are the required "
+            "one's) against a VSC in Operational, re-armed by a local reset",
+        ),
+        Model(
+            "budget",
+            dataclasses.replace(BASE, clients=(_REQUIRED_SPEC,), require_watchdog=False),
+            (
+                _vsc(OPERATIONAL, 0),
+                LINK[0],
+                *REQUIRED_CLIENT,
+                *OPTIONAL_CLIENT[:1],
+                *OPTIONAL_CLIENT[3:],
+                *LOCAL_COMMANDS,
+                *TICKS,
+            ),
+            budget_limit=2,
+            what="the record budget at two records a second (the product's is 20)",
+        ),
+        Model(
+            "proof",
+            dataclasses.replace(BASE, prooftest=ProofTestPolicy.BLOCK, prooftest_clear_ms=1000),
+            (
+                *vsc((OPERATIONAL, LOCAL), (0, USER_ESTOP)),
+                KEY85[0],
+                LINK[0],
+                *PROOF_REQUEST,
+                *LOCAL_COMMANDS,
+                *TICKS,
+            ),
+            what="the proof test of the VSC's watchdog under block (the link opens once; key 85 "
+            "answers 1 or never)",
+        ),
+        Model(
+            "all",
+            SMALL,
+            alphabet(),
+            budget_limit=2,
+            what="every input together, to a bounded depth",
+            depth=5,
+        ),
+    )
+}

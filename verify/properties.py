@@ -1,0 +1,689 @@
+"""The properties the exploration checks in every state it reaches and every step it takes
+(docs/verification.md "Properties"), each tied to the requirements it proves.
+
+The checker keeps a *ghost* of its own: what it has seen of the inputs (the link, the VSC's
+heartbeats and the run before a takeover, key 85, the required client, the e-stops asked for,
+the proof test's passes), computed from the inputs and the decisions' records, never from the
+core's private facts, with the rules' numbers written here again from the requirements. So a
+core that forgets a fact, or a constant that drifts, disagrees with the ghost. Only P8 (the
+deadline) also reads the core's own timers, since the deadline is a promise about them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.safety import (
+    ClientConnected,
+    ClientDisconnected,
+    ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
+    ClientRelease,
+    Decision,
+    Event,
+    InternalFault,
+    LinkBroken,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    LocalRelease,
+    OutputRole,
+    Request,
+    ResetRequest,
+    SafetyConfig,
+    SafetyCore,
+    State,
+    Transport,
+    VscReceived,
+)
+from supervisord.safety.canonical import Canonical, Clock, clock
+from supervisord.safety.decision import ChangeKind, RefusalReason
+from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.prooftest import (
+    KEY85_WAIT_NS,
+    WITHHOLD_LIMIT_NS,
+    Phase,
+    ProofTestPolicy,
+)
+from verify.clone import clone
+from verify.model import MODELS
+
+MS = 1_000_000
+DWELL_NS = 200 * MS  # SR-4.5: the non-Operational run spans at least 200 ms
+MIN_HEARTBEATS = 3  # SR-4.5: and holds at least three heartbeats
+FASTEST_NS = 20 * MS  # SR-4.5: at no more than one heartbeat per 20 ms (manual §8.3.6)
+READ_TOGETHER = 2  # docs/safety.md rule 4: plus two frames read in one loop turn
+RATE_SLACK_NS = 60 * MS  # where the ghost clips its rate clock, as the core's canonical form
+OPERATIONAL = VscMode.OPERATIONAL.value
+HOLDS = frozenset({"vsc_mode", "client_hold"})  # SR-3
+OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the heartbeat's byte
+    {
+        "vsc_link_lost",
+        "transport_fault",
+        "client_lost",
+        "client_estop",
+        "local_estop",
+        "output_fault",
+        "vsc_watchdog_off",
+        "internal",
+    }
+)
+
+
+@dataclass(frozen=True, slots=True)
+class Ghost:
+    """What the checker has seen (module docstring). Times are absolute; :meth:`key` gives
+    them as clipped clocks, as the core's canonical form does."""
+
+    link_open: bool = False
+    last_hb: int | None = None  # the VSC's last heartbeat since the link opened
+    mode: int | None = None
+    word: int = 0
+    run: tuple[int, int, int] | None = None  # first, last, count of the non-Operational run
+    stop_after_run: bool = False  # a stop raised later than the run's last heartbeat
+    key85_one: bool = False
+    connected: frozenset[int] = frozenset()  # client connections open
+    names: tuple[tuple[int, str], ...] = ()  # connections that said hello, and their names
+    required_beat: int | None = None  # the required client's last beat since its hello
+    estops: frozenset[str] = frozenset()  # named clients' e-stops not released
+    local_estop: bool = False
+    proven: bool = False  # a proof test passed since the last new start
+    sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
+
+    def key(self, now: int, config: SafetyConfig) -> tuple[object, ...]:
+        clocks: list[Clock] = []
+        if self.last_hb is not None:
+            clocks.append(clock("vsc", self.last_hb, now, config.vsc_timeout_ns))
+        run: object = None
+        if self.run is not None:
+            first, last, count = self.run
+            run = (min(count, MIN_HEARTBEATS), last - first >= DWELL_NS)
+            clocks.append(clock("run:first", first, now, DWELL_NS))
+            allowed = first + FASTEST_NS * (count - READ_TOGETHER)
+            slack = max(now - allowed, -RATE_SLACK_NS)  # clipped below as the core's form
+            clocks.append(clock("run:rate", now - slack, now, 0, FASTEST_NS, RATE_SLACK_NS))
+        if self.required_beat is not None:
+            timeout = config.clients[0].timeout_ns
+            clocks.append(clock("client", self.required_beat, now, timeout))
+        return (
+            self.link_open,
+            self.mode,
+            self.word,
+            run,
+            self.stop_after_run,
+            self.key85_one,
+            self.connected,
+            self.names,
+            self.required_beat is None,
+            self.estops,
+            self.local_estop,
+            self.proven,
+            tuple(clocks),
+        )
+
+
+Violation = tuple[str, str]
+"""A property's ID and what was seen."""
+
+
+def _kind(name: str) -> str:
+    return name.partition(":")[0]
+
+
+def _raised(decision: Decision) -> list[str]:
+    return [
+        ch.cause.name
+        for record in decision.records
+        for ch in record.changes
+        if ch.kind is ChangeKind.RAISED
+    ]
+
+
+def _name_of(ghost: Ghost, connection: int) -> str | None:
+    return dict(ghost.names).get(connection)
+
+
+# -- the ghost
+
+
+@dataclass(frozen=True, slots=True)
+class _Seen:
+    """One step as the ghost takes it in."""
+
+    config: SafetyConfig
+    event: Any
+    after: Decision
+    refused: bool  # the core declined the input (a refusal in its decision)
+
+    @property
+    def now(self) -> int:
+        return self.after.now
+
+    @property
+    def required(self) -> str | None:
+        return self.config.clients[0].name if self.config.clients else None
+
+
+def _link_opened(ghost: Ghost, seen: _Seen) -> Ghost:
+    return replace(_link_down(ghost, seen), link_open=True, key85_one=False)
+
+
+def _link_down(ghost: Ghost, seen: _Seen) -> Ghost:
+    return replace(ghost, link_open=False, last_hb=None, mode=None, word=0, run=None, proven=False)
+
+
+def _vsc(ghost: Ghost, seen: _Seen) -> Ghost:
+    message, now = seen.event.message, seen.now
+    if not ghost.link_open:
+        return ghost
+    if isinstance(message, FeedbackSet) and message.key == 85:
+        return replace(ghost, key85_one=message.value == 1)
+    if not isinstance(message, VscHeartbeat):
+        return ghost
+    last, run = ghost.last_hb, ghost.run
+    unbroken = last is not None and now - last < seen.config.vsc_timeout_ns
+    if message.mode == OPERATIONAL:
+        run = None
+    elif run is None or not unbroken:
+        run = (now, now, 1)  # a silent gap starts the run again
+    else:
+        run = (run[0], now, run[2] + 1)
+    return replace(
+        ghost,
+        last_hb=now,
+        mode=message.mode,
+        word=message.estop,
+        run=run,
+        stop_after_run=ghost.stop_after_run and message.mode == OPERATIONAL,
+        proven=ghost.proven and (last is None or unbroken),  # a silence is a new start
+    )
+
+
+def _connected(ghost: Ghost, seen: _Seen) -> Ghost:
+    if seen.refused:
+        return ghost
+    return replace(ghost, connected=ghost.connected | {seen.event.connection})
+
+
+def _hello(ghost: Ghost, seen: _Seen) -> Ghost:
+    if seen.refused:
+        return ghost
+    names = tuple(sorted((*ghost.names, (seen.event.connection, seen.event.name))))
+    beat = None if seen.event.name == seen.required else ghost.required_beat
+    return replace(ghost, names=names, required_beat=beat)
+
+
+def _beat(ghost: Ghost, seen: _Seen) -> Ghost:
+    if _name_of(ghost, seen.event.connection) != seen.required:
+        return ghost
+    return replace(ghost, required_beat=seen.now)
+
+
+def _estop(ghost: Ghost, seen: _Seen) -> Ghost:
+    name = _name_of(ghost, seen.event.connection)
+    return ghost if name is None else replace(ghost, estops=ghost.estops | {name})
+
+
+def _release(ghost: Ghost, seen: _Seen) -> Ghost:
+    name = _name_of(ghost, seen.event.connection)
+    if seen.refused or name is None or seen.event.request is not Request.ESTOP:
+        return ghost
+    return replace(ghost, estops=ghost.estops - {name})
+
+
+def _disconnected(ghost: Ghost, seen: _Seen) -> Ghost:
+    connection = seen.event.connection
+    names = tuple(n for n in ghost.names if n[0] != connection)
+    beat = None if _name_of(ghost, connection) == seen.required else ghost.required_beat
+    return replace(ghost, names=names, connected=ghost.connected - {connection}, required_beat=beat)
+
+
+def _local_estop(ghost: Ghost, seen: _Seen) -> Ghost:
+    return replace(ghost, local_estop=True)
+
+
+def _local_release(ghost: Ghost, seen: _Seen) -> Ghost:
+    return ghost if seen.refused else replace(ghost, local_estop=False)
+
+
+def _prooftest(ghost: Ghost, seen: _Seen) -> Ghost:
+    return ghost if seen.refused else replace(ghost, proven=False)
+
+
+_TAKE_IN: dict[type, Callable[[Ghost, _Seen], Ghost]] = {
+    LinkOpened: _link_opened,
+    LinkClosed: _link_down,
+    LinkBroken: _link_down,
+    VscReceived: _vsc,
+    ClientConnected: _connected,
+    ClientHello: _hello,
+    ClientHeartbeat: _beat,
+    ClientEstop: _estop,
+    ClientRelease: _release,
+    ClientDisconnected: _disconnected,
+    LocalEstop: _local_estop,
+    LocalRelease: _local_release,
+    ProofTestRequest: _prooftest,
+}
+"""How each input changes what the checker has seen; inputs not listed change nothing."""
+
+
+def advance(ghost: Ghost, config: SafetyConfig, event: Event, after: Decision) -> Ghost:
+    """The ghost after ``event`` and the decision it brought."""
+    seen = _Seen(config, event, after, bool(after.refusals))
+    take_in = _TAKE_IN.get(type(event))
+    if take_in is not None:
+        ghost = take_in(ghost, seen)
+    if any(r.prooftest is not None and r.prooftest.passed for r in after.records):
+        ghost = replace(ghost, proven=True)
+    stop = any(_kind(name) not in HOLDS for name in _raised(after))
+    if stop and ghost.run is not None and after.now > ghost.run[1]:
+        ghost = replace(ghost, stop_after_run=True)
+    if after.records:
+        ghost = replace(ghost, sequence=after.records[-1].sequence)
+    return ghost
+
+
+# -- the properties
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step to check: the decision before and after ``event``, the core after it (P8 reads
+    its timers), the ghost before (``was``) and after (``seen``), and ``full``: a copy of the
+    core before the step fed the same input with its cheap path off (P17)."""
+
+    config: SafetyConfig
+    core: SafetyCore
+    before: Decision
+    after: Decision
+    event: Event
+    was: Ghost
+    seen: Ghost
+    full: SafetyCore
+
+    def __post_init__(self) -> None:
+        causes = [(c.name, c.active, c.latched) for c in self.after.causes]
+        object.__setattr__(self, "active", {n for n, on, _ in causes if on})
+        object.__setattr__(self, "present", {n for n, on, latch in causes if on or latch})
+        object.__setattr__(self, "raised", _raised(self.after))
+
+    active: set[str] = field(init=False)  # causes whose condition holds after the step
+    present: set[str] = field(init=False)  # active or latched
+    raised: list[str] = field(init=False)  # raised in the step
+
+    @property
+    def now(self) -> int:
+        return self.after.now
+
+    @property
+    def state(self) -> State:
+        return self.after.state
+
+    @property
+    def stopped(self) -> bool:
+        return self.after.state is State.STOPPED
+
+    @property
+    def beats(self) -> list[int]:
+        return [f.estop for f in self.after.frames if isinstance(f, UserHeartbeat)]
+
+
+def _p1(step: Step) -> Iterator[str]:
+    for spec in step.config.outputs:
+        on = step.state is State.RUN if spec.role is OutputRole.MOTION else not step.stopped
+        if step.after.outputs.get(spec.name) is not on:
+            yield f"{spec.name} is {dict(step.after.outputs)} in {step.state.name}"
+
+
+def _p2(step: Step) -> Iterator[str]:
+    if step.before.state is State.STOPPED and not step.stopped:
+        why = _rearm_refusal(step.config, step.before, step.after, step.event, step.was)
+        if why:
+            yield why
+
+
+def _p3(step: Step) -> Iterator[str]:
+    stops = {n for n in step.present if _kind(n) not in HOLDS}
+    holds = {n for n in step.active if _kind(n) in HOLDS}
+    want = State.STOPPED if stops else State.HOLD if holds else State.RUN
+    if step.state is not want:
+        yield f"{step.state.name} with stops {sorted(stops)}, holds {sorted(holds)}"
+
+
+def _p4(step: Step) -> Iterator[str]:
+    timeout, was, seen, now = step.config.vsc_timeout_ns, step.was, step.seen, step.now
+    was_silent = was.link_open and (was.last_hb is None or now - was.last_hb >= timeout)
+    if was_silent and ("vsc_link_lost" not in step.present or not step.stopped):
+        yield f"the VSC silent, {step.state.name} with {sorted(step.present)}"
+    if seen.link_open:
+        silent = seen.last_hb is None or now - seen.last_hb >= timeout
+        if ("vsc_link_lost" in step.active) is not silent:
+            yield f"the VSC silent: {silent}, active {sorted(step.active)}"
+
+
+def _p5(step: Step) -> Iterator[str]:
+    ours = [n for n in step.raised if _kind(n) in OURS]
+    serial = step.config.transport is Transport.SERIAL
+    if ours and step.seen.link_open and serial and 1 not in step.beats:
+        yield f"raised {ours}, user heartbeats {step.beats}"
+    byte = 1 if ours or any(_kind(n) in OURS for n in step.active) else 0
+    if step.after.heartbeat_estop != byte:
+        yield f"byte {step.after.heartbeat_estop}, active {sorted(step.active)}"
+
+
+def _p6(step: Step) -> Iterator[str]:
+    config = step.config
+    blocks = config.prooftest is ProofTestPolicy.BLOCK and config.transport is Transport.SERIAL
+    if blocks and not step.stopped and not step.seen.proven:
+        yield f"{step.state.name} with no proof test passed"
+
+
+def _p7(step: Step) -> Iterator[str]:
+    yield from _unrecorded(step.before, step.after, step.was)
+
+
+def _p8(step: Step) -> Iterator[str]:
+    now, deadline = step.now, step.after.next_deadline
+    if deadline <= now:
+        yield f"deadline {deadline - now} ns from now"
+    for name, due in _pending(step.config, step.core, step.seen):
+        if now < due < deadline:
+            yield f"{name} due in {due - now} ns, deadline in {deadline - now} ns"
+
+
+def _p9(step: Step) -> Iterator[str]:
+    seen = step.seen
+    if seen.link_open and seen.mode not in (None, OPERATIONAL) and step.state is State.RUN:
+        yield f"RUN in mode {seen.mode:#x}"
+
+
+def _p10(step: Step) -> Iterator[str]:
+    if step.seen.link_open and step.seen.word and not step.stopped:
+        yield f"{step.state.name} with e-stop word {step.seen.word:#x}"
+
+
+def _p11(step: Step) -> Iterator[str]:
+    if not step.config.clients:
+        return
+    required = step.config.clients[0]
+    cause = f"client_lost:{required.name}"
+
+    def lost(ghost: Ghost) -> bool:
+        beat = ghost.required_beat
+        named = required.name in dict(ghost.names).values()
+        return not named or beat is None or step.now - beat >= required.timeout_ns
+
+    if lost(step.was) and (cause not in step.present or not step.stopped):
+        yield f"{required.name} lost, {step.state.name} with {sorted(step.present)}"
+    if (cause in step.active) is not lost(step.seen):
+        yield f"{required.name} lost: {lost(step.seen)}, active {sorted(step.active)}"
+
+
+def _p12(step: Step) -> Iterator[str]:
+    wanted = {f"client_estop:{n}" for n in step.seen.estops}
+    if step.seen.local_estop:
+        wanted.add("local_estop")
+    if wanted and (not wanted <= step.active or not step.stopped):
+        yield f"{sorted(wanted)} asked, {step.state.name} with {sorted(step.active)}"
+
+
+def _p13(step: Step) -> Iterator[str]:
+    config = step.config
+    required = config.transport is Transport.SERIAL and config.require_watchdog
+    if required and not step.seen.key85_one and not step.stopped:
+        yield f"{step.state.name} with key 85 not read as 1"
+
+
+def _p14(step: Step) -> Iterator[str]:
+    if not step.seen.link_open and not step.stopped:
+        yield f"{step.state.name} with the link not open"
+
+
+def _p15(step: Step) -> Iterator[str]:
+    if "internal" in step.raised and not isinstance(step.event, InternalFault):
+        yield f"internal raised on {type(step.event).__name__}"
+    if any(r.reason is RefusalReason.INTERNAL_ERROR for r in step.after.refusals):
+        yield f"the core failed: {step.after.refusals}"
+
+
+def _p16(step: Step) -> Iterator[str]:
+    frames = step.after.frames
+    if not step.seen.link_open and any(isinstance(f, UserHeartbeat | FeedbackGet) for f in frames):
+        yield f"frames to a closed link: {frames}"
+    if any(b != step.after.heartbeat_estop for b in step.beats):
+        yield f"heartbeats {step.beats}, byte {step.after.heartbeat_estop}"
+
+
+CHEAP_ONLY = frozenset({"cheap_path", "steady", "steady_estop", "decision:next"})
+"""What of the canonical form only the cheap path reads (its facts and its clock)."""
+
+
+def without_cheap(form: Canonical) -> Canonical:
+    """The canonical form without what only the cheap path reads."""
+    facts, clocks = form
+    kept = tuple(f for f in facts if not (isinstance(f, tuple) and f[0] in CHEAP_ONLY))
+    return kept, tuple(c for c in clocks if c[0] not in CHEAP_ONLY)
+
+
+def _p17(step: Step) -> Iterator[str]:
+    reference = step.full.decision
+    if reference != step.after:
+        differ = [
+            f.name
+            for f in fields(Decision)
+            if getattr(reference, f.name) != getattr(step.after, f.name)
+        ]
+        yield f"the cheap path's decision differs in {differ}"
+    elif without_cheap(step.full.canonical()) != without_cheap(step.core.canonical()):
+        yield "the cheap path left another state than the full step"
+
+
+@dataclass(frozen=True)
+class Property:
+    """A property: what it says (with the requirements it proves) and its check."""
+
+    text: str
+    check: Callable[[Step], Iterator[str]]
+
+    @property
+    def requirements(self) -> str:
+        return self.text.split(": ", 1)[0]
+
+
+PROPERTIES = {
+    "P1": Property(
+        "SR-1.1, SR-1.2: a motion output is on exactly in RUN, a power output in HOLD and RUN",
+        _p1,
+    ),
+    "P2": Property(
+        "SR-1.3, SR-4.1, SR-4.2, SR-4.3, SR-4.5: STOPPED is left only by a re-arm: a takeover "
+        "whose run is an operator's act (at least 200 ms and three heartbeats, no faster than "
+        "a VSC sends, unbroken, since the link opened, not older than the last stop) or an "
+        "admin's allowed reset; every stop clear for the re-arm hold, none raised in that step",
+        _p2,
+    ),
+    "P3": Property(
+        "SR-1.1, SR-2, SR-3: the state follows the causes in the same step: STOPPED exactly "
+        "while a stop is active or latched, else HOLD exactly while a hold is active",
+        _p3,
+    ),
+    "P4": Property(
+        "SR-2.2, SR-2.11: VSC silence of vsc_timeout (or none since the link opened) is "
+        "vsc_link_lost and STOPPED at the deadline, never later; a heartbeat in time is not",
+        _p4,
+    ),
+    "P5": Property(
+        "SR-5.2: every stop cause of ours raised sends a user heartbeat with its byte at 1 in the "
+        "same step; the byte is 1 exactly while one of ours is active or was just raised",
+        _p5,
+    ),
+    "P6": Property(
+        "SR-5.6, SR-5.7: under block, nothing but STOPPED until a proof test passed since the "
+        "last new start (the link opened, the VSC silent, srcsctl prooftest)",
+        _p6,
+    ),
+    "P7": Property(
+        "SR-7.1: every change of state or of a cause is in a record of that step, with the "
+        "states before and after and the causes after; sequence numbers are consecutive",
+        _p7,
+    ),
+    "P8": Property(
+        "SR-2.11, SR-5.1, SR-10.1: next_deadline is later than now and never later than the "
+        "earliest pending timer",
+        _p8,
+    ),
+    "P9": Property("SR-3.1: while the VSC's last heartbeat is not Operational, never RUN", _p9),
+    "P10": Property("SR-2.1: while the VSC's last heartbeat carries an e-stop word, STOPPED", _p10),
+    "P11": Property(
+        "SR-2.4, SR-8.1: a required client not named, not beaten since hello or silent for its "
+        "timeout is client_lost and STOPPED at that step; one in time is not",
+        _p11,
+    ),
+    "P12": Property(
+        "SR-2.5, SR-2.6: a named client's or the local e-stop holds STOPPED until released", _p12
+    ),
+    "P13": Property(
+        "SR-5.3: with the watchdog required, STOPPED until key 85 read 1 since the link opened",
+        _p13,
+    ),
+    "P14": Property("SR-2.3: with the link not open, STOPPED", _p14),
+    "P15": Property(
+        "SR-2.9, SR-8.7: internal only from an InternalFault input; the core never fails", _p15
+    ),
+    "P16": Property(
+        "SR-5.1, SR-5.5: no user heartbeat or key-85 query while the link is closed; every "
+        "heartbeat carries the decision's byte",
+        _p16,
+    ),
+    "P17": Property(
+        "SR-9.4, SR-8.7: the cheap path decides as the full step and leaves the same state, so "
+        "the exploration need not tell apart what only the cheap path reads",
+        _p17,
+    ),
+}
+"""Every property, by ID (docs/verification.md "Properties")."""
+
+
+def check(step: Step) -> list[Violation]:
+    """Every property, for one step."""
+    return [(pid, what) for pid, prop in PROPERTIES.items() for what in prop.check(step)]
+
+
+def _rearm_refusal(
+    config: SafetyConfig, before: Decision, after: Decision, event: Event, ghost: Ghost
+) -> str:
+    """Why leaving STOPPED in this step breaks SR-4, or ``""`` when it does not."""
+    now = after.now
+    hold = config.rearm_hold_ns
+    if any(_kind(n) not in HOLDS for n in _raised(after)):
+        return "a stop was raised in the re-arm's step (SR-4.3)"
+    for cause in before.causes:
+        if cause.latched and (cause.cleared_ns is None or now - cause.cleared_ns < hold):
+            return f"{cause.name} not clear for the re-arm hold (SR-4.1)"
+    if isinstance(event, ResetRequest):
+        if not (config.local_reset and event.caller.admin):
+            return "a reset that is not allowed (SR-4.2)"
+        return ""
+    if not (isinstance(event, VscReceived) and isinstance(event.message, VscHeartbeat)):
+        return f"left STOPPED on {type(event).__name__} (SR-1.3)"
+    if event.message.mode != OPERATIONAL or ghost.mode in (None, OPERATIONAL):
+        return "no non-Operational to Operational edge (SR-4.2)"
+    if ghost.run is None:
+        return "no run before the takeover (SR-4.5)"
+    first, last, count = ghost.run
+    if last - first < DWELL_NS or count < MIN_HEARTBEATS:
+        return f"run of {count} heartbeats over {(last - first) / MS} ms (SR-4.5)"
+    if count + 1 > (now - first) // FASTEST_NS + 1 + READ_TOGETHER:
+        return f"{count + 1} heartbeats in {(now - first) / MS} ms (SR-4.5)"
+    if ghost.stop_after_run:
+        return "a stop raised after the run's last heartbeat (SR-4.3)"
+    return ""
+
+
+def _unrecorded(before: Decision, after: Decision, ghost: Ghost) -> list[str]:
+    def seen(decision: Decision) -> dict[str, tuple[bool, bool, object]]:
+        return {c.name: (c.active, c.latched, c.details) for c in decision.causes}
+
+    old, new = seen(before), seen(after)
+    changed = {n for n in old.keys() | new.keys() if old.get(n) != new.get(n)}
+    records = after.records
+    problems = []
+    if changed or before.state is not after.state:
+        if not records:
+            return [f"{before.state.name} -> {after.state.name}, {sorted(changed)}: no record"]
+        if records[0].previous is not before.state or records[-1].state is not after.state:
+            problems.append("a record with the wrong states")
+        named = {ch.cause.name for r in records for ch in r.changes}
+        if changed - named:
+            problems.append(f"changes not in the record: {sorted(changed - named)}")
+        if records[-1].causes != after.causes:
+            problems.append("a record whose causes are not the decision's")
+    sequences = [r.sequence for r in records]
+    if sequences != list(range(ghost.sequence + 1, ghost.sequence + 1 + len(records))):
+        problems.append(f"sequence {sequences} after {ghost.sequence}")
+    return problems
+
+
+def _pending(config: SafetyConfig, core: SafetyCore, ghost: Ghost) -> list[tuple[str, int]]:
+    """Every timer that is pending after the step: the ghost's (the VSC's silence, the
+    required client's) and the core's own (the user heartbeat, key 85, the proof test, the
+    display, a deferred end)."""
+    pending: list[tuple[str, int]] = []
+    if ghost.link_open and ghost.last_hb is not None:
+        pending.append(("vsc timeout", ghost.last_hb + config.vsc_timeout_ns))
+    if ghost.required_beat is not None:
+        pending.append(("client timeout", ghost.required_beat + config.clients[0].timeout_ns))
+    proof = core._proof
+    if ghost.link_open:
+        if core._next_heartbeat_ns is not None and not proof.withholding:
+            pending.append(("user heartbeat", core._next_heartbeat_ns))
+        if core._next_key85_ns is not None:
+            pending.append(("key 85 query", core._next_key85_ns))
+        if (display := core._display.next_due()) is not None:
+            pending.append(("display", display))
+    if proof.phase is Phase.WITHHOLDING and proof._withheld_from is not None:
+        pending.append(("withholding limit", proof._withheld_from + WITHHOLD_LIMIT_NS))
+    if proof.phase is Phase.RESUMED and proof._resumed_ns is not None:
+        pending.append(("clear limit", proof._resumed_ns + proof.clear_limit_ns))
+    if proof.phase is Phase.WAITING and proof._heard_ns is not None and core._key85 is None:
+        pending.append(("key 85 wait", proof._heard_ns + KEY85_WAIT_NS))
+    for entry in core._unnamed.values():
+        if not entry.holders:
+            free = core._budget.free_at(entry.uid, core._now)
+            if free is not None:
+                pending.append(("deferred end", free))
+    return pending
+
+
+def check_trace(
+    core_class: type[SafetyCore], model_name: str, events: Sequence[Event]
+) -> list[Violation]:
+    """Replay ``events`` from start on the core of the model ``model_name`` and return every
+    violation, in order (what a test printed by the exploration asserts is empty)."""
+    model = MODELS[model_name]
+    config = model.config
+    core = model.start(core_class)
+    before = core.decision
+    ghost = Ghost(sequence=before.records[-1].sequence if before.records else 0)
+    found: list[Violation] = []
+    for event in events:
+        full = full_step(core, event)
+        after = core.handle(event)
+        seen = advance(ghost, config, event, after)
+        found += check(Step(config, core, before, after, event, ghost, seen, full))
+        before, ghost = after, seen
+    return found
+
+
+def full_step(core: SafetyCore, event: Event) -> SafetyCore:
+    """A copy of ``core`` fed ``event`` with its cheap path off: the reference of P17."""
+    full: SafetyCore = clone(core)
+    full.cheap_path = False
+    full.handle(event)
+    return full
