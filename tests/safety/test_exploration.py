@@ -13,7 +13,8 @@ import pytest
 from supervisord.safety import SafetyCore
 from verify import model
 from verify.broken import FAULTS, Fault, broken_core
-from verify.explore import clone, explore, regression_test
+from verify.clone import clone
+from verify.explore import explore, regression_test
 
 BOUNDS = {"takeover": 7, "vsc": 4, "clients": 4, "proof": 4, "all": 2}
 """Breadth-first levels explored per model in the bounded run (``./dev verify``: no bound)."""
