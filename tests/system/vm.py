@@ -61,7 +61,7 @@ class Vm:
             "qemu-system-x86_64",
             *("-nodefaults", "-no-user-config", "-accel", "tcg", "-cpu", "max"),
             *("-smp", "1", "-m", "1024", "-display", "none", "-serial", "stdio"),
-            # The tiny kernel has no ACPI: a reset is how the guest ends, and qemu then exits.
+            # A reset is how the guest ends (init and the test unit reboot), and qemu then exits.
             "-no-reboot",
             *("-device", "virtio-rng-pci", "-kernel", a.kernel, "-initrd", a.initrd),
             # multidevs=remap: / spans several host file systems whose inode numbers collide.
