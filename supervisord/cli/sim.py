@@ -1,10 +1,14 @@
-"""``srcs-sim``: a simulated VSC with its remote, on a pseudo-terminal or a CAN bus.
+"""``srcs-sim``: a simulated VSC with its remote, on a pseudo-terminal, an existing serial
+device, a USB HID function or a CAN bus.
 
     srcs-sim --serial [SYMLINK]          # serial protocol on a pty (path printed)
+    srcs-sim --tty /dev/ttyGS0           # on a device's end of a real line (a USB gadget's)
+    srcs-sim --hid /dev/hidg0            # HID mode: game-controller reports (a USB gadget's)
     ip netns exec srcs srcs-sim --can udp_multicast:239.74.163.2   # one machine, a namespace
     srcs-sim --control sim.sock --eeprom vsc-eeprom.json --seed 7
 
-It prints ``srcs-sim: serial PATH (pty DEVICE)`` (or ``srcs-sim: can ...``), then
+It prints ``srcs-sim: serial PATH (pty DEVICE)`` (or ``srcs-sim: tty PATH``, ``hid PATH``,
+``can ...``), then
 ``srcs-sim: control SOCKET`` when it has one, then ``srcs-sim: ready``. Driven by keys when
 stdin is a terminal, and by the control socket (``docs/simulator.md``). One thread, one
 ``select`` loop on monotonic deadlines. SIGTERM or SIGINT: the pty and socket are removed
@@ -33,9 +37,11 @@ import can
 from supervisord import __version__
 from supervisord.sim.can_side import CanSide
 from supervisord.sim.control import ControlServer
-from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Simulator, load_eeprom
+from supervisord.sim.engine import DEFAULT_BOOT_DELAY_S, Side, Simulator, load_eeprom
+from supervisord.sim.hid_side import HidSide
 from supervisord.sim.model import LINK_DELAY_S, REMOTE_OFF_REPORTS, SimTransport, VscModel
 from supervisord.sim.serial_side import SerialSide
+from supervisord.sim.tty_side import TtySide
 
 POLL_S = 0.05  # the longest wait: state the model changes on its own shows within this
 POLL_NO_FD_S = 0.005  # an interface without a descriptor ("virtual") is polled
@@ -71,6 +77,18 @@ def build_parser() -> argparse.ArgumentParser:
         const="",
         metavar="SYMLINK",
         help="serve the serial protocol on a pty, linked at SYMLINK (default: a temporary path)",
+    )
+    where.add_argument(
+        "--tty",
+        metavar="DEVICE",
+        help="serve the serial protocol on an existing serial device, the VSC's end of a real "
+        "line: a USB CDC ACM gadget's /dev/ttyGS0, or a port cabled to the host",
+    )
+    where.add_argument(
+        "--hid",
+        metavar="DEVICE",
+        help="HID mode: input reports to, output reports from a USB HID function's device "
+        "end, e.g. a HID gadget's /dev/hidg0 (no serial protocol, no watchdog)",
     )
     where.add_argument(
         "--can",
@@ -181,16 +199,32 @@ def _on_key(key: str, sim: Simulator, now: float) -> None:
     print(sim.model.render_lcd(now), flush=True)
 
 
-def _make_side(args: argparse.Namespace, scratch: Path) -> SerialSide | CanSide:
+def _make_side(args: argparse.Namespace, scratch: Path) -> Side:
     if args.can is not None:
         interface, channel = args.can.split(":", 1)
         return CanSide(interface, channel, args.bitrate)
+    if args.tty is not None:
+        return TtySide(Path(args.tty))
+    if args.hid is not None:
+        return HidSide(Path(args.hid))
     path = Path(args.serial) if args.serial else scratch / "vsc"
     return SerialSide(path)
 
 
+def _describe(side: Side) -> str:
+    """The first line's words after ``srcs-sim:`` (docs/simulator.md)."""
+    if isinstance(side, SerialSide):
+        return f"serial {side.path} (pty {side.device})"
+    if isinstance(side, TtySide):
+        return f"tty {side.path}"
+    if isinstance(side, HidSide):
+        return f"hid {side.path}"
+    return f"can {side.description}"
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    # HID mode runs the serial model: its sticks, buttons, mode and e-stops make the reports.
     transport: SimTransport = "can" if args.can is not None else "serial"
     eeprom_path = Path(args.eeprom) if args.eeprom else None
     try:
@@ -224,10 +258,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             if args.control:
                 control = ControlServer(Path(args.control))
-            if isinstance(side, SerialSide):
-                _say(f"serial {side.path} (pty {side.device})")
-            else:
-                _say(f"can {side.description}")
+            _say(_describe(side))
             if control is not None:
                 _say(f"control {control.path}")
             interactive = sys.stdin.isatty()

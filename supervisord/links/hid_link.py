@@ -13,6 +13,11 @@ from supervisord.protocol.hid import HidOutput, decode_hid_input, encode_hid_out
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
 REPORT_LIMIT = 64
+# hidraw's write() takes the report number first, 0 for a device without numbered reports
+# such as the VSC, and the report after it (the kernel's Documentation/hid/hidraw.rst). The
+# USB HID driver drops a leading 0 and sends the rest; without it, a report whose first byte
+# is 0 (every label: key 0) lost that byte and reached the VSC one byte short.
+NO_REPORT_ID = b"\0"
 
 
 class HidLink(Link):
@@ -55,7 +60,8 @@ class HidLink(Link):
             received.append(decode_hid_input(report))
 
     def send(self, messages: list[Message]) -> None:
-        """Display values and labels as output reports (manual §10.2.2); nothing else exists."""
+        """Display values and labels as output reports (manual §10.2.2); nothing else exists.
+        Each is written behind the report number 0 (``NO_REPORT_ID``)."""
         fd = self._require_open()
         for message in messages:
             if isinstance(message, FeedbackSet):
@@ -65,7 +71,7 @@ class HidLink(Link):
             else:
                 continue
             try:
-                os.write(fd, encode_hid_output(report))
+                os.write(fd, NO_REPORT_ID + encode_hid_output(report))
             except OSError as error:
                 raise LinkBrokenError(error.strerror or str(error)) from error
 

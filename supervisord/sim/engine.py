@@ -12,15 +12,19 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from supervisord.protocol.codes import MessageType, VscMode
 from supervisord.protocol.framing import Rejection, encode_frame
+from supervisord.protocol.hid import HidOutput
 from supervisord.protocol.j1939 import CanRejection
+from supervisord.protocol.messages import FeedbackName, FeedbackSet, VscHeartbeat
 from supervisord.sim.can_side import CanSide, can_frames
 from supervisord.sim.faults import FaultInjector, FaultPlan, Pacer
+from supervisord.sim.hid_side import HID_PERIOD_S, HidSide
 from supervisord.sim.model import (
     BUTTON_NAMES,
     Eeprom,
@@ -30,10 +34,12 @@ from supervisord.sim.model import (
     VscModel,
 )
 from supervisord.sim.serial_side import SerialSide
+from supervisord.sim.tty_side import TtySide
 
 DEFAULT_BOOT_DELAY_S = 2.0  # the real bootloader waits one to two minutes (PR-5)
 MAX_DELAY_S = 600.0
-Side = SerialSide | CanSide
+Side = SerialSide | TtySide | CanSide | HidSide
+ByteSide = SerialSide | TtySide  # the serial protocol's bytes (manual §8)
 Reply = dict[str, Any]
 
 
@@ -76,6 +82,7 @@ class Simulator:
         eeprom_path: Path | None = None,
         boot_delay: float = DEFAULT_BOOT_DELAY_S,
         log: Callable[[str], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.side = side
         self.model = model
@@ -90,6 +97,13 @@ class Simulator:
         self._saved_version = model.eeprom_version
         self._replug_after_boot = False
         self._last_seen: tuple[int, int] | None = None
+        self._clock = clock
+        self._next_report = 0.0  # HID: when the next input report is due
+        # The e-stop word on the wire (the last one sent), and while it is not 0, when
+        # (``clock``) the first frame or report of this e-stop was written: where a stop's
+        # latency starts, whatever bits the host's answer adds to the word afterwards.
+        self.estop_sent: int | None = None
+        self.estop_sent_at: float | None = None
 
     # -- the loop's side ---------------------------------------------------------------------
 
@@ -108,6 +122,14 @@ class Simulator:
         self._report(now)
 
     def _receive(self, now: float) -> None:
+        if isinstance(self.side, HidSide):
+            for report in self.side.receive():
+                if isinstance(report, HidOutput):
+                    for message in _hid_messages(report):
+                        self.model.handle(message, now)
+                else:
+                    self.model.host_rejection()
+            return
         for event in self.side.receive():
             if isinstance(event, Rejection | CanRejection):
                 self.model.host_rejection()
@@ -118,18 +140,28 @@ class Simulator:
         # The model ticks even while nothing is sent, so its clocks keep running.
         sending = not self.silenced and self.side.plugged
         messages = self.model.tick(now)
+        if isinstance(self.side, HidSide):
+            self._send_report(now, sending)  # HID mode speaks none of the serial messages
+            return
         if self.faults.flap_due(now) and not self.model.booting(now):
             # A chattering VSC: each change of the flapping mode is a heartbeat of its own.
             messages.insert(0, self.model.heartbeat(now))
-        for produced in messages:
-            if not sending:
-                continue
+        word: int | None = None  # a heartbeat with another e-stop word goes out this round
+        for produced in messages if sending else []:
             message = self.faults.message(produced, now)
-            if isinstance(self.side, SerialSide):
+            if type(message) is VscHeartbeat and message.estop != self.estop_sent:
+                word = message.estop
+            if isinstance(self.side, ByteSide):
                 self.faults.push(encode_frame(message), message.TYPE, now)
             else:
                 for frame in can_frames(message):
                     self.faults.push_can(frame, message.TYPE, now)
+        self._sent_word(word, self._write_due(now, sending))
+
+    def _write_due(self, now: float, sending: bool) -> float:
+        """What the faults let through now goes out (through the pacer on serial); the clock
+        just before the write."""
+        began = self._clock()
         for item in self.faults.due(now):
             if not sending:
                 continue
@@ -138,14 +170,48 @@ class Simulator:
                 self.side.send(item)
             elif isinstance(item, bytes):
                 self.pacer.push(item)
-        if isinstance(self.side, SerialSide):
+        if isinstance(self.side, ByteSide):
             self.pacer.configure(self.faults.plan.chunk_bytes, self.faults.plan.chunk_gap_s)
             data = self.pacer.pop(now)
             if data:
+                began = self._clock()
                 self.side.write(data)
+        return began
+
+    def _send_report(self, now: float, sending: bool) -> None:
+        """HID: the input report every ``HID_PERIOD_S`` (not while booting or silenced)."""
+        assert isinstance(self.side, HidSide)
+        if now < self._next_report:
+            return
+        # Fell behind (a stalled loop): the next report a period from now, no burst.
+        due = self._next_report + HID_PERIOD_S
+        self._next_report = due if due > now else now + HID_PERIOD_S
+        if not sending or self.model.booting(now):
+            return
+        word = self.model.estop_word(now)
+        report = self.model.hid_report(now)
+        began = self._clock()
+        self.side.send(report)
+        self.frames_sent += 1
+        self._sent_word(word if word != self.estop_sent else None, began)
+
+    def _sent_word(self, word: int | None, began: float) -> None:
+        """A heartbeat (or report) with another e-stop word ``word`` was written by a write
+        that began at ``began`` (with no fault plan that holds frames back; with one, it was
+        handed to the faults, which may delay it). The time is taken before the write: on one
+        CPU the host may read the frame and act before the write call returns."""
+        if word is None:
+            return
+        if not word:
+            self.estop_sent_at = None
+        elif not self.estop_sent:
+            self.estop_sent_at = began
+        self.estop_sent = word
 
     def next_deadline(self, now: float) -> float:
         deadlines = [self.model.next_deadline(now)]
+        if isinstance(self.side, HidSide):
+            deadlines.append(self._next_report)
         for extra in (self.faults.next_deadline(), self.pacer.next_deadline()):
             if extra is not None:
                 deadlines.append(extra)
@@ -328,7 +394,8 @@ class Simulator:
         if not 0 <= delay <= MAX_DELAY_S:
             raise RequestError(f"reboot: delay must be 0..{MAX_DELAY_S:g} seconds")
         # On USB the VSC leaves the bus while its bootloader runs (PR-5); on RS-232 or
-        # CAN the line only falls silent.
+        # CAN the line only falls silent. A device the simulator does not own (--tty, --hid)
+        # cannot leave the bus by its doing: it falls silent too.
         unplug = _arg(request, "unplug", bool, isinstance(self.side, SerialSide))
         self.model.reboot(now, delay)
         self.faults.clear()
@@ -373,8 +440,12 @@ class Simulator:
         return {
             "transport": self.side.kind,
             "port": self.side.description,
-            "device": self.side.device if isinstance(self.side, SerialSide) else "",
+            "device": self.side.device if not isinstance(self.side, CanSide) else "",
             "plugged": self.side.plugged,
+            "hangups": self.side.hangups if isinstance(self.side, TtySide) else 0,
+            "hid_reports": _hid_counts(self.side),
+            "estop_sent": self.estop_sent,
+            "estop_sent_at": self.estop_sent_at,
             "booting": model.booting(now),
             "silenced": self.silenced,
             "bus_off": isinstance(self.side, CanSide) and self.side.is_bus_off,
@@ -420,6 +491,24 @@ class Simulator:
             "faults": self.faults.plan.to_json(),
             "fault_counts": dict(sorted(self.faults.counts.items())),
         }
+
+
+def _hid_messages(report: HidOutput) -> list[FeedbackSet | FeedbackName]:
+    """What an output report asks (manual §10.2.2): a value where its key is not 0, a label
+    or text row where its string key is not 0; as the same messages on serial would."""
+    messages: list[FeedbackSet | FeedbackName] = []
+    if report.key:
+        messages.append(FeedbackSet(report.key, report.value))
+    if report.string_key:
+        messages.append(FeedbackName(report.string_key, report.text))
+    return messages
+
+
+def _hid_counts(side: Side) -> dict[str, int] | None:
+    """Input reports written and dropped (HID only)."""
+    if not isinstance(side, HidSide):
+        return None
+    return {"sent": side.reports_sent, "dropped": side.reports_dropped}
 
 
 def _remote_status_json(model: VscModel) -> dict[str, int]:

@@ -45,8 +45,10 @@ from supervisord.protocol.codes import (
     MessageType,
     VscMode,
 )
+from supervisord.protocol.hid import DPadDirection, HidInput
 from supervisord.protocol.j1939 import SEGMENT_COUNT, FeedbackStringSegment
 from supervisord.protocol.messages import (
+    AXIS_MAGNITUDE_MAX,
     Axis,
     DPad,
     FeedbackGet,
@@ -131,6 +133,19 @@ PAUSE_REASONS = {"button": None, "orientation": 82, "free_fall": 83, "inactivity
 BUTTON_NAMES = ("down", "right", "up", "left", "button_1", "button_2", "button_3", "button_4")
 START_UTC_S = 12 * 3600  # the generated GPS clock starts at 12:00:00 UTC
 DEFAULT_POSITION = (48.1173, 11.5167)
+HID_AXIS_MAX = 127  # manual table 38: an axis is -127..127 in the HID report
+# The D-pad's direction (manual table 38) by (right minus left, down minus up).
+HID_DPAD: dict[tuple[int, int], int] = {
+    (0, -1): DPadDirection.UP,
+    (1, -1): DPadDirection.UP_RIGHT,
+    (1, 0): DPadDirection.RIGHT,
+    (1, 1): DPadDirection.DOWN_RIGHT,
+    (0, 1): DPadDirection.DOWN,
+    (-1, 1): DPadDirection.DOWN_LEFT,
+    (-1, 0): DPadDirection.LEFT,
+    (-1, -1): DPadDirection.UP_LEFT,
+    (0, 0): DPadDirection.NONE,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -468,6 +483,32 @@ class VscModel:
             rz,
             DPad(*(status(n) for n in BUTTON_NAMES[:4])),
             NumberedButtons(*(status(n) for n in BUTTON_NAMES[4:])),
+        )
+
+    def hid_report(self, now: float) -> HidInput:
+        """The HID input report (manual §10.2.1, table 38) of the same sticks and buttons as
+        ``joystick``, zeroed outside Operational alike. *sim*: a stick's -1023..1023 is scaled
+        to -127..127; the D-pad's four buttons become its direction (opposite buttons cancel);
+        the e-stop byte is 1 while any e-stop bit is set (the manual: "Actuated")."""
+        stick = self.joystick(now)
+        lx, ly, lz, rx, ry, rz = (
+            round((axis.value or 0) * HID_AXIS_MAX / AXIS_MAGNITUDE_MAX) for axis in stick.axes
+        )
+        pressed = self.buttons if self.mode(now) == VscMode.OPERATIONAL else frozenset()
+        across = ("right" in pressed) - ("left" in pressed)
+        along = ("down" in pressed) - ("up" in pressed)
+        numbered = sum(1 << i for i, name in enumerate(BUTTON_NAMES[4:]) if name in pressed)
+        return HidInput(
+            lx,
+            ly,
+            lz,
+            rx,
+            ry,
+            rz,
+            dpad=HID_DPAD[(across, along)],
+            buttons=numbered,
+            mode=self.mode(now),
+            estop=1 if self.estop_word(now) else 0,
         )
 
     def gps_sentence(self, now: float) -> str:

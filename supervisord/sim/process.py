@@ -185,7 +185,10 @@ class SimProcess:
     """``srcs-sim`` as a subprocess in ``workdir``.
 
     ``serial`` is the pty symlink (relative paths are under ``workdir``; default
-    ``workdir/vsc``); ``can`` (``"udp_multicast:239.74.163.2"``) serves CAN instead. The
+    ``workdir/vsc``); ``can`` (``"udp_multicast:239.74.163.2"``) serves CAN instead, ``tty``
+    the serial protocol on an existing device (``--tty``, e.g. a USB gadget's
+    ``/dev/ttyGS0``; ``serial_path`` is then ``None``), ``hid`` HID mode on a HID function's
+    device end (``--hid``, e.g. ``/dev/hidg0``). The
     control socket is ``workdir/sim.sock``, the log (stderr) ``workdir/sim.log``.
     ``eeprom`` keeps message control and key 85 across restarts. ``args`` are extra
     command-line arguments (``--newer-firmware``, ``--remote-off``...)."""
@@ -196,6 +199,8 @@ class SimProcess:
         *,
         serial: str | Path | None = "vsc",
         can: str | None = None,
+        tty: str | Path | None = None,
+        hid: str | Path | None = None,
         eeprom: str | Path | None = None,
         seed: int = 0,
         boot_delay: float | None = None,
@@ -205,13 +210,22 @@ class SimProcess:
     ) -> None:
         self.workdir = Path(workdir)
         self.can = can
-        self.serial_path = None if can else self.workdir / (serial or "vsc")
+        self.device = tty or hid  # a device the simulator opens, owned by someone else
+        on_pty = can is None and self.device is None
+        self.serial_path = self.workdir / (serial or "vsc") if on_pty else None
         self.control_path = self.workdir / "sim.sock"
         self.log_path = self.workdir / "sim.log"
         self.eeprom_path = None if eeprom is None else self.workdir / eeprom
         self.ready_timeout = ready_timeout
         command = [sys.executable, "-m", "supervisord.cli.sim", "--control", str(self.control_path)]
-        command += ["--can", can] if can else ["--serial", str(self.serial_path)]
+        if can:
+            command += ["--can", can]
+        elif tty is not None:
+            command += ["--tty", str(tty)]
+        elif hid is not None:
+            command += ["--hid", str(hid)]
+        else:
+            command += ["--serial", str(self.serial_path)]
         if self.eeprom_path is not None:
             command += ["--eeprom", str(self.eeprom_path)]
         command += ["--seed", str(seed)]

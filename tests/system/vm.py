@@ -61,7 +61,7 @@ class Vm:
             "qemu-system-x86_64",
             *("-nodefaults", "-no-user-config", "-accel", "tcg", "-cpu", "max"),
             *("-smp", "1", "-m", "1024", "-display", "none", "-serial", "stdio"),
-            # The tiny kernel has no ACPI: a reset is how the guest ends, and qemu then exits.
+            # A reset is how the guest ends (init and the test unit reboot), and qemu then exits.
             "-no-reboot",
             *("-device", "virtio-rng-pci", "-kernel", a.kernel, "-initrd", a.initrd),
             # multidevs=remap: / spans several host file systems whose inode numbers collide.
@@ -74,7 +74,8 @@ class Vm:
             # cache=writeback: what the guest flushed has been written to the image file, and
             # what it did not flush may still be in the guest's page cache, lost with qemu.
             cmd += ["-drive", f"file={a.disk},format=raw,if=virtio,cache=writeback"]
-        append = f"console=ttyS0 panic=-1 quiet srcs.deb={a.deb} srcs.out {append}"
+        # dummy_hcd.num=2: two USB device controllers for the usb scenarios' gadgets.
+        append = f"console=ttyS0 panic=-1 quiet dummy_hcd.num=2 srcs.deb={a.deb} srcs.out {append}"
         if Path(a.repo).is_relative_to(GUEST_TMP):  # the guest's /tmp is its own: keep the repo
             append = f"srcs.keep={a.repo} {append}"
         return [*cmd, "-append", append]
@@ -214,7 +215,8 @@ def power_cut(vm: Vm) -> bool:
         for record in burst.acks:
             handle.write(json.dumps(record) + "\n")
     check = vm.boot(
-        f"srcs.mode=run -- {vm.args.python} {vm.args.repo}/tests/system/guest/scenarios.py "
+        f"srcs.mode=run -- env PYTHONPATH={vm.args.repo} {vm.args.python} "
+        f"{vm.args.repo}/tests/system/guest/scenarios.py "
         f"powercut-check /srcs-out/{ACKED_FILE}",
         disk=True,
         timeout=300,

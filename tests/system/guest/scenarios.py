@@ -30,10 +30,13 @@ import can
 
 from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
+from supervisord.links.hid_link import HidLink
+from supervisord.protocol.hid import HidInput
 from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimProcess
+from tests.system.guest.gadget import BOOTLOADER, PRODUCT, REPORT_DESCRIPTOR, Gadget, free_udc
 
 MARKER = Path("/.srcs-system-tier")
 GPIO_SIM = Path("/sys/kernel/config/gpio-sim")
@@ -147,12 +150,17 @@ def start_sim(workdir: str, *, on_can: str | None = None) -> SimProcess:
     sim.control.timeout = 30  # replies are slow under emulation, not lost
     sim.start()
     if sim.serial_path is not None:
-        # What 60-srcs.rules does for a real VSC: group srcs-dev, mode 0660.
-        target = os.path.realpath(sim.serial_path)
-        os.chown(target, -1, grp.getgrnam("srcs-dev").gr_gid)
-        os.chmod(target, 0o660)
+        give_to_srcs_dev(sim.serial_path)
         sim.control.key(85, 1)
     return sim
+
+
+def give_to_srcs_dev(link: Path) -> None:
+    """What 60-srcs.rules does for a real VSC, done by hand for the pty: group srcs-dev, mode
+    0660 (the usb scenarios have udev do it for a real USB device)."""
+    target = os.path.realpath(link)
+    os.chown(target, -1, grp.getgrnam("srcs-dev").gr_gid)
+    os.chmod(target, 0o660)
 
 
 def watchdog_tripped(sim: SimProcess) -> bool:
@@ -286,8 +294,36 @@ class Bench:
         # The wiring docs/outputs.md asks for: a pull-up on the active-low brake line, so
         # that a released line means "off"; the others are pulled down (gpio-sim's default).
         self.gpio.pull(BRAKE, up=True)
-        self.sim = start_sim("gpio")
+        self.pty = start_sim("gpio")
+        self.sim = self.pty  # the VSC at /dev/srcs-vsc: the pty, or the USB one (use_usb)
+        self.usb: UsbVsc | None = None
         write_config(self.instance, GPIO_CONFIG)
+
+    def use_usb(self) -> UsbVsc:
+        """The USB VSC at /dev/srcs-vsc instead of the pty: the pty's link removed, the
+        gadget plugged in (made the first time), udev's link waited for. srcsd@gpio-a, if
+        running, loses its link and opens it again through the same name."""
+        if self.sim is self.pty and self.pty.serial_path is not None:
+            self.pty.control.unplug()  # closes the pty and removes its link at /dev/srcs-vsc
+        if self.usb is None:
+            self.usb = UsbVsc()
+        elif not self.usb.gadget.udc:
+            self.usb.gadget.plug(self.usb.udc)
+        self.sim = self.usb.sim
+        wait_for("/dev/srcs-vsc from udev", lambda: Path(VSC_LINK).exists(), 60)
+        run("udevadm", "settle", "--timeout=60")
+        return self.usb
+
+    def use_pty(self) -> None:
+        """Back to the pty: the gadget unplugged (udev removes its link), the pty plugged."""
+        if self.usb is not None and self.usb.gadget.udc:
+            self.usb.gadget.unplug()
+            wait_for("udev removes /dev/srcs-vsc", lambda: not os.path.lexists(VSC_LINK), 60)
+        if not self.pty.control.state()["plugged"]:
+            self.pty.control.replug()
+            assert self.pty.serial_path is not None
+            give_to_srcs_dev(self.pty.serial_path)
+        self.sim = self.pty
 
     def levels(self) -> tuple[int, int, int]:
         return self.gpio.value(DRIVE), self.gpio.value(BRAKE), self.gpio.value(RELAY)
@@ -341,7 +377,9 @@ class Bench:
 
     def close(self) -> None:
         subprocess.run(["systemctl", "stop", self.unit], check=False)
-        self.sim.stop()
+        self.pty.stop()
+        if self.usb is not None:
+            self.usb.close()
         self.gpio.close()
 
 
@@ -1274,6 +1312,546 @@ def scenario_slowdisk(bench: Bench) -> tuple[str, Measured]:
     }
 
 
+# ---------------------------------------------------------------------------------- USB VSC
+
+USB_WORK = Path("/run/srcs-tier")
+USB_SERIAL = "SIM0001"  # the gadget's serial number: /dev/srcs/vsc-SIM0001 (60-srcs.rules)
+HID_LINK = "/dev/srcs-vsc-hid"  # where 60-srcs.rules puts the VSC's hidraw node
+LINK_LOSS_MS = 1000  # GPIO_CONFIG's vsc.timeout_ms: the link-loss deadline in the tier
+UNPLUG_CYCLES = 10
+UNPLUGGED_S = 5.0  # the span over which an unplugged daemon's CPU time is measured
+CPU_SHARE_LIMIT = 0.10  # of one CPU while unplugged: a daemon that spins takes all of it
+OTHER_VENDOR, OTHER_PRODUCT = 0x1D6B, 0x0104  # another serial device (Linux Foundation's IDs)
+OTHER_IDS = (f"{OTHER_VENDOR:04x}", f"{OTHER_PRODUCT:04x}")  # as sysfs shows them
+LATENCY_BLOCKS = ("usb", "pty", "usb", "pty")
+LATENCY_STOPS = 3  # stops per block
+
+
+class UsbVsc:
+    """The VSC as a real USB device: a CDC ACM gadget with the VSC's IDs on dummy_hcd, and
+    srcs-sim speaking the serial protocol on the gadget's end (``--tty /dev/ttyGS0``). The
+    host side (cdc_acm, udev, 60-srcs.rules) is the guest's own."""
+
+    def __init__(self) -> None:
+        self.gadget = Gadget("vsc")
+        self.gadget.create("acm", serial=USB_SERIAL)
+        self.udc = self.gadget.plug()
+        self.sim = SimProcess(USB_WORK / "usb", tty=self.gadget.device_end(), ready_timeout=120)
+        self.sim.control.timeout = 30
+        self.sim.start()
+        self.sim.control.key(85, 1)
+
+    def unplug(self) -> int:
+        """Pull the cable (an empty write to the gadget's UDC); the monotonic ns just before."""
+        before = time.monotonic_ns()
+        self.gadget.unplug()
+        return before
+
+    def close(self) -> None:
+        self.sim.stop()
+        self.gadget.remove()
+
+
+def node() -> str:
+    """The device /dev/srcs-vsc points at (udev's symlink)."""
+    return os.path.realpath(VSC_LINK)
+
+
+def acm_ports() -> dict[str, tuple[str, str]]:
+    """The host side's ttyACM devices: name -> (idVendor, idProduct) of their USB device."""
+    found = {}
+    for tty_dir in Path("/sys/class/tty").glob("ttyACM*"):
+        usb_device = (tty_dir / "device").resolve().parent
+        found[tty_dir.name] = (
+            (usb_device / "idVendor").read_text().strip(),
+            (usb_device / "idProduct").read_text().strip(),
+        )
+    return found
+
+
+def udev_properties(*args: str) -> dict[str, str]:
+    """``udevadm info --query=property`` of a device (``--name=...`` or ``--path=...``)."""
+    text = run("udevadm", "info", "--query=property", *args)
+    return dict(line.split("=", 1) for line in text.splitlines() if "=" in line)
+
+
+def group_mode(path: str) -> str:
+    return run("stat", "-L", "-c", "%G %a", path)
+
+
+def open_devices(pid: int) -> list[str]:
+    """The devices (/dev/...) process ``pid`` has open."""
+    targets = []
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        with contextlib.suppress(OSError):
+            target = os.readlink(fd)
+            if target.startswith("/dev/"):
+                targets.append(target)
+    return sorted(targets)
+
+
+def fd_count(pid: int) -> int:
+    """Descriptors of ``pid``, the fewest of three looks 0.2 s apart (a client connection
+    of this scenario's own may still be closing)."""
+    counts = []
+    for _ in range(3):
+        counts.append(len(os.listdir(f"/proc/{pid}/fd")))
+        time.sleep(0.2)
+    return min(counts)
+
+
+def cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of ``pid`` (all its threads), seconds."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def link_open(instance: str) -> bool | None:
+    """Whether srcsd's link is open (``None``: srcsd not answering)."""
+    try:
+        return bool(status(instance)["daemon"]["link"]["open"])
+    except Exception:  # not up, or restarting
+        return None
+
+
+def proof_passes(path: Path) -> int:
+    """Passed proof tests in the stop record at ``path``."""
+    count = 0
+    for item in read_records(path) if path.exists() else []:
+        if not isinstance(item, BadLine):
+            data: dict[str, Any] = dict(item.data)
+            count += (data.get("prooftest") or {}).get("result") == "passed"
+    return count
+
+
+def records_since(path: Path, mono_ns: int) -> list[dict[str, Any]]:
+    """The records at ``path`` of inputs read at ``mono_ns`` or later (the daemon's clock)."""
+    found = []
+    for item in read_records(path):
+        if not isinstance(item, BadLine):
+            data: dict[str, Any] = dict(item.data)
+            if isinstance(data.get("mono_ns"), int) and data["mono_ns"] >= mono_ns:
+                found.append(data)
+    return found
+
+
+def cause_names(data: dict[str, Any]) -> list[str]:
+    return [c.get("name", "") for c in data.get("causes") or [] if isinstance(c, dict)]
+
+
+GPIO_RECORD = Path("/var/lib/srcsd/gpio-a/stops.jsonl")
+
+
+def usb_bench(bench: Bench) -> UsbVsc:
+    """The USB VSC plugged in and srcsd@gpio-a running on it with the link open (what every
+    usb scenario but usb_enum starts from; usb_enum makes it)."""
+    usb = bench.use_usb()
+    subprocess.run(["systemctl", "reset-failed", bench.unit], check=False, capture_output=True)
+    run("systemctl", "start", bench.unit)
+    wait_for("srcsd's link open", lambda: link_open(bench.instance) is True, 60, 0.2)
+    return usb
+
+
+def after_reopen(bench: Bench, passes_before: int) -> float:
+    """A reopened link: the proof test passes again (one more passed record), srcsd stays
+    STOPPED without a takeover; the seconds to the pass."""
+    took = wait_for(
+        "the proof test passes again",
+        lambda: proof_passes(GPIO_RECORD) > passes_before,
+        60,
+        0.2,
+    )
+    time.sleep(1.5)
+    check(state(bench.instance) == "STOPPED", "a reopened link left STOPPED without a takeover")
+    check(bench.gpio.value(DRIVE) == 0, "the drive line is on after a reopen without takeover")
+    return took
+
+
+def scenario_usb_enum(bench: Bench) -> tuple[str, Measured]:
+    """PR-5.1 on a real USB device: a gadget with the VSC's IDs (2a99:d002) on dummy_hcd is
+    enumerated by the guest's cdc_acm, and udev applies the package's 60-srcs.rules:
+    /dev/srcs-vsc and /dev/srcs/vsc-SERIAL name the ttyACM node, group srcs-dev, mode 0660,
+    ID_MM_DEVICE_IGNORE on the tty and its USB device; the gadget's own end is not touched.
+    srcsd@gpio-a, vsc.port = "/dev/srcs-vsc", starts on it through the unit's own
+    DeviceAllow=char-ttyACM, proves the VSC's watchdog and runs after a takeover."""
+    run("systemctl", "stop", bench.unit)
+    t0 = time.monotonic()
+    usb = bench.use_usb()
+    appeared = time.monotonic() - t0  # the gadget made, srcs-sim started, udev's link
+    tty_node = node()
+    check(tty_node.startswith("/dev/ttyACM"), f"/dev/srcs-vsc points at {tty_node}")
+    check(group_mode(tty_node) == "srcs-dev 660", f"{tty_node} is {group_mode(tty_node)}")
+    tty_env = udev_properties(f"--name={tty_node}")
+    for key in ("ID_MM_DEVICE_IGNORE", "ID_MM_PORT_IGNORE"):
+        check(tty_env.get(key) == "1", f"{tty_node}: {key} = {tty_env.get(key)}")
+    usb_device = Path("/sys/class/tty", Path(tty_node).name, "device").resolve().parent
+    usb_env = udev_properties(f"--path={usb_device}")
+    check(usb_env.get("ID_MM_DEVICE_IGNORE") == "1", f"{usb_device}: no ID_MM_DEVICE_IGNORE")
+    per_serial = f"/dev/srcs/vsc-{USB_SERIAL}"
+    check(
+        os.path.realpath(per_serial) == tty_node, f"{per_serial} -> {os.path.realpath(per_serial)}"
+    )
+    gadget_end = str(usb.gadget.device_end())
+    check(
+        group_mode(gadget_end) != "srcs-dev 660", f"the gadget's end {gadget_end} matched the rule"
+    )
+    passes = proof_passes(GPIO_RECORD)
+    start = time.monotonic()
+    run("systemctl", "start", bench.unit)
+    started = time.monotonic() - start
+    pid = main_pid(bench.unit)
+    check(tty_node in open_devices(pid), f"srcsd has {open_devices(pid)} open, not {tty_node}")
+    proved = wait_for("proof test passed", lambda: proof_passes(GPIO_RECORD) > passes, 60, 0.2)
+    proof = status(bench.instance)["prooftest"]["last"]
+    took = bench.to_run()
+    drive, brake, _ = bench.levels()
+    check((drive, brake) == (1, 0), f"in RUN on the USB VSC: drive={drive} brake={brake}")
+    return f"{tty_node} 2a99:d002 as /dev/srcs-vsc, srcs-dev 0660, MM ignored; proved, RUN", {
+        "gadget made, srcs-sim started, to /dev/srcs-vsc s": round(appeared, 2),
+        "tty": tty_node,
+        "udev on the tty": {
+            k: v
+            for k, v in tty_env.items()
+            if k.startswith(("ID_MM", "ID_VENDOR_ID", "ID_MODEL_ID", "ID_SERIAL_SHORT"))
+        },
+        "devlinks": tty_env.get("DEVLINKS", ""),
+        "gadget end": f"{gadget_end} {group_mode(gadget_end)}",
+        "systemctl start (to READY=1) s": round(started, 2),
+        "READY=1 to proof test passed s": round(proved, 2),
+        "proof test trip ms": proof.get("trip_ms") if proof else None,
+        "takeover to RUN s": round(took, 2),
+    }
+
+
+def scenario_usb_unplug(bench: Bench) -> tuple[str, Measured]:
+    """SR-2 on the real driver path: unplugged in RUN (an empty write to the gadget's UDC),
+    cdc_acm hangs the tty up; the outputs are off within the link-loss deadline from the
+    unbind, the cause (transport_fault, the link broken) is in the status and the stop record,
+    the daemon neither exits nor spins while the VSC is away (CPU time over 5 s), and after ten
+    unplug/replug cycles it holds as many descriptors as before."""
+    usb = usb_bench(bench)
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    pid = main_pid(bench.unit)
+    restarts = prop(bench.unit, "NRestarts")
+    fds_before = fd_count(pid)
+    t0_ns = usb.unplug()
+    wait_for("drive off after the unplug", lambda: bench.gpio.value(DRIVE) == 0, 10, 0.002)
+    off = (time.monotonic_ns() - t0_ns) / 1e9  # from just before the unbind
+    check(bench.gpio.value(BRAKE) == 1, "brake line not off after the unplug")
+    wait_state(bench.instance, "STOPPED", 10)
+    daemon = status(bench.instance)
+    active = [c["name"] for c in daemon["causes"] if c["active"]]
+    check("transport_fault" in active, f"causes after the unplug: {active}")
+    link = daemon["daemon"]["link"]
+    check(not link["open"], f"the link is still open after the unplug: {link}")
+    stops = [
+        r
+        for r in records_since(GPIO_RECORD, t0_ns)
+        if r.get("from") == "RUN" and r.get("to") == "STOPPED"
+    ]
+    check(bool(stops), "no RUN -> STOPPED record after the unplug")
+    check("transport_fault" in cause_names(stops[0]), f"the stop's causes: {cause_names(stops[0])}")
+    detected_ms = (int(stops[0]["mono_ns"]) - t0_ns) / 1e6
+    check(off * 1000 < LINK_LOSS_MS, f"drive off {off * 1000:.0f} ms after the unbind")
+    cpu0 = cpu_seconds(pid)
+    time.sleep(UNPLUGGED_S)
+    share = (cpu_seconds(pid) - cpu0) / UNPLUGGED_S
+    check(share < CPU_SHARE_LIMIT, f"srcsd used {share:.0%} of a CPU while unplugged")
+    check(link_open(bench.instance) is False, "the link opened while unplugged")
+    cycles = []
+    for _ in range(UNPLUG_CYCLES):
+        t0 = time.monotonic()
+        usb.gadget.plug(usb.udc)
+        wait_for("link reopened", lambda: link_open(bench.instance) is True, 60, 0.05)
+        reopened = time.monotonic() - t0
+        usb.gadget.unplug()
+        wait_for("link broken", lambda: link_open(bench.instance) is False, 30, 0.05)
+        cycles.append(round(reopened, 2))
+    usb.gadget.plug(usb.udc)
+    wait_for("link reopened", lambda: link_open(bench.instance) is True, 60, 0.1)
+    fds_after = fd_count(pid)
+    check(main_pid(bench.unit) == pid, "srcsd was restarted during the unplugs")
+    check(prop(bench.unit, "NRestarts") == restarts, "NRestarts grew during the unplugs")
+    check(fds_after == fds_before, f"descriptors: {fds_before} before, {fds_after} after")
+    return f"off in {off * 1000:.0f} ms of the unbind, transport_fault; no leak, no spin", {
+        "unbind to drive line off ms (polled)": round(off * 1000, 1),
+        "unbind to the daemon's stop record (mono_ns) ms": round(detected_ms, 1),
+        "link-loss deadline ms": LINK_LOSS_MS,
+        "the link's error": link.get("last_error"),
+        "stop record trigger": stops[0].get("trigger"),
+        f"CPU share over {UNPLUGGED_S:.0f} s unplugged": round(share, 4),
+        f"descriptors before / after {UNPLUG_CYCLES} cycles": [fds_before, fds_after],
+        "plug to link reopened s, each cycle": cycles,
+    }
+
+
+def replug_once(bench: Bench, usb: UsbVsc, other: Gadget | None, how: str) -> Measured:
+    """In RUN: unplug the VSC, plug ``other`` (if any) meanwhile, plug the VSC again; srcsd
+    reopens through /dev/srcs-vsc, proves the watchdog again, waits for the takeover."""
+    pid = main_pid(bench.unit)
+    passes = proof_passes(GPIO_RECORD)
+    times: Measured = {}
+    usb.gadget.unplug()
+    wait_state(bench.instance, "STOPPED", 10)
+    wait_for("udev removes /dev/srcs-vsc", lambda: not os.path.lexists(VSC_LINK), 30)
+    if other is not None:  # on the other controller: the VSC's stays the VSC's
+        other.create("acm", OTHER_VENDOR, OTHER_PRODUCT, "OTHER01", "other serial device")
+        other.plug(free_udc(keep=usb.udc))
+        wait_for("the other device's tty", lambda: OTHER_IDS in acm_ports().values(), 30)
+    t0 = time.monotonic()
+    usb.gadget.plug(usb.udc)
+    wait_for("/dev/srcs-vsc back", lambda: Path(VSC_LINK).exists(), 30)
+    wait_for("link reopened", lambda: link_open(bench.instance) is True, 60, 0.1)
+    times[f"{how} number: plug to link open s"] = round(time.monotonic() - t0, 2)
+    now_node = node()
+    check(now_node in open_devices(pid), f"srcsd has {open_devices(pid)}, not {now_node}")
+    times[f"{how} number: proof test passed again s"] = round(after_reopen(bench, passes), 2)
+    if other is not None:
+        run("udevadm", "settle", "--timeout=60")
+        theirs = [f"/dev/{n}" for n, ids in acm_ports().items() if ids == OTHER_IDS]
+        check(len(theirs) == 1 and theirs[0] != now_node, f"ports: {acm_ports()}")
+        check(group_mode(theirs[0]) != "srcs-dev 660", "the rule took the other device")
+        check(not os.path.lexists("/dev/srcs/vsc-OTHER01"), "the other device has a VSC link")
+        times["other device"] = f"{theirs[0]} {group_mode(theirs[0])}"
+    times[f"{how} number: takeover to RUN s"] = round(bench.to_run(), 2)
+    check(bench.gpio.value(DRIVE) == 1, "no motion after the takeover")
+    check(main_pid(bench.unit) == pid, "srcsd was restarted")
+    return times
+
+
+def scenario_usb_replug(bench: Bench) -> tuple[str, Measured]:
+    """SR-2, SR-4, SR-5.3 on the real driver path: replugged under the same ttyACM number and
+    under another (a second serial device, 1d6b:0104, plugged while the VSC is out takes the
+    first number), srcsd opens the link again through /dev/srcs-vsc, proves the watchdog again,
+    stays STOPPED, and only a takeover re-arms it; udev gives the other device nothing."""
+    usb = usb_bench(bench)
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    first = node()
+    numbers: list[str] = []
+    times: Measured = {}
+    other = Gadget("other")
+    try:
+        for how in ("same", "other"):
+            times.update(replug_once(bench, usb, other if how == "other" else None, how))
+            numbers.append(node())
+    finally:
+        other.remove()
+    check(numbers[0] == first, f"replugged as {numbers[0]}, not {first}")
+    check(numbers[1] != first, f"the VSC came back as {numbers[1]} again")
+    return f"replugged as {numbers[0]} and {numbers[1]}: reopened, proved, RUN only by takeover", {
+        "first": first,
+        "replugged as": numbers,
+        **times,
+    }
+
+
+def scenario_usb_reenumerate(bench: Bench) -> tuple[str, Measured]:
+    """PR-5.1: the VSC enumerates as another device (2a99:b003, its bootloader's ID): the rule
+    does not match it (no /dev/srcs-vsc, not srcs-dev, no ModemManager mark) and srcsd does
+    not open it, STOPPED; back as 2a99:d002 it is the VSC again and srcsd opens it."""
+    usb = usb_bench(bench)
+    pid = main_pid(bench.unit)
+    passes = proof_passes(GPIO_RECORD)
+    usb.gadget.set_product(BOOTLOADER)
+    wanted = ("2a99", f"{BOOTLOADER:04x}")
+    wait_for("the bootloader's tty", lambda: wanted in acm_ports().values(), 30)
+    run("udevadm", "settle", "--timeout=60")
+    loader = next(f"/dev/{n}" for n, ids in acm_ports().items() if ids == wanted)
+    check(not os.path.lexists(VSC_LINK), f"/dev/srcs-vsc exists for 2a99:b003: {node()}")
+    loader_env = udev_properties(f"--name={loader}")
+    check("ID_MM_DEVICE_IGNORE" not in loader_env, f"{loader}: ModemManager mark set")
+    loader_mode = group_mode(loader)
+    check(loader_mode != "srcs-dev 660", f"{loader} is {loader_mode}")
+    time.sleep(3.0)  # srcsd keeps trying /dev/srcs-vsc meanwhile
+    link = status(bench.instance)["daemon"]["link"]
+    check(not link["open"], f"srcsd's link is open on another device: {link}")
+    check(loader not in open_devices(pid), f"srcsd opened {loader}")
+    check(state(bench.instance) == "STOPPED", "not STOPPED with the VSC gone")
+    usb.gadget.set_product(PRODUCT)
+    wait_for("/dev/srcs-vsc back", lambda: Path(VSC_LINK).exists(), 30)
+    wait_for("link reopened", lambda: link_open(bench.instance) is True, 60, 0.1)
+    after_reopen(bench, passes)
+    return f"as 2a99:b003 ({loader}): no rule, not opened; as 2a99:d002 opened again", {
+        "bootloader tty": f"{loader} {loader_mode}",
+        "srcsd's link meanwhile": link.get("last_error"),
+    }
+
+
+def stop_latency(bench: Bench, stops: int) -> list[float]:
+    """``stops`` remote e-stops in RUN: ms from the VSC's write of the first heartbeat with the
+    e-stop (the simulator's clock stamp, ``estop_sent_at``) to the drive line read back at 0."""
+    found = []
+    for _ in range(stops):
+        bench.to_run()
+        bench.sim.control.estop()
+        wait_for("drive off", lambda: bench.gpio.value(DRIVE) == 0, 10, 0.001)
+        off = time.monotonic()
+        written = bench.sim.control.state()["estop_sent_at"]
+        check(written is not None and written <= off, f"e-stop written at {written}, off {off}")
+        found.append(round((off - written) * 1000, 1))
+        wait_state(bench.instance, "STOPPED", 10)
+        bench.sim.control.release()
+    return found
+
+
+def scenario_usb_latency(bench: Bench) -> tuple[str, Measured]:
+    """SR-9 over the real USB path beside the pty, in the same boot and the same srcsd@gpio-a:
+    from the VSC's write of the heartbeat that carries the remote's e-stop (the gadget's
+    /dev/ttyGS0, or the pty) to the drive line read back at 0, in alternating blocks. Printed
+    side by side; each stop within the link-loss deadline."""
+    usb_bench(bench)
+    latency: dict[str, list[float]] = {"usb": [], "pty": []}
+    for side in LATENCY_BLOCKS:
+        if side == "usb":
+            bench.use_usb()
+        else:
+            bench.use_pty()
+        # A new link: to_run waits for its proof test to pass (vsc_watchdog_untested clear).
+        wait_for("link open", lambda: link_open(bench.instance) is True, 60, 0.1)
+        latency[side] += stop_latency(bench, LATENCY_STOPS)
+        log(f"usb_latency block {side}: {latency[side][-LATENCY_STOPS:]} ms")
+    for side, values in latency.items():
+        check(max(values) < LINK_LOSS_MS, f"{side}: a stop took {max(values)} ms")
+    usb, pty = spread(latency["usb"]), spread(latency["pty"])
+    summary = f"e-stop frame written to drive off: USB p50 {usb['p50']} ms, pty {pty['p50']} ms"
+    return summary, {
+        "USB (gadget ttyGS0 -> cdc_acm ttyACM) ms": usb,
+        "pty ms": pty,
+        "USB stops ms": latency["usb"],
+        "pty stops ms": latency["pty"],
+        "ratio USB/pty p50": round(usb["p50"] / pty["p50"], 2) if pty["p50"] else None,
+    }
+
+
+HID_CONFIG = """
+[vsc]
+transport = "hid"
+hidraw = "/dev/srcs-vsc-hid"
+
+# A motion output on the drive line: HID is no safety channel, so it must never come on.
+[[outputs]]
+name = "drive"
+kind = "gpio"
+role = "motion"
+chip = "srcs-sim-gpio"
+line = 0
+
+[record]
+path = "/var/lib/srcsd/hid/stops.jsonl"
+
+[api]
+socket = "/run/srcsd/hid/api.sock"
+"""
+HID_ABS_CAPABILITIES = "3003f"  # the input device's axes: X Y Z Rx Ry Rz and the hat's two
+
+
+def scenario_usb_hid(bench: Bench) -> tuple[str, Measured]:
+    """PR-4.1, PR-5.1 on the real driver path: the VSC in HID mode, a HID gadget (2a99:d002)
+    with the report descriptor of the manual's reports, enumerated by usbhid and hid-generic
+    as a game pad with a real hidraw node, named /dev/srcs-vsc-hid by the rule (srcs-dev,
+    0660). srcsd@hid (vsc.transport = "hid") reads it: every report decodes (no rejection),
+    the sticks and buttons as the remote holds them (a second reader of the node decodes the
+    same with the project's HID link); a label and a value reach the VSC as whole output
+    reports; it never enables anything, even after a takeover; it survives the unplug of the
+    HID device and reads again after the replug."""
+    run("systemctl", "stop", bench.unit)  # the drive line is srcsd@hid's now
+    if bench.usb is not None:
+        bench.usb.gadget.unplug()  # a VSC is in serial mode or in HID mode, not both
+    hid = Gadget("vschid")
+    hid.create("hid", serial="SIM0002")
+    udc = hid.plug(free_udc(keep=bench.usb.udc if bench.usb is not None else ""))
+    sim: SimProcess | None = None
+    reader = HidLink(HID_LINK)
+    unit = "srcsd@hid.service"
+    try:
+        wait_for("/dev/srcs-vsc-hid from udev", lambda: Path(HID_LINK).exists(), 60)
+        run("udevadm", "settle", "--timeout=60")
+        raw = os.path.realpath(HID_LINK)
+        check(raw.startswith("/dev/hidraw"), f"/dev/srcs-vsc-hid points at {raw}")
+        raw_mode = group_mode(raw)
+        check(raw_mode == "srcs-dev 660", f"{raw} is {raw_mode}")
+        hid_device = Path("/sys/class/hidraw", Path(raw).name, "device")
+        driver = (hid_device / "driver").resolve().name
+        check(driver == "hid-generic", f"{raw} is driven by {driver}")
+        descriptor = (hid_device / "report_descriptor").read_bytes()
+        check(descriptor == REPORT_DESCRIPTOR, "the host read another report descriptor")
+        inputs = list((hid_device / "input").iterdir())
+        abs_caps = (inputs[0] / "capabilities/abs").read_text().strip() if inputs else ""
+        check(abs_caps == HID_ABS_CAPABILITIES, f"the input device's axes: {abs_caps!r}")
+        sim = SimProcess(USB_WORK / "hid", hid=hid.device_end(), ready_timeout=120)
+        sim.control.timeout = 30
+        sim.start()
+        write_config("hid", HID_CONFIG)
+        run("systemctl", "start", unit)
+        wait_for("srcsd@hid's link open", lambda: link_open("hid") is True, 60, 0.2)
+        pid = main_pid(unit)
+        daemon = status("hid")
+        check("HID" in daemon["daemon"]["link"]["description"], f"link: {daemon['daemon']['link']}")
+        check(daemon["state"] == "STOPPED", f"srcsd@hid is {daemon['state']}")
+        sim.control.wait_for(lambda s: s["linked"], 30)
+        sim.control.takeover()
+        sim.control.axes(left_x=1023, right_y=-512)
+        sim.control.buttons("up", "right", "button_2")
+        reader.open()
+        seen = None
+        end = time.monotonic() + 20
+        while seen is None and time.monotonic() < end:
+            time.sleep(0.1)
+            for report in reader.receive():
+                if isinstance(report, HidInput) and report.left_x == 127:
+                    seen = report
+        check(seen is not None, "no report with the stick moved within 20 s")
+        assert seen is not None
+        check(
+            (seen.right_y, seen.dpad, seen.pressed, seen.mode) == (-64, 1, frozenset({2}), 9),
+            f"decoded {seen}",
+        )
+        counted = status("hid")["daemon"]
+        messages0 = counted["messages"]
+        time.sleep(2.0)
+        counted = status("hid")["daemon"]
+        rate = (counted["messages"] - messages0) / 2.0
+        check(rate >= 4, f"srcsd decoded {rate} reports a second (about 16 sent)")
+        check(not counted["rejections"], f"srcsd rejected reports: {counted['rejections']}")
+        with SupervisorClient.connect(socket_path("hid"), timeout=10) as client:
+            client.display_label(2, "Speed")
+            client.display_value(3, 1234)
+        shown = sim.control.wait_for(lambda s: s["labels"].get("2") == "Speed", 30)
+        shown = sim.control.wait_for(lambda s: s["values"].get("3") == 1234, 30)
+        check(shown["host_rejections"] == 0, f"the VSC rejected {shown['host_rejections']} reports")
+        check(bench.gpio.value(DRIVE) == 0, "HID enabled the drive line")
+        check(state("hid") == "STOPPED", "HID left STOPPED")
+        t0 = time.monotonic()
+        hid.unplug()
+        wait_for("the HID link broken", lambda: link_open("hid") is False, 30, 0.05)
+        broken = time.monotonic() - t0
+        why = status("hid")["daemon"]["link"]["last_error"]
+        hid.plug(udc)
+        wait_for("the HID link reopened", lambda: link_open("hid") is True, 60, 0.1)
+        again = status("hid")["daemon"]["messages"]
+        wait_for("reports again", lambda: status("hid")["daemon"]["messages"] > again + 8, 30, 0.2)
+        check(main_pid(unit) == pid, "srcsd@hid restarted across the unplug")
+        check(bench.gpio.value(DRIVE) == 0 and state("hid") == "STOPPED", "enabled after replug")
+        return f"{raw} as /dev/srcs-vsc-hid (hid-generic game pad); decoded, monitor only", {
+            "hidraw": f"{raw} {raw_mode}",
+            "hidraw after the replug": os.path.realpath(HID_LINK),
+            "input device axes (capabilities/abs)": abs_caps,
+            "decoded report": str(seen),
+            "reports decoded per s by srcsd": rate,
+            "the VSC's labels, values after the display": [shown["labels"], shown["values"]],
+            "unbind to the HID link broken s (polled)": round(broken, 2),
+            "the link's error": why,
+        }
+    finally:
+        reader.close()
+        subprocess.run(["systemctl", "stop", unit], check=False)
+        if sim is not None:
+            sim.stop()
+        hid.remove()
+
+
 # ---------------------------------------------------------------------------------- runner
 
 Scenario = Callable[[Bench], tuple[str, Measured]]
@@ -1287,6 +1865,13 @@ MAIN: list[tuple[str, Scenario]] = [
     ("prooftest", scenario_prooftest),
     ("rttime", scenario_rttime),
     ("slowdisk", scenario_slowdisk),
+    # On the USB VSC (they move /dev/srcs-vsc from the pty to the gadget): last.
+    ("usb_enum", scenario_usb_enum),
+    ("usb_unplug", scenario_usb_unplug),
+    ("usb_replug", scenario_usb_replug),
+    ("usb_reenumerate", scenario_usb_reenumerate),
+    ("usb_latency", scenario_usb_latency),
+    ("usb_hid", scenario_usb_hid),
 ]
 
 
