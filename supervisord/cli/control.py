@@ -53,7 +53,7 @@ DISPLAY_MODES: Final[Mapping[str, DisplayMode]] = {
 def socket_options(*, record: bool = False) -> argparse.ArgumentParser:
     """Which daemon (or, for the record, which robot's record): ``--config``, ``--robot``
     (``-R``), ``--demo`` and, except for the record, ``--socket``; for every level of the
-    parser: before the command, after it, after a subcommand's arguments (issue 13). The
+    parser: before the command, after it, after a subcommand's arguments. The
     defaults are suppressed so that a level where the option is absent keeps what another
     level set; read them with ``getattr(args, "socket", None)``."""
     options = argparse.ArgumentParser(add_help=False)

@@ -66,7 +66,7 @@ for group in srcsd srcs-dev srcs-admin; do getent group "$group" | cut -d: -f1; 
 echo "== dirs"; stat -c '%n %U:%G %a' /etc/srcs /var/lib/srcsd /var/log/srcsd
 echo "== gpiod"
 /opt/srcsd/bin/python3 -c 'import gpiod, sys; print(gpiod.__version__, sys.version.split()[0])'
-echo "== files"; dpkg -L srcs-supervisord >/srv/work/files
+echo "== files"; dpkg -L srcs-supervisord >/srv/job/files
 echo "== examples"
 for config in EXAMPLES/*.toml; do
     if srcsd --check-config "$config" >/tmp/check.log 2>&1; then
@@ -96,7 +96,7 @@ echo "== left"
 while read -r path; do
     [ -d "$path" ] && [ ! -L "$path" ] && continue   # shared directories (/usr/bin, ...)
     { [ -e "$path" ] || [ -L "$path" ]; } && echo "file $path"
-done </srv/work/files
+done </srv/job/files
 for path in /opt/srcsd /usr/share/doc/srcs-supervisord /var/lib/srcsd /var/log/srcsd; do
     [ -e "$path" ] && echo "file $path"
 done
@@ -164,14 +164,14 @@ def main(argv: list[str]) -> int:
         report.fail(f"a {suite} {arch} root", str(error))
         return report.end()
     work = scratch(f"package-{suite}-{arch}")
-    share = work / "share"  # /srv/work in the root: the package's file list, between steps
+    share = work / "share"  # /srv/job in the root: the package's file list, between steps
     share.mkdir()
     archives = CACHE / "apt" / f"{suite}-{arch}-{week()}"
     archives.mkdir(parents=True, exist_ok=True)
     binds = [
         (deb.parent, "/srv/debs:ro"),
         (HERE, "/srv/platforms:ro"),
-        (share, "/srv/work"),
+        (share, "/srv/job"),
         # Fetched packages are kept for the week: a warm run installs without downloading.
         (archives, "/var/cache/apt/archives"),
     ]
