@@ -74,12 +74,14 @@ def collect(
     strict_machine: bool = False,
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
+    read: Callable[[Path], bytes] = Path.read_bytes,
 ) -> Report:
-    """Every mistake of the config at ``path`` (see the module's doc). ``strict_machine``:
-    a user or group missing on this machine is an error, not a warning."""
+    """Every mistake of the config at ``path`` (see the module's doc), its file read once with
+    ``read``. ``strict_machine``: a user or group missing on this machine is an error, not a
+    warning."""
     source = Path(path)
     try:
-        text, parsed = read_toml_text(source)
+        text, parsed = read_toml_text(source, read)
     except ConfigError as error:  # unreadable, not UTF-8, or not TOML: nothing more to judge
         located = error if error.file else error.in_file(str(path))
         return Report([Finding(located, False, _syntax_position(error.key))], None, [])

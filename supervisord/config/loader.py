@@ -159,10 +159,13 @@ def read_toml(source: Path) -> dict[str, object]:
     return read_toml_text(source)[1]
 
 
-def read_toml_text(source: Path) -> tuple[str, dict[str, object]]:
-    """The file's text and what it parses to (:func:`read_toml`)."""
+def read_toml_text(
+    source: Path, read: Callable[[Path], bytes] = Path.read_bytes
+) -> tuple[str, dict[str, object]]:
+    """The file's text and what it parses to (:func:`read_toml`); ``read`` gives the file's
+    bytes (``srcsd`` reads so that a stopping signal ends the wait)."""
     try:
-        raw = source.read_bytes()
+        raw = read(source)
     except OSError as error:
         raise ConfigError(
             "file", str(source), f"give the path of a readable TOML file ({error.strerror})"

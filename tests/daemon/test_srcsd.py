@@ -117,6 +117,30 @@ def test_bad_config_refuses_to_start(tmp_path: Path) -> None:
     assert "rearm.hold_ms" in done.stderr
 
 
+def test_a_config_from_a_pipe_is_read_once(tmp_path: Path) -> None:
+    """``srcsd --config <(...)``: the configuration is read once, so the mistakes listed are
+    the pipe's own (a second read of a pipe finds it empty and would list a missing
+    ``robot.name`` instead)."""
+    bad = CONFIG.replace("hold_ms = 100", "hold_ms = 5").encode()
+    read_end, write_end = os.pipe()
+    os.write(write_end, bad)  # a config fits in the pipe's buffer
+    os.close(write_end)
+    try:
+        done = subprocess.run(
+            [SRCSD, "--config", f"/dev/fd/{read_end}"],
+            pass_fds=(read_end,),
+            capture_output=True,
+            text=True,
+            timeout=30,
+            check=False,
+        )
+    finally:
+        os.close(read_end)
+    assert done.returncode == 78
+    assert "rearm.hold_ms = 5" in done.stderr
+    assert "robot.name" not in done.stderr
+
+
 def run_briefly(config: Path) -> None:
     """Start srcsd with no VSC attached, let it record its start, stop it with SIGTERM."""
     record = config.parent / "stops.jsonl"
