@@ -37,6 +37,8 @@ CONFIG = Path("/etc/srcs/platform.toml")
 RUN = Path("/run/srcs-platform")
 RECORD = Path("/var/lib/srcsd/platform/stops.jsonl")
 SOCKET = Path("/run/srcsd/platform/api.sock")
+HOLD_MS = 100
+"""The robot's re-arm hold."""
 DRIVE = RUN / "drive"
 VSC = RUN / "vsc"
 CONTROL = RUN / "sim.sock"
@@ -54,7 +56,7 @@ require_watchdog = true
 timeout_ms = 1000
 
 [rearm]
-hold_ms = 100
+hold_ms = {HOLD_MS}
 
 [[outputs]]
 name = "drive"
@@ -191,7 +193,13 @@ def run(slow: float) -> None:
         check(drive() == "0\n", "the output is off before the takeover", repr(drive()))
 
         def take_over() -> bool:
-            # As an operator would: again while a stop still holds (the re-arm hold).
+            # As an operator would: again while a stop still holds. A takeover that came
+            # within the re-arm hold is refused and leaves the remote in Operational; the
+            # operator pauses (back to Local), waits out the hold, and takes over again.
+            if control({"cmd": "state"}).get("mode_name") == "operational":
+                control({"cmd": "pause"})
+                # the hold, the takeover's dwell of 200 ms (docs/safety.md) and heartbeats
+                time.sleep(slow * (HOLD_MS + 400) / 1000)
             if not control({"cmd": "takeover"})["ok"]:
                 return False
             return poll(lambda: status(10 * slow)["state"] == "RUN", 5 * slow) is not None
