@@ -2,10 +2,64 @@
 argument why (docs/verification.md "Mutation testing"; ``./dev mutate`` reads this file and
 counts them apart). A mutant is named by its file and its line before and after the change,
 so an entry outlives edits elsewhere, and ``./dev mutate`` reports an entry whose mutant no
-longer exists."""
+longer exists, or that a test kills after all."""
 
 from __future__ import annotations
 
 from verify.mutate import Equivalent
 
-EQUIVALENT: tuple[Equivalent, ...] = ()
+_INIT = "SafetyCore.__init__"
+_INIT_HELD_SINCE = (
+    "read only while _held_mode is set, and _hold_mode sets both together when _held_mode is "
+    "None, which it is at start: the start value is never read"
+)
+_STEADY_ESTOP = (
+    "read only by the cheap path, which runs only once _steady is true, and every step that "
+    "makes _steady true sets _steady_estop first (_finish): the start value is never read"
+)
+
+EQUIVALENT: tuple[Equivalent, ...] = (
+    Equivalent(
+        "core.py",
+        "",
+        "VSC_SLOWEST_RATE_INTERVAL_NS = 100 * NS_PER_MS",
+        "VSC_SLOWEST_RATE_INTERVAL_NS = 99 * NS_PER_MS",
+        "its one use is TAKEOVER_MIN_HEARTBEATS = 200 ms // it + 1, which is 3 for 99 ms as for "
+        "100 ms (101 ms makes it 2, and is killed)",
+    ),
+    Equivalent("core.py", _INIT, "self._held_since = 0", "self._held_since = -1", _INIT_HELD_SINCE),
+    Equivalent("core.py", _INIT, "self._held_since = 0", "self._held_since = 1", _INIT_HELD_SINCE),
+    Equivalent(
+        "core.py",
+        _INIT,
+        "self._remote_linked = False",
+        "self._remote_linked = True",
+        "the start value (in __init__) is read only by a VSC heartbeat, which is refused until "
+        "LinkOpened, and LinkOpened sets it False",
+    ),
+    Equivalent(
+        "core.py",
+        _INIT,
+        "self._limited = False  # the input's user is past its record budget (SR-8.5)",
+        "self._limited = True  # the input's user is past its record budget (SR-8.5)",
+        "per-step scratch: every step sets it (_step) before anything reads it",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore",
+        "_steady_estop = 0  # the user heartbeat's byte from the conditions alone (no urgent "
+        "raise)",
+        "_steady_estop = -1  # the user heartbeat's byte from the conditions alone (no urgent "
+        "raise)",
+        _STEADY_ESTOP,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore",
+        "_steady_estop = 0  # the user heartbeat's byte from the conditions alone (no urgent "
+        "raise)",
+        "_steady_estop = 1  # the user heartbeat's byte from the conditions alone (no urgent "
+        "raise)",
+        _STEADY_ESTOP,
+    ),
+)

@@ -190,10 +190,11 @@ class _Search:
     def state(self, core: SafetyCore, ghost: Ghost) -> tuple[object, tuple[Clock, ...]]:
         """The key a state is compared by, and its clocks (the boundaries come from them)."""
         facts, clocks = without_cheap(core.canonical())  # P17 checks the cheap path
-        # merged(): what the exploration merges; the budget's clocks when out of reach
-        dropped: tuple[str, ...] = ("quiet", "key85:next", "budget:")
-        if self.target.budget_limit is not None:
-            dropped = dropped[:2]
+        # merged(): what the exploration merges; the budget's clocks when out of reach (the
+        # budget of all users, 640 records, always is)
+        dropped: tuple[str, ...] = ("quiet", "key85:next", "budget:all")
+        if self.target.budget_limit is None:
+            dropped += ("budget:",)
         clocks = tuple(c for c in clocks if not c[0].startswith(dropped))
         *seen_facts, seen_clocks = ghost.key(core.decision.now, self.config)
         assert isinstance(seen_clocks, tuple)

@@ -333,17 +333,11 @@ MODELS = {
         Model(
             "budget",
             dataclasses.replace(BASE, clients=(_REQUIRED_SPEC,), require_watchdog=False),
-            (
-                _vsc(OPERATIONAL, 0),
-                LINK[0],
-                *REQUIRED_CLIENT,
-                *OPTIONAL_CLIENT[:1],
-                *OPTIONAL_CLIENT[3:],
-                *LOCAL_COMMANDS,
-                *TICKS,
-            ),
+            (_vsc(OPERATIONAL, 0), LINK[0], *REQUIRED_CLIENT, *TICKS),
             budget_limit=2,
-            what="the record budget at two records a second (the product's is 20)",
+            what="the record budget at two records a second (the product's is 20), one user, "
+            "to a bounded depth",
+            depth=12,
         ),
         Model(
             "proof",
@@ -357,7 +351,8 @@ MODELS = {
                 *TICKS,
             ),
             what="the proof test of the VSC's watchdog under block (the link opens once; key 85 "
-            "answers 1 or never)",
+            "answers 1 or never), to a bounded depth",
+            depth=16,
         ),
         Model(
             "all",

@@ -30,7 +30,8 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Iterator, Sequence
+import traceback
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from types import FrameType, ModuleType
@@ -53,7 +54,7 @@ TARGETS = (
 )
 SUITE = "tests/safety"
 SKIPPED_FUNCTIONS = frozenset({"canonical"})
-SKIPPED_NAMES = frozenset({"__all__", "_NOT_CANONICAL"})
+SKIPPED_NAMES = frozenset({"__all__", "_NOT_CANONICAL", "RATE_SLACK_NS"})  # canonical's alone
 
 _NEGATED = {
     ast.Eq: ast.NotEq,
@@ -94,12 +95,14 @@ class Mutant:
     what: str  # e.g. ">= -> >"
     original_line: str
     mutated_line: str
+    at_import: bool  # at module level or in a class body: run when the module is imported
+    where: str  # the enclosing class and function ("SafetyCore.__init__"; "" at module level)
 
     @property
-    def key(self) -> tuple[str, str, str]:
-        """What identifies the mutant across edits elsewhere: its file and its line before and
-        after (``verify/equivalent.py`` lists equivalent mutants by it)."""
-        return self.file, self.original_line.strip(), self.mutated_line.strip()
+    def key(self) -> tuple[str, str, str, str]:
+        """What identifies the mutant across edits elsewhere: its file, where in it, and its
+        line before and after (``verify/equivalent.py`` lists equivalent mutants by it)."""
+        return self.file, self.where, self.original_line.strip(), self.mutated_line.strip()
 
     def source(self) -> str:
         data = (PACKAGE / self.file).read_bytes()
@@ -117,6 +120,8 @@ class _Finder(ast.NodeVisitor):
             self.offsets.append(self.offsets[-1] + len(line) + 1)
         self.found: list[Mutant] = []
         self._depth = 0  # functions entered (statements are dropped only inside one)
+        self._functions = 0  # functions entered, ``__init__`` included
+        self._where: list[str] = []  # the classes and functions around the node
 
     def at(self, line: int, col: int) -> int:
         return self.offsets[line - 1] + col
@@ -134,7 +139,13 @@ class _Finder(ast.NodeVisitor):
         mutated = (data[line_start:start] + replacement.encode() + data[end:line_end]).decode()
         mutated = mutated.split("\n")[0] if "\n" in mutated else mutated
         line = data.count(b"\n", 0, start) + 1
-        self.found.append(Mutant(self.file, line, start, end, replacement, what, original, mutated))
+        at_import = self._functions == 0
+        where = ".".join(self._where)
+        self.found.append(
+            Mutant(
+                self.file, line, start, end, replacement, what, original, mutated, at_import, where
+            )
+        )
 
     # -- what is left alone
 
@@ -146,13 +157,19 @@ class _Finder(ast.NodeVisitor):
         # assignment only fails later with AttributeError.
         depth = self._depth
         self._depth = 0 if node.name == "__init__" else depth + 1
+        self._functions += 1
+        self._where.append(node.name)
         self._body(node.body)
+        self._where.pop()
+        self._functions -= 1
         self._depth = depth
 
     visit_AsyncFunctionDef = visit_FunctionDef  # type: ignore[assignment]
 
     def visit_ClassDef(self, node: ast.ClassDef) -> None:
+        self._where.append(node.name)
         self._body(node.body)
+        self._where.pop()
 
     def _body(self, body: list[ast.stmt]) -> None:
         for index, statement in enumerate(body):
@@ -330,16 +347,15 @@ def _cache_dir() -> Path:
 
 def _fingerprint() -> str:
     digest = hashlib.sha256()
-    for path in sorted(
-        [*PACKAGE.glob("*.py"), *(ROOT / SUITE).glob("*.py"), *(ROOT / "verify").glob("*.py")]
-    ):
+    sources = [*PACKAGE.glob("*.py"), *(ROOT / SUITE).glob("*.py"), *(ROOT / "verify").glob("*.py")]
+    for path in sorted(p for p in sources if p.name not in ("mutate.py", "equivalent.py")):
         digest.update(path.name.encode() + path.read_bytes())
     return digest.hexdigest()[:16]
 
 
-def _forked(body: Any, timeout: float) -> int | None:
+def _spawn(body: Callable[[], int]) -> int:
     """Run ``body()`` (returning an exit code) in a child process with its output discarded;
-    its exit code, or ``None`` if it ran past ``timeout`` seconds (then it is killed)."""
+    the child's pid."""
     pid = os.fork()
     if pid == 0:  # the child
         code = 70
@@ -348,8 +364,18 @@ def _forked(body: Any, timeout: float) -> int | None:
             os.dup2(null, 1)
             os.dup2(null, 2)
             code = int(body())
+        except BaseException:
+            (_cache_dir() / "last-error.txt").write_text(traceback.format_exc())
+            raise
         finally:
             os._exit(code)
+    return pid
+
+
+def _forked(body: Callable[[], int], timeout: float) -> int | None:
+    """``body()``'s exit code in a child process, or ``None`` if it ran past ``timeout``
+    seconds (then it is killed)."""
+    pid = _spawn(body)
     deadline = time.monotonic() + timeout
     while True:
         done, status = os.waitpid(pid, os.WNOHANG)
@@ -428,8 +454,9 @@ def coverage() -> dict[str, dict[str, Any]]:
     return result
 
 
-def run(mutant: Mutant, tests: list[str], timeout: float) -> str:
-    """``killed``, ``timeout`` or ``survived``."""
+def _start(mutant: Mutant, tests: list[str]) -> int:
+    """The pid of a child running ``tests`` against ``mutant``: the mutated module served in
+    place of its file, stopping at the first failure."""
     module = f"supervisord.safety.{mutant.file.removesuffix('.py')}"
     source = mutant.source()
     storage = _cache_dir() / "hypothesis"
@@ -439,16 +466,19 @@ def run(mutant: Mutant, tests: list[str], timeout: float) -> str:
         sys.meta_path.insert(0, _MutantLoader(module, source, str(PACKAGE / mutant.file)))
         return int(pytest.main([*tests, "-x", "-q", "-p", "no:cacheprovider"]))
 
-    code = _forked(body, timeout)
-    if code is None:
-        return "timeout"
-    return "survived" if code == 0 else "killed"
+    return _spawn(body)
 
 
-def _run_all(found: list[Mutant], equivalent: set[tuple[str, str, str]]) -> dict[str, list[Mutant]]:
-    """Run every mutant of ``found`` against the tests that execute its line; each outcome
-    (``killed``, ``timeout``, ``survived``, ``equivalent``, ``listed but killed``) with its
-    mutants. The outcomes are also kept, as they come, for ``--survivors``."""
+CHECKER_TESTS = ("rejects_each_broken_core", "counterexample_is_a_regression_test")
+"""Tests of the checker itself: they load core.py from its file, so no mutant reaches them."""
+
+
+def _run_all(
+    found: list[Mutant], equivalent: set[tuple[str, str, str, str]], jobs: int
+) -> dict[str, list[Mutant]]:
+    """Run every mutant of ``found`` against the tests that execute its line, ``jobs`` at a
+    time; each outcome (``killed``, ``timeout``, ``survived``, ``equivalent``, ``listed but
+    killed``) with its mutants. The outcomes are also kept, as they come, for ``--survivors``."""
     tests = coverage()
     by_line: dict[tuple[str, int], list[str]] = {}
     for nodeid, seen in tests.items():
@@ -458,24 +488,49 @@ def _run_all(found: list[Mutant], equivalent: set[tuple[str, str, str]]) -> dict
     results = json.loads(results_path.read_text()) if results_path.exists() else {}
     outcomes: dict[str, list[Mutant]] = {}
     started = time.perf_counter()
-    for index, m in enumerate(found, 1):
-        selected = sorted(by_line.get((m.file, m.line), []), key=lambda t: tests[t]["seconds"])
-        if not selected:
-            outcome = "survived"  # no test executes the line
-        else:
-            budget = 30 + 5 * sum(tests[t]["seconds"] for t in selected)
-            outcome = run(m, selected, budget)
+
+    def record(m: Mutant, outcome: str) -> None:
         if m.key in equivalent:
             outcome = "equivalent" if outcome == "survived" else "listed but killed"
         outcomes.setdefault(outcome, []).append(m)
         results["|".join(m.key)] = outcome
         results_path.write_text(json.dumps(results, indent=1))
         if outcome in ("survived", "listed but killed"):
-            print(f"{outcome.upper()} {m.file}:{m.line}: {m.what}: {m.mutated_line.strip()}")
-        if index % 25 == 0 or index == len(found):
+            print(
+                f"{outcome.upper()} {m.file}:{m.line} {m.where}: {m.what}: {m.mutated_line.strip()}"
+            )
+        done = sum(len(v) for v in outcomes.values())
+        if done % 25 == 0 or done == len(found):
             counts = {k: len(v) for k, v in outcomes.items()}
-            print(f"... {index}/{len(found)} {counts} {time.perf_counter() - started:.0f} s")
+            print(f"... {done}/{len(found)} {counts} {time.perf_counter() - started:.0f} s")
         sys.stdout.flush()
+
+    waiting = list(found)
+    running: dict[int, tuple[Mutant, float]] = {}
+    while waiting or running:
+        while waiting and len(running) < jobs:
+            m = waiting.pop(0)
+            # A line run at import (a constant, a class attribute) reaches every test.
+            covering = list(tests) if m.at_import else by_line.get((m.file, m.line), [])
+            selected = [t for t in covering if not any(c in t for c in CHECKER_TESTS)]
+            if not selected:
+                record(m, "survived")  # no test executes the line
+                continue
+            selected.sort(key=lambda t: tests[t]["seconds"])
+            budget = 60 + 5 * sum(tests[t]["seconds"] for t in selected)
+            running[_start(m, selected)] = (m, time.monotonic() + budget)
+        pid, status = os.waitpid(-1, os.WNOHANG)
+        if pid:
+            m, _ = running.pop(pid)
+            record(m, "survived" if os.waitstatus_to_exitcode(status) == 0 else "killed")
+            continue
+        for pid, (m, deadline) in list(running.items()):
+            if time.monotonic() > deadline:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+                del running[pid]
+                record(m, "timeout")
+        time.sleep(0.05)
     return outcomes
 
 
@@ -485,6 +540,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--list", action="store_true", help="list the mutants and stop")
     parser.add_argument("--match", help="only the mutants whose changed line contains this text")
     parser.add_argument("--survivors", action="store_true", help="only the last run's survivors")
+    parser.add_argument("-j", "--jobs", type=int, default=1, help="mutants run at once")
     args = parser.parse_args(argv)
     from verify.equivalent import EQUIVALENT  # noqa: PLC0415 -- a data file, read when run
 
@@ -497,15 +553,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         found = [m for m in found if last.get("|".join(m.key)) != "killed"]
     if args.list:
         for m in found:
-            print(f"{m.file}:{m.line}: {m.what}: {m.mutated_line.strip()}")
+            print(f"{m.file}:{m.line} {m.where}: {m.what}: {m.mutated_line.strip()}")
         print(f"{len(found)} mutants")
         return 0
-    import hypothesis  # noqa: F401, PLC0415 -- loaded once here, shared by every forked run
-
     os.chdir(ROOT)
     sys.path.insert(0, str(ROOT))
     started = time.perf_counter()
-    outcomes = _run_all(found, {e.key for e in EQUIVALENT})
+    outcomes = _run_all(found, {e.key for e in EQUIVALENT}, args.jobs)
     count = {k: len(outcomes.get(k, [])) for k in ("killed", "timeout", "survived", "equivalent")}
     killed = count["killed"] + count["timeout"]
     print(
@@ -527,13 +581,14 @@ class Equivalent:
     """A mutant no test can tell from the original, and why."""
 
     file: str
+    where: str  # as Mutant.where
     original: str
     mutated: str
     why: str
 
     @property
-    def key(self) -> tuple[str, str, str]:
-        return self.file, self.original.strip(), self.mutated.strip()
+    def key(self) -> tuple[str, str, str, str]:
+        return self.file, self.where, self.original.strip(), self.mutated.strip()
 
     def json(self) -> dict[str, str]:
         return asdict(self)

@@ -81,18 +81,22 @@ class RecordBudget:
         return max(due)
 
     def canonical(self, now: int) -> tuple[Clock, ...]:
-        """Every record still inside the window, per user and for all, as a clock
-        (docs/verification.md): older ones never count again. ``limit``, ``total`` and
-        ``window_ns`` are constants."""
+        """The records that can still change an answer, per user and for all, as clocks
+        (docs/verification.md): a window is exhausted exactly while its ``limit``-th newest
+        record is less than a window old, so only the ``limit`` newest inside the window
+        count (``total`` for all users). ``limit``, ``total`` and ``window_ns`` are constants."""
         window = self.window_ns
+
+        def newest(times: deque[int], cap: int) -> list[int]:
+            return [t for t in list(times)[-cap:] if now - t < window]
+
         users = sorted(self._times.items(), key=lambda item: (item[0] is None, item[0] or 0))
         clocks = [
             clock(f"budget:{uid}", t, now, window)
             for uid, times in users
-            for t in times
-            if now - t < window
+            for t in newest(times, self.limit)
         ]
-        clocks += [clock("budget:all", t, now, window) for t in self._all if now - t < window]
+        clocks += [clock("budget:all", t, now, window) for t in newest(self._all, self.total)]
         return tuple(clocks)
 
     def charge(self, uid: Uid, now: int) -> None:

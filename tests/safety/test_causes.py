@@ -170,6 +170,33 @@ def test_startup_is_stopped_with_cause_startup() -> None:
     assert first.records[0].sequence == 1
 
 
+def test_startup_names_exactly_the_causes_of_a_new_start() -> None:
+    """SR-1.3, SR-2.2, SR-2.3, SR-2.4, SR-5.3, docs/safety.md choices 4 and 5: at start the
+    link is not open, no VSC heartbeat and no client has been seen, key 85 has not answered;
+    nothing else is a cause (no e-stop word before any heartbeat)."""
+    first = Rig().last
+    assert first.active_names == {
+        "transport_fault",
+        "vsc_link_lost",
+        "vsc_watchdog_off",
+        "client_lost:planner",
+    }
+    assert first.latched_names == first.active_names | {"startup"}
+
+
+def test_a_vsc_message_before_the_link_opened_is_refused_and_changes_nothing() -> None:
+    """SR-2.3, SR-2.10: the link is closed until the daemon says it opened (docs/safety.md
+    choice 5): a VSC message before that is refused, and neither clears the silence nor moves
+    any other cause."""
+    rig = Rig()
+    first = rig.last
+    rig.advance(10)
+    decision = rig.vsc(OPERATIONAL)
+    assert [r.reason for r in decision.refusals] == [RefusalReason.LINK_NOT_OPEN]
+    assert decision.active_names == first.active_names
+    assert not decision.records
+
+
 def test_vsc_estop_record_names_the_sources() -> None:
     """SR-2.1, PR-6.6: a VSC e-stop's details name every source in the e-stop word, and a new source
     while active is recorded as an update."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -126,6 +127,33 @@ def test_heartbeats_faster_than_the_vsc_can_send_are_no_takeover() -> None:
     refused = rig.vsc(OPERATIONAL)
     assert refused.state is State.STOPPED
     assert [r.reason for r in refused.refusals] == [RefusalReason.VSC_TOO_FAST]
+
+
+@pytest.mark.parametrize(("beats", "rearmed"), [(13, True), (14, False)])
+def test_the_rate_allows_two_heartbeats_read_together_and_no_more(
+    beats: int, rearmed: bool
+) -> None:
+    """SR-4.5, docs/safety.md rule 4: over 220 ms from the run's first heartbeat, the run and
+    the Operational heartbeat may hold 220 // 20 + 1 = 12 heartbeats at the VSC's fastest rate,
+    plus 2 read together: 14 re-arm, 15 are refused as too fast."""
+    rig = Rig()
+    rig.stopped_and_cleared()
+    rig.run_for(1000, OPERATIONAL)
+    rig.advance(50)
+    first = rig.now
+    _beat(rig, LOCAL)
+    for _ in range(beats - 2):  # 10 ms apart: faster than a VSC, within the allowance or not
+        rig.advance(10)
+        _beat(rig, LOCAL)
+    rig.now = first + DWELL_MS * MS
+    _beat(rig, LOCAL)  # the run spans the dwell exactly
+    rig.now = first + (DWELL_MS + FASTEST_MS) * MS
+    decision = rig.vsc(OPERATIONAL)
+    if rearmed:
+        assert decision.state is State.RUN, decision.refusals
+    else:
+        assert decision.state is State.STOPPED
+        assert [r.reason for r in decision.refusals] == [RefusalReason.VSC_TOO_FAST]
 
 
 def test_heartbeats_read_together_still_make_a_takeover() -> None:
