@@ -21,6 +21,7 @@ from typing import Any, Final, TextIO
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.api.requests import ProofTest
 from supervisord.cli.log import interruptible
+from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.record_text import (
     MARK_MEANS,
     cause_set,
@@ -164,6 +165,18 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         "prove the VSC's key-85 watchdog again: withhold the heartbeat, see the VSC stop "
         "(admin; only while STOPPED)",
     )
+    ready = add(
+        "wait-ready",
+        "wait until the stop path works: the VSC heard, its watchdog on and proven, every "
+        "output held and reading back; exit 0, or 1 naming what is missing (3: no srcsd)",
+    )
+    ready.add_argument(
+        "--timeout",
+        type=float,
+        default=DEFAULT_TIMEOUT_S,
+        metavar="S",
+        help=f"give up after S seconds (default {DEFAULT_TIMEOUT_S:g})",
+    )
 
 
 COMMANDS: Final = frozenset(
@@ -178,6 +191,7 @@ COMMANDS: Final = frozenset(
         "vibrate",
         "commission",
         "prooftest",
+        "wait-ready",
     }
 )
 
@@ -196,6 +210,8 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     if args.command == "watch":
         return _watch(path, args, out, err)
     try:
+        if args.command == "wait-ready":
+            return wait_ready(path, args.timeout, out, err)
         with SupervisorClient.connect(path, timeout=10.0) as client:
             return _one_shot(client, args, out)
     except ConnectError as error:

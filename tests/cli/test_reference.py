@@ -88,7 +88,9 @@ def missing_from_page(command: Command, page: str) -> list[str]:
             f"{path} {word}" for word in _positional_words(parser) if _roff(word) not in after
         ]
         missing += [
-            f"{path} {name}" for name in _subcommands(parser) if f"{path} {name}" not in after
+            f"{path} {name}"
+            for name in _subcommands(parser)
+            if _roff(f"{path} {name}") not in after
         ]
     return missing
 

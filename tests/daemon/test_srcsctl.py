@@ -621,3 +621,41 @@ def test_a_robot_is_chosen_by_its_name(tmp_path: Path) -> None:
         missing = subprocess.run([SRCSCTL, *args], capture_output=True, text=True, check=False)
         assert missing.returncode == 2, missing.stderr
         assert "/etc/srcs/srcs-test-none.toml does not exist" in missing.stderr
+
+
+def test_wait_ready_passes_once_the_stop_path_works(robot: Robot) -> None:
+    """SR-8.10: ``wait-ready`` exits 0 once the VSC is heard, its watchdog proven and the
+    outputs held; the supervisor is still STOPPED (ready is not armed)."""
+    done = robot.ctl("wait-ready", "--timeout", "30")
+    assert done.returncode == 0, done.stderr
+    assert "ready" in done.stdout
+    status = robot.status()
+    assert status["state"] == "STOPPED"
+    assert status["prooftest"]["phase"] == "passed"  # type: ignore[index]
+
+
+def test_wait_ready_names_what_is_missing(tmp_path: Path) -> None:
+    """SR-8.10: with no VSC answering, ``wait-ready`` gives up at its timeout with exit 1,
+    naming what is missing; with no supervisor at all, exit 3."""
+    config = tmp_path / "robot.toml"
+    config.write_text(CONFIG)
+    nobody = subprocess.run(
+        [SRCSCTL, "wait-ready", "--config", str(config), "--timeout", "0.5"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    assert nobody.returncode == 3, nobody.stderr
+    assert "no supervisor answers" in nobody.stderr
+    with PtyPort(tmp_path / "vsc"), SrcsdProcess(config).start():
+        silent = subprocess.run(
+            [SRCSCTL, "wait-ready", "--config", str(config), "--timeout", "1"],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            check=False,
+        )
+    assert silent.returncode == 1, silent.stderr
+    assert "not ready after 1 s" in silent.stderr
+    assert "the VSC is not heard" in silent.stderr
