@@ -132,7 +132,8 @@ COMMANDS: tuple[Command, ...] = (
             "srcsctl talks to a running srcsd(8) over its API socket: its state and causes "
             "(status, watch), a stop or hold from the vehicle computer (estop, hold, release, "
             "reset), the remote's screen and vibration, the VSC's watchdog (commission, "
-            "prooftest), and the gate a robot's services start behind (wait-ready). It also reads files: the record of stops (log), the flight "
+            "prooftest), and the gate a robot's services start behind (wait-ready). It also "
+            "reads files: the record of stops (log), the flight "
             "recorder's window of a stop, replayed through a fresh safety core and checked "
             "against the record (replay), and captures of VSC traffic (decode). The demo runs "
             "the supervisor against the simulated VSC.",
