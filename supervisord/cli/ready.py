@@ -1,21 +1,15 @@
-"""``srcsctl wait-ready``: the gate a robot's own services start behind (SR-8.10;
-docs/srcsctl.md "Starting behind the supervisor").
-
-Ready means the stop path works, not that the robot may move: the supervisor answers, the VSC
-is heard, its key-85 watchdog is on and proven by a proof test (unless the configuration has no
-proof test: CAN, HID, ``vsc.prooftest = "off"``), every output is held by the supervisor and
-reads back what it was told, and no internal fault stands. The state is not asked for: a
-supervisor that is STOPPED until the operator's takeover is ready, and one already in RUN (a
-robot service restarted) is ready too.
-"""
+"""``srcsctl wait-ready``: wait until the supervisor is ready (SR-8.10; what that means is
+``supervisord/api/readiness.py``, for integrators docs/srcsctl.md "Starting behind the
+supervisor")."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Final, TextIO
+from typing import Final, TextIO
 
+from supervisord.api.readiness import missing
 from supervisord.client import ClientError, ConnectError, SupervisorClient
 
 POLL_S: Final = 0.2
@@ -23,33 +17,6 @@ POLL_S: Final = 0.2
 DEFAULT_TIMEOUT_S: Final = 60.0
 """Longer than a start with a proof test (about 2 s) by far; shorter than systemd's default
 start timeout (90 s), so that the gate, not systemd, says what is missing."""
-
-BLOCKING_CAUSES: Final[Mapping[str, str]] = {
-    "vsc_link_lost": "the VSC is not heard",
-    "transport_fault": "the link to the VSC has failed",
-    "vsc_watchdog_off": "the VSC's key-85 watchdog is off",
-    "output_fault": "an output does not read back what it was told",
-    "internal": "the supervisor has an internal fault",
-}
-"""Active causes that mean the stop path does not work, and how each is said."""
-
-
-def missing(status: Mapping[str, Any]) -> list[str]:
-    """What keeps the supervisor whose ``status`` reply this is from being ready, in words;
-    empty when it is ready."""
-    gaps: list[str] = []
-    link = status.get("daemon", {}).get("link", {})
-    if not link.get("open"):
-        gaps.append(f"the link to the VSC is not open ({link.get('description', 'no link')})")
-    active = {cause.get("name") for cause in status.get("causes", []) if cause.get("active")}
-    gaps += [text for name, text in BLOCKING_CAUSES.items() if name in active]
-    proof = status.get("prooftest") or {}
-    if proof.get("policy", "off") != "off" and proof.get("phase") != "passed":
-        gaps.append(f"the proof test of the VSC's watchdog has not passed ({proof.get('phase')})")
-    not_held = status.get("daemon", {}).get("outputs_not_acquired", [])
-    if not_held:
-        gaps.append(f"outputs not held by the supervisor: {', '.join(not_held)}")
-    return gaps
 
 
 def wait_ready(

@@ -28,6 +28,7 @@ from sensor_msgs.msg import Joy, NavSatFix, NavSatStatus
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from supervisord.api.readiness import missing
 from supervisord.client import Push, SupervisorClient
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
@@ -82,6 +83,8 @@ class BridgeNode(Node):
         self.joy_pub = self.create_publisher(Joy, "joy", STREAM)
         self.state_pub = self.create_publisher(String, "state", LATCHED)
         self.estop_pub = self.create_publisher(Bool, "estop", LATCHED)
+        self.ready_pub = self.create_publisher(Bool, "ready", LATCHED)
+        self._ready: bool | None = None
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", STREAM)
         self.gps_pub = self.create_publisher(NavSatFix, "gps", STREAM)
         kind = TwistStamped if self.stamped else Twist
@@ -104,6 +107,7 @@ class BridgeNode(Node):
             self.create_service(Trigger, service, self._trigger(call))
 
         self._set_state(State.STOPPED)  # until the supervisor says otherwise
+        self._set_ready(False)
         self._publish_diagnostics(force=True)
         self.create_timer(float(p["poll_period"]), self._on_poll)
         self.create_timer(float(p["heartbeat_period"]), self._on_heartbeat)
@@ -128,6 +132,7 @@ class BridgeNode(Node):
         if status is not None:
             self._daemon = status.get("daemon")
             self._on_status(status)
+            self._set_ready(not missing(status))
         self._handle(self.link.take())
         self._publish_diagnostics(force=True)
 
@@ -139,10 +144,12 @@ class BridgeNode(Node):
                 self.get_logger().info(f"connected to {self.socket} as {self.client_name}")
                 self._daemon = event.status.get("daemon")
                 self._on_status(event.status)
+                self._set_ready(not missing(event.status))
             elif isinstance(event, Lost):
                 self.get_logger().error(f"lost the supervisor: {event.reason}")
                 self._status = None
                 self._set_state(State.STOPPED)
+                self._set_ready(False)
             elif event.event == "state":
                 self._on_status(event.data)
             elif event.event == "joystick":
@@ -166,6 +173,13 @@ class BridgeNode(Node):
         self.state_pub.publish(String(data=state.value))
         if old is None or estop_of(old) != estop_of(state):
             self.estop_pub.publish(Bool(data=estop_of(state)))
+
+    def _set_ready(self, ready: bool) -> None:
+        """``ready``: the stop path works (SR-8.10), latched, on a change; from the full
+        ``status`` the bridge asks for at each diagnostics period."""
+        if ready is not self._ready:
+            self._ready = ready
+            self.ready_pub.publish(Bool(data=ready))
 
     def _publish_joy(self, push: Push) -> None:
         values = joy_values(push.data)

@@ -158,6 +158,22 @@ def test_services_estop_and_hold(robot: tuple[Robot, BridgeProcess], ros: RosPee
     ros.spin_until(lambda: ros.estop[-1:] == [False], what="estop false again")
 
 
+def test_ready_says_when_the_stop_path_works(
+    robot: tuple[Robot, BridgeProcess], ros: RosPeer
+) -> None:
+    """SR-8.10: ``ready`` (latched) is true once the supervisor is ready (the VSC heard,
+    its watchdog proven), while STOPPED, as ``srcsctl wait-ready`` sees it; false while the
+    supervisor is gone, true again once it is back. (The false the bridge latches at its start
+    reaches only a subscriber discovered before the true replaced it: not asserted.)"""
+    running, _ = robot
+    ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true")
+    assert running.status()["state"] == "STOPPED"
+    assert running.stop_daemon() == 0
+    ros.spin_until(lambda: ros.ready[-1:] == [False], what="ready false without srcsd")
+    running.start_daemon()
+    ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true after the restart")
+
+
 def test_killed_bridge_stops_the_robot(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
     """With ``ros`` a required client, killing the bridge stops the robot within the
     client timeout (500 ms, plus the harness's scheduling allowance)."""

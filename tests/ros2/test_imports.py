@@ -34,6 +34,7 @@ CLIENT_MODULES = frozenset(
 """Every module ``import supervisord.client`` loads: the named set of docs/ros2.md."""
 BRIDGE_MODULES = frozenset(
     {
+        "supervisord.api.readiness",
         "supervisord.cli",
         "supervisord.cli.ros2",
         "supervisord.ros2",

@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from supervisord.cli.ready import BLOCKING_CAUSES, missing
+from supervisord.api.readiness import BLOCKING_CAUSES, missing
 
 
 def status(*active: str, phase: str = "passed", policy: str = "block") -> dict[str, Any]:
@@ -33,9 +33,9 @@ def test_a_working_stop_path_is_ready_whatever_the_state_and_the_stops() -> None
     assert missing(status("vsc_estop", "client_hold:planner", "startup")) == []
 
 
-@pytest.mark.parametrize("cause", sorted(BLOCKING_CAUSES))
+@pytest.mark.parametrize("cause", [*sorted(BLOCKING_CAUSES), "output_fault:drive"])
 def test_each_cause_that_breaks_the_stop_path_is_named(cause: str) -> None:
-    assert missing(status(cause)) == [BLOCKING_CAUSES[cause]]
+    assert missing(status(cause)) == [BLOCKING_CAUSES[cause.split(":", maxsplit=1)[0]]]
     latched_only = status(cause)
     latched_only["causes"][0]["active"] = False
     assert missing(latched_only) == []
