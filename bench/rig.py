@@ -192,7 +192,7 @@ class TurnStats:
 
 
 def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
-    """``--slow-disk`` (issue 14 item 3): every ``os.fsync`` of this child process (the stop
+    """``--slow-disk`` (SR-7.5): every ``os.fsync`` of this child process (the stop
     record's, in the record sink's thread) takes ``delay_s`` longer, as on a slow SD card. It
     sleeps after the real fsync: a sleep releases the GIL as a blocking fsync does, so the
     loop's thread runs meanwhile exactly as it would. The delay ends when the bench stops the

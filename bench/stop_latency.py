@@ -2,14 +2,15 @@
 
 Run: ``.venv/bin/python -m bench.stop_latency [--stops N] [--blocks B] [--loaded]``.
 
-By default one invocation measures the three loops side by side (issue 14): srcsd's loop, the
-bare event-driven loop (the platform's floor) and the 50 Hz polling model of the public
-drivers, interleaved in ``--blocks`` blocks of ``N / B`` stops each, the order rotating from
-block to block, so that the three share the machine's state (load, the host's steal, caches,
-frequency). It prints each loop's percentiles and the ratios srcsd/bare and poll/srcsd, with
-the load average and the host's steal time over the run (``/proc/stat``): on a virtual
-machine the absolute tails say more about the host than about the supervisor, the ratios of
-one run do not. ``--model M`` measures one loop alone (``srcsd`` is ``supervisor``).
+By default one invocation measures the three loops side by side (docs/performance.md "Stop
+latency"): srcsd's loop, the bare event-driven loop (the platform's floor) and the 50 Hz
+polling model of the public drivers, interleaved in ``--blocks`` blocks of ``N / B`` stops
+each, the order rotating from block to block, so that the three share the machine's state
+(load, the host's steal, caches, frequency). It prints each loop's percentiles and the ratios
+srcsd/bare and poll/srcsd, with the load average and the host's steal time over the run
+(``/proc/stat``): on a virtual machine the absolute tails say more about the host than about
+the supervisor, the ratios of one run do not. ``--model M`` measures one loop alone (``srcsd``
+is ``supervisor``).
 ``--loaded`` starts two busy processes per core (unpinned) for the whole run, and runs every
 loop under the service unit's own scheduling settings (``units/srcsd@.service``: its
 ``Nice=``, and ``CPUSchedulingPolicy=fifo`` with its priority if the unit sets it; as root).
@@ -31,7 +32,7 @@ poll50`` runs the same stops against a model of the public drivers' 20 ms pollin
 ``--model event`` against a bare event-driven loop, the floor of any Python loop here.
 
 ``--client-flood`` serves the client API on a socket and runs the same stops while a client
-pipelines hold/release and every other request kind into it as fast as it can (issue 11,
+pipelines hold/release and every other request kind into it as fast as it can (SR-10.1,
 ``bench/rig.py``). Its holds would switch a motion output by themselves, so with the flood the
 measured output is a power output (off only when STOPPED) and every stop is an e-stop with
 its re-arm; compare it with the e-stop row of a quiet run. The user heartbeat's periods as
@@ -77,7 +78,8 @@ from supervisord.protocol.codes import VscMode
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (PR-2)
 TARGET_P99_NS = 2_000_000  # SR-9.1
-TARGET_P50_RATIO = 1.3  # issue 14: srcsd's median within 1.3 times the bare loop's, same run
+# docs/performance.md "Targets": srcsd's median within 1.3 times the bare loop's, same run
+TARGET_P50_RATIO = 1.3
 TARGET_P99_RATIO = 1.5  # and its p99 within 1.5 times
 SIDE_BY_SIDE = ("supervisor", "event", "poll50")
 SLOW_DISK = "slowdisk"  # srcsd's loop with a record fsync 50 ms slower (``--slow-disk``)
@@ -394,7 +396,7 @@ def steal_share(before: CpuTimes, after: CpuTimes) -> float | None:
 
 def steal_text(before: CpuTimes) -> str:
     """The host's steal time since ``before``, as every timing bench prints it with the load
-    (issue 14: on a virtual machine the host takes CPU time the guest cannot see otherwise)."""
+    (on a virtual machine the host takes CPU time the guest cannot see otherwise)."""
     steal = steal_share(before, CpuTimes.read())
     share = f"{steal * 100:.1f} %" if steal is not None else "unknown"
     return f"host steal during the run: {share} of CPU time"
@@ -577,7 +579,7 @@ def report(measured: dict[str, list[Stop]], models: Sequence[str], periods: list
             value = percentile(own, share) / percentile(floor, share)
             verdict = "PASS" if value <= target else "FAIL"
             print(
-                f"issue 14 target: srcsd p{share * 100:g} within {target} x bare -> "
+                f"side-by-side target: srcsd p{share * 100:g} within {target} x bare -> "
                 f"{value:.2f}: {verdict}"
             )
     headline = "supervisor" if "supervisor" in measured else models[0]

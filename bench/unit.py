@@ -2,7 +2,7 @@
 
 ``units/srcsd@.service`` runs the daemon with ``Nice=``, ``CPUSchedulingPolicy=fifo`` at
 ``CPUSchedulingPriority=`` and ``LimitRTTIME=soft:hard`` (docs/install.md "Scheduling",
-issue 14 item 2). The timing benches run the loops under the same settings with ``--loaded``,
+SR-9). The timing benches run the loops under the same settings with ``--loaded``,
 and ``bench.rt_budget`` starts the daemon under them; this module reads them from the unit file
 (one parser for all) and applies them. It imports nothing of the product.
 """

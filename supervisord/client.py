@@ -307,7 +307,7 @@ def _connect(path: Path, timeout: float) -> socket.socket:
     server accepts and makes room, in slices so a missed wake-up costs one slice at most. The
     server's backlog is large (docs/api.md "The socket"), but connection churn by other
     programs can still fill it, and the operator's ``srcsctl estop`` must not fail on that
-    (issue 11: 7 of 10 ``srcsctl status`` calls failed at once under churn)."""
+    (SR-8.4: without the wait, 7 of 10 ``srcsctl status`` calls failed at once under churn)."""
     budget = max(0.0, min(timeout, BACKLOG_WAIT_S))
     deadline = time.monotonic() + budget
     while True:

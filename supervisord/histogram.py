@@ -1,4 +1,4 @@
-"""A fixed-bucket histogram of monotonic-clock durations, for the loop's own timing (issue 13).
+"""A fixed-bucket histogram of monotonic-clock durations, for the loop's own timing.
 
 The loop observes three durations with it (docs/fleet.md "Timing histograms"): the VSC
 heartbeat period, the user heartbeat period, and the stop-to-off latency. ``observe`` is a

@@ -1,4 +1,4 @@
-"""The package's layers: the product never leans on its test kit (issue 15).
+"""The package's layers: the product never leans on its test kit.
 
 ``supervisord/testkit/`` is for tests, the product's and integrators'; it may import the
 product, never the reverse, so that what ships to a robot works without it and a change to the

@@ -87,8 +87,9 @@ def user_name(uid: int) -> str:
 
     A name that is not UTF-8 (the password database holds bytes; Python hands the bad ones on
     as lone surrogates) is escaped here, at its source: ``r\\xe9mi``. Raw, it would reach the
-    record and every reply naming the caller, whose encoders cannot write it (issue 11: the
-    stop record of that user's ``srcsctl estop`` was lost and ``status`` stopped answering)."""
+    record and every reply naming the caller, whose encoders cannot write it (SR-8.7: the
+    stop record of that user's ``srcsctl estop`` was lost and ``status`` stopped answering
+    before it was escaped)."""
     try:
         return clean(pwd.getpwuid(uid).pw_name)
     except KeyError:

@@ -221,7 +221,7 @@ def _request_id(obj: Mapping[str, object]) -> RequestId:
         raise ApiError(ErrorCode.BAD_REQUEST, f"id text may be at most {MAX_ID_LENGTH} long")
     if isinstance(value, str) and not is_clean(value):
         # A lone surrogate ("\ud800") is valid JSON but no UTF-8: it could not be echoed in
-        # the reply, so the request is refused without an id (issue 11).
+        # the reply, so the request is refused without an id (SR-8.7).
         raise ApiError(ErrorCode.BAD_REQUEST, "id text must be Unicode (no lone surrogates)")
     if isinstance(value, int) and not -(2**63) <= value < 2**63:
         raise ApiError(ErrorCode.BAD_REQUEST, "id must fit in 64 signed bits")

@@ -15,7 +15,7 @@ hands every ready one back to :meth:`ApiServer.handle`, which returns typed resu
 non-blocking; output waits in a bounded buffer per connection, and a client whose buffer
 overflows (stopped, or too slow to read) is disconnected: it can never block the loop.
 
-Two rules keep the stop path open whatever the other programs do (issue 11,
+Two rules keep the stop path open whatever the other programs do (SR-8.4,
 ``docs/safety.md`` "The client socket cannot shut out a stop"):
 
 - **e-stop slots**: past ``max_clients`` a connection takes one of ``reserved_slots`` slots on
@@ -81,7 +81,7 @@ DEFAULT_MAX_OUTPUT: Final = 256 * 1024
 RECV_SIZE: Final = 16 * 1024  # bytes looked at per readable event: bounded work per loop turn
 ACCEPTS_PER_CALL: Final = 32
 # Connections the kernel queues before we accept them. Under connect/disconnect churn 16 was
-# full at once and the operator's srcsctl got EAGAIN (issue 11); the kernel caps it at
+# full at once and the operator's srcsctl got EAGAIN (SR-8.4); the kernel caps it at
 # net.core.somaxconn. The client also retries a full backlog briefly (supervisord/client.py).
 BACKLOG: Final = 512
 DEFAULT_RESERVED_SLOTS: Final = 4
@@ -361,8 +361,8 @@ class ApiServer:
         """Read what one connection sent and return its requests (and its end, if it ended).
 
         At most the connection's share of this turn's budget is read: lines past it stay in
-        the socket, which is therefore readable again on the next turn (issue 11: one client
-        pipelining 16 KiB of requests made ~350 requests, each a record, in one turn)."""
+        the socket, which is therefore readable again on the next turn (SR-10.1: one client
+        pipelining 16 KiB of requests used to make ~350 requests, each a record, in one turn)."""
         conn = self._by_fd.get(fd)
         if conn is None:
             return []

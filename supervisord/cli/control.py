@@ -232,7 +232,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
 
 
 def denied(path: Path, error: ConnectError) -> str:
-    """A refused ``connect`` said as such (issue 13: it read "is srcsd running?"), with the
+    """A refused ``connect`` said as such (it used to read "is srcsd running?"), with the
     fix: the socket is 0660, its group's members may connect (docs/api.md "The socket")."""
     try:
         group = grp.getgrgid(path.stat().st_gid).gr_name
@@ -457,7 +457,7 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     """Follow the daemon until Ctrl-C or SIGTERM, reconnecting when it restarts.
 
     The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
-    it is printed once, and with ``--json`` every line is a push (issue 13); the human form
+    it is printed once, and with ``--json`` every line is a push; the human form
     starts with one line about the daemon (version, uptime, clients) from ``status``."""
     interruptible()
     topics = [

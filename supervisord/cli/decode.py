@@ -255,7 +255,7 @@ class _Run:
 
 def _write(objects: Iterable[dict[str, Any]], out: IO[str]) -> None:
     """One JSON line per object, flushed at once: a pipe's reader sees each frame as it is
-    decoded, not when a block buffer fills (issue 13)."""
+    decoded, not when a block buffer fills."""
     for obj in objects:
         out.write(json.dumps(obj) + "\n")
         out.flush()

@@ -39,7 +39,7 @@ from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
 
 # Package data next to this module, so that an installed wheel or the Debian package runs the
-# demo without the repository (issue 13).
+# demo without the repository.
 DEMO_CONFIG: Final = Path(__file__).resolve().with_name("demo.toml")
 FRAME_S: Final = 0.1
 TAKEOVER_TRIES: Final = 3

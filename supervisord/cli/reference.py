@@ -6,12 +6,13 @@
 ``man`` writes srcsd.8, srcsctl.1, srcs-sim.1 and srcs-exporter.8; ``completion`` writes one
 bash file per command, named after it (bash-completion's convention), and zsh's ``_NAME``.
 
-The package build runs both (issue 13, item 9). The options, their arguments and help, the
-commands of ``srcsctl`` and their usage lines come from the very parsers the programs parse
-with (each module's ``build_parser()``), through two libraries: argparse-manpage for the roff
-and shtab for the completion scripts. A page therefore cannot list an option the program has
-lost, nor miss one it gained. What a parser does not know is written here, once per command:
-a description for a person, the exit statuses, the environment, the files and related pages.
+The package build runs both (docs/srcsctl.md "Man pages and completion"). The options, their
+arguments and help, the commands of ``srcsctl`` and their usage lines come from the very
+parsers the programs parse with (each module's ``build_parser()``), through two libraries:
+argparse-manpage for the roff and shtab for the completion scripts. A page therefore cannot
+list an option the program has lost, nor miss one it gained. What a parser does not know is
+written here, once per command: a description for a person, the exit statuses, the environment,
+the files and related pages.
 
 ``srcs-ros2`` has no page: it takes ROS's own arguments (``--ros-args -p NAME:=VALUE``) and
 has no argparse parser to generate one from (docs/ros2.md).

@@ -22,7 +22,7 @@ CONFIG_DIR = Path("/etc/srcs")
 def default_config(directory: Path = CONFIG_DIR) -> Path:
     """The config ``log`` reads when none is named: the only ``*.toml`` in ``directory``.
     Raises :class:`LookupError` naming the choices when there is none or more than one
-    (issue 13: a fixed ``srcsd.toml`` was a file install.md never makes)."""
+    (a fixed ``srcsd.toml``, the old default, is a file install.md never makes)."""
     found = sorted(directory.glob("*.toml"))
     if len(found) == 1:
         return found[0]

@@ -23,7 +23,7 @@ from supervisord.errors import SrcsError
 EXIT_CONFIG: Final = 78
 """sysexits.h EX_CONFIG, systemd's "not configured": the unit lists it in
 RestartPreventExitStatus=, so a bad or missing config fails once instead of restarting five
-times (issue 13; docs/install.md "Exit status")."""
+times (SR-11.2; docs/install.md "Exit status")."""
 EXIT_CANNOT_START: Final = 1
 """Valid config, but a resource could not be had (the record's directory, the socket held by
 another server): worth a restart, as Restart=on-failure does."""
@@ -70,7 +70,7 @@ def stderr_is_journal(stream: TextIO = sys.stderr) -> bool:
 
 def setup_logging(verbose: bool, stream: TextIO = sys.stderr) -> logging.Handler:
     """Log lines to ``stream``: with their syslog priority prefix when it is the journal
-    (issue 13: `journalctl -p warning` must see the daemon's warnings), else as
+    (`journalctl -p warning` must see the daemon's warnings), else as
     ``srcsd: LEVEL: message`` for a person at a terminal. The prefixes need nothing but
     stderr: no journal library, no compiler on the robot. The sink's log lane
     (``daemon/sink.py``) later writes every line with this handler's formatter to its stream's
@@ -200,8 +200,8 @@ def _serve(path: str, log: logging.Logger) -> int:
         api = build_api(config)
         supervisor = build_supervisor(config, api)
     except (SrcsError, OSError, Interrupted) as error:
-        # A start that fails after the socket was made removes it (issue 11: a failed start
-        # left a stale api.sock; the next start would replace it, but clients saw a path that
+        # A start that fails after the socket was made removes it (a failed start used to
+        # leave a stale api.sock; the next start would replace it, but clients saw a path that
         # looked served). close() removes the file only if it is still ours.
         if api is not None:
             api.close()

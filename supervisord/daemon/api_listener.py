@@ -52,7 +52,7 @@ class ApiListener(Listener):
         self.has_key85 = has_key85
         self.robot = robot
         self.required = dict(required or {})
-        # For ``status`` (issue 13; docs/api.md): each connection's last accepted heartbeat,
+        # For ``status`` (docs/api.md "status"): each connection's last accepted heartbeat,
         # the latest remote status and when it came, and when the current state began.
         self._beats: dict[int, int] = {}
         self._remote: tuple[RemoteStatus, int] | None = None
@@ -107,7 +107,7 @@ class ApiListener(Listener):
             self._closed += self.server.send(result.client.connection, state_push(self.last))
 
     def _status_extra(self, now: int) -> dict[str, object]:
-        """What ``status`` says beyond the daemon's counters (issue 13; docs/api.md): the
+        """What ``status`` says beyond the daemon's counters (docs/api.md "status"): the
         clients, the remote's last status, the time in the current state. Built from what
         the listener saw, never from input it cannot trust: names passed the server's check."""
         every = self.server.clients()

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
 # python-can (and ``links.can_link``, which imports it) is imported only when the config names
 # a CAN bus: it costs a serial robot several MB resident and tens of ms of start-up for nothing
-# (issue 14; SR-9.4; docs/performance.md "Start-up and memory").
+# (SR-9.4; docs/performance.md "Start-up and memory").
 
 log = logging.getLogger("srcsd")
 

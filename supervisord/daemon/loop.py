@@ -7,7 +7,7 @@ frames to the VSC (SR-6). Every turn serves the stop path first: the link to the
 VSC, then the core's timers (user heartbeat, link-loss and client deadlines), and only then a
 bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when the link has
 more to read or a deadline has come), so no client can push the VSC's next frame or the user
-heartbeat back (issue 11, ``docs/safety.md`` "The stop path first").
+heartbeat back (SR-10.1, ``docs/safety.md`` "The stop path first").
 
 Records, journal entries and log lines leave the loop through the :class:`~supervisord.daemon.
 sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
@@ -93,8 +93,8 @@ class Counters:
 
 @dataclass
 class Timings:
-    """The loop's own timing, on its monotonic clock, since the daemon started (issue 13;
-    docs/fleet.md "Timing histograms")."""
+    """The loop's own timing, on its monotonic clock, since the daemon started
+    (docs/fleet.md "Timing histograms")."""
 
     vsc_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
     user_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
@@ -204,7 +204,7 @@ class Supervisor:
         self._client_cursor = -1  # the last client descriptor served: the next turn starts after
         self._limited_unlogged = 0
         self._next_limit_log = 0
-        self._started_ns: int | None = None  # for ``status``: uptime (issue 13)
+        self._started_ns: int | None = None  # for ``status``: uptime
         self._version_due = True  # the first record of this start names the version
         self._link_since_ns: int | None = None  # when the link last opened or broke
         self._link_error: str | None = None  # why it last broke or failed to open
@@ -217,7 +217,7 @@ class Supervisor:
 
     def info(self) -> dict[str, object]:
         """What ``status`` adds about the daemon itself: its version and uptime, the link and
-        the loop's counters (docs/api.md "status"; issue 13)."""
+        the loop's counters (docs/api.md "status")."""
         counters = self.counters
         now = self.clock()
         return {
@@ -234,7 +234,7 @@ class Supervisor:
                 "since_s": _seconds(now, self._link_since_ns),
                 "last_error": self._link_error,
                 # CAN only (null on serial and HID): error frames counted since start, each
-                # one stopping nothing (docs/safety.md "CAN error frames", issue 14).
+                # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
                 "error_frames": _error_frames(self.link),
             },
             "outputs_not_acquired": sorted(self._acquiring),
@@ -344,7 +344,7 @@ class Supervisor:
             self.start()
             if self.sink is not None:
                 # Log lines leave the loop through the sink too: a slow stderr or journald
-                # must not hold the loop (issue 11).
+                # must not hold the loop (SR-7.5).
                 self.sink.capture_logging(logging.getLogger())
             while not self._stop_requested:
                 self.step()
@@ -366,7 +366,7 @@ class Supervisor:
     def step(self) -> None:
         """Wait for the next input or deadline, then serve, in this order: the link to the
         VSC, the core's and the outputs' timers, the record sink's news, and at most
-        :data:`MAX_CLIENTS_PER_TURN` client descriptors (issue 11; docs/safety.md "The stop
+        :data:`MAX_CLIENTS_PER_TURN` client descriptors (SR-10.1; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
         before = self.clock()
         if self.flight is not None and self.flight.due(before):
@@ -688,7 +688,7 @@ class Supervisor:
         entry = record_json(record, self.wall_clock(), self.sequence_offset)
         if self._version_due:
             # The first record of a start (the startup stop) names the build that made it, so
-            # a stop record says which version was running (issue 13; docs/record.md).
+            # a stop record says which version was running (docs/record.md).
             entry["version"] = __version__
             self._version_due = False
         if self.sink is None:  # not started: nothing can be written yet

@@ -3,7 +3,7 @@
 There is no user heartbeat on CAN: the VSC cannot watch the host, so the supervisor's own
 outputs carry that duty alone (SR-5). Failed sends, bus-off, a sustained rate
 of error frames and a controller error-passive for too long are link faults; an isolated
-error frame is counted and stops nothing (docs/safety.md "CAN error frames", issue 14).
+error frame is counted and stops nothing (SR-2.12; docs/safety.md "CAN error frames").
 """
 
 from __future__ import annotations

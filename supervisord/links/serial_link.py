@@ -49,7 +49,7 @@ class SerialLink(Link):
             raise LinkError(_short(error)) from error
         try:
             # Discard what waited in the port (tcflush TCIFLUSH): a VSC's old heartbeats must
-            # never be read as current (issue 14; SR-2.2, SR-2.11: a heartbeat counts from
+            # never be read as current (SR-2.2, SR-2.11: a heartbeat counts from
             # when it was received). pyserial 3.5 flushes in open too; this does not rely on it.
             port.reset_input_buffer()
         except (serial.SerialException, OSError) as error:

@@ -6,7 +6,7 @@ so a script, a test or an operator can watch it from outside. The file is replac
 (a temporary file in the same directory, then ``os.replace``): an outside reader never sees a
 half-written file. A process killed between creating the temporary file and the rename
 leaves it behind (``.NAME.PID.tmp``); opening the output removes every such file of a process
-that no longer exists, and its own (issue 11).
+that no longer exists, and its own.
 
 Fault injection is a real behaviour of the simulated device, not a test hook: a line can be
 *stuck* at a level (``stuck_at = "on"`` or ``"off"`` in the config, or :meth:`SimOutput.stick`

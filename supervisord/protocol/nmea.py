@@ -44,8 +44,8 @@ _MAX_DIGITS = 16  # no NMEA number is longer; keeps every conversion small
 def _decimal(field: str) -> tuple[str, str] | None:
     """``field`` as (integer digits, fraction digits) if it is a plain decimal of ASCII
     digits with at most one point. ``str.isdigit`` takes "²", and ``int``/``float`` take
-    other scripts' digits, signs, underscores, whitespace, "nan" and "inf" (issue 11: "²" in a
-    GGA raised in this parser and stopped the robot)."""
+    other scripts' digits, signs, underscores, whitespace, "nan" and "inf" (SR-8.7: "²" in a
+    GGA used to raise in this parser and stop the robot)."""
     if len(field) > _MAX_DIGITS:
         return None
     whole, dot, fraction = field.partition(".")

@@ -1,4 +1,4 @@
-"""Text that every encoder takes, and digits that are digits (issue 11, ``docs/safety.md``
+"""Text that every encoder takes, and digits that are digits (SR-8.7, ``docs/safety.md``
 "No input can raise").
 
 A Python ``str`` can hold what no encoder writes: a lone surrogate (``"\\ud800"`` in JSON, or

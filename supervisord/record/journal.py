@@ -8,7 +8,7 @@ disk at once; the rest at lower priorities (:func:`priority`).
 :func:`journal_fields` is the pure mapping from a record to journal fields and
 :func:`encode_native` the pure encoding of an entry in journald's native protocol;
 :class:`JournalSink` sends it to journald's socket itself, as ``daemon/notify.py`` does for
-sd_notify: no libsystemd, nothing compiled, so the robot needs no compiler (issue 13,
+sd_notify: no libsystemd, nothing compiled, so the robot needs no compiler (see
 ``docs/record.md`` "Why no journal library"). Where there is no journal (no socket at
 :data:`JOURNAL_SOCKET`), the sink says so through :attr:`JournalSink.available` and its writes
 return ``False``: the JSON Lines file stays the record that counts.

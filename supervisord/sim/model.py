@@ -25,7 +25,7 @@ Where the manual is silent the choices are written down here and in ``docs/simul
   ``held`` keeps the bit, once it tripped after a user heartbeat, until the operator's
   takeover gesture, which clears it and leaves the remote in Local (a second takeover enters
   Operational); ``never_clears`` keeps it until a reboot, the takeover refused. The manual
-  does not say whether the real VSC clears the bit by itself or holds it (issue 16).
+  does not say whether the real VSC clears the bit by itself or holds it.
 - Newer firmware reports Remote (0x06) wherever older firmware reports Local (0x04).
 """
 

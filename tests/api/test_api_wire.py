@@ -400,7 +400,7 @@ def test_display_events_are_accepted_by_the_core() -> None:
             assert core.handle(event).refusals == (), request_value
 
 
-# -- odd text (issue 11: no input string can raise) -----------------------------------------
+# -- odd text (SR-8.7: no input string can raise) --------------------------------------------
 
 
 def strict_utf8(obj: object) -> bytes:
@@ -411,7 +411,7 @@ def strict_utf8(obj: object) -> bytes:
 @pytest.mark.parametrize("text_id", ["\\ud800", "\\udfff", "a\\udce9b", "\\ud83d"])
 def test_an_id_with_a_lone_surrogate_is_refused_and_the_refusal_encodes(text_id: str) -> None:
     """An ``id`` that JSON can spell but UTF-8 cannot (a lone surrogate) is ``bad_request``,
-    and the error reply, which then carries no id, encodes (issue 11: it raised in the reply
+    and the error reply, which then carries no id, encodes (it used to raise in the reply
     encoder and the loop stopped the robot with ``internal``)."""
     line = b'{"op":"status","id":"' + text_id.encode() + b'"}'
     with pytest.raises(ApiError) as caught:
@@ -536,8 +536,8 @@ ODD_USER = Caller(4242, 44, "r\udce9mi", False)  # a login name that is not UTF-
 def test_a_record_and_a_status_naming_an_odd_user_encode_strictly() -> None:
     """A local e-stop by a user whose name was not UTF-8 (the name carries surrogates from the
     password database) gives a record the store and the journal can encode, and a status that
-    encodes: the name shows its undecodable byte escaped (issue 11: the stop record was lost
-    and ``status`` stopped answering)."""
+    encodes: the name shows its undecodable byte escaped (the stop record used to be lost
+    and ``status`` to stop answering)."""
     core = SafetyCore(SafetyConfig(), 0)
     decision = core.handle(LocalEstop(5, ODD_USER))
     (record,) = decision.records

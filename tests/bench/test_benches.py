@@ -63,7 +63,7 @@ def test_stop_latency_prints_its_table_and_verdict(capsys: pytest.CaptureFixture
 
 
 def test_side_by_side_interleaves_the_three_loops_in_blocks(tmp_path: Path) -> None:
-    """Issue 14: one run measures srcsd, the bare loop and the polling model, each in every
+    """Side by side: one run measures srcsd, the bare loop and the polling model, each in every
     block on a fresh rig, with the stop kinds continuing across blocks and srcsd's heartbeat
     periods taken within blocks (never across the gap between two)."""
     periods: list[int] = []
@@ -84,7 +84,7 @@ def test_side_by_side_prints_the_ratios_load_and_steal(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """The default run prints every loop's table, the ratios of the run, the steal time and
-    the issue's ratio targets with a verdict."""
+    the side-by-side ratio targets with a verdict."""
     stop_latency.main(["--stops", "2", "--blocks", "2", "--estop-every", "0"])
     out = capsys.readouterr().out
     assert out.count("| all stops | 2 |") == 3
@@ -92,8 +92,8 @@ def test_side_by_side_prints_the_ratios_load_and_steal(
     assert "| poll50 / srcsd |" in out
     assert "host steal during the run:" in out
     assert "load average" in out
-    assert "issue 14 target: srcsd p50 within 1.3 x bare ->" in out
-    assert "issue 14 target: srcsd p99 within 1.5 x bare ->" in out
+    assert "side-by-side target: srcsd p50 within 1.3 x bare ->" in out
+    assert "side-by-side target: srcsd p99 within 1.5 x bare ->" in out
 
 
 def test_loaded_mode_runs_busy_processes_and_stops_them(

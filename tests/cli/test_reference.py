@@ -1,5 +1,5 @@
 """The man pages and shell completion generated from the commands' own parsers
-(``supervisord/cli/reference.py``, issue 13 item 9; docs/srcsctl.md "Man pages and
+(``supervisord/cli/reference.py``; docs/srcsctl.md "Man pages and
 completion"): every option of every parser is in its page and its completion, ``man`` renders
 each page without a warning, and a real bash completes from the files as installed."""
 

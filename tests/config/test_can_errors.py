@@ -1,4 +1,4 @@
-"""The CAN error limits as ``[vsc]`` keys (docs/safety.md "CAN error frames", issue 14): their
+"""The CAN error limits as ``[vsc]`` keys (docs/safety.md "CAN error frames"): their
 defaults are the link's own, each reaches the real CanLink built from the config (python-can's
 virtual interface), and a bad value is refused naming the key."""
 

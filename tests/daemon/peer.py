@@ -1,7 +1,7 @@
 """A minimal VSC for the daemon's tests: heartbeats in a chosen mode, key 85 kept and answered
 as the manual says (manual §8.3.7-8.3.8), remote status once enabled by Message Control (§8.3.6),
 and the key-85 watchdog: bit 7 of the e-stop word while key 85 is 1 and no user heartbeat
-came for 500 ms (manual §8.3.5), which the supervisor's proof test looks for (SR-5.3, issue 16).
+came for 500 ms (manual §8.3.5), which the supervisor's proof test looks for (SR-5.3).
 
 (The full simulated VSC with its remote is ``srcs-sim``.)"""
 

@@ -36,7 +36,7 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
             robot.subscribe("state")
             deadline = time.monotonic() + 10
             # Heartbeats at 10 Hz, VSC traffic flowing, until the proof test of the VSC's
-            # watchdog has passed (SR-5.3: it comes before any RUN, issue 16), then for
+            # watchdog has passed (SR-5.3: it comes before any RUN), then for
             # longer than the re-arm hold.
             while robot.status()["prooftest"]["phase"] != "passed":
                 assert time.monotonic() < deadline, robot.status()["prooftest"]

@@ -1,5 +1,5 @@
 """What a field engineer sees of a running ``srcsd``: its version everywhere, the exit status
-of a bad configuration (SR-11.2), and the priority of every log line (issue 13 items 2-4)."""
+of a bad configuration (SR-11.2), and the priority of every log line."""
 
 from __future__ import annotations
 
@@ -112,7 +112,7 @@ def test_log_lines_carry_their_priority_for_the_journal(tmp_path: Path) -> None:
 
 def test_log_lines_on_a_terminal_have_no_prefix(tmp_path: Path) -> None:
     """Without the journal (or with JOURNAL_STREAM naming another file) lines are plain text
-    with the level in words, and the start line names the version (issue 13 item 2)."""
+    with the level in words, and the start line names the version."""
     lines, status = _run_logging(tmp_path, {"JOURNAL_STREAM": "1:2"})
     assert status == 0
     assert not any(re.match(r"<[0-7]>", line) for line in lines), lines

@@ -316,7 +316,7 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
     assert set(stops) == {"0"}
 
 
-# ---------------------------------------------------------------- issue 11: the stop path first
+# ------------------------------------------------------------------- SR-10: the stop path first
 
 
 class _SlowReadLink(SerialLink):
@@ -350,7 +350,7 @@ def _arm(supervisor: Supervisor, peer: VscPeer) -> None:
 
 
 def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
-    """Issue 11 part 6: a record's ``mono_ns`` is the clock read right after the VSC frame
+    """A record's ``mono_ns`` is the clock read right after the VSC frame
     that caused it was read, not the start of the loop turn (here every read ends 50 ms of
     the daemon's clock after it began)."""
     clock = ManualClock()
@@ -493,7 +493,7 @@ class _OrderLink(SerialLink):
 
 
 def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_path: Path) -> None:
-    """SR-10.1: Issue 11 part 1, SR-5: with forty client descriptors always ready, a turn
+    """SR-10.1, SR-5: with forty client descriptors always ready, a turn
     reads the VSC's frames before any client, serves only a bounded number of clients, and
     over a few turns every client gets its turn."""
     order: list[str] = []
@@ -569,7 +569,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
 
 
 def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
-    """Issue 14, docs/safety.md "CAN error frames": isolated error frames on the VSC's CAN bus
+    """SR-2.12, docs/safety.md "CAN error frames": isolated error frames on the VSC's CAN bus
     stop nothing and their count shows in ``status`` (``link.error_frames``) and in
     ``srcsctl status``; a serial link has none to count (null, and no words for it)."""
     import can  # noqa: PLC0415 -- only this test needs python-can

@@ -194,7 +194,7 @@ def test_no_daemon_and_bad_config_have_their_own_exit_status(tmp_path: Path) -> 
     assert "vsc.transport" in bad.stderr
 
 
-# -- issue 13: status in full, and srcsctl without sharp edges ------------------------------
+# -- status in full, and srcsctl without sharp edges ----------------------------------------
 
 
 class _Output:

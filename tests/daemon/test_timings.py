@@ -1,4 +1,4 @@
-"""The loop's own timing histograms (issue 13 item 6; docs/fleet.md "Timing histograms"): the
+"""The loop's own timing histograms (docs/fleet.md "Timing histograms"): the
 histogram type, and the loop's observations on a clock the test drives, with a real
 pseudo-terminal VSC peer and real sim outputs."""
 
@@ -35,7 +35,7 @@ MS = 1_000_000
 def test_observe_counts_each_value_in_its_le_bucket() -> None:
     """A value equal to a bound counts in that bound's bucket, a larger one in the next; the
     counts are cumulative, the last finite bucket short of ``count`` by the +Inf ones, and
-    the sum is in seconds (issue 13)."""
+    the sum is in seconds."""
     histogram = Histogram((1 * MS, 10 * MS, 100 * MS))
     for value in (0, 1 * MS, 1 * MS + 1, 10 * MS, 250 * MS):
         histogram.observe(value)
@@ -175,7 +175,7 @@ def test_a_remote_estop_is_one_stop_to_off_observation(
 ) -> None:
     """A remote e-stop in RUN adds exactly one stop-to-off observation, from the frame's read
     stamp to the output write's return: here the write takes 3 ms of the loop's clock, so it
-    lands in the 5 ms bucket and not the 2 ms one (issue 13; SR-6: measured after the write)."""
+    lands in the 5 ms bucket and not the 2 ms one (SR-6: measured after the write)."""
     supervisor, peer, _ = timed
     supervisor.start()
     _arm(supervisor, peer)

@@ -1,4 +1,4 @@
-"""The service unit's real-time scheduling, bounded (issue 14 item 2; SR-9): ``srcsd@.service``
+"""The service unit's real-time scheduling, bounded (SR-9): ``srcsd@.service``
 runs the daemon in SCHED_FIFO at a modest priority under RLIMIT_RTTIME, keeps
 ``RestrictRealtime=yes`` and its offline exposure at or under 1.4; and, as root, the kernel does
 with the unit's own numbers what the unit's comments promise: a real-time process that spins is
@@ -59,7 +59,7 @@ def test_the_unit_bounds_the_real_time_loop_with_rlimit_rttime() -> None:
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")
 def test_offline_exposure_is_at_most_1_4(tmp_path: Path) -> None:
     """SR-9: the real-time settings cost the sandbox nothing: ``systemd-analyze security
-    --offline=yes`` rates the unit 1.4 or better, as before issue 14."""
+    --offline=yes`` rates the unit 1.4 or better, as it did without them."""
     copy = tmp_path / "srcsd@robot-a.service"
     shutil.copy(UNIT, copy)
     result = subprocess.run(

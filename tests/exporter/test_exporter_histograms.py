@@ -1,4 +1,4 @@
-"""The daemon's timing histograms in the exporter (issue 13 item 6; docs/fleet.md "Timing
+"""The daemon's timing histograms in the exporter (docs/fleet.md "Timing
 histograms"): parsed from ``status``'s ``daemon.histograms``, served as real Prometheus
 histograms by prometheus-client's custom-collector API."""
 

@@ -76,7 +76,7 @@ def raw_exchange(path: Path, data: bytes, replies: int) -> list[dict[str, Any]]:
 # -- a request id and other lines that UTF-8 or Python cannot take ----------------------------
 
 ODD_LINES = [
-    (b'{"op":"status","id":"\\ud800"}', "bad_request"),  # a lone surrogate: issue 11
+    (b'{"op":"status","id":"\\ud800"}', "bad_request"),  # a lone surrogate
     (b'{"op":"hold","id":"a\\udce9"}', "bad_request"),
     (b'{"op":"status","\\udfff":1}', "bad_request"),  # a field name no encoder takes
     (b'{"op":"\\ud800"}', "unknown_op"),
@@ -92,7 +92,7 @@ ODD_LINES = [
 
 def test_odd_request_lines_each_get_a_reply_and_the_robot_keeps_running(tmp_path: Path) -> None:
     """SR-8, SR-2.9 ``internal``: a request whose ``id`` holds a lone surrogate raised in the reply
-    encoder (issue 11): no reply, and an ``internal`` stop. Now it and every other odd line
+    encoder: no reply, and an ``internal`` stop. Now it and every other odd line
     (surrogates in names and ops, deep nesting, 2000 digits, 1e400, NaN, a vertical tab, a
     duplicate key, bytes that are not UTF-8) get exactly one error reply each, in order; the
     running robot keeps running, and no record raises ``internal``."""
@@ -149,7 +149,7 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
     tmp_path: Path,
 ) -> None:
     """SR-2.6 ``local_estop``, SR-7 every stop recorded: a user whose login name is not UTF-8 ran
-    ``srcsctl estop`` (issue 11): the output went off but no stop record was written,
+    ``srcsctl estop``: the output went off but no stop record was written,
     ``status`` stopped answering and later records were lost (the name carried surrogates into
     the record and reply encoders). Now the e-stop answers, turns the output off, is recorded
     as ``local_estop`` naming the user (the undecodable byte escaped), and ``status`` answers,
@@ -228,8 +228,8 @@ SUPERSCRIPT_GGA = "$GPGGA,123519,4807.038,N,01131.000,E,\u00b2,08,0.9,545.4,M,46
 
 def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Path) -> None:
     """SR-2.9 ``internal``, SR-8 pushes: a GGA sentence whose fix quality is ``²`` (``str.isdigit``
-    takes it; ``int`` does not) raised in the NMEA parser while a client subscribed to ``gps``
-    (issue 11): four ``internal`` stops in three seconds. Now the running robot keeps running,
+    takes it; ``int`` does not) raised in the NMEA parser while a client subscribed to ``gps``:
+    four ``internal`` stops in three seconds. Now the running robot keeps running,
     the subscriber gets the sentence with no fix quality, and no record raises ``internal``."""
     with Robot(tmp_path, outputs=(OutputDef("drive"),)) as robot:
         robot.arm()

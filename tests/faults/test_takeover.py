@@ -32,8 +32,8 @@ def _refused(records: list[dict[str, Any]], until: float) -> list[dict[str, Any]
 )
 def test_a_flapping_vsc_never_rearms_after_an_estop(tmp_path: Path, flap: dict[str, Any]) -> None:
     """SR-4 (rule 4 of docs/safety.md): after the remote's e-stop has been released, the VSC's
-    mode flaps Local/Operational (every 10 ms with a heartbeat at each change, as the issue
-    found, or every 100 ms on its 20 Hz schedule) for twenty re-arm holds. The robot stays
+    mode flaps Local/Operational (every 10 ms with a heartbeat at each change, as one VSC
+    did, or every 100 ms on its 20 Hz schedule) for twenty re-arm holds. The robot stays
     STOPPED with every output off and no re-arm; the refused takeovers are recorded at most
     once a second; once the VSC is sane, the operator's takeover re-arms.
 

@@ -1,4 +1,4 @@
-"""python-can is loaded only for a robot whose config names a CAN bus (issue 14, SR-9.4).
+"""python-can is loaded only for a robot whose config names a CAN bus (SR-9.4).
 
 Each case builds the daemon's parts from a real config file in a fresh interpreter (a
 subprocess, so no other test's imports count) and reports which libraries it loaded.

@@ -135,7 +135,7 @@ def test_backoff_doubles_to_its_limit_and_resets() -> None:
 
 def test_what_waited_in_the_port_before_open_is_discarded(port: PtyPort) -> None:
     """Heartbeats the VSC wrote before the link opened (an e-stop-free Operational one among
-    them) are never read as current (issue 14): the first thing read is what came after."""
+    them) are never read as current: the first thing read is what came after."""
     stale = encode_frame(VscHeartbeat(9)) * 20 + encode_frame(VscHeartbeat(4, 0, 1))
     port.write(stale)
     time.sleep(0.05)  # the bytes are in the line's input queue before anyone opens it

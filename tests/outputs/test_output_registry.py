@@ -140,7 +140,7 @@ def _imports_of(module: str) -> set[str]:
 
 def test_no_import_cycle_between_base_registry_and_plugins() -> None:
     """The base class imports no plugin and not the registry; each plugin imports only the
-    base; the registry imports the base and finds the plugins by name (issue 15)."""
+    base; the registry imports the base and finds the plugins by name."""
     assert _imports_of("base") == set()
     for plugin in ("sim", "gpio", "can_enable"):
         assert _imports_of(plugin) == {"supervisord.outputs.base"}, plugin

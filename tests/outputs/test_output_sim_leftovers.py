@@ -1,4 +1,4 @@
-"""Issue 11 part 8: a simulated output's process killed in the middle of a write leaves its
+"""A simulated output's process killed in the middle of a write leaves its
 temporary file beside the output; the next open removes it (``supervisord/outputs/sim.py``)."""
 
 from __future__ import annotations

@@ -33,6 +33,7 @@ LEFT_OUT = {
     "tests/ros2": "rclpy and the ROS 2 message wheels (requirements/ros2.txt) exist for 3.11/3.12",
     "tests/packaging": "builds and lints the .deb on the host; package.py runs it in each root",
     "tests/bench": "the benches' smoke tests time the host; benches run on real hardware",
+    "tests/test_citations.py": "lists the tree with git ls-files; the copy in a root has no .git",
     # A loop device: the root's private /dev has none (the host's is never bound in).
     "tests/faults/test_record_faults.py::"
     "test_a_slow_disk_delays_records_never_the_stop_and_loses_none": "mounts a loop device",

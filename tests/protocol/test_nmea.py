@@ -64,7 +64,7 @@ def test_any_text_parses_or_gives_none(text: str) -> None:
 
 
 # Characters of the Latin-1 range that ``str.isdigit`` or ``float`` take but that are no NMEA
-# digits: superscripts, fractions, and the no-break space ``float`` strips (issue 11).
+# digits: superscripts, fractions, and the no-break space ``float`` strips (SR-8.7).
 NOT_ASCII_DIGITS = ("\u00b2", "\u00b3", "\u00b9", "\u00bc", "\u00bd", "\u00a0", "\u0085")
 GGA_FIELDS = "$GPGGA,{time},{lat},N,{lon},E,{quality},08,0.9,545.4,M,46.9,M,,"
 
@@ -72,8 +72,8 @@ GGA_FIELDS = "$GPGGA,{time},{lat},N,{lon},E,{quality},08,0.9,545.4,M,46.9,M,,"
 @pytest.mark.parametrize("odd", NOT_ASCII_DIGITS)
 def test_a_digit_that_is_not_ascii_is_not_a_digit(odd: str) -> None:
     """A GGA whose quality, time or position holds a character that is a digit only to
-    Unicode (``²``) gives no value for that field, never an exception (issue 11: the sentence
-    stopped the robot with ``internal`` while a client subscribed to ``gps``)."""
+    Unicode (``²``) gives no value for that field, never an exception (the sentence used to
+    stop the robot with ``internal`` while a client subscribed to ``gps``)."""
     fields = {"time": "123519", "lat": "4807.038", "lon": "01131.000", "quality": "1"}
     for name, value in fields.items():
         for spoiled in (odd, value[:-1] + odd, odd + value, value[:2] + odd + value[2:]):

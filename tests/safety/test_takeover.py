@@ -36,8 +36,8 @@ def _ever_left_stopped(rig: Rig, since: int) -> bool:
     return any(d.state is not State.STOPPED or d.rearm for d in rig.decisions[since:])
 
 
-def test_the_flapping_vsc_of_issue_11_never_rearms() -> None:
-    """The defect of issue 11 part 5: after an e-stop has cleared, a VSC whose mode alternates
+def test_a_vsc_flapping_every_10_ms_after_an_estop_never_rearms() -> None:
+    """The defect rule 4 closes: after an e-stop has cleared, a VSC whose mode alternates
     Local/Operational every 10 ms (a heartbeat at each change) re-armed the robot by itself.
     For three seconds, long past the re-arm hold, it never leaves STOPPED."""
     rig = Rig()

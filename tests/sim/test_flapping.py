@@ -52,7 +52,7 @@ def test_without_flap_heartbeats_nothing_extra_is_due() -> None:
 
 
 def test_srcs_sim_chatters_every_10_ms(tmp_path: Path) -> None:
-    """The real ``srcs-sim`` with the fault of issue 11 (Local/Operational every 10 ms, a
+    """The real ``srcs-sim`` with a chattering VSC's fault (Local/Operational every 10 ms, a
     heartbeat at each change) sends far more heartbeats than its 20 Hz schedule, alternating
     Local and Operational; clearing the plan ends it."""
     with SimProcess(tmp_path) as sim:

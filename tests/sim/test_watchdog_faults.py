@@ -1,4 +1,4 @@
-"""The simulated VSC's key-85 watchdog behaviours for the proof test (issue 16; SR-5.3;
+"""The simulated VSC's key-85 watchdog behaviours for the proof test (SR-5.3;
 docs/simulator.md ``watchdog``), on made-up monotonic times."""
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ def test_srcsd_is_armed_by_a_takeover_and_stopped_by_the_remote_estop(tmp_path: 
             )
             assert state["host_frames"] > 0
             wait(lambda: output(drive) == "0\n")
-            # SR-5.3: the proof test of the VSC's watchdog comes before any RUN (issue 16).
+            # SR-5.3: the proof test of the VSC's watchdog comes before any RUN.
             wait(lambda: '"kind":"prooftest"' in output(tmp_path / "stops.jsonl"))
             time.sleep(0.3)  # longer than the 100 ms re-arm hold
             assert output(drive) == "0\n"  # Local is not a re-arm

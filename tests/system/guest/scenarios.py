@@ -675,7 +675,7 @@ def scenario_clean_stop(bench: Bench) -> tuple[str, Measured]:
 
 
 def scenario_prooftest(bench: Bench) -> tuple[str, Measured]:
-    """SR-5.3 (issue 16): under systemd, every start proves the VSC's key-85 watchdog before
+    """SR-5.3: under systemd, every start proves the VSC's key-85 watchdog before
     the first RUN (a passed ``prooftest`` record, in the journal too); a VSC that ignores the
     missing heartbeat is caught at the next start and keeps the robot STOPPED."""
     unit, sim = bench.unit, bench.sim
@@ -772,7 +772,7 @@ def realtime_probe(restrict: bool) -> str:
 
 
 def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
-    """SR-9, issue 14 item 2: srcsd runs SCHED_FIFO 10 under RLIMIT_RTTIME, and cannot
+    """SR-9: srcsd runs SCHED_FIFO 10 under RLIMIT_RTTIME, and cannot
     change that (RestrictRealtime=yes applies after systemd set the policy); a loop that spins
     without ever blocking, while still pinging the watchdog, is killed by the unit's limit
     (SIGXCPU, not systemd's watchdog), restarted by systemd STOPPED, again in SCHED_FIFO; the
@@ -1119,7 +1119,7 @@ def powercut_check(acked_file: str) -> int:
 
 # ---------------------------------------------------------------------------------- slow disk
 
-SLOW_DELAY_MS = 50  # dm-delay on every write and flush: a slow SD card's fsync (issue 14 item 3)
+SLOW_DELAY_MS = 50  # dm-delay on every write and flush: a slow SD card's fsync (SR-7.5)
 SLOW_INSTANCE = "slow"
 SLOW_MOUNT = Path("/var/lib/srcsd", SLOW_INSTANCE)  # in the unit's StateDirectory
 SLOW_IMAGE = Path("/run/srcs-tier/slow-disk.img")  # in guest memory
@@ -1205,7 +1205,7 @@ def spread(values: list[float]) -> dict[str, float]:
 
 
 def scenario_slowdisk(bench: Bench) -> tuple[str, Measured]:
-    """SR-7.5, issue 14 item 3: with the stop record on ext4 over dm-delay (50 ms on every write
+    """SR-7.5: with the stop record on ext4 over dm-delay (50 ms on every write
     and flush, an fsync measured >= 50 ms), remote e-stops drop the drive line as soon as with
     the record in memory (blocks alternating between two srcsd@ instances, one per disk; the
     stop lands right after the takeover's record was handed to the disk), and every stop is in

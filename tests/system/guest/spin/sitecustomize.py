@@ -8,7 +8,7 @@ Nothing in the product knows of this file. The ``rttime`` scenario
 input or deadline. When the file :data:`TRIGGER` holds this process's PID, every wait from
 then on has a timeout of 0: the loop still serves the VSC, its outputs and systemd's
 watchdog, but it never blocks again, as a loop whose next deadline is always in the past
-would. Only RLIMIT_RTTIME can stop that (issue 14 item 2; SR-9).
+would. Only RLIMIT_RTTIME can stop that (SR-9).
 
 At start it also asks for a higher SCHED_FIFO priority, once, and prints the answer to
 stderr (the journal): the unit's RestrictRealtime=yes must refuse it.
