@@ -15,6 +15,7 @@ import pytest
 from bench import heartbeat_jitter, idle_cost, link_loss, rt_budget, stop_latency
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
+from supervisord.testkit.wait import wait_until
 from supervisord.timebase import NS_PER_MS
 
 
@@ -102,8 +103,11 @@ def test_loaded_mode_runs_busy_processes_and_stops_them(
     """``--loaded`` runs two busy processes per core meanwhile, says so, and ends them."""
     with stop_latency.busy(2) as count:
         assert count == 2 * (os.cpu_count() or 1)
-        spinners = [p for p in children_commands() if "while True" in p]
-        assert len(spinners) == count
+        # A child shows its program once it has exec'd; until then /proc shows ours.
+        wait_until(
+            lambda: len([p for p in children_commands() if "while True" in p]) == count,
+            what=f"{count} busy processes",
+        )
     assert not [p for p in children_commands() if "while True" in p]
     stop_latency.main(["--stops", "2", "--model", "srcsd", "--loaded"])
     out = capsys.readouterr().out
