@@ -452,6 +452,19 @@ def check_value(key: Key, value: _T, path: str, error: ErrorType = Invalid) -> _
     return value
 
 
+_K = TypeVar("_K", bound=Key)
+
+
+def named(keys: Sequence[Key], name: str, kind: type[_K]) -> _K:
+    """The key called ``name`` among a table's ``keys``, of ``kind``. Looked up by name, not
+    by place: a reordered schema cannot swap two keys of one kind (``max_bytes`` and ``keep``
+    are both whole numbers). A wrong name or kind is the code's mistake, found at import."""
+    for key in keys:
+        if key.name == name and isinstance(key, kind):
+            return key
+    raise LookupError(f"no {kind.__name__} key {name!r} among {[k.name for k in keys]}")
+
+
 def object_schema(keys: Sequence[Key], *, doc: str = "") -> dict[str, object]:
     """A closed JSON Schema object of ``keys``: unknown keys are refused, as the reader does."""
     schema: dict[str, object] = {"type": "object"}

@@ -27,6 +27,7 @@ import pwd
 import re
 from collections.abc import Callable, Hashable, Sequence
 from pathlib import Path
+from typing import Final
 
 from supervisord import strict
 from supervisord.config import toml
@@ -80,6 +81,21 @@ from supervisord.outputs.registry import KIND, option_names, read_spec
 from supervisord.record.jsonl import not_a_regular_file, record_paths
 from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
 from supervisord.safety.prooftest import ProofTestPolicy
+
+# The keys of [[clients]], [record] and [api], by name (strict.named).
+CLIENT_NAME: Final = strict.named(CLIENTS, "name", strict.Text)
+CLIENT_TIMEOUT: Final = strict.named(CLIENTS, "timeout_ms", strict.Whole)
+CLIENT_USER: Final = strict.named(CLIENTS, "user", strict.Text)
+CLIENT_UID: Final = strict.named(CLIENTS, "uid", strict.Whole)
+RECORD_PATH: Final = strict.named(RECORD, "path", strict.Text)
+RECORD_MAX_BYTES: Final = strict.named(RECORD, "max_bytes", strict.Whole)
+RECORD_KEEP: Final = strict.named(RECORD, "keep", strict.Whole)
+RECORD_JOURNAL: Final = strict.named(RECORD, "journal", strict.Flag)
+API_SOCKET: Final = strict.named(API, "socket", strict.Text)
+API_GROUP: Final = strict.named(API, "group", strict.Text)
+API_ADMIN_GROUP: Final = strict.named(API, "admin_group", strict.Text)
+API_MAX_CLIENTS: Final = strict.named(API, "max_clients", strict.Whole)
+API_MAX_MESSAGE: Final = strict.named(API, "max_message_bytes", strict.Whole)
 
 _SAFETY_KEYS = {
     "transport": "vsc.transport",
@@ -302,9 +318,8 @@ class _Loader:
         clients: list[ClientSpec] = []
         for fields in root.tables_at(section.name, section.example):
             fields.check_keys(key.name for key in section.keys)
-            name_key, timeout_key, _, _ = CLIENTS
-            name = fields.text(name_key)
-            timeout = fields.whole(timeout_key)
+            name = fields.text(CLIENT_NAME)
+            timeout = fields.whole(CLIENT_TIMEOUT)
             for j, earlier in enumerate(clients):
                 if earlier.name == name:
                     raise fields.refuse("name", name, f"rename it: clients[{j}] has the same name")
@@ -316,8 +331,7 @@ class _Loader:
         """The uid a client is bound to (``user`` by name or ``uid`` by number), or ``None``:
         unbound, any user who can reach the socket may say hello under the name
         (docs/safety.md "Clients bound to a user")."""
-        _, _, user_key, uid_key = CLIENTS
-        user, uid = fields.read(user_key), fields.read(uid_key)
+        user, uid = fields.read(CLIENT_USER), fields.read(CLIENT_UID)
         if user is not None and uid is not None:
             raise fields.refuse("uid", uid, "give user or uid, not both")
         if uid is not None:
@@ -454,12 +468,11 @@ class _Loader:
     # [record], [api] ----------------------------------------------------------------------
 
     def record(self, fields: strict.Fields) -> RecordConfig:
-        path_key, max_bytes, keep, journal = RECORD
         config = RecordConfig(
-            path=self.path(fields, path_key),
-            max_bytes=fields.whole(max_bytes),
-            keep=fields.whole(keep),
-            journal=fields.flag(journal),
+            path=self.path(fields, RECORD_PATH),
+            max_bytes=fields.whole(RECORD_MAX_BYTES),
+            keep=fields.whole(RECORD_KEEP),
+            journal=fields.flag(RECORD_JOURNAL),
         )
         # The record and its rotated files are regular files or nothing yet (SR-7.9): a FIFO
         # there would hang the start (its last record is read), a symlink would be rotated
@@ -469,7 +482,7 @@ class _Loader:
             if kind is not None:
                 name = f"its {part} {file}" if part else "it"
                 raise fields.refuse(
-                    path_key.name,
+                    RECORD_PATH.name,
                     str(config.path),
                     f"{name} is {kind}, not a regular file: remove it, or name another path",
                 )
@@ -490,18 +503,17 @@ class _Loader:
         return group
 
     def api(self, fields: strict.Fields, required_clients: int) -> ApiConfig:
-        socket_key, group_key, admin_key, max_clients_key, max_message_key = API
-        socket = self.path(fields, socket_key)
+        socket = self.path(fields, API_SOCKET)
         if len(str(socket).encode()) > SOCKET_PATH_MAX_BYTES:
             raise fields.refuse(
                 "socket",
                 str(socket),
                 f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
-                f'socket address), e.g. "{socket_key.default}"',
+                f'socket address), e.g. "{API_SOCKET.default}"',
             )
-        group = self.group(fields, group_key)
-        admin_group = self.group(fields, admin_key)
-        max_clients = fields.whole(max_clients_key)
+        group = self.group(fields, API_GROUP)
+        admin_group = self.group(fields, API_ADMIN_GROUP)
+        max_clients = fields.whole(API_MAX_CLIENTS)
         if max_clients < required_clients + 1:
             raise fields.refuse(
                 "max_clients",
@@ -514,7 +526,7 @@ class _Loader:
             group=group,
             admin_group=admin_group,
             max_clients=max_clients,
-            max_message_bytes=fields.whole(max_message_key),
+            max_message_bytes=fields.whole(API_MAX_MESSAGE),
         )
 
 

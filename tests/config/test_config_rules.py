@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from supervisord import strict
 from supervisord.config import (
     DEFAULT_CAN_BITRATE,
     DEFAULT_SERIAL_PORT,
@@ -27,6 +28,7 @@ from supervisord.config import (
     SerialPort,
     load_config,
 )
+from supervisord.config.schema import RECORD
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
@@ -613,3 +615,16 @@ def test_max_clients_has_one_range(tmp_path: Path, value: int, accepted: bool) -
         assert refused(tmp_path, changes).key == "api.max_clients"
         with pytest.raises(ConfigError, match=r"api\.max_clients"):
             ServerConfig(tmp_path / "api.sock", max_clients=value)
+
+
+def test_schema_keys_are_taken_by_name_and_kind() -> None:
+    """The loader takes each key of a table by its name and kind (``strict.named``), never by
+    its place in the schema: reordered, ``max_bytes`` and ``keep`` (both whole numbers) would
+    otherwise swap without a sound."""
+    swapped = tuple(reversed(RECORD))
+    assert strict.named(swapped, "keep", strict.Whole) is strict.named(RECORD, "keep", strict.Whole)
+    assert strict.named(RECORD, "max_bytes", strict.Whole).name == "max_bytes"
+    with pytest.raises(LookupError, match="no Flag key 'keep'"):
+        strict.named(RECORD, "keep", strict.Flag)
+    with pytest.raises(LookupError, match="no Whole key 'kept'"):
+        strict.named(RECORD, "kept", strict.Whole)
