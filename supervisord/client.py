@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
+# The library's too (as its example above uses it): the alias is the explicit re-export.
+from supervisord.api.framing import DEFAULT_SOCKET_PATH as DEFAULT_SOCKET_PATH  # noqa: PLC0414
 from supervisord.api.framing import ApiError, encode
 from supervisord.api.ops import (
     ApiRequest,
@@ -58,8 +60,6 @@ if TYPE_CHECKING:
     from typing_extensions import Self
 
 DEFAULT_TIMEOUT: Final = 5.0
-DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
-"""Where the daemon serves the API unless its config says otherwise."""
 MAX_REPLY_LINE: Final = 1 << 20
 MAX_KEPT_EVENTS: Final = 4096
 BACKLOG_WAIT_S: Final = 3.0

@@ -14,6 +14,12 @@ NS_PER_MS: Final = 1_000_000
 NS_PER_S: Final = 1_000_000_000
 
 
+def seconds_since(now: int, since: int | None) -> float | None:
+    """``now - since`` in seconds, milliseconds kept (as ``status`` shows ages, never below
+    0), ``None`` when ``since`` is unknown (never happened)."""
+    return None if since is None else round(max(0, now - since) / NS_PER_S, 3)
+
+
 def next_due(scheduled: int, now: int, period: int) -> int:
     """The next time a periodic duty is due after the one due at ``scheduled`` was done at
     ``now``: one ``period`` after ``scheduled``, so that the cadence holds and a late turn

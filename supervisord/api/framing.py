@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, Final
 
 from supervisord.compat import StrEnum
@@ -19,6 +20,9 @@ from supervisord.protocol.text import clean, clean_json
 
 JsonDict = dict[str, Any]
 
+DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
+"""Where the daemon serves the API unless its config says otherwise (docs/api.md "The
+socket"); the client connects there by default."""
 DEFAULT_MAX_LINE: Final = 4096
 """The longest request line in bytes, its newline included (``docs/api.md`` "Limits")."""
 DEFAULT_MAX_DISCARD: Final = 64 * 1024

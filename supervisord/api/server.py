@@ -44,6 +44,7 @@ from supervisord.api.credentials import caller, group_id, peer_credentials, user
 from supervisord.api.framing import (
     DEFAULT_MAX_DISCARD,
     DEFAULT_MAX_LINE,
+    DEFAULT_SOCKET_PATH,
     ApiError,
     ErrorCode,
     LineReader,
@@ -70,7 +71,6 @@ from supervisord.timebase import NS_PER_MS
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 DEFAULT_MODE: Final = 0o660
 DEFAULT_MAX_CLIENTS: Final = 16
 MAX_CLIENTS_RANGE: Final = (1, 256)

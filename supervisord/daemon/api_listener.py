@@ -32,6 +32,7 @@ from supervisord.protocol.messages import Message, RemoteStatus
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import ClientDisconnected, Event
+from supervisord.timebase import seconds_since
 
 
 class ApiListener(Listener):
@@ -120,7 +121,7 @@ class ApiListener(Listener):
                 "name": name,
                 "required": name in self.required,
                 "connected": connection is not None,
-                "heartbeat_age_s": _age(now, beat),
+                "heartbeat_age_s": seconds_since(now, beat),
             }
             if name in self.required:
                 entry["timeout_ms"] = self.required[name]
@@ -128,12 +129,12 @@ class ApiListener(Listener):
         remote: dict[str, object] | None = None
         if self._remote is not None:
             message, seen = self._remote
-            remote = {**asdict(message), "age_s": _age(now, seen)}
+            remote = {**asdict(message), "age_s": seconds_since(now, seen)}
         return {
             "clients": clients,
             "connections": len(every),
             "remote": remote,
-            "in_state_s": _age(now, self._state_since),
+            "in_state_s": seconds_since(now, self._state_since),
         }
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
@@ -222,8 +223,3 @@ class ApiListener(Listener):
 
     def close(self) -> None:
         self.server.close()
-
-
-def _age(now: int, since: int | None) -> float | None:
-    """Seconds from ``since`` to ``now`` (milliseconds kept); ``None`` when never."""
-    return None if since is None else round(max(0, now - since) / 1e9, 3)

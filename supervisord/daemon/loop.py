@@ -61,7 +61,7 @@ from supervisord.safety.events import (
     VscReceived,
 )
 from supervisord.safety.transitions import State
-from supervisord.timebase import NS_PER_MS, NS_PER_S
+from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
 
 log = logging.getLogger("srcsd")
 
@@ -223,7 +223,7 @@ class Supervisor:
         return {
             "pid": os.getpid(),
             "version": __version__,
-            "uptime_s": _seconds(now, self._started_ns),
+            "uptime_s": seconds_since(now, self._started_ns),
             "link": {
                 "description": self.link.description,
                 "open": self.link.is_open,
@@ -231,7 +231,7 @@ class Supervisor:
                 "open_failures": counters.link_failures,
                 # How long it has been open (or not), and the last reason it broke or could
                 # not open (kept after a reopen: a flapping link shows why).
-                "since_s": _seconds(now, self._link_since_ns),
+                "since_s": seconds_since(now, self._link_since_ns),
                 "last_error": self._link_error,
                 # CAN only (null on serial and HID): error frames counted since start, each
                 # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
@@ -752,8 +752,3 @@ def _error_frames(link: Link) -> int | None:
     attribute: the CAN link, and python-can with it, is imported only for a CAN VSC)."""
     count = getattr(link, "error_frames", None)
     return count if isinstance(count, int) else None
-
-
-def _seconds(now: int, since: int | None) -> float | None:
-    """``now - since`` in seconds (milliseconds kept), ``None`` when ``since`` is unknown."""
-    return None if since is None else round((now - since) / 1e9, 3)

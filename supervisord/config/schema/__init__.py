@@ -22,12 +22,8 @@ from collections.abc import Mapping
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.server import (
-    DEFAULT_MAX_CLIENTS,
-    DEFAULT_SOCKET_PATH,
-    MAX_CLIENTS_RANGE,
-    MAX_LINE_RANGE,
-)
+from supervisord.api.framing import DEFAULT_SOCKET_PATH
+from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
 from supervisord.outputs.registry import KIND, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.config import (
