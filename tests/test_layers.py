@@ -87,3 +87,44 @@ def test_the_walk_sees_every_kind_of_import() -> None:
     for source, leans in lines.items():
         names = [name for _, name in _imports(source, "supervisord.sim.sample")]
         assert any(_leans_on_kit(n) for n in names) is leans, (source, names)
+
+
+CLOCKS = frozenset(
+    f"{name}{suffix}"
+    for name in ("monotonic", "time", "perf_counter", "clock_gettime", "process_time")
+    for suffix in ("", "_ns")
+)
+"""The ``time`` module's clocks."""
+ONE_CLOCK = ("api", "daemon")
+"""The packages whose every deadline runs on the loop's injected clock (SR-2.11)."""
+
+
+def clock_reads(source: str) -> list[int]:
+    """The lines of ``source`` that read one of :data:`CLOCKS`: ``time.monotonic``, or a
+    name imported from ``time``."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute) and node.attr in CLOCKS:
+            if isinstance(node.value, ast.Name) and node.value.id == "time":
+                lines.append(node.lineno)
+        elif isinstance(node, ast.ImportFrom) and node.module == "time":
+            lines += [node.lineno for alias in node.names if alias.name in CLOCKS]
+    return lines
+
+
+def test_the_loops_world_reads_no_clock_of_its_own() -> None:
+    """No module under ``supervisord/api`` or ``supervisord/daemon`` reads a clock: the loop
+    hands its injected clock's time to everything it drives, so a test that drives the clock
+    drives all of it (the sink's threads wait on real time in ``supervisord/lane.py``, at the
+    exit only). The check sees both spellings of a read."""
+    files = [path for package in ONE_CLOCK for path in sorted((PACKAGE / package).rglob("*.py"))]
+    assert len(files) > 10
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}"
+        for path in files
+        for line in clock_reads(path.read_text())
+    ]
+    assert found == []
+    assert clock_reads("import time\nnow = time.monotonic_ns()\n") == [2]
+    assert clock_reads("from time import perf_counter, sleep\n") == [1]
+    assert clock_reads("import time\ntime.sleep(1)\n") == []

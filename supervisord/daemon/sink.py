@@ -37,12 +37,11 @@ import contextlib
 import logging
 import os
 import socket
-import threading
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Final, Generic, TypeVar
+from typing import Final
 
+from supervisord.lane import Lane, deadline_after
 from supervisord.record.flight import FlightError, FlightWriter, Window
 from supervisord.record.jsonl import RecordError, RecordUsageError, RecordWriter
 
@@ -79,7 +78,6 @@ IDLE_STATUS: Final[Mapping[str, int]] = {
 JournalWrite = Callable[[Mapping[str, object]], object]
 
 log = logging.getLogger("srcsd")
-T = TypeVar("T")
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,87 +93,6 @@ class Written:
     @property
     def acknowledged(self) -> bool:
         return self.error is None and not self.dropped
-
-
-class Lane(Generic[T]):
-    """A bounded queue and one daemon thread that serves its items in order with ``serve``
-    (which must not raise), up to ``batch`` of them at a time. :meth:`put` never waits;
-    :meth:`finish` waits at most until a deadline. The thread is a daemon thread: one stuck in
-    a device (a pipe nobody reads) never holds the process's exit."""
-
-    def __init__(
-        self, name: str, capacity: int, serve: Callable[[list[T]], None], batch: int = 1
-    ) -> None:
-        self.capacity, self.batch = capacity, batch
-        self.dropped = 0
-        """Items refused (queue full, or closed) or left unserved at :meth:`finish`."""
-        self._serve = serve
-        self._items: collections.deque[T] = collections.deque()
-        self._busy = 0  # items being served
-        self._closed = False
-        self._cond = threading.Condition()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def put(self, item: T) -> bool:
-        """Queue ``item``; ``False`` (counted in :attr:`dropped`) when full or finished."""
-        with self._cond:
-            if self._closed or len(self._items) >= self.capacity:
-                self.dropped += 1
-                return False
-            self._items.append(item)
-            self._cond.notify_all()
-        return True
-
-    @property
-    def pending(self) -> int:
-        """Items queued or being served."""
-        with self._cond:
-            return len(self._items) + self._busy
-
-    @property
-    def idle(self) -> bool:
-        """Nothing queued, nothing being served."""
-        return self.pending == 0
-
-    def finish(self, deadline: float) -> list[T]:
-        """Take no more items, and wait until every queued item is served or the monotonic
-        ``deadline`` (seconds) has passed. Returns the items left unserved, which are taken
-        out of the queue (never served later) and counted in :attr:`dropped`."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-            while (self._items or self._busy) and self._thread.is_alive():
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    break
-                self._cond.wait(remaining)
-            left = list(self._items)
-            self._items.clear()
-            self.dropped += len(left)
-            self._cond.notify_all()
-            ending = self._thread.is_alive() and not self._busy
-        if ending:  # nothing left: the thread ends at once
-            self._thread.join(max(0.0, deadline - time.monotonic()))
-        return left
-
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                while not self._items and not self._closed:
-                    self._cond.wait()
-                if not self._items:
-                    return  # finished, and everything is served
-                taken = [self._items.popleft() for _ in range(min(self.batch, len(self._items)))]
-                self._busy = len(taken)
-            try:
-                self._serve(taken)
-            finally:
-                with self._cond:
-                    self._busy = 0
-                    self._cond.notify_all()
 
 
 class Sink:
@@ -301,7 +218,7 @@ class Sink:
         (a second call, from :meth:`close`, does not wait again for a disk that hangs)."""
         if not self._records_drained:
             self._records_drained = True
-            left = self._records.finish(time.monotonic() + timeout_s)
+            left = self._records.finish(deadline_after(timeout_s))
             for entry in left:
                 reason = f"the record file did not take it within {timeout_s:g} s of the exit"
                 self._finished(Written(entry, reason, dropped=True))
@@ -317,7 +234,7 @@ class Sink:
             return
         self._closed = True
         self.drain_records()
-        deadline = time.monotonic() + timeout_s
+        deadline = deadline_after(timeout_s)
         self._flight.finish(deadline)  # its failure's log line still goes out below
         self._journal.finish(deadline)
         self._logs.finish(deadline)
