@@ -1679,18 +1679,32 @@ def scenario_usb_reenumerate(bench: Bench) -> tuple[str, Measured]:
     }
 
 
+OTHER_STOPS_MAX = 3
+"""Stops of another cause that a latency block takes before it fails (a guest stalled past the
+link-loss deadline on a loaded host stops the robot too: that is not the stop measured)."""
+
+
 def stop_latency(bench: Bench, stops: int) -> list[float]:
     """``stops`` remote e-stops in RUN: ms from the VSC's write of the first heartbeat with the
-    e-stop (the simulator's clock stamp, ``estop_sent_at``) to the drive line read back at 0."""
-    found = []
-    for _ in range(stops):
+    e-stop (the simulator's clock stamp, ``estop_sent_at``) to the drive line read back at 0.
+    Each starts with the drive line read back at 1. A drive that went off before the e-stop
+    was written stopped for another cause: logged with the causes and measured again."""
+    found: list[float] = []
+    other: list[str] = []
+    while len(found) < stops:
         bench.to_run()
+        wait_for("drive on in RUN", lambda: bench.gpio.value(DRIVE) == 1, 10, 0.001)
         bench.sim.control.estop()
         wait_for("drive off", lambda: bench.gpio.value(DRIVE) == 0, 10, 0.001)
         off = time.monotonic()
         written = bench.sim.control.state()["estop_sent_at"]
-        check(written is not None and written <= off, f"e-stop written at {written}, off {off}")
-        found.append(round((off - written) * 1000, 1))
+        if written is None or written > off:
+            causes = [c["name"] for c in status(bench.instance)["causes"] if c["active"]]
+            other.append(f"off at {off:.3f}, e-stop written at {written}: {causes}")
+            log(f"stop latency: a stop of another cause, not measured: {other[-1]}")
+            check(len(other) <= OTHER_STOPS_MAX, f"stops of other causes: {other}")
+        else:
+            found.append(round((off - written) * 1000, 1))
         wait_state(bench.instance, "STOPPED", 10)
         bench.sim.control.release()
     return found
