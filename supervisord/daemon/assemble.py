@@ -7,13 +7,12 @@ from typing import TYPE_CHECKING
 
 from supervisord.api.server import ApiServer, ServerConfig
 from supervisord.clock import MONOTONIC, Clock
-from supervisord.config import CanBus, DaemonConfig, HidDevice, SerialPort
+from supervisord.config import DaemonConfig, SerialPort
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
-from supervisord.links.hid_link import HidLink
-from supervisord.links.serial_link import SerialLink
+from supervisord.links.registry import create_link
 from supervisord.outputs import Output, create_output
 from supervisord.outputs.base import OutputKind
 from supervisord.record.journal import JournalSink
@@ -30,23 +29,8 @@ log = logging.getLogger("srcsd")
 
 
 def build_link(config: DaemonConfig) -> Link:
-    settings = config.vsc.link
-    if isinstance(settings, SerialPort):
-        return SerialLink(str(settings.port))
-    if isinstance(settings, CanBus):
-        from supervisord.links.can_link import CanLink  # noqa: PLC0415 -- CAN only
-
-        errors = config.vsc.can_errors  # docs/safety.md "CAN error frames"
-        return CanLink(
-            settings.interface,
-            str(settings.channel),
-            settings.bitrate,
-            error_limit=errors.limit,
-            error_window_ms=errors.window_ms,
-            error_passive_ms=errors.passive_ms,
-        )
-    assert isinstance(settings, HidDevice)
-    return HidLink(str(settings.hidraw))
+    """The VSC's link, built by its transport's entry in the link registry."""
+    return create_link(config.vsc)
 
 
 def build_outputs(config: DaemonConfig, link: Link) -> tuple[list[Output], can.BusABC | None]:

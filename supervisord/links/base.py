@@ -36,16 +36,21 @@ class Link(abc.ABC):
 
     @abc.abstractmethod
     def fileno(self) -> int | None:
-        """The descriptor to wait on while open; ``None`` if the interface has none (the
-        loop then polls ``receive`` every few milliseconds)."""
+        """The descriptor to wait on while open: ``receive`` is called when it is readable (a
+        serial port that has nothing reads as empty, which is how it tells an unplug).
+        ``None`` if the interface has none: the loop then polls ``receive`` every few
+        milliseconds, and with nothing arrived it returns nothing."""
 
     @abc.abstractmethod
     def receive(self) -> list[Received]:
-        """Everything that has arrived, decoded, without blocking; raises ``LinkBrokenError``."""
+        """Everything that has arrived, decoded, without blocking: a frame that fails the
+        protocol's check is a rejection, never a message. Raises ``LinkBrokenError``, also
+        when not open."""
 
     @abc.abstractmethod
     def send(self, messages: list[Message]) -> None:
-        """Write ``messages`` at once, in order; raises ``LinkBrokenError``."""
+        """Write ``messages`` at once, in order, each in the transport's form (one it has no
+        form for is not sent); raises ``LinkBrokenError``, also when not open."""
 
     @abc.abstractmethod
     def close(self) -> None:
