@@ -372,6 +372,8 @@ def format_status(status: Mapping[str, Any]) -> str:
     remote = daemon.get("remote")
     if "remote" in daemon:
         lines.append(f"  remote   {remote_text(remote) if remote else 'no status seen'}")
+    if isinstance(available := status.get("estop_available"), Mapping):
+        lines.append(f"  e-stop   {estop_text(available)}")
     causes = status.get("causes") or []
     if not causes:
         lines.append("  causes   none")
@@ -396,6 +398,14 @@ def format_status(status: Mapping[str, Any]) -> str:
             f"internal faults {daemon.get('internal_faults', 0)}"
         )
     return "\n".join(lines) + "\n"
+
+
+def estop_text(available: Mapping[str, Any]) -> str:
+    """``available``, or ``NOT AVAILABLE: `` and each part missing (SR-8.11)."""
+    if available.get("available") is True:
+        return "available"
+    missing = [str(part) for part in available.get("missing") or []]
+    return "NOT AVAILABLE: " + ("; ".join(missing) or "no reason given")
 
 
 def duration(seconds: float) -> str:

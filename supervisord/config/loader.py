@@ -55,6 +55,7 @@ from supervisord.config.schema import (
     ERROR_WINDOW,
     HEARTBEAT_HZ,
     HIDRAW,
+    MIN_REMOTE_BATTERY,
     OUTPUT_NAME_KEY,
     PORT,
     PROOFTEST,
@@ -301,7 +302,8 @@ class _Loader:
         )
         if high < low:
             raise fields.refuse(REOPEN_MAX.name, high, f"make it at least reopen_min_ms ({low})")
-        return VscConfig(transport, link, Reopen(low, high), can_errors)
+        battery = fields.whole(MIN_REMOTE_BATTERY)
+        return VscConfig(transport, link, Reopen(low, high), can_errors, battery)
 
     @staticmethod
     def can_bus(fields: strict.Fields) -> CanBus:

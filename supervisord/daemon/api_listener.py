@@ -25,10 +25,15 @@ from supervisord.api.views import (
     refusal_error,
     state_push,
 )
+from supervisord.daemon.availability import (
+    DEFAULT_MIN_REMOTE_BATTERY,
+    Availability,
+    estop_available,
+)
 from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener
 from supervisord.protocol.hid import HidInput
-from supervisord.protocol.messages import Message, RemoteStatus
+from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import ClientDisconnected, Event
@@ -38,7 +43,8 @@ from supervisord.timebase import seconds_since
 class ApiListener(Listener):
     """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission);
     ``robot``: the configured robot name, for ``status``; ``required``: the required clients'
-    names and timeouts (ms), for ``status``. Time comes from the loop, as ``now`` (SR-2.11):
+    names and timeouts (ms), for ``status``; ``min_remote_battery``: ``vsc.min_remote_battery``,
+    for ``status``'s ``estop_available`` (SR-8.11). Time comes from the loop, as ``now`` (SR-2.11):
     the listener keeps no clock of its own."""
 
     def __init__(
@@ -48,15 +54,18 @@ class ApiListener(Listener):
         has_key85: bool = True,
         robot: str | None = None,
         required: Mapping[str, int] | None = None,
+        min_remote_battery: int = DEFAULT_MIN_REMOTE_BATTERY,
     ) -> None:
         self.server = server
         self.has_key85 = has_key85
         self.robot = robot
         self.required = dict(required or {})
+        self.min_remote_battery = min_remote_battery
         # For ``status`` (docs/api.md "status"): each connection's last accepted heartbeat,
         # the latest remote status and when it came, and when the current state began.
         self._beats: dict[int, int] = {}
         self._remote: tuple[RemoteStatus, int] | None = None
+        self._heartbeat: VscHeartbeat | None = None  # the VSC's last, for estop_available
         self._state_since: int | None = None
         self.daemon_info: Callable[[], dict[str, object]] = dict
         """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
@@ -90,7 +99,10 @@ class ApiListener(Listener):
         if isinstance(request, Status):
             assert self.last is not None
             daemon = {"robot": self.robot, **self.daemon_info(), **self._status_extra(now)}
-            self._closed += self.server.reply(result, **decision_json(self.last), daemon=daemon)
+            available = self.estop_available(now).json()
+            self._closed += self.server.reply(
+                result, **decision_json(self.last), estop_available=available, daemon=daemon
+            )
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
@@ -136,6 +148,21 @@ class ApiListener(Listener):
             "remote": remote,
             "in_state_s": seconds_since(now, self._state_since),
         }
+
+    def estop_available(self, now: int) -> Availability:
+        """Whether the remote e-stop is available (SR-8.11), from what the listener saw:
+        the last decision's causes and proof test, the VSC's last heartbeat and remote status."""
+        assert self.last is not None
+        remote, seen = self._remote if self._remote is not None else (None, None)
+        return estop_available(
+            now,
+            active=self.last.active_names,
+            heartbeat=self._heartbeat,
+            remote=remote,
+            remote_seen=seen,
+            prooftest=self.last.prooftest,
+            min_battery=self.min_remote_battery,
+        )
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""
@@ -212,7 +239,9 @@ class ApiListener(Listener):
     def received(self, message: Message | HidInput, now: int) -> None:
         if isinstance(message, HidInput):
             return
-        if isinstance(message, RemoteStatus):
+        if isinstance(message, VscHeartbeat):
+            self._heartbeat = message
+        elif isinstance(message, RemoteStatus):
             # Its values stay as the VSC last sent them (PR-2.10): the age says how old.
             self._remote = (message, now)
         if self._commissioning is not None:

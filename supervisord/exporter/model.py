@@ -132,6 +132,12 @@ SPECS: Final = _specs(
     Spec("srcs_output_on", G, "1 while the output is on", ("output",)),
     Spec("srcs_outputs_not_acquired", G, "outputs the daemon could not acquire yet"),
     Spec("srcs_link_up", G, "1 while the daemon's link to the VSC is open"),
+    Spec(
+        "srcs_estop_available",
+        G,
+        "1 while the remote e-stop is available: VSC heard, remote linked, battery reported "
+        "and not low, watchdog proven (SR-8.11; from the last status reply)",
+    ),
     Spec("srcs_link_opens", C, "times the daemon opened its link to the VSC (since it started)"),
     Spec("srcs_link_open_failures", C, "failed attempts to open the link (since srcsd started)"),
     Spec("srcs_messages", C, "valid messages from the VSC (since srcsd started)"),
@@ -319,6 +325,7 @@ class ExporterModel:
         self.outputs: dict[str, bool] = {}
         self.daemon: DaemonInfo | None = None
         self.remote: RemoteStatus | None = None
+        self.estop_available: bool | None = None
         # The exporter's own: for the life of the process.
         self.known_causes: dict[str, str] = {}  # every cause seen: its severity
         self.stops: dict[str, int] = {}
@@ -352,10 +359,13 @@ class ExporterModel:
         self.outputs = {}
         self.daemon = None
         self.remote = None
+        self.estop_available = None
 
     def status(self, reply: Mapping[str, object]) -> None:
-        """A ``status`` reply: the state and the ``daemon`` object."""
+        """A ``status`` reply: the state, ``estop_available`` and the ``daemon`` object."""
         self._state(reply)
+        available = _mapping(reply.get("estop_available")).get("available")
+        self.estop_available = available if isinstance(available, bool) else None
         daemon = reply.get("daemon")
         if isinstance(daemon, Mapping):
             self._daemon(daemon)
@@ -553,6 +563,7 @@ class ExporterModel:
                 put("srcs_cause_latched", latched, cause=cause, severity=severity)
             for output, on in sorted(self.outputs.items()):
                 put("srcs_output_on", on, output=output)
+        put("srcs_estop_available", self.estop_available)
         daemon = self.daemon
         if daemon is None:
             return

@@ -60,11 +60,13 @@ def supervisor_status(
     client_name: str,
     gate: GateCounts,
     unreachable: str = "",
+    estop_available: tuple[bool, tuple[str, ...]] | None = None,
 ) -> Status:
     """The supervisor's status from its latest ``state`` push or ``status`` reply
     (``status``) and the ``daemon`` block of its latest ``status`` reply. ``status`` None:
     the supervisor cannot be reached (``unreachable`` says why), an ERROR (docs/ros2.md
-    "Reconnects")."""
+    "Reconnects"). ``estop_available``: whether the remote e-stop is available and what is
+    missing (SR-8.11), from the latest ``status`` reply; not available in RUN is a WARN."""
     robot = _text(daemon.get("robot")) if daemon else ""
     values: list[tuple[str, str]] = [("socket", socket), ("client name", client_name)]
     if status is None:
@@ -81,11 +83,20 @@ def supervisor_status(
     if isinstance(outputs, Mapping):
         values += [(f"output {name}", _flag(on)) for name, on in sorted(outputs.items())]
     values += [("heartbeat e-stop", _text(status.get("heartbeat_estop")))]
+    level = _STATE_LEVEL[state]
+    if estop_available is not None:
+        available, parts = estop_available
+        values += [("e-stop available", _flag(available))]
+        values += [("e-stop missing", "; ".join(parts))] if not available else []
+        if not available and level is Level.OK:
+            level = Level.WARN  # RUN without a working remote e-stop: said, not stopped
     if daemon:
         values += _daemon_values(daemon)
     values += _gate_values(gate)
     message = state.value + (": " + ", ".join(names) if names else "")
-    return Status(_STATE_LEVEL[state], SUPERVISOR_NAME, message, robot, tuple(values))
+    if estop_available is not None and not estop_available[0]:
+        message += "; remote e-stop not available"
+    return Status(level, SUPERVISOR_NAME, message, robot, tuple(values))
 
 
 def remote_status(push: Mapping[str, Any] | None, robot: str) -> Status:

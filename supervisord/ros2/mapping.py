@@ -60,6 +60,19 @@ def estop_of(state: State) -> bool:
     return state not in (State.RUN, State.HOLD)
 
 
+def estop_available_of(status: Mapping[str, Any] | None) -> tuple[bool, tuple[str, ...]]:
+    """The ``estop_available`` topic and the parts missing, from a ``status`` reply
+    (SR-8.11, docs/api.md "status"): false unless the reply says true, so a supervisor not
+    reached, or one too old to say, is never taken for an available e-stop."""
+    field = status.get("estop_available") if status is not None else None
+    if not isinstance(field, Mapping):
+        why = "the supervisor is not reached" if status is None else "the supervisor does not say"
+        return False, (why,)
+    missing = field.get("missing")
+    parts = tuple(str(m) for m in missing) if isinstance(missing, list) else ()
+    return field.get("available") is True, parts
+
+
 @dataclass(frozen=True, slots=True)
 class JoyValues:
     """``sensor_msgs/Joy`` ``axes`` (each -1..1) and ``buttons`` (each 0 or 1)."""

@@ -33,7 +33,14 @@ from supervisord.client import Push, SupervisorClient
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
 from supervisord.ros2.link import Connected, Event, Lost, SupervisorLink
-from supervisord.ros2.mapping import State, estop_of, gps_fix, joy_values, state_of
+from supervisord.ros2.mapping import (
+    State,
+    estop_available_of,
+    estop_of,
+    gps_fix,
+    joy_values,
+    state_of,
+)
 from supervisord.ros2.mapping import display_rows as rows_of
 from supervisord.ros2.parameters import PARAMETERS
 
@@ -85,6 +92,8 @@ class BridgeNode(Node):
         self.estop_pub = self.create_publisher(Bool, "estop", LATCHED)
         self.ready_pub = self.create_publisher(Bool, "ready", LATCHED)
         self._ready: bool | None = None
+        self.available_pub = self.create_publisher(Bool, "estop_available", LATCHED)
+        self._available: tuple[bool, tuple[str, ...]] | None = None
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", STREAM)
         self.gps_pub = self.create_publisher(NavSatFix, "gps", STREAM)
         kind = TwistStamped if self.stamped else Twist
@@ -108,6 +117,7 @@ class BridgeNode(Node):
 
         self._set_state(State.STOPPED)  # until the supervisor says otherwise
         self._set_ready(False)
+        self._set_available(None)
         self._publish_diagnostics(force=True)
         self.create_timer(float(p["poll_period"]), self._on_poll)
         self.create_timer(float(p["heartbeat_period"]), self._on_heartbeat)
@@ -133,6 +143,7 @@ class BridgeNode(Node):
             self._daemon = status.get("daemon")
             self._on_status(status)
             self._set_ready(not missing(status))
+            self._set_available(status)
         self._handle(self.link.take())
         self._publish_diagnostics(force=True)
 
@@ -145,11 +156,13 @@ class BridgeNode(Node):
                 self._daemon = event.status.get("daemon")
                 self._on_status(event.status)
                 self._set_ready(not missing(event.status))
+                self._set_available(event.status)
             elif isinstance(event, Lost):
                 self.get_logger().error(f"lost the supervisor: {event.reason}")
                 self._status = None
                 self._set_state(State.STOPPED)
                 self._set_ready(False)
+                self._set_available(None)
             elif event.event == "state":
                 self._on_status(event.data)
             elif event.event == "joystick":
@@ -181,6 +194,15 @@ class BridgeNode(Node):
             self._ready = ready
             self.ready_pub.publish(Bool(data=ready))
 
+    def _set_available(self, status: Mapping[str, Any] | None) -> None:
+        """``estop_available``: the remote e-stop is available (SR-8.11), latched, on a
+        change; from the full ``status`` (a ``state`` push does not carry it), ``None``: the
+        supervisor is not reached. Kept with its missing parts for the diagnostics."""
+        available = estop_available_of(status)
+        if self._available is None or available[0] is not self._available[0]:
+            self.available_pub.publish(Bool(data=available[0]))
+        self._available = available
+
     def _publish_joy(self, push: Push) -> None:
         values = joy_values(push.data)
         msg = Joy(axes=list(values.axes), buttons=list(values.buttons))
@@ -208,6 +230,7 @@ class BridgeNode(Node):
             client_name=self.client_name,
             gate=self.gate.counts,
             unreachable=self.link.reason,
+            estop_available=self._available,
         )
         shown = (supervisor, remote_status(self._remote, supervisor.hardware_id))
         if not force and self._shown is not None and _same(self._shown, shown):

@@ -224,6 +224,9 @@ VSC_CASES: list[Case] = [
         "vsc.reopen_max_ms",
         "at least reopen_min_ms (2000)",
     ),
+    ({"vsc.min_remote_battery": -1}, "vsc.min_remote_battery", "from 0 to 100"),
+    ({"vsc.min_remote_battery": 101}, "vsc.min_remote_battery", "from 0 to 100"),
+    ({"vsc.min_remote_battery": "20"}, "vsc.min_remote_battery", "without quotes"),
     ({"vsc.timeout_ms": 49}, "vsc.timeout_ms", "from 50 to 1000"),
     ({"vsc.timeout_ms": 1001}, "vsc.timeout_ms", "from 50 to 1000"),
     ({"vsc.timeout_ms": "200"}, "vsc.timeout_ms", "without quotes"),
@@ -253,6 +256,18 @@ def test_serial_defaults_and_fixed_baud(tmp_path: Path) -> None:
     """A serial VSC defaults to the udev symlink and accepts baud = 115200 said aloud."""
     config = load(tmp_path, {"vsc": {"transport": "serial", "baud": 115_200}})
     assert config.vsc.link == SerialPort(Path(DEFAULT_SERIAL_PORT), SERIAL_BAUD)
+
+
+@pytest.mark.parametrize(
+    ("changes", "expected"),
+    [({}, 20), ({"vsc.min_remote_battery": 0}, 0), ({"vsc.min_remote_battery": 100}, 100)],
+)
+def test_min_remote_battery(tmp_path: Path, changes: dict[str, object], expected: int) -> None:
+    """vsc.min_remote_battery (SR-8.11): 20 % by default, 0 (no battery check) to 100, on
+    every transport."""
+    assert load(tmp_path, changes).vsc.min_remote_battery == expected
+    can = {**CAN_VSC, **{key.removeprefix("vsc."): value for key, value in changes.items()}}
+    assert load(tmp_path, {"vsc": can}).vsc.min_remote_battery == expected
 
 
 def test_can_vsc_defaults(tmp_path: Path) -> None:

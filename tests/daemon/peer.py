@@ -42,6 +42,7 @@ class VscPeer:
         self.key85 = key85
         self.answers_feedback = True
         self.remote_status_ms: int | None = None  # off, as the VSC ships (manual table 5)
+        self.battery = 80  # the remote's battery percent in each remote status
         self.burst = 1  # heartbeats sent back to back in one write (a VSC's queue after a stall)
         self.written = 0  # bytes sent so far (a test waits until the daemon's side has them)
         self.received: list[object] = []
@@ -74,7 +75,7 @@ class VscPeer:
             sent = True
         if self.remote_status_ms is not None and now >= self._next_status:
             self._next_status = now + self.remote_status_ms / 1000
-            self._send(encode_frame(RemoteStatus(80)))
+            self._send(encode_frame(RemoteStatus(self.battery)))
             sent = True
         return sent
 

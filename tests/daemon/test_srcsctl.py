@@ -12,9 +12,11 @@ import subprocess
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import SrcsdProcess
@@ -659,3 +661,46 @@ def test_wait_ready_names_what_is_missing(tmp_path: Path) -> None:
     assert silent.returncode == 1, silent.stderr
     assert "not ready after 1 s" in silent.stderr
     assert "the VSC is not heard" in silent.stderr
+
+
+def _available_when(robot: Robot, done: Callable[[dict[str, object]], bool]) -> dict[str, Any]:
+    """The ``estop_available`` object of the first ``status`` for which ``done`` holds (the
+    peer's thread changes what the VSC sends; the daemon reads it within a few turns)."""
+    deadline = time.monotonic() + 20
+    while True:
+        available = robot.status()["estop_available"]
+        assert isinstance(available, dict)
+        if done(available):
+            return available
+        assert time.monotonic() < deadline, available
+        time.sleep(0.05)
+
+
+def test_status_says_whether_the_remote_estop_is_available(robot: Robot) -> None:
+    """SR-8.11: ``status`` and ``srcsctl status`` say whether the remote e-stop is available
+    and name each part missing: no battery report before remote status is on, a battery
+    below ``vsc.min_remote_battery`` (20 %), no remote linked (Searching); available once the
+    VSC is heard, a remote linked, its battery reported and high enough and the watchdog
+    proven. The state is not asked for: it is STOPPED throughout."""
+    done = robot.ctl("wait-ready", "--timeout", "30")
+    assert done.returncode == 0, done.stderr
+    first = robot.status()["estop_available"]
+    assert isinstance(first, dict)
+    assert first["available"] is False
+    assert [m[:36] for m in first["missing"]] == ["the remote's battery is not reported"]
+
+    robot.peer.battery = 10
+    robot.peer.remote_status_ms = 100
+    low = "the remote's battery is 10 %, below 20 %"
+    assert _available_when(robot, lambda a: low in a["missing"])["missing"] == [low]  # type: ignore[operator]
+    assert f"  e-stop   NOT AVAILABLE: {low}\n" in robot.ctl("status").stdout
+
+    robot.peer.battery = 20
+    assert _available_when(robot, lambda a: a["available"] is True)["missing"] == []
+    assert "  e-stop   available\n" in robot.ctl("status").stdout
+
+    robot.peer.mode = VscMode.SEARCHING
+    unlinked = "no remote is linked to the VSC (its mode is searching)"
+    lost = _available_when(robot, lambda a: a["available"] is False)
+    assert lost["missing"] == [unlinked]
+    assert robot.status()["state"] == "STOPPED"

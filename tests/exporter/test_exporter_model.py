@@ -208,6 +208,27 @@ def test_remote_status_is_exported_only_while_fresh() -> None:
     }
 
 
+def test_estop_available_is_a_gauge_from_the_status_reply() -> None:
+    """SR-8.11: ``srcs_estop_available`` is 1 or 0 as the last status reply's
+    ``estop_available`` says, in any state; absent without one (an older daemon, a reply
+    without the field or with a wrong type) and once the connection ends."""
+    gauge = ("srcs_estop_available", ())
+    model = connected()
+    assert gauge not in values(model)
+    model.status({**STATUS, "estop_available": {"available": True, "missing": []}})
+    assert values(model)[gauge] == 1
+    low = ["the remote's battery is 10 %, below 20 %"]
+    model.status({**STATUS, "estop_available": {"available": False, "missing": low}})
+    assert values(model)[gauge] == 0
+    model.push({"event": "state", "state": "STOPPED", "mono_ns": 5_000, "causes": []}, 0)
+    assert values(model)[gauge] == 0  # a push carries no estop_available: the reply's stays
+    model.status({**STATUS, "estop_available": {"available": "yes"}})
+    assert gauge not in values(model)
+    model.status({**STATUS, "estop_available": {"available": True, "missing": []}})
+    model.disconnected()
+    assert gauge not in values(model)
+
+
 def test_garbage_from_the_daemon_is_skipped_without_raising() -> None:
     """Wrong types, missing fields and unknown pushes change nothing and raise nothing."""
     model = connected()

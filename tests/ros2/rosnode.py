@@ -71,6 +71,7 @@ class RosPeer:
         self.state: list[str] = []
         self.estop: list[bool] = []
         self.ready: list[bool] = []
+        self.available: list[bool] = []
         self.gps: list[NavSatFix] = []
         self.cmd_out: list[Twist] = []
         self.diagnostics: list[DiagnosticArray] = []
@@ -79,6 +80,7 @@ class RosPeer:
         n.create_subscription(String, "state", self._on_state, LATCHED)
         n.create_subscription(Bool, "estop", self._on_estop, LATCHED)
         n.create_subscription(Bool, "ready", self._on_ready, LATCHED)
+        n.create_subscription(Bool, "estop_available", self._on_available, LATCHED)
         n.create_subscription(NavSatFix, "gps", self.gps.append, STREAM)
         n.create_subscription(Twist, "cmd_vel_out", self.cmd_out.append, STREAM)
         n.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, STREAM)
@@ -97,6 +99,9 @@ class RosPeer:
 
     def _on_ready(self, msg: Bool) -> None:
         self.ready.append(msg.data)
+
+    def _on_available(self, msg: Bool) -> None:
+        self.available.append(msg.data)
 
     def spin_until(
         self, condition: Callable[[], Any], timeout: float = WAIT_S, what: str = ""

@@ -24,6 +24,7 @@ except ImportError as error:  # rclpy's libraries are not on the library path
         allow_module_level=True,
     )
 
+from supervisord.client import SupervisorClient
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 
@@ -172,6 +173,37 @@ def test_ready_says_when_the_stop_path_works(
     ros.spin_until(lambda: ros.ready[-1:] == [False], what="ready false without srcsd")
     running.start_daemon()
     ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true after the restart")
+
+
+def test_estop_available_says_when_the_remote_estop_works(
+    robot: tuple[Robot, BridgeProcess], ros: RosPeer
+) -> None:
+    """SR-8.11: ``estop_available`` (latched) is false while the remote's battery is not
+    reported (remote status is off as the VSC ships), true once commissioning turned it on
+    (the simulated remote at 80 %), and false again in RUN when the battery drops to 10 %,
+    with the part missing in the supervisor diagnostic; the robot keeps running (a warning,
+    not a stop)."""
+    running, _ = robot
+    ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true")
+    ros.spin_until(
+        lambda: (ros.supervisor() or {}).get("e-stop available") == "false",
+        what="e-stop not available before remote status",
+    )
+    assert ros.available[-1:] == [False]
+    assert "battery is not reported" in (ros.supervisor() or {})["e-stop missing"]
+    with SupervisorClient.connect(running.socket_path, timeout=30.0) as admin:
+        assert admin.commission()["remote_status"] is True
+    ros.spin_until(lambda: ros.available[-1:] == [True], what="e-stop available")
+    _arm(running, ros)
+    running.vsc.call("remote_status", battery_level=10)
+
+    def low() -> bool:
+        values = ros.supervisor() or {}
+        return "the remote's battery is 10 %, below 20 %" in values.get("e-stop missing", "")
+
+    ros.spin_until(low, what="the low battery in the diagnostics")
+    ros.spin_until(lambda: ros.available[-1:] == [False], what="e-stop not available")
+    assert running.status()["state"] == "RUN"
 
 
 def test_killed_bridge_stops_the_robot(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:

@@ -38,6 +38,7 @@ def _status(**kw: object) -> dict[str, str]:
         client_name="ros",
         gate=GateCounts(forwarded=7),
         unreachable=str(kw.get("unreachable", "")),
+        estop_available=kw.get("available"),  # type: ignore[arg-type]
     )
     return {"level": str(int(status.level)), "message": status.message, **dict(status.values)}
 
@@ -56,6 +57,23 @@ def test_stopped_names_every_cause_with_details() -> None:
     assert values["rejections bad_checksum"] == "3"
     assert values["output drive"] == "false"
     assert values["cmd_vel forwarded"] == "7"
+
+
+def test_estop_available_is_a_value_and_its_loss_in_run_a_warning() -> None:
+    """SR-8.11: ``e-stop available`` and, when it is not, ``e-stop missing`` with each part;
+    in RUN its loss makes the status WARN and says so in the message (a warning: the
+    supervisor does not stop for it); in STOPPED the level stays ERROR."""
+    run = {"state": "RUN", "causes": []}
+    fine = _status(status=run, available=(True, ()))
+    assert (fine["level"], fine["e-stop available"], fine["message"]) == ("0", "true", "RUN")
+    assert "e-stop missing" not in fine
+    parts = ("the remote's battery is 10 %, below 20 %", "no remote is linked to the VSC")
+    lost = _status(status=run, available=(False, parts))
+    assert lost["level"] == str(int(Level.WARN))
+    assert lost["message"] == "RUN; remote e-stop not available"
+    assert lost["e-stop available"] == "false"
+    assert lost["e-stop missing"] == "; ".join(parts)
+    assert _status(available=(False, parts))["level"] == str(int(Level.ERROR))
 
 
 def test_levels_follow_the_state_and_unreachable_is_error() -> None:

@@ -9,6 +9,7 @@ from supervisord.ros2.mapping import (
     FixStatus,
     State,
     display_rows,
+    estop_available_of,
     estop_of,
     gps_fix,
     joy_values,
@@ -52,6 +53,24 @@ def test_state_and_estop_rule() -> None:
     assert state_of({"state": "run"}) is State.STOPPED
     assert state_of(None) is State.STOPPED
     assert [estop_of(s) for s in (State.RUN, State.HOLD, State.STOPPED)] == [False, False, True]
+
+
+def test_estop_available_only_when_the_status_reply_says_so() -> None:
+    """SR-8.11: the ``estop_available`` topic is true only for a ``status`` reply saying
+    ``available: true``; no supervisor, a reply without the field (an older daemon) or with
+    a wrong type is false, with the reason."""
+    low = "the remote's battery is 10 %, below 20 %"
+    assert estop_available_of({"estop_available": {"available": True, "missing": []}}) == (
+        True,
+        (),
+    )
+    assert estop_available_of({"estop_available": {"available": False, "missing": [low]}}) == (
+        False,
+        (low,),
+    )
+    assert estop_available_of(None) == (False, ("the supervisor is not reached",))
+    assert estop_available_of({"state": "RUN"}) == (False, ("the supervisor does not say",))
+    assert estop_available_of({"estop_available": {"available": "yes"}})[0] is False
 
 
 def test_gga_becomes_a_fix_with_ellipsoid_altitude() -> None:

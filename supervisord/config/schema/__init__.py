@@ -24,6 +24,7 @@ from typing import Final
 from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
+from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, MIN_REMOTE_BATTERY_RANGE
 from supervisord.outputs.registry import KIND, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.config import (
@@ -155,6 +156,16 @@ PROOFTEST_CLEAR: Final = strict.Whole(
     low=PROOFTEST_CLEAR_RANGE_MS[0],
     high=PROOFTEST_CLEAR_RANGE_MS[1],
 )
+MIN_REMOTE_BATTERY: Final = strict.Whole(
+    name="min_remote_battery",
+    doc="Below this battery percent of the remote, the e-stop counts as not available: a "
+    'warning in status, never a stop (SR-8.11, docs/safety.md "Is the e-stop available?"); '
+    "0: no battery check.",
+    default=DEFAULT_MIN_REMOTE_BATTERY,
+    example=DEFAULT_MIN_REMOTE_BATTERY,
+    low=MIN_REMOTE_BATTERY_RANGE[0],
+    high=MIN_REMOTE_BATTERY_RANGE[1],
+)
 REOPEN_MIN: Final = strict.Whole(
     name="reopen_min_ms",
     doc="After a lost link, the first wait before reopening it.",
@@ -266,6 +277,7 @@ VSC_COMMON: Final = (
     REQUIRE_WATCHDOG,
     PROOFTEST,
     PROOFTEST_CLEAR,
+    MIN_REMOTE_BATTERY,
     REOPEN_MIN,
     REOPEN_MAX,
 )
