@@ -34,7 +34,10 @@ class OutputWatcher:
     alternate: two "off" readings in a row mean an "on" came and went faster than this
     thread could read it. The watcher records that "on" as ``inferred`` at the second
     reading's time, so a brief "on" is never missed, only timed late. Call ``daemon_started``
-    before each daemon start."""
+    before each daemon start. One case it cannot tell: after a daemon start, an "on" and an
+    "off" that this thread reads together with the acquisition's "off" (a starved thread,
+    seen once under load) look like the acquisition alone; a test that needs the level after a
+    restart reads the file itself (``Robot.output_file``)."""
 
     def __init__(self, paths: Sequence[Path]) -> None:
         self.paths = {path.name: path for path in paths}

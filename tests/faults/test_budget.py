@@ -5,6 +5,7 @@ they can."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -82,9 +83,11 @@ def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
         assert sum(cycles) > 100, cycles  # the churn did churn
         during = [r for r in robot.records_since(t0) if r["mono_ns"] <= t1 * 1e9]
         assert during, "the holds were not recorded at all"
-        assert _worst_second(during) <= RECORDS_PER_UID + 1, [
-            (r["seq"], r["mono_ns"], r["kind"], r.get("changes")) for r in during
-        ]
+        worst = _worst_second(during)
+        if worst > RECORDS_PER_UID + 1:  # every record in full: the assertion would cut them
+            for record in during:
+                print(json.dumps(record, sort_keys=True))
+        assert worst <= RECORDS_PER_UID + 1
         assert all(r["to"] != "STOPPED" for r in during), during
         wait_until(
             lambda: _state_once_served(robot) == "RUN",
