@@ -18,6 +18,12 @@ _STEADY_ESTOP = (
     "makes _steady true sets _steady_estop first (_finish): the start value is never read"
 )
 
+_DEADLINE = "SafetyCore._next_deadline"
+_LATER_EQUAL = (
+    "when the candidate equals earliest, the original keeps earliest and the mutant sets earliest "
+    "to the candidate: the same value, and earliest is all the function returns"
+)
+
 EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "core.py",
@@ -61,5 +67,33 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "_steady_estop = 1  # the user heartbeat's byte from the conditions alone (no urgent "
         "raise)",
         _STEADY_ESTOP,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if free is not None and now < free < earliest:",
+        "if free is not None and now < free <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:",
+        "if last is not None and now < (due := last + self._vsc_timeout_ns) <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) < earliest:",
+        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if later is not None and now < later < earliest:",
+        "if later is not None and now < later <= earliest:",
+        _LATER_EQUAL,
     ),
 )
