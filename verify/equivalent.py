@@ -18,6 +18,19 @@ _STEADY_ESTOP = (
     "makes _steady true sets _steady_estop first (_finish): the start value is never read"
 )
 
+_DEADLINE = "SafetyCore._next_deadline"
+_LATER_EQUAL = (
+    "when the candidate equals earliest, the original keeps earliest and the mutant sets earliest "
+    "to the candidate: the same value, and earliest is all the function returns"
+)
+
+_WAITING_CLEARS = (
+    "every step into WAITING (__init__, restart, abort, a late try cleared) sets _withheld_from, "
+    "_trip_ns and _resumed_ns to None, only a heartbeat while WITHHOLDING sets _trip_ns and only "
+    "a heartbeat sent while RESUMED sets _resumed_ns, and WITHHOLDING is entered from WAITING "
+    "alone"
+)
+
 EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "core.py",
@@ -61,5 +74,63 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "_steady_estop = 1  # the user heartbeat's byte from the conditions alone (no urgent "
         "raise)",
         _STEADY_ESTOP,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if free is not None and now < free < earliest:",
+        "if free is not None and now < free <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:",
+        "if last is not None and now < (due := last + self._vsc_timeout_ns) <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) < earliest:",
+        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if later is not None and now < later < earliest:",
+        "if later is not None and now < later <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "prooftest.py",
+        "ProofTest.__init__",
+        "self._was_operational = False",
+        "self._was_operational = True",
+        "read only by a heartbeat while WITHHOLDING, and advance sets it in the step that enters "
+        "WITHHOLDING, the only way in: the start value is never read",
+    ),
+    Equivalent(
+        "prooftest.py",
+        "ProofTest.advance",
+        "self._trip_ns = None",
+        "pass",
+        "_trip_ns is already None when WITHHOLDING is entered: " + _WAITING_CLEARS,
+    ),
+    Equivalent(
+        "prooftest.py",
+        "ProofTest._resume",
+        "self._resumed_ns = None  # set by the first heartbeat that goes out",
+        "pass  # set by the first heartbeat that goes out",
+        "_resume runs only while WITHHOLDING, where _resumed_ns is None: " + _WAITING_CLEARS,
+    ),
+    Equivalent(
+        "prooftest.py",
+        "ProofTest._finish",
+        "self._resumed_ns = None",
+        "pass",
+        "every failure but not_cleared is finished while WAITING (key85_off) or WITHHOLDING "
+        "(no_trip, late, stayed_operational), where _resumed_ns is None: " + _WAITING_CLEARS,
     ),
 )

@@ -20,6 +20,7 @@ from supervisord.safety import (
     Request,
     State,
 )
+from supervisord.safety.causes import Cause, CauseKind
 from tests.safety.rig import ADMIN, LOCAL, OPERATIONAL, PAUSE, Rig
 
 
@@ -249,3 +250,39 @@ def test_read_back_of_an_unknown_output_is_internal() -> None:
     assert decision.refusals[0].reason is RefusalReason.UNKNOWN_OUTPUT
     assert "internal" in decision.latched_names
     assert decision.state is State.STOPPED
+
+
+def test_only_startup_and_internal_are_momentary() -> None:
+    """SR-1.3, SR-2: ``startup`` and ``internal`` fire and are clear at once (only their latch
+    remains); every other cause lasts as long as its condition."""
+    assert {k for k in CauseKind if k.momentary} == {CauseKind.STARTUP, CauseKind.INTERNAL}
+
+
+@pytest.mark.parametrize(
+    ("kind", "subject"),
+    [
+        ("startup", None),  # not a CauseKind
+        (CauseKind.CLIENT_LOST, None),  # a client's cause names its client
+        (CauseKind.STARTUP, "planner"),  # a cause of the whole supervisor names nothing
+        (CauseKind.CLIENT_LOST, ""),
+        (CauseKind.CLIENT_LOST, 7),
+    ],
+)
+def test_a_cause_is_refused_unless_its_name_is_well_formed(kind: object, subject: object) -> None:
+    """SR-2: a cause is named as in the records (``client_lost:planner``, ``startup``): a kind
+    that is not one, a subject missing, unwanted, empty or not text is refused."""
+    with pytest.raises(ValueError, match="cause"):
+        Cause(kind, subject)  # type: ignore[arg-type]
+
+
+def test_causes_sort_by_name() -> None:
+    """SR-2: causes are listed in the order of their names, and a cause is not before itself."""
+    names = [Cause(CauseKind.VSC_MODE, "remote"), Cause(CauseKind.CLIENT_LOST, "b")]
+    names += [Cause(CauseKind.CLIENT_LOST, "a"), Cause(CauseKind.STARTUP)]
+    assert [c.name for c in sorted(names)] == [
+        "client_lost:a",
+        "client_lost:b",
+        "startup",
+        "vsc_mode:remote",
+    ]
+    assert not Cause(CauseKind.STARTUP) < Cause(CauseKind.STARTUP)

@@ -19,6 +19,7 @@ from supervisord.safety.prooftest import (
     LATE_TRIES,
     TRIP_LATE_NS,
     WITHHOLD_LIMIT_NS,
+    Cleared,
     Failure,
     Phase,
     ProofStatus,
@@ -194,6 +195,344 @@ def test_a_trip_at_exactly_700_ms_passes_and_one_nanosecond_later_is_late(
     else:
         assert outcome is None
         assert proof.phase is Phase.RESUMED
+
+
+@pytest.mark.parametrize("user_bit", [0x40, 0x80])
+def test_only_the_user_bits_of_the_estop_word_are_the_watchdogs_trip(user_bit: int) -> None:
+    """SR-5.6 and PR-2.6: the watchdog's trip is the user e-stop bits, 6-7 of the e-stop word.
+    The remote's and the wired input's bits (0-5), all set, are another stop, not the trip:
+    the heartbeat stays withheld; then bit 6 alone, or bit 7 alone, is the trip."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    assert proof.withholding
+    proof.heartbeat(LOCAL, 0x3F, START_NS + 550 * MS)
+    assert proof.phase is Phase.WITHHOLDING
+    proof.heartbeat(LOCAL, user_bit, START_NS + 600 * MS)
+    assert proof.take_outcome() is None
+    assert proof.status().phase is Phase.RESUMED
+
+
+def _passed(cleared_after_ns: int) -> ProofTest:
+    """A proof test whose trip is seen 600 ms after the last heartbeat sent, and whose bits
+    clear ``cleared_after_ns`` after the heartbeat resumed (50 ms after the trip)."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + 600 * MS)
+    resumed = START_NS + 650 * MS
+    proof.sent(resumed)
+    proof.heartbeat(LOCAL, 0, resumed + cleared_after_ns)
+    return proof
+
+
+@pytest.mark.parametrize(
+    ("after_ns", "how"), [(500 * MS, Cleared.BY_ITSELF), (500 * MS + 1, Cleared.HELD)]
+)
+def test_bits_clear_by_themselves_within_500_ms_and_one_nanosecond_later_were_held(
+    after_ns: int, how: Cleared
+) -> None:
+    """SR-5.6 (docs/safety.md "The proof test", step 4): bits that clear within 500 ms of
+    the heartbeat resuming cleared by themselves, so exactly 500 ms is "by itself" and a
+    nanosecond later the VSC held them; both pass, and the record says which."""
+    outcome = _passed(after_ns).take_outcome()
+    assert outcome is not None
+    assert outcome.passed
+    assert outcome.cleared is how
+
+
+def test_the_prooftest_record_and_status_give_the_measured_times() -> None:
+    """SR-5.6: the result is a ``prooftest`` record with the measured trip time: a pass gives
+    the trip and how the bits cleared, a late trip its failure and the trip, and ``status``
+    shows the latest result (none before the first)."""
+    proof = _passed(120 * MS)
+    passed = proof.take_outcome()
+    assert passed is not None
+    assert proof.status().json() == {"policy": "block", "phase": "passed", "last": passed.json()}
+    assert passed.text == (
+        "passed: trip 600 ms (manual: 500 ms); cleared by itself 120 ms after the heartbeat resumed"
+    )
+    assert passed.json() == {
+        "result": "passed",
+        "failure": None,
+        "trip_ms": 600,
+        "cleared": "by_itself",
+        "cleared_ms": 120,
+        "text": passed.text,
+    }
+    held = _passed(800 * MS).take_outcome()
+    assert held is not None
+    assert held.text.endswith("; cleared held, then cleared 800 ms after the heartbeat resumed")
+
+    late = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    assert late.status().json() == {"policy": "block", "phase": "waiting", "last": None}
+    late.sent(START_NS)
+    late.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    late.heartbeat(LOCAL, 0x80, START_NS + 750 * MS)
+    failed = late.take_outcome()
+    assert failed is not None
+    assert failed.text == (
+        "failed: the VSC reported the user-timeout e-stop late; trip 750 ms (manual: 500 ms)"
+    )
+    assert failed.json() == {
+        "result": "failed",
+        "failure": "late",
+        "trip_ms": 750,
+        "cleared": None,
+        "cleared_ms": None,
+        "text": failed.text,
+    }
+    assert late.status().json() == {"policy": "block", "phase": "failed", "last": failed.json()}
+
+
+def _try(proof: ProofTest, sent_ns: int, trip_after_ns: int) -> int:
+    """One try on a VSC whose bits are seen ``trip_after_ns`` after the last heartbeat sent
+    (at ``sent_ns``) and clear 50 ms after the heartbeat resumed; when the try ended."""
+    proof.sent(sent_ns)
+    proof.advance(sent_ns + 10 * MS, True, 1, LOCAL)
+    assert proof.withholding
+    proof.heartbeat(LOCAL, 0x80, sent_ns + trip_after_ns)
+    if proof.phase is Phase.FAILED:
+        return sent_ns + trip_after_ns
+    proof.sent(sent_ns + trip_after_ns + 50 * MS)
+    proof.heartbeat(LOCAL, 0, sent_ns + trip_after_ns + 100 * MS)
+    return sent_ns + trip_after_ns + 100 * MS
+
+
+def test_a_new_start_counts_the_late_tries_again() -> None:
+    """SR-5.7 with SR-5.6 (a new start proves the watchdog again): a restart forgets the late
+    tries of the test it interrupts, so a trip in time then passes at once, and a watchdog
+    late every time fails on the LATE_TRIES-th late try after the restart, not sooner or later."""
+    late, in_time = 750 * MS, 550 * MS
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=2)
+    end = _try(proof, START_NS, late)
+    assert proof.phase is Phase.WAITING  # late once of two: measured again
+    proof.restart()
+    _try(proof, end + 1_000 * MS, in_time)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.passed
+
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=2)
+    end = _try(proof, START_NS, late)
+    proof.restart()
+    end = _try(proof, end + 1_000 * MS, late)
+    assert proof.phase is Phase.WAITING
+    assert proof.take_outcome() is None
+    _try(proof, end + 1_000 * MS, late)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.failure is Failure.LATE
+
+
+def test_the_wait_for_key_85_runs_from_the_first_heartbeat_since_the_restart() -> None:
+    """SR-5.3: key 85 is waited for 3 s from the first VSC heartbeat since the (re)start, not
+    from one heard before it: a restart starts the wait again."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    proof.heartbeat(LOCAL, 0, START_NS)
+    assert proof.next_deadline(None) == START_NS + KEY85_WAIT_NS
+    proof.restart()
+    assert proof.next_deadline(None) is None
+    proof.heartbeat(LOCAL, 0, START_NS + 2_000 * MS)
+    assert proof.next_deadline(None) == START_NS + 2_000 * MS + KEY85_WAIT_NS
+    proof.advance(START_NS + 2_000 * MS + KEY85_WAIT_NS - 1, False, None, LOCAL)
+    assert proof.phase is Phase.WAITING
+
+
+def test_the_next_deadline_is_the_phase_s_own() -> None:
+    """SR-5.6, SR-5.7: the proof test moves with time alone at the end of the withholding
+    (1.5 s after the last heartbeat sent) and at the end of the wait for the bits to clear
+    (counted from the first heartbeat sent again); nothing before that heartbeat and nothing
+    once it has passed."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 2_000 * MS)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    assert proof.next_deadline(1) == START_NS + WITHHOLD_LIMIT_NS
+    proof.heartbeat(LOCAL, 0x80, START_NS + 600 * MS)
+    assert proof.phase is Phase.RESUMED
+    assert proof.next_deadline(1) is None  # no heartbeat sent again yet
+    proof.sent(START_NS + 650 * MS)
+    assert proof.next_deadline(1) == START_NS + 650 * MS + 2_000 * MS
+    proof.heartbeat(LOCAL, 0, START_NS + 700 * MS)
+    assert proof.status().phase is Phase.PASSED
+    assert proof.next_deadline(1) is None
+
+
+def test_the_cause_shows_the_failure_only_while_failed() -> None:
+    """SR-5.7: ``vsc_watchdog_untested`` shows what was observed while the test has failed;
+    after a restart (a pass or a failure before it) it shows why: not proven since the link
+    opened."""
+    reason = (("reason", "the VSC's watchdog is not proven since the link opened"),)
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    end = _try(proof, START_NS, 750 * MS)
+    assert proof.phase is Phase.FAILED
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert proof.details() == (("observed", outcome.text),)
+    proof.restart()
+    assert proof.details() == reason
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    _try(proof, end, 550 * MS)
+    assert proof.phase is Phase.PASSED
+    proof.restart()
+    assert proof.untested
+    assert proof.details() == reason
+
+
+def test_a_key_85_failure_restarts_once_key_85_reads_1() -> None:
+    """SR-5.3, SR-5.4: a test failed because key 85 does not read 1 starts again once it reads
+    1 (commissioned since), and only then: another reading of 0 is no new failure, and once
+    started, a later reading of 1 does not interrupt the withholding."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    proof.sent(START_NS)
+    proof.advance(START_NS, True, 0, LOCAL)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.failure is Failure.KEY85_OFF
+    proof.advance(START_NS + 1_000 * MS, True, 0, LOCAL)
+    assert proof.phase is Phase.FAILED
+    assert proof.take_outcome() is None
+    proof.sent(START_NS + 2_000 * MS)
+    proof.advance(START_NS + 2_000 * MS, True, 1, LOCAL)
+    assert proof.withholding
+    proof.advance(START_NS + 2_100 * MS, True, 1, LOCAL)
+    assert proof.withholding
+
+
+def test_a_late_failure_does_not_restart_when_key_85_reads_1() -> None:
+    """SR-5.7: only a key-85 failure waits for key 85; a watchdog that tripped late stays
+    failed whatever key 85 reads."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    end = _try(proof, START_NS, 750 * MS)
+    proof.advance(end + 1_000 * MS, True, 1, LOCAL)
+    assert proof.phase is Phase.FAILED
+
+
+@pytest.mark.parametrize("mode", [OPERATIONAL, LOCAL])
+def test_a_vsc_operational_at_the_start_must_leave_operational(mode: int) -> None:
+    """SR-5.6: the test sees the VSC report the bits and leave Operational if it was there: a
+    VSC Operational at the start that reports the bits but stays Operational is no pass, and
+    is the failure ``stayed_operational`` at the withholding's limit; a VSC not Operational at
+    the start passes on the bits alone."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, mode)
+    proof.heartbeat(OPERATIONAL, 0x80, START_NS + 600 * MS)
+    if mode == OPERATIONAL:
+        assert proof.withholding
+        proof.advance(START_NS + WITHHOLD_LIMIT_NS, True, 1, OPERATIONAL)
+        outcome = proof.take_outcome()
+        assert outcome is not None
+        assert outcome.failure is Failure.STAYED_OPERATIONAL
+    else:
+        assert proof.phase is Phase.RESUMED
+
+
+@pytest.mark.parametrize("interrupt", ["abort", "restart"])
+def test_an_interrupted_test_leaves_no_trip_time_behind(interrupt: str) -> None:
+    """SR-5.6: the record carries the trip time measured by its own test: a test interrupted
+    after its trip (a stop of the supervisor's own, or a new start) and then failed because
+    key 85 no longer reads 1 records no trip."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + 600 * MS)
+    proof.sent(START_NS + 650 * MS)
+    assert proof.phase is Phase.RESUMED
+    getattr(proof, interrupt)()
+    proof.advance(START_NS + 700 * MS, True, 0, LOCAL)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.failure is Failure.KEY85_OFF
+    assert outcome.trip_ms is None
+
+
+@pytest.mark.parametrize(
+    ("after_ns", "failed"), [(WITHHOLD_LIMIT_NS - 1, False), (WITHHOLD_LIMIT_NS, True)]
+)
+def test_no_trip_fails_at_exactly_1_5_s_of_withholding(after_ns: int, failed: bool) -> None:
+    """SR-5.7 (docs/safety.md "The proof test", step 5: no trip within 1.5 s is ``no_trip``):
+    a nanosecond before 1.5 s the heartbeat is still withheld; at 1.5 s the test fails."""
+    assert WITHHOLD_LIMIT_NS == 1_500 * MS
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.advance(START_NS + after_ns, True, 1, LOCAL)
+    outcome = proof.take_outcome()
+    if failed:
+        assert outcome is not None
+        assert outcome.failure is Failure.NO_TRIP
+    else:
+        assert outcome is None
+        assert proof.withholding
+
+
+@pytest.mark.parametrize(("after_ns", "counted"), [(400 * MS - 1, False), (400 * MS, True)])
+def test_a_trip_sooner_than_400_ms_proves_nothing(after_ns: int, counted: bool) -> None:
+    """SR-5.6 (docs/safety.md "The proof test"): bits seen sooner than 400 ms after the last
+    heartbeat sent were on their way before the test: it starts again; from 400 ms on they
+    are the watchdog's trip."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + after_ns)
+    assert proof.phase is (Phase.RESUMED if counted else Phase.WAITING)
+
+
+def test_a_watchdog_late_three_times_fails_on_the_third() -> None:
+    """SR-5.7: a trip late on each of three tries fails, on the third and not sooner."""
+    assert LATE_TRIES == 3
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
+    end = START_NS
+    for _ in range(LATE_TRIES - 1):
+        end = _try(proof, end + 1_000 * MS, 750 * MS)
+        assert proof.phase is Phase.WAITING
+        assert proof.take_outcome() is None
+    _try(proof, end + 1_000 * MS, 750 * MS)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.failure is Failure.LATE
+
+
+def test_bits_cleared_after_the_clear_limit_turn_the_failure_into_a_pass() -> None:
+    """SR-5.6 (docs/safety.md "The proof test", step 5): bits not clear within
+    ``prooftest_clear_ms`` fail the test, and bits that clear later still turn it into a pass
+    (held); a test failed otherwise (late) stays failed when its bits clear."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 1_000 * MS)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + 550 * MS)
+    resumed = START_NS + 600 * MS
+    proof.sent(resumed)
+    proof.advance(resumed + 1_000 * MS, True, 1, LOCAL)
+    failed = proof.take_outcome()
+    assert failed is not None
+    assert failed.failure is Failure.NOT_CLEARED
+    proof.heartbeat(LOCAL, 0, resumed + 1_200 * MS)
+    passed = proof.take_outcome()
+    assert passed is not None
+    assert passed.passed
+    assert passed.cleared is Cleared.HELD
+    assert passed.cleared_ms == 1_200
+
+    late = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
+    end = _try(late, START_NS, 750 * MS)
+    late.sent(end + 50 * MS)
+    late.heartbeat(LOCAL, 0, end + 100 * MS)
+    assert late.phase is Phase.FAILED
+
+
+def test_a_late_try_measured_again_leaves_no_trip_time_behind() -> None:
+    """SR-5.6, SR-5.7: a late try whose bits cleared is measured again from nothing: failed
+    then because key 85 no longer reads 1, the record has no trip time of the late try."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=2)
+    end = _try(proof, START_NS, 750 * MS)
+    assert proof.phase is Phase.WAITING
+    proof.advance(end + 50 * MS, True, 0, LOCAL)
+    outcome = proof.take_outcome()
+    assert outcome is not None
+    assert outcome.failure is Failure.KEY85_OFF
+    assert outcome.trip_ms is None
 
 
 def test_a_late_reading_is_measured_again_and_one_in_time_passes() -> None:

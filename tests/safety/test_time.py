@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from supervisord.safety import State, Tick
 from tests.safety.rig import LOCAL, MS, Rig
 
@@ -39,3 +41,20 @@ def test_deadline_is_never_now_or_earlier() -> None:
     rig.bring_up()
     rig.run_for(1000, LOCAL)
     assert all(d.next_deadline > d.now for d in rig.decisions)
+
+
+@pytest.mark.parametrize("now", [True, 1.5, "1"])
+def test_a_time_that_is_not_an_integer_is_refused(now: object) -> None:
+    """SR-2.11, PR-6.3: every input's time is integer nanoseconds of the monotonic clock, in
+    one unit: a float, a text or a bool (an int to Python, never a time) is refused."""
+    with pytest.raises(ValueError, match="now must be an integer"):
+        Tick(now)  # type: ignore[arg-type]
+
+
+def test_an_integer_time_of_an_int_subclass_is_accepted() -> None:
+    """SR-2.11: an integer of a type derived from int (not bool) is a time like any other."""
+
+    class Ns(int):
+        pass
+
+    assert Tick(Ns(5)).now == 5
