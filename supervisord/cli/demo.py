@@ -275,7 +275,9 @@ def _raw_terminal() -> Iterator[None]:
     try:
         yield
     finally:
-        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        # At once, not once the output has drained: a terminal that stopped reading would
+        # hold the exit for ever.
+        termios.tcsetattr(fd, termios.TCSANOW, saved)
         sys.stdout.write("\x1b[?25h\n")
 
 

@@ -161,7 +161,9 @@ def _keys_mode(interactive: bool) -> Iterator[None]:
     try:
         yield
     finally:
-        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        # At once, not once the output has drained: a terminal that stopped reading would
+        # hold the exit for ever.
+        termios.tcsetattr(fd, termios.TCSANOW, saved)
 
 
 def _say(text: str) -> None:

@@ -166,6 +166,20 @@ class Screen:
     def press(self, key: str) -> None:
         os.write(self.fd, key.encode())
 
+    def read_until_exit(self, process: subprocess.Popen[bytes], limit: float = 20.0) -> int:
+        """Keep reading, as a terminal does, until ``process`` exits; its exit status. (A
+        terminal that stops reading fills the pty, and the demo's next frame waits for it.)"""
+        end = time.monotonic() + limit
+        while process.poll() is None:
+            assert time.monotonic() < end, "the demo did not exit"
+            ready, _, _ = select.select([self.fd], [], [], 0.05)
+            if ready:
+                try:
+                    self.data += os.read(self.fd, 65536)
+                except OSError:  # EIO: the last holder of the terminal's end closed it
+                    process.wait(max(0.0, end - time.monotonic()))
+        return process.returncode
+
 
 def _notes(lines: list[str]) -> list[str]:
     """The notes under NEXT (lines starting ``> ``, with their folded continuations)."""
@@ -244,11 +258,11 @@ def _screen_and_refusal(env: dict[str, str]) -> None:
             notes = _notes(refused)
             assert f"takeover refused: {last['reason']}" in notes, refused
             screen.press("q")
-            assert demo.wait(timeout=20) == 0
+            assert screen.read_until_exit(demo) == 0
         finally:
             if demo.poll() is None:
                 demo.terminate()
-                demo.wait(timeout=20)
+                screen.read_until_exit(demo)
             os.close(controller)
     gone = _srcsctl("--demo", "status", env=env)
     assert gone.returncode == 2
