@@ -6,6 +6,7 @@ they can."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -41,6 +42,11 @@ def _worst_second(records: list[dict[str, Any]]) -> int:
         (sum(1 for u in times[i:] if u - t < BUDGET_WINDOW_NS) for i, t in enumerate(times)),
         default=0,
     )
+
+
+def _changes(record: dict[str, Any]) -> set[str]:
+    """The names of the causes a record raised or cleared."""
+    return {change["name"] for change in record.get("changes", [])}
 
 
 def _state_once_served(robot: Robot) -> str | None:
@@ -83,12 +89,17 @@ def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
         assert sum(cycles) > 100, cycles  # the churn did churn
         during = [r for r in robot.records_since(t0) if r["mono_ns"] <= t1 * 1e9]
         assert during, "the holds were not recorded at all"
-        worst = _worst_second(during)
-        if worst > RECORDS_PER_UID + 1:  # every record in full: the assertion would cut them
-            for record in during:
+        # The user's records change its hold before hello and nothing else; any other record
+        # (a stop because the loop missed the VSC meanwhile, SR-10) is a failure of its own.
+        hold = {f"client_hold:#uid{os.getuid()}"}  # the churners run as this test's user
+        users = [r for r in during if _changes(r) and _changes(r) <= hold]
+        others = [r for r in during if r not in users]
+        if others or _worst_second(users) > RECORDS_PER_UID + 1:
+            for record in during:  # in full: an assertion's message would be cut
                 print(json.dumps(record, sort_keys=True))
-        assert worst <= RECORDS_PER_UID + 1
-        assert all(r["to"] != "STOPPED" for r in during), during
+        assert [_changes(r) for r in others] == []
+        assert _worst_second(users) <= RECORDS_PER_UID + 1
+        assert all(r["to"] != "STOPPED" for r in during)
         wait_until(
             lambda: _state_once_served(robot) == "RUN",
             BUDGET_WINDOW_NS / 1e9 + ALLOWANCE_S + 5,
