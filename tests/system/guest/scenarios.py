@@ -35,7 +35,7 @@ from supervisord.protocol.hid import HidInput
 from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
-from supervisord.sim.process import SimProcess
+from supervisord.sim.process import SimError, SimProcess
 from tests.system.guest.gadget import BOOTLOADER, PRODUCT, REPORT_DESCRIPTOR, Gadget, free_udc
 
 MARKER = Path("/.srcs-system-tier")
@@ -349,17 +349,23 @@ class Bench:
 
         The safety core takes a takeover as a re-arm only once every stop condition has been
         clear for rearm.hold_ms (500 ms), so it waits for that first; a takeover refused for
-        being early is repeated, from Pause, as an operator would."""
+        being early is repeated, from Pause, as an operator would. The remote itself refuses
+        one while an e-stop bit of the VSC is still set (its user-timeout bit after a restart
+        clears a few heartbeats later): tried again, as an operator would."""
         start = time.monotonic()
         while time.monotonic() - start < timeout:
             wait_for("stop conditions clear", self.quiet, timeout, 0.2)
             time.sleep(0.7)
-            if self.sim.control.state()["mode_name"] == "operational":
-                self.sim.control.pause()
-                # Pause in heartbeats spanning the takeover dwell (docs/safety.md re-arm rule 4)
-                time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.15)
-            took = time.monotonic()
-            self.sim.control.takeover()
+            try:
+                if self.sim.control.state()["mode_name"] == "operational":
+                    self.sim.control.pause()
+                    # Pause in heartbeats spanning the takeover dwell (docs/safety.md rule 4)
+                    time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.15)
+                took = time.monotonic()
+                self.sim.control.takeover()
+            except SimError as refused:
+                log(f"to_run: the remote refused: {refused}")
+                continue
             with contextlib.suppress(Failed):
                 wait_state(self.instance, "RUN", 5)
                 return time.monotonic() - took
