@@ -26,8 +26,13 @@ mount -t tmpfs tmpfs /var/log
 journald=$!
 SOCKET=/run/systemd/journal.{namespace}/socket
 STDOUT=/run/systemd/journal.{namespace}/stdout
-for _ in $(seq 100); do [ -S "$SOCKET" ] && [ -S "$STDOUT" ] && break; sleep 0.1; done
-JOURNAL=$(echo /var/log/journal/*.{namespace})
+# The sockets and the journal's directory, which journald makes on its own time (seen
+# missing on a loaded machine right after the sockets appeared).
+for _ in $(seq 100); do
+    JOURNAL=$(echo /var/log/journal/*.{namespace})
+    [ -S "$SOCKET" ] && [ -S "$STDOUT" ] && [ -d "$JOURNAL" ] && break
+    sleep 0.1
+done
 {body}
 kill -TERM "$journald"
 wait "$journald" || true
