@@ -31,7 +31,14 @@ _WAITING_CLEARS = (
     "alone"
 )
 
+_KEPT = (
+    "a bound on memory only: exhausted and free_at read the limit newest times of a window, "
+    "which every bound of at least one limit keeps (KEPT * limit >= limit)"
+)
+
 EQUIVALENT: tuple[Equivalent, ...] = (
+    Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 3", _KEPT),
+    Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 5", _KEPT),
     Equivalent(
         "core.py",
         "",

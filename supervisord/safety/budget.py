@@ -30,9 +30,10 @@ record sink's queue (4096) absorbs six seconds of it."""
 BUDGET_WINDOW_NS: Final = NS_PER_S
 """The window: one second of the monotonic clock."""
 KEPT: Final = 4
-"""Each window keeps the times of up to this many times its limit of records: a user's stops
-and holds are never refused (SR-0), so it can pass its limit by a few (one per connection it
-holds), and a window that forgot them would open early."""
+"""Each window keeps the times of up to this many times its limit of records, a bound on
+memory: a user's stops and holds are never refused (SR-0), so it can pass its limit. Only the
+``limit`` newest times decide an answer (``exhausted``, ``free_at``), so any bound of at least
+one limit answers the same; the margin keeps the past-limit records visible to a reader."""
 MAX_TRACKED: Final = 4096
 """Users remembered at once; the least recently charged are forgotten first (a bound on
 memory: more users than this cannot be in one window, since all share

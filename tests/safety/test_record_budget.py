@@ -285,3 +285,21 @@ def test_the_window_and_the_limits_are_exact() -> None:
     others.charge(UID + 1, t)
     assert others.exhausted(UID, t)
     assert others.free_at(UID, t) == t + BUDGET_WINDOW_NS
+
+
+def test_the_limits_are_the_requirements_numbers() -> None:
+    """SR-8.5 states the numbers: 20 records of one user and 640 of all users in any second.
+    Counted out here, not through the constants, so that neither can drift from the rule."""
+    one = RecordBudget()
+    for _ in range(19):
+        one.charge(UID, 0)
+    assert not one.exhausted(UID, 0)
+    one.charge(UID, 0)
+    assert one.exhausted(UID, 999_999_999)
+    assert not one.exhausted(UID, 1_000_000_000)
+    every = RecordBudget()
+    for uid in range(639):
+        every.charge(uid, 0)
+    assert not every.exhausted(UID, 0)
+    every.charge(639, 0)
+    assert every.exhausted(UID, 0)
