@@ -100,6 +100,11 @@ class RecordBudget:
         clocks += [clock("budget:all", t, now, window) for t in newest(self._all, self.total)]
         return tuple(clocks)
 
+    @property
+    def tracked(self) -> int:
+        """Users whose records are remembered (at most :data:`MAX_TRACKED`)."""
+        return len(self._times)
+
     def charge(self, uid: Uid, now: int) -> None:
         """``uid`` caused a record at ``now``."""
         times = self._times.pop(uid, None)

@@ -303,3 +303,23 @@ def test_the_limits_are_the_requirements_numbers() -> None:
     assert not every.exhausted(UID, 0)
     every.charge(639, 0)
     assert every.exhausted(UID, 0)
+
+
+def test_memory_holds_the_4096_users_charged_last() -> None:
+    """The budget's memory is bounded: it remembers the 4096 users charged last and forgets
+    the least recently charged first (docs/safety.md "How many records the clients may
+    cause": more cannot be in one window, since all share the 640). Counted out, not read from
+    the constant."""
+    budget = RecordBudget()
+    second = BUDGET_WINDOW_NS
+    for uid in range(4096):
+        budget.charge(uid, uid * second)  # one a window: the total never runs out
+    assert budget.tracked == 4096
+    budget.charge(0, 4096 * second)  # charged again: now the most recent
+    assert budget.tracked == 4096
+    later = 4096 * second + 1
+    budget.charge(4096, later)  # a new user: user 1, charged least recently, goes
+    assert budget.tracked == 4096
+    for _ in range(19):
+        budget.charge(0, later)
+    assert budget.exhausted(0, later)  # user 0 was kept, with its record of 1 ns before
