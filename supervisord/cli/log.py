@@ -69,10 +69,11 @@ def run_log(
     if follow and last is None and since is None and until is None:
         last = FOLLOW_LAST
     printer = _Printer(out, as_json=as_json, utc=utc, causes=causes)
-    if follow:
-        interruptible()
-    follower = Follower(path) if follow else None  # opened first: nothing falls between
-    try:
+    follower: Follower | None = None
+    try:  # from the handlers on: a signal that comes while the follower opens ends it too
+        if follow:
+            interruptible()
+            follower = Follower(path)  # opened first: nothing falls between
         records = _scan(path, start, end, cause, errors)
         shown = [] if last == 0 else records[-last:] if last is not None else records
         if len(records) > len(shown) and shown:  # the one before: what the first changed
