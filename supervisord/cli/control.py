@@ -469,7 +469,6 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
     it is printed once, and with ``--json`` every line is a push; the human form
     starts with one line about the daemon (version, uptime, clients) from ``status``."""
-    interruptible()
     topics = [
         "state",
         "records",
@@ -488,6 +487,7 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
 
     said_waiting = False
     try:
+        interruptible()  # inside: a signal from here on ends it with exit 0 (SR-8.9)
         while True:
             try:
                 with SupervisorClient.connect(path, timeout=10.0) as client:

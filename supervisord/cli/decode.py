@@ -51,9 +51,11 @@ def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     # Ctrl-C and SIGTERM end decode (exit 0, the lines so far out) also when it was started
     # with SIGINT ignored, as a background job of a script is: Python then installs no
     # handler, and a live pipe's decode ignored the SIGINT for ever (SR-8.9).
-    interruptible()
     try:
+        interruptible()
         return _run(args, out, errors)
+    except KeyboardInterrupt:  # one that came before the reading began
+        return 0
     except BrokenPipeError:
         # The reader of the output went away (``| head -1``): a finished job, not a fault.
         # Python would flush stdout again at exit and print a traceback; point it at
