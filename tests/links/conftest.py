@@ -14,6 +14,7 @@ import signal
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Protocol
 
 import can
 import pytest
@@ -100,20 +101,30 @@ def _serial_decoded(decoder: FrameDecoder, data: bytes) -> list[Message]:
     return messages
 
 
-def _serial(tmp_path: Path) -> Iterator[Harness]:
-    port = PtyPort(tmp_path / "ttyVSC")
+class _BytePort(Protocol):
+    """A far end that carries the serial protocol's bytes: a pty or a memory port."""
+
+    def write(self, data: bytes) -> None: ...
+    def read(self) -> bytes: ...
+    def unplug(self) -> None: ...
+    def replug(self) -> None: ...
+
+
+def _serial_harness(
+    link: Link, place: str, port: _BytePort, plugged: Callable[[], bool]
+) -> Harness:
+    """The harness of a link whose far end carries the serial protocol's bytes."""
     decoder = FrameDecoder()
     arrived: list[Message] = []
 
     def taken() -> list[Message]:
-        if port.plugged:
+        if plugged():
             arrived.extend(_serial_decoded(decoder, port.read()))
         return arrived
 
-    link = SerialLink(str(port.path))
-    yield Harness(
+    return Harness(
         link,
-        str(port.path),
+        place,
         VscHeartbeat(9),
         VscHeartbeat(4, 0, 1),
         lambda thing: port.write(_frame_of(thing)),
@@ -124,33 +135,20 @@ def _serial(tmp_path: Path) -> Iterator[Harness]:
         port.unplug,
         port.replug,
     )
+
+
+def _serial(tmp_path: Path) -> Iterator[Harness]:
+    port = PtyPort(tmp_path / "ttyVSC")
+    link = SerialLink(str(port.path))
+    yield _serial_harness(link, str(port.path), port, lambda: port.plugged)
     link.close()
     port.close()
 
 
 def _memory(tmp_path: Path) -> Iterator[Harness]:
     port = MemoryPort("vsc0")
-    decoder = FrameDecoder()
-    arrived: list[Message] = []
-
-    def taken() -> list[Message]:
-        arrived.extend(_serial_decoded(decoder, port.read()))
-        return arrived
-
     link = MemoryLink(port)
-    yield Harness(
-        link,
-        "vsc0",
-        VscHeartbeat(9),
-        VscHeartbeat(4, 0, 1),
-        lambda thing: port.write(_frame_of(thing)),
-        lambda thing: port.write(_damaged(_frame_of(thing))),
-        lambda thing: port.write(_frame_of(thing)[:5]),
-        taken,
-        EVERY_MESSAGE,
-        port.unplug,
-        port.replug,
-    )
+    yield _serial_harness(link, "vsc0", port, lambda: True)
     link.close()
 
 
