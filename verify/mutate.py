@@ -519,6 +519,8 @@ def _run_all(
             selected.sort(key=lambda t: tests[t]["seconds"])
             budget = 60 + 5 * sum(tests[t]["seconds"] for t in selected)
             running[_start(m, selected)] = (m, time.monotonic() + budget)
+        if not running:
+            continue  # every mutant taken so far needed no run (no test executes its line)
         pid, status = os.waitpid(-1, os.WNOHANG)
         if pid:
             m, _ = running.pop(pid)
