@@ -7,7 +7,6 @@ SR-4) finds its condition clear.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 from supervisord.safety.causes import Cause, CauseKind, CauseState, Details, Severity
@@ -129,6 +128,3 @@ class CauseBook:
     def take_changes(self) -> tuple[CauseChange, ...]:
         changes, self._changes = tuple(self._changes), []
         return changes
-
-    def raised_in(self, changes: Iterable[CauseChange]) -> list[Cause]:
-        return [ch.cause for ch in changes if ch.kind is ChangeKind.RAISED]
