@@ -603,8 +603,7 @@ def scenario_category1(bench: Bench) -> tuple[str, Measured]:
         assert record is not None
         stopped = record["mono_ns"] / 1e9
         off = {DRIVE: 0, BRAKE: 1}  # the brake line is active low
-        changes = [(t, line) for t, line, level in timeline.changes if t >= t0 and level == off[line]]
-        ]
+        changes = [(t, n) for t, n, level in timeline.changes if t >= t0 and level == off[n]]
         drive_off = [t for t, line in changes if line == DRIVE]
         brake_off = [t for t, line in changes if line == BRAKE]
         check(bool(drive_off) and bool(brake_off), f"timeline {timeline.changes}")
