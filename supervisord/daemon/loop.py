@@ -238,6 +238,11 @@ class Supervisor:
                 "error_frames": _error_frames(self.link),
             },
             "outputs_not_acquired": sorted(self._acquiring),
+            # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
+            # "Stop categories"); an output not named is category 0.
+            "outputs_off_delay_ms": {
+                o.name: o.off_delay_ms for o in self.safety.outputs if o.off_delay_ms
+            },
             "messages": counters.messages,
             "rejections": dict(sorted(counters.rejections.items())),
             "record_errors": counters.record_errors,

@@ -157,7 +157,7 @@ class DeviceSpec(OutputSpec):
     def from_options(cls, name: str, role: OutputRole, values: Mapping[str, object]) -> Self:
         """The spec of output ``name`` from its options' values, as read by :attr:`options`
         (a kind that converts a value, such as hex text to bytes, overrides this)."""
-        return cls(name=name, role=role, **values)
+        return cls(name=name, role=role, **values)  # type: ignore[arg-type]
 
     @classmethod
     def schema_rules(cls) -> tuple[dict[str, object], ...]:

@@ -11,6 +11,7 @@ registry, and the base class knows no plugin.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Final
@@ -18,7 +19,7 @@ from typing import TYPE_CHECKING, Final
 from supervisord import strict
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, Output, OutputKind, Resources
-from supervisord.safety.config import OutputRole
+from supervisord.safety.config import OFF_DELAY_RANGE_MS, OutputRole
 
 if TYPE_CHECKING:
     from can import BusABC
@@ -48,6 +49,17 @@ ROLE: Final = strict.Choice(
     example="motion",
 )
 
+OFF_DELAY: Final = strict.Whole(
+    name="off_delay_ms",
+    doc="A power output's stop category (SR-1.4): 0 switches it off at once with every stop; "
+    "more keeps it on that long after the motion outputs went off, so that drives brake under "
+    "power (category 1).",
+    default=0,
+    example=500,
+    low=OFF_DELAY_RANGE_MS[0],
+    high=OFF_DELAY_RANGE_MS[1],
+)
+
 
 def output_class(kind: OutputKind | str) -> type[Output]:
     """The output class for ``kind``, importing its module now (and only now).
@@ -69,7 +81,13 @@ def spec_class(kind: OutputKind | str) -> type[DeviceSpec]:
 
 def option_names(kind: OutputKind | str) -> tuple[str, ...]:
     """Every key an output table of ``kind`` may hold."""
-    return ("name", KIND.name, ROLE.name, *(key.name for key in spec_class(kind).options))
+    return (
+        "name",
+        KIND.name,
+        ROLE.name,
+        OFF_DELAY.name,
+        *(key.name for key in spec_class(kind).options),
+    )
 
 
 def read_spec(name: str, fields: strict.Fields) -> DeviceSpec:
@@ -80,10 +98,12 @@ def read_spec(name: str, fields: strict.Fields) -> DeviceSpec:
     kind = OutputKind(str(fields.read(KIND)))
     cls = spec_class(kind)
     role = OutputRole(str(fields.read(ROLE)))
+    off_delay = fields.whole(OFF_DELAY)
     values = {key.name: fields.read(key) for key in cls.options}
     fields.finish()
     try:
-        return cls.from_options(name, role, values)
+        spec = cls.from_options(name, role, values)
+        return dataclasses.replace(spec, off_delay_ms=off_delay) if off_delay else spec
     except ConfigError as error:  # the spec names outputs.NAME.key: name the table's key
         default = f"outputs.{name}."
         if error.key.startswith(default):

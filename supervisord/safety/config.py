@@ -46,6 +46,10 @@ class OutputRole(StrEnum):
 
 
 _TRANSPORTS = ", ".join(f'"{t.value}"' for t in Transport)
+OFF_DELAY_RANGE_MS = (0, 5000)
+"""SR-1.4: a category-1 output's delay. The bound keeps a slip of the pen (8000 for 800) from
+leaving power on for seconds after a stop; drives brake well within it (docs/outputs.md "Stop
+categories")."""
 _ROLES = ", ".join(f'"{role.value}"' for role in OutputRole)
 _POLICIES = ", ".join(f'"{p.value}"' for p in ProofTestPolicy)
 
@@ -109,11 +113,28 @@ class OutputSpec:
 
     name: str
     role: OutputRole = OutputRole.MOTION
+    off_delay_ms: int = 0
+    """A ``power`` output's stop category (SR-1.4): 0 switches it off at once with every stop
+    (category 0); more keeps it on that long after the ``motion`` outputs went off, so that
+    drives can brake under power (category 1)."""
 
     def __post_init__(self) -> None:
         strict.name("outputs.name", self.name, NAME, ConfigError)
         if not isinstance(self.role, OutputRole):
             raise ConfigError(f"outputs.{self.name}.role", self.role, f"use one of {_ROLES}")
+        key = f"outputs.{self.name}.off_delay_ms"
+        strict.whole(key, self.off_delay_ms, *OFF_DELAY_RANGE_MS, ConfigError)
+        if self.off_delay_ms and self.role is OutputRole.MOTION:
+            raise ConfigError(
+                key,
+                self.off_delay_ms,
+                'remove it, or give the output role = "power": a motion output is the enable '
+                "that stops the drives, and goes off at once (SR-1.4)",
+            )
+
+    @property
+    def off_delay_ns(self) -> int:
+        return self.off_delay_ms * NS_PER_MS
 
 
 @dataclass(frozen=True, slots=True)

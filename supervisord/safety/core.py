@@ -19,6 +19,7 @@ Each step runs in a fixed order:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -187,6 +188,8 @@ class SafetyCore:
         self._required = {c.name: c for c in config.clients}
         self._output_names = frozenset(o.name for o in config.outputs)
         self._levels_by_state: dict[State, MappingProxyType[str, bool]] = {}
+        # Category-1 outputs (SR-1.4): each one's delay.
+        self._off_delays_ns = {o.name: o.off_delay_ns for o in config.outputs if o.off_delay_ms}
         # Read for every input; the config is frozen, so computed once.
         self._vsc_timeout_ns = config.vsc_timeout_ns
         self._heartbeat_period_ns = config.heartbeat_period_ns
@@ -308,6 +311,10 @@ class SafetyCore:
         keep("key85:next", self._next_key85_ns, 0)
         keep("heartbeat:next", self._next_heartbeat_ns, 0, self._heartbeat_period_ns)
         keep("clear_since", book.stops_clear_since(), self._config.rearm_hold_ns)
+        if self._off_delays_ns:  # SR-1.4: read only when an output has a delay
+            delays = sorted(set(self._off_delays_ns.values()))
+            keep("motion_off", self._motion_off_ns, *delays)
+            keep("braking", self._braking_since, *delays)
         if self._steady:  # read only by the cheap path and step 1, after a normal step
             keep("decision:next", self.decision.next_deadline, 0)
         for name, beat in sorted(self._client_beat_ns.items()):
@@ -364,6 +371,7 @@ class SafetyCore:
             "_required",
             "_output_names",
             "_levels_by_state",
+            "_off_delays_ns",
             "_vsc_timeout_ns",
             "_heartbeat_period_ns",
             "_client_timeout_ns",
@@ -389,6 +397,10 @@ class SafetyCore:
     of two cores and checks that both give the same decisions for random inputs (SR-9.4)."""
     _steady = False  # the last step ended normally: its decision is the state's fixed point
     _steady_estop = 0  # the user heartbeat's byte from the conditions alone (no urgent raise)
+    # SR-1.4: when the motion outputs last went off (RUN left), and, in a stop begun with power
+    # on while a category-1 output may still be on, that time again.
+    _motion_off_ns: int | None = None
+    _braking_since: int | None = None
 
     def handle(self, event: Event) -> Decision:
         """Feed one input; never raises (a failure of the core stops with ``internal``)."""
@@ -423,6 +435,8 @@ class SafetyCore:
             return None  # a proof test pending or running moves with time and heartbeats
         if self._pending_ends():
             return None  # a deferred end moves with time (SR-8.5)
+        if self._braking_since is not None:
+            return None  # a category-1 output goes off with time (SR-1.4)
         previous = self.decision
         now = event.now if event.now > self._now else self._now
         beat_due = now >= previous.next_deadline
@@ -634,7 +648,7 @@ class SafetyCore:
             now=now,
             state=self._state,
             causes=causes,
-            outputs=self._levels(self._state),
+            outputs=self._outputs(previous, now),
             heartbeat_estop=estop,
             next_deadline=self._next_deadline(now),
             frames=tuple(self._frames),
@@ -657,9 +671,13 @@ class SafetyCore:
             )
             self._state = State.STOPPED
             self._refusals = [refusal]
-            return self._finish(event if is_event(event) else Tick(now), previous, now)
+            decision = self._finish(event if is_event(event) else Tick(now), previous, now)
+            # The core's own failure is a stop of category 0 (SR-1.4): no output stays on.
+            self._motion_off_ns = self._braking_since = None
+            return dataclasses.replace(decision, outputs=self._levels(State.STOPPED))
         except Exception:  # the last line of defence: all off, ask again soon
             self._state = State.STOPPED
+            self._motion_off_ns = self._braking_since = None  # category 0 (SR-1.4)
             return Decision(
                 now=now,
                 state=State.STOPPED,
@@ -1228,6 +1246,34 @@ class SafetyCore:
 
     # ----------------------------------------------------------------- outputs and frames
 
+    def _outputs(self, previous: State, now: int) -> MappingProxyType[str, bool]:
+        """The outputs' levels after a step from ``previous``. SR-1.4: a stop begun while the
+        power outputs were on (from HOLD or RUN) leaves each category-1 output on until its
+        delay after the motion outputs went off, then off; a failure of the core itself (which
+        forgets when motion went off: ``_fail_safe``) and a stop begun in STOPPED leave none
+        on."""
+        state, delays = self._state, self._off_delays_ns
+        if not delays:
+            return self._levels(state)
+        if previous is State.RUN and state is not State.RUN:
+            self._motion_off_ns = now
+        if state is not State.STOPPED:
+            self._braking_since = None
+        elif previous is not State.STOPPED:
+            self._braking_since = self._motion_off_ns
+        since = self._braking_since
+        if since is None:
+            return self._levels(state)
+        if now - since >= max(delays.values()):
+            self._braking_since = None  # every delay is over: off for the rest of this stop
+            return self._levels(state)
+        return MappingProxyType(
+            {
+                o.name: o.name in delays and now - since < delays[o.name]
+                for o in self._config.outputs
+            }
+        )
+
     def _levels(self, state: State) -> MappingProxyType[str, bool]:
         # SR-1: motion outputs on only in RUN; power outputs on in HOLD and RUN. Read-only
         # and the same for every step in a state, so built once per state.
@@ -1278,6 +1324,11 @@ class SafetyCore:
         last = self._last_vsc_ns
         if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:
             earliest = due
+        since = self._braking_since
+        if since is not None:  # SR-1.4: a category-1 output goes off at its delay, never later
+            for delay in self._off_delays_ns.values():
+                if now < (due := since + delay) < earliest:
+                    earliest = due
         for name, beat in self._client_beat_ns.items():
             if beat is not None and now < (due := beat + self._client_timeout_ns[name]) < earliest:
                 earliest = due

@@ -82,6 +82,7 @@ class OutputDef:
     name: str
     role: Literal["motion", "power"] = "motion"
     stuck_at: Literal["on", "off"] | None = None
+    off_delay_ms: int = 0  # a power output's stop category 1 (SR-1.4)
 
 
 @dataclass
@@ -194,6 +195,8 @@ class Robot:
             lines += [f'role = "{output.role}"', f'path = "{self.output_paths[output.name]}"']
             if output.stuck_at is not None:
                 lines += [f'stuck_at = "{output.stuck_at}"']
+            if output.off_delay_ms:
+                lines += [f"off_delay_ms = {output.off_delay_ms}"]
         lines += ["[record]", f'path = "{self.record_dir / "stops.jsonl"}"']
         lines += ["max_bytes = 65536", "keep = 2", "journal = false"]
         lines += ["[api]", f'socket = "{self.socket_path}"']

@@ -92,7 +92,7 @@ def test_every_mistake_at_once_in_file_order_with_its_line(tmp_path: Path) -> No
         f"create it (useradd --system {MISSING_USER}) or name the user the client runs as (an "
         "error with --strict, and for the daemon's start)",
         f'{f}:24: error: outputs[0].colour = "red": unknown key: remove it (known: name, kind, '
-        "role, path, stuck_at)",
+        "role, off_delay_ms, path, stuck_at)",
         f'{f}:28: warning: api.admin_group = "{MISSING_GROUP}": no such group on this machine: '
         f"create it (groupadd --system {MISSING_GROUP}) and add the users to it, or name an "
         "existing group (an error with --strict, and for the daemon's start)",

@@ -415,6 +415,13 @@ OUTPUT_CASES: list[Case] = [
         "its own id: outputs[0] (a) has it",
     ),
     ({"outputs[0].role": "power"}, "outputs", 'at least one output role = "motion"'),
+    # SR-1.4: a stop category of 1 for power outputs only, within its bound
+    ({"outputs[0].off_delay_ms": 300}, "outputs[0].off_delay_ms", 'role = "power"'),
+    (
+        {"outputs[1]": {"name": "p", "kind": "sim", "role": "power", "off_delay_ms": 5001}},
+        "outputs[1].off_delay_ms",
+        "0 to 5000",
+    ),
     ({"outputs[0]": {"name": "d", **CAN_OUT}}, "outputs[0].kind", "add an [output_bus] section"),
     ({"output_bus": {"channel": "can1"}}, "output_bus", 'no output has kind = "can"'),
     (
@@ -462,6 +469,24 @@ def test_output_specs_and_safety_classes(tmp_path: Path) -> None:
         ("brake", OutputRole.MOTION),
     ]
     assert getattr(config.outputs[1], "pulse_period_ms", None) == 10
+
+
+def test_a_power_output_may_have_a_stop_category_of_1(tmp_path: Path) -> None:
+    """SR-1.4: ``off_delay_ms`` reaches the safety core with the output of every kind; left out,
+    it is 0 (category 0)."""
+    config = load(
+        tmp_path,
+        {
+            "outputs[1]": {"name": "relay", **GPIO, "role": "power", "off_delay_ms": 800},
+            "outputs[2]": {"name": "lamp", "kind": "sim", "role": "power", "off_delay_ms": 0},
+        },
+    )
+    assert [(o.name, o.off_delay_ms) for o in config.safety.outputs] == [
+        ("drive", 0),
+        ("relay", 800),
+        ("lamp", 0),
+    ]
+    assert getattr(config.outputs[1], "line", None) == 17  # the kind's options are kept
 
 
 def test_can_outputs_use_the_vsc_bus(tmp_path: Path) -> None:

@@ -20,6 +20,8 @@ from supervisord.protocol.messages import Axis, Gps, Joystick, RemoteStatus, Vsc
 from supervisord.safety import (
     Decision,
     Event,
+    OutputRole,
+    OutputSpec,
     SafetyConfig,
     SafetyCore,
     State,
@@ -60,6 +62,14 @@ CHEAP_CONFIGS = [
     *CONFIGS,
     dataclasses.replace(ROBOT, prooftest=ProofTestPolicy.BLOCK),  # the serial default
     dataclasses.replace(ROBOT, prooftest=ProofTestPolicy.RECORD, local_reset=True),
+    # a category-1 output: the full path switches it off with time (SR-1.4)
+    dataclasses.replace(
+        ROBOT,
+        outputs=(
+            OutputSpec("drive", OutputRole.MOTION),
+            OutputSpec("lights", OutputRole.POWER, off_delay_ms=150),
+        ),
+    ),
 ]
 
 steps = st.lists(

@@ -25,7 +25,7 @@ from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
 from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, MIN_REMOTE_BATTERY_RANGE
-from supervisord.outputs.registry import KIND, ROLE
+from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.config import (
     CLIENT_TIMEOUT_RANGE_MS,
@@ -349,7 +349,7 @@ OUTPUT_NAME_KEY: Final = strict.Text(
     rule="1 to 32 characters from letters, digits, '_' and '-'",
     example="drive",
 )
-OUTPUT_COMMON: Final = (OUTPUT_NAME_KEY, KIND, ROLE)
+OUTPUT_COMMON: Final = (OUTPUT_NAME_KEY, KIND, ROLE, OFF_DELAY)
 RECORD: Final = (
     strict.Text(
         name="path",
@@ -553,6 +553,13 @@ def _outputs_schema(section: Section) -> dict[str, object]:
             {"if": {"properties": {KIND.name: {"const": kind}}}, "then": rule}
             for rule in spec.schema_rules()
         ]
+    # SR-1.4: a delay (category 1) only on a power output.
+    rules.append(
+        {
+            "if": {"required": [OFF_DELAY.name], "properties": {OFF_DELAY.name: {"minimum": 1}}},
+            "then": {"required": [ROLE.name], "properties": {ROLE.name: {"const": "power"}}},
+        }
+    )
     item["allOf"] = rules
     return {
         "type": "array",

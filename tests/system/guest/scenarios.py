@@ -561,6 +561,68 @@ def scenario_gpio(bench: Bench) -> tuple[str, Measured]:
     }
 
 
+CATEGORY_1_MS = 600
+RECORD_PATH = Path("/var/lib/srcsd/gpio-a/stops.jsonl")
+
+
+def stop_record_since(path: Path, mono_ns: int) -> dict[str, Any] | None:
+    """The first record of a change into STOPPED read at ``mono_ns`` or later (the guest's one
+    monotonic clock is srcsd's and ours)."""
+    for item in read_records(path):
+        if isinstance(item, BadLine):
+            continue
+        data: dict[str, Any] = dict(item.data)
+        into_stop = data.get("to") == "STOPPED" and data.get("from") != "STOPPED"
+        if into_stop and int(data.get("mono_ns", 0)) >= mono_ns:
+            return data
+    return None
+
+
+def scenario_category1(bench: Bench) -> tuple[str, Measured]:
+    """SR-1.4 on gpio-sim: the brake line (power, active low) given off_delay_ms = 600 stays on
+    after a remote e-stop in RUN while the drive line goes off, and goes off no earlier than
+    600 ms after the stop's decision (the record's mono_ns) and within a second more. The
+    config is put back afterwards."""
+    gpio, unit = bench.gpio, bench.unit
+    brake = "line = 1\nactive_low = true\n"
+    body = GPIO_CONFIG.replace(brake, f"{brake}off_delay_ms = {CATEGORY_1_MS}\n")
+    check(body != GPIO_CONFIG, "the brake output's table was not found in GPIO_CONFIG")
+    write_config(bench.instance, body)
+    try:
+        run("systemctl", "restart", unit)
+        shown = status(bench.instance)["daemon"].get("outputs_off_delay_ms")
+        check(shown == {"brake": CATEGORY_1_MS}, f"status shows the delays {shown}")
+        bench.to_run()
+        timeline = Timeline(gpio, (DRIVE, BRAKE))
+        t0 = time.monotonic()
+        bench.sim.control.estop()
+        wait_for("brake off", lambda: gpio.value(BRAKE) == 1, 10, 0.002)
+        timeline.stop()
+        record = stop_record_since(RECORD_PATH, int(t0 * 1e9))
+        check(record is not None, "no stop record after the e-stop")
+        assert record is not None
+        stopped = record["mono_ns"] / 1e9
+        off = {DRIVE: 0, BRAKE: 1}  # the brake line is active low
+        changes = [(t, n) for t, n, level in timeline.changes if t >= t0 and level == off[n]]
+        drive_off = [t for t, line in changes if line == DRIVE]
+        brake_off = [t for t, line in changes if line == BRAKE]
+        check(bool(drive_off) and bool(brake_off), f"timeline {timeline.changes}")
+        drive_at, brake_at = drive_off[0], brake_off[0]
+        check(drive_at < brake_at, f"drive off at {drive_at}, brake off at {brake_at}")
+        # Seen after it was written, and written at its deadline at the earliest: exact.
+        after_ms = (brake_at - stopped) * 1000
+        check(after_ms >= CATEGORY_1_MS, f"brake off {after_ms:.1f} ms after the stop")
+        check(after_ms <= CATEGORY_1_MS + 1000, f"brake off {after_ms:.0f} ms after the stop")
+        bench.sim.control.release()
+    finally:
+        write_config(bench.instance, GPIO_CONFIG)
+        run("systemctl", "restart", unit)
+    return "drive off at the stop, the category-1 brake line 600 ms later", {
+        "e-stop request to drive line off ms": round((drive_at - t0) * 1000),
+        "stop decision to brake line off ms": round(after_ms),
+    }
+
+
 def scenario_hang(bench: Bench) -> tuple[str, Measured]:
     """SIGSTOP in RUN: the VSC's watchdog trips, systemd kills and restarts; STOPPED after."""
     sim, unit = bench.sim, bench.unit
@@ -1878,6 +1940,7 @@ Scenario = Callable[[Bench], tuple[str, Measured]]
 MAIN: list[tuple[str, Scenario]] = [
     ("install", scenario_install),
     ("gpio", scenario_gpio),
+    ("category1", scenario_category1),
     ("can", scenario_can),
     ("hang", scenario_hang),
     ("crash", scenario_crash),
