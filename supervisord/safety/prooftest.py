@@ -287,6 +287,7 @@ class ProofTest:
         if self.running:
             self.phase = Phase.WAITING
             self._withheld_from = self._trip_ns = self._resumed_ns = None
+            self._again = False  # the next try is a measurement of its own
 
     def advance(self, now: int, ready: bool, key85: int | None, mode: int | None) -> None:
         """Start when ``ready``; fail an impossible test; end a withholding that timed out."""
@@ -376,7 +377,8 @@ class ProofTest:
         self.phase = Phase.PASSED
 
     def _finish(self, now: int, failure: Failure) -> None:
-        self._again = False
+        # ``_again`` is kept: a late try whose bits clear only after the clear limit sends the
+        # test round again when they do (SR-5.7: a late trip proves nothing, nor its late clear).
         self.last = self._new = Outcome(False, failure, self._trip_ms(), None, None, now)
         self.phase = Phase.FAILED
         if failure is Failure.NOT_CLEARED:

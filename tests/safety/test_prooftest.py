@@ -522,6 +522,49 @@ def test_bits_cleared_after_the_clear_limit_turn_the_failure_into_a_pass() -> No
     assert late.phase is Phase.FAILED
 
 
+def test_a_late_try_that_clears_only_after_the_clear_limit_is_measured_again() -> None:
+    """SR-5.7: a late trip proves nothing, however its bits clear. A late try (not the last)
+    whose bits stay set past ``prooftest_clear_ms`` fails ``not_cleared``; when they clear
+    later the test runs again, and is no pass with the late trip's time (the late clear that
+    turns a trip in time into a pass, held, does not apply to a late one)."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 1_000 * MS, late_tries=2)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + 750 * MS)  # late: 750 ms after the last heartbeat
+    resumed = START_NS + 800 * MS
+    proof.sent(resumed)
+    proof.advance(resumed + 1_000 * MS, True, 1, LOCAL)
+    failed = proof.take_outcome()
+    assert failed is not None
+    assert failed.failure is Failure.NOT_CLEARED
+    proof.heartbeat(LOCAL, 0, resumed + 1_200 * MS)
+    assert proof.take_outcome() is None  # no pass
+    assert proof.phase is Phase.WAITING  # measured again
+    _try(proof, resumed + 2_000 * MS, 550 * MS)
+    passed = proof.take_outcome()
+    assert passed is not None
+    assert passed.passed
+    assert passed.trip_ms == 550
+
+
+def test_a_try_in_time_after_an_aborted_late_try_passes_at_once() -> None:
+    """SR-5.7, SR-5.6: a late try interrupted while its bits clear (a stop of our own aborts
+    it) leaves nothing pending: the next try, in time, passes when its bits clear, and is not
+    measured yet again."""
+    proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=3)
+    proof.sent(START_NS)
+    proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
+    proof.heartbeat(LOCAL, 0x80, START_NS + 750 * MS)  # late
+    assert proof.status().phase is Phase.RESUMED
+    proof.abort()
+    assert proof.status().phase is Phase.WAITING
+    _try(proof, START_NS + 2_000 * MS, 550 * MS)
+    passed = proof.take_outcome()
+    assert passed is not None
+    assert passed.passed
+    assert passed.trip_ms == 550
+
+
 def test_a_late_try_measured_again_leaves_no_trip_time_behind() -> None:
     """SR-5.6, SR-5.7: a late try whose bits cleared is measured again from nothing: failed
     then because key 85 no longer reads 1, the record has no trip time of the late try."""
