@@ -199,7 +199,7 @@ def test_a_declaration_is_no_cause_and_makes_no_record() -> None:
 def test_the_refusal_is_shown_on_the_remotes_text_page() -> None:
     """SR-4.6: the refused takeover puts the notice on the remote's text page (the rows
     first, within the rate limit of strings), switches it to the text page and vibrates it
-    once."""
+    once; the same refusal again sends nothing new."""
     rig = Rig()
     rig.stopped_and_cleared()
     command(rig, True)
@@ -212,6 +212,11 @@ def test_the_refusal_is_shown_on_the_remotes_text_page() -> None:
     assert rows_sent(rig, start) == NOTICE
     sent = values_sent(rig, start)
     assert sent.count(FeedbackSet(12, 1)) == 1  # both motors, once
+    again = len(rig.decisions)
+    assert rig.take_over(500).refusals[0].reason is RefusalReason.COMMAND_NONZERO
+    rig.run_for(800, OPERATIONAL)
+    assert rows_sent(rig, again) == {}
+    assert values_sent(rig, again) == []
 
 
 def test_zero_command_gives_the_clients_display_back() -> None:
@@ -229,9 +234,12 @@ def test_zero_command_gives_the_clients_display_back() -> None:
     during = len(rig.decisions)
     rig.feed(DisplayUpdate(rig.now, FeedbackName(91, "leg 2")))
     rig.feed(DisplayUpdate(rig.now, FeedbackSet(99, 3)))
+    rig.feed(DisplayUpdate(rig.now, FeedbackName(1, "speed")))  # not the notice's: sent
+    rig.feed(DisplayUpdate(rig.now, FeedbackSet(2, 7)))
     rig.run_for(1000, OPERATIONAL)
-    assert rows_sent(rig, during) == {k: v for k, v in NOTICE.items() if k != 90}
+    assert rows_sent(rig, during) == {1: "speed", **{k: v for k, v in NOTICE.items() if k != 90}}
     assert FeedbackSet(99, 3) not in values_sent(rig, during)
+    assert FeedbackSet(2, 7) in values_sent(rig, during)
     after = len(rig.decisions)
     command(rig, False)
     rig.run_for(1100, OPERATIONAL)
