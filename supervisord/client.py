@@ -34,6 +34,7 @@ from supervisord.api.framing import DEFAULT_SOCKET_PATH as DEFAULT_SOCKET_PATH  
 from supervisord.api.framing import ApiError, encode
 from supervisord.api.ops import (
     ApiRequest,
+    Command,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
@@ -147,6 +148,11 @@ class SupervisorClient:
     def release(self, what: str = "estop") -> None:
         """End this client's own ``"estop"`` or ``"hold"``; a stop stays latched until re-armed."""
         self.call(Release(Request(what)))
+
+    def command(self, nonzero: bool) -> None:
+        """Declare whether the motion this client commands is non-zero (SR-4.6): while any
+        client's is, no re-arm. After hello; kept until the next call or the connection's end."""
+        self.call(Command(nonzero))
 
     def status(self) -> dict[str, Any]:
         """The state, causes and outputs (``docs/api.md`` "status")."""

@@ -89,6 +89,13 @@ FAULTS = (
         "P9",
     ),
     Fault(
+        "a re-arm while a client commands motion",
+        "        if self._nonzero:\n            # SR-4.6",
+        "        if False:\n            # SR-4.6",
+        "clients",
+        "P18",
+    ),
+    Fault(
         "the re-arm hold is not waited for",
         "if clear_since is None or now - clear_since < hold:",
         "if clear_since is None:",

@@ -20,6 +20,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
 from supervisord.safety import (
     Caller,
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -167,7 +168,8 @@ def _vsc(mode: int, word: int) -> Input:
 
 def client(name: str, connection: int, uid: int, beat: str = CLIENT) -> list[Input]:
     """A client's inputs on its connection: connect, hello, heartbeat, e-stop, hold, the two
-    releases and its end; each only while connected, as the API server sends them."""
+    releases, its declarations of a non-zero and a zero command (SR-4.6) and its end; each
+    only while connected, as the API server sends them."""
     return [
         Input(
             f"{name} connect",
@@ -189,6 +191,18 @@ def client(name: str, connection: int, uid: int, beat: str = CLIENT) -> list[Inp
         Input(
             f"{name} release hold",
             lambda now: ClientRelease(now, connection, Request.HOLD),
+            CLIENT,
+            connection,
+        ),
+        Input(
+            f"{name} command nonzero",
+            lambda now: ClientCommand(now, connection, True),
+            CLIENT,
+            connection,
+        ),
+        Input(
+            f"{name} command zero",
+            lambda now: ClientCommand(now, connection, False),
             CLIENT,
             connection,
         ),

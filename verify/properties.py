@@ -18,6 +18,7 @@ from typing import Any
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
 from supervisord.safety import (
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -91,6 +92,7 @@ class Ghost:
     names: tuple[tuple[int, str], ...] = ()  # connections that said hello, and their names
     required_beat: int | None = None  # the required client's last beat since its hello
     estops: frozenset[str] = frozenset()  # named clients' e-stops not released
+    nonzero: frozenset[int] = frozenset()  # named connections declaring a non-zero command
     local_estop: bool = False
     proven: bool = False  # a proof test passed since the last new start
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
@@ -121,6 +123,7 @@ class Ghost:
             self.names,
             self.required_beat is None,
             self.estops,
+            self.nonzero,
             self.local_estop,
             self.proven,
             tuple(clocks),
@@ -240,7 +243,22 @@ def _disconnected(ghost: Ghost, seen: _Seen) -> Ghost:
     connection = seen.event.connection
     names = tuple(n for n in ghost.names if n[0] != connection)
     beat = None if _name_of(ghost, connection) == seen.required else ghost.required_beat
-    return replace(ghost, names=names, connected=ghost.connected - {connection}, required_beat=beat)
+    return replace(
+        ghost,
+        names=names,
+        connected=ghost.connected - {connection},
+        required_beat=beat,
+        nonzero=ghost.nonzero - {connection},  # a declaration ends with its connection
+    )
+
+
+def _command(ghost: Ghost, seen: _Seen) -> Ghost:
+    connection = seen.event.connection
+    if _name_of(ghost, connection) is None:  # only a named client declares (SR-4.6)
+        return ghost
+    if seen.event.nonzero:
+        return replace(ghost, nonzero=ghost.nonzero | {connection})
+    return replace(ghost, nonzero=ghost.nonzero - {connection})
 
 
 def _local_estop(ghost: Ghost, seen: _Seen) -> Ghost:
@@ -265,6 +283,7 @@ _TAKE_IN: dict[type, Callable[[Ghost, _Seen], Ghost]] = {
     ClientHeartbeat: _beat,
     ClientEstop: _estop,
     ClientRelease: _release,
+    ClientCommand: _command,
     ClientDisconnected: _disconnected,
     LocalEstop: _local_estop,
     LocalRelease: _local_release,
@@ -460,6 +479,15 @@ def _p16(step: Step) -> Iterator[str]:
         yield f"heartbeats {step.beats}, byte {step.after.heartbeat_estop}"
 
 
+def _p18(step: Step) -> Iterator[str]:
+    nonzero = sorted(step.seen.nonzero)
+    if step.before.state is State.STOPPED and not step.stopped and nonzero:
+        yield f"re-armed into {step.state.name} with connections {nonzero} declaring non-zero"
+    refused = any(r.reason is RefusalReason.COMMAND_NONZERO for r in step.after.refusals)
+    if refused and not nonzero:
+        yield "a re-arm refused for a non-zero command that no client declares"
+
+
 CHEAP_ONLY = frozenset({"cheap_path", "steady", "steady_estop", "decision:next"})
 """What of the canonical form only the cheap path reads (its facts and its clock)."""
 
@@ -565,6 +593,11 @@ PROPERTIES = {
         "SR-9.4, SR-8.7: the cheap path decides as the full step and leaves the same state, so "
         "the exploration need not tell apart what only the cheap path reads",
         _p17,
+    ),
+    "P18": Property(
+        "SR-4.6: STOPPED is never left while a named client's last declaration is a non-zero "
+        "command, and a re-arm is refused for one only while one is",
+        _p18,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""

@@ -100,6 +100,15 @@ class Release(_Request):
 
 
 @dataclass(frozen=True, slots=True)
+class Command(_Request):
+    """Whether the motion this client commands is non-zero (SR-4.6): no re-arm while any
+    client's last declaration says so. Kept until the next one or the connection's end."""
+
+    OP = "command"
+    nonzero: bool
+
+
+@dataclass(frozen=True, slots=True)
 class Status(_Request):
     """The current state, causes and outputs."""
 
@@ -187,6 +196,7 @@ ApiRequest = (
     | Estop
     | Hold
     | Release
+    | Command
     | Status
     | Subscribe
     | DisplayValue
@@ -211,6 +221,8 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["name"] = name
         case Release(what=what):
             obj["what"] = what.value
+        case Command(nonzero=nonzero):
+            obj["nonzero"] = nonzero
         case Subscribe(topics=topics):
             obj["topics"] = sorted(t.value for t in topics)
         case DisplayValue(key=key, value=value):

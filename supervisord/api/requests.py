@@ -21,6 +21,7 @@ from supervisord import strict
 from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode
 from supervisord.api.ops import (
     ApiRequest,
+    Command,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
@@ -52,6 +53,7 @@ __all__ = [
     "NAMED_REQUESTS",
     "OPS",
     "ApiRequest",
+    "Command",
     "Commission",
     "DisplayLabel",
     "DisplayModeRequest",
@@ -76,7 +78,7 @@ __all__ = [
 
 ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
 """Requests only an admin may make (SR-8)."""
-NAMED_REQUESTS: Final = (Heartbeat,)
+NAMED_REQUESTS: Final = (Heartbeat, Command)
 """Requests that need a connection that said hello."""
 
 _ROWS = range(1, 5)
@@ -241,6 +243,13 @@ def _release(f: _Fields) -> ApiRequest:
     return Release(what, id=f.id)
 
 
+def _command(f: _Fields) -> ApiRequest:
+    nonzero = f.get("nonzero")
+    if not isinstance(nonzero, bool):
+        raise f.error(f"nonzero must be true or false, not {_shown(nonzero)}")
+    return Command(nonzero, id=f.id)
+
+
 def _subscribe(f: _Fields) -> ApiRequest:
     topics = f.get("topics")
     if not isinstance(topics, list) or len(topics) > len(Topic):
@@ -302,6 +311,7 @@ _PARSERS = {
     "estop": lambda f: Estop(id=f.id),
     "hold": lambda f: Hold(id=f.id),
     "release": _release,
+    "command": _command,
     "status": lambda f: Status(id=f.id),
     "subscribe": _subscribe,
     "display": _display,

@@ -53,9 +53,9 @@ from supervisord.api.framing import (
 from supervisord.api.names import NAME_WAIT_NS, UserNames
 from supervisord.api.requests import (
     ADMIN_REQUESTS,
+    NAMED_REQUESTS,
     ApiRequest,
     Estop,
-    Heartbeat,
     Hello,
     Status,
     Subscribe,
@@ -621,8 +621,8 @@ class ApiServer:
                 )
             if any(other.info.name == request.name for other in self._connections.values()):
                 return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
-        if isinstance(request, Heartbeat) and conn.info.name is None:
-            return error(ErrorCode.NOT_HELLO, "say hello with a name before heartbeats")
+        if isinstance(request, NAMED_REQUESTS) and conn.info.name is None:
+            return error(ErrorCode.NOT_HELLO, f"say hello with a name before {request.OP}")
         return None
 
     def _queue(self, conn: _Connection, line: bytes) -> list[Closed]:

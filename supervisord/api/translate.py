@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from supervisord.api.requests import (
     ApiRequest,
+    Command,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
@@ -30,6 +31,7 @@ from supervisord.protocol.codes import FeedbackKey, StringKey
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
 from supervisord.safety.events import (
     Caller,
+    ClientCommand,
     ClientEstop,
     ClientHeartbeat,
     ClientHello,
@@ -98,6 +100,8 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
             return LocalRelease(now, client.caller)
         case Release(what=what):
             return ClientRelease(now, connection, what)
+        case Command(nonzero=nonzero):
+            return ClientCommand(now, connection, nonzero)
         case DisplayValue() | DisplayLabel() | DisplayRow() | DisplayModeRequest() | Vibrate():
             return DisplayUpdate(now, display_message(request))
         case Reset():

@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 
 from supervisord.api.framing import ApiError, ErrorCode
-from supervisord.api.requests import Commission, Heartbeat, Status, Subscribe, Topic
+from supervisord.api.requests import Command, Commission, Heartbeat, Status, Subscribe, Topic
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
 from supervisord.api.views import (
     decision_json,
@@ -64,6 +64,7 @@ class ApiListener(Listener):
         # For ``status`` (docs/api.md "status"): each connection's last accepted heartbeat,
         # the latest remote status and when it came, and when the current state began.
         self._beats: dict[int, int] = {}
+        self._nonzero: dict[int, bool] = {}  # each connection's last declaration (SR-4.6)
         self._remote: tuple[RemoteStatus, int] | None = None
         self._heartbeat: VscHeartbeat | None = None  # the VSC's last, for estop_available
         self._state_since: int | None = None
@@ -86,6 +87,7 @@ class ApiListener(Listener):
         closed, self._closed = self._closed, []
         for gone in closed:
             self._beats.pop(gone.client.connection, None)
+            self._nonzero.pop(gone.client.connection, None)
         return [ClientDisconnected(now, c.client.connection) for c in closed]
 
     def _result(self, result: Result, now: int, feed: Callable[[Event], Decision]) -> None:
@@ -93,6 +95,7 @@ class ApiListener(Listener):
         decision = feed(event) if event is not None else None
         if isinstance(result, Closed):
             self._beats.pop(result.client.connection, None)
+            self._nonzero.pop(result.client.connection, None)
         if not isinstance(result, Received):
             return  # Denied was answered by the server; Accepted and Closed need no reply
         request = result.request
@@ -115,6 +118,8 @@ class ApiListener(Listener):
         else:
             if isinstance(request, Heartbeat):
                 self._beats[result.client.connection] = now
+            elif isinstance(request, Command):
+                self._nonzero[result.client.connection] = request.nonzero
             self._closed += self.server.reply(result)
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
             self._closed += self.server.send(result.client.connection, state_push(self.last))
@@ -134,6 +139,7 @@ class ApiListener(Listener):
                 "required": name in self.required,
                 "connected": connection is not None,
                 "heartbeat_age_s": seconds_since(now, beat),
+                "command_nonzero": connection is not None and self._nonzero.get(connection, False),
             }
             if name in self.required:
                 entry["timeout_ms"] = self.required[name]

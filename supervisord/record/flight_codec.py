@@ -158,6 +158,7 @@ FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "client_heartbeat": _CONNECTION,
     "client_estop": _CONNECTION,
     "client_hold": _CONNECTION,
+    "client_command": (("connection", INT), ("nonzero", FLAG)),
     "client_release": (("connection", INT), ("request", REQUEST)),
     "client_disconnected": _CONNECTION,
     "local_estop": _CALLER,

@@ -27,6 +27,7 @@ from supervisord.safety.causes import CauseState
 from supervisord.safety.decision import ChangeKind, Record
 from supervisord.safety.events import (
     Caller,
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -147,6 +148,7 @@ TRIGGER_EVENTS: Final[Mapping[type, str]] = {
     ClientHeartbeat: "client_heartbeat",
     ClientEstop: "client_estop",
     ClientHold: "client_hold",
+    ClientCommand: "client_command",
     ClientRelease: "client_release",
     ClientDisconnected: "client_disconnected",
     LocalEstop: "local_estop",

@@ -30,6 +30,7 @@ from std_srvs.srv import Trigger
 
 from supervisord.api.readiness import missing
 from supervisord.client import Push, SupervisorClient
+from supervisord.ros2.command import Declaration, nonzero
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
 from supervisord.ros2.link import Connected, Event, Lost, SupervisorLink
@@ -80,6 +81,7 @@ class BridgeNode(Node):
             retry_s=float(p["reconnect_period"]),
         )
         self.gate = VelocityGate(int(float(p["cmd_vel_max_age"]) * 1e9))
+        self.declaration = Declaration()  # SR-4.6: no re-arm while cmd_vel_in moves
         self._state: State | None = None
         self._status: dict[str, Any] | None = None
         self._daemon: Mapping[str, Any] | None = None
@@ -132,6 +134,7 @@ class BridgeNode(Node):
         if self.link.connected and not was:
             self.link.heartbeat()  # a new start needs a heartbeat at once (docs/api.md hello)
         self._handle(self.link.take())
+        self._declare()
 
     def _on_heartbeat(self) -> None:
         self.link.heartbeat()
@@ -153,6 +156,7 @@ class BridgeNode(Node):
         for event in events:
             if isinstance(event, Connected):
                 self.get_logger().info(f"connected to {self.socket} as {self.client_name}")
+                self.declaration.connected()
                 self._daemon = event.status.get("daemon")
                 self._on_status(event.status)
                 self._set_ready(not missing(event.status))
@@ -256,8 +260,28 @@ class BridgeNode(Node):
         self._gated(msg, sent, self.get_clock().now().nanoseconds)
 
     def _gated(self, msg: Twist | TwistStamped, sent_ns: int | None, now_ns: int) -> None:
+        twist = msg.twist if isinstance(msg, TwistStamped) else msg
+        linear, angular = twist.linear, twist.angular
+        self.declaration.command(
+            nonzero((linear.x, linear.y, linear.z, angular.x, angular.y, angular.z))
+        )
+        self._declare()  # before anything is forwarded: the supervisor knows first (SR-4.6)
         if self.gate.command(sent_ns, now_ns) is Verdict.FORWARD:
             self.cmd_pub.publish(msg)
+
+    def _declare(self) -> None:
+        """Tell the supervisor whether ``cmd_vel_in`` commands motion, when it does not know
+        yet on this connection (SR-4.6). A refusal is logged and not repeated; a lost
+        connection declares again once it is back."""
+        value = self.declaration.due()
+        if value is None or not self.link.connected:
+            return
+        ok, why = self.link.request(lambda client: client.command(value))
+        if ok or self.link.connected:
+            self.declaration.sent(value)
+        if not ok:
+            self.get_logger().warning(f"cmd_vel_in {'non-zero' if value else 'zero'}: {why}")
+        self._handle(self.link.take())
 
     def _publish_zero(self) -> None:
         if self.stamped:

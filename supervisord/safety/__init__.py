@@ -29,6 +29,7 @@ from supervisord.safety.decision import (
 )
 from supervisord.safety.events import (
     Caller,
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -61,6 +62,7 @@ __all__ = [
     "CauseKind",
     "CauseState",
     "ChangeKind",
+    "ClientCommand",
     "ClientConnected",
     "ClientDisconnected",
     "ClientEstop",

@@ -20,6 +20,7 @@ Each step runs in a fixed order:
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -51,9 +52,10 @@ from supervisord.safety.decision import (
     Refusal,
     RefusalReason,
 )
-from supervisord.safety.display import DisplayStore
+from supervisord.safety.display import DisplayStore, Notice
 from supervisord.safety.events import (
     Caller,
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -121,6 +123,7 @@ RATE_SLACK_NS = 3 * VSC_MIN_INTERVAL_NS
 take three more heartbeats at once than the VSC's fastest rate allows counts as the same state
 as one that could take more, and one three heartbeats past it as one further past it
 (docs/verification.md "The one inexact clip")."""
+NOTICE_WIDTH = 20  # characters in a row of the remote's text page (manual table 18)
 REFUSAL_QUIET_NS = NS_PER_S
 """The same takeover refusal is reported (and recorded) at most once per this: a flapping VSC
 would otherwise fill the record, whose rotation drops the stop the refusals are about."""
@@ -188,8 +191,6 @@ class SafetyCore:
         self._required = {c.name: c for c in config.clients}
         self._output_names = frozenset(o.name for o in config.outputs)
         self._levels_by_state: dict[State, MappingProxyType[str, bool]] = {}
-        # Category-1 outputs (SR-1.4): each one's delay.
-        self._off_delays_ns = {o.name: o.off_delay_ns for o in config.outputs if o.off_delay_ms}
         # Read for every input; the config is frozen, so computed once.
         self._vsc_timeout_ns = config.vsc_timeout_ns
         self._heartbeat_period_ns = config.heartbeat_period_ns
@@ -225,6 +226,7 @@ class SafetyCore:
         self._ever_connected: set[str] = set()
         self._client_estops: set[str] = set()
         self._client_holds: set[str] = set()
+        self._nonzero: set[str] = set()  # named clients commanding motion now (SR-4.6)
         self._uid_of: dict[int, Uid] = {}  # connection -> the peer's uid (SR-8.5)
         self._unnamed: dict[tuple[Request, str], _Unnamed] = {}  # requests before hello
         self._limited = False  # the input's user is past its record budget (SR-8.5)
@@ -243,6 +245,11 @@ class SafetyCore:
         """The latest decision returned (the startup decision until the first input)."""
 
     # ----------------------------------------------------------------- public API
+
+    @functools.cached_property
+    def _off_delays_ns(self) -> dict[str, int]:
+        """Each category-1 output's delay (SR-1.4); the config is frozen: computed once."""
+        return {o.name: o.off_delay_ns for o in self._config.outputs if o.off_delay_ms}
 
     @property
     def state(self) -> State:
@@ -347,6 +354,7 @@ class SafetyCore:
             ("ever_connected", tuple(sorted(self._ever_connected))),
             ("client_estops", tuple(sorted(self._client_estops))),
             ("client_holds", tuple(sorted(self._client_holds))),
+            ("nonzero", tuple(sorted(self._nonzero))),
             ("uid_of", tuple(sorted(self._uid_of.items(), key=lambda item: item[0]))),
             (
                 "unnamed",
@@ -568,6 +576,8 @@ class SafetyCore:
             self._check_rearm(request, event, now)
             if len(self._refusals) > refused:  # every refused re-arm is recorded (docs/record.md)
                 self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)
+        if not self._nonzero:
+            self._display.end_notice()  # nothing commands motion any more (SR-4.6)
         previous = self._state
         self._state = self._transition(now)  # 5. the table
         decision = self._finish(event, previous, now)  # 6.
@@ -701,6 +711,17 @@ class SafetyCore:
 
     def _on_tick(self, event: Tick, now: int) -> None:
         """Time passing is step 1's and step 3's work; a tick brings no fact of its own."""
+
+    def _on_command(self, event: ClientCommand, now: int) -> None:
+        """A named client's declaration of its commanded motion (SR-4.6), kept until it
+        declares again or its connection ends; before hello it is refused (``NO_HELLO``)."""
+        name = self._named(event, event.connection)
+        if name is None:
+            return
+        if event.nonzero:
+            self._nonzero.add(name)
+        else:
+            self._nonzero.discard(name)
 
     def _on_client_heartbeat(self, event: ClientHeartbeat, now: int) -> None:
         name = self._named(event, event.connection)
@@ -983,6 +1004,7 @@ class SafetyCore:
         self._uid_of.pop(connection, None)
         if name is not None:
             del self._by_name[name]
+            self._nonzero.discard(name)  # the process commanding it is gone (SR-4.6)
             if name in self._client_beat_ns:
                 self._client_beat_ns[name] = None
 
@@ -1167,6 +1189,8 @@ class SafetyCore:
             self._rearm = Rearm(request.kind, request.caller)
             return
         reason, detail = refusal
+        if reason is RefusalReason.COMMAND_NONZERO:
+            self._display.notice(self._notice_rows())  # tell the operator (SR-4.6)
         if takeover:
             # The same takeover refusal again within a second is not reported (a flapping
             # VSC, docs/safety.md "Re-arming"); a new reason always is. A local reset always
@@ -1205,7 +1229,19 @@ class SafetyCore:
                 RefusalReason.HOLD_TIME_NOT_ELAPSED,
                 f"clear for {clear_ms} ms of {hold // NS_PER_MS} ms",
             )
+        if self._nonzero:
+            # SR-4.6, checked last: the re-arm breaks no other rule, and the operator is told
+            # the one thing left to do.
+            return RefusalReason.COMMAND_NONZERO, ", ".join(sorted(self._nonzero))
         return None
+
+    def _notice_rows(self) -> Notice:
+        """The remote's text page while a re-arm is refused for a non-zero command (SR-4.6):
+        what happened, who commands motion, what to do (20 characters a row)."""
+        names = sorted(self._nonzero)
+        more = f" +{len(names) - 1}" if len(names) > 1 else ""
+        who = names[0][: NOTICE_WIDTH - len(more)] + more
+        return ("NOT RE-ARMED", "COMMAND NOT ZERO:", who, "ZERO IT, TAKE OVER")
 
     def _takeover_refusal(self, run: _Run | None) -> tuple[RefusalReason, str] | None:
         """Re-arming rules 2-4 for a takeover: is the run before this Operational heartbeat an
@@ -1357,6 +1393,7 @@ _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
         ClientHeartbeat: SafetyCore._on_client_heartbeat,
         ClientEstop: SafetyCore._on_request,
         ClientHold: SafetyCore._on_request,
+        ClientCommand: SafetyCore._on_command,
         ClientRelease: SafetyCore._on_release,
         ClientDisconnected: SafetyCore._on_disconnected,
         LocalEstop: SafetyCore._on_local_estop,
@@ -1387,6 +1424,7 @@ _CLIENT_EVENTS = (
     ClientHeartbeat,
     ClientEstop,
     ClientHold,
+    ClientCommand,
     ClientRelease,
     ClientDisconnected,
     LocalEstop,

@@ -68,6 +68,7 @@ class RefusalReason(enum.Enum):
     HOLD_TIME_NOT_ELAPSED = "stop conditions have not been clear for the whole re-arm hold time"
     TAKEOVER_TOO_SHORT = "the VSC did not report a non-Operational mode long enough for a takeover"
     VSC_TOO_FAST = "VSC heartbeats came faster than a VSC sends them: no takeover"
+    COMMAND_NONZERO = "re-arm only at zero command: a client declares a non-zero command"
     # Inputs that make no sense; each is ignored, never an exception.
     UNKNOWN_CONNECTION = "no such client connection"
     DUPLICATE_CONNECTION = "the connection number is already in use"

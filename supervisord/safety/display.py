@@ -4,6 +4,10 @@ PR-2: labels and the display mode are lost when the remote restarts or re-links;
 values go at most at 20 Hz and strings at most at 4 Hz (manual §6.5: a text row every 250 ms).
 The limits are applied per class of message, across all keys: one value frame per 50 ms and
 one string frame per 250 ms. Internal to the core.
+
+The core may show a notice of its own on the text page (SR-4.6: why a re-arm was refused): it
+takes the four text rows and the display mode, and the remote vibrates once; the clients'
+rows and mode are kept meanwhile and sent again when the notice ends.
 """
 
 from __future__ import annotations
@@ -22,6 +26,11 @@ _VIBRATE_KEYS = frozenset(
 )
 _NAME_KEYS = frozenset(USER_VALUE_KEYS) | {k.value for k in StringKey}
 _DISPLAY_MODES = frozenset(m.value for m in DisplayMode)
+_ROW_KEYS = tuple(k.value for k in StringKey)  # the text page's four rows
+_MODE_KEY = FeedbackKey.DISPLAY_MODE.value
+_NOTICE_KEYS = frozenset({*_ROW_KEYS, _MODE_KEY})  # what a notice takes over
+Notice = tuple[str, str, str, str]
+"""The four rows of a notice, each at most 20 single-byte characters."""
 
 
 class DisplayStore:
@@ -34,6 +43,7 @@ class DisplayStore:
         self._pending_names: dict[int, FeedbackName] = {}
         self._next_value_ns: int | None = None
         self._next_name_ns: int | None = None
+        self._notice: Notice | None = None
 
     def accept(self, message: FeedbackSet | FeedbackName) -> RefusalReason | None:
         """Keep and queue a client's display content; the refusal reason if it is not allowed.
@@ -44,7 +54,7 @@ class DisplayStore:
             if message.key not in _NAME_KEYS:
                 return RefusalReason.DISPLAY_KEY_NOT_ALLOWED
             self._names[message.key] = message
-            self._pending_names[message.key] = message
+            self._queue_name(message)
             return None
         if message.key in _VIBRATE_KEYS:
             if message.value != 1:  # PR-2: vibrate takes the value 1
@@ -56,8 +66,16 @@ class DisplayStore:
         if message.key == FeedbackKey.DISPLAY_MODE and message.value not in _DISPLAY_MODES:
             return RefusalReason.DISPLAY_VALUE_OUT_OF_RANGE
         self._values[message.key] = message
-        self._pending_values[message.key] = message
+        self._queue_value(message)
         return None
+
+    def _queue_name(self, message: FeedbackName) -> None:
+        if self._notice is None or message.key not in _NOTICE_KEYS:
+            self._pending_names[message.key] = message
+
+    def _queue_value(self, message: FeedbackSet) -> None:
+        if self._notice is None or message.key not in _NOTICE_KEYS:
+            self._pending_values[message.key] = message
 
     def edited_on_remote(self, message: FeedbackSet) -> None:
         """The operator changed a user value in the remote's menu: keep it, so a re-link does
@@ -67,9 +85,46 @@ class DisplayStore:
             self._pending_values.pop(message.key, None)
 
     def relink(self) -> None:
-        """The remote re-linked and forgot its display: queue everything kept, labels first."""
-        self._pending_names.update(self._names)
-        self._pending_values.update(self._values)
+        """The remote re-linked and forgot its display: queue everything kept, labels first
+        (a notice's rows first of all)."""
+        for name in self._names.values():
+            self._queue_name(name)
+        for value in self._values.values():
+            self._queue_value(value)
+        if self._notice is not None:
+            self._queue_notice(self._notice)
+
+    def notice(self, rows: Notice) -> None:
+        """Show the core's own ``rows`` on the text page, before any other string waiting, and
+        vibrate the remote once when they are new (SR-4.6)."""
+        if rows == self._notice:
+            return
+        self._notice = rows
+        self._queue_notice(rows)
+        self._pending_values[FeedbackKey.VIBRATE_BOTH.value] = FeedbackSet(
+            FeedbackKey.VIBRATE_BOTH, 1
+        )
+
+    def _queue_notice(self, rows: Notice) -> None:
+        first = {key: FeedbackName(key, text) for key, text in zip(_ROW_KEYS, rows, strict=True)}
+        rest = {k: m for k, m in self._pending_names.items() if k not in first}
+        self._pending_names = {**first, **rest}
+        self._pending_values[_MODE_KEY] = FeedbackSet(_MODE_KEY, DisplayMode.TEXT_ROWS.value)
+
+    def end_notice(self) -> None:
+        """The notice ends: the clients' rows and display mode come back (empty rows and the
+        default page where a client set none)."""
+        if self._notice is None:
+            return
+        self._notice = None
+        for key in _ROW_KEYS:
+            self._pending_names[key] = self._names.get(key, FeedbackName(key, ""))
+        default = FeedbackSet(_MODE_KEY, DisplayMode.GPS.value)
+        self._pending_values[_MODE_KEY] = self._values.get(_MODE_KEY, default)
+
+    @property
+    def showing_notice(self) -> bool:
+        return self._notice is not None
 
     def due(self, now: int) -> list[Message]:
         """At most one string and one value frame whose rate slot has come."""
@@ -101,6 +156,7 @@ class DisplayStore:
             tuple(self._names.items()),
             tuple(self._pending_values.items()),
             tuple(self._pending_names.items()),
+            self._notice,
         )
         slots = (("display:value", self._next_value_ns), ("display:name", self._next_name_ns))
         return facts, tuple(clock(name, at, now, 0) for name, at in slots if at is not None)

@@ -103,6 +103,16 @@ class ClientHold(_Event):
     connection: int
 
 
+@dataclass(frozen=True, slots=True)
+class ClientCommand(_Event):
+    """A named client declared whether the motion it commands is non-zero (SR-4.6): held for
+    its connection until it declares again or the connection ends; while any client's is
+    non-zero, no re-arm is honoured."""
+
+    connection: int
+    nonzero: bool
+
+
 Request = release.Request
 """What a client's release ends: one enum with the client API's (``supervisord.release``)."""
 
@@ -215,6 +225,7 @@ Event = (
     | ClientHeartbeat
     | ClientEstop
     | ClientHold
+    | ClientCommand
     | ClientRelease
     | ClientDisconnected
     | LocalEstop

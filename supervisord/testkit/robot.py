@@ -440,6 +440,27 @@ class Robot:
                 return found
         raise FaultHarnessError(f"no valid re-arm in {attempts} takeovers; {self.status()}")
 
+    def refused_rearm(self, reason: str, attempts: int = 3) -> dict[str, Any]:
+        """The operator's takeover as :meth:`rearm` makes it, where a rule the scenario set up
+        refuses it: returns the ``rearm_refused`` record whose reason starts with ``reason``.
+        A takeover the harness could not make, or one refused for another reason (a condition
+        that came back on a busy machine), is tried again; a takeover that re-arms fails."""
+        for _ in range(attempts):
+            t = self.now()
+            try:
+                record = self.rearm(attempts=1)
+            except FaultHarnessError:
+                found = [
+                    r
+                    for r in self.records_since(t)
+                    if r.get("kind") == "rearm_refused" and r["reason"].startswith(reason)
+                ]
+                if found:
+                    return found[0]
+                continue
+            raise FaultHarnessError(f"re-armed where {reason!r} should refuse it: {record}")
+        raise FaultHarnessError(f"no takeover refused for {reason!r} in {attempts} tries")
+
     def _wait_rearm(self, since: float) -> dict[str, Any] | None:
         end = time.monotonic() + 3.0
         while time.monotonic() < end:

@@ -15,6 +15,7 @@ import pytest
 
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.api.requests import (
+    Command,
     Commission,
     DisplayLabel,
     DisplayModeRequest,
@@ -161,6 +162,17 @@ def test_refusals_raise_api_error_and_the_client_goes_on(sock_path: Path) -> Non
             client.hello("nav2")
         assert caught.value.code == ErrorCode.ALREADY_NAMED
         client.heartbeat()
+
+
+def test_command_declares_the_clients_motion(sock_path: Path) -> None:
+    """SR-4.6: ``command`` sends the declaration docs/api.md describes, after hello."""
+    with (
+        Served(ServerConfig(sock_path)) as served,
+        SupervisorClient.connect(sock_path, name="planner") as client,
+    ):
+        client.command(True)
+        client.command(False)
+    assert served.requests() == [Hello("planner"), Command(True), Command(False)]
 
 
 def test_pushes_during_a_call_are_kept_for_next_event(sock_path: Path) -> None:

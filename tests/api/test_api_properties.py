@@ -159,8 +159,8 @@ def odd_text(max_size: int) -> st.SearchStrategy[str]:
 
 
 ODD_TEXT = odd_text(12)
-OPS = ["hello", "heartbeat", "estop", "hold", "release", "status", "subscribe", "display",
-       "vibrate", "reset", "launch", "\ud800"]  # fmt: skip
+OPS = ["hello", "heartbeat", "estop", "hold", "release", "command", "status", "subscribe",
+       "display", "vibrate", "reset", "launch", "\ud800"]  # fmt: skip
 # ``commission`` is left out: it is answered seconds later, when its procedure ends.
 SCALARS = st.one_of(
     st.none(),

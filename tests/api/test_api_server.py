@@ -404,6 +404,17 @@ def test_hello_rules(loop: Loop, peers: Callable[[], Peer]) -> None:
     assert second.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
 
 
+def test_a_command_declaration_needs_hello(loop: Loop, peers: Callable[[], Peer]) -> None:
+    """SR-4.6: only a named client declares its commanded motion; before hello the
+    declaration is ``not_hello`` and reaches nothing, after it the reply is ok."""
+    peer = peers()
+    refused = peer.ask(loop, {"op": "command", "nonzero": True})
+    assert (refused["ok"], refused["code"]) == (False, "not_hello")
+    assert peer.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
+    assert peer.ask(loop, {"op": "command", "nonzero": True})["ok"] is True
+    assert peer.ask(loop, {"op": "command", "nonzero": False})["ok"] is True
+
+
 def test_subscribers_receive_broadcasts(loop: Loop, peers: Callable[[], Peer]) -> None:
     """SR-8.2: only connections subscribed to a topic receive its pushes."""
     watcher, other = peers(), peers()

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 
+from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
 from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
@@ -65,3 +66,45 @@ def test_a_flapping_vsc_never_rearms_after_an_estop(tmp_path: Path, flap: dict[s
         too_short = RefusalReason.TAKEOVER_TOO_SHORT.value
         assert all(r["reason"].startswith(too_short) for r in refused), refused
         robot.recover(stop)
+
+
+NOTICE = {"90": "NOT RE-ARMED", "91": "COMMAND NOT ZERO:", "92": "planner"}
+
+
+def test_a_takeover_while_a_client_commands_motion_is_refused_and_shown_on_the_remote(
+    tmp_path: Path,
+) -> None:
+    """SR-4.6: a client (``planner``, not required) declares a non-zero command; after the
+    remote's e-stop is released, the operator's takeover on ``srcs-sim`` (every other rule
+    met) does not re-arm: the refusal is recorded with ``command_nonzero`` naming the client,
+    no output comes on, ``status`` shows the declaration, and the simulated remote shows the
+    notice on its text page and vibrates. Once the planner declares zero, the remote's page
+    is given back, and the operator's next takeover re-arms."""
+    with Robot(tmp_path) as robot:
+        assert robot.watcher is not None
+        robot.arm()
+        with SupervisorClient.connect(robot.socket_path, name="planner") as planner:
+            planner.command(True)
+            vibrations = robot.vsc.state()["vibration_count"]
+            stop = robot.remote_estop()
+            robot.vsc.release()
+            # every rule of SR-4 met but the command's
+            refused = robot.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
+            assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: planner"
+            assert not [r for r in robot.records_since(stop.t_fault) if r.get("rearm")]
+            assert robot.watcher.ons_between(stop.t_fault, robot.now()) == []
+            status = robot.status()
+            assert status["state"] == "STOPPED"
+            (entry,) = [c for c in status["daemon"]["clients"] if c["name"] == "planner"]
+            assert entry["command_nonzero"] is True
+            shown = robot.vsc.wait_for(
+                lambda s: (
+                    s["display_mode"] == 1
+                    and all(s["labels"].get(k) == v for k, v in NOTICE.items())
+                    and s["vibration_count"] > vibrations
+                )
+            )
+            assert "NOT RE-ARMED" in shown["lcd"], shown["lcd"]
+            planner.command(False)
+            robot.vsc.wait_for(lambda s: s["display_mode"] == 0 and s["labels"].get("90") == "")
+            robot.recover(stop)

@@ -58,6 +58,7 @@ VALUES: dict[str, st.SearchStrategy[Any]] = {
     "reason": words,
     "key85": st.integers(-(2**31), 2**31),
     "remote_status": st.booleans(),
+    "nonzero": st.booleans(),
 }
 """Values for each field of the events, by its name, from what the field holds (its type in
 the code), not from the encoding's kind: a field given the wrong kind fails to round-trip."""

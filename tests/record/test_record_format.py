@@ -39,6 +39,7 @@ TRIGGERS = {
     "client_heartbeat": ("connection",),
     "client_estop": ("connection",),
     "client_hold": ("connection",),
+    "client_command": ("connection", "nonzero"),
     "client_release": ("connection", "request"),
     "client_disconnected": ("connection",),
     "local_estop": ("caller",),

@@ -25,6 +25,7 @@ except ImportError as error:  # rclpy's libraries are not on the library path
     )
 
 from supervisord.client import SupervisorClient
+from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 
@@ -61,6 +62,12 @@ def _arm(robot: Robot, ros: RosPeer) -> None:
     robot.arm()
     ros.spin_until(lambda: ros.state[-1:] == ["RUN"], what="state RUN")
     ros.spin_until(lambda: ros.estop[-1:] == [False], what="estop false")
+
+
+def _declared(robot: Robot, nonzero: bool) -> bool:
+    """Whether ``status`` shows the bridge's client declaring ``nonzero`` (SR-4.6)."""
+    clients = robot.status()["daemon"]["clients"]
+    return any(c["name"] == "ros" and c["command_nonzero"] is nonzero for c in clients)
 
 
 def test_joystick_and_gps_arrive_scaled(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
@@ -127,6 +134,12 @@ def test_remote_estop_stops_topics_and_gate(
     assert values["level"] == "2"  # ERROR: STOPPED
     assert "vsc_estop" in values["message"]
     assert "sources=remote" in values["vsc_estop"]
+
+    def stopped() -> bool:  # the planner comes to zero, or no takeover re-arms (SR-4.6)
+        ros.cmd_in.publish(Twist())
+        return _declared(running, False)
+
+    ros.spin_until(stopped, what="a zero command declared")
     running.vsc.release()
     running.rearm()  # the end of the scenario expects a re-armable robot
 
@@ -257,3 +270,40 @@ def test_display_shows_on_the_lcd(robot: tuple[Robot, BridgeProcess], ros: RosPe
         return "hello from ROS" in lcd and "second row" in lcd
 
     ros.spin_until(shown, what="the rows on the LCD")
+
+
+def test_a_nonzero_cmd_vel_in_blocks_the_takeover_and_zero_lets_it(
+    robot: tuple[Robot, BridgeProcess], ros: RosPeer
+) -> None:
+    """SR-4.6: a non-zero ``Twist`` on ``cmd_vel_in`` makes the bridge declare a non-zero
+    command; after the remote's e-stop is released, the operator's takeover (every other
+    rule met) does not re-arm, recorded as ``command_nonzero`` naming the bridge's client,
+    and nothing is forwarded; a zero ``Twist`` declares zero, and the next takeover re-arms."""
+    running, _ = robot
+    _arm(running, ros)
+    go = Twist()
+    go.linear.x = 1.0
+
+    def moving() -> bool:
+        ros.cmd_in.publish(go)
+        return _declared(running, True)
+
+    ros.spin_until(moving, what="the bridge's non-zero declaration")
+    stop = running.remote_estop()
+    ros.spin_until(lambda: ros.state[-1:] == ["STOPPED"], what="state STOPPED")
+    running.vsc.release()
+    refused = running.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
+    assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
+    assert not [r for r in running.records_since(stop.t_fault) if r.get("rearm")]
+    assert running.status()["state"] == "STOPPED"
+    forwarded = len(ros.cmd_out)
+    ros.cmd_in.publish(go)  # still refused: the gate stays closed
+
+    def stopped() -> bool:
+        ros.cmd_in.publish(Twist())
+        return _declared(running, False)
+
+    ros.spin_until(stopped, what="the bridge's zero declaration")
+    assert all(m.linear.x == 0.0 for m in ros.cmd_out[forwarded:]), ros.cmd_out[forwarded:]
+    running.recover(stop)
+    ros.spin_until(lambda: ros.state[-1:] == ["RUN"], what="state RUN after the takeover")

@@ -38,6 +38,7 @@ BRIDGE_MODULES = frozenset(
         "supervisord.cli",
         "supervisord.cli.ros2",
         "supervisord.ros2",
+        "supervisord.ros2.command",
         "supervisord.ros2.diagnostics",
         "supervisord.ros2.gate",
         "supervisord.ros2.link",

@@ -30,9 +30,10 @@ took 86 s on a two-core machine at load 9); the suite's 120 s guard against a ha
 @pytest.mark.parametrize("name", sorted(BOUNDS))
 def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
     """SR-1.1, SR-1.2, SR-1.3, SR-2.1, SR-2.2, SR-2.3, SR-2.4, SR-2.5, SR-2.6, SR-2.9,
-    SR-2.11, SR-3.1, SR-4.1, SR-4.2, SR-4.3, SR-4.5, SR-5.1, SR-5.2, SR-5.3, SR-5.6, SR-5.7,
-    SR-7.1, SR-8.1, SR-8.7, SR-10.1: every input sequence of the model, each input now and at
-    every boundary a clock can see, up to the bound, keeps every property in every step."""
+    SR-2.11, SR-3.1, SR-4.1, SR-4.2, SR-4.3, SR-4.5, SR-4.6, SR-5.1, SR-5.2, SR-5.3, SR-5.6,
+    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-10.1: every input sequence of the model, each input now
+    and at every boundary a clock can see, up to the bound, keeps every property in every
+    step."""
     result = explore(model.MODELS[name], max_depth=BOUNDS[name])
     shown = [f"{c.pid}: {c.what}\n{regression_test(c, name)}" for c in result.counterexamples]
     assert shown == []
@@ -43,11 +44,11 @@ def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
 @pytest.mark.timeout(COMPUTE_TIMEOUT_S)
 @pytest.mark.parametrize("fault", FAULTS, ids=[f.name for f in FAULTS])
 def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
-    """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-5.2, SR-5.6, SR-7.1, SR-10.1: a core with one
-    deliberate fault (a dropped cause, a boundary off by one, a takeover without the dwell, a
-    missing record, a late e-stop byte, the proof test skipped, a forgotten deadline, an ignored
-    hold, no re-arm hold) breaks the property that guards against it, so the checker cannot
-    silently stop checking."""
+    """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-4.6, SR-5.2, SR-5.6, SR-7.1, SR-10.1: a core
+    with one deliberate fault (a dropped cause, a boundary off by one, a takeover without the
+    dwell, a missing record, a late e-stop byte, the proof test skipped, a forgotten deadline,
+    an ignored hold, a re-arm while a client commands motion, no re-arm hold) breaks the
+    property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
 
