@@ -97,9 +97,12 @@ def test_hello_rules_are_the_cores_and_keep_their_codes(
 def test_requests_after_a_hello_in_one_write_see_its_answer(
     judged: Judged, peers: Callable[[], Peer]
 ) -> None:
-    """SR-8: a hello and a heartbeat in one write: the heartbeat is taken after the core named
-    the connection (ok, ok); after a refused hello it is still unnamed (not_hello)."""
+    """SR-8: a hello, a heartbeat and an e-stop in one write: the two after the hello are taken
+    after the core named the connection (ok, ok; the client's own e-stop); after a refused
+    hello the connection is still unnamed (not_hello). Sent once the callers' login name is
+    known: before, an e-stop would be served at once, ahead of the hello (SR-10.3)."""
     peer, other = peers(), peers()
+    judged.until(lambda: [c.caller.name for c in judged.server.clients()] == ["root", "root"])
     peer.send(b'{"op":"hello","name":"nav"}\n{"op":"heartbeat"}\n{"op":"estop"}\n')
     assert [r["ok"] for r in peer.read(judged, 3)] == [True, True, True]
     assert "client_estop:nav" in judged.core.decision.active_names
