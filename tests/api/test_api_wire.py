@@ -21,10 +21,10 @@ from supervisord.api.requests import (
     Heartbeat,
     Hello,
     Hold,
-    ProofTest,
     Release,
     Reset,
     Side,
+    StartProofTest,
     Status,
     Subscribe,
     Topic,
@@ -100,7 +100,7 @@ EVERY_REQUEST: tuple[ApiRequest, ...] = (
     Vibrate(Side.LEFT),
     Reset(),
     Commission(),
-    ProofTest(),
+    StartProofTest(),
 )
 
 
