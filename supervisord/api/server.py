@@ -121,8 +121,8 @@ class ServerConfig:
     file (``None``: the daemon's group); ``admin_group`` grants ``reset`` and ``commission``
     (``None``: only root). ``known_uids``: users whose login names are looked up at start
     (the bound clients' users), so that their connections never wait for a name (SR-10.3).
-    ``reserved_slots``, ``slot_idle_ms``,
-    ``requests_per_call`` and ``requests_per_turn`` are the limits of the module docstring.
+    ``reserved_slots``, ``slot_idle_ms``, ``requests_per_call`` and ``requests_per_turn`` are
+    the limits of the module docstring.
     Raises :class:`ConfigError` for a value out of range.
     """
 
