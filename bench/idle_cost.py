@@ -26,10 +26,10 @@ from pathlib import Path
 
 from bench.rig import REPO, RigError, Vsc, load, machine, table
 from bench.stop_latency import CpuTimes, steal_text
-from supervisord.children import terminate
 from supervisord.protocol.codes import VscMode
 from supervisord.testkit.daemon import MINIMAL_CONFIG
 from supervisord.timebase import NS_PER_MS
+from supervisord.tooling.children import terminate
 
 TICKS = os.sysconf("SC_CLK_TCK")
 TARGET_CPU = 0.02  # SR-9.4: under 2 % of one core

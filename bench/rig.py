@@ -44,7 +44,6 @@ from pathlib import Path
 from types import FrameType, TracebackType
 
 from supervisord.api.server import ApiServer, ServerConfig
-from supervisord.children import terminate
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -68,6 +67,7 @@ from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.pty import PtyPort
 from supervisord.timebase import NS_PER_MS, next_due
+from supervisord.tooling.children import terminate
 
 REPO = Path(__file__).resolve().parents[1]  # the child runs ``-m bench.rig`` from here
 REPORT = struct.Struct("<?qq")  # level, write started, write finished (monotonic ns)

@@ -48,9 +48,9 @@ from pathlib import Path
 from bench.rig import RigError, Vsc, load, machine, table
 from bench.stop_latency import CpuTimes, steal_text
 from bench.unit import Scheduling, apply_in_child, read_unit
-from supervisord.children import terminate
 from supervisord.protocol.codes import VscMode
 from supervisord.testkit.daemon import MINIMAL_CONFIG
+from supervisord.tooling.children import terminate
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat (PR-2)
 WATCHDOG_USEC = "2000000"  # the unit's WatchdogSec=2

@@ -72,9 +72,9 @@ from bench.rig import (
     table,
 )
 from bench.unit import Scheduling, read_unit, rttime_limit
-from supervisord.children import terminate
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
+from supervisord.tooling.children import terminate
 
 ESTOP_REMOTE = 0x01  # the remote's e-stop bit of the heartbeat's e-stop word (PR-2)
 TARGET_P99_NS = 2_000_000  # SR-9.1

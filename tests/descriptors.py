@@ -9,7 +9,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from supervisord.polling import poll_until
+from supervisord.tooling.polling import poll_until
 
 LOOKUP_THREAD = "srcsd-names"
 """The API server's user-name lookup thread (``supervisord/api/names.py``): closing the server

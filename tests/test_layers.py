@@ -1,8 +1,10 @@
-"""The package's layers: the product never leans on its test kit.
+"""The package's layers: the product never leans on its test kit, the daemon not on tooling.
 
 ``supervisord/testkit/`` is for tests, the product's and integrators'; it may import the
 product, never the reverse, so that what ships to a robot works without it and a change to the
-kit cannot change the supervisor.
+kit cannot change the supervisor. ``supervisord/tooling/`` serves the programs that run other
+programs (the demo, the simulator's runner, the kit, the benches); the daemon's own packages
+never import it.
 """
 
 from __future__ import annotations
@@ -87,6 +89,27 @@ def test_the_walk_sees_every_kind_of_import() -> None:
     for source, leans in lines.items():
         names = [name for _, name in _imports(source, "supervisord.sim.sample")]
         assert any(_leans_on_kit(n) for n in names) is leans, (source, names)
+
+
+DAEMON = ("api", "config", "daemon", "links", "outputs", "protocol", "record", "safety")
+"""The packages ``srcsd`` is made of."""
+TOOLING = "supervisord.tooling"
+
+
+def test_the_daemon_imports_no_tooling() -> None:
+    """No module of the daemon's packages imports ``supervisord/tooling/`` (child processes,
+    polling): it is the demo's and the tests', not the supervisor's."""
+    files = [path for package in DAEMON for path in sorted((PACKAGE / package).rglob("*.py"))]
+    assert len(files) > 50
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}: {name}"
+        for path in files
+        for line, name in _file_imports(path)
+        if name == TOOLING or name.startswith(TOOLING + ".")
+    ]
+    assert found == []
+    assert not (PACKAGE / "children.py").exists()
+    assert not (PACKAGE / "polling.py").exists()
 
 
 CLOCKS = frozenset(

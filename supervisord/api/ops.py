@@ -182,7 +182,7 @@ class Commission(_Request):
 
 
 @dataclass(frozen=True, slots=True)
-class ProofTest(_Request):
+class StartProofTest(_Request):
     """Run the proof test of the VSC's watchdog again (SR-5.3; docs/safety.md "The proof
     test"). Admins only; the core refuses it in RUN and HOLD. The reply comes at once; the
     result follows in ``status`` (``prooftest``) and a ``prooftest`` record."""
@@ -206,7 +206,7 @@ ApiRequest = (
     | Vibrate
     | Reset
     | Commission
-    | ProofTest
+    | StartProofTest
 )
 """Any request of the client API. Not :class:`supervisord.release.Request` (what a
 ``release`` ends; the safety core's ``supervisord.safety.events.Request``), which

@@ -31,11 +31,11 @@ from supervisord.api.ops import (
     Heartbeat,
     Hello,
     Hold,
-    ProofTest,
     Release,
     RequestId,
     Reset,
     Side,
+    StartProofTest,
     Status,
     Subscribe,
     Topic,
@@ -63,11 +63,11 @@ __all__ = [
     "Heartbeat",
     "Hello",
     "Hold",
-    "ProofTest",
     "Release",
     "RequestId",
     "Reset",
     "Side",
+    "StartProofTest",
     "Status",
     "Subscribe",
     "Topic",
@@ -76,7 +76,7 @@ __all__ = [
     "request_json",
 ]
 
-ADMIN_REQUESTS: Final = (Reset, Commission, ProofTest)
+ADMIN_REQUESTS: Final = (Reset, Commission, StartProofTest)
 """Requests only an admin may make (SR-8)."""
 NAMED_REQUESTS: Final = (Heartbeat, Command)
 """Requests that need a connection that said hello."""
@@ -302,7 +302,7 @@ def _commission(f: _Fields) -> ApiRequest:
 
 
 def _prooftest(f: _Fields) -> ApiRequest:
-    return ProofTest(id=f.id)
+    return StartProofTest(id=f.id)
 
 
 _PARSERS = {

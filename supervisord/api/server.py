@@ -2,14 +2,24 @@
 
 SR-8 and ``docs/api.md``. There are no threads. Before each wait the loop asks
 :meth:`ApiServer.descriptors` which descriptors to watch (and which have output waiting), and
-hands every ready one back to :meth:`ApiServer.handle`, which returns typed results:
+hands every ready one back to :meth:`ApiServer.handle`. What happens is queued, in order, and
+the daemon takes it with :meth:`ApiServer.take`, one result at a time:
 
 - :class:`Accepted` - a client connected (``ClientConnected`` for the core);
 - :class:`Received` - a valid request the daemon must act on and answer with :meth:`reply`
-  or :meth:`reply_error`, exactly once;
+  or :meth:`reply_error`, exactly once, before it takes the next result;
 - :class:`Denied` - an admin-only request from a non-admin, already answered ``not_allowed``;
-- :class:`Closed` - a connection ended (``ClientDisconnected``), reported once per
-  :class:`Accepted`.
+- :class:`Closed` - a connection ended (``ClientDisconnected``), queued once per
+  :class:`Accepted`, wherever it ended: while reading, while answering, while pushing.
+
+One queue is the one place the daemon learns of every end, so no end can be dropped on the
+way (a lost ``Closed`` would keep its client's name in use in the core). A request is turned
+into its result only when it is taken, so it sees the answers to the requests before it: a
+``hello`` answered ok names the connection for the requests after it, even in one write.
+
+The server holds no rules of the safety core's: whether a ``hello`` may name the connection
+(a second hello, a name in use, a client bound to another user) is the core's to judge; the
+daemon answers with the core's refusal (:func:`~supervisord.api.views.refusal_error`).
 
 :func:`core_event` turns a result into the safety core's event. Every socket is
 non-blocking; output waits in a bounded buffer per connection, and a client whose buffer
@@ -29,6 +39,7 @@ Two rules keep the stop path open whatever the other programs do (SR-8.4,
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import enum
 import errno
@@ -36,7 +47,7 @@ import os
 import socket
 import stat
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
@@ -108,9 +119,10 @@ class ServerConfig:
 
     ``mode`` must not let others write (connect to) the socket; ``group`` owns the socket
     file (``None``: the daemon's group); ``admin_group`` grants ``reset`` and ``commission``
-    (``None``: only root). ``bound_users`` maps client names to the one uid that may say
-    hello under them (``[[clients]] user``). ``reserved_slots``, ``slot_idle_ms``,
-    ``requests_per_call`` and ``requests_per_turn`` are the limits of the module docstring.
+    (``None``: only root). ``known_uids``: users whose login names are looked up at start
+    (the bound clients' users), so that their connections never wait for a name (SR-10.3).
+    ``reserved_slots``, ``slot_idle_ms``, ``requests_per_call`` and ``requests_per_turn`` are
+    the limits of the module docstring.
     Raises :class:`ConfigError` for a value out of range.
     """
 
@@ -122,7 +134,7 @@ class ServerConfig:
     max_line: int = DEFAULT_MAX_LINE
     max_discard: int | None = None
     max_output: int = DEFAULT_MAX_OUTPUT
-    bound_users: Mapping[str, int] = field(default_factory=dict)
+    known_uids: tuple[int, ...] = ()
     reserved_slots: int = DEFAULT_RESERVED_SLOTS
     slot_idle_ms: int = DEFAULT_SLOT_IDLE_MS
     requests_per_call: int = DEFAULT_REQUESTS_PER_CALL
@@ -175,8 +187,8 @@ class Accepted:
 
 @dataclass(frozen=True, slots=True)
 class Received:
-    """A valid request; ``client`` is the connection as it was when the request arrived
-    (after a ``hello``, with its new name)."""
+    """A valid request; ``client`` is the connection as it was when the request was taken
+    (named once a ``hello`` was answered ok)."""
 
     client: ClientInfo
     request: ApiRequest
@@ -210,12 +222,9 @@ def core_event(result: Result, now: int) -> Event | None:
             return ClientConnected(now, client.connection, client.caller.uid)  # SR-8.5
         case Closed(client=client):
             return ClientDisconnected(now, client.connection)
-        case (
-            Received(client=client, request=Hello(name=name))
-            | Denied(client=client, request=Hello(name=name))
-        ):
-            # With the caller, so the core checks a bound client's user itself and records a
-            # refused hello (docs/safety.md "Clients bound to a user").
+        case Received(client=client, request=Hello(name=name)):
+            # With the caller, so the core checks a bound client's user and records a refused
+            # hello (docs/safety.md "Clients bound to a user").
             return ClientHello(now, client.connection, name, client.caller)
         case Received(client=client, request=request) | Denied(client=client, request=request):
             return to_core_event(request, client, now)
@@ -255,6 +264,17 @@ class _Connection:
         return self.naming_until is not None
 
 
+@dataclass(frozen=True, slots=True)
+class _Waiting:
+    """A request read and queued: checked and turned into its result when it is taken."""
+
+    conn: _Connection
+    request: ApiRequest
+
+
+_Queued = Accepted | Closed | _Waiting
+
+
 class ApiServer:
     """The API socket at ``config.path``, its connections and their buffers.
 
@@ -266,6 +286,8 @@ class ApiServer:
     A connection that ends is shut down at once (its peer sees the end), but its descriptor
     stays open until the next :meth:`descriptors` call, so the loop can drop it from its
     watch list before the number can be reused by a new connection.
+
+    Nothing is returned by the calls that do I/O: what happens is queued for :meth:`take`.
     """
 
     def __init__(self, config: ServerConfig, names: UserNames | None = None) -> None:
@@ -276,6 +298,7 @@ class ApiServer:
         self._connections: dict[int, _Connection] = {}  # by connection number
         self._by_fd: dict[int, _Connection] = {}
         self._ended: list[socket.socket] = []
+        self._results: collections.deque[_Queued] = collections.deque()  # for take(), in order
         self._next_number = 1
         self._closed = False
         self._share = config.requests_per_call  # requests per connection in this turn
@@ -286,7 +309,7 @@ class ApiServer:
         # now, so their connections never wait. Made once the socket is ours: nothing to undo.
         self._names = names if names is not None else UserNames(user_name)
         self._names_fd = self._names.fileno()
-        for uid in (0, self._own_uid, *config.bound_users.values()):
+        for uid in (0, self._own_uid, *config.known_uids):
             self._names.ask(uid)
 
     # -- the loop's side ------------------------------------------------------------------
@@ -315,36 +338,53 @@ class ApiServer:
         ]
         return min(ends) if ends else None
 
-    def due(self, now: int) -> list[Result]:
+    def due(self, now: int) -> None:
         """Connections whose user's name did not come within ``NAME_WAIT_NS`` go on under
-        their uid (SR-10.3): what they sent meanwhile is handled now."""
-        results: list[Result] = []
+        their uid (SR-10.3): what they sent meanwhile is queued now."""
         for conn in list(self._connections.values()):
             if conn.naming_until is not None and now >= conn.naming_until:
-                results += self._named(conn, conn.info.caller.name)
-        return results
+                self._named(conn, conn.info.caller.name)
 
     def turn_limit(self) -> int:
         """The most requests one turn can hand to the loop: ``requests_per_turn``, or one per
         connection when there are more connections than that (every one gets its turn)."""
         return max(self.config.requests_per_turn, len(self._connections))
 
-    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> list[Result]:
-        """Act on one ready descriptor and return what happened (in order)."""
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> None:
+        """Act on one ready descriptor; what happened is queued for :meth:`take`."""
+        if self._closed:
+            return
         if fd == self._listen_fd:
-            return self.accept(now) if readable and not self._closed else []
-        if fd == self._names_fd:
-            return self._names_known(now) if not self._closed else []
-        results: list[Result] = []
-        if writable:
-            results += self.on_writable(fd)
-        if readable:
-            results += self.on_readable(fd, now)
-        return results
+            if readable:
+                self.accept(now)
+        elif fd == self._names_fd:
+            self._names_known(now)
+        else:
+            if writable:
+                self.on_writable(fd)
+            if readable:
+                self.on_readable(fd, now)
 
-    def accept(self, now: int) -> list[Result]:
+    def take(self) -> Result | None:
+        """The next result, in the order things happened, or ``None`` when there is none.
+
+        A request is checked when it is taken, so answer each :class:`Received` before taking
+        the next: the answer to a ``hello`` names the connection for what follows. Requests of
+        a connection that ended before they were taken are dropped (nobody is there to answer);
+        its :class:`Closed` comes after them."""
+        queue = self._results
+        while queue:
+            item = queue.popleft()
+            if not isinstance(item, _Waiting):
+                return item
+            if not item.conn.dead:
+                result = self._serve(item.conn, item.request)
+                if result is not None:
+                    return result
+        return None
+
+    def accept(self, now: int) -> None:
         """Accept the waiting connections (a bounded number per call)."""
-        results: list[Result] = []
         for _ in range(ACCEPTS_PER_CALL):
             try:
                 sock, _address = self._listener.accept()
@@ -352,84 +392,83 @@ class ApiServer:
                 break
             except OSError:  # e.g. out of descriptors: try again on the next turn
                 break
-            accepted = self._adopt(sock, now)
-            if accepted is not None:
-                results.append(accepted)
-        return results
+            self._adopt(sock, now)
 
-    def on_readable(self, fd: int, now: int) -> list[Result]:
-        """Read what one connection sent and return its requests (and its end, if it ended).
+    def on_readable(self, fd: int, now: int) -> None:
+        """Read what one connection sent and queue its requests (and its end, if it ended).
 
         At most the connection's share of this turn's budget is read: lines past it stay in
         the socket, which is therefore readable again on the next turn (SR-10.1: one client
         pipelining 16 KiB of requests used to make ~350 requests, each a record, in one turn)."""
         conn = self._by_fd.get(fd)
         if conn is None:
-            return []
+            return
         allowed = min(self._share - conn.taken, self._turn_left)
         if allowed <= 0 or len(conn.deferred) >= MAX_DEFERRED:
-            return []  # its share of this turn is used: the rest waits in the socket
+            return  # its share of this turn is used: the rest waits in the socket
         try:
             data = self._receive_lines(conn.sock, allowed)
         except (BlockingIOError, InterruptedError):
-            return []
+            return
         except OSError:
-            return list(self._end(conn, CloseReason.BROKEN))
+            self._end(conn, CloseReason.BROKEN)
+            return
         if not data:
             if conn.out:  # a peer that only shut down its sending side gets what waits
                 with contextlib.suppress(OSError):
                     conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
-            return list(self._end(conn, CloseReason.PEER_CLOSED))
-        results: list[Result] = []
+            self._end(conn, CloseReason.PEER_CLOSED)
+            return
         for item in conn.reader.feed(data):
             conn.taken += 1
             self._turn_left -= 1
             if isinstance(item, ApiError):
-                results += self._queue(conn, encode(item.reply()))
+                self._queue(conn, encode(item.reply()))
             else:
-                results += self._dispatch(conn, item, now)
+                self._dispatch(conn, item, now)
             if conn.dead:  # ended while answering: nothing more to read
-                return results
+                return
         if conn.reader.flooded:
             error = ApiError(ErrorCode.FLOOD, "an endless line: the connection is closed")
-            results += self._queue(conn, encode(error.reply()))
-            results += self._end(conn, CloseReason.FLOOD)
-        return results
+            self._queue(conn, encode(error.reply()))
+            self._end(conn, CloseReason.FLOOD)
 
-    def on_writable(self, fd: int) -> list[Result]:
+    def on_writable(self, fd: int) -> None:
         """Send what waits for one connection."""
         conn = self._by_fd.get(fd)
-        if conn is None or not conn.out:
-            return []
-        return list(self._flush(conn))
+        if conn is not None and conn.out:
+            self._flush(conn)
 
     # -- the daemon's side ----------------------------------------------------------------
 
-    def reply(self, received: Received, **fields: object) -> list[Closed]:
+    def reply(self, received: Received, **fields: object) -> None:
         """Answer a request with success and ``fields``. Nothing happens if the connection is
-        gone; returns the connection's end if the answer overflowed its buffer."""
-        return self.send(received.client.connection, ok_reply(received.request, **fields))
+        gone. A ``hello`` answered ok names the connection: the daemon says ok only when the
+        safety core took the name."""
+        conn = self._connections.get(received.client.connection)
+        if conn is None:
+            return
+        if isinstance(received.request, Hello):
+            conn.info = replace(conn.info, name=received.request.name)
+        self._queue(conn, encode(ok_reply(received.request, **fields)))
 
-    def reply_error(self, received: Received, error: ApiError) -> list[Closed]:
+    def reply_error(self, received: Received, error: ApiError) -> None:
         """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
-        return self.send(received.client.connection, error.reply())
+        self.send(received.client.connection, error.reply())
 
-    def send(self, connection: int, obj: Mapping[str, object]) -> list[Closed]:
+    def send(self, connection: int, obj: Mapping[str, object]) -> None:
         """Send one JSON object to one connection (if it is still there)."""
         conn = self._connections.get(connection)
-        if conn is None:
-            return []
-        return self._queue(conn, encode(obj))
+        if conn is not None:
+            self._queue(conn, encode(obj))
 
-    def broadcast(self, topic: Topic, obj: Mapping[str, object]) -> list[Closed]:
+    def broadcast(self, topic: Topic, obj: Mapping[str, object]) -> None:
         """Push one JSON object to every connection subscribed to ``topic``."""
         line: bytes | None = None
-        closed: list[Closed] = []
         for conn in list(self._connections.values()):
             if topic in conn.topics:
                 line = line if line is not None else encode(obj)
-                closed += self._queue(conn, line)
-        return closed
+                self._queue(conn, line)
 
     def subscribed(self, topic: Topic) -> bool:
         """Whether any connection wants ``topic`` (so a push is worth building)."""
@@ -443,21 +482,20 @@ class ApiServer:
     def path(self) -> Path:
         return self.config.path
 
-    def close(self) -> list[Closed]:
+    def close(self) -> None:
         """End every connection and remove the socket file (only if it is still ours).
 
-        Returns the ends not reported before; closing twice does nothing."""
+        The ends not reported before are queued for :meth:`take`; closing twice does
+        nothing."""
         if self._closed:
-            return []
+            return
         self._closed = True
-        closed: list[Closed] = []
         for conn in list(self._connections.values()):
-            closed += self._end(conn, CloseReason.SHUTDOWN)
+            self._end(conn, CloseReason.SHUTDOWN)
         self._release_ended()
         self._listener.close()
         self._names.close()
         _unlink_if_ours(self.config.path, self._identity)
-        return closed
 
     def __enter__(self) -> Self:
         return self
@@ -500,13 +538,13 @@ class ApiServer:
             if conn.slot and now - conn.last_ns >= idle:
                 self._refuse_slot(conn, "an e-stop slot left idle is closed")
 
-    def _adopt(self, sock: socket.socket, now: int) -> Accepted | None:
+    def _adopt(self, sock: socket.socket, now: int) -> None:
         sock.setblocking(False)
         try:
             credentials = peer_credentials(sock)
         except OSError:
             sock.close()
-            return None
+            return
         # The name from the cache, or not yet: the lookup is made off the loop (SR-10.3).
         name = self._names.name(credentials.uid, now)
         who = caller(credentials, self._admin_gid, own_uid=self._own_uid, name=name)
@@ -521,7 +559,8 @@ class ApiServer:
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
         if ordinary < self.config.max_clients:
-            return Accepted(conn.info)
+            self._results.append(Accepted(conn.info))
+            return
         # Every ordinary slot is taken: an e-stop slot, so the operator's stop gets through
         # (docs/safety.md "The client socket cannot shut out a stop").
         conn.accepted, conn.slot = False, True
@@ -532,7 +571,6 @@ class ApiServer:
                 self._refuse_slot(others[0], "an admin needed this e-stop slot")
             else:
                 self._refuse_slot(conn, "and every e-stop slot is taken")
-        return None
 
     def _refuse_slot(self, conn: _Connection, why: str) -> None:
         """Close an e-stop slot with one ``too_many_clients`` line (a fresh socket has room)."""
@@ -543,57 +581,49 @@ class ApiServer:
         self._queue(conn, encode(error.reply()))
         self._end(conn, CloseReason.EVICTED)
 
-    def _names_known(self, now: int) -> list[Result]:
+    def _names_known(self, now: int) -> None:
         """Names the lookup thread found: each waiting connection of those users goes on, and
         a connection already going on under its uid is named from now on."""
-        results: list[Result] = []
         for uid, name in self._names.take(now):
             for conn in list(self._connections.values()):
                 if conn.info.caller.uid == uid:
-                    results += self._named(conn, name)
-        return results
+                    self._named(conn, name)
 
-    def _named(self, conn: _Connection, name: str) -> list[Result]:
-        """``conn``'s caller is ``name`` from now on; the requests it kept waiting are handled,
+    def _named(self, conn: _Connection, name: str) -> None:
+        """``conn``'s caller is ``name`` from now on; the requests it kept waiting are queued,
         in the order they came."""
         if name != conn.info.caller.name:
             conn.info = replace(conn.info, caller=replace(conn.info.caller, name=name))
         waiting, conn.deferred, conn.naming_until = conn.deferred, [], None
-        results: list[Result] = []
-        for request in waiting:
-            if conn.dead:
-                break
-            results += self._serve(conn, request)
-        return results
+        self._results.extend(_Waiting(conn, request) for request in waiting)
 
-    def _dispatch(self, conn: _Connection, line: bytes, now: int) -> list[Result]:
+    def _dispatch(self, conn: _Connection, line: bytes, now: int) -> None:
         if not line.strip():
-            return []  # blank lines are allowed (handy when typing requests by hand)
+            return  # blank lines are allowed (handy when typing requests by hand)
         try:
             request = parse_request(line)
         except ApiError as e:
-            return list(self._queue(conn, encode(e.reply())))
+            self._queue(conn, encode(e.reply()))
+            return
         conn.last_ns = now
         if conn.naming and not conn.slot and not isinstance(request, NAMELESS_REQUESTS):
             conn.deferred.append(request)  # served once the name is known (SR-10.3)
-            return []
-        return self._serve(conn, request)
+            return
+        self._results.append(_Waiting(conn, request))
 
-    def _serve(self, conn: _Connection, request: ApiRequest) -> list[Result]:
+    def _serve(self, conn: _Connection, request: ApiRequest) -> Received | Denied | None:
+        """A request taken: its result, or ``None`` when the server answered it itself."""
         error = self._check(conn, request)
         if error is not None:
-            answered: list[Result] = []
-            if error.code == ErrorCode.NOT_ALLOWED:
-                answered.append(Denied(conn.info, request, error))
-            answered += self._queue(conn, encode(error.reply()))
+            self._queue(conn, encode(error.reply()))
             if conn.slot:  # an e-stop slot is no way in for a client: closed (docs/api.md)
                 self._end(conn, CloseReason.EVICTED)
-            return answered
-        if isinstance(request, Hello):
-            conn.info = replace(conn.info, name=request.name)
-        elif isinstance(request, Subscribe):
+            if error.code == ErrorCode.NOT_ALLOWED:
+                return Denied(conn.info, request, error)
+            return None
+        if isinstance(request, Subscribe):
             conn.topics = request.topics
-        return [Received(conn.info, request)]
+        return Received(conn.info, request)
 
     def _check(self, conn: _Connection, request: ApiRequest) -> ApiError | None:
         def error(code: ErrorCode, message: str) -> ApiError:
@@ -607,49 +637,39 @@ class ApiServer:
             )
         if isinstance(request, ADMIN_REQUESTS) and not conn.info.caller.admin:
             return error(ErrorCode.NOT_ALLOWED, f"{request.OP} needs root or the admin group")
-        if isinstance(request, Hello):
-            if conn.info.name is not None:
-                return error(ErrorCode.ALREADY_NAMED, f"this connection is {conn.info.name}")
-            bound = self.config.bound_users.get(request.name)
-            if bound is not None and bound != conn.info.caller.uid:
-                # docs/safety.md "Clients bound to a user": checked before the name is looked
-                # up, so every attempt is refused and recorded, also while the client is up.
-                return error(
-                    ErrorCode.NOT_ALLOWED,
-                    f"{request.name} is bound to uid {bound}; this caller is uid "
-                    f"{conn.info.caller.uid}",
-                )
-            if any(other.info.name == request.name for other in self._connections.values()):
-                return error(ErrorCode.NAME_IN_USE, f"{request.name} is connected already")
+        # Whether a hello may name the connection is the core's to judge (module docstring);
+        # that a heartbeat or a command needs a name is a fact the server holds: it said ok to
+        # the hello.
         if isinstance(request, NAMED_REQUESTS) and conn.info.name is None:
             return error(ErrorCode.NOT_HELLO, f"say hello with a name before {request.OP}")
         return None
 
-    def _queue(self, conn: _Connection, line: bytes) -> list[Closed]:
+    def _queue(self, conn: _Connection, line: bytes) -> None:
         if conn.dead:
-            return []
+            return
         conn.out += line
         if len(conn.out) > self.config.max_output:
-            return self._end(conn, CloseReason.OUTPUT_OVERFLOW)
-        return self._flush(conn)
+            self._end(conn, CloseReason.OUTPUT_OVERFLOW)
+        else:
+            self._flush(conn)
 
-    def _flush(self, conn: _Connection) -> list[Closed]:
+    def _flush(self, conn: _Connection) -> None:
         """Send what the socket takes now; never waits."""
         if not conn.out:
-            return []
+            return
         try:
             sent = conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
         except (BlockingIOError, InterruptedError):
-            return []
+            return
         except OSError:
-            return self._end(conn, CloseReason.BROKEN)
+            self._end(conn, CloseReason.BROKEN)
+            return
         del conn.out[:sent]
-        return []
 
-    def _end(self, conn: _Connection, reason: CloseReason) -> list[Closed]:
-        """Shut the connection down now (dropping its output) and report its end once."""
+    def _end(self, conn: _Connection, reason: CloseReason) -> None:
+        """Shut the connection down now (dropping its output) and queue its end, once."""
         if conn.dead:
-            return []
+            return
         conn.dead = True
         self._connections.pop(conn.info.connection, None)
         self._by_fd.pop(conn.sock.fileno(), None)
@@ -657,7 +677,8 @@ class ApiServer:
         with contextlib.suppress(OSError):
             conn.sock.shutdown(socket.SHUT_RDWR)
         self._ended.append(conn.sock)
-        return [Closed(conn.info, reason)] if conn.accepted else []
+        if conn.accepted:
+            self._results.append(Closed(conn.info, reason))
 
 
 # -- the socket file -----------------------------------------------------------------------

@@ -20,9 +20,9 @@ from supervisord.api.requests import (
     Heartbeat,
     Hello,
     Hold,
-    ProofTest,
     Release,
     Reset,
+    StartProofTest,
     Status,
     Subscribe,
     Vibrate,
@@ -106,7 +106,7 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
             return DisplayUpdate(now, display_message(request))
         case Reset():
             return ResetRequest(now, client.caller)
-        case ProofTest():
+        case StartProofTest():
             return ProofTestRequest(now, client.caller)
         case Status() | Subscribe() | Commission():
             return None

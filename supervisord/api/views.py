@@ -19,7 +19,7 @@ from supervisord.histogram import Histogram
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
 from supervisord.record.format import cause_json
-from supervisord.safety.decision import Decision, Refusal
+from supervisord.safety.decision import Decision, Refusal, RefusalReason
 
 # -- replies -------------------------------------------------------------------------------
 
@@ -33,9 +33,21 @@ def ok_reply(request: ApiRequest, **fields: object) -> JsonDict:
     return reply
 
 
+_HELLO_CODES: Final[Mapping[RefusalReason, ErrorCode]] = {
+    RefusalReason.ALREADY_NAMED: ErrorCode.ALREADY_NAMED,
+    RefusalReason.NAME_IN_USE: ErrorCode.NAME_IN_USE,
+    RefusalReason.WRONG_USER: ErrorCode.NOT_ALLOWED,
+}
+"""The core's refusals of a ``hello`` that have codes of their own (docs/api.md "hello")."""
+
+
 def refusal_error(request: ApiRequest, refusal: Refusal) -> ApiError:
-    """The ``refused`` error for a request the safety core declined; ``reason`` is the
-    refusal's stable name in lower case (e.g. ``conditions_active``)."""
+    """The error for a request the safety core declined: a refused ``hello`` by its own code
+    (``already_named``, ``name_in_use``, ``not_allowed``), any other refusal as ``refused``
+    with ``reason``, the refusal's stable name in lower case (e.g. ``conditions_active``)."""
+    code = _HELLO_CODES.get(refusal.reason)
+    if code is not None:
+        return ApiError(code, refusal.message, op=request.OP, request_id=request.id)
     return ApiError(
         ErrorCode.REFUSED,
         refusal.message,

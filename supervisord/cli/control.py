@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Final, TextIO
 
 from supervisord.api.framing import ApiError, ErrorCode
-from supervisord.api.requests import ProofTest
+from supervisord.api.requests import StartProofTest
 from supervisord.cli.log import interruptible
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.record_text import (
@@ -310,7 +310,7 @@ PROOFTEST_WAIT_S: Final = 30.0  # a held bit waits for the operator (docs/safety
 def _prooftest(client: SupervisorClient, out: TextIO) -> int:
     """Ask for a proof test (docs/safety.md "The proof test"), then follow ``status`` until
     it has a result: exit 0 when it passed, 1 when it failed or gave none in time."""
-    client.call(ProofTest())
+    client.call(StartProofTest())
     print("prooftest: started; the user heartbeat is withheld for up to 1.5 s", file=out)
     deadline = time.monotonic() + PROOFTEST_WAIT_S
     while time.monotonic() < deadline:

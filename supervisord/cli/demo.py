@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any, Final, TextIO
 
 from supervisord.api.framing import ApiError
-from supervisord.children import terminate
 from supervisord.cli.demo_find import CONFIG, PREFIX, RUN
 from supervisord.cli.demo_view import demo_record_line, screen
 from supervisord.cli.record_text import happening
@@ -37,6 +36,7 @@ from supervisord.errors import ConfigError, SrcsError
 from supervisord.record.jsonl import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
+from supervisord.tooling.children import terminate
 
 # Package data next to this module, so that an installed wheel or the Debian package runs the
 # demo without the repository.

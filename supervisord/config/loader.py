@@ -73,14 +73,19 @@ from supervisord.config.schema import (
     TRANSPORT,
     VSC_BY_TRANSPORT,
     VSC_COMMON,
-    VSC_TIMEOUT,
     Section,
 )
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
 from supervisord.record.jsonl import not_a_regular_file, record_paths
-from supervisord.safety.config import ClientSpec, OutputRole, SafetyConfig, Transport
+from supervisord.safety.config import (
+    VSC_TIMEOUT_MS,
+    ClientSpec,
+    OutputRole,
+    SafetyConfig,
+    Transport,
+)
 from supervisord.safety.prooftest import ProofTestPolicy
 
 # The keys of [[clients]], [record] and [api], by name (strict.named).
@@ -97,18 +102,6 @@ API_GROUP: Final = strict.named(API, "group", strict.Text)
 API_ADMIN_GROUP: Final = strict.named(API, "admin_group", strict.Text)
 API_MAX_CLIENTS: Final = strict.named(API, "max_clients", strict.Whole)
 API_MAX_MESSAGE: Final = strict.named(API, "max_message_bytes", strict.Whole)
-
-_SAFETY_KEYS = {
-    "transport": "vsc.transport",
-    "vsc_timeout_ms": "vsc.timeout_ms",
-    "heartbeat_hz": "vsc.heartbeat_hz",
-    "require_watchdog": "vsc.require_watchdog",
-    "prooftest": "vsc.prooftest",
-    "prooftest_clear_ms": "vsc.prooftest_clear_ms",
-    "rearm_hold_ms": "rearm.hold_ms",
-    "local_reset": "rearm.local_reset",
-}
-"""SafetyConfig's own key names, and the TOML keys they come from (for its cross-checks)."""
 
 
 class NotOnMachine(ConfigError):
@@ -425,7 +418,7 @@ class _Loader:
     ) -> SafetyConfig:
         hold, local_reset = (rearm.read(key) for key in SECTION["rearm"].keys)
         require_watchdog = fields.flag(REQUIRE_WATCHDOG)
-        timeout, heartbeat_hz = fields.whole(VSC_TIMEOUT), fields.whole(HEARTBEAT_HZ)
+        vsc_timeout_ms, heartbeat_hz = fields.whole(VSC_TIMEOUT_MS), fields.whole(HEARTBEAT_HZ)
         prooftest = self.prooftest(vsc.transport, require_watchdog, fields)
         prooftest_clear = fields.whole(PROOFTEST_CLEAR)
         if not any(spec.role is OutputRole.MOTION for spec in outputs):
@@ -435,22 +428,20 @@ class _Loader:
                 'give at least one output role = "motion": otherwise a hold (pause, menu, '
                 "a client's hold) leaves motion enabled",
             )
-        try:
-            return SafetyConfig(
-                transport=vsc.transport,
-                vsc_timeout_ms=timeout,
-                heartbeat_hz=heartbeat_hz,
-                rearm_hold_ms=hold,  # type: ignore[arg-type]
-                local_reset=local_reset,  # type: ignore[arg-type]
-                require_watchdog=require_watchdog,
-                prooftest=prooftest,
-                prooftest_clear_ms=prooftest_clear,
-                clients=clients,
-                outputs=tuple(outputs),
-            )
-        except ConfigError as error:
-            key = _SAFETY_KEYS.get(error.key, error.key)
-            raise ConfigError(key, error.value, error.fix) from None
+        # Its errors (the checks across keys: a watchdog or a proof test on CAN) name the keys
+        # as the file spells them.
+        return SafetyConfig(
+            transport=vsc.transport,
+            vsc_timeout_ms=vsc_timeout_ms,
+            heartbeat_hz=heartbeat_hz,
+            rearm_hold_ms=hold,  # type: ignore[arg-type]
+            local_reset=local_reset,  # type: ignore[arg-type]
+            require_watchdog=require_watchdog,
+            prooftest=prooftest,
+            prooftest_clear_ms=prooftest_clear,
+            clients=clients,
+            outputs=tuple(outputs),
+        )
 
     @staticmethod
     def prooftest(

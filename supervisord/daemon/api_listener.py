@@ -2,9 +2,11 @@
 
 Every request that is a safety input goes to the core first; the reply then says "ok", or
 carries the core's refusal (e.g. why a reset was not honoured, or ``rate_limited`` past the
-client's record budget, docs/safety.md). State pushes go out with the decision; record pushes
-once the record is on disk (``Listener.recorded``). Clients dropped while being
-written to (a stopped or flooding client) reach the core as disconnections on the next round.
+client's record budget, docs/safety.md); a ``hello`` is the core's to judge, and its refusal
+comes back with the code docs/api.md gives it. State pushes go out with the decision; record
+pushes once the record is on disk (``Listener.recorded``). Everything the server reports,
+every end of a connection included (a stopped or flooding client dropped while being written
+to), is taken from its one queue in one place (``_take``), so no end is lost on the way.
 A ``commission`` is answered when its procedure ends (``daemon/commission.py``), a few
 seconds later; the loop meanwhile goes on as ever.
 """
@@ -36,7 +38,7 @@ from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import ClientDisconnected, Event
+from supervisord.safety.events import Event
 from supervisord.timebase import seconds_since
 
 
@@ -71,7 +73,6 @@ class ApiListener(Listener):
         self.daemon_info: Callable[[], dict[str, object]] = dict
         """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
         self.last: Decision | None = None
-        self._closed: list[Closed] = []
         self._commissioning: tuple[Commissioning, Received] | None = None
 
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
@@ -80,15 +81,18 @@ class ApiListener(Listener):
     def handle(
         self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
     ) -> None:
-        for result in self.server.handle(fd, readable, writable, now):
-            self._result(result, now, feed)
+        self.server.handle(fd, readable, writable, now)
+        self._take(now, feed)
 
-    def take_events(self, now: int) -> list[Event]:
-        closed, self._closed = self._closed, []
-        for gone in closed:
-            self._beats.pop(gone.client.connection, None)
-            self._nonzero.pop(gone.client.connection, None)
-        return [ClientDisconnected(now, c.client.connection) for c in closed]
+    def settle(self, now: int, feed: Callable[[Event], Decision]) -> None:
+        # Ends queued outside handle and due: a client dropped while a push was written.
+        self._take(now, feed)
+
+    def _take(self, now: int, feed: Callable[[Event], Decision]) -> None:
+        """Every result the server queued, in order: the one place they are taken. Answering
+        one may queue more (an end while writing the answer): taken in the same pass."""
+        while (result := self.server.take()) is not None:
+            self._result(result, now, feed)
 
     def _result(self, result: Result, now: int, feed: Callable[[Event], Decision]) -> None:
         event = core_event(result, now)
@@ -103,7 +107,7 @@ class ApiListener(Listener):
             assert self.last is not None
             daemon = {"robot": self.robot, **self.daemon_info(), **self._status_extra(now)}
             available = self.estop_available(now).json()
-            self._closed += self.server.reply(
+            self.server.reply(
                 result, **decision_json(self.last), estop_available=available, daemon=daemon
             )
             return
@@ -114,15 +118,15 @@ class ApiListener(Listener):
             next((r for r in decision.refusals if r.trigger == event), None) if decision else None
         )
         if refusal is not None:
-            self._closed += self.server.reply_error(result, refusal_error(request, refusal))
+            self.server.reply_error(result, refusal_error(request, refusal))
         else:
             if isinstance(request, Heartbeat):
                 self._beats[result.client.connection] = now
             elif isinstance(request, Command):
                 self._nonzero[result.client.connection] = request.nonzero
-            self._closed += self.server.reply(result)
+            self.server.reply(result)
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
-            self._closed += self.server.send(result.client.connection, state_push(self.last))
+            self.server.send(result.client.connection, state_push(self.last))
 
     def _status_extra(self, now: int) -> dict[str, object]:
         """What ``status`` says beyond the daemon's counters (docs/api.md "status"): the
@@ -182,15 +186,15 @@ class ApiListener(Listener):
             why = "a commissioning is already running"
         if why is not None:
             error = ApiError(ErrorCode.UNAVAILABLE, why, op=request.OP, request_id=request.id)
-            self._closed += self.server.reply_error(result, error)
+            self.server.reply_error(result, error)
             return
         self._commissioning = (Commissioning(result.client.caller, now), result)
 
     def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
         server_due = self.server.next_deadline()
         if server_due is not None and now >= server_due:
-            for result in self.server.due(now):
-                self._result(result, now, feed)
+            self.server.due(now)
+            self._take(now, feed)
         if self._commissioning is None:
             return []
         procedure, result = self._commissioning
@@ -209,9 +213,9 @@ class ApiListener(Listener):
                 request_id=request.id,
                 extra=read_back,
             )
-            self._closed += self.server.reply_error(result, error)
+            self.server.reply_error(result, error)
         else:
-            self._closed += self.server.reply(result, **read_back)
+            self.server.reply(result, **read_back)
         return []
 
     def next_deadline(self) -> int | None:
@@ -234,13 +238,13 @@ class ApiListener(Listener):
             changed = decision.causes is not last.causes and decision.causes != last.causes
         self.last = decision
         if changed and self.server.subscribed(Topic.STATE):
-            self._closed += self.server.broadcast(Topic.STATE, state_push(decision))
+            self.server.broadcast(Topic.STATE, state_push(decision))
 
     def recorded(self, entry: dict[str, object]) -> None:
         # Pushed once the sink has it on disk (or counted it as not written): a record a
         # subscriber sees is an acknowledged one (SR-7, docs/record.md).
         if self.server.subscribed(Topic.RECORDS):
-            self._closed += self.server.broadcast(Topic.RECORDS, record_push(entry))
+            self.server.broadcast(Topic.RECORDS, record_push(entry))
 
     def received(self, message: Message | HidInput, now: int) -> None:
         if isinstance(message, HidInput):
@@ -254,7 +258,7 @@ class ApiListener(Listener):
             self._commissioning[0].received(message)
         topic = message_topic(message)
         if topic is not None and self.server.subscribed(topic):
-            self._closed += self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]
+            self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]
 
     def close(self) -> None:
         self.server.close()

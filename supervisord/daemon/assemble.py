@@ -65,7 +65,9 @@ def build_api(config: DaemonConfig) -> ApiListener:
             admin_group=api.admin_group,
             max_clients=api.max_clients,
             max_line=api.max_message_bytes,
-            bound_users={c.name: c.uid for c in config.safety.clients if c.uid is not None},
+            # The bound clients' users: their names are looked up at start. Whether a hello
+            # under a bound name is allowed is the safety core's to judge (ClientSpec.uid).
+            known_uids=tuple(c.uid for c in config.safety.clients if c.uid is not None),
         )
     )
     return ApiListener(

@@ -128,9 +128,9 @@ class Listener:
         """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
         and returns the core's decision (to answer with its refusals)."""
 
-    def take_events(self, now: int) -> list[Event]:
-        """Safety inputs that arose outside ``handle`` (e.g. a client dropped while pushing)."""
-        return []
+    def settle(self, now: int, feed: Callable[[Event], Decision]) -> None:
+        """Serve, through ``feed``, the safety inputs that arose outside ``handle`` (e.g. a
+        client dropped while a push was written to it). Called once at the end of a turn."""
 
     def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
         """Work of the listener's own that is due (commissioning): frames to send to the VSC."""
@@ -407,8 +407,7 @@ class Supervisor:
                 self._take_written()
             if clients:
                 self._serve_clients(clients)
-            for event in self.listener.take_events(self.clock()):
-                self._apply(self._feed(event))
+            self.listener.settle(self.clock(), self._feed_and_apply)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 

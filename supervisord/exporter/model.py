@@ -238,8 +238,9 @@ class DaemonInfo:
 
 
 @dataclass(frozen=True, slots=True)
-class RemoteStatus:
-    """A remote-status push (manual §8.3.4) and when it arrived (the caller's clock)."""
+class RemoteSeen:
+    """What the exporter keeps of a remote-status push (the VSC's ``RemoteStatus``, manual
+    §8.3.4) and when it arrived (the caller's clock)."""
 
     received_ns: int
     battery_level: int | None
@@ -324,7 +325,7 @@ class ExporterModel:
         self.causes: dict[str, CauseFlags] = {}
         self.outputs: dict[str, bool] = {}
         self.daemon: DaemonInfo | None = None
-        self.remote: RemoteStatus | None = None
+        self.remote: RemoteSeen | None = None
         self.estop_available: bool | None = None
         # The exporter's own: for the life of the process.
         self.known_causes: dict[str, str] = {}  # every cause seen: its severity
@@ -502,7 +503,7 @@ class ExporterModel:
             self.rearm_refusals += 1
 
     def _remote(self, push: Mapping[str, object], now_ns: int) -> None:
-        self.remote = RemoteStatus(
+        self.remote = RemoteSeen(
             received_ns=now_ns,
             battery_level=_int(push.get("battery_level")),
             battery_charging=_int(push.get("battery_charging")),

@@ -11,7 +11,9 @@ from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message
 from supervisord.timebase import NS_PER_MS
 
-Received = Message | HidInput | Rejection | CanRejection | HidRejection
+Incoming = Message | HidInput | Rejection | CanRejection | HidRejection
+"""What a link hands the loop: a message (a HID input report on HID), or a rejection of what
+arrived and was not one."""
 
 
 class LinkError(SrcsError):
@@ -42,7 +44,7 @@ class Link(abc.ABC):
         milliseconds, and with nothing arrived it returns nothing."""
 
     @abc.abstractmethod
-    def receive(self) -> list[Received]:
+    def receive(self) -> list[Incoming]:
         """Everything that has arrived, decoded, without blocking: a frame that fails the
         protocol's check is a rejection, never a message. Raises ``LinkBrokenError``, also
         when not open."""

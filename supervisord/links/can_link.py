@@ -16,7 +16,7 @@ from typing import Any
 
 import can
 
-from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
+from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
 from supervisord.protocol.j1939 import (
     CanFrame,
     FeedbackStringSegment,
@@ -138,9 +138,9 @@ class CanLink(Link):
         except NotImplementedError:
             return None  # e.g. the in-process "virtual" interface
 
-    def receive(self) -> list[Received]:
+    def receive(self) -> list[Incoming]:
         bus = self._require_open()
-        received: list[Received] = []
+        received: list[Incoming] = []
         for _ in range(MAX_FRAMES_PER_RECEIVE):
             try:
                 raw = bus.recv(timeout=0)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
+from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
 from supervisord.protocol.hid import HidOutput, decode_hid_input, encode_hid_output
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
@@ -45,9 +45,9 @@ class HidLink(Link):
     def fileno(self) -> int | None:
         return self._fd
 
-    def receive(self) -> list[Received]:
+    def receive(self) -> list[Incoming]:
         fd = self._require_open()
-        received: list[Received] = []
+        received: list[Incoming] = []
         while True:
             try:
                 report = os.read(fd, REPORT_LIMIT)

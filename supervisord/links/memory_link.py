@@ -9,7 +9,7 @@ passes the links' conformance suite (docs/protocol.md "Links").
 
 from __future__ import annotations
 
-from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
+from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import Message
 
@@ -85,7 +85,7 @@ class MemoryLink(Link):
     def fileno(self) -> int | None:
         return None
 
-    def receive(self) -> list[Received]:
+    def receive(self) -> list[Incoming]:
         self._require_plugged()
         data = bytes(self._port.to_host)
         self._port.to_host.clear()

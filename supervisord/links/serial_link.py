@@ -7,7 +7,7 @@ import os
 
 import serial
 
-from supervisord.links.base import Link, LinkBrokenError, LinkError, Received
+from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import Message, UserHeartbeat
 
@@ -63,7 +63,7 @@ class SerialLink(Link):
     def fileno(self) -> int | None:
         return self._fd
 
-    def receive(self) -> list[Received]:
+    def receive(self) -> list[Incoming]:
         fd = self._require_open()
         try:
             data = os.read(fd, READ_LIMIT)

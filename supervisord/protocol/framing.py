@@ -57,7 +57,8 @@ class Rejection:
     detail: str = ""
 
 
-Event = Message | Rejection
+Decoded = Message | Rejection
+"""What the decoder yields for each frame or run of noise: a message, or why bytes were not one."""
 
 
 def build_frame(message_type: int, payload: bytes) -> bytes:
@@ -96,22 +97,22 @@ class FrameDecoder:
     def __init__(self) -> None:
         self._buffer = bytearray()
         self._noise = 0
-        self._decoded: dict[bytes, Event] = {}  # FRAMES_KEPT recent frames, decoded
+        self._decoded: dict[bytes, Decoded] = {}  # FRAMES_KEPT recent frames, decoded
 
-    def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
+    def feed(self, data: bytes | bytearray | memoryview) -> list[Decoded]:
         """Take ``data`` and return the events it completes, in stream order."""
         self._buffer += data
         return self._parse(final=False)
 
-    def end(self) -> list[Event]:
+    def end(self) -> list[Decoded]:
         """Close the stream. Each header whose frame never completed is one TRUNCATED event
         (one byte), and the bytes behind it are scanned again, so a frame hidden behind a
         bogus length byte still comes out."""
         return self._parse(final=True)
 
-    def _parse(self, *, final: bool) -> list[Event]:
+    def _parse(self, *, final: bool) -> list[Decoded]:
         buf = self._buffer
-        events: list[Event] = []
+        events: list[Decoded] = []
         pos, end = 0, len(buf)
         while pos < end:
             start = buf.find(HEADER, pos)
@@ -145,7 +146,7 @@ class FrameDecoder:
         self._take_noise(events)
         return events
 
-    def _decode(self, frame: bytes) -> Event:
+    def _decode(self, frame: bytes) -> Decoded:
         decoded = self._decoded
         event = decoded.get(frame)
         if event is None:
@@ -160,7 +161,7 @@ class FrameDecoder:
         """Bytes held for a frame not yet complete (at most ``MAX_FRAME - 1``)."""
         return len(self._buffer)
 
-    def _take_noise(self, events: list[Event]) -> None:
+    def _take_noise(self, events: list[Decoded]) -> None:
         if self._noise:
             events.append(Rejection(RejectReason.NOISE, self._noise))
             self._noise = 0
@@ -177,7 +178,7 @@ def _header_rejection(message_type: int, length: int) -> Rejection | None:
     return None
 
 
-def _decode_frame(frame: bytes) -> Event:
+def _decode_frame(frame: bytes) -> Decoded:
     """One candidate frame whose length byte fits the bytes given."""
     message_type, length = frame[2], frame[3]
     received = frame[-2] | frame[-1] << 8

@@ -38,7 +38,8 @@ class Lost:
     reason: str
 
 
-Event = Union[Connected, Lost, Push]  # noqa: UP007 -- the alias is evaluated on Python 3.10 too
+LinkEvent = Union[Connected, Lost, Push]  # noqa: UP007 -- the alias is evaluated on Python 3.10 too
+"""What the bridge's link to the socket reports (the safety core's events are another thing)."""
 Connect = Callable[..., SupervisorClient]
 
 
@@ -65,14 +66,14 @@ class SupervisorLink:
         self._connect = connect
         self._client: SupervisorClient | None = None
         self._next_try = 0.0
-        self._events: deque[Event] = deque()
+        self._events: deque[LinkEvent] = deque()
         self.reason = "not connected yet"
 
     @property
     def connected(self) -> bool:
         return self._client is not None
 
-    def take(self) -> list[Event]:
+    def take(self) -> list[LinkEvent]:
         """The events since the last call, oldest first."""
         events = list(self._events)
         self._events.clear()

@@ -33,7 +33,7 @@ from supervisord.client import Push, SupervisorClient
 from supervisord.ros2.command import Declaration, nonzero
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
-from supervisord.ros2.link import Connected, Event, Lost, SupervisorLink
+from supervisord.ros2.link import Connected, LinkEvent, Lost, SupervisorLink
 from supervisord.ros2.mapping import (
     State,
     estop_available_of,
@@ -152,7 +152,7 @@ class BridgeNode(Node):
 
     # -- what the supervisor says ---------------------------------------------------------
 
-    def _handle(self, events: list[Event]) -> None:
+    def _handle(self, events: list[LinkEvent]) -> None:
         for event in events:
             if isinstance(event, Connected):
                 self.get_logger().info(f"connected to {self.socket} as {self.client_name}")

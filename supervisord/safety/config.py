@@ -11,6 +11,7 @@ from __future__ import annotations
 import enum
 import re
 from dataclasses import dataclass
+from typing import Final
 
 from supervisord import strict
 from supervisord.compat import StrEnum
@@ -56,7 +57,6 @@ _POLICIES = ", ".join(f'"{p.value}"' for p in ProofTestPolicy)
 DEFAULT_VSC_TIMEOUT_MS = {Transport.SERIAL: 200, Transport.CAN: 300, Transport.HID: 200}
 """SR-2.2 ``vsc_link_lost``: 200 ms on serial, 300 ms on CAN."""
 
-VSC_TIMEOUT_RANGE_MS = (50, 1000)
 HEARTBEAT_HZ_RANGE = (20, 50)  # SR-5
 REARM_HOLD_RANGE_MS = (100, 60_000)
 CLIENT_TIMEOUT_RANGE_MS = (20, 10_000)
@@ -64,6 +64,18 @@ PROOFTEST_CLEAR_RANGE_MS = (1_000, 600_000)
 DEFAULT_PROOFTEST_CLEAR_MS = 10_000  # docs/safety.md "The proof test": a held bit's wait
 DEFAULT_CLIENT_TIMEOUT_MS = 500  # SR-8
 UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
+
+VSC_TIMEOUT_MS: Final = strict.Whole(
+    name="timeout_ms",
+    doc="No valid VSC message for this long: stop with vsc_link_lost (SR-2.2). "
+    "Default: 200 on serial and HID, 300 on CAN.",
+    default=None,
+    example=200,
+    low=50,
+    high=1000,
+)
+"""``vsc.timeout_ms``: the one rule, which the robot's file is read by (its schema lists this
+key) and :class:`SafetyConfig` checks ``vsc_timeout_ms`` by. ``None``: the transport's default."""
 
 
 def _unique(key: str, names: list[str]) -> None:
@@ -141,8 +153,9 @@ class OutputSpec:
 class SafetyConfig:
     """Everything the safety core needs to know about the robot (SR-2 to SR-5, SR-8).
 
-    ``vsc_timeout_ms`` left as ``None`` takes the transport's default (200 ms serial, 300 ms
-    CAN; see ``effective_vsc_timeout_ms``). A CAN-connected VSC has no user watchdog, so
+    ``vsc_timeout_ms`` is ``vsc.timeout_ms``; left as ``None`` it is the transport's default
+    (200 ms serial, 300 ms CAN), and ``vsc_timeout_ns`` is the timeout in effect. A
+    CAN-connected VSC has no user watchdog, so
     ``require_watchdog`` must be set to false explicitly there: the integrator has to
     acknowledge that the supervisor's own outputs carry the duty alone (SR-5).
 
@@ -150,6 +163,9 @@ class SafetyConfig:
     robot's file sets it (``vsc.prooftest``, default ``block`` on serial, see
     ``supervisord.config``); a core built in code for tests of other rules runs none. On CAN
     and HID only ``OFF`` is accepted: there is no user heartbeat to withhold.
+
+    Every error names the key as the robot's file spells it (``vsc.timeout_ms``,
+    ``rearm.hold_ms``), for a config read from the file as for one built in code.
     """
 
     transport: Transport = Transport.SERIAL
@@ -165,34 +181,36 @@ class SafetyConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
-            raise ConfigError("transport", self.transport, f"use one of {_TRANSPORTS}")
-        # The ranges are checked here, once, for a config built in code as for one read from
-        # the robot's file (whose schema names the same constants: supervisord.config.schema).
-        strict.whole(
-            "vsc_timeout_ms", self.effective_vsc_timeout_ms, *VSC_TIMEOUT_RANGE_MS, ConfigError
-        )
-        strict.whole("heartbeat_hz", self.heartbeat_hz, *HEARTBEAT_HZ_RANGE, ConfigError)
-        strict.whole("rearm_hold_ms", self.rearm_hold_ms, *REARM_HOLD_RANGE_MS, ConfigError)
-        strict.flag("local_reset", self.local_reset, ConfigError)
-        strict.flag("require_watchdog", self.require_watchdog, ConfigError)
+            raise ConfigError("vsc.transport", self.transport, f"use one of {_TRANSPORTS}")
+        # The ranges are the schema's own (supervisord.config.schema names the same rules), so
+        # a config built in code is held to what the robot's file is.
+        if self.vsc_timeout_ms is not None:
+            strict.check_value(VSC_TIMEOUT_MS, self.vsc_timeout_ms, "vsc.timeout_ms", ConfigError)
+        strict.whole("vsc.heartbeat_hz", self.heartbeat_hz, *HEARTBEAT_HZ_RANGE, ConfigError)
+        strict.whole("rearm.hold_ms", self.rearm_hold_ms, *REARM_HOLD_RANGE_MS, ConfigError)
+        strict.flag("rearm.local_reset", self.local_reset, ConfigError)
+        strict.flag("vsc.require_watchdog", self.require_watchdog, ConfigError)
         if self.transport is Transport.CAN and self.require_watchdog:
             raise ConfigError(
-                "require_watchdog",
+                "vsc.require_watchdog",
                 True,
                 'set it to false for transport "can": a CAN-connected VSC has no user '
                 "heartbeat and no key 85, so the supervisor's outputs carry the duty alone",
             )
         if not isinstance(self.prooftest, ProofTestPolicy):
-            raise ConfigError("prooftest", self.prooftest, f"use one of {_POLICIES}")
+            raise ConfigError("vsc.prooftest", self.prooftest, f"use one of {_POLICIES}")
         if self.transport is not Transport.SERIAL and self.prooftest is not ProofTestPolicy.OFF:
             raise ConfigError(
-                "prooftest",
+                "vsc.prooftest",
                 self.prooftest.value,
                 f'set it to "off" for transport "{self.transport.value}": there is no user '
                 "heartbeat to withhold, so the VSC's watchdog cannot be proven",
             )
         strict.whole(
-            "prooftest_clear_ms", self.prooftest_clear_ms, *PROOFTEST_CLEAR_RANGE_MS, ConfigError
+            "vsc.prooftest_clear_ms",
+            self.prooftest_clear_ms,
+            *PROOFTEST_CLEAR_RANGE_MS,
+            ConfigError,
         )
         if not isinstance(self.clients, tuple) or not all(
             isinstance(c, ClientSpec) for c in self.clients
@@ -206,19 +224,16 @@ class SafetyConfig:
         _unique("outputs.name", [o.name for o in self.outputs])
 
     @property
-    def effective_vsc_timeout_ms(self) -> int:
-        """``vsc_timeout_ms``, or the transport's default when it is left as ``None``.
+    def vsc_timeout_ns(self) -> int:
+        """The VSC timeout in effect: ``vsc_timeout_ms``, or the transport's default.
 
         The default is resolved here rather than stored, so that ``dataclasses.replace`` with
         another transport picks that transport's default.
         """
-        if self.vsc_timeout_ms is None:
-            return DEFAULT_VSC_TIMEOUT_MS[self.transport]
-        return self.vsc_timeout_ms
-
-    @property
-    def vsc_timeout_ns(self) -> int:
-        return self.effective_vsc_timeout_ms * NS_PER_MS
+        timeout_ms = self.vsc_timeout_ms
+        if timeout_ms is None:
+            timeout_ms = DEFAULT_VSC_TIMEOUT_MS[self.transport]
+        return timeout_ms * NS_PER_MS
 
     @property
     def heartbeat_period_ns(self) -> int:

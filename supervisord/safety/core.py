@@ -485,17 +485,17 @@ class SafetyCore:
         # Every other field as the previous decision has it, as the full step would compute it
         # again; ``tests/safety/test_cheap_heartbeat.py`` checks that this lists every field.
         return Decision(
-            now,
-            previous.state,
-            previous.causes,
-            previous.outputs,
-            estop,
-            self._next_deadline(now),
-            frames,
-            (),
-            (),
-            None,
-            previous.prooftest,
+            now=now,
+            state=previous.state,
+            causes=previous.causes,
+            outputs=previous.outputs,
+            heartbeat_estop=estop,
+            next_deadline=self._next_deadline(now),
+            frames=frames,
+            records=(),
+            refusals=(),
+            rearm=None,
+            prooftest=previous.prooftest,
         )
 
     def _only_heartbeat_due(self, now: int) -> bool:
@@ -624,34 +624,34 @@ class SafetyCore:
             carried = None if proof_apart is not None else proof
             records = (
                 Record(
-                    self._sequence,
-                    now,
-                    previous,
-                    self._state,
-                    causes,
-                    changes,
-                    event,
-                    self._rearm,
-                    note,
-                    reason,
-                    carried,
+                    sequence=self._sequence,
+                    monotonic_ns=now,
+                    previous=previous,
+                    state=self._state,
+                    causes=causes,
+                    changes=changes,
+                    trigger=event,
+                    rearm=self._rearm,
+                    note=note,
+                    reason=reason,
+                    prooftest=carried,
                 ),
             )
         if proof_apart is not None:
             self._sequence += 1
             records += (
                 Record(
-                    self._sequence,
-                    now,
-                    self._state,
-                    self._state,
-                    causes,
-                    (),
-                    event,
-                    None,
-                    RecordNote.PROOFTEST,
-                    proof_apart.text,
-                    proof_apart,
+                    sequence=self._sequence,
+                    monotonic_ns=now,
+                    previous=self._state,
+                    state=self._state,
+                    causes=causes,
+                    changes=(),
+                    trigger=event,
+                    rearm=None,
+                    note=RecordNote.PROOFTEST,
+                    reason=proof_apart.text,
+                    prooftest=proof_apart,
                 ),
             )
         return Decision(

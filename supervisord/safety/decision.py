@@ -106,10 +106,11 @@ class Refusal:
         return f"{self.reason.value}: {self.detail}" if self.detail else self.reason.value
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Record:
-    """One entry of the stop record (SR-7) for a step that changed the state or
-    a cause. UTC time is stamped later by the daemon: the core has no wall clock."""
+    """One entry of the stop record (SR-7) for a step that changed the state or a cause, or
+    that has a note (:class:`RecordNote`). UTC time is stamped later by the daemon: the core
+    has no wall clock. Built by keyword only: eleven fields, several of one type."""
 
     sequence: int
     monotonic_ns: int
@@ -124,9 +125,9 @@ class Record:
     prooftest: Outcome | None = None  # a proof test that finished with this input
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Decision:
-    """Everything the daemon must do after one input.
+    """Everything the daemon must do after one input (built by keyword only).
 
     - ``state`` and ``causes`` (every active or latched cause, sorted by name).
     - ``outputs``: the level each configured output must have now (name -> on).
@@ -134,7 +135,9 @@ class Decision:
     - ``next_deadline``: call ``tick`` at this monotonic time at the latest (always later
       than ``now``).
     - ``frames``: messages to send to the VSC now, in order.
-    - ``records``: stop-record entries (at most one per input).
+    - ``records``: stop-record entries, in order: none, one, or two when a proof test finished
+      in a step whose input has a note of its own (a commissioning): each record is about one
+      thing (SR-7.1).
     - ``refusals``: inputs declined, with the reason (e.g. for ``srcsctl reset``).
     """
 

@@ -27,9 +27,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from supervisord.children import kill, log_tail, spawn, terminate, wait_started
 from supervisord.errors import SrcsError
-from supervisord.polling import poll_until
+from supervisord.tooling.children import kill, log_tail, spawn, terminate, wait_started
+from supervisord.tooling.polling import poll_until
 
 Reply = dict[str, Any]  # one JSON reply of the control socket
 

@@ -20,7 +20,7 @@ import os
 import termios
 from pathlib import Path
 
-from supervisord.protocol.framing import Event, FrameDecoder
+from supervisord.protocol.framing import Decoded, FrameDecoder
 from supervisord.sim.pty import PtyPort
 
 READ_LIMIT = 4096
@@ -66,7 +66,7 @@ class SerialSide:
             os.close(self._probe)
             self._probe = None
 
-    def receive(self) -> list[Event]:
+    def receive(self) -> list[Decoded]:
         """Decode what the host wrote since the last call."""
         if not self._port.plugged:
             return []

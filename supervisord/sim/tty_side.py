@@ -29,7 +29,7 @@ import termios
 import tty
 from pathlib import Path
 
-from supervisord.protocol.framing import Event, FrameDecoder
+from supervisord.protocol.framing import Decoded, FrameDecoder
 from supervisord.sim.serial_side import MAX_BACKLOG, READ_LIMIT, STALE_LIMIT
 
 # What a read or write on the device's end returns once the host is gone (a hung-up tty, a
@@ -88,7 +88,7 @@ class TtySide:
         self.hangups += 1
         self._close()
 
-    def receive(self) -> list[Event]:
+    def receive(self) -> list[Decoded]:
         """Decode what the host wrote since the last call."""
         self._reopen()
         if self._fd is None:

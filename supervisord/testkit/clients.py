@@ -16,10 +16,10 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from supervisord.children import kill, log_tail
 from supervisord.client import SupervisorClient
 from supervisord.errors import SrcsError
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.tooling.children import kill, log_tail
 
 
 class ClientProcess:

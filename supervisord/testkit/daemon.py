@@ -19,9 +19,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from supervisord.children import kill, spawn, terminate, wait_started
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
+from supervisord.tooling.children import kill, spawn, terminate, wait_started
 
 if TYPE_CHECKING:
     from typing_extensions import Self

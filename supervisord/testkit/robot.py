@@ -45,7 +45,6 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal
 
-from supervisord.children import kill, log_tail, terminate
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.record import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
@@ -55,6 +54,7 @@ from supervisord.testkit.faketime import FakeWallClock
 from supervisord.testkit.namespaces import NetNamespace, in_private_mount
 from supervisord.testkit.wait import WAIT_S, FaultHarnessError, wait_until
 from supervisord.testkit.watcher import OutputWatcher
+from supervisord.tooling.children import kill, log_tail, terminate
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.

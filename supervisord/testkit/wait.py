@@ -10,7 +10,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from supervisord.polling import poll_until
+from supervisord.tooling.polling import poll_until
 
 WAIT_S = 10.0  # how long any "until" waits before the scenario fails
 

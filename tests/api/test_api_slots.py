@@ -23,7 +23,6 @@ from supervisord.api.server import (
     ApiServer,
     Closed,
     CloseReason,
-    Denied,
     Received,
     ServerConfig,
     ServerError,
@@ -34,6 +33,7 @@ from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import RefusalReason
 from supervisord.safety.events import ClientConnected, ClientHello
 from supervisord.testkit.daemon import MINIMAL_CONFIG
+from tests.api.test_api_listener import Judged
 from tests.api.test_api_server import NOBODY, Loop, Peer, shared_dir  # noqa: F401 -- a fixture
 
 REPO = Path(__file__).parents[2]
@@ -274,12 +274,14 @@ def hello_as_nobody(path: Path, name: str, out: int) -> None:
 def test_hello_as_a_bound_client_from_another_user_is_refused_and_recorded(
     shared_dir: Path,  # noqa: F811 -- the fixture of test_api_server
 ) -> None:
-    """A client bound to root: nobody's hello under its name is answered not_allowed and the
-    connection stays unnamed; the safety core refuses the hello too, with a record of kind
-    hello_refused naming the caller; root's own hello is accepted."""
+    """A client bound to root (``ClientSpec.uid``, the one place the binding lives): nobody's
+    hello under its name is refused by the safety core (``WRONG_USER``, recorded as kind
+    hello_refused naming the caller), answered not_allowed, and the connection stays unnamed;
+    root's own hello is accepted."""
     nogroup = grp.getgrgid(NOBODY).gr_name
     path = shared_dir / "api.sock"
-    loop = Loop(ServerConfig(path, group=nogroup, bound_users={"nav": 0}))
+    safety = SafetyConfig(clients=(ClientSpec("nav", uid=0),))
+    loop = Judged(ServerConfig(path, group=nogroup), safety)
     read_end, write_end = os.pipe()
     try:
         pid = os.fork()
@@ -293,31 +295,24 @@ def test_hello_as_a_bound_client_from_another_user_is_refused_and_recorded(
         assert (hello["ok"], hello["code"]) == (False, "not_allowed")
         assert "nav" in hello["error"]
         assert beat["code"] == "not_hello"
-        (denied,) = loop.of_type(Denied)
-        event = core_event(denied, 5)
-        assert isinstance(event, ClientHello)
-        assert event.caller is not None
-        assert event.caller.uid == NOBODY
-        core = SafetyCore(SafetyConfig(clients=(ClientSpec("nav", uid=0),)), 0)
-        core.handle(ClientConnected(1, denied.client.connection))
-        decision = core.handle(event)
-        (refusal,) = decision.refusals
+        (refused,) = [d for d in loop.decisions if d.refusals]
+        (refusal,) = refused.refusals
         assert refusal.reason is RefusalReason.WRONG_USER
-        (record,) = decision.records
+        assert isinstance(refusal.trigger, ClientHello)
+        assert refusal.trigger.caller is not None
+        assert refusal.trigger.caller.uid == NOBODY
+        (record,) = refused.records
         assert record.note is not None
         assert record.note.value == "hello_refused"
         assert "nav" in record.reason
-        # The right user is let in, by the server and by the core.
+        # The right user is let in.
         root = Peer(path)
         try:
             assert root.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
+            assert root.ask(loop, {"op": "heartbeat"})["ok"] is True
         finally:
             root.close()
-        accepted = [r for r in loop.of_type(Received) if isinstance(r.request, Hello)]
-        assert accepted[0].client.caller.uid == 0
-        right = core_event(accepted[0], 6)
-        core.handle(ClientConnected(6, accepted[0].client.connection))
-        assert core.handle(right).refusals == ()  # type: ignore[arg-type]
+        assert [r.reason for d in loop.decisions for r in d.refusals] == [RefusalReason.WRONG_USER]
     finally:
         if read_end >= 0:
             os.close(read_end)

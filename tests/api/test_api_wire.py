@@ -22,10 +22,10 @@ from supervisord.api.requests import (
     Heartbeat,
     Hello,
     Hold,
-    ProofTest,
     Release,
     Reset,
     Side,
+    StartProofTest,
     Status,
     Subscribe,
     Topic,
@@ -104,7 +104,7 @@ EVERY_REQUEST: tuple[ApiRequest, ...] = (
     Vibrate(Side.LEFT),
     Reset(),
     Commission(),
-    ProofTest(),
+    StartProofTest(),
 )
 
 

@@ -33,6 +33,7 @@ from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
 from supervisord.strict import shown
+from supervisord.timebase import NS_PER_MS as MS
 
 DELETE = object()
 """A change that removes the key."""
@@ -141,7 +142,7 @@ def test_base_config_is_valid(tmp_path: Path) -> None:
     config = load(tmp_path, {})
     assert config.robot.name == "test-bot"
     assert config.vsc.link == SerialPort(Path("/dev/ttyACM0"), SERIAL_BAUD)
-    assert config.safety.effective_vsc_timeout_ms == 200
+    assert config.safety.vsc_timeout_ns == 200 * MS
     assert config.safety.heartbeat_hz == 20
     assert config.safety.require_watchdog is True
     assert config.safety.rearm_hold_ms == 500
@@ -275,7 +276,7 @@ def test_can_vsc_defaults(tmp_path: Path) -> None:
     config = load(tmp_path, {"vsc": CAN_VSC})
     assert config.vsc.transport is Transport.CAN
     assert config.vsc.link == CanBus("socketcan", "can0", DEFAULT_CAN_BITRATE)
-    assert config.safety.effective_vsc_timeout_ms == 300
+    assert config.safety.vsc_timeout_ns == 300 * MS
     assert config.vsc.link.bus_options() == {
         "interface": "socketcan",
         "channel": "can0",

@@ -11,11 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from supervisord.children import kill
 from supervisord.client import SupervisorClient
 from supervisord.daemon import signals
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.tooling.children import kill
 
 # One of each kind signal(7) lists with the default action Term or Core that srcsd stops on,
 # and the first and last real-time signal (the rest are the same to the kernel and to us).

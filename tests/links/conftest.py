@@ -19,7 +19,7 @@ from typing import Protocol
 import can
 import pytest
 
-from supervisord.links.base import Link, Received
+from supervisord.links.base import Incoming, Link
 from supervisord.links.can_link import CanLink, from_python_can, to_python_can
 from supervisord.links.hid_link import NO_REPORT_ID, HidLink
 from supervisord.links.memory_link import MemoryLink, MemoryPort
@@ -67,11 +67,11 @@ class Harness:
 
     link: Link
     place: str
-    first: Received
-    second: Received
-    put: Callable[[Received], None]
-    put_corrupt: Callable[[Received], None]
-    put_partial: Callable[[Received], None]
+    first: Incoming
+    second: Incoming
+    put: Callable[[Incoming], None]
+    put_corrupt: Callable[[Incoming], None]
+    put_partial: Callable[[Incoming], None]
     taken: Callable[[], list[Message]]
     carries: frozenset[type[Message]]
     hang_up: Callable[[], None]
@@ -84,7 +84,7 @@ EVERY_MESSAGE: frozenset[type[Message]] = frozenset(
 FEEDBACK_ONLY: frozenset[type[Message]] = frozenset({FeedbackSet, FeedbackName})
 
 
-def _frame_of(thing: Received) -> bytes:
+def _frame_of(thing: Incoming) -> bytes:
     assert isinstance(thing, VscHeartbeat)
     return encode_frame(thing)
 
@@ -163,7 +163,7 @@ def _can(tmp_path: Path) -> Iterator[Harness]:
     segments: dict[int, dict[int, str]] = {}
     arrived: list[Message] = []
 
-    def frame_of(thing: Received) -> CanFrame:
+    def frame_of(thing: Incoming) -> CanFrame:
         assert isinstance(thing, VscHeartbeat)
         return encode_can(thing)
 
@@ -185,11 +185,11 @@ def _can(tmp_path: Path) -> Iterator[Harness]:
                 arrived.append(decoded)
         return arrived
 
-    def corrupt(thing: Received) -> None:
+    def corrupt(thing: Incoming) -> None:
         frame = frame_of(thing)  # the same bits under an identifier the protocol never uses
         put(CanFrame(frame.arbitration_id & 0x7FF, frame.data, is_extended_id=False))
 
-    def partial(thing: Received) -> None:
+    def partial(thing: Incoming) -> None:
         frame = frame_of(thing)
         put(CanFrame(frame.arbitration_id, frame.data[:2], frame.is_extended_id))
 
@@ -226,7 +226,7 @@ def _hid(tmp_path: Path) -> Iterator[Harness]:
     size = len(NO_REPORT_ID) + OUTPUT_LENGTH
     pending = bytearray()
 
-    def report_of(thing: Received) -> bytes:
+    def report_of(thing: Incoming) -> bytes:
         assert isinstance(thing, HidInput)
         return encode_hid_input(thing)
 

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import pytest
 
-from supervisord.links.base import Link, LinkBrokenError, Received
+from supervisord.links.base import Incoming, Link, LinkBrokenError
 from supervisord.protocol.framing import Rejection
 from supervisord.protocol.hid import HidRejection
 from supervisord.protocol.j1939 import CanRejection
@@ -31,7 +31,7 @@ BOUND_S = 10.0
 REJECTIONS = (Rejection, CanRejection, HidRejection)
 
 
-def _receive_when_ready(link: Link) -> list[Received]:
+def _receive_when_ready(link: Link) -> list[Incoming]:
     """One receive as the daemon's loop makes it: once the link's descriptor is readable
     (waiting a little for it), or after a short sleep when it has none."""
     fd = link.fileno()
@@ -42,9 +42,9 @@ def _receive_when_ready(link: Link) -> list[Received]:
     return link.receive() if ready else []
 
 
-def receive_until(link: Link, done: Callable[[list[Received]], bool]) -> list[Received]:
+def receive_until(link: Link, done: Callable[[list[Incoming]], bool]) -> list[Incoming]:
     """Everything received until ``done`` holds of it; fails after ``BOUND_S``."""
-    got: list[Received] = []
+    got: list[Incoming] = []
     deadline = time.monotonic() + BOUND_S
     while not done(got):
         assert time.monotonic() < deadline, f"only {got} arrived"
@@ -52,9 +52,9 @@ def receive_until(link: Link, done: Callable[[list[Received]], bool]) -> list[Re
     return got
 
 
-def receive_until_broken(link: Link) -> list[Received]:
+def receive_until_broken(link: Link) -> list[Incoming]:
     """Everything received until the link reports itself broken; fails after ``BOUND_S``."""
-    got: list[Received] = []
+    got: list[Incoming] = []
     deadline = time.monotonic() + BOUND_S
     while time.monotonic() < deadline:
         try:
@@ -64,7 +64,7 @@ def receive_until_broken(link: Link) -> list[Received]:
     raise AssertionError(f"never broken; received {got}")
 
 
-def accepted(got: list[Received]) -> list[Received]:
+def accepted(got: list[Incoming]) -> list[Incoming]:
     return [thing for thing in got if not isinstance(thing, REJECTIONS)]
 
 

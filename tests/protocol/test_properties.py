@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from bench.checksum_escape import escapes
 from supervisord.protocol.framing import (
     MAX_FRAME,
-    Event,
+    Decoded,
     FrameDecoder,
     Rejection,
     RejectReason,
@@ -30,9 +30,9 @@ from tests.protocol import strategies
 chunk_cuts = st.lists(st.integers(0, 2000), max_size=30)
 
 
-def feed_in_chunks(data: bytes, cuts: list[int]) -> list[Event]:
+def feed_in_chunks(data: bytes, cuts: list[int]) -> list[Decoded]:
     decoder = FrameDecoder()
-    events: list[Event] = []
+    events: list[Decoded] = []
     points = sorted({0, len(data), *(c for c in cuts if c < len(data))})
     for start, stop in itertools.pairwise(points):
         events += decoder.feed(data[start:stop])
@@ -40,9 +40,9 @@ def feed_in_chunks(data: bytes, cuts: list[int]) -> list[Event]:
     return events + decoder.end()
 
 
-def merge_noise(events: list[Event]) -> list[Event]:
+def merge_noise(events: list[Decoded]) -> list[Decoded]:
     """Adjacent noise events as one: chunking may split a run of noise differently."""
-    merged: list[Event] = []
+    merged: list[Decoded] = []
     for event in events:
         last = merged[-1] if merged else None
         if (
@@ -57,7 +57,7 @@ def merge_noise(events: list[Event]) -> list[Event]:
     return merged
 
 
-def consumed(event: Event) -> int:
+def consumed(event: Decoded) -> int:
     return event.byte_count if isinstance(event, Rejection) else len(encode_frame(event))
 
 

@@ -105,7 +105,16 @@ def test_every_core_event_keeps_its_trigger_name_and_fields() -> None:
 def test_every_note_the_core_makes_is_a_kind_the_journal_files(note: RecordNote) -> None:
     """SR-7: a record the core notes (e.g. ``hello_refused``, SR-8.6) gets a kind of its own in
     the record and a MESSAGE_ID in the journal, so the journal's copy is never lost to it."""
-    record = Record(1, 5, State.STOPPED, State.STOPPED, (), (), ClientHello(5, 1, "nav"), note=note)
+    record = Record(
+        sequence=1,
+        monotonic_ns=5,
+        previous=State.STOPPED,
+        state=State.STOPPED,
+        causes=(),
+        changes=(),
+        trigger=ClientHello(5, 1, "nav"),
+        note=note,
+    )
     obj = record_json(record, UTC)
     assert obj["kind"] == note.value
     assert written_kind(obj) is RecordKind(note.value)

@@ -96,7 +96,7 @@ def test_vsc_heartbeat_exactly_at_the_timeout_is_too_late() -> None:
 def test_vsc_timeout_on_can_defaults_to_300_ms() -> None:
     """On CAN the VSC timeout defaults to 300 ms: 299 ms of silence is fine, 300 ms is not."""
     config = dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False)
-    assert config.effective_vsc_timeout_ms == 300
+    assert config.vsc_timeout_ns == 300 * MS
     rig = Rig(config)
     rig.open_link()
     rig.connect()

@@ -9,6 +9,7 @@ import pytest
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.safety import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
+from supervisord.timebase import NS_PER_MS as MS
 
 
 def test_defaults_follow_the_rules() -> None:
@@ -16,7 +17,7 @@ def test_defaults_follow_the_rules() -> None:
     required, and a 500 ms client timeout."""
     config = SafetyConfig()
     assert config.transport is Transport.SERIAL
-    assert config.effective_vsc_timeout_ms == 200
+    assert config.vsc_timeout_ns == 200 * MS
     assert config.heartbeat_hz == 20
     assert config.rearm_hold_ms == 500
     assert config.local_reset is False
@@ -27,20 +28,22 @@ def test_defaults_follow_the_rules() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "key"),
     [
-        ({"heartbeat_hz": 19}, "heartbeat_hz"),
-        ({"heartbeat_hz": 51}, "heartbeat_hz"),
-        ({"heartbeat_hz": True}, "heartbeat_hz"),
-        ({"vsc_timeout_ms": 0}, "vsc_timeout_ms"),
-        ({"rearm_hold_ms": 10}, "rearm_hold_ms"),
-        ({"local_reset": 1}, "local_reset"),
-        ({"transport": "serial"}, "transport"),
-        ({"transport": Transport.CAN}, "require_watchdog"),
+        ({"heartbeat_hz": 19}, "vsc.heartbeat_hz"),
+        ({"heartbeat_hz": 51}, "vsc.heartbeat_hz"),
+        ({"heartbeat_hz": True}, "vsc.heartbeat_hz"),
+        ({"vsc_timeout_ms": 0}, "vsc.timeout_ms"),
+        ({"vsc_timeout_ms": True}, "vsc.timeout_ms"),
+        ({"rearm_hold_ms": 10}, "rearm.hold_ms"),
+        ({"local_reset": 1}, "rearm.local_reset"),
+        ({"transport": "serial"}, "vsc.transport"),
+        ({"transport": Transport.CAN}, "vsc.require_watchdog"),
         ({"clients": (ClientSpec("a"), ClientSpec("a"))}, "clients.name"),
         ({"outputs": [OutputSpec("x", OutputRole.POWER)]}, "outputs"),
     ],
 )
 def test_bad_values_are_refused(kwargs: dict[str, object], key: str) -> None:
-    """Each bad value raises ConfigError naming its key and a fix."""
+    """Each bad value raises ConfigError naming its key as the robot's file spells it, and a
+    fix."""
     with pytest.raises(ConfigError) as caught:
         SafetyConfig(**kwargs)  # type: ignore[arg-type]
     assert caught.value.key == key
@@ -50,7 +53,7 @@ def test_bad_values_are_refused(kwargs: dict[str, object], key: str) -> None:
 def test_can_needs_the_watchdog_switched_off_explicitly() -> None:
     """On CAN ``require_watchdog = false`` must be written out; then the timeout is 300 ms."""
     config = SafetyConfig(transport=Transport.CAN, require_watchdog=False)
-    assert config.effective_vsc_timeout_ms == 300
+    assert config.vsc_timeout_ns == 300 * MS
 
 
 def test_bad_client_and_output_specs_are_refused() -> None:
@@ -130,24 +133,24 @@ def test_the_loader_names_the_file_and_key(tmp_path: Path, old: str, new: str, k
 
 
 @pytest.mark.parametrize(
-    ("key", "lowest", "highest"),
+    ("field", "key", "lowest", "highest"),
     [
-        ("vsc_timeout_ms", 50, 1000),
-        ("heartbeat_hz", 20, 50),
-        ("rearm_hold_ms", 100, 60_000),
-        ("prooftest_clear_ms", 1_000, 600_000),
+        ("vsc_timeout_ms", "vsc.timeout_ms", 50, 1000),
+        ("heartbeat_hz", "vsc.heartbeat_hz", 20, 50),
+        ("rearm_hold_ms", "rearm.hold_ms", 100, 60_000),
+        ("prooftest_clear_ms", "vsc.prooftest_clear_ms", 1_000, 600_000),
     ],
 )
 def test_each_range_takes_its_ends_and_refuses_one_past_them(
-    key: str, lowest: int, highest: int
+    field: str, key: str, lowest: int, highest: int
 ) -> None:
     """SR-11.2, SR-2.2, SR-5.1: every range is inclusive at both ends, as docs/configuration.md
     gives it, and one past either end is refused naming the key."""
     for value in (lowest, highest):
-        SafetyConfig(**{key: value})  # type: ignore[arg-type]
+        SafetyConfig(**{field: value})  # type: ignore[arg-type]
     for value in (lowest - 1, highest + 1):
         with pytest.raises(ConfigError) as caught:
-            SafetyConfig(**{key: value})  # type: ignore[arg-type]
+            SafetyConfig(**{field: value})  # type: ignore[arg-type]
         assert caught.value.key == key
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.framing import Event, FrameDecoder, encode_frame
+from supervisord.protocol.framing import Decoded, FrameDecoder, encode_frame
 from supervisord.protocol.hid import (
     INPUT_LENGTH,
     DPadDirection,
@@ -76,10 +76,10 @@ def test_tty_speaks_the_serial_protocol_on_an_existing_device(tmp_path: Path, li
         state = sim.control.wait_for(lambda s: s["linked"])
         assert (state["transport"], state["port"]) == ("serial", str(line.device))
         decoder = FrameDecoder()
-        events: list[Event] = decoder.feed(line.read(0.5))
+        events: list[Decoded] = decoder.feed(line.read(0.5))
         assert any(isinstance(e, VscHeartbeat) and e.mode == VscMode.LOCAL for e in events)
         os.write(line.host, encode_frame(FeedbackGet(85)) + encode_frame(UserHeartbeat(0)))
-        answer: list[Event] = []
+        answer: list[Decoded] = []
         end = time.monotonic() + 10
         while FeedbackSet(85, 0) not in answer and time.monotonic() < end:
             answer += decoder.feed(line.read(0.1))

@@ -17,7 +17,13 @@ from pathlib import Path
 import pytest
 
 from supervisord.protocol.codes import MessageType, VscMode
-from supervisord.protocol.framing import Event, FrameDecoder, Rejection, RejectReason, encode_frame
+from supervisord.protocol.framing import (
+    Decoded,
+    FrameDecoder,
+    Rejection,
+    RejectReason,
+    encode_frame,
+)
 from supervisord.protocol.messages import (
     FeedbackGet,
     FeedbackSet,
@@ -37,8 +43,8 @@ class Host:
         self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         self.decoder = FrameDecoder()
 
-    def read(self, seconds: float) -> list[Event]:
-        events: list[Event] = []
+    def read(self, seconds: float) -> list[Decoded]:
+        events: list[Decoded] = []
         end = time.monotonic() + seconds
         while (left := end - time.monotonic()) > 0:
             ready, _, _ = select.select([self.fd], [], [], left)
@@ -49,9 +55,9 @@ class Host:
                     continue
         return events
 
-    def drain(self) -> list[Event]:
+    def drain(self) -> list[Decoded]:
         """Everything already waiting in the line, without waiting for more."""
-        events: list[Event] = []
+        events: list[Decoded] = []
         while select.select([self.fd], [], [], 0)[0]:
             try:
                 events += self.decoder.feed(os.read(self.fd, 65536))
@@ -59,7 +65,7 @@ class Host:
                 break
         return events
 
-    def until(self, found: Callable[[Event], bool], limit: float = 10.0) -> Event:
+    def until(self, found: Callable[[Decoded], bool], limit: float = 10.0) -> Decoded:
         end = time.monotonic() + limit
         while time.monotonic() < end:
             for event in self.read(0.05):
@@ -93,7 +99,7 @@ def hung_up(fd: int) -> bool:
     return False
 
 
-def heartbeats(events: list[Event]) -> list[VscHeartbeat]:
+def heartbeats(events: list[Decoded]) -> list[VscHeartbeat]:
     return [e for e in events if isinstance(e, VscHeartbeat)]
 
 
@@ -117,7 +123,7 @@ def test_serves_the_manual_traffic_and_answers_key_85(tmp_path: Path) -> None:
             host.read(0.2)
             host.drain()  # what was queued before we opened, however late we came to read
             started = time.monotonic()
-            events: list[Event] = []
+            events: list[Decoded] = []
             while len(heartbeats(events)) < 20:
                 assert time.monotonic() - started < 30, "no 20 heartbeats in 30 s"
                 events += host.read(0.1)

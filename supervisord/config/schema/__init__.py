@@ -35,7 +35,7 @@ from supervisord.safety.config import (
     PROOFTEST_CLEAR_RANGE_MS,
     REARM_HOLD_RANGE_MS,
     UID_RANGE,
-    VSC_TIMEOUT_RANGE_MS,
+    VSC_TIMEOUT_MS,
     Transport,
 )
 from supervisord.safety.prooftest import ProofTestPolicy
@@ -117,15 +117,6 @@ TRANSPORT: Final = strict.Choice(
         Transport.HID.value: "never leaves STOPPED",
     },
     example="serial",
-)
-VSC_TIMEOUT: Final = strict.Whole(
-    name="timeout_ms",
-    doc="No valid VSC message for this long: stop with vsc_link_lost (SR-2.2). "
-    "Default: 200 on serial and HID, 300 on CAN.",
-    default=None,
-    example=200,
-    low=VSC_TIMEOUT_RANGE_MS[0],
-    high=VSC_TIMEOUT_RANGE_MS[1],
 )
 REQUIRE_WATCHDOG: Final = strict.Flag(
     name="require_watchdog",
@@ -273,7 +264,7 @@ HIDRAW: Final = strict.Text(
 
 VSC_COMMON: Final = (
     TRANSPORT,
-    VSC_TIMEOUT,
+    VSC_TIMEOUT_MS,  # the safety core's own rule (supervisord.safety.config)
     REQUIRE_WATCHDOG,
     PROOFTEST,
     PROOFTEST_CLEAR,

@@ -1,0 +1,159 @@
+"""The API server with the daemon's own listener and a real safety core, over real Unix sockets:
+the core judges every ``hello`` and the server answers with its codes (docs/api.md "hello"),
+and every end of a connection reaches the core, in order, from the server's one queue."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from supervisord.api.server import Result, ServerConfig
+from supervisord.daemon.api_listener import ApiListener
+from supervisord.protocol.messages import Joystick
+from supervisord.safety.config import SafetyConfig
+from supervisord.safety.core import SafetyCore
+from supervisord.safety.decision import Decision
+from supervisord.safety.events import ClientDisconnected, Event
+from tests.api.test_api_server import READ, WRITE, Loop, Peer
+
+
+class Judged(Loop):
+    """The daemon's loop in miniature with what ``srcsd`` runs behind the socket: the real
+    :class:`ApiListener` and a real :class:`SafetyCore` (no link, no outputs). One turn is
+    the loop's order: the ready descriptors, what is due, then the end-of-turn ``settle``."""
+
+    def __init__(self, config: ServerConfig, safety: SafetyConfig | None = None) -> None:
+        super().__init__(config)
+        self.core = SafetyCore(safety or SafetyConfig(), self.clock())
+        self.listener = ApiListener(self.server)
+        self.listener.decided(self.core.decision)
+        self.decisions: list[Decision] = []
+        self.events: list[Event] = []
+
+    def feed(self, event: Event) -> Decision:
+        self.events.append(event)
+        decision = self.core.handle(event)
+        self.decisions.append(decision)
+        self.listener.decided(decision)
+        return decision
+
+    def turn(self, timeout: float = 0.0) -> list[Result]:
+        self.sync()
+        for key, mask in self.selector.select(timeout):
+            readable, writable = bool(mask & READ), bool(mask & WRITE)
+            self.listener.handle(key.fd, readable, writable, self.clock(), self.feed)
+        if (due := self.listener.next_deadline()) is not None and self.clock() >= due:
+            self.listener.due(self.clock(), self.feed)
+        self.listener.settle(self.clock(), self.feed)
+        return []
+
+    def refusals(self) -> list[str]:
+        return [r.reason.name for d in self.decisions for r in d.refusals]
+
+
+@pytest.fixture
+def judged(tmp_path: Path) -> Iterator[Judged]:
+    loop = Judged(ServerConfig(tmp_path / "api.sock", max_clients=3, max_output=4096))
+    yield loop
+    loop.close()
+
+
+@pytest.fixture
+def peers(tmp_path: Path) -> Iterator[Callable[[], Peer]]:
+    made: list[Peer] = []
+
+    def make() -> Peer:
+        made.append(Peer(tmp_path / "api.sock"))
+        return made[-1]
+
+    yield make
+    for peer in made:
+        peer.close()
+
+
+def test_hello_rules_are_the_cores_and_keep_their_codes(
+    judged: Judged, peers: Callable[[], Peer]
+) -> None:
+    """SR-8: a heartbeat before hello gets not_hello, a second hello already_named, a name in
+    use name_in_use (both the core's refusals, sent with the codes docs/api.md gives them);
+    the name is free again once its connection ends."""
+    first, second = peers(), peers()
+    assert second.ask(judged, {"op": "heartbeat"})["code"] == "not_hello"
+    assert first.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    again = first.ask(judged, {"op": "hello", "name": "other", "id": 7})
+    assert (again["code"], again["op"], again["id"]) == ("already_named", "hello", 7)
+    assert second.ask(judged, {"op": "hello", "name": "nav"})["code"] == "name_in_use"
+    assert judged.refusals() == ["ALREADY_NAMED", "NAME_IN_USE"]
+    assert first.ask(judged, {"op": "heartbeat"})["ok"] is True
+    first.close()
+    judged.until(lambda: len(judged.server.clients()) == 1)
+    assert second.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    assert second.ask(judged, {"op": "heartbeat"})["ok"] is True
+    assert judged.refusals() == ["ALREADY_NAMED", "NAME_IN_USE"]
+
+
+def test_requests_after_a_hello_in_one_write_see_its_answer(
+    judged: Judged, peers: Callable[[], Peer]
+) -> None:
+    """SR-8: a hello, a heartbeat and an e-stop in one write: the two after the hello are taken
+    after the core named the connection (ok, ok; the client's own e-stop); after a refused
+    hello the connection is still unnamed (not_hello). Sent once the callers' login name is
+    known: before, an e-stop would be served at once, ahead of the hello (SR-10.3)."""
+    peer, other = peers(), peers()
+    judged.until(lambda: [c.caller.name for c in judged.server.clients()] == ["root", "root"])
+    peer.send(b'{"op":"hello","name":"nav"}\n{"op":"heartbeat"}\n{"op":"estop"}\n')
+    assert [r["ok"] for r in peer.read(judged, 3)] == [True, True, True]
+    assert "client_estop:nav" in judged.core.decision.active_names
+    other.send(b'{"op":"hello","name":"nav"}\n{"op":"heartbeat"}\n')
+    assert [r["code"] for r in other.read(judged, 2)] == ["name_in_use", "not_hello"]
+
+
+def test_a_client_dropped_while_pushing_frees_its_name_before_the_next_hello(
+    judged: Judged, peers: Callable[[], Peer]
+) -> None:
+    """SR-8.4, SR-8.1: a subscriber named ``nav`` that stops reading is dropped when a push
+    overflows its buffer (the VSC's traffic, served before the clients in a turn); a new
+    connection's hello as ``nav`` read in that same turn is accepted by the core, and the
+    connection is ``nav`` for the core and the server alike (its heartbeat is taken). Before
+    the server queued every end, the end of a connection dropped while pushing reached the
+    core only at the end of the turn: the core refused the hello (name in use) while the
+    server had named the connection, and its heartbeats were refused from then on."""
+    stalled, newcomer = peers(), peers()
+    assert stalled.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    assert stalled.ask(judged, {"op": "subscribe", "topics": ["joystick"]})["ok"] is True
+    judged.turn()
+    newcomer.send({"op": "hello", "name": "nav", "id": 1})  # read in the next turn
+    # The start of that turn: the VSC's messages, pushed until the stalled client is dropped.
+    for _ in range(100_000):
+        if "nav" not in [c.name for c in judged.server.clients()]:
+            break
+        judged.listener.received(Joystick(), judged.clock())
+    assert [c.name for c in judged.server.clients()] == [None]
+    (hello,) = newcomer.read(judged)
+    assert hello == {"ok": True, "op": "hello", "id": 1}
+    assert newcomer.ask(judged, {"op": "heartbeat"})["ok"] is True
+    assert judged.refusals() == []
+    assert sum(isinstance(e, ClientDisconnected) for e in judged.events) == 1
+
+
+def test_every_end_reaches_the_core_once(judged: Judged, peers: Callable[[], Peer]) -> None:
+    """SR-8.1: connections ended every way (closed by the peer, dropped for not reading)
+    free their names in the core: each name can be taken again."""
+    names = ["a", "b"]
+    ended = [peers() for _ in names]
+    for peer, name in zip(ended, names, strict=True):
+        assert peer.ask(judged, {"op": "hello", "name": name})["ok"] is True
+    assert ended[1].ask(judged, {"op": "subscribe", "topics": ["joystick"]})["ok"] is True
+    ended[0].close()
+    for _ in range(100_000):
+        if len(judged.server.clients()) < 2:
+            break
+        judged.listener.received(Joystick(), judged.clock())
+    judged.until(lambda: judged.server.clients() == ())
+    assert sum(isinstance(e, ClientDisconnected) for e in judged.events) == 2
+    for name in names:
+        fresh = peers()
+        assert fresh.ask(judged, {"op": "hello", "name": name})["ok"] is True, name
+    assert judged.refusals() == []
