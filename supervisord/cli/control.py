@@ -399,6 +399,8 @@ def format_status(status: Mapping[str, Any]) -> str:
         last = proof.get("last")
         result = verdict(last) if isinstance(last, Mapping) else "none yet"
         lines.append(f"  proof    {proof.get('phase')}; last: {result}")
+    if isinstance(schedule := daemon.get("maintenance"), Mapping):
+        lines.append(f"  tests    {tests_text(schedule)}")
     if "messages" in daemon:
         rejected = ", ".join(f"{k} {v}" for k, v in (daemon.get("rejections") or {}).items())
         lines.append(
@@ -407,6 +409,25 @@ def format_status(status: Mapping[str, Any]) -> str:
             f"internal faults {daemon.get('internal_faults', 0)}"
         )
     return "\n".join(lines) + "\n"
+
+
+TEST_NAMES: Final = {"stoptest": "stop test", "prooftest": "proof test"}
+
+
+def tests_text(schedule: Mapping[str, Any]) -> str:
+    """The periodic tests (SR-12.2): ``stop test passed 3.0 d ago (every 30 d); proof test
+    OVERDUE: never passed (every 30 d)``. A warning only: nothing stops for it."""
+    parts = []
+    for test, name in TEST_NAMES.items():
+        due = schedule.get(test)
+        if not isinstance(due, Mapping):
+            continue
+        age, every = due.get("last_pass_age_s"), due.get("interval_days")
+        when = "never passed" if age is None else f"passed {duration(age)} ago"
+        plan = f"every {every} d" if every else "no schedule"
+        overdue = "OVERDUE: " if due.get("overdue") else ""
+        parts.append(f"{name} {overdue}{when} ({plan})")
+    return "; ".join(parts)
 
 
 def estop_text(available: Mapping[str, Any]) -> str:

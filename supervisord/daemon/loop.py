@@ -35,6 +35,7 @@ from supervisord.api.views import histograms_json
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
@@ -187,6 +188,7 @@ class Supervisor:
         self.counters = Counters()
         self.timings = Timings()
         self.stop_times = StopTimes()  # each stop's outputs' times to off (SR-12.1)
+        self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -255,6 +257,8 @@ class Supervisor:
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
             "histograms": histograms_json(self.timings.histograms()),
+            # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
+            "maintenance": self.schedule.json(now),
         }
 
     def _sink_status(self) -> dict[str, int]:
@@ -275,6 +279,7 @@ class Supervisor:
         """
         now = self.clock()
         self._started_ns = self._link_since_ns = now
+        self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         self.sink = Sink(self.writer, self.journal, flight=self._flight_writer)
         self.sink.start()
         events: list[Event] = []
@@ -737,6 +742,7 @@ class Supervisor:
             self.counters.record_errors += 1
             self.counters.records_dropped += written.dropped
             log.error("stop record not written: %s", written.error)
+        self.schedule.recorded(written.entry)  # a pass resets its test's age (SR-12.2)
         self.listener.recorded(dict(written.entry))
 
     def _rate_limited(self, now: int) -> None:

@@ -219,7 +219,7 @@ class ProofTestRequest(_Event):
 class StopTested(_Event):
     """``srcsctl stoptest`` finished (SR-12.1; docs/srcsctl.md "The field stop test"): the
     daemon's measurement of each press and each output, judged. Admins only; recorded as a
-    ``stoptest`` record, the evidence of the periodic test (SR-12.1)."""
+    ``stoptest`` record, the evidence of the periodic test (SR-12.2)."""
 
     caller: Caller
     result: StopTestResult

@@ -1,10 +1,13 @@
 """The field stop test (SR-12.1; docs/srcsctl.md "The field stop test"): the real ``srcsctl
 stoptest`` against the real ``srcsd`` and ``srcs-sim``, non-interactively, while the test
-presses the simulated remote's e-stop and the VSC's wired one through its control socket."""
+presses the simulated remote's e-stop and the VSC's wired one through its control socket;
+and the schedule of the periodic tests (SR-12.2) from the record the daemon reads at start."""
 
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
+import json
 import os
 import subprocess
 import sys
@@ -165,3 +168,91 @@ def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path
         assert time.monotonic() - t >= 1.0
         assert not [r for r in robot.records() if r.get("kind") == "stoptest"]
         wait_until(lambda: robot.status()["state"] == "RUN", what="still RUN")
+
+
+def _stoptest_line(seq: int, when: dt.datetime, result: str = "passed") -> str:
+    """A ``stoptest`` record as an earlier run of the daemon wrote it."""
+    record = {
+        "seq": seq,
+        "mono_ns": 5_000_000_000,
+        "utc": when.isoformat(timespec="microseconds"),
+        "kind": "stoptest",
+        "from": "STOPPED",
+        "to": "STOPPED",
+        "causes": [],
+        "changes": [],
+        "trigger": {"event": "stop_tested"},
+        "reason": f"{result} (limit 50 ms): remote: every output off within 0.4 ms",
+        "stoptest": {"result": result, "limit_ms": 50, "steps": [], "text": "..."},
+    }
+    return json.dumps(record, separators=(",", ":")) + "\n"
+
+
+def _schedule(robot: Robot) -> dict[str, Any]:
+    found = robot.status()["daemon"]["maintenance"]
+    assert isinstance(found, dict)
+    return found
+
+
+def test_the_last_pass_comes_from_the_record_and_survives_a_restart(tmp_path: Path) -> None:
+    """SR-12.2: a stop test passed two days ago (in the record an earlier run wrote, a failed
+    one after it) is the last pass the daemon reports at start: about two days old, not
+    overdue (every 30 days by default), and still after a restart; the proof test that
+    passed at this start is seconds old. A warning at most: the robot is not held for it."""
+    robot = Robot(tmp_path)
+    two_days_ago = dt.datetime.now(dt.timezone.utc) - dt.timedelta(days=2)
+    later = two_days_ago + dt.timedelta(hours=1)
+    (robot.record_dir / "stops.jsonl").write_text(
+        _stoptest_line(1, two_days_ago) + _stoptest_line(2, later, "failed")
+    )
+    with robot:
+        for start in range(2):
+            if start:
+                assert robot.stop_daemon() == 0
+                robot.start_daemon()
+            wait_until(
+                lambda: _schedule(robot)["prooftest"]["last_pass_age_s"] is not None,
+                what="the proof test passed at this start",
+            )
+            schedule = _schedule(robot)
+            age = schedule["stoptest"]["last_pass_age_s"]
+            assert 2 * 86_400 <= age <= 2 * 86_400 + 600, schedule
+            assert schedule["stoptest"]["overdue"] is False
+            assert schedule["stoptest"]["interval_days"] == 30
+            assert schedule["prooftest"]["overdue"] is False
+        robot.arm()
+        assert "stop test passed 2 d 0 h ago (every 30 d)" in _status_text(robot)
+
+
+def test_an_unreadable_record_means_never_passed_and_the_daemon_runs(tmp_path: Path) -> None:
+    """SR-12.2: a record whose lines are garbage (and a pass dated in the future, whose age
+    nobody can know) is no pass: the stop test is overdue, never passed, ``srcsctl status``
+    says so, and the daemon starts and runs as ever (fail safe, never a crash)."""
+    robot = Robot(tmp_path)
+    future = dt.datetime.now(dt.timezone.utc) + dt.timedelta(days=3)
+    (robot.record_dir / "stops.jsonl").write_bytes(
+        b"\x00\xffgarbage\n{not json\n" + _stoptest_line(7, future).encode()
+    )
+    with robot:
+        schedule = _schedule(robot)
+        assert schedule["stoptest"] == {
+            "interval_days": 30,
+            "last_pass_age_s": None,
+            "overdue": True,
+        }
+        assert "stop test OVERDUE: never passed (every 30 d)" in _status_text(robot)
+        robot.arm()
+        assert robot.status()["state"] == "RUN"
+
+
+def _status_text(robot: Robot) -> str:
+    shown = subprocess.run(
+        [*SRCSCTL, "status", "--socket", str(robot.socket_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        check=True,
+    )
+    return shown.stdout
