@@ -251,8 +251,6 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["confirm"] = True
         case StopTest(steps=steps):
             obj["steps"] = [{"source": source, "seq": seq} for source, seq in steps]
-        case _:
-            pass
     if request.id is not None:
         obj["id"] = request.id
     return obj

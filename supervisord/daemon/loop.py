@@ -187,7 +187,8 @@ class Supervisor:
         self.backoff = backoff or Backoff()
         self.counters = Counters()
         self.timings = Timings()
-        self.stop_times = StopTimes()  # each stop's outputs' times to off (SR-12.1)
+        # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
+        self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).

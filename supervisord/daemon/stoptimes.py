@@ -56,7 +56,9 @@ def _verified_off(readback: ReadBack) -> bool:
 class StopTimes:
     """The last :data:`KEEP` stops and their outputs' times to off."""
 
-    def __init__(self, keep: int = KEEP) -> None:
+    def __init__(self, keep: int = KEEP, delays: Mapping[str, int] | None = None) -> None:
+        """``delays``: each category-1 output's ``off_delay_ms`` (SR-1.4), judged after it."""
+        self._delays = dict(delays or {})
         self._stops: deque[MeasuredStop] = deque(maxlen=keep)
         self._open: MeasuredStop | None = None  # the stop whose outputs are still going off
 
@@ -112,7 +114,10 @@ class StopTimes:
             why = _not_a_press(stop, source)
             if why is not None:
                 return f"stop #{seq} was not the {source} e-stop pressed in RUN: {why}"
-            outputs = tuple(OutputOff(name, ns) for name, ns in sorted(stop.off_ns.items()))
+            outputs = tuple(
+                OutputOff(name, ns, self._delays.get(name, 0))
+                for name, ns in sorted(stop.off_ns.items())
+            )
             judged.append(StopStep(Source(source), stop.seq, stop.stop_ns, outputs))
         return StopTestResult(tuple(judged), limit_ms)
 

@@ -43,13 +43,17 @@ class Source(enum.Enum):
 class OutputOff:
     """One output in one step: ``off_ns`` from the e-stop's frame to the off write returning
     with a matching read-back, or ``None`` when no such read-back came (an output fault, or
-    the output was not on at the stop)."""
+    the output was not on at the stop). A category-1 output (SR-1.4) is judged after its
+    ``off_delay_ms``: it is meant to stay on that long."""
 
     name: str
     off_ns: int | None
+    off_delay_ms: int = 0  # a category-1 output's delay after the motion outputs (SR-1.4)
 
     def passed(self, limit_ms: int) -> bool:
-        return self.off_ns is not None and 0 <= self.off_ns <= limit_ms * NS_PER_MS
+        """Off within the limit, after the output's own off delay if it has one."""
+        limit_ns = (limit_ms + self.off_delay_ms) * NS_PER_MS
+        return self.off_ns is not None and 0 <= self.off_ns <= limit_ns
 
     @property
     def off_ms(self) -> float | None:
@@ -95,7 +99,9 @@ class StopTestResult:
                 slowest = max(o for o in times if o is not None) / NS_PER_MS
                 parts.append(f"{step.source.value}: every output off within {slowest:.1f} ms")
         verdict = "passed" if self.passed else "FAILED"
-        return f"{verdict} (limit {self.limit_ms} ms): {'; '.join(parts) or 'no steps'}"
+        delays = any(o.off_delay_ms for step in self.steps for o in step.outputs)
+        limit = f"{self.limit_ms} ms" + (" after each output's off delay" if delays else "")
+        return f"{verdict} (limit {limit}): {'; '.join(parts) or 'no steps'}"
 
     def json(self) -> dict[str, object]:
         """The record's ``stoptest`` object (docs/record.md)."""
@@ -113,6 +119,7 @@ class StopTestResult:
                             "name": o.name,
                             "off_ns": o.off_ns,
                             "off_ms": o.off_ms,
+                            "off_delay_ms": o.off_delay_ms,
                             "passed": o.passed(self.limit_ms),
                         }
                         for o in step.outputs
@@ -151,8 +158,10 @@ def result_from_json(data: object) -> StopTestResult:
         for output in step["outputs"][:MAX_OUTPUTS]:
             if not isinstance(output, Mapping) or not isinstance(output.get("name"), str):
                 raise StopTestFormatError("not a stop test output")
-            off = output.get("off_ns")
-            outputs.append(OutputOff(output["name"], None if off is None else _int(off, "off_ns")))
+            off, delay = output.get("off_ns"), _int(output.get("off_delay_ms", 0), "off_delay_ms")
+            outputs.append(
+                OutputOff(output["name"], None if off is None else _int(off, "off_ns"), delay)
+            )
         steps.append(
             StopStep(
                 source,

@@ -18,11 +18,14 @@ from typing import Any
 import pytest
 
 from supervisord.safety.stoptest import LIMIT_MS
-from supervisord.testkit.robot import ALLOWANCE_S, Robot
+from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
 from tests.daemon.test_srcsctl import _Output
 
 ROOT = Path(__file__).parents[2]
+DELAY_MS = 300
+OUTPUTS = (OutputDef("drive", "motion"), OutputDef("power", "power", off_delay_ms=DELAY_MS))
+"""A motion output and a category-1 power output (SR-1.4), judged after its delay."""
 SRCSCTL = (sys.executable, "-m", "supervisord.cli.srcsctl")
 
 
@@ -81,12 +84,13 @@ def test_stoptest_measures_each_press_and_output_and_records_the_verdict(tmp_pat
     off. The numbers are checked against what this test saw on the same monotonic clock:
     the stop after the press, each output off (its file, seen by inotify) within the
     scheduling allowance of the daemon's reading; the verdict is the limit applied to them,
-    the exit status says it, and the report has a line per output and press. A stop that the
+    the exit status says it, and the report has a line per output and press. The power output
+    is category 1 (SR-1.4): off no earlier than its delay, and judged after it. A stop that the
     machine's load makes first (the VSC unheard for 200 ms on a busy machine) is no press:
     the command says "not done" (exit 3) and the scenario runs again, three times at most."""
     cut: list[str] = []
     for attempt in range(3):
-        with Robot(tmp_path / str(attempt)) as robot:
+        with Robot(tmp_path / str(attempt), outputs=OUTPUTS) as robot:
             try:
                 _scenario(robot)
                 return
@@ -142,8 +146,11 @@ def _scenario(robot: Robot) -> None:
             seen = robot.watcher.first(out["name"], False, pressed)
             assert seen is not None, out
             assert abs(seen.t - daemon_off) <= ALLOWANCE_S, (seen.t, daemon_off)
-            assert out["passed"] == (out["off_ns"] <= LIMIT_MS * 1_000_000)
-            every_ms.append(out["off_ns"] / 1e6)
+            delay = DELAY_MS if out["name"] == "power" else 0
+            assert out["off_delay_ms"] == delay
+            assert out["off_ns"] >= delay * 1_000_000, "a category-1 output went off early"
+            assert out["passed"] == (out["off_ns"] <= (LIMIT_MS + delay) * 1_000_000)
+            every_ms.append(out["off_ns"] / 1e6 - delay)
             assert any(line.strip().startswith(out["name"]) for line in lines), lines
     passed = all(ms <= LIMIT_MS for ms in every_ms)
     assert result["result"] == ("passed" if passed else "failed"), result

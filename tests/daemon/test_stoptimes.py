@@ -57,6 +57,22 @@ def test_each_output_is_timed_from_the_frame_to_its_verified_off() -> None:
     assert not result.passed
 
 
+def test_a_category_1_output_is_judged_after_its_configured_delay() -> None:
+    """SR-12.1, SR-1.4: the daemon gives each output its configured ``off_delay_ms``, and a
+    power output that went off 230 ms after the frame passes with a 200 ms delay."""
+    times = StopTimes(delays={"power": 200})
+    times.stopped(_stop(41), 41, ["drive", "power"])
+    times.off(_off("drive"), STOP_NS + MS)
+    times.off(_off("power"), STOP_NS + 230 * MS)
+    result = times.result([("remote", 41)], LIMIT_MS)
+    assert not isinstance(result, str)
+    assert [(o.name, o.off_delay_ms) for o in result.steps[0].outputs] == [
+        ("drive", 0),
+        ("power", 200),
+    ]
+    assert result.passed
+
+
 def test_an_output_that_goes_off_after_the_robot_left_stopped_is_not_timed() -> None:
     """SR-12.1: once the robot leaves STOPPED the stop is closed: outputs not off by then
     stay unmeasured."""

@@ -44,7 +44,10 @@ stoptest_results = st.builds(
             st.integers(1, 2**62),
             st.integers(0, 2**62),
             st.lists(
-                st.builds(OutputOff, words, st.none() | st.integers(-(2**40), 2**40)), max_size=4
+                st.builds(
+                    OutputOff, words, st.none() | st.integers(-(2**40), 2**40), st.integers(0, 5000)
+                ),
+                max_size=4,
             ).map(tuple),
         ),
         max_size=2,

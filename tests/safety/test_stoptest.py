@@ -44,6 +44,20 @@ def test_the_limit_is_every_output_of_every_press() -> None:
     assert not StopTestResult((*_result(1 * MS).steps, wired)).passed
 
 
+def test_a_category_1_output_is_judged_after_its_off_delay() -> None:
+    """SR-12.1, SR-1.4: a power output with an off delay is meant to stay on that long: it
+    passes when it went off within the limit after its delay, and fails past it; the record's
+    line says the limit counts from each output's delay."""
+    delayed = OutputOff("power", (200 + LIMIT_MS) * MS, off_delay_ms=200)
+    step = StopStep(Source.REMOTE, 41, 5 * MS, (OutputOff("drive", 1 * MS), delayed))
+    result = StopTestResult((step,))
+    assert result.passed
+    assert result.text.startswith(f"passed (limit {LIMIT_MS} ms after each output's off delay)")
+    late = OutputOff("power", (200 + LIMIT_MS) * MS + 1, off_delay_ms=200)
+    assert not StopTestResult((StopStep(Source.REMOTE, 41, 5 * MS, (late,)),)).passed
+    assert result_from_json(result.json()) == result
+
+
 def test_the_result_says_each_output_and_its_verdict() -> None:
     """SR-12.1: the record's object names each press's source, stop record and time, each
     output's time in ns and ms and its own verdict, the limit and a line for people."""
@@ -58,8 +72,8 @@ def test_the_result_says_each_output_and_its_verdict() -> None:
     assert step["seq"] == 41
     assert step["stop_ns"] == 5 * MS
     assert step["outputs"] == [
-        {"name": "out0", "off_ns": 2_500_000, "off_ms": 2.5, "passed": True},
-        {"name": "out1", "off_ns": None, "off_ms": None, "passed": False},
+        {"name": "out0", "off_ns": 2_500_000, "off_ms": 2.5, "off_delay_ms": 0, "passed": True},
+        {"name": "out1", "off_ns": None, "off_ms": None, "off_delay_ms": 0, "passed": False},
     ]
     assert data["text"] == f"FAILED (limit {LIMIT_MS} ms): remote: not off: out1"
     assert (
