@@ -121,13 +121,6 @@ class StopTimes:
             judged.append(StopStep(Source(source), stop.seq, stop.stop_ns, outputs))
         return StopTestResult(tuple(judged), limit_ms)
 
-    def json(self) -> Mapping[str, object] | None:
-        """The newest stop, for diagnosis (not part of ``status``)."""
-        if not self._stops:
-            return None
-        stop = self._stops[-1]
-        return {"seq": stop.seq, "stop_ns": stop.stop_ns, "off_ns": dict(stop.off_ns)}
-
 
 def _not_a_press(stop: MeasuredStop, source: str) -> str | None:
     if stop.previous is not State.RUN:
