@@ -203,10 +203,10 @@ class ApiListener(Listener):
         )
         if isinstance(judged, str):
             error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
-            self._closed += self.server.reply_error(result, error)
+            self.server.reply_error(result, error)
             return
         feed(StopTested(now, result.client.caller, judged))  # the stoptest record
-        self._closed += self.server.reply(result, stoptest=judged.json())
+        self.server.reply(result, stoptest=judged.json())
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""

@@ -23,7 +23,15 @@ def _stop(seq: int, sources: str = "remote", previous: State = State.RUN) -> Rec
         Cause(CauseKind.VSC_ESTOP), True, True, STOP_NS, None, make_details([("sources", sources)])
     )
     trigger = VscReceived(STOP_NS, VscHeartbeat(9, 0, 1))
-    return Record(seq, STOP_NS, previous, State.STOPPED, (estop,), (), trigger)
+    return Record(
+        sequence=seq,
+        monotonic_ns=STOP_NS,
+        previous=previous,
+        state=State.STOPPED,
+        causes=(estop,),
+        changes=(),
+        trigger=trigger,
+    )
 
 
 def _off(name: str, *, fault: bool = False) -> ReadBack:
@@ -98,7 +106,15 @@ def test_only_a_press_of_the_named_estop_in_run_is_a_stop_test() -> None:
     assert "was HOLD, not RUN" in str(times.result([("remote", 50)], LIMIT_MS))
     times.stopped(_stop(51, sources="wired"), 51, ["drive"])
     assert "sources wired" in str(times.result([("remote", 51)], LIMIT_MS))
-    local = Record(52, STOP_NS, State.RUN, State.STOPPED, (), (), LocalEstop(STOP_NS, ADMIN))
+    local = Record(
+        sequence=52,
+        monotonic_ns=STOP_NS,
+        previous=State.RUN,
+        state=State.STOPPED,
+        causes=(),
+        changes=(),
+        trigger=LocalEstop(STOP_NS, ADMIN),
+    )
     times.stopped(local, 52, ["drive"])
     assert "no VSC frame" in str(times.result([("remote", 52)], LIMIT_MS))
     times.stopped(_stop(53, sources="remote,wired"), 53, ["drive"])
