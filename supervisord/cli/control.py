@@ -30,6 +30,7 @@ from supervisord.cli.record_text import (
     uses_mark,
     verdict,
 )
+from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
 from supervisord.cli.times import clock, clock_of
 from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
 from supervisord.config import load_config
@@ -165,6 +166,7 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         "prove the VSC's key-85 watchdog again: withhold the heartbeat, see the VSC stop "
         "(admin; only while STOPPED)",
     )
+    add_stoptest(add)
     ready = add(
         "wait-ready",
         "wait until the stop path works: the VSC heard, its watchdog on and proven, every "
@@ -192,6 +194,7 @@ COMMANDS: Final = frozenset(
         "commission",
         "prooftest",
         "wait-ready",
+        "stoptest",
     }
 )
 
@@ -207,11 +210,17 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     if args.command == "commission" and not (args.yes or _confirmed(out, stdin)):
         print(f"{prog}: not confirmed; nothing was written", file=err)
         return EXIT_REFUSED
+    if args.command == "stoptest" and not (args.yes or confirmed_stoptest(out, stdin)):
+        print(f"{prog}: not confirmed; nothing was done", file=err)
+        return 3  # not done (docs/srcsctl.md "The field stop test")
     if args.command == "watch":
         return _watch(path, args, out, err)
     try:
         if args.command == "wait-ready":
             return wait_ready(path, args.timeout, out, err)
+        if args.command == "stoptest":
+            with SupervisorClient.connect(path, timeout=10.0) as client:
+                return run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout)
         with SupervisorClient.connect(path, timeout=10.0) as client:
             return _one_shot(client, args, out)
     except ConnectError as error:
@@ -390,6 +399,8 @@ def format_status(status: Mapping[str, Any]) -> str:
         last = proof.get("last")
         result = verdict(last) if isinstance(last, Mapping) else "none yet"
         lines.append(f"  proof    {proof.get('phase')}; last: {result}")
+    if isinstance(schedule := daemon.get("maintenance"), Mapping):
+        lines.append(f"  tests    {tests_text(schedule)}")
     if "messages" in daemon:
         rejected = ", ".join(f"{k} {v}" for k, v in (daemon.get("rejections") or {}).items())
         lines.append(
@@ -398,6 +409,25 @@ def format_status(status: Mapping[str, Any]) -> str:
             f"internal faults {daemon.get('internal_faults', 0)}"
         )
     return "\n".join(lines) + "\n"
+
+
+TEST_NAMES: Final = {"stoptest": "stop test", "prooftest": "proof test"}
+
+
+def tests_text(schedule: Mapping[str, Any]) -> str:
+    """The periodic tests (SR-12.2): ``stop test passed 3.0 d ago (every 30 d); proof test
+    OVERDUE: never passed (every 30 d)``. A warning only: nothing stops for it."""
+    parts = []
+    for test, name in TEST_NAMES.items():
+        due = schedule.get(test)
+        if not isinstance(due, Mapping):
+            continue
+        age, every = due.get("last_pass_age_s"), due.get("interval_days")
+        when = "never passed" if age is None else f"passed {duration(age)} ago"
+        plan = f"every {every} d" if every else "no schedule"
+        overdue = "OVERDUE: " if due.get("overdue") else ""
+        parts.append(f"{name} {overdue}{when} ({plan})")
+    return "; ".join(parts)
 
 
 def estop_text(available: Mapping[str, Any]) -> str:

@@ -17,7 +17,15 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 
 from supervisord.api.framing import ApiError, ErrorCode
-from supervisord.api.requests import Command, Commission, Heartbeat, Status, Subscribe, Topic
+from supervisord.api.requests import (
+    Command,
+    Commission,
+    Heartbeat,
+    Status,
+    StopTest,
+    Subscribe,
+    Topic,
+)
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
 from supervisord.api.views import (
     decision_json,
@@ -34,11 +42,13 @@ from supervisord.daemon.availability import (
 )
 from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener
+from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import Event
+from supervisord.safety.events import Event, StopTested
+from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.timebase import seconds_since
 
 
@@ -72,6 +82,8 @@ class ApiListener(Listener):
         self._state_since: int | None = None
         self.daemon_info: Callable[[], dict[str, object]] = dict
         """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
+        self.stop_times: StopTimes | None = None
+        """Set by the daemon: each stop's outputs' times to off (``stoptest``, SR-12.1)."""
         self.last: Decision | None = None
         self._commissioning: tuple[Commissioning, Received] | None = None
 
@@ -113,6 +125,9 @@ class ApiListener(Listener):
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
+            return
+        if isinstance(request, StopTest):
+            self._stoptest(result, request, now, feed)
             return
         refusal = (
             next((r for r in decision.refusals if r.trigger == event), None) if decision else None
@@ -173,6 +188,25 @@ class ApiListener(Listener):
             prooftest=self.last.prooftest,
             min_battery=self.min_remote_battery,
         )
+
+    def _stoptest(
+        self, result: Received, request: StopTest, now: int, feed: Callable[[Event], Decision]
+    ) -> None:
+        """Judge the presses the client names from the daemon's own measurements and record
+        the result (SR-12.1); admin rights were checked by the server. The client's part is
+        the dialogue and which stops its presses made, never a number."""
+        times = self.stop_times
+        judged = (
+            times.result(request.steps, LIMIT_MS)
+            if times is not None
+            else "this daemon does not measure its stops"
+        )
+        if isinstance(judged, str):
+            error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
+            self.server.reply_error(result, error)
+            return
+        feed(StopTested(now, result.client.caller, judged))  # the stoptest record
+        self.server.reply(result, stoptest=judged.json())
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""

@@ -35,8 +35,10 @@ from supervisord.api.views import histograms_json
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
+from supervisord.daemon.stoptimes import StopTimes
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
@@ -185,6 +187,9 @@ class Supervisor:
         self.backoff = backoff or Backoff()
         self.counters = Counters()
         self.timings = Timings()
+        # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
+        self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
+        self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -253,6 +258,8 @@ class Supervisor:
             "rate_limited": counters.rate_limited,
             "internal_faults": counters.internal_faults,
             "histograms": histograms_json(self.timings.histograms()),
+            # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
+            "maintenance": self.schedule.json(now),
         }
 
     def _sink_status(self) -> dict[str, int]:
@@ -273,6 +280,7 @@ class Supervisor:
         """
         now = self.clock()
         self._started_ns = self._link_since_ns = now
+        self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         self.sink = Sink(self.writer, self.journal, flight=self._flight_writer)
         self.sink.start()
         events: list[Event] = []
@@ -632,16 +640,24 @@ class Supervisor:
         comes of them is applied in turn, so none of their records is lost (a read-back fault
         is a stop of its own, SR-7). ``since`` is when the input (or deadline) that led to
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
-        pending, fed, outputs = [decision], 0, self.outputs
+        pending, fed, outputs, times = [decision], 0, self.outputs, self.stop_times
         while pending:
             decision = pending.pop(0)
-            readbacks = [
-                output.set(on, decision.now)
-                for name, on in decision.outputs.items()
-                if (output := outputs.get(name)) is not None
-                and output.is_open
-                and output.requested != on
-            ]
+            if decision.state is not State.STOPPED:
+                times.ended()
+            elif self.decision is not None and self.decision.state is not State.STOPPED:
+                self._stop_began(decision)
+            readbacks = []
+            for name, on in decision.outputs.items():
+                output = outputs.get(name)
+                if output is None or not output.is_open or output.requested == on:
+                    continue
+                readback = output.set(on, decision.now)
+                readbacks.append(readback)
+                if not on and times.waiting(name):
+                    # When this off write returned (SR-12.1): one clock read per output, on
+                    # a stop only, after the write (outputs first, SR-6.1).
+                    times.off(readback, self.clock())
             previous = self.decision
             if (
                 readbacks
@@ -663,6 +679,14 @@ class Supervisor:
                     pending += [
                         self._feed(self._readback_event(r, decision.now)) for r in readbacks
                     ]
+
+    def _stop_began(self, decision: Decision) -> None:
+        """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
+        for record in decision.records:
+            if record.state is State.STOPPED and record.previous is not State.STOPPED:
+                on = [n for n, o in self.outputs.items() if o.is_open and o.requested]
+                self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
+                return
 
     def _finish(self, decision: Decision) -> None:
         if decision is self.decision:
@@ -719,6 +743,7 @@ class Supervisor:
             self.counters.record_errors += 1
             self.counters.records_dropped += written.dropped
             log.error("stop record not written: %s", written.error)
+        self.schedule.recorded(written.entry)  # a pass resets its test's age (SR-12.2)
         self.listener.recorded(dict(written.entry))
 
     def _rate_limited(self, now: int) -> None:

@@ -138,6 +138,20 @@ SPECS: Final = _specs(
         "1 while the remote e-stop is available: VSC heard, remote linked, battery reported "
         "and not low, watchdog proven (SR-8.11; from the last status reply)",
     ),
+    Spec(
+        "srcs_test_last_pass_age_seconds",
+        G,
+        "seconds since the periodic test last passed (stoptest: srcsctl stoptest; prooftest: "
+        "the VSC's watchdog), from the record; absent when it never passed (SR-12.2)",
+        ("test",),
+    ),
+    Spec(
+        "srcs_test_overdue",
+        G,
+        "1 while the periodic test is past its [maintenance] interval, or never passed; "
+        "a warning, the robot is not stopped for it (SR-12.2)",
+        ("test",),
+    ),
     Spec("srcs_link_opens", C, "times the daemon opened its link to the VSC (since it started)"),
     Spec("srcs_link_open_failures", C, "failed attempts to open the link (since srcsd started)"),
     Spec("srcs_messages", C, "valid messages from the VSC (since srcsd started)"),
@@ -235,6 +249,7 @@ class DaemonInfo:
     internal_faults: int | None = None
     outputs_not_acquired: int | None = None
     histograms: tuple[tuple[str, HistogramValue], ...] = ()  # by metric name
+    tests: tuple[tuple[str, float | None, bool | None], ...] = ()  # test, age, overdue
 
 
 @dataclass(frozen=True, slots=True)
@@ -311,6 +326,23 @@ def _histogram(value: object) -> HistogramValue | None:
     if buckets and buckets[-1][1] > count:
         return None
     return HistogramValue(tuple(buckets), total, count)
+
+
+PERIODIC_TESTS: Final = ("stoptest", "prooftest")
+"""The periodic tests ``status`` reports (``daemon.maintenance``, SR-12.2): a fixed set, so
+the ``test`` label cannot grow."""
+
+
+def _tests(value: object) -> tuple[tuple[str, float | None, bool | None], ...]:
+    schedule = _mapping(value)
+    found = []
+    for test in PERIODIC_TESTS:
+        due = _mapping(schedule.get(test))
+        if due:
+            overdue = due.get("overdue")
+            age = _number(due.get("last_pass_age_s"))
+            found.append((test, age, overdue if isinstance(overdue, bool) else None))
+    return tuple(found)
 
 
 class ExporterModel:
@@ -454,6 +486,7 @@ class ExporterModel:
                 else None
             ),
             histograms=tuple(histograms),
+            tests=_tests(daemon.get("maintenance")),
         )
 
     def _record(self, record: Mapping[str, object]) -> None:
@@ -579,6 +612,9 @@ class ExporterModel:
         put("srcs_record_errors", daemon.record_errors)
         put("srcs_internal_faults", daemon.internal_faults)
         put("srcs_outputs_not_acquired", daemon.outputs_not_acquired)
+        for test, age, overdue in daemon.tests:
+            put("srcs_test_last_pass_age_seconds", age, test=test)
+            put("srcs_test_overdue", overdue, test=test)
 
     def _remote_values(self, put: _Put, now_ns: int) -> None:
         remote = self.remote

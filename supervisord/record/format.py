@@ -46,9 +46,11 @@ from supervisord.safety.events import (
     OutputReadback,
     ProofTestRequest,
     ResetRequest,
+    StopTested,
     Tick,
     VscReceived,
 )
+from supervisord.safety.stoptest import StopTestResult
 
 JsonDict = dict[str, Any]
 
@@ -70,6 +72,8 @@ class RecordKind(StrEnum):
     """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
     HELLO_REFUSED = "hello_refused"
     """A hello as a client bound to another user was refused (SR-8)."""
+    STOPTEST = "stoptest"
+    """A field stop test finished (SR-12.1, ``srcsctl stoptest``)."""
 
 
 def record_kind(record: Record) -> RecordKind:
@@ -159,6 +163,7 @@ TRIGGER_EVENTS: Final[Mapping[type, str]] = {
     DisplayUpdate: "display_update",
     Commissioned: "commissioned",
     ProofTestRequest: "proof_test_request",
+    StopTested: "stop_tested",
 }
 """A trigger's ``event`` name in the record, per core event type. Written out, not derived
 from the class name, so that renaming a class in the code cannot change the record's format
@@ -174,8 +179,10 @@ def trigger_json(event: object) -> JsonDict:
     result: JsonDict = {"event": name}
     if dataclasses.is_dataclass(event) and not isinstance(event, type):
         for field in dataclasses.fields(event):
-            if field.name != "now":
-                result[field.name] = _plain(getattr(event, field.name))
+            value = getattr(event, field.name)
+            # A stop test's numbers are the record's own ``stoptest`` field, not repeated here.
+            if field.name != "now" and not isinstance(value, StopTestResult):
+                result[field.name] = _plain(value)
     return result
 
 
@@ -198,6 +205,8 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
         result["reason"] = clean(record.reason)
     if record.prooftest is not None:
         result["prooftest"] = record.prooftest.json()
+    if isinstance(record.trigger, StopTested):
+        result["stoptest"] = record.trigger.result.json()
     if record.rearm is not None:
         rearm: JsonDict = {"kind": record.rearm.kind.value}
         if record.rearm.caller is not None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from supervisord.ros2.diagnostics import GateCounts, Level, remote_status, supervisor_status
 
 STATUS = {
@@ -94,3 +96,37 @@ def test_remote_status_levels() -> None:
     assert dict(remote_status(good, "r").values)["battery level %"] == "87"
     assert remote_status({**good, "battery_level": 10}, "r").level is Level.WARN
     assert remote_status({**good, "connection_strength_src": 0}, "r").level is Level.WARN
+
+
+def test_an_overdue_periodic_test_is_a_warning_in_run() -> None:
+    """SR-12.2: each periodic test of the daemon's ``maintenance`` is two keys (the last
+    pass's age in seconds, or ``never``, and ``overdue``); an overdue one makes RUN a WARN and
+    is named in the message; STOPPED stays ERROR; none overdue changes nothing."""
+    schedule = {
+        "stoptest": {"interval_days": 30, "last_pass_age_s": None, "overdue": True},
+        "prooftest": {"interval_days": 30, "last_pass_age_s": 12.5, "overdue": False},
+    }
+    run = {"state": "RUN", "causes": []}
+
+    def diagnosed(status: Mapping[str, object], maintenance: object) -> dict[str, str]:
+        found = supervisor_status(
+            status,
+            {**DAEMON, "maintenance": maintenance},
+            socket="/run/srcsd/api.sock",
+            client_name="ros",
+            gate=GateCounts(),
+        )
+        return {"level": str(int(found.level)), "message": found.message, **dict(found.values)}
+
+    late = diagnosed(run, schedule)
+    assert late["level"] == str(int(Level.WARN))
+    assert late["message"] == "RUN; overdue: stop test"
+    assert late["stop test last pass age s"] == "never"
+    assert late["stop test overdue"] == "true"
+    assert late["proof test last pass age s"] == "12.5"
+    assert late["proof test overdue"] == "false"
+    assert diagnosed(STATUS, schedule)["level"] == str(int(Level.ERROR))
+    schedule["stoptest"] = {"interval_days": 30, "last_pass_age_s": 60.0, "overdue": False}
+    fine = diagnosed(run, schedule)
+    assert (fine["level"], fine["message"]) == ("0", "RUN")
+    assert diagnosed(run, "garbage")["level"] == "0"
