@@ -14,7 +14,7 @@ from typing import Any
 
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.safety.budget import BUDGET_WINDOW_NS, RECORDS_PER_UID
-from supervisord.testkit.robot import ALLOWANCE_S, Robot
+from supervisord.testkit.robot import ALLOWANCE_S, BELOW_THE_DAEMON, Robot
 from supervisord.testkit.wait import wait_until
 
 CHURN_S = 3.0
@@ -77,7 +77,14 @@ def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
         t0 = robot.now()
         churners = [
             subprocess.Popen(
-                [sys.executable, "-c", CHURNER, str(robot.socket_path), str(CHURN_S)],
+                [
+                    *BELOW_THE_DAEMON,
+                    sys.executable,
+                    "-c",
+                    CHURNER,
+                    str(robot.socket_path),
+                    str(CHURN_S),
+                ],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.PIPE,
                 text=True,

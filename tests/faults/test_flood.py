@@ -21,7 +21,7 @@ from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.safety.budget import RECORDS_PER_UID
 from supervisord.sim.process import SimControl, SimError
-from supervisord.testkit.robot import Robot
+from supervisord.testkit.robot import BELOW_THE_DAEMON, Robot
 from supervisord.testkit.wait import wait_until
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (SR-5, docs/faults.md)
@@ -130,7 +130,7 @@ def test_client_flood_neither_delays_the_estop_nor_starves_the_heartbeat(tmp_pat
         with (
             flood_log.open("wb") as log,
             subprocess.Popen(
-                [sys.executable, "-c", FLOODER, str(robot.socket_path)],
+                [*BELOW_THE_DAEMON, sys.executable, "-c", FLOODER, str(robot.socket_path)],
                 stdin=subprocess.DEVNULL,
                 stdout=log,
                 stderr=log,
