@@ -51,6 +51,8 @@ from supervisord.api.framing import (
     encode,
 )
 from supervisord.api.names import NAME_WAIT_NS, UserNames
+from supervisord.api.pushes import Push
+from supervisord.api.replies import Reply
 from supervisord.api.requests import (
     ADMIN_REQUESTS,
     NAMED_REQUESTS,
@@ -405,29 +407,34 @@ class ApiServer:
 
     # -- the daemon's side ----------------------------------------------------------------
 
-    def reply(self, received: Received, **fields: object) -> list[Closed]:
-        """Answer a request with success and ``fields``. Nothing happens if the connection is
-        gone; returns the connection's end if the answer overflowed its buffer."""
-        return self.send(received.client.connection, ok_reply(received.request, **fields))
+    def reply(self, received: Received, reply: Reply | None = None) -> list[Closed]:
+        """Answer a request with success: ``reply``, else the plain ok of its op. Nothing
+        happens if the connection is gone; returns the connection's end if the answer
+        overflowed its buffer."""
+        answer = reply if reply is not None else ok_reply(received.request)
+        return self.send(received.client.connection, answer)
 
     def reply_error(self, received: Received, error: ApiError) -> list[Closed]:
         """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
-        return self.send(received.client.connection, error.reply())
+        return self._send_line(received.client.connection, encode(error.reply()))
 
-    def send(self, connection: int, obj: Mapping[str, object]) -> list[Closed]:
-        """Send one JSON object to one connection (if it is still there)."""
+    def send(self, connection: int, message: Reply | Push) -> list[Closed]:
+        """Send one reply or push to one connection (if it is still there)."""
+        return self._send_line(connection, encode(message.json()))
+
+    def _send_line(self, connection: int, line: bytes) -> list[Closed]:
         conn = self._connections.get(connection)
         if conn is None:
             return []
-        return self._queue(conn, encode(obj))
+        return self._queue(conn, line)
 
-    def broadcast(self, topic: Topic, obj: Mapping[str, object]) -> list[Closed]:
-        """Push one JSON object to every connection subscribed to ``topic``."""
+    def broadcast(self, topic: Topic, push: Push) -> list[Closed]:
+        """Send one push to every connection subscribed to ``topic``."""
         line: bytes | None = None
         closed: list[Closed] = []
         for conn in list(self._connections.values()):
             if topic in conn.topics:
-                line = line if line is not None else encode(obj)
+                line = line if line is not None else encode(push.json())
                 closed += self._queue(conn, line)
         return closed
 
