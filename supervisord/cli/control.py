@@ -266,7 +266,7 @@ def _confirmed(out: TextIO, stdin: TextIO) -> bool:
 def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -> int:
     command = args.command
     if command == "status":
-        status = client.status()
+        status = client.status().json()
         if args.json:
             print(json.dumps(status, sort_keys=True), file=out)
         else:
@@ -284,11 +284,13 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
         else:
             client.release(args.what)
         who = f"client {name}" if name else "local"
-        print(f"{command} ({who}): done; the supervisor is {client.status()['state']}", file=out)
+        print(
+            f"{command} ({who}): done; the supervisor is {client.status().report.state}", file=out
+        )
         return 0
     if command == "reset":
         client.reset()
-        print(f"reset: accepted; the supervisor is {client.status()['state']}", file=out)
+        print(f"reset: accepted; the supervisor is {client.status().report.state}", file=out)
         return 0
     if command == "display":
         _display(client, args)
@@ -298,7 +300,7 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
         return 0
     if command == "prooftest":
         return _prooftest(client, out)
-    reply = client.commission()
+    reply = client.commission().json()
     remote = "on" if reply.get("remote_status") else "not seen (older firmware?)"
     print(f"commissioned: key 85 reads {reply.get('key85')}; remote status {remote}", file=out)
     return 0
@@ -314,7 +316,7 @@ def _prooftest(client: SupervisorClient, out: TextIO) -> int:
     print("prooftest: started; the user heartbeat is withheld for up to 1.5 s", file=out)
     deadline = time.monotonic() + PROOFTEST_WAIT_S
     while time.monotonic() < deadline:
-        proof = client.status().get("prooftest") or {}
+        proof = client.status().json().get("prooftest") or {}
         if proof.get("phase") in ("passed", "failed"):
             last = proof.get("last") or {}
             print(f"prooftest: {verdict(last)}", file=out)
@@ -493,7 +495,7 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
                 with SupervisorClient.connect(path, timeout=10.0) as client:
                     said_waiting = False
                     if not args.json:
-                        print(daemon_line(client.status()), file=out, flush=True)
+                        print(daemon_line(client.status().json()), file=out, flush=True)
                     client.subscribe(*topics)
                     last: dict[str, object] = {}
                     while True:
@@ -504,11 +506,11 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
                             # A remote status: when battery or link strength change, not
                             # once a second. A state: when the state or an output changes;
                             # each cause raised or cleared has its record's line.
-                            seen = tuple(push.data.get(k) for k in _SHOWN_WHEN[push.event])
+                            seen = tuple(push.json().get(k) for k in _SHOWN_WHEN[push.event])
                             if seen == last.get(push.event):
                                 continue
                             last[push.event] = seen
-                        print(show(push.event, push.data), file=out, flush=True)
+                        print(show(push.event, push.json()), file=out, flush=True)
             except ConnectError as error:
                 if isinstance(error.__cause__, PermissionError):
                     print(f"srcsctl watch: {denied(path, error)}", file=err, flush=True)

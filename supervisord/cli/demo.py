@@ -124,10 +124,10 @@ class Demo:
         """Ask both processes how they are; keep the stop records that were pushed."""
         assert self.client is not None
         self._check_alive()
-        self.status = self.client.status()
+        self.status = self.client.status().json()
         while (push := self.client.next_event(timeout=0)) is not None:
             if push.event == "record":
-                self._add_record(push.data)
+                self._add_record(push.json())
         if self._sticks_at is not None:  # a slow circle on the left stick, while asked
             phase = time.monotonic() - self._sticks_at
             x, y = int(600 * math.cos(phase)), int(600 * math.sin(phase))
@@ -135,7 +135,7 @@ class Demo:
 
     def _active(self) -> set[str]:
         assert self.client is not None
-        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+        return {c["name"] for c in self.client.status().json().get("causes", []) if c.get("active")}
 
     def _add_record(self, record: dict[str, Any]) -> None:
         if record.get("seq") in self._seqs:
@@ -176,7 +176,7 @@ class Demo:
         assert self.client is not None
         self.note("commissioning the VSC's key-85 watchdog (srcsctl commission)")
         try:
-            reply = self.client.commission()
+            reply = self.client.commission().json()
         except ApiError as error:
             self.note(f"commission: {error.code}: {error.message}")
             return
@@ -316,7 +316,7 @@ class StoryDemo(Demo):
 
     def _active(self) -> set[str]:
         assert self.client is not None
-        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+        return {c["name"] for c in self.client.status().json().get("causes", []) if c.get("active")}
 
     def on_record(self, record: dict[str, Any]) -> None:
         print(f"  record {demo_record_line(record)}", file=self.out, flush=True)

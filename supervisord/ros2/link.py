@@ -93,7 +93,7 @@ class SupervisorLink:
 
     def status(self) -> dict[str, Any] | None:
         """A ``status`` reply, or None when disconnected or it failed."""
-        ok, reply = self._call(lambda client: client.status())
+        ok, reply = self._call(lambda client: client.status().json())
         return reply if ok and isinstance(reply, dict) else None
 
     def request(self, call: Callable[[SupervisorClient], object]) -> tuple[bool, str]:
@@ -117,7 +117,7 @@ class SupervisorLink:
             return
         try:
             client.subscribe(*TOPICS)
-            status = client.status()
+            status = client.status().json()
         except (ClientError, ApiError, OSError) as e:
             client.close()
             self.reason = _why(e)

@@ -168,13 +168,13 @@ class BridgeNode(Node):
                 self._set_ready(False)
                 self._set_available(None)
             elif event.event == "state":
-                self._on_status(event.data)
+                self._on_status(event.json())
             elif event.event == "joystick":
                 self._publish_joy(event)
             elif event.event == "gps":
                 self._publish_gps(event)
             elif event.event == "remote_status":
-                self._remote = event.data
+                self._remote = event.json()
         self._publish_diagnostics()
 
     def _on_status(self, status: dict[str, Any]) -> None:
@@ -208,14 +208,14 @@ class BridgeNode(Node):
         self._available = available
 
     def _publish_joy(self, push: Push) -> None:
-        values = joy_values(push.data)
+        values = joy_values(push.json())
         msg = Joy(axes=list(values.axes), buttons=list(values.buttons))
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.frame_id
         self.joy_pub.publish(msg)
 
     def _publish_gps(self, push: Push) -> None:
-        fix = gps_fix(push.data)
+        fix = gps_fix(push.json())
         if fix is None:
             return
         msg = NavSatFix(latitude=fix.latitude, longitude=fix.longitude, altitude=fix.altitude)

@@ -325,7 +325,7 @@ class Robot:
 
     def status(self) -> dict[str, Any]:
         with self.client() as api:
-            return api.status()
+            return api.status().json()
 
     def active(self, status: dict[str, Any] | None = None) -> set[str]:
         status = status or self.status()
@@ -591,12 +591,12 @@ class Robot:
         end = time.monotonic() + WAIT_S
         while time.monotonic() < end:
             push = subscriber.next_event(timeout=0.5)
-            if push is None or push.event != "record" or push.data["mono_ns"] < t * 1e9:
+            if push is None or push.event != "record" or push.json()["mono_ns"] < t * 1e9:
                 continue
-            changes = push.data.get("changes", [])
+            changes = push.json().get("changes", [])
             if any(c["name"] == "vsc_estop" and c["change"] == "raised" for c in changes):
-                assert push.data["to"] == "STOPPED", push.data
-                return Stop("vsc_estop", t, t_off, push.data)
+                assert push.json()["to"] == "STOPPED", push.json()
+                return Stop("vsc_estop", t, t_off, push.json())
         raise FaultHarnessError("no stop record raising vsc_estop was pushed")
 
     def remote_estop(self) -> Stop:

@@ -21,6 +21,7 @@ import pytest
 from supervisord.api.credentials import PeerCredentials, caller, process_groups
 from supervisord.api.names import UserNames
 from supervisord.api.pushes import OtherPush
+from supervisord.api.replies import CommissionReply, Reply
 from supervisord.api.requests import Commission, Estop, Hello, Reset, Status, Topic
 from supervisord.api.server import (
     Accepted,
@@ -102,11 +103,11 @@ class Loop:
                 new += self.before_reply(result)
             if isinstance(result, Received) and self.answer:
                 request = result.request
-                reply = (
-                    status_reply(state_report(self.core.decision), request.id)
-                    if isinstance(request, Status)
-                    else None
-                )
+                reply: Reply | None = None
+                if isinstance(request, Status):
+                    reply = status_reply(state_report(self.core.decision), request.id)
+                elif isinstance(request, Commission):
+                    reply = CommissionReply(id=request.id, key85=1, remote_status=True)
                 new += self.server.reply(result, reply)
         self.results += new
         return new

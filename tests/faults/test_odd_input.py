@@ -241,8 +241,8 @@ def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Pa
 
             def two_odd_pushes() -> bool:
                 while (push := api.next_event(timeout=0.1)) is not None:
-                    if push.event == "gps" and push.data["string"] == SUPERSCRIPT_GGA:
-                        pushes.append(push.data)
+                    if push.event == "gps" and push.json()["string"] == SUPERSCRIPT_GGA:
+                        pushes.append(push.json())
                 return len(pushes) >= 2  # the simulator sends GPS once a second
 
             wait_until(two_odd_pushes, 10.0, what="two pushes of the odd GGA")

@@ -264,7 +264,7 @@ def _pushed_records(watch: SupervisorClient, into: list[dict[str, Any]]) -> None
     with contextlib.suppress(ClientError, OSError):
         while (push := watch.next_event(timeout=0.2)) is not None:
             if push.event == "record":
-                into.append({k: v for k, v in push.data.items() if k != "event"})
+                into.append({k: v for k, v in push.json().items() if k != "event"})
 
 
 @ROOT_ONLY

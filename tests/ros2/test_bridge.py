@@ -205,7 +205,7 @@ def test_estop_available_says_when_the_remote_estop_works(
     assert ros.available[-1:] == [False]
     assert "battery is not reported" in (ros.supervisor() or {})["e-stop missing"]
     with SupervisorClient.connect(running.socket_path, timeout=30.0) as admin:
-        assert admin.commission()["remote_status"] is True
+        assert admin.commission().remote_status is True
     ros.spin_until(lambda: ros.available[-1:] == [True], what="e-stop available")
     _arm(running, ros)
     running.vsc.call("remote_status", battery_level=10)
