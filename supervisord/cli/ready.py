@@ -57,7 +57,7 @@ def _gaps(path: Path) -> list[str] | None:
     not open raises: waiting would not change that."""
     try:
         with SupervisorClient.connect(path, timeout=2.0) as client:
-            return missing(client.status().json())
+            return missing(client.status())
     except ConnectError as error:
         if isinstance(error.__cause__, PermissionError):
             raise
