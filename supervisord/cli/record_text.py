@@ -32,10 +32,14 @@ them)."""
 _DETAIL_CHARS: Final = 80
 
 
-def marked(cause: Mapping[str, Any]) -> str:
+def mark(name: object, *, held: bool) -> str:
     """A cause's name with :data:`MARK` when it has cleared and its latch holds it."""
-    held = cause.get("latched") and not cause.get("active")
-    return f"{cause.get('name')}{MARK if held else ''}"
+    return f"{name}{MARK if held else ''}"
+
+
+def marked(cause: Mapping[str, Any]) -> str:
+    """:func:`mark` for a cause of a written record."""
+    return mark(cause.get("name"), held=bool(cause.get("latched") and not cause.get("active")))
 
 
 def cause_set(causes: object) -> str:

@@ -39,13 +39,20 @@ LOOP = LoopStatus(
 )
 
 
-def status_reply(report: StateReport, request_id: RequestId = None) -> StatusReply:
-    """A ``status`` reply of ``report`` from a daemon that has seen nothing else."""
+STOPPED = StateReport(state="STOPPED", mono_ns=1, causes=(), outputs={}, heartbeat_estop=1)
+"""A state with nothing to say but STOPPED."""
+
+
+def status_reply(
+    report: StateReport = STOPPED, request_id: RequestId = None, loop: LoopStatus = LOOP
+) -> StatusReply:
+    """A ``status`` reply of ``report`` from a daemon whose loop says ``loop`` and that has
+    seen nothing else."""
     return StatusReply(
         id=request_id,
         report=report,
         estop_available=EstopAvailable(available=False, missing=("the VSC is not heard",)),
         daemon=DaemonStatus(
-            robot="test", loop=LOOP, clients=(), connections=1, remote=None, in_state_s=1.5
+            robot="test", loop=loop, clients=(), connections=1, remote=None, in_state_s=1.5
         ),
     )

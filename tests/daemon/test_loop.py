@@ -30,6 +30,7 @@ from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
+from tests.api.samples import status_reply
 from tests.daemon.peer import VscPeer
 from tests.record.conftest import full_disk
 
@@ -609,7 +610,7 @@ def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
             assert info.link.error_frames == 3
             assert supervisor.link.is_open  # counted, not a fault
             assert "transport_fault" not in supervisor.decision.active_names  # type: ignore[union-attr]
-            text = format_status({"state": "STOPPED", "daemon": info.json()})
+            text = format_status(status_reply(loop=info))
             assert "3 CAN error frames" in text
         finally:
             supervisor.shutdown()
@@ -624,4 +625,4 @@ def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer
     supervisor.start()
     info = supervisor.snapshot(0)
     assert info.link.error_frames is None
-    assert "error frame" not in format_status({"state": "STOPPED", "daemon": info.json()})
+    assert "error frame" not in format_status(status_reply(loop=info))
