@@ -52,28 +52,29 @@ class OkReply:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class StatusReply:
     """``status``: the state (as in a ``state`` push), whether the remote e-stop is
-    available, and the daemon's own view (docs/api.md "status")."""
+    available (``None``: a daemon older than SR-8.11 does not say), and the daemon's own view
+    (docs/api.md "status")."""
 
     OP: ClassVar[str] = "status"
     id: RequestId = None
     report: StateReport
-    estop_available: EstopAvailable
+    estop_available: EstopAvailable | None
     daemon: DaemonStatus
 
     def json(self) -> JsonDict:
-        return {
-            **_head(self.OP, self.id),
-            **self.report.json(),
-            "estop_available": self.estop_available.json(),
-            "daemon": self.daemon.json(),
-        }
+        out = {**_head(self.OP, self.id), **self.report.json()}
+        if self.estop_available is not None:
+            out["estop_available"] = self.estop_available.json()
+        out["daemon"] = self.daemon.json()
+        return out
 
     @classmethod
     def read(cls, f: Fields) -> StatusReply:
+        available = f.maybe_obj("estop_available")
         return cls(
             id=_id(f),
             report=StateReport.read(f),
-            estop_available=EstopAvailable.read(f.obj("estop_available")),
+            estop_available=None if available is None else EstopAvailable.read(available),
             daemon=DaemonStatus.read(f.obj("daemon")),
         )
 

@@ -293,7 +293,8 @@ class LoopStatus:
 
     @classmethod
     def read(cls, f: Fields) -> LoopStatus:
-        histograms = f.mapping("histograms")
+        # A daemon older than its timing histograms (docs/fleet.md) has none to say.
+        histograms = f.mapping("histograms") if f.has("histograms") else Fields({}, f.where)
         return cls(
             pid=f.integer("pid"),
             version=f.text("version"),

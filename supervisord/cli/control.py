@@ -376,7 +376,8 @@ def format_status(status: StatusReply) -> str:
     lines += _client_lines(daemon.clients)
     remote = daemon.remote
     lines.append(f"  remote   {remote_text(remote) if remote else 'no status seen'}")
-    lines.append(f"  e-stop   {estop_text(status.estop_available)}")
+    if status.estop_available is not None:
+        lines.append(f"  e-stop   {estop_text(status.estop_available)}")
     if not report.causes:
         lines.append("  causes   none")
     for index, cause in enumerate(report.causes):

@@ -66,9 +66,11 @@ def estop_of(state: State) -> bool:
 def estop_available_of(status: StatusReply | None) -> tuple[bool, tuple[str, ...]]:
     """The ``estop_available`` topic and the parts missing, from a ``status`` reply
     (SR-8.11, docs/api.md "status"): false unless the reply says true, so a supervisor not
-    reached is never taken for an available e-stop."""
+    reached, or one too old to say, is never taken for an available e-stop."""
     if status is None:
         return False, ("the supervisor is not reached",)
+    if status.estop_available is None:
+        return False, ("the supervisor does not say",)
     return status.estop_available.available, status.estop_available.missing
 
 

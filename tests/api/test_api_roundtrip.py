@@ -174,7 +174,8 @@ REPLIES: st.SearchStrategy[Reply] = st.one_of(
         StatusReply,
         id=IDS,
         report=REPORTS,
-        estop_available=kw(
+        estop_available=st.none()
+        | kw(
             EstopAvailable, available=st.booleans(), missing=st.lists(TEXT, max_size=3).map(tuple)
         ),
         daemon=DAEMONS,

@@ -82,7 +82,8 @@ def test_state_and_estop_rule() -> None:
 
 def test_estop_available_only_when_the_status_reply_says_so() -> None:
     """SR-8.11: the ``estop_available`` topic is true only for a ``status`` reply saying
-    ``available: true``; no supervisor is false, with the reason."""
+    ``available: true``; no supervisor or a reply without the field (an older daemon) is
+    false, with the reason."""
     low = "the remote's battery is 10 %, below 20 %"
     reply = status_reply(_state("RUN"))
     available = EstopAvailable(available=True, missing=())
@@ -92,6 +93,8 @@ def test_estop_available_only_when_the_status_reply_says_so() -> None:
     assert estop_available_of(yes) == (True, ())
     assert estop_available_of(no) == (False, (low,))
     assert estop_available_of(None) == (False, ("the supervisor is not reached",))
+    older = dataclasses.replace(reply, estop_available=None)
+    assert estop_available_of(older) == (False, ("the supervisor does not say",))
 
 
 def test_gga_becomes_a_fix_with_ellipsoid_altitude() -> None:
