@@ -49,13 +49,6 @@ def cause_set(causes: object) -> str:
     return ", ".join(marked(c) for c in causes if isinstance(c, Mapping))
 
 
-def uses_mark(causes: object) -> bool:
-    """Whether :func:`cause_set` of ``causes`` shows :data:`MARK`."""
-    return isinstance(causes, list) and any(
-        isinstance(c, Mapping) and marked(c).endswith(MARK) for c in causes
-    )
-
-
 def verdict(prooftest: Mapping[str, Any]) -> str:
     """A proof test's result as a verdict: ``proof test passed: tripped after 532 ms, limit
     700 ms; cleared by itself 49 ms after the heartbeat resumed``, or ``proof test FAILED:``
