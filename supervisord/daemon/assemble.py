@@ -114,6 +114,4 @@ def build_supervisor(
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )
     supervisor.sequence_offset = previous.seq if previous is not None else 0
-    if isinstance(listener, ApiListener):
-        listener.daemon_info = supervisor.info
     return supervisor
