@@ -50,13 +50,21 @@ from supervisord.api.ops import (
     Reset,
     Side,
     Status,
+    StopTest,
     Subscribe,
     Topic,
     Vibrate,
     request_json,
 )
 from supervisord.api.pushes import Push, read_push
-from supervisord.api.replies import CommissionReply, OkReply, Reply, StatusReply, read_reply
+from supervisord.api.replies import (
+    CommissionReply,
+    OkReply,
+    Reply,
+    StatusReply,
+    StopTestReply,
+    read_reply,
+)
 from supervisord.api.wire import WireError
 from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
@@ -65,7 +73,7 @@ from supervisord.release import Request
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-R = TypeVar("R", StatusReply, CommissionReply)
+R = TypeVar("R", StatusReply, CommissionReply, StopTestReply)
 
 DEFAULT_TIMEOUT: Final = 5.0
 MAX_REPLY_LINE: Final = 1 << 20
@@ -109,6 +117,7 @@ __all__ = [
     "Push",
     "Reply",
     "StatusReply",
+    "StopTestReply",
     "SupervisorClient",
 ]
 
@@ -207,6 +216,11 @@ class SupervisorClient:
         """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently.
         Root or the admin group only; the reply carries what was read back."""
         return _expect(self.call(Commission()), CommissionReply)
+
+    def stoptest(self, steps: tuple[tuple[str, int], ...]) -> StopTestReply:
+        """Judge and record a field stop test's presses (SR-12.1): each its source
+        (``remote``, ``wired``) and the ``seq`` of the stop record it made. Admins only."""
+        return _expect(self.call(StopTest(steps)), StopTestReply)
 
     def call(self, request: ApiRequest) -> Reply:
         """Send any request and return its success reply (raises ``ApiError`` on an error)."""

@@ -190,6 +190,17 @@ class StartProofTest(_Request):
     OP = "prooftest"
 
 
+@dataclass(frozen=True, slots=True)
+class StopTest(_Request):
+    """Record a field stop test (SR-12.1; docs/srcsctl.md "The field stop test"): ``steps``
+    names each press as its source (``remote``, ``wired``) and the sequence number of the
+    stop record it made. The daemon measures and judges; admins only; the reply carries the
+    result (the ``stoptest`` record's object)."""
+
+    OP = "stoptest"
+    steps: tuple[tuple[str, int], ...]
+
+
 ApiRequest = (
     Hello
     | Heartbeat
@@ -207,6 +218,7 @@ ApiRequest = (
     | Reset
     | Commission
     | StartProofTest
+    | StopTest
 )
 """Any request of the client API. Not :class:`supervisord.release.Request` (what a
 ``release`` ends; the safety core's ``supervisord.safety.events.Request``), which
@@ -237,8 +249,8 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["side"] = side.value
         case Commission():
             obj["confirm"] = True
-        case _:
-            pass
+        case StopTest(steps=steps):
+            obj["steps"] = [{"source": source, "seq": seq} for source, seq in steps]
     if request.id is not None:
         obj["id"] = request.id
     return obj

@@ -69,6 +69,101 @@ class Rearm:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class OutputOffReport:
+    """One output in one press of a field stop test (SR-12.1): ``off_ns`` from the e-stop's
+    frame to its verified off (``None``: not off), ``off_ms`` the same in ms, its category-1
+    ``off_delay_ms`` (SR-1.4) and whether it passed."""
+
+    name: str
+    off_ns: int | None
+    off_ms: float | None
+    off_delay_ms: int
+    passed: bool
+
+    def json(self) -> JsonDict:
+        return {
+            "name": self.name,
+            "off_ns": self.off_ns,
+            "off_ms": self.off_ms,
+            "off_delay_ms": self.off_delay_ms,
+            "passed": self.passed,
+        }
+
+    @classmethod
+    def read(cls, f: Fields) -> OutputOffReport:
+        return cls(
+            name=f.text("name"),
+            off_ns=f.maybe_integer("off_ns"),
+            off_ms=f.maybe_number("off_ms"),
+            off_delay_ms=f.maybe_integer("off_delay_ms") or 0,
+            passed=f.flag("passed"),
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StopStepReport:
+    """One press of a field stop test: its ``source`` (``remote``, ``wired``), the stop record
+    it made (``seq``) and that record's ``mono_ns`` (``stop_ns``), and each output."""
+
+    source: str
+    seq: int
+    stop_ns: int
+    passed: bool
+    outputs: tuple[OutputOffReport, ...]
+
+    def json(self) -> JsonDict:
+        return {
+            "source": self.source,
+            "seq": self.seq,
+            "stop_ns": self.stop_ns,
+            "passed": self.passed,
+            "outputs": [o.json() for o in self.outputs],
+        }
+
+    @classmethod
+    def read(cls, f: Fields) -> StopStepReport:
+        return cls(
+            source=f.text("source"),
+            seq=f.integer("seq"),
+            stop_ns=f.integer("stop_ns"),
+            passed=f.flag("passed"),
+            outputs=tuple(OutputOffReport.read(o) for o in f.objects("outputs")),
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StopTestReport:
+    """A finished field stop test (SR-12.1; docs/srcsctl.md "The field stop test"): the
+    ``stoptest`` object of its record and of the ``stoptest`` reply."""
+
+    result: str  # "passed" or "failed"
+    limit_ms: int
+    steps: tuple[StopStepReport, ...]
+    text: str
+
+    @property
+    def passed(self) -> bool:
+        return self.result == "passed"
+
+    def json(self) -> JsonDict:
+        return {
+            "result": self.result,
+            "limit_ms": self.limit_ms,
+            "steps": [s.json() for s in self.steps],
+            "text": self.text,
+        }
+
+    @classmethod
+    def read(cls, f: Fields) -> StopTestReport:
+        return cls(
+            result=f.text("result"),
+            limit_ms=f.integer("limit_ms"),
+            steps=tuple(StopStepReport.read(s) for s in f.objects("steps")),
+            text=f.maybe_text("text") or "",
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class StopRecord:
     """One record (docs/record.md): ``from_state`` and ``to_state`` are ``from`` and ``to`` on
     the wire; ``trigger`` stays JSON (its fields depend on its ``event``). The optional fields
@@ -85,6 +180,7 @@ class StopRecord:
     trigger: JsonDict
     reason: str | None = None
     prooftest: ProofTestResult | None = None
+    stoptest: StopTestReport | None = None
     rearm: Rearm | None = None
     version: str | None = None
 
@@ -107,6 +203,8 @@ class StopRecord:
             out["reason"] = self.reason
         if self.prooftest is not None:
             out["prooftest"] = self.prooftest.json()
+        if self.stoptest is not None:
+            out["stoptest"] = self.stoptest.json()
         if self.rearm is not None:
             out["rearm"] = self.rearm.json()
         if self.version is not None:
@@ -116,6 +214,7 @@ class StopRecord:
     @classmethod
     def read(cls, f: Fields) -> StopRecord:
         proof, rearm = f.maybe_obj("prooftest"), f.maybe_obj("rearm")
+        stop = f.maybe_obj("stoptest")
         return cls(
             seq=f.integer("seq"),
             mono_ns=f.integer("mono_ns"),
@@ -130,6 +229,7 @@ class StopRecord:
             trigger=f.raw("trigger"),
             reason=f.maybe_text("reason"),
             prooftest=None if proof is None else ProofTestResult.read(proof),
+            stoptest=None if stop is None else StopTestReport.read(stop),
             rearm=None if rearm is None else Rearm.read(rearm),
             version=f.maybe_text("version"),
         )

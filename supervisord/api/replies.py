@@ -1,10 +1,11 @@
 """The replies of the client API (docs/api.md "Requests and replies"), typed and frozen.
 
-Every request gets one reply: :class:`OkReply` for most, :class:`StatusReply` and
-:class:`CommissionReply` with their fields, or an error (:class:`~supervisord.api.framing.
-ApiError`, whose encoder is ``ApiError.reply``). Each has one encoder (``json``) and
-:func:`read_reply` is their one decoder: tolerant of fields it does not know (a client may
-talk to a newer daemon), an error reply read back as the ``ApiError`` it was.
+Every request gets one reply: :class:`OkReply` for most, :class:`StatusReply`,
+:class:`CommissionReply` and :class:`StopTestReply` with their fields, or an error
+(:class:`~supervisord.api.framing.ApiError`, whose encoder is ``ApiError.reply``). Each has
+one encoder (``json``) and :func:`read_reply` is their one decoder: tolerant of fields it
+does not know (a client may talk to a newer daemon), an error reply read back as the
+``ApiError`` it was.
 
 Pure and small: the client library imports it (docs/ros2.md "The client library").
 """
@@ -17,6 +18,7 @@ from typing import ClassVar
 
 from supervisord.api.framing import ApiError
 from supervisord.api.ops import RequestId
+from supervisord.api.records import StopTestReport
 from supervisord.api.status import DaemonStatus, EstopAvailable, StateReport
 from supervisord.api.wire import Fields, JsonDict, WireError
 
@@ -96,7 +98,23 @@ class CommissionReply:
         return cls(id=_id(f), key85=f.maybe_integer("key85"), remote_status=f.flag("remote_status"))
 
 
-Reply = OkReply | StatusReply | CommissionReply
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StopTestReply:
+    """``stoptest`` was judged and recorded (SR-12.1): the result, as its record holds it."""
+
+    OP: ClassVar[str] = "stoptest"
+    id: RequestId = None
+    stoptest: StopTestReport
+
+    def json(self) -> JsonDict:
+        return {**_head(self.OP, self.id), "stoptest": self.stoptest.json()}
+
+    @classmethod
+    def read(cls, f: Fields) -> StopTestReply:
+        return cls(id=_id(f), stoptest=StopTestReport.read(f.obj("stoptest")))
+
+
+Reply = OkReply | StatusReply | CommissionReply | StopTestReply
 
 
 def read_reply(obj: object) -> Reply | ApiError:
@@ -111,6 +129,8 @@ def read_reply(obj: object) -> Reply | ApiError:
         return StatusReply.read(f)
     if op == CommissionReply.OP:
         return CommissionReply.read(f)
+    if op == StopTestReply.OP:
+        return StopTestReply.read(f)
     return OkReply(op, _id(f))
 
 
@@ -133,6 +153,7 @@ __all__ = [
     "Reply",
     "RequestId",
     "StatusReply",
+    "StopTestReply",
     "WireError",
     "read_error",
     "read_reply",

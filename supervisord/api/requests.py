@@ -37,6 +37,7 @@ from supervisord.api.ops import (
     Side,
     StartProofTest,
     Status,
+    StopTest,
     Subscribe,
     Topic,
     Vibrate,
@@ -69,6 +70,7 @@ __all__ = [
     "Side",
     "StartProofTest",
     "Status",
+    "StopTest",
     "Subscribe",
     "Topic",
     "Vibrate",
@@ -76,7 +78,7 @@ __all__ = [
     "request_json",
 ]
 
-ADMIN_REQUESTS: Final = (Reset, Commission, StartProofTest)
+ADMIN_REQUESTS: Final = (Reset, Commission, StartProofTest, StopTest)
 """Requests only an admin may make (SR-8)."""
 NAMED_REQUESTS: Final = (Heartbeat, Command)
 """Requests that need a connection that said hello."""
@@ -305,6 +307,29 @@ def _prooftest(f: _Fields) -> ApiRequest:
     return StartProofTest(id=f.id)
 
 
+STOPTEST_SOURCES: Final = ("remote", "wired")
+"""The e-stops a field stop test presses, at most once each (SR-12.1)."""
+
+
+def _stoptest(f: _Fields) -> ApiRequest:
+    steps = f.get("steps")
+    if not isinstance(steps, list) or not 1 <= len(steps) <= len(STOPTEST_SOURCES):
+        raise f.error(f"steps must be a list of 1 to {len(STOPTEST_SOURCES)} objects")
+    parsed: list[tuple[str, int]] = []
+    for index in range(len(steps)):
+        value = steps[index]
+        if not isinstance(value, dict):
+            raise f.error(f"steps[{index}] must be an object with source and seq")
+        inner = _Fields(value, f.op, f.id, f.fields.key("steps") + f"[{index}]")
+        source = inner.get("source")
+        if source not in STOPTEST_SOURCES or any(source == s for s, _ in parsed):
+            raise f.error(f"steps[{index}].source must be one of remote, wired, each once")
+        assert isinstance(source, str)
+        parsed.append((source, inner.integer("seq", 1, 2**63 - 1)))
+        inner.finish()
+    return StopTest(tuple(parsed), id=f.id)
+
+
 _PARSERS = {
     "hello": _hello,
     "heartbeat": lambda f: Heartbeat(id=f.id),
@@ -319,6 +344,7 @@ _PARSERS = {
     "reset": lambda f: Reset(id=f.id),
     "commission": _commission,
     "prooftest": _prooftest,
+    "stoptest": _stoptest,
 }
 OPS: Final = tuple(_PARSERS)
 """Every request op, in the order ``docs/api.md`` documents them."""

@@ -254,6 +254,58 @@ SINK_COUNTERS = (
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class PeriodicDue:
+    """One periodic test's schedule (SR-12.2): its interval (0: no schedule), the age of its
+    last pass (``None``: never passed, or not known) and whether it is overdue."""
+
+    interval_days: int
+    last_pass_age_s: float | None
+    overdue: bool
+
+    def json(self) -> JsonDict:
+        return {
+            "interval_days": self.interval_days,
+            "last_pass_age_s": self.last_pass_age_s,
+            "overdue": self.overdue,
+        }
+
+    @classmethod
+    def read(cls, f: Fields) -> PeriodicDue:
+        return cls(
+            interval_days=f.integer("interval_days"),
+            last_pass_age_s=f.maybe_number("last_pass_age_s"),
+            overdue=f.flag("overdue"),
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Maintenance:
+    """``daemon.maintenance``: the periodic tests (SR-12.2; docs/safety-manual.md "Periodic
+    tests"), the field stop test (``stoptest``) and the VSC watchdog's proof test
+    (``prooftest``); ``None`` for a test the daemon does not name. Tests a newer daemon adds
+    are ignored."""
+
+    stoptest: PeriodicDue | None = None
+    prooftest: PeriodicDue | None = None
+
+    def tests(self) -> tuple[tuple[str, PeriodicDue], ...]:
+        """Each test the daemon named, by its name on the wire, in wire order."""
+        named = (("stoptest", self.stoptest), ("prooftest", self.prooftest))
+        return tuple((name, due) for name, due in named if due is not None)
+
+    def json(self) -> JsonDict:
+        return {name: due.json() for name, due in self.tests()}
+
+    @classmethod
+    def read(cls, f: Fields) -> Maintenance:
+        stop, proof = f.maybe_obj("stoptest"), f.maybe_obj("prooftest")
+        return cls(
+            stoptest=None if stop is None else PeriodicDue.read(stop),
+            prooftest=None if proof is None else PeriodicDue.read(proof),
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class LoopStatus:
     """What the daemon's loop says about itself in ``status`` (docs/api.md "status"): one
     snapshot, taken when a ``status`` is answered."""
@@ -272,9 +324,10 @@ class LoopStatus:
     rate_limited: int
     internal_faults: int
     histograms: Mapping[str, HistogramStatus]
+    maintenance: Maintenance | None = None  # None: a daemon older than SR-12.2
 
     def json(self) -> JsonDict:
-        return {
+        out: JsonDict = {
             "pid": self.pid,
             "version": self.version,
             "uptime_s": self.uptime_s,
@@ -290,11 +343,15 @@ class LoopStatus:
             "internal_faults": self.internal_faults,
             "histograms": {name: h.json() for name, h in self.histograms.items()},
         }
+        if self.maintenance is not None:
+            out["maintenance"] = self.maintenance.json()
+        return out
 
     @classmethod
     def read(cls, f: Fields) -> LoopStatus:
         # A daemon older than its timing histograms (docs/fleet.md) has none to say.
         histograms = f.mapping("histograms") if f.has("histograms") else Fields({}, f.where)
+        maintenance = f.maybe_obj("maintenance")  # a daemon older than SR-12.2 has none
         return cls(
             pid=f.integer("pid"),
             version=f.text("version"),
@@ -315,6 +372,7 @@ class LoopStatus:
             histograms={
                 name: HistogramStatus.read(histograms.obj(name)) for name in histograms.names()
             },
+            maintenance=None if maintenance is None else Maintenance.read(maintenance),
         )
 
 

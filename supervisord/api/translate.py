@@ -24,6 +24,7 @@ from supervisord.api.requests import (
     Reset,
     StartProofTest,
     Status,
+    StopTest,
     Subscribe,
     Vibrate,
 )
@@ -78,7 +79,8 @@ class ClientInfo:
 
 def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | None:
     """The safety-core event for a request from ``client`` received at ``now``, or ``None``
-    for requests the daemon answers itself (``status``, ``subscribe``, ``commission``).
+    for requests the daemon answers itself (``status``, ``subscribe``, ``commission``,
+    ``stoptest``).
 
     E-stops and releases of a named client are its own (``client_estop:NAME``); before hello
     they are the local operator's (``local_estop``, with the caller). A hold before hello is
@@ -108,5 +110,5 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
             return ResetRequest(now, client.caller)
         case StartProofTest():
             return ProofTestRequest(now, client.caller)
-        case Status() | Subscribe() | Commission():
+        case Status() | Subscribe() | Commission() | StopTest():
             return None

@@ -22,10 +22,11 @@ from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.requests import StartProofTest
-from supervisord.api.status import Cause, ClientStatus, EstopAvailable, RemoteReport
+from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli.log import interruptible
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.record_text import MARK_MEANS, mark, record_line, verdict
+from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
 from supervisord.cli.times import clock, clock_of
 from supervisord.client import (
     DEFAULT_SOCKET_PATH,
@@ -167,6 +168,7 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         "prove the VSC's key-85 watchdog again: withhold the heartbeat, see the VSC stop "
         "(admin; only while STOPPED)",
     )
+    add_stoptest(add)
     ready = add(
         "wait-ready",
         "wait until the stop path works: the VSC heard, its watchdog on and proven, every "
@@ -194,6 +196,7 @@ COMMANDS: Final = frozenset(
         "commission",
         "prooftest",
         "wait-ready",
+        "stoptest",
     }
 )
 
@@ -209,11 +212,17 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     if args.command == "commission" and not (args.yes or _confirmed(out, stdin)):
         print(f"{prog}: not confirmed; nothing was written", file=err)
         return EXIT_REFUSED
+    if args.command == "stoptest" and not (args.yes or confirmed_stoptest(out, stdin)):
+        print(f"{prog}: not confirmed; nothing was done", file=err)
+        return 3  # not done (docs/srcsctl.md "The field stop test")
     if args.command == "watch":
         return _watch(path, args, out, err)
     try:
         if args.command == "wait-ready":
             return wait_ready(path, args.timeout, out, err)
+        if args.command == "stoptest":
+            with SupervisorClient.connect(path, timeout=10.0) as client:
+                return run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout)
         with SupervisorClient.connect(path, timeout=10.0) as client:
             return _one_shot(client, args, out)
     except ConnectError as error:
@@ -391,12 +400,30 @@ def format_status(status: StatusReply) -> str:
     if proof := report.prooftest:
         result = "none yet" if proof.last is None else verdict(proof.last.json())
         lines.append(f"  proof    {proof.phase}; last: {result}")
+    if loop.maintenance is not None:
+        lines.append(f"  tests    {tests_text(loop.maintenance)}")
     rejected = ", ".join(f"{k} {v}" for k, v in loop.rejections.items())
     lines.append(
         f"  traffic  {loop.messages} messages; rejected: {rejected or 'none'}; "
         f"record errors {loop.record_errors}; internal faults {loop.internal_faults}"
     )
     return "\n".join(lines) + "\n"
+
+
+TEST_NAMES: Final = {"stoptest": "stop test", "prooftest": "proof test"}
+
+
+def tests_text(schedule: Maintenance) -> str:
+    """The periodic tests (SR-12.2): ``stop test passed 3.0 d ago (every 30 d); proof test
+    OVERDUE: never passed (every 30 d)``. A warning only: nothing stops for it."""
+    parts = []
+    for test, due in schedule.tests():
+        age, every = due.last_pass_age_s, due.interval_days
+        when = "never passed" if age is None else f"passed {duration(age)} ago"
+        plan = f"every {every} d" if every else "no schedule"
+        overdue = "OVERDUE: " if due.overdue else ""
+        parts.append(f"{TEST_NAMES[test]} {overdue}{when} ({plan})")
+    return "; ".join(parts)
 
 
 def estop_text(available: EstopAvailable) -> str:

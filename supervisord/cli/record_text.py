@@ -174,6 +174,8 @@ def happening(data: Mapping[str, Any]) -> str:
         return f"commissioned: {reason}" if reason else "commissioned"
     if kind == "hello_refused":
         return f"hello refused: {reason}" if reason else "hello refused"
+    if kind == "stoptest":
+        return f"stop test {reason}" if reason else "stop test"
     rearm = data.get("rearm")
     if isinstance(rearm, Mapping):
         caller = rearm.get("caller")

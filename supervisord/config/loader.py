@@ -37,6 +37,7 @@ from supervisord.config.model import (
     CanErrors,
     DaemonConfig,
     HidDevice,
+    MaintenanceConfig,
     RecordConfig,
     Reopen,
     RobotConfig,
@@ -55,6 +56,7 @@ from supervisord.config.schema import (
     ERROR_WINDOW,
     HEARTBEAT_HZ,
     HIDRAW,
+    MAINTENANCE,
     MIN_REMOTE_BATTERY,
     OUTPUT_NAME_KEY,
     PORT,
@@ -93,6 +95,8 @@ CLIENT_NAME: Final = strict.named(CLIENTS, "name", strict.Text)
 CLIENT_TIMEOUT: Final = strict.named(CLIENTS, "timeout_ms", strict.Whole)
 CLIENT_USER: Final = strict.named(CLIENTS, "user", strict.Text)
 CLIENT_UID: Final = strict.named(CLIENTS, "uid", strict.Whole)
+STOPTEST_INTERVAL: Final = strict.named(MAINTENANCE, "stoptest_interval_days", strict.Whole)
+PROOFTEST_INTERVAL: Final = strict.named(MAINTENANCE, "prooftest_interval_days", strict.Whole)
 RECORD_PATH: Final = strict.named(RECORD, "path", strict.Text)
 RECORD_MAX_BYTES: Final = strict.named(RECORD, "max_bytes", strict.Whole)
 RECORD_KEEP: Final = strict.named(RECORD, "keep", strict.Whole)
@@ -230,6 +234,7 @@ class _Loader:
         rearm = _section(root, SECTION["rearm"])
         api = self.api(_section(root, SECTION["api"]), len(clients))
         record = self.record(_section(root, SECTION["record"]))
+        maintenance = _section(root, SECTION["maintenance"])
         # The rules between sections last: every key has been read on its own by now.
         safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
         output_bus = self.output_bus(root, vsc, outputs)
@@ -243,6 +248,9 @@ class _Loader:
             output_bus=output_bus,
             record=record,
             api=api,
+            maintenance=MaintenanceConfig(
+                maintenance.whole(STOPTEST_INTERVAL), maintenance.whole(PROOFTEST_INTERVAL)
+            ),
         )
 
     def path(self, fields: strict.Fields, key: strict.Text) -> Path:

@@ -23,6 +23,7 @@ from supervisord.config.schema import (
     SERIAL_BAUD,
 )
 from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY
+from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES
 from supervisord.safety.config import SafetyConfig, Transport
@@ -111,6 +112,14 @@ class RecordConfig:
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
+class MaintenanceConfig:
+    """``[maintenance]``: when the periodic tests are overdue (SR-12.2); 0: no schedule."""
+
+    stoptest_interval_days: int = DEFAULT_INTERVAL_DAYS
+    prooftest_interval_days: int = DEFAULT_INTERVAL_DAYS
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
 class ApiConfig:
     """``[api]``: the Unix socket the robot's software and ``srcsctl`` talk to.
 
@@ -145,6 +154,7 @@ class DaemonConfig:
     output_bus: CanBus | None = None
     record: RecordConfig = RecordConfig()
     api: ApiConfig = ApiConfig()
+    maintenance: MaintenanceConfig = MaintenanceConfig()
 
     @property
     def can_output_bus(self) -> CanBus | None:

@@ -16,8 +16,16 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 
 from supervisord.api.framing import ApiError, ErrorCode
-from supervisord.api.replies import CommissionReply, StatusReply
-from supervisord.api.requests import Command, Commission, Heartbeat, Status, Subscribe, Topic
+from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
+from supervisord.api.requests import (
+    Command,
+    Commission,
+    Heartbeat,
+    Status,
+    StopTest,
+    Subscribe,
+    Topic,
+)
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
 from supervisord.api.status import ClientStatus, DaemonStatus, EstopAvailable
 from supervisord.api.views import (
@@ -34,9 +42,11 @@ from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
+from supervisord.record.format import stoptest_report
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import Event
+from supervisord.safety.events import Event, StopTested
+from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.timebase import seconds_since
 
 
@@ -114,6 +124,9 @@ class ApiListener(Listener):
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
             return
+        if isinstance(request, StopTest):
+            self._stoptest(result, request, now, feed, snapshot)
+            return
         refusal = (
             next((r for r in decision.refusals if r.trigger == event), None) if decision else None
         )
@@ -156,7 +169,7 @@ class ApiListener(Listener):
             remote = remote_report(message, seconds_since(now, seen))
         daemon = DaemonStatus(
             robot=self.robot,
-            loop=snapshot(now),
+            loop=snapshot.status(now),
             clients=tuple(clients),
             connections=len(every),
             remote=remote,
@@ -183,6 +196,25 @@ class ApiListener(Listener):
             prooftest=self.last.prooftest,
             min_battery=self.min_remote_battery,
         )
+
+    def _stoptest(
+        self,
+        result: Received,
+        request: StopTest,
+        now: int,
+        feed: Callable[[Event], Decision],
+        snapshot: Snapshot,
+    ) -> None:
+        """Judge the presses the client names from the loop's own measurements and record
+        the result (SR-12.1); admin rights were checked by the server. The client's part is
+        the dialogue and which stops its presses made, never a number."""
+        judged = snapshot.stop_times.result(request.steps, LIMIT_MS)
+        if isinstance(judged, str):
+            error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
+            self.server.reply_error(result, error)
+            return
+        feed(StopTested(now, result.client.caller, judged))  # the stoptest record
+        self.server.reply(result, StopTestReply(id=request.id, stoptest=stoptest_report(judged)))
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""

@@ -10,6 +10,7 @@ from supervisord.clock import MONOTONIC, Clock
 from supervisord.config import DaemonConfig, SerialPort
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Listener, Supervisor
+from supervisord.daemon.maintenance import PeriodicTest, Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link
 from supervisord.links.registry import create_link
@@ -17,6 +18,7 @@ from supervisord.outputs import Output, create_output
 from supervisord.outputs.base import OutputKind
 from supervisord.record.journal import JournalSink
 from supervisord.record.jsonl import RecordWriter, last_record
+from supervisord.record.passes import last_passes
 
 if TYPE_CHECKING:
     import can
@@ -79,6 +81,26 @@ def build_api(config: DaemonConfig) -> ApiListener:
     )
 
 
+def schedule(config: DaemonConfig) -> Schedule:
+    """The periodic tests' schedule (SR-12.2), with each test's last pass from the record.
+    Fail safe: a record that cannot be read is no pass (the test is overdue), never a failed
+    start."""
+    maintenance = config.maintenance
+    result = Schedule(
+        {
+            PeriodicTest.STOPTEST: maintenance.stoptest_interval_days,
+            PeriodicTest.PROOFTEST: maintenance.prooftest_interval_days,
+        }
+    )
+    try:
+        found = last_passes(config.record.path, [test.value for test in PeriodicTest])
+    except Exception as error:  # whatever the file holds, the daemon starts
+        log.warning("the periodic tests' last passes cannot be read: %s (overdue)", error)
+        found = {}
+    result.found = {PeriodicTest(kind): when for kind, when in found.items()}
+    return result
+
+
 def build_supervisor(
     config: DaemonConfig, listener: Listener | None = None, clock: Clock = MONOTONIC
 ) -> Supervisor:
@@ -114,4 +136,5 @@ def build_supervisor(
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )
     supervisor.sequence_offset = previous.seq if previous is not None else 0
+    supervisor.schedule = schedule(config)
     return supervisor

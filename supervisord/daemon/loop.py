@@ -36,8 +36,10 @@ from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
+from supervisord.daemon.stoptimes import StopTimes
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
@@ -112,8 +114,15 @@ class Timings:
         }
 
 
-Snapshot = Callable[[int], LoopStatus]
-"""The loop's own status at a time (:meth:`Supervisor.snapshot`), handed to the listener."""
+@dataclass(frozen=True, slots=True)
+class Snapshot:
+    """What the loop hands the listener with every call: ``status(now)``, the loop's own
+    status at a time (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
+    ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
+    ``stoptest``, SR-12.1)."""
+
+    status: Callable[[int], LoopStatus]
+    stop_times: StopTimes
 
 
 class Listener:
@@ -138,8 +147,9 @@ class Listener:
         snapshot: Snapshot,
     ) -> None:
         """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
-        and returns the core's decision (to answer with its refusals); ``snapshot(now)`` is
-        what the loop says about itself, for a ``status`` reply."""
+        and returns the core's decision (to answer with its refusals); ``snapshot.status(now)`` is
+        what the loop says about itself, for a ``status`` reply; ``snapshot.stop_times``
+        its stops' measured times to off, for a ``stoptest``."""
 
     def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
         """Serve, through ``feed``, the safety inputs that arose outside ``handle`` (e.g. a
@@ -203,6 +213,10 @@ class Supervisor:
         self.backoff = backoff or Backoff()
         self.counters = Counters()
         self.timings = Timings()
+        # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
+        self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
+        self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
+        self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -271,6 +285,8 @@ class Supervisor:
             rate_limited=counters.rate_limited,
             internal_faults=counters.internal_faults,
             histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
+            # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
+            maintenance=self.schedule.status(now),
         )
 
     def _sink_status(self) -> dict[str, int]:
@@ -291,6 +307,7 @@ class Supervisor:
         """
         now = self.clock()
         self._started_ns = self._link_since_ns = now
+        self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         self.sink = Sink(self.writer, self.journal, flight=self._flight_writer)
         self.sink.start()
         events: list[Event] = []
@@ -425,7 +442,7 @@ class Supervisor:
                 self._take_written()
             if clients:
                 self._serve_clients(clients)
-            self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self.snapshot)
+            self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self._snapshot)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
@@ -451,7 +468,7 @@ class Supervisor:
                 writable,
                 self.clock(),
                 self._feed_and_apply,
-                snapshot=self.snapshot,
+                snapshot=self._snapshot,
             )
 
     def _stop_path_waits(self) -> bool:
@@ -520,7 +537,7 @@ class Supervisor:
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
             self._send(
-                tuple(self.listener.due(now, self._feed_and_apply, snapshot=self.snapshot)), now
+                tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
             )
         if not self.link.is_open and now >= self.backoff.next_attempt:
             self._try_open_link(now)
@@ -659,16 +676,24 @@ class Supervisor:
         comes of them is applied in turn, so none of their records is lost (a read-back fault
         is a stop of its own, SR-7). ``since`` is when the input (or deadline) that led to
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
-        pending, fed, outputs = [decision], 0, self.outputs
+        pending, fed, outputs, times = [decision], 0, self.outputs, self.stop_times
         while pending:
             decision = pending.pop(0)
-            readbacks = [
-                output.set(on, decision.now)
-                for name, on in decision.outputs.items()
-                if (output := outputs.get(name)) is not None
-                and output.is_open
-                and output.requested != on
-            ]
+            if decision.state is not State.STOPPED:
+                times.ended()
+            elif self.decision is not None and self.decision.state is not State.STOPPED:
+                self._stop_began(decision)
+            readbacks = []
+            for name, on in decision.outputs.items():
+                output = outputs.get(name)
+                if output is None or not output.is_open or output.requested == on:
+                    continue
+                readback = output.set(on, decision.now)
+                readbacks.append(readback)
+                if not on and times.waiting(name):
+                    # When this off write returned (SR-12.1): one clock read per output, on
+                    # a stop only, after the write (outputs first, SR-6.1).
+                    times.off(readback, self.clock())
             previous = self.decision
             if (
                 readbacks
@@ -690,6 +715,14 @@ class Supervisor:
                     pending += [
                         self._feed(self._readback_event(r, decision.now)) for r in readbacks
                     ]
+
+    def _stop_began(self, decision: Decision) -> None:
+        """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
+        for record in decision.records:
+            if record.state is State.STOPPED and record.previous is not State.STOPPED:
+                on = [n for n, o in self.outputs.items() if o.is_open and o.requested]
+                self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
+                return
 
     def _finish(self, decision: Decision) -> None:
         if decision is self.decision:
@@ -746,6 +779,7 @@ class Supervisor:
             self.counters.record_errors += 1
             self.counters.records_dropped += written.dropped
             log.error("stop record not written: %s", written.error)
+        self.schedule.recorded(written.entry)  # a pass resets its test's age (SR-12.2)
         self.listener.recorded(dict(written.entry))
 
     def _rate_limited(self, now: int) -> None:

@@ -30,7 +30,7 @@ from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.records import StopRecord
 from supervisord.api.replies import StatusReply
-from supervisord.api.status import DaemonStatus, HistogramStatus, StateReport
+from supervisord.api.status import DaemonStatus, HistogramStatus, Maintenance, StateReport
 from supervisord.timebase import NS_PER_S
 
 STATES: Final = ("STOPPED", "HOLD", "RUN")
@@ -145,6 +145,20 @@ SPECS: Final = _specs(
         "1 while the remote e-stop is available: VSC heard, remote linked, battery reported "
         "and not low, watchdog proven (SR-8.11; from the last status reply)",
     ),
+    Spec(
+        "srcs_test_last_pass_age_seconds",
+        G,
+        "seconds since the periodic test last passed (stoptest: srcsctl stoptest; prooftest: "
+        "the VSC's watchdog), from the record; absent when it never passed (SR-12.2)",
+        ("test",),
+    ),
+    Spec(
+        "srcs_test_overdue",
+        G,
+        "1 while the periodic test is past its [maintenance] interval, or never passed; "
+        "a warning, the robot is not stopped for it (SR-12.2)",
+        ("test",),
+    ),
     Spec("srcs_link_opens", C, "times the daemon opened its link to the VSC (since it started)"),
     Spec("srcs_link_open_failures", C, "failed attempts to open the link (since srcsd started)"),
     Spec("srcs_messages", C, "valid messages from the VSC (since srcsd started)"),
@@ -242,6 +256,7 @@ class DaemonInfo:
     internal_faults: int | None = None
     outputs_not_acquired: int | None = None
     histograms: tuple[tuple[str, HistogramValue], ...] = ()  # by metric name
+    tests: tuple[tuple[str, float | None, bool], ...] = ()  # test, age, overdue
 
 
 @dataclass(frozen=True, slots=True)
@@ -289,6 +304,14 @@ def _histogram(histogram: HistogramStatus | None) -> HistogramValue | None:
     if buckets and buckets[-1][1] > histogram.count:
         return None
     return HistogramValue(tuple(buckets), float(histogram.sum), histogram.count)
+
+
+def _tests(schedule: Maintenance | None) -> tuple[tuple[str, float | None, bool], ...]:
+    """The periodic tests ``status`` reports (``daemon.maintenance``, SR-12.2): the typed
+    value names a fixed set, so the ``test`` label cannot grow."""
+    if schedule is None:
+        return ()
+    return tuple((test, due.last_pass_age_s, due.overdue) for test, due in schedule.tests())
 
 
 class ExporterModel:
@@ -411,6 +434,7 @@ class ExporterModel:
             internal_faults=loop.internal_faults,
             outputs_not_acquired=len(loop.outputs_not_acquired),
             histograms=tuple(histograms),
+            tests=_tests(loop.maintenance),
         )
 
     def _record(self, record: StopRecord) -> None:
@@ -529,6 +553,9 @@ class ExporterModel:
         put("srcs_record_errors", daemon.record_errors)
         put("srcs_internal_faults", daemon.internal_faults)
         put("srcs_outputs_not_acquired", daemon.outputs_not_acquired)
+        for test, age, overdue in daemon.tests:
+            put("srcs_test_last_pass_age_seconds", age, test=test)
+            put("srcs_test_overdue", overdue, test=test)
 
     def _remote_values(self, put: _Put, now_ns: int) -> None:
         remote = self.remote

@@ -31,6 +31,7 @@ from supervisord.safety.config import (
 )
 from supervisord.safety.events import EVENT_TYPES, Caller, Event, Request
 from supervisord.safety.prooftest import ProofTestPolicy
+from supervisord.safety.stoptest import StopTestFormatError, StopTestResult, result_from_json
 
 VERSION: Final = 1
 """The encoding's version: a reader takes only this one."""
@@ -144,6 +145,20 @@ MESSAGE = Kind(message_to_json, message_from_json)
 DISPLAY = Kind(message_to_json, _display_from_json)
 REQUEST = Kind(lambda r: r.value, _request_from_json)
 
+
+def _stoptest_to_json(result: StopTestResult) -> JsonDict:
+    return result.json()
+
+
+def _stoptest_from_json(value: object) -> StopTestResult:
+    try:
+        return result_from_json(value)
+    except StopTestFormatError as error:
+        raise FlightFormatError(str(error)) from error
+
+
+STOPTEST = Kind(_stoptest_to_json, _stoptest_from_json)
+
 _CONNECTION = (("connection", INT),)
 _CALLER = (("caller", CALLER),)
 
@@ -169,6 +184,7 @@ FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "display_update": (("message", DISPLAY),),
     "commissioned": (("caller", CALLER), ("key85", OPTIONAL_INT), ("remote_status", FLAG)),
     "proof_test_request": _CALLER,
+    "stop_tested": (("caller", CALLER), ("result", STOPTEST)),
 }
 """Each input's fields by its name in the file (the field names are the file's keys too, so a
 field renamed in the code needs its old key here: ``tests/record/test_flight_codec.py``)."""

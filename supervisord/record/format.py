@@ -19,7 +19,14 @@ from collections.abc import Mapping
 from typing import Any, Final, get_args
 
 from supervisord.api.records import Caller as CallerReport
-from supervisord.api.records import Change, Rearm, StopRecord
+from supervisord.api.records import (
+    Change,
+    OutputOffReport,
+    Rearm,
+    StopRecord,
+    StopStepReport,
+    StopTestReport,
+)
 from supervisord.api.status import Cause, ProofTestResult, ProofTestStatus
 from supervisord.compat import StrEnum
 from supervisord.protocol.jsonview import message_json
@@ -49,10 +56,12 @@ from supervisord.safety.events import (
     OutputReadback,
     ProofTestRequest,
     ResetRequest,
+    StopTested,
     Tick,
     VscReceived,
 )
 from supervisord.safety.prooftest import Outcome, ProofStatus
+from supervisord.safety.stoptest import StopTestResult
 
 JsonDict = dict[str, Any]
 
@@ -74,6 +83,8 @@ class RecordKind(StrEnum):
     """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
     HELLO_REFUSED = "hello_refused"
     """A hello as a client bound to another user was refused (SR-8)."""
+    STOPTEST = "stoptest"
+    """A field stop test finished (SR-12.1, ``srcsctl stoptest``)."""
 
 
 def record_kind(record: Record) -> RecordKind:
@@ -151,6 +162,36 @@ def proof_status(status: ProofStatus) -> ProofTestStatus:
     )
 
 
+def stoptest_report(result: StopTestResult) -> StopTestReport:
+    """A finished field stop test (SR-12.1), as its record and the ``stoptest`` reply show
+    it; the same object as :meth:`StopTestResult.json`, which the flight recorder keeps."""
+    limit = result.limit_ms
+    return StopTestReport(
+        result="passed" if result.passed else "failed",
+        limit_ms=limit,
+        steps=tuple(
+            StopStepReport(
+                source=step.source.value,
+                seq=step.seq,
+                stop_ns=step.stop_ns,
+                passed=step.passed(limit),
+                outputs=tuple(
+                    OutputOffReport(
+                        name=o.name,
+                        off_ns=o.off_ns,
+                        off_ms=o.off_ms,
+                        off_delay_ms=o.off_delay_ms,
+                        passed=o.passed(limit),
+                    )
+                    for o in step.outputs
+                ),
+            )
+            for step in result.steps
+        ),
+        text=result.text,
+    )
+
+
 def _plain(value: object) -> object:
     """A trigger's field as JSON: messages through the protocol's JSON view."""
     if isinstance(value, Caller):
@@ -193,6 +234,7 @@ TRIGGER_EVENTS: Final[Mapping[type, str]] = {
     DisplayUpdate: "display_update",
     Commissioned: "commissioned",
     ProofTestRequest: "proof_test_request",
+    StopTested: "stop_tested",
 }
 """A trigger's ``event`` name in the record, per core event type. Written out, not derived
 from the class name, so that renaming a class in the code cannot change the record's format
@@ -208,8 +250,10 @@ def trigger_json(event: object) -> JsonDict:
     result: JsonDict = {"event": name}
     if dataclasses.is_dataclass(event) and not isinstance(event, type):
         for field in dataclasses.fields(event):
-            if field.name != "now":
-                result[field.name] = _plain(getattr(event, field.name))
+            value = getattr(event, field.name)
+            # A stop test's numbers are the record's own ``stoptest`` field, not repeated here.
+            if field.name != "now" and not isinstance(value, StopTestResult):
+                result[field.name] = _plain(value)
     return result
 
 
@@ -242,5 +286,9 @@ def stop_record(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> S
         trigger=trigger_json(record.trigger),
         reason=clean(record.reason) if record.reason else None,
         prooftest=None if record.prooftest is None else proof_result(record.prooftest),
+        # A stop test's numbers are the record's own ``stoptest`` field (SR-12.1).
+        stoptest=stoptest_report(record.trigger.result)
+        if isinstance(record.trigger, StopTested)
+        else None,
         rearm=rearm,
     )

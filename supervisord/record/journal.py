@@ -46,6 +46,7 @@ MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
     RecordKind.COMMISSIONED: uuid.UUID("bdd0782d2f2b45a3bdc4e9984db1024d"),
     RecordKind.PROOFTEST: uuid.UUID("af4347b3c6a741d6a06ce07e58cea85a"),
     RecordKind.HELLO_REFUSED: uuid.UUID("31b39d5239c64c748a02ea76dd76a97f"),
+    RecordKind.STOPTEST: uuid.UUID("55afb9fa858e45458a44937c4062ca84"),
 }
 """Stable journal MESSAGE_IDs, one per record kind. Never change them: operators' queries and
 alerting depend on them (``docs/record.md`` lists them)."""
@@ -82,6 +83,12 @@ def priority(record: Mapping[str, object]) -> Priority:
         outcome = record.get("prooftest")
         failed = not isinstance(outcome, Mapping) or outcome.get("result") != "passed"
         return Priority.CRIT if failed else Priority.NOTICE
+    if kind is RecordKind.STOPTEST:
+        # A field stop test that failed: the stop path is slower than its target, or an output
+        # did not go off (SR-12.1): a warning to act on, the robot itself did stop.
+        outcome = record.get("stoptest")
+        failed = not isinstance(outcome, Mapping) or outcome.get("result") != "passed"
+        return Priority.WARNING if failed else Priority.NOTICE
     if kind is RecordKind.STATE_CHANGE:
         into_stop = _is_stopped(record.get("to")) and not _is_stopped(record.get("from"))
         return Priority.CRIT if into_stop else Priority.NOTICE
@@ -122,6 +129,7 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         RecordKind.COMMISSIONED: f"VSC commissioned: {reason} (trigger {trigger})",
         RecordKind.PROOFTEST: f"VSC watchdog proof test {reason} (state {after})",
         RecordKind.HELLO_REFUSED: f"hello refused: {reason} (trigger {trigger})",
+        RecordKind.STOPTEST: f"field stop test {reason} (state {after})",
     }[kind]
     fields = [
         ("MESSAGE", message),

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Final
 
 from supervisord.api.messages import RemoteStatusReport
-from supervisord.api.status import Cause, DaemonStatus, StateReport
+from supervisord.api.status import Cause, DaemonStatus, Maintenance, StateReport
 from supervisord.compat import IntEnum
 from supervisord.ros2.mapping import State, state_of
 
@@ -88,13 +88,39 @@ def supervisor_status(
         values += [("e-stop missing", "; ".join(parts))] if not available else []
         if not available and level is Level.OK:
             level = Level.WARN  # RUN without a working remote e-stop: said, not stopped
+    overdue: list[str] = []
     if daemon:
         values += _daemon_values(daemon)
+        tests, overdue = _periodic_tests(daemon.loop.maintenance)
+        values += tests
+        if overdue and level is Level.OK:
+            level = Level.WARN  # the evidence is old: said, the robot is not stopped (SR-12.2)
     values += _gate_values(gate)
     message = state.value + (": " + ", ".join(names) if names else "")
     if estop_available is not None and not estop_available[0]:
         message += "; remote e-stop not available"
+    if overdue:
+        message += f"; overdue: {', '.join(overdue)}"
     return Status(level, SUPERVISOR_NAME, message, robot, tuple(values))
+
+
+PERIODIC_TESTS: Final = {"stoptest": "stop test", "prooftest": "proof test"}
+"""The periodic tests of ``status``'s ``daemon.maintenance`` (SR-12.2) and their keys' names."""
+
+
+def _periodic_tests(schedule: Maintenance | None) -> tuple[list[tuple[str, str]], list[str]]:
+    """``stop test last pass age s``, ``stop test overdue`` and the proof test's two, and the
+    names of the overdue tests."""
+    values: list[tuple[str, str]] = []
+    overdue: list[str] = []
+    for test, due in schedule.tests() if schedule is not None else ():
+        name = PERIODIC_TESTS[test]
+        age = due.last_pass_age_s
+        values.append((f"{name} last pass age s", "never" if age is None else _text(age)))
+        values.append((f"{name} overdue", _flag(due.overdue)))
+        if due.overdue:
+            overdue.append(name)
+    return values, overdue
 
 
 def remote_status(remote: RemoteStatusReport | None, robot: str) -> Status:

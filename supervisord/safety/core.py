@@ -76,6 +76,7 @@ from supervisord.safety.events import (
     ProofTestRequest,
     Request,
     ResetRequest,
+    StopTested,
     Tick,
     VscReceived,
     is_event,
@@ -752,6 +753,11 @@ class SafetyCore:
         result = f"key85={key85} remote_status={'on' if event.remote_status else 'not seen'}"
         self._note = (RecordNote.COMMISSIONED, result)
 
+    def _on_stoptested(self, event: StopTested, now: int) -> None:
+        # Measured and judged by the daemon (SR-12.1); the core gives it its place in the
+        # record, so that a replay makes it again (SR-7.13).
+        self._note = (RecordNote.STOPTEST, event.result.text)
+
     def _on_display(self, event: DisplayUpdate, now: int) -> None:
         reason = self._display.accept(event.message)
         if reason is not None:
@@ -1404,6 +1410,7 @@ _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
         Commissioned: SafetyCore._on_commissioned,
         DisplayUpdate: SafetyCore._on_display,
         ProofTestRequest: SafetyCore._on_prooftest,
+        StopTested: SafetyCore._on_stoptested,
     }
 )
 """Step 2's dispatch: each event type to the handler that applies it to the facts. Every type
@@ -1432,6 +1439,7 @@ _CLIENT_EVENTS = (
     ResetRequest,
     ProofTestRequest,
     Commissioned,
+    StopTested,
 )
 """Inputs from the client socket: the records they cause are charged to their user (SR-8.5)."""
 _LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)

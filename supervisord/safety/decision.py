@@ -46,6 +46,7 @@ class RecordNote(enum.Enum):
     COMMISSIONED = "commissioned"  # key 85 was written to the VSC (SR-5): permanent, so recorded
     HELLO_REFUSED = "hello_refused"  # a hello as a client bound to another user (SR-8)
     PROOFTEST = "prooftest"  # a proof test of the VSC's watchdog finished (SR-5.3)
+    STOPTEST = "stoptest"  # a field stop test finished (SR-12.1)
 
 
 @dataclass(frozen=True, slots=True)

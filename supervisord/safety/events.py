@@ -15,6 +15,7 @@ from typing import TypeGuard, get_args
 
 from supervisord import release
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
+from supervisord.safety.stoptest import StopTestResult
 
 
 def _check_int(name: str, value: object) -> None:
@@ -214,6 +215,16 @@ class ProofTestRequest(_Event):
     caller: Caller
 
 
+@dataclass(frozen=True, slots=True)
+class StopTested(_Event):
+    """``srcsctl stoptest`` finished (SR-12.1; docs/srcsctl.md "The field stop test"): the
+    daemon's measurement of each press and each output, judged. Admins only; recorded as a
+    ``stoptest`` record, the evidence of the periodic test (SR-12.2)."""
+
+    caller: Caller
+    result: StopTestResult
+
+
 Event = (
     Tick
     | VscReceived
@@ -236,6 +247,7 @@ Event = (
     | DisplayUpdate
     | Commissioned
     | ProofTestRequest
+    | StopTested
 )
 
 EVENT_TYPES: tuple[type, ...] = get_args(Event)

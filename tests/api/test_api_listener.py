@@ -13,6 +13,8 @@ from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
 from supervisord.api.status import LoopStatus
 from supervisord.daemon.api_listener import ApiListener
+from supervisord.daemon.loop import Snapshot
+from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -34,6 +36,8 @@ class Judged(Loop):
         self.listener.decided(self.core.decision)
         self.decisions: list[Decision] = []
         self.events: list[Event] = []
+        # What the loop hands the listener: a fixed status, no stops measured.
+        self.loop = Snapshot(self.snapshot, StopTimes())
 
     def feed(self, event: Event) -> Decision:
         self.events.append(event)
@@ -51,11 +55,11 @@ class Judged(Loop):
         for key, mask in self.selector.select(timeout):
             readable, writable = bool(mask & READ), bool(mask & WRITE)
             self.listener.handle(
-                key.fd, readable, writable, self.clock(), self.feed, snapshot=self.snapshot
+                key.fd, readable, writable, self.clock(), self.feed, snapshot=self.loop
             )
         if (due := self.listener.next_deadline()) is not None and self.clock() >= due:
-            self.listener.due(self.clock(), self.feed, snapshot=self.snapshot)
-        self.listener.settle(self.clock(), self.feed, snapshot=self.snapshot)
+            self.listener.due(self.clock(), self.feed, snapshot=self.loop)
+        self.listener.settle(self.clock(), self.feed, snapshot=self.loop)
         return []
 
     def refusals(self) -> list[str]:

@@ -34,8 +34,23 @@ from supervisord.api.pushes import (
     StatePush,
     read_push,
 )
-from supervisord.api.records import Caller, Change, Rearm, StopRecord
-from supervisord.api.replies import CommissionReply, OkReply, Reply, StatusReply, read_reply
+from supervisord.api.records import (
+    Caller,
+    Change,
+    OutputOffReport,
+    Rearm,
+    StopRecord,
+    StopStepReport,
+    StopTestReport,
+)
+from supervisord.api.replies import (
+    CommissionReply,
+    OkReply,
+    Reply,
+    StatusReply,
+    StopTestReply,
+    read_reply,
+)
 from supervisord.api.status import (
     SINK_COUNTERS,
     Cause,
@@ -45,6 +60,8 @@ from supervisord.api.status import (
     HistogramStatus,
     LinkStatus,
     LoopStatus,
+    Maintenance,
+    PeriodicDue,
     ProofTestResult,
     ProofTestStatus,
     RemoteReport,
@@ -110,6 +127,9 @@ HISTOGRAMS = kw(
     sum=FLOATS,
     count=COUNTS,
 )
+DUES = kw(
+    PeriodicDue, interval_days=st.integers(0, 3650), last_pass_age_s=SECONDS, overdue=st.booleans()
+)
 LOOPS = kw(
     LoopStatus,
     pid=COUNTS,
@@ -135,6 +155,12 @@ LOOPS = kw(
     rate_limited=COUNTS,
     internal_faults=COUNTS,
     histograms=st.dictionaries(NAMES, HISTOGRAMS, max_size=3),
+    maintenance=st.none()
+    | kw(
+        Maintenance,
+        stoptest=st.none() | DUES,
+        prooftest=st.none() | DUES,
+    ),
 )
 REMOTES = kw(
     RemoteReport,
@@ -168,6 +194,33 @@ DAEMONS = kw(
 )
 OPS = st.sampled_from(["hello", "heartbeat", "estop", "hold", "release", "subscribe",
                        "display", "vibrate", "reset", "prooftest", "a_newer_op"])  # fmt: skip
+STOPTESTS = kw(
+    StopTestReport,
+    result=st.sampled_from(["passed", "failed"]),
+    limit_ms=COUNTS,
+    steps=st.lists(
+        kw(
+            StopStepReport,
+            source=st.sampled_from(["remote", "wired"]),
+            seq=COUNTS,
+            stop_ns=INTS,
+            passed=st.booleans(),
+            outputs=st.lists(
+                kw(
+                    OutputOffReport,
+                    name=NAMES,
+                    off_ns=st.none() | INTS,
+                    off_ms=st.none() | FLOATS,
+                    off_delay_ms=COUNTS,
+                    passed=st.booleans(),
+                ),
+                max_size=3,
+            ).map(tuple),
+        ),
+        max_size=2,
+    ).map(tuple),
+    text=TEXT,
+)
 REPLIES: st.SearchStrategy[Reply] = st.one_of(
     kw(OkReply, op=OPS, id=IDS),
     kw(
@@ -181,6 +234,7 @@ REPLIES: st.SearchStrategy[Reply] = st.one_of(
         daemon=DAEMONS,
     ),
     kw(CommissionReply, id=IDS, key85=st.none() | st.integers(0, 255), remote_status=st.booleans()),
+    kw(StopTestReply, id=IDS, stoptest=STOPTESTS),
 )
 CALLERS = kw(Caller, uid=COUNTS, pid=COUNTS, name=TEXT, admin=st.booleans())
 RECORDS = kw(
@@ -188,7 +242,7 @@ RECORDS = kw(
     seq=COUNTS,
     mono_ns=INTS,
     utc=TEXT,
-    kind=st.none() | st.sampled_from(["state_change", "cause_raised", "prooftest"]),
+    kind=st.none() | st.sampled_from(["state_change", "cause_raised", "prooftest", "stoptest"]),
     from_state=st.sampled_from(["STOPPED", "HOLD", "RUN"]),
     to_state=st.sampled_from(["STOPPED", "HOLD", "RUN"]),
     causes=st.lists(CAUSES, max_size=3).map(tuple),
@@ -203,6 +257,7 @@ RECORDS = kw(
     ),
     reason=st.none() | TEXT,
     prooftest=st.none() | PROOF_RESULTS,
+    stoptest=st.none() | STOPTESTS,
     rearm=st.none() | kw(Rearm, kind=NAMES, caller=st.none() | CALLERS),
     version=st.none() | TEXT,
 )

@@ -27,6 +27,7 @@ from supervisord.api.requests import (
     Side,
     StartProofTest,
     Status,
+    StopTest,
     Subscribe,
     Topic,
     Vibrate,
@@ -105,6 +106,7 @@ EVERY_REQUEST: tuple[ApiRequest, ...] = (
     Reset(),
     Commission(),
     StartProofTest(),
+    StopTest((("remote", 41), ("wired", 44))),
 )
 
 

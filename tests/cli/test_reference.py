@@ -327,11 +327,11 @@ def _read_until(fd: int, token: bytes, deadline: float) -> bytes:
 
 
 @pytest.mark.skipif(not BASH_COMPLETION.exists(), reason="needs Debian's bash-completion")
-def test_an_interactive_bash_completes_srcsctl_st_to_status(
+def test_an_interactive_bash_completes_srcsctl_sta_to_status(
     tmp_path: Path, completion_dir: Path
 ) -> None:
     """An interactive bash on a terminal with bash-completion loaded, the files installed in
-    a completions directory under their command's name: typing ``srcsctl st`` and TAB
+    a completions directory under their command's name: typing ``srcsctl sta`` and TAB
     gives ``srcsctl status``, bash-completion finding the file by that name."""
     installed = tmp_path / "bash-completion" / "completions"
     installed.mkdir(parents=True)
@@ -363,7 +363,7 @@ def test_an_interactive_bash_completes_srcsctl_st_to_status(
         # The prompt may come in the same read as LOADED: wait only if it has not.
         if b"$ " not in loaded.split(b"LOADED", 1)[1]:
             _read_until(controller, b"$ ", deadline)
-        os.write(controller, b"srcsctl st\t")
+        os.write(controller, b"srcsctl sta\t")
         screen = _read_until(controller, b"srcsctl status", deadline)
         assert b"srcsctl status" in screen, screen
     finally:

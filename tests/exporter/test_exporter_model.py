@@ -314,3 +314,41 @@ def test_counter_families_are_typed_as_counters() -> None:
     assert kinds["srcs_stops"] is Kind.COUNTER
     assert kinds["srcs_messages"] is Kind.COUNTER
     assert kinds["srcs_state"] is Kind.GAUGE
+
+
+def test_the_periodic_tests_are_an_age_and_an_overdue_gauge() -> None:
+    """SR-12.2: each periodic test of ``status``'s ``daemon.maintenance`` is two gauges,
+    labelled with the test: the last pass's age in seconds (absent when it never passed)
+    and 1 while overdue; a test the reply does not name or an unknown test gives no sample,
+    a wrong type is refused by the client's reader (the model never sees it), and nothing
+    stays once the connection ends."""
+    age = ("srcs_test_last_pass_age_seconds", (("test", "stoptest"),))
+    overdue = ("srcs_test_overdue", (("test", "stoptest"),))
+    proof_overdue = ("srcs_test_overdue", (("test", "prooftest"),))
+    model = connected()
+    assert overdue not in values(model)
+    schedule = {
+        "stoptest": {"interval_days": 30, "last_pass_age_s": 86_400.5, "overdue": False},
+        "prooftest": {"interval_days": 30, "last_pass_age_s": None, "overdue": True},
+        "novel": {"interval_days": 1, "last_pass_age_s": 1.0, "overdue": True},
+    }
+    model.status(status_reply({**STATUS, "daemon": {**STATUS["daemon"], "maintenance": schedule}}))
+    v = values(model)
+    assert v[age] == 86_400.5
+    assert v[overdue] == 0
+    assert v[proof_overdue] == 1
+    assert ("srcs_test_last_pass_age_seconds", (("test", "prooftest"),)) not in v
+    assert not [k for k in v if ("test", "novel") in k[1]]
+    only_proof = {"prooftest": schedule["prooftest"]}
+    model.status(
+        status_reply({**STATUS, "daemon": {**STATUS["daemon"], "maintenance": only_proof}})
+    )
+    assert age not in values(model)
+    assert overdue not in values(model)
+    assert values(model)[proof_overdue] == 1
+    broken = {"stoptest": {"interval_days": 30, "last_pass_age_s": "a day", "overdue": "yes"}}
+    with pytest.raises(WireError):
+        status_reply({**STATUS, "daemon": {**STATUS["daemon"], "maintenance": broken}})
+    model.status(status_reply({**STATUS, "daemon": {**STATUS["daemon"], "maintenance": schedule}}))
+    model.disconnected()
+    assert overdue not in values(model)

@@ -121,6 +121,19 @@ def test_the_loops_timing_histograms_reach_prometheus(private_network: None, sta
     prom.wait_value('srcs_state{state="RUN"}', 1)
 
 
+def test_the_periodic_tests_reach_prometheus(private_network: None, stack: Stack) -> None:
+    """SR-12.2: a fresh robot whose proof test passed at start and whose field stop test
+    never ran: Prometheus sees the proof test's last pass a few seconds old and not overdue,
+    the stop test overdue with no age at all (never passed), each labelled with its test."""
+    prom = stack.prometheus
+    prom.wait_value('srcs_test_overdue{test="stoptest"}', 1)
+    assert prom.value('srcs_test_overdue{test="prooftest"}') == 0
+    age = prom.value('srcs_test_last_pass_age_seconds{test="prooftest"}')
+    assert age is not None
+    assert 0 <= age < 600, age  # passed at this module's start
+    assert prom.value('count(srcs_test_last_pass_age_seconds{test="stoptest"}) or vector(0)') == 0
+
+
 def test_srcsd_gone_is_srcs_up_zero_and_no_state(private_network: None, stack: Stack) -> None:
     """Killing srcsd: the exporter still answers (up 1), srcs_up is 0, no state series is
     left, and the SrcsSupervisorDown alert is pending; a new srcsd is followed again, with

@@ -43,6 +43,14 @@ def _proof_records(robot: Robot) -> list[dict[str, Any]]:
     return [r for r in robot.records() if r.get("kind") == "prooftest"]
 
 
+def _written(robot: Robot, count: int) -> list[dict[str, Any]]:
+    """The proof-test records once ``count`` are in the file: ``status`` shows an outcome as
+    soon as the loop decided it, and the record reaches the file afterwards, on the record's
+    own writer (SR-7.5)."""
+    wait_until(lambda: len(_proof_records(robot)) >= count, what=f"{count} proof-test records")
+    return _proof_records(robot)
+
+
 def _robot(tmp_path: Path) -> Robot:
     return Robot(tmp_path, extra_vsc=f"prooftest_clear_ms = {CLEAR_MS}")
 
@@ -58,7 +66,7 @@ def test_a_healthy_vsc_passes_at_start_and_the_robot_then_runs(tmp_path: Path) -
         assert last.trip_ms is not None
         assert 450 <= last.trip_ms <= 700, last
         assert last.cleared == "by_itself", last
-        records = _proof_records(robot)
+        records = _written(robot, 1)
         assert [r["prooftest"]["result"] for r in records] == ["passed"], records
         robot.arm()
         assert robot.status().report.state == "RUN"
@@ -95,7 +103,7 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
         cause = next(c for c in robot.status().report.causes if c.name == UNTESTED)
         assert cause.active, cause
         assert "failed" in cause.details["observed"], cause
-        assert [r["prooftest"]["result"] for r in _proof_records(robot)] == ["failed"]
+        assert [r["prooftest"]["result"] for r in _written(robot, 1)] == ["failed"]
         if failure != "not_cleared":
             robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
             time.sleep(0.5)
@@ -192,7 +200,7 @@ def _srcsctl_scenario(robot: Robot) -> None:
         done = _srcsctl(robot, admin=True)
         assert done.returncode == 0, done
         assert "passed" in done.stdout, done
-        assert len(_proof_records(robot)) == 2
+        assert len(_written(robot, 2)) == 2
         robot.arm()
         in_run = _srcsctl(robot, admin=True)
         assert in_run.returncode == 1, in_run

@@ -28,11 +28,32 @@ from supervisord.record.format import TRIGGER_EVENTS
 from supervisord.safety.config import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
 from supervisord.safety.events import EVENT_TYPES, Caller, Event, Request, Tick, _Event
 from supervisord.safety.prooftest import ProofTestPolicy
+from supervisord.safety.stoptest import OutputOff, Source, StopStep, StopTestResult
 from tests.protocol.strategies import i32, messages, text, u8
 
 words = st.one_of(st.text(), st.sampled_from(["", "EIO", "nav", "\udcff-not-utf8", "a\nb"]))
 callers = st.builds(Caller, st.integers(0, 2**32), st.integers(0, 2**22), words, st.booleans())
 display = st.one_of(st.builds(FeedbackSet, u8, i32), st.builds(FeedbackName, u8, text(20)))
+
+stoptest_results = st.builds(
+    StopTestResult,
+    st.lists(
+        st.builds(
+            StopStep,
+            st.sampled_from(Source),
+            st.integers(1, 2**62),
+            st.integers(0, 2**62),
+            st.lists(
+                st.builds(
+                    OutputOff, words, st.none() | st.integers(-(2**40), 2**40), st.integers(0, 5000)
+                ),
+                max_size=4,
+            ).map(tuple),
+        ),
+        max_size=2,
+    ).map(tuple),
+    st.integers(1, 10_000),
+)
 
 KINDS = (
     flight_codec.INT,
@@ -45,6 +66,7 @@ KINDS = (
     flight_codec.MESSAGE,
     flight_codec.DISPLAY,
     flight_codec.REQUEST,
+    flight_codec.STOPTEST,
 )
 VALUES: dict[str, st.SearchStrategy[Any]] = {
     "connection": st.integers(-(2**40), 2**40),
@@ -59,6 +81,7 @@ VALUES: dict[str, st.SearchStrategy[Any]] = {
     "key85": st.integers(-(2**31), 2**31),
     "remote_status": st.booleans(),
     "nonzero": st.booleans(),
+    "result": stoptest_results,
 }
 """Values for each field of the events, by its name, from what the field holds (its type in
 the code), not from the encoding's kind: a field given the wrong kind fails to round-trip."""

@@ -50,6 +50,7 @@ TRIGGERS = {
     "display_update": ("message",),
     "commissioned": ("caller", "key85", "remote_status"),
     "proof_test_request": ("caller",),
+    "stop_tested": ("caller", "result"),
 }
 """Every trigger's ``event`` name and its fields, as records written so far carry them."""
 

@@ -43,6 +43,7 @@ def test_message_ids_are_fixed_and_distinct() -> None:
         RecordKind.COMMISSIONED: "bdd0782d2f2b45a3bdc4e9984db1024d",
         RecordKind.PROOFTEST: "af4347b3c6a741d6a06ce07e58cea85a",
         RecordKind.HELLO_REFUSED: "31b39d5239c64c748a02ea76dd76a97f",
+        RecordKind.STOPTEST: "55afb9fa858e45458a44937c4062ca84",
     }
 
 

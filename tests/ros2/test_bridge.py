@@ -188,6 +188,36 @@ def test_ready_says_when_the_stop_path_works(
     ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true after the restart")
 
 
+def test_an_overdue_stop_test_is_a_warning_in_the_diagnostics(
+    robot: tuple[Robot, BridgeProcess], ros: RosPeer
+) -> None:
+    """SR-12.2: a robot whose field stop test never passed: the supervisor diagnostic says the
+    stop test is overdue (its age ``never``), the proof test that passed at start is not,
+    and in RUN the status is a WARN that names it; the robot keeps running."""
+    running, _ = robot
+    _arm(running, ros)
+
+    seen: dict[str, str] = {}
+
+    def warned() -> bool:
+        seen.clear()
+        seen.update(ros.supervisor() or {})
+        # The daemon's block comes with each status reply (once a second), the state with
+        # each push: wait for a diagnostic whose reply came after the proof test passed.
+        return (
+            seen.get("state") == "RUN"
+            and seen.get("stop test overdue") == "true"
+            and seen.get("proof test overdue") == "false"
+        )
+
+    ros.spin_until(warned, what="RUN with the stop test overdue in the diagnostics")
+    assert seen["stop test last pass age s"] == "never"
+    assert float(seen["proof test last pass age s"]) >= 0
+    assert seen["level"] == "1", seen  # WARN
+    assert seen["message"].endswith("; overdue: stop test"), seen
+    assert running.status().report.state == "RUN"
+
+
 def test_estop_available_says_when_the_remote_estop_works(
     robot: tuple[Robot, BridgeProcess], ros: RosPeer
 ) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from supervisord.api.messages import RemoteStatusReport
-from supervisord.api.status import Cause, DaemonStatus, StateReport
+from supervisord.api.status import Cause, DaemonStatus, Maintenance, PeriodicDue, StateReport
 from supervisord.ros2.diagnostics import GateCounts, Level, remote_status, supervisor_status
 from tests.api.samples import LOOP
 
@@ -129,3 +129,42 @@ def test_remote_status_levels() -> None:
     assert remote_status(low, "r").level is Level.WARN
     no_link = dataclasses.replace(good, connection_strength_src=0)
     assert remote_status(no_link, "r").level is Level.WARN
+
+
+def test_an_overdue_periodic_test_is_a_warning_in_run() -> None:
+    """SR-12.2: each periodic test of the daemon's ``maintenance`` is two keys (the last
+    pass's age in seconds, or ``never``, and ``overdue``); an overdue one makes RUN a WARN and
+    is named in the message; STOPPED stays ERROR; none overdue, or a daemon that says nothing
+    of its tests, changes nothing."""
+    never = PeriodicDue(interval_days=30, last_pass_age_s=None, overdue=True)
+    schedule = Maintenance(
+        stoptest=never,
+        prooftest=PeriodicDue(interval_days=30, last_pass_age_s=12.5, overdue=False),
+    )
+    run = _state("RUN")
+
+    def diagnosed(status: StateReport, maintenance: Maintenance | None) -> dict[str, str]:
+        loop = dataclasses.replace(DAEMON.loop, maintenance=maintenance)
+        found = supervisor_status(
+            status,
+            dataclasses.replace(DAEMON, loop=loop),
+            socket="/run/srcsd/api.sock",
+            client_name="ros",
+            gate=GateCounts(),
+        )
+        return {"level": str(int(found.level)), "message": found.message, **dict(found.values)}
+
+    late = diagnosed(run, schedule)
+    assert late["level"] == str(int(Level.WARN))
+    assert late["message"] == "RUN; overdue: stop test"
+    assert late["stop test last pass age s"] == "never"
+    assert late["stop test overdue"] == "true"
+    assert late["proof test last pass age s"] == "12.5"
+    assert late["proof test overdue"] == "false"
+    assert diagnosed(STATUS, schedule)["level"] == str(int(Level.ERROR))
+    passed = dataclasses.replace(never, last_pass_age_s=60.0, overdue=False)
+    fine = diagnosed(run, dataclasses.replace(schedule, stoptest=passed))
+    assert (fine["level"], fine["message"]) == ("0", "RUN")
+    older = diagnosed(run, None)
+    assert (older["level"], older["message"]) == ("0", "RUN")
+    assert "stop test overdue" not in older

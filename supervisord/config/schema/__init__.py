@@ -25,6 +25,7 @@ from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
 from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, MIN_REMOTE_BATTERY_RANGE
+from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.config import (
@@ -420,6 +421,30 @@ API: Final = (
 )
 
 
+MAINTENANCE: Final = (
+    strict.Whole(
+        name="stoptest_interval_days",
+        doc="Days after the last passed field stop test (srcsctl stoptest) when it is overdue: "
+        "a warning in status, the exporter and the ROS 2 bridge, never a stop (SR-12.2). "
+        "0: no schedule.",
+        default=DEFAULT_INTERVAL_DAYS,
+        example=DEFAULT_INTERVAL_DAYS,
+        low=INTERVAL_RANGE_DAYS[0],
+        high=INTERVAL_RANGE_DAYS[1],
+    ),
+    strict.Whole(
+        name="prooftest_interval_days",
+        doc="Days after the last passed proof test of the VSC's watchdog when it is overdue "
+        "(it runs at every start and reconnect, and on srcsctl prooftest); a warning as "
+        "above. 0: no schedule.",
+        default=DEFAULT_INTERVAL_DAYS,
+        example=DEFAULT_INTERVAL_DAYS,
+        low=INTERVAL_RANGE_DAYS[0],
+        high=INTERVAL_RANGE_DAYS[1],
+    ),
+)
+
+
 @dataclasses.dataclass(frozen=True)
 class Section:
     """A top-level section: its ``name``, ``doc`` and ``keys``; ``many``: an array of tables
@@ -461,6 +486,11 @@ SECTIONS: Final = (
     ),
     Section("record", "The record of stops (docs/record.md).", RECORD),
     Section("api", "The Unix socket the robot's software and srcsctl use.", API),
+    Section(
+        "maintenance",
+        "When the periodic tests are overdue (SR-12.2, docs/safety-manual.md).",
+        MAINTENANCE,
+    ),
 )
 SECTION: Final = {section.name: section for section in SECTIONS}
 
