@@ -127,8 +127,6 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
         backoff=Backoff(20, 100),
         listener=listener,
     )
-    if listener is not None:
-        listener.daemon_info = supervisor.info
     if args.fsync_delay_ms:
         slow_disk(args.fsync_delay_ms / 1000, supervisor)
     if not args.api_socket:

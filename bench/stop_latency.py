@@ -182,7 +182,7 @@ def run(
                 notes.append(note)
         if api_socket is not None:
             with SupervisorClient.connect(api_socket) as client:
-                daemon = client.status()["daemon"]
+                daemon = client.status().json()["daemon"]
             alive = "still connected" if flood.poll() is None else f"ended ({flood.poll()})"
             note = (
                 f"flood: {alive}; {daemon['rate_limited']} requests refused by the record "

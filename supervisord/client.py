@@ -8,10 +8,13 @@ robot program names itself and sends a heartbeat every 100 ms::
             srcs.heartbeat()
             time.sleep(0.1)
 
-Every method sends one request and waits for its reply. A refused request raises
-:class:`~supervisord.api.framing.ApiError` with the server's stable ``code``; pushes that arrive
-meanwhile are kept for :meth:`SupervisorClient.next_event`. Every exception raised on purpose
-is a :class:`~supervisord.errors.SrcsError`. Not thread-safe: one client per thread.
+Every method sends one request and waits for its reply, which it returns as the typed value
+of :mod:`supervisord.api.replies` (``status`` a :class:`~supervisord.api.replies.StatusReply`).
+A refused request raises :class:`~supervisord.api.framing.ApiError` with the server's stable
+``code``; pushes that arrive meanwhile are kept for :meth:`SupervisorClient.next_event`, as
+the typed values of :mod:`supervisord.api.pushes`. Replies and pushes are read tolerantly:
+fields this library does not know (a newer daemon's) are ignored. Every exception raised on
+purpose is a :class:`~supervisord.errors.SrcsError`. Not thread-safe: one client per thread.
 
 It imports only the standard library and a small, named set of this package's modules, none
 of the daemon's dependencies, so that it also runs on a ROS installation's own Python inside
@@ -25,9 +28,8 @@ import json
 import socket
 import struct
 import time
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, TypeVar
 
 # The library's too (as its example above uses it): the alias is the explicit re-export.
 from supervisord.api.framing import DEFAULT_SOCKET_PATH as DEFAULT_SOCKET_PATH  # noqa: PLC0414
@@ -48,17 +50,30 @@ from supervisord.api.ops import (
     Reset,
     Side,
     Status,
+    StopTest,
     Subscribe,
     Topic,
     Vibrate,
     request_json,
 )
+from supervisord.api.pushes import Push, read_push
+from supervisord.api.replies import (
+    CommissionReply,
+    OkReply,
+    Reply,
+    StatusReply,
+    StopTestReply,
+    read_reply,
+)
+from supervisord.api.wire import WireError
 from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
 from supervisord.release import Request
 
 if TYPE_CHECKING:
     from typing_extensions import Self
+
+R = TypeVar("R", StatusReply, CommissionReply, StopTestReply)
 
 DEFAULT_TIMEOUT: Final = 5.0
 MAX_REPLY_LINE: Final = 1 << 20
@@ -89,12 +104,22 @@ class ProtocolError(ClientError):
     """The supervisor sent something this client cannot read."""
 
 
-@dataclass(frozen=True, slots=True)
-class Push:
-    """One push of a subscribed topic: ``event`` (e.g. ``"state"``) and the whole object."""
-
-    event: str
-    data: dict[str, Any]
+__all__ = [
+    "DEFAULT_SOCKET_PATH",
+    "ApiError",
+    "ClientError",
+    "ClientTimeoutError",
+    "CommissionReply",
+    "ConnectError",
+    "ConnectionClosedError",
+    "OkReply",
+    "ProtocolError",
+    "Push",
+    "Reply",
+    "StatusReply",
+    "StopTestReply",
+    "SupervisorClient",
+]
 
 
 class SupervisorClient:
@@ -154,9 +179,10 @@ class SupervisorClient:
         client's is, no re-arm. After hello; kept until the next call or the connection's end."""
         self.call(Command(nonzero))
 
-    def status(self) -> dict[str, Any]:
-        """The state, causes and outputs (``docs/api.md`` "status")."""
-        return self.call(Status())
+    def status(self) -> StatusReply:
+        """The state, causes and outputs, and the daemon's own view (``docs/api.md``
+        "status")."""
+        return _expect(self.call(Status()), StatusReply)
 
     def subscribe(self, *topics: str) -> None:
         """Receive pushes of these topics (replacing earlier ones); none: unsubscribe."""
@@ -182,27 +208,33 @@ class SupervisorClient:
         """Vibrate the ``"left"``, ``"right"`` or ``"both"`` handles of the remote."""
         self.call(Vibrate(Side(side)))
 
-    def reset(self) -> dict[str, Any]:
+    def reset(self) -> None:
         """A local re-arm (SR-4); root or the admin group only."""
-        return self.call(Reset())
+        self.call(Reset())
 
-    def commission(self) -> dict[str, Any]:
+    def commission(self) -> CommissionReply:
         """Turn the VSC's key-85 watchdog on and enable remote-status messages, permanently.
         Root or the admin group only; the reply carries what was read back."""
-        return self.call(Commission())
+        return _expect(self.call(Commission()), CommissionReply)
 
-    def call(self, request: ApiRequest) -> dict[str, Any]:
+    def stoptest(self, steps: tuple[tuple[str, int], ...]) -> StopTestReply:
+        """Judge and record a field stop test's presses (SR-12.1): each its source
+        (``remote``, ``wired``) and the ``seq`` of the stop record it made. Admins only."""
+        return _expect(self.call(StopTest(steps)), StopTestReply)
+
+    def call(self, request: ApiRequest) -> Reply:
         """Send any request and return its success reply (raises ``ApiError`` on an error)."""
         self._send(request_json(request))
         deadline = time.monotonic() + self.timeout
         while True:
             obj = self._read_object(deadline)
             if "event" in obj:
-                self._events.append(Push(str(obj["event"]), obj))
+                self._events.append(_push(obj))
                 continue
-            if obj.get("ok") is True:
-                return obj
-            raise _error(obj)
+            reply = _reply(obj)
+            if isinstance(reply, ApiError):
+                raise reply
+            return reply
 
     def next_event(self, timeout: float | None = None) -> Push | None:
         """The next push, waiting up to ``timeout`` seconds (default: the client's timeout);
@@ -216,9 +248,10 @@ class SupervisorClient:
             except ClientTimeoutError:
                 return None
             if "event" in obj:
-                return Push(str(obj["event"]), obj)
-            if obj.get("ok") is False:  # e.g. too_many_clients, sent before closing
-                raise _error(obj)
+                return _push(obj)
+            reply = _reply(obj)
+            if isinstance(reply, ApiError):  # e.g. too_many_clients, sent before closing
+                raise reply
             raise ProtocolError(f"a reply without a request: {obj!r}"[:200])
 
     # -- lifetime -------------------------------------------------------------------------
@@ -265,11 +298,11 @@ class SupervisorClient:
             pass
         for line in bytes(self._buffer).split(b"\n"):
             try:
-                obj = _decode(line)
+                reply = _reply(_decode(line))
             except ProtocolError:
                 continue
-            if obj.get("ok") is False:
-                return _error(obj)
+            if isinstance(reply, ApiError):
+                return reply
         return None
 
     def _read_object(self, deadline: float, *, closing: bool = True) -> dict[str, Any]:
@@ -340,14 +373,29 @@ def _connect(path: Path, timeout: float) -> socket.socket:
             raise ConnectError(f"cannot connect to {path}: {e.strerror or e}") from e
 
 
-def _error(obj: dict[str, Any]) -> ApiError:
-    return ApiError(
-        str(obj.get("code", "unknown")),
-        str(obj.get("error", "")),
-        op=obj.get("op"),
-        request_id=obj.get("id"),
-        extra={k: v for k, v in obj.items() if k not in ("ok", "code", "error", "op", "id")},
-    )
+def _reply(obj: dict[str, Any]) -> Reply | ApiError:
+    try:
+        return read_reply(obj)
+    except WireError as e:
+        raise ProtocolError(
+            f"a reply from the supervisor that docs/api.md does not allow: {e}"
+        ) from e
+
+
+def _push(obj: dict[str, Any]) -> Push:
+    try:
+        return read_push(obj)
+    except WireError as e:
+        raise ProtocolError(
+            f"a push from the supervisor that docs/api.md does not allow: {e}"
+        ) from e
+
+
+def _expect(reply: Reply, kind: type[R]) -> R:
+    """The reply as the type its request gets (a reply of another op is out of step)."""
+    if not isinstance(reply, kind):
+        raise ProtocolError(f"a {reply.json().get('op')!r} reply where {kind.__name__} belongs")
+    return reply
 
 
 def _decode(line: bytes) -> dict[str, Any]:

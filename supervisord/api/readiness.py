@@ -12,7 +12,9 @@ publishes it on ``ready`` (docs/srcsctl.md "Starting behind the supervisor").
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Final
+from typing import Final
+
+from supervisord.api.replies import StatusReply
 
 BLOCKING_CAUSES: Final[Mapping[str, str]] = {
     "vsc_link_lost": "the VSC is not heard",
@@ -24,21 +26,20 @@ BLOCKING_CAUSES: Final[Mapping[str, str]] = {
 """Active causes that mean the stop path does not work, and how each is said."""
 
 
-def missing(status: Mapping[str, Any]) -> list[str]:
+def missing(status: StatusReply) -> list[str]:
     """What keeps the supervisor whose ``status`` reply this is from being ready, in words;
     empty when it is ready."""
     gaps: list[str] = []
-    link = status.get("daemon", {}).get("link", {})
-    if not link.get("open"):
-        gaps.append(f"the link to the VSC is not open ({link.get('description', 'no link')})")
+    link = status.daemon.loop.link
+    if not link.open:
+        gaps.append(f"the link to the VSC is not open ({link.description})")
     # A cause is named KIND or KIND:WHICH (``output_fault:drive``, docs/safety.md).
-    causes = status.get("causes", [])
-    active = {str(cause.get("name")).split(":")[0] for cause in causes if cause.get("active")}
+    active = {name.split(":")[0] for name in status.report.active()}
     gaps += [text for name, text in BLOCKING_CAUSES.items() if name in active]
-    proof = status.get("prooftest") or {}
-    if proof.get("policy", "off") != "off" and proof.get("phase") != "passed":
-        gaps.append(f"the proof test of the VSC's watchdog has not passed ({proof.get('phase')})")
-    not_held = status.get("daemon", {}).get("outputs_not_acquired", [])
+    proof = status.report.prooftest
+    if proof is not None and proof.policy != "off" and proof.phase != "passed":
+        gaps.append(f"the proof test of the VSC's watchdog has not passed ({proof.phase})")
+    not_held = status.daemon.loop.outputs_not_acquired
     if not_held:
         gaps.append(f"outputs not held by the supervisor: {', '.join(not_held)}")
     return gaps

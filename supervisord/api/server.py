@@ -46,7 +46,6 @@ import errno
 import os
 import socket
 import stat
-from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
@@ -62,6 +61,8 @@ from supervisord.api.framing import (
     encode,
 )
 from supervisord.api.names import NAME_WAIT_NS, UserNames
+from supervisord.api.pushes import Push
+from supervisord.api.replies import Reply
 from supervisord.api.requests import (
     ADMIN_REQUESTS,
     NAMED_REQUESTS,
@@ -441,33 +442,37 @@ class ApiServer:
 
     # -- the daemon's side ----------------------------------------------------------------
 
-    def reply(self, received: Received, **fields: object) -> None:
-        """Answer a request with success and ``fields``. Nothing happens if the connection is
-        gone. A ``hello`` answered ok names the connection: the daemon says ok only when the
-        safety core took the name."""
+    def reply(self, received: Received, reply: Reply | None = None) -> None:
+        """Answer a request with success: ``reply``, else the plain ok of its op. Nothing
+        happens if the connection is gone. A ``hello`` answered ok names the connection: the
+        daemon says ok only when the safety core took the name."""
         conn = self._connections.get(received.client.connection)
         if conn is None:
             return
         if isinstance(received.request, Hello):
             conn.info = replace(conn.info, name=received.request.name)
-        self._queue(conn, encode(ok_reply(received.request, **fields)))
+        answer = reply if reply is not None else ok_reply(received.request)
+        self._queue(conn, encode(answer.json()))
 
     def reply_error(self, received: Received, error: ApiError) -> None:
         """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
-        self.send(received.client.connection, error.reply())
+        self._send_line(received.client.connection, encode(error.reply()))
 
-    def send(self, connection: int, obj: Mapping[str, object]) -> None:
-        """Send one JSON object to one connection (if it is still there)."""
+    def send(self, connection: int, message: Reply | Push) -> None:
+        """Send one reply or push to one connection (if it is still there)."""
+        self._send_line(connection, encode(message.json()))
+
+    def _send_line(self, connection: int, line: bytes) -> None:
         conn = self._connections.get(connection)
         if conn is not None:
-            self._queue(conn, encode(obj))
+            self._queue(conn, line)
 
-    def broadcast(self, topic: Topic, obj: Mapping[str, object]) -> None:
-        """Push one JSON object to every connection subscribed to ``topic``."""
+    def broadcast(self, topic: Topic, push: Push) -> None:
+        """Send one push to every connection subscribed to ``topic``."""
         line: bytes | None = None
         for conn in list(self._connections.values()):
             if topic in conn.topics:
-                line = line if line is not None else encode(obj)
+                line = line if line is not None else encode(push.json())
                 self._queue(conn, line)
 
     def subscribed(self, topic: Topic) -> bool:

@@ -1,9 +1,10 @@
-"""What the client API's server sends (SR-8, ``docs/api.md``): replies and pushes; sans-IO.
+"""What the client API's server sends (SR-8, ``docs/api.md``): the daemon's values as the
+typed replies and pushes of :mod:`.replies`, :mod:`.pushes` and :mod:`.status`; sans-IO.
 
 Replies answer a request (:func:`ok_reply`, :func:`refusal_error`); pushes carry safety
 decisions, stop records and VSC messages to subscribers. The causes in ``status`` and ``state``
-are the stop record's own cause objects (:func:`supervisord.record.format.cause_json`), so a
-client reads both the same way.
+are the stop record's own cause objects (:func:`supervisord.record.format.cause_report`), so a
+client reads both the same way. The wire's JSON is each type's one encoder (``json``).
 
 Nothing here touches a socket or a clock.
 """
@@ -13,24 +14,47 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Final
 
-from supervisord.api.framing import ApiError, ErrorCode, JsonDict
+from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.messages import (
+    AxisReport,
+    ButtonsReport,
+    GpsFixReport,
+    GpsReport,
+    JoystickReport,
+    RemoteStatusReport,
+)
+from supervisord.api.pushes import (
+    GpsPush,
+    JoystickPush,
+    OtherPush,
+    RecordPush,
+    RemoteStatusPush,
+    StatePush,
+)
+from supervisord.api.records import StopRecord
+from supervisord.api.replies import OkReply
 from supervisord.api.requests import ApiRequest, Topic
+from supervisord.api.status import HistogramStatus, RemoteReport, StateReport
+from supervisord.api.wire import Fields, WireError
 from supervisord.histogram import Histogram
-from supervisord.protocol.jsonview import message_json
-from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
-from supervisord.record.format import cause_json
+from supervisord.protocol.messages import (
+    Axis,
+    DPad,
+    Gps,
+    Joystick,
+    Message,
+    NumberedButtons,
+    RemoteStatus,
+)
+from supervisord.record.format import cause_report, proof_status
 from supervisord.safety.decision import Decision, Refusal, RefusalReason
 
 # -- replies -------------------------------------------------------------------------------
 
 
-def ok_reply(request: ApiRequest, **fields: object) -> JsonDict:
-    """The success reply to ``request``, with extra ``fields``."""
-    reply: JsonDict = {"ok": True, "op": request.OP}
-    if request.id is not None:
-        reply["id"] = request.id
-    reply.update(fields)
-    return reply
+def ok_reply(request: ApiRequest) -> OkReply:
+    """The success reply to ``request`` that says nothing more."""
+    return OkReply(request.OP, request.id)
 
 
 _HELLO_CODES: Final[Mapping[RefusalReason, ErrorCode]] = {
@@ -60,47 +84,60 @@ def refusal_error(request: ApiRequest, refusal: Refusal) -> ApiError:
 # -- the state of the supervisor -----------------------------------------------------------
 
 
-def decision_json(decision: Decision) -> JsonDict:
+def state_report(decision: Decision) -> StateReport:
     """The state of the supervisor after one decision, for ``status`` and ``state`` pushes."""
-    return {
-        "state": decision.state.name,
-        "mono_ns": decision.now,
-        "causes": [cause_json(c) for c in decision.causes],
-        "outputs": dict(sorted(decision.outputs.items())),
-        "heartbeat_estop": decision.heartbeat_estop,
-        "prooftest": None if decision.prooftest is None else decision.prooftest.json(),
-    }
+    return StateReport(
+        state=decision.state.name,
+        mono_ns=decision.now,
+        causes=tuple(cause_report(c) for c in decision.causes),
+        outputs=dict(sorted(decision.outputs.items())),
+        heartbeat_estop=decision.heartbeat_estop,
+        prooftest=None if decision.prooftest is None else proof_status(decision.prooftest),
+    )
 
 
-def histograms_json(histograms: Mapping[str, Histogram]) -> JsonDict:
-    """The ``histograms`` of ``status``'s ``daemon`` object (docs/api.md, docs/fleet.md):
-    for each, the buckets' upper bounds in seconds (``le``), the cumulative count at each
-    (``counts``; the ``+Inf`` bucket is ``count``), the ``sum`` in seconds and the ``count``,
-    all since the daemon started."""
-    out: JsonDict = {}
-    for name, histogram in histograms.items():
-        snapshot = histogram.snapshot()
-        out[name] = {
-            "le": list(snapshot.le),
-            "counts": list(snapshot.counts),
-            "sum": round(snapshot.sum, 9),
-            "count": snapshot.count,
-        }
-    return out
+def histogram_status(histogram: Histogram) -> HistogramStatus:
+    """One of ``status``'s ``histograms`` (docs/api.md, docs/fleet.md): the buckets' upper
+    bounds in seconds (``le``), the cumulative count at each (``counts``; the ``+Inf`` bucket
+    is ``count``), the ``sum`` in seconds and the ``count``, all since the daemon started."""
+    snapshot = histogram.snapshot()
+    return HistogramStatus(
+        le=tuple(snapshot.le),
+        counts=tuple(snapshot.counts),
+        sum=round(snapshot.sum, 9),
+        count=snapshot.count,
+    )
+
+
+def remote_report(message: RemoteStatus, age_s: float | None) -> RemoteReport:
+    """``status``'s ``daemon.remote``: the last remote status and its age."""
+    return RemoteReport(
+        battery_level=message.battery_level,
+        battery_charging=message.battery_charging,
+        connection_strength_vsc=message.connection_strength_vsc,
+        connection_strength_src=message.connection_strength_src,
+        rssi_vsc=message.rssi_vsc,
+        rssi_src=message.rssi_src,
+        age_s=age_s,
+    )
 
 
 # -- pushes --------------------------------------------------------------------------------
 
 
-def state_push(decision: Decision) -> JsonDict:
+def state_push(decision: Decision) -> StatePush:
     """The ``state`` push for a decision."""
-    return {"event": Topic.STATE.event, **decision_json(decision)}
+    return StatePush(state_report(decision))
 
 
-def record_push(record: Mapping[str, object]) -> JsonDict:
+def record_push(record: Mapping[str, object]) -> RecordPush | OtherPush:
     """The ``record`` push for a record as written to the store
-    (:func:`supervisord.record.format.record_json`)."""
-    return {"event": Topic.RECORDS.event, **record}
+    (:func:`supervisord.record.format.record_json`, the encoder of the same typed record, so
+    it always reads back). Were it ever not to, it goes out as it is: a push is never lost."""
+    try:
+        return RecordPush(StopRecord.read(Fields(record, "record")))
+    except WireError:
+        return OtherPush(Topic.RECORDS.event, record)
 
 
 _MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {
@@ -115,8 +152,72 @@ def message_topic(message: Message) -> Topic | None:
     return _MESSAGE_TOPICS.get(type(message))
 
 
-def message_push(message: Joystick | Gps | RemoteStatus) -> JsonDict:
+def message_push(
+    message: Joystick | Gps | RemoteStatus,
+) -> JoystickPush | GpsPush | RemoteStatusPush:
     """The push for a joystick, GPS or remote-status message: its ``srcsctl decode`` JSON
     (``docs/protocol.md``) under ``event``."""
-    topic = _MESSAGE_TOPICS[type(message)]
-    return {"event": topic.event, **message_json(message)}
+    if isinstance(message, Joystick):
+        return JoystickPush(joystick_report(message))
+    if isinstance(message, Gps):
+        return GpsPush(gps_report(message))
+    return RemoteStatusPush(
+        RemoteStatusReport(
+            battery_level=message.battery_level,
+            battery_charging=message.battery_charging,
+            connection_strength_vsc=message.connection_strength_vsc,
+            connection_strength_src=message.connection_strength_src,
+            rssi_vsc=message.rssi_vsc,
+            rssi_src=message.rssi_src,
+        )
+    )
+
+
+def _axis(axis: Axis) -> AxisReport:
+    return AxisReport(
+        value=axis.value,
+        magnitude=axis.magnitude,
+        neutral_status=int(axis.neutral),
+        negative_status=int(axis.negative),
+        positive_status=int(axis.positive),
+    )
+
+
+def _buttons(buttons: DPad | NumberedButtons) -> ButtonsReport:
+    names = tuple(buttons.__dataclass_fields__)
+    return ButtonsReport(
+        byte=buttons.to_byte(),
+        statuses=tuple((name, int(getattr(buttons, name))) for name in names),
+        pressed=tuple(name for name in names if name in buttons.pressed),
+    )
+
+
+def joystick_report(message: Joystick) -> JoystickReport:
+    return JoystickReport(
+        left_x=_axis(message.left_x),
+        left_y=_axis(message.left_y),
+        left_z=_axis(message.left_z),
+        right_x=_axis(message.right_x),
+        right_y=_axis(message.right_y),
+        right_z=_axis(message.right_z),
+        left_buttons=_buttons(message.left_buttons),
+        right_buttons=_buttons(message.right_buttons),
+    )
+
+
+def gps_report(message: Gps) -> GpsReport:
+    fix = message.fix
+    return GpsReport(
+        source=message.source,
+        string=message.sentence,
+        fix=None
+        if fix is None
+        else GpsFixReport(
+            sentence_type=fix.sentence_type,
+            utc_time=fix.utc_time.isoformat() if fix.utc_time else None,
+            latitude=fix.latitude,
+            longitude=fix.longitude,
+            fix_quality=fix.fix_quality,
+            valid=fix.valid,
+        ),
+    )

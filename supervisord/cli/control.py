@@ -16,23 +16,25 @@ import sys
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Final, TextIO
+from typing import Final, TextIO
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.messages import RemoteStatusReport
+from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.requests import StartProofTest
+from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli.log import interruptible
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
-from supervisord.cli.record_text import (
-    MARK_MEANS,
-    cause_set,
-    marked,
-    record_line,
-    uses_mark,
-    verdict,
-)
+from supervisord.cli.record_text import MARK_MEANS, mark, record_line, verdict
 from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
 from supervisord.cli.times import clock, clock_of
-from supervisord.client import DEFAULT_SOCKET_PATH, ClientError, ConnectError, SupervisorClient
+from supervisord.client import (
+    DEFAULT_SOCKET_PATH,
+    ClientError,
+    ConnectError,
+    StatusReply,
+    SupervisorClient,
+)
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.protocol.codes import DisplayMode
@@ -277,7 +279,7 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
     if command == "status":
         status = client.status()
         if args.json:
-            print(json.dumps(status, sort_keys=True), file=out)
+            print(json.dumps(status.json(), sort_keys=True), file=out)
         else:
             out.write(format_status(status))
         return 0
@@ -293,11 +295,13 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
         else:
             client.release(args.what)
         who = f"client {name}" if name else "local"
-        print(f"{command} ({who}): done; the supervisor is {client.status()['state']}", file=out)
+        print(
+            f"{command} ({who}): done; the supervisor is {client.status().report.state}", file=out
+        )
         return 0
     if command == "reset":
         client.reset()
-        print(f"reset: accepted; the supervisor is {client.status()['state']}", file=out)
+        print(f"reset: accepted; the supervisor is {client.status().report.state}", file=out)
         return 0
     if command == "display":
         _display(client, args)
@@ -308,8 +312,8 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
     if command == "prooftest":
         return _prooftest(client, out)
     reply = client.commission()
-    remote = "on" if reply.get("remote_status") else "not seen (older firmware?)"
-    print(f"commissioned: key 85 reads {reply.get('key85')}; remote status {remote}", file=out)
+    remote = "on" if reply.remote_status else "not seen (older firmware?)"
+    print(f"commissioned: key 85 reads {reply.key85}; remote status {remote}", file=out)
     return 0
 
 
@@ -322,14 +326,16 @@ def _prooftest(client: SupervisorClient, out: TextIO) -> int:
     client.call(StartProofTest())
     print("prooftest: started; the user heartbeat is withheld for up to 1.5 s", file=out)
     deadline = time.monotonic() + PROOFTEST_WAIT_S
+    phase = None
     while time.monotonic() < deadline:
-        proof = client.status().get("prooftest") or {}
-        if proof.get("phase") in ("passed", "failed"):
-            last = proof.get("last") or {}
+        proof = client.status().report.prooftest
+        phase = None if proof is None else proof.phase
+        if proof is not None and phase in ("passed", "failed"):
+            last = {} if proof.last is None else proof.last.json()  # as its record says it
             print(f"prooftest: {verdict(last)}", file=out)
-            return 0 if proof.get("phase") == "passed" else EXIT_REFUSED
+            return 0 if phase == "passed" else EXIT_REFUSED
         time.sleep(0.1)
-    print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({proof.get('phase')})", file=out)
+    print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({phase})", file=out)
     return EXIT_REFUSED
 
 
@@ -352,90 +358,79 @@ def _display(client: SupervisorClient, args: argparse.Namespace) -> None:
 # -- status --------------------------------------------------------------------------------
 
 
-def format_status(status: Mapping[str, Any]) -> str:
+def format_status(status: StatusReply) -> str:
     """The human form of a ``status`` reply (``docs/api.md``)."""
-    daemon: Mapping[str, Any] = status.get("daemon") or {}
-    robot = daemon.get("robot") or "?"
-    since = daemon.get("in_state_s")
-    lines = [f"robot {robot}: {status.get('state')}" + (f" for {duration(since)}" if since else "")]
-    if "version" in daemon:
-        up = daemon.get("uptime_s")
-        lines.append(
-            f"  daemon   srcsd {daemon['version']}, pid {daemon.get('pid')}"
-            + (f", up {duration(up)}" if up is not None else "")
-        )
-    link = daemon.get("link")
-    if link:
-        state = "open" if link.get("open") else "NOT OPEN"
-        if link.get("since_s") is not None:
-            state += f" for {duration(link['since_s'])}"
-        last_error = f"; last error: {link['last_error']}" if link.get("last_error") else ""
-        errors = link.get("error_frames")  # CAN only (docs/safety.md "CAN error frames")
-        counted = f", {errors} CAN error frames" if errors is not None else ""
-        lines.append(
-            f"  link     {link.get('description')}: {state} "
-            f"({link.get('opens')} opens, {link.get('open_failures')} failed attempts"
-            f"{counted}){last_error}"
-        )
-    lines += _client_lines(daemon.get("clients"))
-    remote = daemon.get("remote")
-    if "remote" in daemon:
-        lines.append(f"  remote   {remote_text(remote) if remote else 'no status seen'}")
-    if isinstance(available := status.get("estop_available"), Mapping):
-        lines.append(f"  e-stop   {estop_text(available)}")
-    causes = status.get("causes") or []
-    if not causes:
+    report, daemon = status.report, status.daemon
+    loop, link = daemon.loop, daemon.loop.link
+    since = daemon.in_state_s
+    lines = [
+        f"robot {daemon.robot or '?'}: {report.state}"
+        + (f" for {duration(since)}" if since else "")
+    ]
+    up = loop.uptime_s
+    lines.append(
+        f"  daemon   srcsd {loop.version}, pid {loop.pid}"
+        + (f", up {duration(up)}" if up is not None else "")
+    )
+    state = "open" if link.open else "NOT OPEN"
+    if link.since_s is not None:
+        state += f" for {duration(link.since_s)}"
+    last_error = f"; last error: {link.last_error}" if link.last_error else ""
+    errors = link.error_frames  # CAN only (docs/safety.md "CAN error frames")
+    counted = f", {errors} CAN error frames" if errors is not None else ""
+    lines.append(
+        f"  link     {link.description}: {state} "
+        f"({link.opens} opens, {link.open_failures} failed attempts{counted}){last_error}"
+    )
+    lines += _client_lines(daemon.clients)
+    remote = daemon.remote
+    lines.append(f"  remote   {remote_text(remote) if remote else 'no status seen'}")
+    if status.estop_available is not None:
+        lines.append(f"  e-stop   {estop_text(status.estop_available)}")
+    if not report.causes:
         lines.append("  causes   none")
-    for index, cause in enumerate(causes):
+    for index, cause in enumerate(report.causes):
         label = "causes" if index == 0 else ""
         lines.append(f"  {label:8} {_cause_text(cause)}")
-    if uses_mark(causes):
+    if any(cause.held for cause in report.causes):
         lines.append(f"           {MARK_MEANS}")
-    outputs = status.get("outputs") or {}
-    levels = " ".join(f"{name}={'ON' if on else 'off'}" for name, on in outputs.items())
+    levels = " ".join(f"{name}={'ON' if on else 'off'}" for name, on in report.outputs.items())
     lines.append(f"  outputs  {levels or 'none'}")
-    lines.append(f"  to VSC   heartbeat e-stop byte {status.get('heartbeat_estop')}")
-    if proof := status.get("prooftest"):
-        last = proof.get("last")
-        result = verdict(last) if isinstance(last, Mapping) else "none yet"
-        lines.append(f"  proof    {proof.get('phase')}; last: {result}")
-    if isinstance(schedule := daemon.get("maintenance"), Mapping):
-        lines.append(f"  tests    {tests_text(schedule)}")
-    if "messages" in daemon:
-        rejected = ", ".join(f"{k} {v}" for k, v in (daemon.get("rejections") or {}).items())
-        lines.append(
-            f"  traffic  {daemon['messages']} messages; rejected: {rejected or 'none'}; "
-            f"record errors {daemon.get('record_errors', 0)}; "
-            f"internal faults {daemon.get('internal_faults', 0)}"
-        )
+    lines.append(f"  to VSC   heartbeat e-stop byte {report.heartbeat_estop}")
+    if proof := report.prooftest:
+        result = "none yet" if proof.last is None else verdict(proof.last.json())
+        lines.append(f"  proof    {proof.phase}; last: {result}")
+    if loop.maintenance is not None:
+        lines.append(f"  tests    {tests_text(loop.maintenance)}")
+    rejected = ", ".join(f"{k} {v}" for k, v in loop.rejections.items())
+    lines.append(
+        f"  traffic  {loop.messages} messages; rejected: {rejected or 'none'}; "
+        f"record errors {loop.record_errors}; internal faults {loop.internal_faults}"
+    )
     return "\n".join(lines) + "\n"
 
 
 TEST_NAMES: Final = {"stoptest": "stop test", "prooftest": "proof test"}
 
 
-def tests_text(schedule: Mapping[str, Any]) -> str:
+def tests_text(schedule: Maintenance) -> str:
     """The periodic tests (SR-12.2): ``stop test passed 3.0 d ago (every 30 d); proof test
     OVERDUE: never passed (every 30 d)``. A warning only: nothing stops for it."""
     parts = []
-    for test, name in TEST_NAMES.items():
-        due = schedule.get(test)
-        if not isinstance(due, Mapping):
-            continue
-        age, every = due.get("last_pass_age_s"), due.get("interval_days")
+    for test, due in schedule.tests():
+        age, every = due.last_pass_age_s, due.interval_days
         when = "never passed" if age is None else f"passed {duration(age)} ago"
         plan = f"every {every} d" if every else "no schedule"
-        overdue = "OVERDUE: " if due.get("overdue") else ""
-        parts.append(f"{name} {overdue}{when} ({plan})")
+        overdue = "OVERDUE: " if due.overdue else ""
+        parts.append(f"{TEST_NAMES[test]} {overdue}{when} ({plan})")
     return "; ".join(parts)
 
 
-def estop_text(available: Mapping[str, Any]) -> str:
+def estop_text(available: EstopAvailable) -> str:
     """``available``, or ``NOT AVAILABLE: `` and each part missing (SR-8.11)."""
-    if available.get("available") is True:
+    if available.available:
         return "available"
-    missing = [str(part) for part in available.get("missing") or []]
-    return "NOT AVAILABLE: " + ("; ".join(missing) or "no reason given")
+    return "NOT AVAILABLE: " + ("; ".join(available.missing) or "no reason given")
 
 
 def duration(seconds: float) -> str:
@@ -450,44 +445,42 @@ def duration(seconds: float) -> str:
     return f"{whole // 86400} d {whole % 86400 // 3600} h"
 
 
-def _client_lines(clients: object) -> list[str]:
-    if not isinstance(clients, list):
-        return []
+def _client_lines(clients: tuple[ClientStatus, ...]) -> list[str]:
     if not clients:
         return ["  clients  none"]
     lines = []
     for index, client in enumerate(clients):
-        kind = f"required, {client.get('timeout_ms')} ms" if client.get("required") else "optional"
-        age = client.get("heartbeat_age_s")
-        if not client.get("connected"):
+        kind = f"required, {client.timeout_ms} ms" if client.required else "optional"
+        age = client.heartbeat_age_s
+        if not client.connected:
             beat = "not connected"
         elif age is None:
             beat = "connected, no heartbeat yet"
         else:
             beat = f"heartbeat {duration(age)} ago"
         label = "clients" if index == 0 else ""
-        lines.append(f"  {label:8} {client.get('name')} ({kind}): {beat}")
+        lines.append(f"  {label:8} {client.name} ({kind}): {beat}")
     return lines
 
 
-def remote_text(remote: Mapping[str, Any]) -> str:
+def remote_text(remote: RemoteReport | RemoteStatusReport) -> str:
     """The remote's last status (manual §8.3.4; kept by the VSC after a link loss, PR-2.10)."""
-    charging = ", charging" if remote.get("battery_charging") else ""
-    age = remote.get("age_s")
+    charging = ", charging" if remote.battery_charging else ""
+    age = remote.age_s if isinstance(remote, RemoteReport) else None
     return (
-        f"battery {remote.get('battery_level')} %{charging}; link strength vsc "
-        f"{remote.get('connection_strength_vsc')} remote {remote.get('connection_strength_src')}"
-        f"; rssi vsc {remote.get('rssi_vsc')} remote {remote.get('rssi_src')}"
+        f"battery {remote.battery_level} %{charging}; link strength vsc "
+        f"{remote.connection_strength_vsc} remote {remote.connection_strength_src}"
+        f"; rssi vsc {remote.rssi_vsc} remote {remote.rssi_src}"
         + (f" ({duration(age)} ago)" if age is not None else "")
     )
 
 
-def _cause_text(cause: Mapping[str, Any]) -> str:
+def _cause_text(cause: Cause) -> str:
     """``vsc_estop (stop, active) sources=remote``; a cleared cause its latch still holds is
     marked as everywhere (``vsc_estop* (stop)``, docs/srcsctl.md "Marks")."""
-    state = ", active" if cause.get("active") else ""
-    details = " ".join(f"{k}={v}" for k, v in (cause.get("details") or {}).items())
-    return f"{marked(cause)} ({cause.get('severity')}{state}) {details}".rstrip()
+    state = ", active" if cause.active else ""
+    details = " ".join(f"{k}={v}" for k, v in cause.details.items())
+    return f"{mark(cause.name, held=cause.held)} ({cause.severity}{state}) {details}".rstrip()
 
 
 # -- watch ---------------------------------------------------------------------------------
@@ -508,11 +501,11 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
     utc = bool(getattr(args, "utc", False))
     args.json = args.json or args.output == "json"
 
-    def show(event: str, data: Mapping[str, Any]) -> str:
+    def show(push: Push) -> str:
         return (
-            json.dumps(dict(data), sort_keys=True)
+            json.dumps(push.json(), sort_keys=True)
             if args.json
-            else format_push(event, data, utc=utc, causes=args.causes)
+            else format_push(push, utc=utc, causes=args.causes)
         )
 
     said_waiting = False
@@ -530,15 +523,12 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
                         push = client.next_event(timeout=3600)
                         if push is None:
                             continue
-                        if not args.json and push.event in _SHOWN_WHEN:
-                            # A remote status: when battery or link strength change, not
-                            # once a second. A state: when the state or an output changes;
-                            # each cause raised or cleared has its record's line.
-                            seen = tuple(push.data.get(k) for k in _SHOWN_WHEN[push.event])
+                        seen = None if args.json else shown_when(push)
+                        if seen is not None:
                             if seen == last.get(push.event):
                                 continue
                             last[push.event] = seen
-                        print(show(push.event, push.data), file=out, flush=True)
+                        print(show(push), file=out, flush=True)
             except ConnectError as error:
                 if isinstance(error.__cause__, PermissionError):
                     print(f"srcsctl watch: {denied(path, error)}", file=err, flush=True)
@@ -550,16 +540,22 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         return 0
 
 
-_SHOWN_WHEN: Final[Mapping[str, tuple[str, ...]]] = {
-    "remote_status": (
-        "battery_level",
-        "battery_charging",
-        "connection_strength_vsc",
-        "connection_strength_src",
-    ),
-    "state": ("state", "outputs"),
-}
-"""The fields whose change makes ``watch`` print a push of that kind again."""
+def shown_when(push: Push) -> object:
+    """What of a push makes ``watch`` print one of its kind again, or ``None``: every one is
+    printed. A remote status: when battery or link strength change, not once a second. A
+    state: when the state or an output changes; each cause raised or cleared has its
+    record's line."""
+    if isinstance(push, RemoteStatusPush):
+        message = push.message
+        return (
+            message.battery_level,
+            message.battery_charging,
+            message.connection_strength_vsc,
+            message.connection_strength_src,
+        )
+    if isinstance(push, StatePush):
+        return (push.report.state, dict(push.report.outputs))
+    return None
 
 
 def _waiting(error: Exception, said: bool, err: TextIO) -> bool:
@@ -569,29 +565,22 @@ def _waiting(error: Exception, said: bool, err: TextIO) -> bool:
     return True
 
 
-def daemon_line(status: Mapping[str, Any]) -> str:
+def daemon_line(status: StatusReply) -> str:
     """``watch``'s first line: which daemon it follows (``#``: not an event)."""
-    daemon: Mapping[str, Any] = status.get("daemon") or {}
-    up = daemon.get("uptime_s")
-    clients = daemon.get("clients")
-    names = (
-        ", ".join(
-            f"{c.get('name')}{'' if c.get('connected') else ' (not connected)'}" for c in clients
-        )
-        if isinstance(clients, list)
-        else "?"
+    daemon = status.daemon
+    up = daemon.loop.uptime_s
+    names = ", ".join(
+        f"{c.name}{'' if c.connected else ' (not connected)'}" for c in daemon.clients
     )
     return (
-        f"# srcsd {daemon.get('version', '?')} robot {daemon.get('robot', '?')}, pid "
-        f"{daemon.get('pid')}"
+        f"# srcsd {daemon.loop.version} robot {daemon.robot or '?'}, pid {daemon.loop.pid}"
         + (f", up {duration(up)}" if up is not None else "")
         + f"; clients: {names or 'none'}"
     )
 
 
 def format_push(
-    event: str,
-    data: Mapping[str, Any],
+    push: Push,
     *,
     utc: bool = False,
     now: dt.datetime | None = None,
@@ -601,27 +590,18 @@ def format_push(
     ``log``), then what happened. A record is the line ``log`` prints for it, at its own
     time; a state is the state, its causes (marked as everywhere) and the outputs."""
     stamp = clock(now or dt.datetime.now(dt.timezone.utc), utc=utc)
-    if event == "state":
-        names = cause_set(data.get("causes")) if data.get("causes") else "no causes"
-        outputs = " ".join(
-            f"{k}={'ON' if v else 'off'}" for k, v in (data.get("outputs") or {}).items()
-        )
-        return f"{stamp} {data.get('state'):8} {names} | {outputs}"
-    if event == "record":
-        return record_line(data, clock_of(data.get("utc"), utc=utc), causes=causes)
-    if event == "remote_status":
-        return f"{stamp} remote {remote_text(data)}"
-    if event == "joystick":
-        suffix = "_joystick_value"
-        axes = " ".join(
-            f"{key.removesuffix(suffix)}={value.get('value')}"
-            for key, value in data.items()
-            if key.endswith(suffix) and isinstance(value, Mapping)
-        )
-        pressed = [
-            name
-            for side in ("left_button_values", "right_button_values")
-            for name in (data.get(side) or {}).get("pressed", [])
-        ]
-        return f"{stamp} joystick {axes} pressed {','.join(pressed) or '-'}"
-    return f"{stamp} {event} {json.dumps(dict(data), sort_keys=True)}"
+    if isinstance(push, StatePush):
+        report = push.report
+        names = ", ".join(mark(c.name, held=c.held) for c in report.causes) or "no causes"
+        outputs = " ".join(f"{k}={'ON' if v else 'off'}" for k, v in report.outputs.items())
+        return f"{stamp} {report.state:8} {names} | {outputs}"
+    if isinstance(push, RecordPush):
+        record = push.record  # read as the record file holds it (docs/record.md)
+        return record_line(record.json(), clock_of(record.utc, utc=utc), causes=causes)
+    if isinstance(push, RemoteStatusPush):
+        return f"{stamp} remote {remote_text(push.message)}"
+    if isinstance(push, JoystickPush):
+        message = push.message
+        axes = " ".join(f"{name}={axis.value}" for name, axis in message.axes().items())
+        return f"{stamp} joystick {axes} pressed {','.join(message.pressed) or '-'}"
+    return f"{stamp} {push.event} {json.dumps(push.json(), sort_keys=True)}"

@@ -27,6 +27,8 @@ from pathlib import Path
 from typing import Any, Final, TextIO
 
 from supervisord.api.framing import ApiError
+from supervisord.api.pushes import RecordPush
+from supervisord.api.status import StateReport
 from supervisord.cli.demo_find import CONFIG, PREFIX, RUN
 from supervisord.cli.demo_view import demo_record_line, screen
 from supervisord.cli.record_text import happening
@@ -60,7 +62,7 @@ class Demo:
         self.notes: list[str] = []
         self.records: list[dict[str, Any]] = []
         self._seqs: set[object] = set()
-        self.status: dict[str, Any] | None = None
+        self.status: StateReport | None = None
         (run_dir / RUN).mkdir(parents=True, exist_ok=True)
         self.config = run_dir / CONFIG  # where srcsctl --demo finds it (demo_find)
         shutil.copyfile(config, self.config)
@@ -124,10 +126,10 @@ class Demo:
         """Ask both processes how they are; keep the stop records that were pushed."""
         assert self.client is not None
         self._check_alive()
-        self.status = self.client.status()
+        self.status = self.client.status().report
         while (push := self.client.next_event(timeout=0)) is not None:
-            if push.event == "record":
-                self._add_record(push.data)
+            if isinstance(push, RecordPush):
+                self._add_record(push.record.json())  # as the record file has it
         if self._sticks_at is not None:  # a slow circle on the left stick, while asked
             phase = time.monotonic() - self._sticks_at
             x, y = int(600 * math.cos(phase)), int(600 * math.sin(phase))
@@ -135,7 +137,7 @@ class Demo:
 
     def _active(self) -> set[str]:
         assert self.client is not None
-        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+        return set(self.client.status().report.active())
 
     def _add_record(self, record: dict[str, Any]) -> None:
         if record.get("seq") in self._seqs:
@@ -168,7 +170,7 @@ class Demo:
 
     @property
     def state(self) -> str:
-        return str(self.status.get("state")) if self.status else "?"
+        return self.status.state if self.status else "?"
 
     # -- the remote's controls -----------------------------------------------------------
 
@@ -180,7 +182,7 @@ class Demo:
         except ApiError as error:
             self.note(f"commission: {error.code}: {error.message}")
             return
-        self.note(f"commissioned: key 85 reads {reply.get('key85')}")
+        self.note(f"commissioned: key 85 reads {reply.key85}")
 
     def toggle_estop(self) -> None:
         if self.sim.control.state().get("remote_estop"):
@@ -316,7 +318,7 @@ class StoryDemo(Demo):
 
     def _active(self) -> set[str]:
         assert self.client is not None
-        return {c["name"] for c in self.client.status().get("causes", []) if c.get("active")}
+        return set(self.client.status().report.active())
 
     def on_record(self, record: dict[str, Any]) -> None:
         print(f"  record {demo_record_line(record)}", file=self.out, flush=True)
@@ -351,8 +353,8 @@ class StoryDemo(Demo):
         end = time.monotonic() + limit
 
         def stop_active() -> bool:
-            causes = (self.status or {}).get("causes", [])
-            return any(c.get("active") and c.get("severity") == "stop" for c in causes)
+            causes = self.status.causes if self.status else ()
+            return any(c.active and c.severity == "stop" for c in causes)
 
         while stop_active():
             if time.monotonic() > end:
@@ -368,7 +370,7 @@ class StoryDemo(Demo):
         while True:
             self.refresh()
             if self.state == state:
-                outputs = (self.status or {}).get("outputs", {})
+                outputs = self.status.outputs if self.status else {}
                 levels = ", ".join(f"{k} {'ON' if v else 'off'}" for k, v in outputs.items())
                 print(f"  supervisor: {state}; outputs {levels}", file=self.out, flush=True)
                 return

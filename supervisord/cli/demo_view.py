@@ -15,7 +15,8 @@ import textwrap
 from collections.abc import Mapping, Sequence
 from typing import Any, Final
 
-from supervisord.cli.record_text import MARK_MEANS, cause_set, record_line, uses_mark
+from supervisord.api.status import StateReport
+from supervisord.cli.record_text import MARK_MEANS, mark, record_line
 from supervisord.cli.times import clock_of
 
 KEYS: Final = (
@@ -37,7 +38,7 @@ WAITING: Final[Mapping[str, str]] = {
 
 def next_step(
     sim: Mapping[str, Any],
-    status: Mapping[str, Any] | None,
+    status: StateReport | None,
     *,
     now_ns: int | None = None,
     hold_ms: int = 0,
@@ -52,27 +53,17 @@ def next_step(
         return "the link is cut: press [l] to restore it"
     if sim.get("remote_estop"):
         return "the remote's e-stop is pressed: press [e] to release it"
-    state = status.get("state")
+    state = status.state
     if state == "RUN":
         return "RUN, the outputs are on: try [e] e-stop, [p] pause or [l] cut the link"
     if state == "HOLD":
         return "HOLD (motion off, power on): press [t] to take over and resume"
-    causes = status.get("causes") or []
-    active = [
-        str(c.get("name"))
-        for c in causes
-        if isinstance(c, Mapping) and c.get("active") and c.get("severity") == "stop"
-    ]
+    causes = status.causes
+    active = [c.name for c in causes if c.active and c.severity == "stop"]
     if active:
         why = next((WAITING[name] for name in active if name in WAITING), None)
         return f"wait: {why or ', '.join(active) + ' still active'}"
-    cleared = [
-        when
-        for c in causes
-        if isinstance(c, Mapping)
-        and c.get("latched")
-        and isinstance(when := c.get("cleared_ns"), int)
-    ]
+    cleared = [c.cleared_ns for c in causes if c.latched and c.cleared_ns is not None]
     if now_ns is not None and cleared and now_ns < max(cleared) + hold_ms * 1_000_000:
         return f"wait: the stop conditions must stay clear for {hold_ms} ms (the re-arm hold)"
     return "press [t] to take over: the supervisor goes to RUN and the outputs come on"
@@ -80,7 +71,7 @@ def next_step(
 
 def screen(
     sim: Mapping[str, Any],
-    status: Mapping[str, Any] | None,
+    status: StateReport | None,
     records: Sequence[Mapping[str, Any]],
     lcd: str,
     notes: Sequence[str],
@@ -146,22 +137,18 @@ def remote_lines(sim: Mapping[str, Any]) -> list[str]:
     ]
 
 
-def supervisor_lines(status: Mapping[str, Any] | None) -> list[str]:
+def supervisor_lines(status: StateReport | None) -> list[str]:
     if status is None:
         return ["supervisor  (not answering)"]
-    causes = status.get("causes") or []
-    outputs = status.get("outputs") or {}
-    levels = "   ".join(f"{name} {'ON ' if on else 'off'}" for name, on in outputs.items())
-    lines = [
-        f"supervisor  state {status.get('state')}",
-        f"            causes: {cause_set(causes)}",
-    ]
-    if uses_mark(causes):
+    causes = ", ".join(mark(c.name, held=c.held) for c in status.causes) or "none"
+    levels = "   ".join(f"{name} {'ON ' if on else 'off'}" for name, on in status.outputs.items())
+    lines = [f"supervisor  state {status.state}", f"            causes: {causes}"]
+    if any(c.held for c in status.causes):
         lines.append(f"            {MARK_MEANS}")
     return [
         *lines,
         f"outputs     {levels}",
-        f"            heartbeat to the VSC: e-stop byte {status.get('heartbeat_estop')}",
+        f"            heartbeat to the VSC: e-stop byte {status.heartbeat_estop}",
     ]
 
 

@@ -32,10 +32,14 @@ them)."""
 _DETAIL_CHARS: Final = 80
 
 
-def marked(cause: Mapping[str, Any]) -> str:
+def mark(name: object, *, held: bool) -> str:
     """A cause's name with :data:`MARK` when it has cleared and its latch holds it."""
-    held = cause.get("latched") and not cause.get("active")
-    return f"{cause.get('name')}{MARK if held else ''}"
+    return f"{name}{MARK if held else ''}"
+
+
+def marked(cause: Mapping[str, Any]) -> str:
+    """:func:`mark` for a cause of a written record."""
+    return mark(cause.get("name"), held=bool(cause.get("latched") and not cause.get("active")))
 
 
 def cause_set(causes: object) -> str:
@@ -43,13 +47,6 @@ def cause_set(causes: object) -> str:
     if not isinstance(causes, list) or not causes:
         return "none"
     return ", ".join(marked(c) for c in causes if isinstance(c, Mapping))
-
-
-def uses_mark(causes: object) -> bool:
-    """Whether :func:`cause_set` of ``causes`` shows :data:`MARK`."""
-    return isinstance(causes, list) and any(
-        isinstance(c, Mapping) and marked(c).endswith(MARK) for c in causes
-    )
 
 
 def verdict(prooftest: Mapping[str, Any]) -> str:

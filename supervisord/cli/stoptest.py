@@ -14,9 +14,10 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable, Mapping
-from typing import Any, Final, TextIO
+from typing import Final, TextIO
 
-from supervisord.api.requests import StopTest
+from supervisord.api.pushes import RecordPush
+from supervisord.api.records import StopTestReport
 from supervisord.client import SupervisorClient
 
 EXIT_PASSED: Final = 0
@@ -95,8 +96,7 @@ def run_stoptest(
     except NotDone as why:
         print(f"stoptest: not done: {why}", file=out)
         return EXIT_NOT_DONE
-    reply = client.call(StopTest(tuple(steps)))
-    result = reply.get("stoptest") or {}
+    result = client.stoptest(tuple(steps)).stoptest
     out.write(report(result))
     print(
         "stoptest: release the e-stop"
@@ -104,7 +104,7 @@ def run_stoptest(
         + " and take over on the remote to go on",
         file=out,
     )
-    return EXIT_PASSED if result.get("result") == "passed" else EXIT_FAILED
+    return EXIT_PASSED if result.passed else EXIT_FAILED
 
 
 def _wait_run(
@@ -116,13 +116,13 @@ def _wait_run(
     first: bool,
 ) -> None:
     """The test starts in RUN: every output on, so that each one's way to off is measured."""
-    if client.status().get("state") == "RUN":
+    if client.status().report.state == "RUN":
         return
     what = "take over on the remote" if first else "release the remote's e-stop and take over"
     print(f"stoptest: {what} (the supervisor must be in RUN; waiting)", file=out)
     deadline = clock() + timeout_s
     while clock() < deadline:
-        if client.status().get("state") == "RUN":
+        if client.status().report.state == "RUN":
             return
         time.sleep(0.1)
     raise NotDone(f"the supervisor did not reach RUN within {timeout_s:g} s")
@@ -136,17 +136,17 @@ def _wait_press(
     deadline = clock() + timeout_s
     while (left := deadline - clock()) > 0:
         push = client.next_event(timeout=min(left, 0.5))
-        if push is None or push.event != "record":
+        if not isinstance(push, RecordPush):
             continue
-        record = push.data
-        if record.get("to") != "STOPPED" or record.get("from") == "STOPPED":
+        record = push.record
+        if record.to_state != "STOPPED" or record.from_state == "STOPPED":
             continue
-        estop = next((c for c in record.get("causes") or [] if c.get("name") == "vsc_estop"), None)
-        sources = str(((estop or {}).get("details") or {}).get("sources", "")).split(",")
+        estop = next((c for c in record.causes if c.name == "vsc_estop"), None)
+        sources = (estop.details.get("sources", "") if estop else "").split(",")
         if estop is None or source not in sources:
-            names = ", ".join(str(c.get("name")) for c in record.get("causes") or [])
-            raise NotDone(f"the robot stopped for something else (#{record.get('seq')}: {names})")
-        return int(record["seq"])
+            names = ", ".join(c.name for c in record.causes)
+            raise NotDone(f"the robot stopped for something else (#{record.seq}: {names})")
+        return record.seq
     raise NotDone(f"no stop within {timeout_s:g} s")
 
 
@@ -155,23 +155,23 @@ def _wait_off(client: SupervisorClient, clock: Callable[[], float]) -> None:
     :data:`OFF_WAIT_S`; what is still on then is judged not off by the daemon."""
     deadline = clock() + OFF_WAIT_S
     while clock() < deadline:
-        if not any((client.status().get("outputs") or {}).values()):
+        if not any(client.status().report.outputs.values()):
             return
         time.sleep(POLL_S)
 
 
-def report(result: Mapping[str, Any]) -> str:
+def report(result: StopTestReport) -> str:
     """The short report: a line per output and press, then the verdict."""
     lines = []
-    limit = result.get("limit_ms")
-    for step in result.get("steps") or []:
-        lines.append(f"stoptest: {step.get('source')} e-stop, stop #{step.get('seq')}:")
-        for output in step.get("outputs") or []:
-            ms = output.get("off_ms")
-            shown = f"{ms:8.3f} ms" if isinstance(ms, int | float) else "  not off"
-            verdict = "pass" if output.get("passed") else "FAIL"
-            lines.append(f"  {output.get('name'):16} {shown}  {verdict}")
-    overall = "PASSED" if result.get("result") == "passed" else "FAILED"
+    limit = result.limit_ms
+    for step in result.steps:
+        lines.append(f"stoptest: {step.source} e-stop, stop #{step.seq}:")
+        for output in step.outputs:
+            ms = output.off_ms
+            shown = f"{ms:8.3f} ms" if ms is not None else "  not off"
+            verdict = "pass" if output.passed else "FAIL"
+            lines.append(f"  {output.name:16} {shown}  {verdict}")
+    overall = "PASSED" if result.passed else "FAILED"
     lines.append(
         f"stoptest: {overall}: every output off within {limit} ms of the e-stop's frame "
         "(docs/requirements.md SR-12.1); recorded"

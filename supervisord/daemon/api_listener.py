@@ -14,9 +14,9 @@ seconds later; the loop meanwhile goes on as ever.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import asdict
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
 from supervisord.api.requests import (
     Command,
     Commission,
@@ -27,24 +27,22 @@ from supervisord.api.requests import (
     Topic,
 )
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
+from supervisord.api.status import ClientStatus, DaemonStatus, EstopAvailable
 from supervisord.api.views import (
-    decision_json,
     message_push,
     message_topic,
     record_push,
     refusal_error,
+    remote_report,
     state_push,
+    state_report,
 )
-from supervisord.daemon.availability import (
-    DEFAULT_MIN_REMOTE_BATTERY,
-    Availability,
-    estop_available,
-)
+from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, estop_available
 from supervisord.daemon.commission import Commissioning
-from supervisord.daemon.loop import Listener
-from supervisord.daemon.stoptimes import StopTimes
+from supervisord.daemon.loop import Listener, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
+from supervisord.record.format import stoptest_report
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event, StopTested
@@ -80,10 +78,6 @@ class ApiListener(Listener):
         self._remote: tuple[RemoteStatus, int] | None = None
         self._heartbeat: VscHeartbeat | None = None  # the VSC's last, for estop_available
         self._state_since: int | None = None
-        self.daemon_info: Callable[[], dict[str, object]] = dict
-        """Set by the daemon: what ``status`` reports about the daemon (``Supervisor.info``)."""
-        self.stop_times: StopTimes | None = None
-        """Set by the daemon: each stop's outputs' times to off (``stoptest``, SR-12.1)."""
         self.last: Decision | None = None
         self._commissioning: tuple[Commissioning, Received] | None = None
 
@@ -91,22 +85,31 @@ class ApiListener(Listener):
         return self.server.descriptors(now)
 
     def handle(
-        self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
+        self,
+        fd: int,
+        readable: bool,
+        writable: bool,
+        now: int,
+        feed: Callable[[Event], Decision],
+        *,
+        snapshot: Snapshot,
     ) -> None:
         self.server.handle(fd, readable, writable, now)
-        self._take(now, feed)
+        self._take(now, feed, snapshot)
 
-    def settle(self, now: int, feed: Callable[[Event], Decision]) -> None:
+    def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
         # Ends queued outside handle and due: a client dropped while a push was written.
-        self._take(now, feed)
+        self._take(now, feed, snapshot)
 
-    def _take(self, now: int, feed: Callable[[Event], Decision]) -> None:
+    def _take(self, now: int, feed: Callable[[Event], Decision], snapshot: Snapshot) -> None:
         """Every result the server queued, in order: the one place they are taken. Answering
         one may queue more (an end while writing the answer): taken in the same pass."""
         while (result := self.server.take()) is not None:
-            self._result(result, now, feed)
+            self._result(result, now, feed, snapshot)
 
-    def _result(self, result: Result, now: int, feed: Callable[[Event], Decision]) -> None:
+    def _result(
+        self, result: Result, now: int, feed: Callable[[Event], Decision], snapshot: Snapshot
+    ) -> None:
         event = core_event(result, now)
         decision = feed(event) if event is not None else None
         if isinstance(result, Closed):
@@ -116,18 +119,13 @@ class ApiListener(Listener):
             return  # Denied was answered by the server; Accepted and Closed need no reply
         request = result.request
         if isinstance(request, Status):
-            assert self.last is not None
-            daemon = {"robot": self.robot, **self.daemon_info(), **self._status_extra(now)}
-            available = self.estop_available(now).json()
-            self.server.reply(
-                result, **decision_json(self.last), estop_available=available, daemon=daemon
-            )
+            self.server.reply(result, self.status(request, now, snapshot))
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
             return
         if isinstance(request, StopTest):
-            self._stoptest(result, request, now, feed)
+            self._stoptest(result, request, now, feed, snapshot)
             return
         refusal = (
             next((r for r in decision.refusals if r.trigger == event), None) if decision else None
@@ -143,38 +141,48 @@ class ApiListener(Listener):
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
             self.server.send(result.client.connection, state_push(self.last))
 
-    def _status_extra(self, now: int) -> dict[str, object]:
-        """What ``status`` says beyond the daemon's counters (docs/api.md "status"): the
-        clients, the remote's last status, the time in the current state. Built from what
-        the listener saw, never from input it cannot trust: names passed the server's check."""
+    def status(self, request: Status, now: int, snapshot: Snapshot) -> StatusReply:
+        """The ``status`` reply (docs/api.md "status"), the one place it is built: the last
+        decision, the loop's ``snapshot`` and what the listener saw itself (the clients, the
+        remote's last status, the time in the current state). Names passed the server's
+        check: nothing here is input the listener cannot trust."""
+        assert self.last is not None
         every = self.server.clients()
         connected = {c.name: c.connection for c in every if c.name is not None}
-        clients: list[dict[str, object]] = []
+        clients: list[ClientStatus] = []
         for name in sorted(set(self.required) | set(connected)):
             connection = connected.get(name)
             beat = self._beats.get(connection) if connection is not None else None
-            entry: dict[str, object] = {
-                "name": name,
-                "required": name in self.required,
-                "connected": connection is not None,
-                "heartbeat_age_s": seconds_since(now, beat),
-                "command_nonzero": connection is not None and self._nonzero.get(connection, False),
-            }
-            if name in self.required:
-                entry["timeout_ms"] = self.required[name]
-            clients.append(entry)
-        remote: dict[str, object] | None = None
+            clients.append(
+                ClientStatus(
+                    name=name,
+                    required=name in self.required,
+                    connected=connection is not None,
+                    heartbeat_age_s=seconds_since(now, beat),
+                    command_nonzero=connection is not None and self._nonzero.get(connection, False),
+                    timeout_ms=self.required.get(name),
+                )
+            )
+        remote = None
         if self._remote is not None:
             message, seen = self._remote
-            remote = {**asdict(message), "age_s": seconds_since(now, seen)}
-        return {
-            "clients": clients,
-            "connections": len(every),
-            "remote": remote,
-            "in_state_s": seconds_since(now, self._state_since),
-        }
+            remote = remote_report(message, seconds_since(now, seen))
+        daemon = DaemonStatus(
+            robot=self.robot,
+            loop=snapshot.status(now),
+            clients=tuple(clients),
+            connections=len(every),
+            remote=remote,
+            in_state_s=seconds_since(now, self._state_since),
+        )
+        return StatusReply(
+            id=request.id,
+            report=state_report(self.last),
+            estop_available=self.estop_available(now),
+            daemon=daemon,
+        )
 
-    def estop_available(self, now: int) -> Availability:
+    def estop_available(self, now: int) -> EstopAvailable:
         """Whether the remote e-stop is available (SR-8.11), from what the listener saw:
         the last decision's causes and proof test, the VSC's last heartbeat and remote status."""
         assert self.last is not None
@@ -190,23 +198,23 @@ class ApiListener(Listener):
         )
 
     def _stoptest(
-        self, result: Received, request: StopTest, now: int, feed: Callable[[Event], Decision]
+        self,
+        result: Received,
+        request: StopTest,
+        now: int,
+        feed: Callable[[Event], Decision],
+        snapshot: Snapshot,
     ) -> None:
-        """Judge the presses the client names from the daemon's own measurements and record
+        """Judge the presses the client names from the loop's own measurements and record
         the result (SR-12.1); admin rights were checked by the server. The client's part is
         the dialogue and which stops its presses made, never a number."""
-        times = self.stop_times
-        judged = (
-            times.result(request.steps, LIMIT_MS)
-            if times is not None
-            else "this daemon does not measure its stops"
-        )
+        judged = snapshot.stop_times.result(request.steps, LIMIT_MS)
         if isinstance(judged, str):
             error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
             self.server.reply_error(result, error)
             return
         feed(StopTested(now, result.client.caller, judged))  # the stoptest record
-        self.server.reply(result, stoptest=judged.json())
+        self.server.reply(result, StopTestReply(id=request.id, stoptest=stoptest_report(judged)))
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
         """Admin rights were checked by the server; here: is there a VSC to write to?"""
@@ -224,11 +232,13 @@ class ApiListener(Listener):
             return
         self._commissioning = (Commissioning(result.client.caller, now), result)
 
-    def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
+    def due(
+        self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot
+    ) -> list[Message]:
         server_due = self.server.next_deadline()
         if server_due is not None and now >= server_due:
             self.server.due(now)
-            self._take(now, feed)
+            self._take(now, feed, snapshot)
         if self._commissioning is None:
             return []
         procedure, result = self._commissioning
@@ -236,7 +246,6 @@ class ApiListener(Listener):
             return procedure.due(now)
         self._commissioning = None
         feed(procedure.outcome(now))  # recorded by the core, whatever the outcome
-        read_back = {"key85": procedure.key85, "remote_status": procedure.remote_status}
         if procedure.key85 != 1:
             read = "no answer" if procedure.key85 is None else procedure.key85
             request = result.request
@@ -245,11 +254,14 @@ class ApiListener(Listener):
                 f"key 85 reads back {read}, not 1",
                 op=request.OP,
                 request_id=request.id,
-                extra=read_back,
+                extra={"key85": procedure.key85, "remote_status": procedure.remote_status},
             )
             self.server.reply_error(result, error)
         else:
-            self.server.reply(result, **read_back)
+            reply = CommissionReply(
+                id=result.request.id, key85=procedure.key85, remote_status=procedure.remote_status
+            )
+            self.server.reply(result, reply)
         return []
 
     def next_deadline(self) -> int | None:

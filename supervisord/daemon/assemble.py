@@ -137,7 +137,4 @@ def build_supervisor(
     )
     supervisor.sequence_offset = previous.seq if previous is not None else 0
     supervisor.schedule = schedule(config)
-    if isinstance(listener, ApiListener):
-        listener.daemon_info = supervisor.info
-        listener.stop_times = supervisor.stop_times
     return supervisor

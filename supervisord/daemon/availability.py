@@ -14,10 +14,10 @@ the VSC itself makes.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
 from typing import Final
 
 from supervisord.api.readiness import BLOCKING_CAUSES
+from supervisord.api.status import EstopAvailable
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import RemoteStatus, VscHeartbeat
 from supervisord.safety.core import LINKED_MODES
@@ -38,21 +38,6 @@ them is noticed within seconds. The boundary counts as fresh."""
 _WATCHDOG_CAUSES: Final = ("transport_fault", "vsc_link_lost", "vsc_watchdog_off")
 
 
-@dataclass(frozen=True, slots=True)
-class Availability:
-    """What :func:`estop_available` found: ``missing`` names each part that does not hold."""
-
-    missing: tuple[str, ...]
-
-    @property
-    def available(self) -> bool:
-        return not self.missing
-
-    def json(self) -> dict[str, object]:
-        """The ``estop_available`` object of a ``status`` reply (docs/api.md "status")."""
-        return {"available": self.available, "missing": list(self.missing)}
-
-
 def estop_available(
     now: int,
     *,
@@ -62,7 +47,7 @@ def estop_available(
     remote_seen: int | None,
     prooftest: ProofStatus | None,
     min_battery: int,
-) -> Availability:
+) -> EstopAvailable:
     """Whether the remote e-stop is available at ``now`` (ns, the loop's clock).
 
     ``active``: the names of the active causes (``KIND`` or ``KIND:WHICH``); ``heartbeat``: the
@@ -106,4 +91,4 @@ def estop_available(
         missing.append(
             f"the VSC's key-85 watchdog is not proven (proof test {prooftest.phase.value})"
         )
-    return Availability(tuple(missing))
+    return EstopAvailable(available=not missing, missing=tuple(missing))

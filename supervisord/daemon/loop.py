@@ -31,7 +31,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from supervisord import __version__
-from supervisord.api.views import histograms_json
+from supervisord.api.status import LinkStatus, LoopStatus
+from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
@@ -113,6 +114,17 @@ class Timings:
         }
 
 
+@dataclass(frozen=True, slots=True)
+class Snapshot:
+    """What the loop hands the listener with every call: ``status(now)``, the loop's own
+    status at a time (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
+    ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
+    ``stoptest``, SR-12.1)."""
+
+    status: Callable[[int], LoopStatus]
+    stop_times: StopTimes
+
+
 class Listener:
     """Something else the loop serves (the client API): descriptors to watch and callbacks.
 
@@ -125,17 +137,31 @@ class Listener:
         return ()
 
     def handle(
-        self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
+        self,
+        fd: int,
+        readable: bool,
+        writable: bool,
+        now: int,
+        feed: Callable[[Event], Decision],
+        *,
+        snapshot: Snapshot,
     ) -> None:
         """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
-        and returns the core's decision (to answer with its refusals)."""
+        and returns the core's decision (to answer with its refusals); ``snapshot.status(now)`` is
+        what the loop says about itself, for a ``status`` reply; ``snapshot.stop_times``
+        its stops' measured times to off, for a ``stoptest``."""
 
-    def settle(self, now: int, feed: Callable[[Event], Decision]) -> None:
+    def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
         """Serve, through ``feed``, the safety inputs that arose outside ``handle`` (e.g. a
-        client dropped while a push was written to it). Called once at the end of a turn."""
+        client dropped while a push was written to it). Called once at the end of a turn.
+        ``feed`` and ``snapshot`` as for :meth:`handle`."""
 
-    def due(self, now: int, feed: Callable[[Event], Decision]) -> list[Message]:
-        """Work of the listener's own that is due (commissioning): frames to send to the VSC."""
+    def due(
+        self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot
+    ) -> list[Message]:
+        """Work of the listener's own that is due (commissioning, requests that waited for
+        the caller's name): frames to send to the VSC. ``feed`` and ``snapshot`` as for
+        :meth:`handle`."""
         return []
 
     def next_deadline(self) -> int | None:
@@ -190,6 +216,7 @@ class Supervisor:
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
+        self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -220,47 +247,47 @@ class Supervisor:
             self.flight = FlightRecorder(safety, flight)
             self._flight_writer = FlightWriter(writer.path, writer.max_bytes, writer.keep)
 
-    def info(self) -> dict[str, object]:
-        """What ``status`` adds about the daemon itself: its version and uptime, the link and
-        the loop's counters (docs/api.md "status")."""
+    def snapshot(self, now: int) -> LoopStatus:
+        """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
+        version and uptime, the link and the loop's counters (docs/api.md "status"). The
+        listener is handed this method, and builds the ``status`` reply with it."""
         counters = self.counters
-        now = self.clock()
-        return {
-            "pid": os.getpid(),
-            "version": __version__,
-            "uptime_s": seconds_since(now, self._started_ns),
-            "link": {
-                "description": self.link.description,
-                "open": self.link.is_open,
-                "opens": counters.link_opens,
-                "open_failures": counters.link_failures,
+        return LoopStatus(
+            pid=os.getpid(),
+            version=__version__,
+            uptime_s=seconds_since(now, self._started_ns),
+            link=LinkStatus(
+                description=self.link.description,
+                open=self.link.is_open,
+                opens=counters.link_opens,
+                open_failures=counters.link_failures,
                 # How long it has been open (or not), and the last reason it broke or could
                 # not open (kept after a reopen: a flapping link shows why).
-                "since_s": seconds_since(now, self._link_since_ns),
-                "last_error": self._link_error,
+                since_s=seconds_since(now, self._link_since_ns),
+                last_error=self._link_error,
                 # CAN only (null on serial and HID): error frames counted since start, each
                 # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
-                "error_frames": _error_frames(self.link),
-            },
-            "outputs_not_acquired": sorted(self._acquiring),
+                error_frames=_error_frames(self.link),
+            ),
+            outputs_not_acquired=tuple(sorted(self._acquiring)),
             # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
             # "Stop categories"); an output not named is category 0.
-            "outputs_off_delay_ms": {
+            outputs_off_delay_ms={
                 o.name: o.off_delay_ms for o in self.safety.outputs if o.off_delay_ms
             },
-            "messages": counters.messages,
-            "rejections": dict(sorted(counters.rejections.items())),
-            "record_errors": counters.record_errors,
-            "records_dropped": counters.records_dropped,
+            messages=counters.messages,
+            rejections=dict(sorted(counters.rejections.items())),
+            record_errors=counters.record_errors,
+            records_dropped=counters.records_dropped,
             # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
             # flight_windows, flight_errors (a snapshot's too) and flight_dropped
-            **self._sink_status(),
-            "rate_limited": counters.rate_limited,
-            "internal_faults": counters.internal_faults,
-            "histograms": histograms_json(self.timings.histograms()),
+            sink=self._sink_status(),
+            rate_limited=counters.rate_limited,
+            internal_faults=counters.internal_faults,
+            histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
             # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
-            "maintenance": self.schedule.json(now),
-        }
+            maintenance=self.schedule.status(now),
+        )
 
     def _sink_status(self) -> dict[str, int]:
         status = dict(self.sink.status() if self.sink is not None else IDLE_STATUS)
@@ -415,7 +442,7 @@ class Supervisor:
                 self._take_written()
             if clients:
                 self._serve_clients(clients)
-            self.listener.settle(self.clock(), self._feed_and_apply)
+            self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self._snapshot)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
@@ -435,7 +462,14 @@ class Supervisor:
             readable = bool(mask & selectors.EVENT_READ)
             writable = bool(mask & selectors.EVENT_WRITE)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self.listener.handle(key.fd, readable, writable, self.clock(), self._feed_and_apply)
+            self.listener.handle(
+                key.fd,
+                readable,
+                writable,
+                self.clock(),
+                self._feed_and_apply,
+                snapshot=self._snapshot,
+            )
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -502,7 +536,9 @@ class Supervisor:
                     self._acquire(name, backoff, now)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
-            self._send(tuple(self.listener.due(now, self._feed_and_apply)), now)
+            self._send(
+                tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
+            )
         if not self.link.is_open and now >= self.backoff.next_attempt:
             self._try_open_link(now)
         interval = self.notifier.watchdog_interval_ns

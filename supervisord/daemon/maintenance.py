@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Final
 
+from supervisord.api.status import Maintenance, PeriodicDue
 from supervisord.timebase import NS_PER_S
 
 DEFAULT_INTERVAL_DAYS: Final = 30
@@ -50,12 +51,13 @@ class Due:
     age_s: float | None
     overdue: bool
 
-    def json(self) -> dict[str, object]:
-        return {
-            "interval_days": self.interval_days,
-            "last_pass_age_s": None if self.age_s is None else round(self.age_s, 3),
-            "overdue": self.overdue,
-        }
+    def report(self) -> PeriodicDue:
+        """As ``status`` says it (docs/api.md): the age rounded to the millisecond."""
+        return PeriodicDue(
+            interval_days=self.interval_days,
+            last_pass_age_s=None if self.age_s is None else round(self.age_s, 3),
+            overdue=self.overdue,
+        )
 
 
 def due(test: PeriodicTest, interval_days: int, passed_ns: int | None, now_ns: int) -> Due:
@@ -109,9 +111,12 @@ class Schedule:
         if test is not None and isinstance(mono, int):
             self.passed_ns[test] = mono
 
-    def json(self, now_ns: int) -> dict[str, object]:
+    def status(self, now_ns: int) -> Maintenance:
         """For ``status`` (docs/api.md): each test's interval, last pass's age, overdue."""
-        return {
-            test.value: due(test, self.intervals.get(test, 0), self.passed_ns[test], now_ns).json()
-            for test in PeriodicTest
-        }
+
+        def now(test: PeriodicTest) -> PeriodicDue:
+            return due(test, self.intervals.get(test, 0), self.passed_ns[test], now_ns).report()
+
+        return Maintenance(
+            stoptest=now(PeriodicTest.STOPTEST), prooftest=now(PeriodicTest.PROOFTEST)
+        )

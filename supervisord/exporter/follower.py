@@ -93,7 +93,7 @@ class Follower:
             push = client.next_event(timeout=max(0.0, min(0.5, next_poll - time.monotonic())))
             if push is not None:
                 with self.lock:
-                    self.model.push(push.data, self.clock())
+                    self.model.push(push, self.clock())
             if time.monotonic() >= next_poll:
                 self._status(client)
                 next_poll = max(next_poll + self.poll, time.monotonic())

@@ -1,9 +1,11 @@
 """What the exporter knows, as metric values: pure (no socket, no clock, no prometheus-client).
 
-The follower feeds it ``status`` replies and pushes as the JSON objects the API sends
-(``docs/api.md``); :meth:`ExporterModel.families` gives the metric families to serve. Anything
-the daemon sends that this code does not expect (a missing field, a wrong type, a new kind of
-push) is skipped, never raised: the exporter must keep serving whatever the daemon says.
+The follower feeds it ``status`` replies and pushes as the client library reads them (the
+typed values of ``supervisord.api``, ``docs/api.md``); :meth:`ExporterModel.families` gives the
+metric families to serve. A reply or push the client cannot read never gets here (the
+follower reconnects, ``srcs_up`` 0 meanwhile); values this code does not expect (a state it
+does not know, a histogram Prometheus cannot take, a new kind of push) are skipped, never
+raised: the exporter must keep serving whatever the daemon says.
 
 Two kinds of values (docs/fleet.md "Metrics"):
 
@@ -20,10 +22,15 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Final, Protocol
 
+from supervisord.api.messages import RemoteStatusReport
+from supervisord.api.pushes import Push, RecordPush, RemoteStatusPush, StatePush
+from supervisord.api.records import StopRecord
+from supervisord.api.replies import StatusReply
+from supervisord.api.status import DaemonStatus, HistogramStatus, Maintenance, StateReport
 from supervisord.timebase import NS_PER_S
 
 STATES: Final = ("STOPPED", "HOLD", "RUN")
@@ -249,7 +256,7 @@ class DaemonInfo:
     internal_faults: int | None = None
     outputs_not_acquired: int | None = None
     histograms: tuple[tuple[str, HistogramValue], ...] = ()  # by metric name
-    tests: tuple[tuple[str, float | None, bool | None], ...] = ()  # test, age, overdue
+    tests: tuple[tuple[str, float | None, bool], ...] = ()  # test, age, overdue
 
 
 @dataclass(frozen=True, slots=True)
@@ -281,68 +288,30 @@ class _Labels:
         return value
 
 
-def _int(value: object) -> int | None:
-    """An integer (not a bool) or ``None``."""
-    return value if isinstance(value, int) and not isinstance(value, bool) else None
-
-
-def _text(value: object) -> str | None:
-    return value if isinstance(value, str) else None
-
-
-def _mapping(value: object) -> Mapping[str, object]:
-    return value if isinstance(value, Mapping) else {}
-
-
-def _list(value: object) -> list[object]:
-    return value if isinstance(value, list) else []
-
-
-def _number(value: object) -> float | None:
-    """A finite int or float (not a bool) as a float, or ``None``."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    number = float(value)
-    return number if math.isfinite(number) else None
-
-
-def _histogram(value: object) -> HistogramValue | None:
+def _histogram(histogram: HistogramStatus | None) -> HistogramValue | None:
     """A histogram of the ``status`` reply, or ``None`` if it is not one a Prometheus
-    histogram can be: bounds that increase, cumulative counts that do not decrease, one per
-    bound, none above ``count``."""
-    obj = _mapping(value)
-    bounds = [_number(b) for b in _list(obj.get("le"))]
-    counts = [_int(c) for c in _list(obj.get("counts"))]
-    total, count = _number(obj.get("sum")), _int(obj.get("count"))
-    if total is None or count is None or len(bounds) != len(counts):
+    histogram can be: finite bounds that increase, cumulative counts that do not decrease,
+    one per bound, none above ``count``."""
+    if histogram is None or len(histogram.le) != len(histogram.counts):
         return None
     buckets: list[tuple[float, int]] = []
-    for bound, cumulative in zip(bounds, counts, strict=True):
-        if bound is None or cumulative is None:
+    for bound, cumulative in zip(histogram.le, histogram.counts, strict=True):
+        if not math.isfinite(bound) or cumulative < 0:
             return None
         if buckets and (bound <= buckets[-1][0] or cumulative < buckets[-1][1]):
             return None
-        buckets.append((bound, cumulative))
-    if buckets and buckets[-1][1] > count:
+        buckets.append((float(bound), cumulative))
+    if buckets and buckets[-1][1] > histogram.count:
         return None
-    return HistogramValue(tuple(buckets), total, count)
+    return HistogramValue(tuple(buckets), float(histogram.sum), histogram.count)
 
 
-PERIODIC_TESTS: Final = ("stoptest", "prooftest")
-"""The periodic tests ``status`` reports (``daemon.maintenance``, SR-12.2): a fixed set, so
-the ``test`` label cannot grow."""
-
-
-def _tests(value: object) -> tuple[tuple[str, float | None, bool | None], ...]:
-    schedule = _mapping(value)
-    found = []
-    for test in PERIODIC_TESTS:
-        due = _mapping(schedule.get(test))
-        if due:
-            overdue = due.get("overdue")
-            age = _number(due.get("last_pass_age_s"))
-            found.append((test, age, overdue if isinstance(overdue, bool) else None))
-    return tuple(found)
+def _tests(schedule: Maintenance | None) -> tuple[tuple[str, float | None, bool], ...]:
+    """The periodic tests ``status`` reports (``daemon.maintenance``, SR-12.2): the typed
+    value names a fixed set, so the ``test`` label cannot grow."""
+    if schedule is None:
+        return ()
+    return tuple((test, due.last_pass_age_s, due.overdue) for test, due in schedule.tests())
 
 
 class ExporterModel:
@@ -394,55 +363,43 @@ class ExporterModel:
         self.remote = None
         self.estop_available = None
 
-    def status(self, reply: Mapping[str, object]) -> None:
+    def status(self, reply: StatusReply) -> None:
         """A ``status`` reply: the state, ``estop_available`` and the ``daemon`` object."""
-        self._state(reply)
-        available = _mapping(reply.get("estop_available")).get("available")
-        self.estop_available = available if isinstance(available, bool) else None
-        daemon = reply.get("daemon")
-        if isinstance(daemon, Mapping):
-            self._daemon(daemon)
+        self._state(reply.report)
+        available = reply.estop_available
+        self.estop_available = None if available is None else available.available
+        self._daemon(reply.daemon)
 
-    def push(self, push: Mapping[str, object], now_ns: int) -> None:
+    def push(self, push: Push, now_ns: int) -> None:
         """One push; ``now_ns`` is when it arrived (for the remote status's age)."""
-        match push.get("event"):
-            case "state":
-                self._state(push)
-            case "record":
-                self._record(push)
-            case "remote_status":
-                self._remote(push, now_ns)
-            case _:
-                pass  # a topic this exporter did not ask for, or a newer one
+        if isinstance(push, StatePush):
+            self._state(push.report)
+        elif isinstance(push, RecordPush):
+            self._record(push.record)
+        elif isinstance(push, RemoteStatusPush):
+            self._remote(push.message, now_ns)
+        # else: a topic this exporter did not ask for, or a newer one
 
-    def _state(self, obj: Mapping[str, object]) -> None:
-        state = obj.get("state")
-        mono_ns = _int(obj.get("mono_ns"))
-        if state not in STATES or mono_ns is None:
+    def _state(self, report: StateReport) -> None:
+        if report.state not in STATES:
             return
         # A push read after a newer status reply (the client keeps pushes that arrive while
         # it waits for a reply) must not turn the state back.
-        if self.state_ns is not None and mono_ns < self.state_ns:
+        if self.state_ns is not None and report.mono_ns < self.state_ns:
             return
-        self.state, self.state_ns = str(state), mono_ns
+        self.state, self.state_ns = report.state, report.mono_ns
         causes: dict[str, CauseFlags] = {}
-        for item in _list(obj.get("causes")):
-            cause = _mapping(item)
-            name, severity = _text(cause.get("name")), _text(cause.get("severity"))
-            if name is None or severity is None:
-                continue
-            name = self._cause_label(name, severity)
+        for cause in report.causes:
+            name = self._cause_label(cause.name, cause.severity)
             flags = causes.get(name)
             causes[name] = CauseFlags(
-                severity,
-                cause.get("active") is True or (flags is not None and flags.active),
-                cause.get("latched") is True or (flags is not None and flags.latched),
+                cause.severity,
+                cause.active or (flags is not None and flags.active),
+                cause.latched or (flags is not None and flags.latched),
             )
         self.causes = causes
         self.outputs = {
-            self._output_labels.admit(name): level
-            for name, level in _mapping(obj.get("outputs")).items()
-            if isinstance(level, bool)
+            self._output_labels.admit(name): level for name, level in report.outputs.items()
         }
 
     def _cause_label(self, name: str, severity: str | None = None) -> str:
@@ -451,74 +408,58 @@ class ExporterModel:
             self.known_causes.setdefault(label, severity)
         return label
 
-    def _daemon(self, daemon: Mapping[str, object]) -> None:
-        link = _mapping(daemon.get("link"))
-        link_open = link.get("open")
-        pid = _int(daemon.get("pid"))
-        if pid is not None:
-            if self._last_pid is not None and pid != self._last_pid:
-                self.daemon_restarts += 1
-            self._last_pid = pid
+    def _daemon(self, daemon: DaemonStatus) -> None:
+        loop = daemon.loop
+        if self._last_pid is not None and loop.pid != self._last_pid:
+            self.daemon_restarts += 1
+        self._last_pid = loop.pid
         rejections: dict[str, int] = {}
-        for reason, count in _mapping(daemon.get("rejections")).items():
-            value = _int(count)
-            if value is not None:
-                label = self._reason_labels.admit(reason)
-                rejections[label] = rejections.get(label, 0) + value
+        for reason, count in loop.rejections.items():
+            label = self._reason_labels.admit(reason)
+            rejections[label] = rejections.get(label, 0) + count
         histograms: list[tuple[str, HistogramValue]] = []
         for key, metric in HISTOGRAMS.items():
-            parsed = _histogram(_mapping(daemon.get("histograms")).get(key))
+            parsed = _histogram(loop.histograms.get(key))
             if parsed is not None:
                 histograms.append((metric, parsed))
         self.daemon = DaemonInfo(
-            robot=_text(daemon.get("robot")),
-            pid=pid,
-            link_open=link_open if isinstance(link_open, bool) else None,
-            link_opens=_int(link.get("opens")),
-            link_open_failures=_int(link.get("open_failures")),
-            messages=_int(daemon.get("messages")),
+            robot=daemon.robot,
+            pid=loop.pid,
+            link_open=loop.link.open,
+            link_opens=loop.link.opens,
+            link_open_failures=loop.link.open_failures,
+            messages=loop.messages,
             rejections=tuple(sorted(rejections.items())),
-            record_errors=_int(daemon.get("record_errors")),
-            internal_faults=_int(daemon.get("internal_faults")),
-            outputs_not_acquired=(
-                len(_list(daemon.get("outputs_not_acquired")))
-                if isinstance(daemon.get("outputs_not_acquired"), list)
-                else None
-            ),
+            record_errors=loop.record_errors,
+            internal_faults=loop.internal_faults,
+            outputs_not_acquired=len(loop.outputs_not_acquired),
             histograms=tuple(histograms),
-            tests=_tests(daemon.get("maintenance")),
+            tests=_tests(loop.maintenance),
         )
 
-    def _record(self, record: Mapping[str, object]) -> None:
+    def _record(self, record: StopRecord) -> None:
         """Count one stop record (docs/record.md), reconciled by its sequence number."""
-        seq = _int(record.get("seq"))
-        if seq is not None:
-            if self.last_seq is not None and seq > self.last_seq + 1:
-                # Written while this exporter was not connected (or not subscribed yet).
-                self.records_missed += seq - self.last_seq - 1
-            # A number at or below the last one: the daemon's sequence started again (a new
-            # record file); it is no repeat, since a push is sent once, to live subscribers.
-            self.last_seq = seq
+        seq = record.seq
+        if self.last_seq is not None and seq > self.last_seq + 1:
+            # Written while this exporter was not connected (or not subscribed yet).
+            self.records_missed += seq - self.last_seq - 1
+        # A number at or below the last one: the daemon's sequence started again (a new
+        # record file); it is no repeat, since a push is sent once, to live subscribers.
+        self.last_seq = seq
         self.records_seen += 1
         severities: dict[str, str] = {}
-        for item in _list(record.get("causes")):
-            cause = _mapping(item)
-            name, severity = _text(cause.get("name")), _text(cause.get("severity"))
-            if name is not None and severity is not None:
-                severities[name] = severity
-                self._cause_label(name, severity)
-        changes = [
-            (_text(change.get("name")), _text(change.get("change")))
-            for change in map(_mapping, _list(record.get("changes")))
-        ]
-        raised = [name for name, kind in changes if name is not None and kind == "raised"]
-        released = [name for name, kind in changes if name is not None and kind == "released"]
+        for cause in record.causes:
+            severities[cause.name] = cause.severity
+            self._cause_label(cause.name, cause.severity)
+        changes = record.changes or ()
+        raised = [c.name for c in changes if c.change == "raised"]
+        released = [c.name for c in changes if c.change == "released"]
         for name in raised:
             label = self._cause_label(name)
             self.raised[label] = self.raised.get(label, 0) + 1
-        before, after = _text(record.get("from")), _text(record.get("to"))
+        before, after = record.from_state, record.to_state
         if before in STATES and after in STATES and before != after:
-            key = (str(before), str(after))
+            key = (before, after)
             self.transitions[key] = self.transitions.get(key, 0) + 1
             if after == "STOPPED":
                 stop_causes = [n for n in raised if severities.get(n) == "stop"]
@@ -528,22 +469,22 @@ class ExporterModel:
                     label = self._cause_label(name)
                     self.stops[label] = self.stops.get(label, 0) + 1
             elif before == "STOPPED":
-                kind = _text(_mapping(record.get("rearm")).get("kind")) or "unknown"
+                kind = record.rearm.kind if record.rearm is not None else "unknown"
                 for name in released or ["unknown"]:
                     key = (self._cause_label(name), kind)
                     self.rearms[key] = self.rearms.get(key, 0) + 1
-        if record.get("kind") == "rearm_refused":
+        if record.kind == "rearm_refused":
             self.rearm_refusals += 1
 
-    def _remote(self, push: Mapping[str, object], now_ns: int) -> None:
+    def _remote(self, message: RemoteStatusReport, now_ns: int) -> None:
         self.remote = RemoteSeen(
             received_ns=now_ns,
-            battery_level=_int(push.get("battery_level")),
-            battery_charging=_int(push.get("battery_charging")),
-            strength_vsc=_int(push.get("connection_strength_vsc")),
-            strength_src=_int(push.get("connection_strength_src")),
-            rssi_vsc=_int(push.get("rssi_vsc")),
-            rssi_src=_int(push.get("rssi_src")),
+            battery_level=message.battery_level,
+            battery_charging=message.battery_charging,
+            strength_vsc=message.connection_strength_vsc,
+            strength_src=message.connection_strength_src,
+            rssi_vsc=message.rssi_vsc,
+            rssi_src=message.rssi_src,
         )
 
     # ------------------------------------------------------------------ reading

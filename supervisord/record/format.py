@@ -18,6 +18,16 @@ import re
 from collections.abc import Mapping
 from typing import Any, Final, get_args
 
+from supervisord.api.records import Caller as CallerReport
+from supervisord.api.records import (
+    Change,
+    OutputOffReport,
+    Rearm,
+    StopRecord,
+    StopStepReport,
+    StopTestReport,
+)
+from supervisord.api.status import Cause, ProofTestResult, ProofTestStatus
 from supervisord.compat import StrEnum
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Message
@@ -50,6 +60,7 @@ from supervisord.safety.events import (
     Tick,
     VscReceived,
 )
+from supervisord.safety.prooftest import Outcome, ProofStatus
 from supervisord.safety.stoptest import StopTestResult
 
 JsonDict = dict[str, Any]
@@ -101,30 +112,90 @@ def written_kind(record: Mapping[str, object]) -> RecordKind:
     raise RecordUsageError(f"unknown record kind {kind!r}")
 
 
-def caller_json(caller: Caller) -> JsonDict:
+def caller_report(caller: Caller) -> CallerReport:
     """The caller; its login name escaped if it is not UTF-8 (``credentials.user_name``
     escapes it at the source already; this keeps every record and reply encodable)."""
-    return {"uid": caller.uid, "pid": caller.pid, "name": clean(caller.name), "admin": caller.admin}
+    return CallerReport(uid=caller.uid, pid=caller.pid, name=clean(caller.name), admin=caller.admin)
+
+
+def caller_json(caller: Caller) -> JsonDict:
+    return caller_report(caller).json()
+
+
+def cause_report(cause: CauseState) -> Cause:
+    """One cause: ``name``, ``severity`` (``stop``/``hold``), ``active``, ``latched``, the
+    monotonic times, and ``details`` (text values, e.g. ``{"sources": "remote"}``)."""
+    return Cause(
+        name=cause.name,
+        severity=cause.severity.value,
+        active=cause.active,
+        latched=cause.latched,
+        raised_ns=cause.raised_ns,
+        cleared_ns=cause.cleared_ns,
+        details={clean(k): clean(v) for k, v in cause.details},  # may quote input text
+    )
 
 
 def cause_json(cause: CauseState) -> JsonDict:
-    """One cause: ``name``, ``severity`` (``stop``/``hold``), ``active``, ``latched``, the
-    monotonic times, and ``details`` (text values, e.g. ``{"sources": "remote"}``)."""
-    return {
-        "name": cause.name,
-        "severity": cause.severity.value,
-        "active": cause.active,
-        "latched": cause.latched,
-        "raised_ns": cause.raised_ns,
-        "cleared_ns": cause.cleared_ns,
-        "details": {clean(k): clean(v) for k, v in cause.details},  # may quote input text
-    }
+    return cause_report(cause).json()
+
+
+def proof_result(outcome: Outcome) -> ProofTestResult:
+    """A finished proof test (docs/safety.md "The proof test"), as records and ``status``
+    show it."""
+    return ProofTestResult(
+        result="passed" if outcome.passed else "failed",
+        failure=None if outcome.failure is None else outcome.failure.name.lower(),
+        trip_ms=outcome.trip_ms,
+        cleared=None if outcome.cleared is None else outcome.cleared.value,
+        cleared_ms=outcome.cleared_ms,
+        text=outcome.text,
+    )
+
+
+def proof_status(status: ProofStatus) -> ProofTestStatus:
+    """Where the proof test is, as ``status`` and ``state`` pushes show it."""
+    return ProofTestStatus(
+        policy=status.policy.value,
+        phase=status.phase.value,
+        last=None if status.last is None else proof_result(status.last),
+    )
+
+
+def stoptest_report(result: StopTestResult) -> StopTestReport:
+    """A finished field stop test (SR-12.1), as its record and the ``stoptest`` reply show
+    it; the same object as :meth:`StopTestResult.json`, which the flight recorder keeps."""
+    limit = result.limit_ms
+    return StopTestReport(
+        result="passed" if result.passed else "failed",
+        limit_ms=limit,
+        steps=tuple(
+            StopStepReport(
+                source=step.source.value,
+                seq=step.seq,
+                stop_ns=step.stop_ns,
+                passed=step.passed(limit),
+                outputs=tuple(
+                    OutputOffReport(
+                        name=o.name,
+                        off_ns=o.off_ns,
+                        off_ms=o.off_ms,
+                        off_delay_ms=o.off_delay_ms,
+                        passed=o.passed(limit),
+                    )
+                    for o in step.outputs
+                ),
+            )
+            for step in result.steps
+        ),
+        text=result.text,
+    )
 
 
 def _plain(value: object) -> object:
     """A trigger's field as JSON: messages through the protocol's JSON view."""
     if isinstance(value, Caller):
-        return caller_json(value)
+        return caller_report(value).json()
     if isinstance(value, enum.Enum):
         return value.value
     if isinstance(value, str):
@@ -190,26 +261,34 @@ def record_json(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> J
     """A stop record as JSON, with the fields ``docs/record.md`` requires; ``utc`` (aware) is
     the wall-clock time the daemon stamped on it. ``seq`` continues after ``sequence_offset``,
     the last sequence number already in the store (the core counts from 1 at every start)."""
-    result: JsonDict = {
-        "seq": sequence_offset + record.sequence,
-        "mono_ns": record.monotonic_ns,
-        "utc": utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),
-        "kind": record_kind(record).value,
-        "from": record.previous.name,
-        "to": record.state.name,
-        "causes": [cause_json(c) for c in record.causes],
-        "changes": [{"name": c.cause.name, "change": c.kind.value} for c in record.changes],
-        "trigger": trigger_json(record.trigger),
-    }
-    if record.reason:
-        result["reason"] = clean(record.reason)
-    if record.prooftest is not None:
-        result["prooftest"] = record.prooftest.json()
-    if isinstance(record.trigger, StopTested):
-        result["stoptest"] = record.trigger.result.json()
+    return stop_record(record, utc, sequence_offset).json()
+
+
+def stop_record(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> StopRecord:
+    """The record as the client API's typed value, whose encoder writes the record's JSON
+    (:func:`record_json`): one encoder for the file, the journal and the ``record`` push."""
+    rearm = None
     if record.rearm is not None:
-        rearm: JsonDict = {"kind": record.rearm.kind.value}
-        if record.rearm.caller is not None:
-            rearm["caller"] = caller_json(record.rearm.caller)
-        result["rearm"] = rearm
-    return result
+        caller = record.rearm.caller
+        rearm = Rearm(
+            kind=record.rearm.kind.value,
+            caller=None if caller is None else caller_report(caller),
+        )
+    return StopRecord(
+        seq=sequence_offset + record.sequence,
+        mono_ns=record.monotonic_ns,
+        utc=utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),
+        kind=record_kind(record).value,
+        from_state=record.previous.name,
+        to_state=record.state.name,
+        causes=tuple(cause_report(c) for c in record.causes),
+        changes=tuple(Change(name=c.cause.name, change=c.kind.value) for c in record.changes),
+        trigger=trigger_json(record.trigger),
+        reason=clean(record.reason) if record.reason else None,
+        prooftest=None if record.prooftest is None else proof_result(record.prooftest),
+        # A stop test's numbers are the record's own ``stoptest`` field (SR-12.1).
+        stoptest=stoptest_report(record.trigger.result)
+        if isinstance(record.trigger, StopTested)
+        else None,
+        rearm=rearm,
+    )

@@ -7,10 +7,11 @@ strength, RSSI). docs/ros2.md "Diagnostics" lists every key.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Final
 
+from supervisord.api.messages import RemoteStatusReport
+from supervisord.api.status import Cause, DaemonStatus, Maintenance, StateReport
 from supervisord.compat import IntEnum
 from supervisord.ros2.mapping import State, state_of
 
@@ -53,8 +54,8 @@ _STATE_LEVEL: Final = {State.RUN: Level.OK, State.HOLD: Level.WARN, State.STOPPE
 
 
 def supervisor_status(
-    status: Mapping[str, Any] | None,
-    daemon: Mapping[str, Any] | None,
+    status: StateReport | None,
+    daemon: DaemonStatus | None,
     *,
     socket: str,
     client_name: str,
@@ -67,7 +68,7 @@ def supervisor_status(
     the supervisor cannot be reached (``unreachable`` says why), an ERROR (docs/ros2.md
     "Reconnects"). ``estop_available``: whether the remote e-stop is available and what is
     missing (SR-8.11), from the latest ``status`` reply; not available in RUN is a WARN."""
-    robot = _text(daemon.get("robot")) if daemon else ""
+    robot = _text(daemon.robot) if daemon else ""
     values: list[tuple[str, str]] = [("socket", socket), ("client name", client_name)]
     if status is None:
         values += [("connected", "false"), ("error", unreachable)]
@@ -75,14 +76,11 @@ def supervisor_status(
         message = f"supervisor unreachable: {unreachable}" if unreachable else "unreachable"
         return Status(Level.ERROR, SUPERVISOR_NAME, message, robot, tuple(values))
     state = state_of(status)
-    causes = [c for c in status.get("causes", []) if isinstance(c, Mapping)]
-    names = [_text(c.get("name")) for c in causes]
+    names = [c.name for c in status.causes]
     values += [("connected", "true"), ("state", state.value)]
-    values += [(_text(c.get("name")), _cause_text(c)) for c in causes]
-    outputs = status.get("outputs")
-    if isinstance(outputs, Mapping):
-        values += [(f"output {name}", _flag(on)) for name, on in sorted(outputs.items())]
-    values += [("heartbeat e-stop", _text(status.get("heartbeat_estop")))]
+    values += [(c.name, _cause_text(c)) for c in status.causes]
+    values += [(f"output {name}", _flag(on)) for name, on in sorted(status.outputs.items())]
+    values += [("heartbeat e-stop", _text(status.heartbeat_estop))]
     level = _STATE_LEVEL[state]
     if estop_available is not None:
         available, parts = estop_available
@@ -93,7 +91,7 @@ def supervisor_status(
     overdue: list[str] = []
     if daemon:
         values += _daemon_values(daemon)
-        tests, overdue = _periodic_tests(daemon.get("maintenance"))
+        tests, overdue = _periodic_tests(daemon.loop.maintenance)
         values += tests
         if overdue and level is Level.OK:
             level = Level.WARN  # the evidence is old: said, the robot is not stopped (SR-12.2)
@@ -106,48 +104,43 @@ def supervisor_status(
     return Status(level, SUPERVISOR_NAME, message, robot, tuple(values))
 
 
-PERIODIC_TESTS: Final = (("stoptest", "stop test"), ("prooftest", "proof test"))
+PERIODIC_TESTS: Final = {"stoptest": "stop test", "prooftest": "proof test"}
 """The periodic tests of ``status``'s ``daemon.maintenance`` (SR-12.2) and their keys' names."""
 
 
-def _periodic_tests(schedule: object) -> tuple[list[tuple[str, str]], list[str]]:
+def _periodic_tests(schedule: Maintenance | None) -> tuple[list[tuple[str, str]], list[str]]:
     """``stop test last pass age s``, ``stop test overdue`` and the proof test's two, and the
     names of the overdue tests."""
     values: list[tuple[str, str]] = []
     overdue: list[str] = []
-    if not isinstance(schedule, Mapping):
-        return values, overdue
-    for test, name in PERIODIC_TESTS:
-        due = schedule.get(test)
-        if not isinstance(due, Mapping):
-            continue
-        age = due.get("last_pass_age_s")
+    for test, due in schedule.tests() if schedule is not None else ():
+        name = PERIODIC_TESTS[test]
+        age = due.last_pass_age_s
         values.append((f"{name} last pass age s", "never" if age is None else _text(age)))
-        values.append((f"{name} overdue", _flag(due.get("overdue"))))
-        if due.get("overdue") is True:
+        values.append((f"{name} overdue", _flag(due.overdue)))
+        if due.overdue:
             overdue.append(name)
     return values, overdue
 
 
-def remote_status(push: Mapping[str, Any] | None, robot: str) -> Status:
+def remote_status(remote: RemoteStatusReport | None, robot: str) -> Status:
     """The remote's status from its latest ``remote_status`` push. None yet: STALE, because
     the VSC sends it only once commissioned (``srcsctl commission``, docs/api.md)."""
-    if push is None:
+    if remote is None:
         message = "no remote status yet (the VSC sends it once commissioned)"
         return Status(Level.STALE, REMOTE_NAME, message, robot, ())
-    battery = push.get("battery_level")
-    strengths = (push.get("connection_strength_vsc"), push.get("connection_strength_src"))
-    keys = (
-        ("battery level %", "battery_level"),
-        ("battery charging", "battery_charging"),
-        ("link strength at the VSC", "connection_strength_vsc"),
-        ("link strength at the remote", "connection_strength_src"),
-        ("RSSI at the VSC", "rssi_vsc"),
-        ("RSSI at the remote", "rssi_src"),
+    battery = remote.battery_level
+    strengths = (remote.connection_strength_vsc, remote.connection_strength_src)
+    values = (
+        ("battery level %", str(battery)),
+        ("battery charging", str(remote.battery_charging)),
+        ("link strength at the VSC", str(remote.connection_strength_vsc)),
+        ("link strength at the remote", str(remote.connection_strength_src)),
+        ("RSSI at the VSC", str(remote.rssi_vsc)),
+        ("RSSI at the remote", str(remote.rssi_src)),
     )
-    values = tuple((key, _text(push.get(field))) for key, field in keys)
     warnings = []
-    if isinstance(battery, int) and battery < LOW_BATTERY_PERCENT:
+    if battery < LOW_BATTERY_PERCENT:
         warnings.append(f"battery {battery} %")
     if any(s == 0 for s in strengths):
         warnings.append("no radio link")
@@ -156,33 +149,31 @@ def remote_status(push: Mapping[str, Any] | None, robot: str) -> Status:
     return Status(Level.OK, REMOTE_NAME, f"battery {_text(battery)} %", robot, values)
 
 
-def _cause_text(cause: Mapping[str, Any]) -> str:
+def _cause_text(cause: Cause) -> str:
     """``stop, active, latched; sources=remote`` for one cause of a ``status``."""
-    words = [_text(cause.get("severity"))]
-    words += [w for w in ("active", "latched") if cause.get(w) is True]
-    details = cause.get("details")
+    words = [cause.severity]
+    words += ["active"] if cause.active else []
+    words += ["latched"] if cause.latched else []
     text = ", ".join(words)
-    if isinstance(details, Mapping) and details:
-        text += "; " + ", ".join(f"{k}={_text(v)}" for k, v in sorted(details.items()))
+    if cause.details:
+        text += "; " + ", ".join(f"{k}={v}" for k, v in sorted(cause.details.items()))
     return text
 
 
-def _daemon_values(daemon: Mapping[str, Any]) -> list[tuple[str, str]]:
-    values = [("robot", _text(daemon.get("robot"))), ("pid", _text(daemon.get("pid")))]
-    link = daemon.get("link")
-    if isinstance(link, Mapping):
-        for key in ("description", "open", "opens", "open_failures"):
-            value = link.get(key)
-            values.append(
-                (f"link {key}", _flag(value) if isinstance(value, bool) else _text(value))
-            )
-    values.append(("messages", _text(daemon.get("messages"))))
-    rejections = daemon.get("rejections")
-    if isinstance(rejections, Mapping):
-        counts = [v for v in rejections.values() if isinstance(v, int)]
-        values.append(("rejections", str(sum(counts))))
-        values += [(f"rejections {k}", _text(v)) for k, v in sorted(rejections.items())]
-    values += [(key, _text(daemon.get(key))) for key in ("record_errors", "internal_faults")]
+def _daemon_values(daemon: DaemonStatus) -> list[tuple[str, str]]:
+    loop, link = daemon.loop, daemon.loop.link
+    values = [("robot", _text(daemon.robot)), ("pid", str(loop.pid))]
+    values += [
+        ("link description", link.description),
+        ("link open", _flag(link.open)),
+        ("link opens", str(link.opens)),
+        ("link open_failures", str(link.open_failures)),
+        ("messages", str(loop.messages)),
+        ("rejections", str(sum(loop.rejections.values()))),
+    ]
+    values += [(f"rejections {k}", str(v)) for k, v in sorted(loop.rejections.items())]
+    values += [("record_errors", str(loop.record_errors))]
+    values += [("internal_faults", str(loop.internal_faults))]
     return values
 
 

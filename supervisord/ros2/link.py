@@ -14,10 +14,10 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Union
+from typing import Final, Union
 
 from supervisord.api.framing import ApiError
-from supervisord.client import ClientError, Push, SupervisorClient
+from supervisord.client import ClientError, Push, StatusReply, SupervisorClient
 
 TOPICS: Final = ("state", "joystick", "gps", "remote_status")
 MAX_PUSHES_PER_CALL: Final = 256  # the executor's other callbacks get their turn
@@ -28,7 +28,7 @@ READ_SLICE_S: Final = 0.02  # how long a read may wait for the rest of a line it
 class Connected:
     """Connected, named, subscribed: ``status`` is the first ``status`` reply."""
 
-    status: dict[str, Any]
+    status: StatusReply
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,10 +92,10 @@ class SupervisorLink:
         """One heartbeat; False when disconnected or it failed (then ``Lost``)."""
         return self._call(lambda client: client.heartbeat())[0]
 
-    def status(self) -> dict[str, Any] | None:
+    def status(self) -> StatusReply | None:
         """A ``status`` reply, or None when disconnected or it failed."""
         ok, reply = self._call(lambda client: client.status())
-        return reply if ok and isinstance(reply, dict) else None
+        return reply if ok and isinstance(reply, StatusReply) else None
 
     def request(self, call: Callable[[SupervisorClient], object]) -> tuple[bool, str]:
         """Run one request; (True, "") or (False, why). A refusal (``ApiError``) keeps the

@@ -1,32 +1,35 @@
 """API pushes to the field values of the bridge's ROS messages: pure, no ROS import.
 
-Each function takes one push or reply as ``supervisord.client`` returns it (a JSON object,
-``docs/api.md`` "Pushes") and returns plain values that the rclpy edge copies into a message.
-Nothing here raises on a malformed push: a field that is missing or of the wrong kind maps to
-the safe value (an axis 0, a button up, the state STOPPED, no GPS fix).
+Each function takes one push or reply as ``supervisord.client`` returns it (the typed values
+of ``supervisord.api``, ``docs/api.md`` "Pushes") and returns plain values that the rclpy edge
+copies into a message. A push the client could not read never gets here (the client refuses
+it and the bridge reconnects, STOPPED meanwhile); a value out of its range maps to the safe
+value (an axis 0, the state STOPPED, no GPS fix).
 """
 
 from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Final
 
+from supervisord.api.messages import AxisReport, GpsReport, JoystickReport
+from supervisord.api.replies import StatusReply
+from supervisord.api.status import StateReport
 from supervisord.compat import IntEnum
 
 AXES: Final = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
 """``sensor_msgs/Joy`` axes 0-5, the order of the public drivers (docs/ros2.md "joy")."""
 BUTTONS: Final = (
-    ("left_button_values", "down"),
-    ("left_button_values", "right"),
-    ("left_button_values", "up"),
-    ("left_button_values", "left"),
-    ("right_button_values", "button_1"),
-    ("right_button_values", "button_2"),
-    ("right_button_values", "button_3"),
-    ("right_button_values", "button_4"),
+    ("left", "down"),
+    ("left", "right"),
+    ("left", "up"),
+    ("left", "left"),
+    ("right", "button_1"),
+    ("right", "button_2"),
+    ("right", "button_3"),
+    ("right", "button_4"),
 )
 """``sensor_msgs/Joy`` buttons 0-7: the left pad in wire order, then the right buttons 1-4."""
 FULL_SCALE: Final = 1023  # manual table 19: an axis is -1023..1023
@@ -42,14 +45,14 @@ class State(enum.Enum):
     RUN = "RUN"
 
 
-def state_of(status: Mapping[str, Any] | None) -> State:
+def state_of(report: StateReport | None) -> State:
     """The state of a ``state`` push or ``status`` reply; ``None`` (the supervisor cannot be
-    reached) and anything unreadable are STOPPED: the bridge never vouches for motion it
-    cannot see (docs/ros2.md "state")."""
-    if status is None:
+    reached) and a state this bridge does not know are STOPPED: the bridge never vouches for
+    motion it cannot see (docs/ros2.md "state")."""
+    if report is None:
         return State.STOPPED
     try:
-        return State(status.get("state"))
+        return State(report.state)
     except ValueError:
         return State.STOPPED
 
@@ -60,17 +63,15 @@ def estop_of(state: State) -> bool:
     return state not in (State.RUN, State.HOLD)
 
 
-def estop_available_of(status: Mapping[str, Any] | None) -> tuple[bool, tuple[str, ...]]:
+def estop_available_of(status: StatusReply | None) -> tuple[bool, tuple[str, ...]]:
     """The ``estop_available`` topic and the parts missing, from a ``status`` reply
     (SR-8.11, docs/api.md "status"): false unless the reply says true, so a supervisor not
     reached, or one too old to say, is never taken for an available e-stop."""
-    field = status.get("estop_available") if status is not None else None
-    if not isinstance(field, Mapping):
-        why = "the supervisor is not reached" if status is None else "the supervisor does not say"
-        return False, (why,)
-    missing = field.get("missing")
-    parts = tuple(str(m) for m in missing) if isinstance(missing, list) else ()
-    return field.get("available") is True, parts
+    if status is None:
+        return False, ("the supervisor is not reached",)
+    if status.estop_available is None:
+        return False, ("the supervisor does not say",)
+    return status.estop_available.available, status.estop_available.missing
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,26 +82,21 @@ class JoyValues:
     buttons: tuple[int, ...]
 
 
-def axis_value(field: object) -> float:
-    """One axis of a joystick push scaled to -1..1; an invalid axis (``value`` null), a
-    missing one or one out of range is 0.0, the neutral stick (docs/ros2.md "joy")."""
-    if not isinstance(field, Mapping):
-        return 0.0
-    raw = field.get("value")
-    if isinstance(raw, bool) or not isinstance(raw, int) or abs(raw) > FULL_SCALE:
+def axis_value(axis: AxisReport) -> float:
+    """One axis of a joystick push scaled to -1..1; an invalid axis (``value`` null) or one
+    out of range is 0.0, the neutral stick (docs/ros2.md "joy")."""
+    raw = axis.value
+    if raw is None or abs(raw) > FULL_SCALE:
         return 0.0
     return raw / FULL_SCALE
 
 
-def joy_values(push: Mapping[str, Any]) -> JoyValues:
+def joy_values(message: JoystickReport) -> JoyValues:
     """The ``joy`` message of one joystick push (``docs/api.md`` "Pushes")."""
-    axes = tuple(axis_value(push.get(f"{name}_joystick_value")) for name in AXES)
-    buttons = []
-    for hand, name in BUTTONS:
-        values = push.get(hand)
-        pressed = values.get("pressed") if isinstance(values, Mapping) else None
-        buttons.append(int(isinstance(pressed, list) and name in pressed))
-    return JoyValues(axes, tuple(buttons))
+    axes = tuple(axis_value(axis) for axis in message.axes().values())
+    hands = {"left": message.left_buttons.pressed, "right": message.right_buttons.pressed}
+    buttons = tuple(int(name in hands[hand]) for hand, name in BUTTONS)
+    return JoyValues(axes, buttons)
 
 
 class FixStatus(IntEnum):
@@ -129,33 +125,26 @@ class Fix:
     altitude: float
 
 
-def gps_fix(push: Mapping[str, Any]) -> Fix | None:
+def gps_fix(message: GpsReport) -> Fix | None:
     """The ``gps`` message of a GPS push, or ``None`` when it is no GGA sentence (only GGA
     carries a position fix with its quality). A GGA without a valid fix gives ``NO_FIX``
     with NaN coordinates, as ``sensor_msgs/NavSatFix`` asks."""
-    if push.get("sentence_type") != "GGA":
+    fix = message.fix
+    if fix is None or fix.sentence_type != "GGA":
         return None
-    latitude, longitude = push.get("latitude"), push.get("longitude")
-    quality = push.get("fix_quality")
-    valid = push.get("valid") is True and _number(latitude) and _number(longitude)
-    if not valid or not isinstance(quality, int) or quality == 0:
+    latitude, longitude, quality = fix.latitude, fix.longitude, fix.fix_quality
+    if not fix.valid or latitude is None or longitude is None or not quality:
+        return Fix(FixStatus.NO_FIX, math.nan, math.nan, math.nan)
+    if not math.isfinite(latitude) or not math.isfinite(longitude):
         return Fix(FixStatus.NO_FIX, math.nan, math.nan, math.nan)
     status = FixStatus.GBAS_FIX if quality == _QUALITY_RTK_FLOAT else _QUALITY.get(quality)
-    assert isinstance(latitude, float | int)  # _number above
-    assert isinstance(longitude, float | int)
     return Fix(
-        status or FixStatus.FIX, float(latitude), float(longitude), _altitude(push.get("string"))
+        status or FixStatus.FIX, float(latitude), float(longitude), _altitude(message.string)
     )
 
 
-def _number(value: object) -> bool:
-    return isinstance(value, float | int) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _altitude(sentence: object) -> float:
+def _altitude(sentence: str) -> float:
     """GGA fields 9 (altitude above mean sea level, m) plus 11 (geoid separation, m)."""
-    if not isinstance(sentence, str):
-        return math.nan
     fields = sentence.split("*", 1)[0].split(",")
     try:
         if fields[10] != "M" or fields[12] != "M":

@@ -28,8 +28,11 @@ from sensor_msgs.msg import Joy, NavSatFix, NavSatStatus
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from supervisord.api.messages import GpsReport, JoystickReport, RemoteStatusReport
+from supervisord.api.pushes import GpsPush, JoystickPush, RemoteStatusPush, StatePush
 from supervisord.api.readiness import missing
-from supervisord.client import Push, SupervisorClient
+from supervisord.api.status import DaemonStatus, StateReport
+from supervisord.client import StatusReply, SupervisorClient
 from supervisord.ros2.command import Declaration, nonzero
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
@@ -83,9 +86,9 @@ class BridgeNode(Node):
         self.gate = VelocityGate(int(float(p["cmd_vel_max_age"]) * 1e9))
         self.declaration = Declaration()  # SR-4.6: no re-arm while cmd_vel_in moves
         self._state: State | None = None
-        self._status: dict[str, Any] | None = None
-        self._daemon: Mapping[str, Any] | None = None
-        self._remote: dict[str, Any] | None = None
+        self._status: StateReport | None = None
+        self._daemon: DaemonStatus | None = None
+        self._remote: RemoteStatusReport | None = None
         self._shown: tuple[Status, Status] | None = None
         self._last_frame = ""
 
@@ -143,10 +146,7 @@ class BridgeNode(Node):
     def _on_diagnostics(self) -> None:
         status = self.link.status()
         if status is not None:
-            self._daemon = status.get("daemon")
-            self._on_status(status)
-            self._set_ready(not missing(status))
-            self._set_available(status)
+            self._on_reply(status)
         self._handle(self.link.take())
         self._publish_diagnostics(force=True)
 
@@ -157,29 +157,33 @@ class BridgeNode(Node):
             if isinstance(event, Connected):
                 self.get_logger().info(f"connected to {self.socket} as {self.client_name}")
                 self.declaration.connected()
-                self._daemon = event.status.get("daemon")
-                self._on_status(event.status)
-                self._set_ready(not missing(event.status))
-                self._set_available(event.status)
+                self._on_reply(event.status)
             elif isinstance(event, Lost):
                 self.get_logger().error(f"lost the supervisor: {event.reason}")
                 self._status = None
                 self._set_state(State.STOPPED)
                 self._set_ready(False)
                 self._set_available(None)
-            elif event.event == "state":
-                self._on_status(event.data)
-            elif event.event == "joystick":
-                self._publish_joy(event)
-            elif event.event == "gps":
-                self._publish_gps(event)
-            elif event.event == "remote_status":
-                self._remote = event.data
+            elif isinstance(event, StatePush):
+                self._on_status(event.report)
+            elif isinstance(event, JoystickPush):
+                self._publish_joy(event.message)
+            elif isinstance(event, GpsPush):
+                self._publish_gps(event.message)
+            elif isinstance(event, RemoteStatusPush):
+                self._remote = event.message
         self._publish_diagnostics()
 
-    def _on_status(self, status: dict[str, Any]) -> None:
-        self._status = status
-        self._set_state(state_of(status))
+    def _on_reply(self, status: StatusReply) -> None:
+        """A whole ``status`` reply: the state, the daemon, readiness and the e-stop."""
+        self._daemon = status.daemon
+        self._on_status(status.report)
+        self._set_ready(not missing(status))
+        self._set_available(status)
+
+    def _on_status(self, report: StateReport) -> None:
+        self._status = report
+        self._set_state(state_of(report))
 
     def _set_state(self, state: State) -> None:
         if self.gate.state(state):
@@ -198,7 +202,7 @@ class BridgeNode(Node):
             self._ready = ready
             self.ready_pub.publish(Bool(data=ready))
 
-    def _set_available(self, status: Mapping[str, Any] | None) -> None:
+    def _set_available(self, status: StatusReply | None) -> None:
         """``estop_available``: the remote e-stop is available (SR-8.11), latched, on a
         change; from the full ``status`` (a ``state`` push does not carry it), ``None``: the
         supervisor is not reached. Kept with its missing parts for the diagnostics."""
@@ -207,15 +211,15 @@ class BridgeNode(Node):
             self.available_pub.publish(Bool(data=available[0]))
         self._available = available
 
-    def _publish_joy(self, push: Push) -> None:
-        values = joy_values(push.data)
+    def _publish_joy(self, message: JoystickReport) -> None:
+        values = joy_values(message)
         msg = Joy(axes=list(values.axes), buttons=list(values.buttons))
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = self.frame_id
         self.joy_pub.publish(msg)
 
-    def _publish_gps(self, push: Push) -> None:
-        fix = gps_fix(push.data)
+    def _publish_gps(self, message: GpsReport) -> None:
+        fix = gps_fix(message)
         if fix is None:
             return
         msg = NavSatFix(latitude=fix.latitude, longitude=fix.longitude, altitude=fix.altitude)

@@ -116,16 +116,6 @@ class Outcome:
         assert self.failure is not None
         return f"failed: {self.failure.value}; {trip}"
 
-    def json(self) -> dict[str, object]:
-        return {
-            "result": "passed" if self.passed else "failed",
-            "failure": None if self.failure is None else self.failure.name.lower(),
-            "trip_ms": self.trip_ms,
-            "cleared": None if self.cleared is None else self.cleared.value,
-            "cleared_ms": self.cleared_ms,
-            "text": self.text,
-        }
-
 
 @dataclass(frozen=True, slots=True)
 class ProofStatus:
@@ -134,13 +124,6 @@ class ProofStatus:
     policy: ProofTestPolicy
     phase: Phase
     last: Outcome | None
-
-    def json(self) -> dict[str, object]:
-        return {
-            "policy": self.policy.value,
-            "phase": self.phase.value,
-            "last": None if self.last is None else self.last.json(),
-        }
 
 
 class ProofTest:

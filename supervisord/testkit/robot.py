@@ -39,13 +39,15 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal
 
-from supervisord.client import ClientError, SupervisorClient
+from supervisord.api.pushes import RecordPush
+from supervisord.api.status import LoopStatus
+from supervisord.client import ClientError, StatusReply, SupervisorClient
 from supervisord.record import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimControl, SimError, SimProcess
@@ -329,17 +331,17 @@ class Robot:
     def client(self, timeout: float = 5.0) -> SupervisorClient:
         return SupervisorClient.connect(self.socket_path, timeout=timeout)
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> StatusReply:
         with self.client() as api:
             return api.status()
 
-    def active(self, status: dict[str, Any] | None = None) -> set[str]:
+    def active(self, status: StatusReply | None = None) -> set[str]:
         status = status or self.status()
-        return {c["name"] for c in status["causes"] if c["active"]}
+        return set(status.report.active())
 
-    def active_stops(self, status: dict[str, Any] | None = None) -> set[str]:
+    def active_stops(self, status: StatusReply | None = None) -> set[str]:
         status = status or self.status()
-        return {c["name"] for c in status["causes"] if c["active"] and c["severity"] == "stop"}
+        return {c.name for c in status.report.causes if c.active and c.severity == "stop"}
 
     def output_file(self, name: str) -> bool | None:
         try:
@@ -550,7 +552,7 @@ class Robot:
             if first_on is not None:
                 assert first_on.t >= t_rearm, (name, first_on, t_rearm)
 
-    def assert_serving(self, rearm: dict[str, Any] | None = None) -> dict[str, Any]:
+    def assert_serving(self, rearm: dict[str, Any] | None = None) -> StatusReply:
         """Alive and serving: the process runs, ``status`` answers RUN (or HOLD for a power
         output only), and every healthy output is on in the files and in the status."""
         assert self.daemon is not None
@@ -561,8 +563,8 @@ class Robot:
             if output.stuck_at is None:
                 self.watcher.wait(output.name, True, after)
         status = self.status()
-        assert status["state"] == "RUN", status
-        assert all(status["outputs"].values()), status
+        assert status.report.state == "RUN", status
+        assert all(status.report.outputs.values()), status
         return status
 
     # ------------------------------------------------------------- helpers for scenarios
@@ -586,7 +588,7 @@ class Robot:
         for name in self.healthy_outputs():
             off = self.watcher.first(name, False, t)
             assert off is None, f"{name} went off at +{(off.t - t) * 1000:.0f} ms"
-        assert self.status()["state"] == "RUN"
+        assert self.status().report.state == "RUN"
 
     def remote_estop_unrecorded(self, subscriber: SupervisorClient) -> Stop:
         """``remote_estop`` when the record file may not take the record (a full disk): the
@@ -597,12 +599,12 @@ class Robot:
         end = time.monotonic() + WAIT_S
         while time.monotonic() < end:
             push = subscriber.next_event(timeout=0.5)
-            if push is None or push.event != "record" or push.data["mono_ns"] < t * 1e9:
+            if not isinstance(push, RecordPush) or push.record.mono_ns < t * 1e9:
                 continue
-            changes = push.data.get("changes", [])
-            if any(c["name"] == "vsc_estop" and c["change"] == "raised" for c in changes):
-                assert push.data["to"] == "STOPPED", push.data
-                return Stop("vsc_estop", t, t_off, push.data)
+            record = push.record
+            if any(c.name == "vsc_estop" and c.change == "raised" for c in record.changes or ()):
+                assert record.to_state == "STOPPED", record
+                return Stop("vsc_estop", t, t_off, record.json())  # as the record file has it
         raise FaultHarnessError("no stop record raising vsc_estop was pushed")
 
     def remote_estop(self) -> Stop:
@@ -612,19 +614,18 @@ class Robot:
         self.vsc.estop()
         return self.expect_stop("vsc_estop", t, self.beat_s)
 
-    def wait_state(self, state: str, timeout: float = WAIT_S) -> dict[str, Any]:
+    def wait_state(self, state: str, timeout: float = WAIT_S) -> StatusReply:
         found = wait_until(
-            lambda: (s := self.status())["state"] == state and s,
+            lambda: (s := self.status()).report.state == state and s,
             timeout,
             what=f"state {state}",
         )
-        assert isinstance(found, dict)
+        assert isinstance(found, StatusReply)
         return found
 
-    def counters(self) -> Mapping[str, Any]:
-        daemon = self.status()["daemon"]
-        assert isinstance(daemon, dict)
-        return daemon
+    def counters(self) -> LoopStatus:
+        """The daemon loop's own counters (``status``'s ``daemon``, docs/api.md)."""
+        return self.status().daemon.loop
 
     def fill_record_disk(self) -> int:
         """Fill the record's tmpfs up to the last byte; the bytes written."""

@@ -14,6 +14,7 @@ from types import TracebackType
 import pytest
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.replies import CommissionReply
 from supervisord.api.requests import (
     Command,
     Commission,
@@ -105,8 +106,8 @@ def test_connect_with_name_says_hello_and_heartbeats(sock_path: Path) -> None:
             for _ in range(3):
                 client.heartbeat()
             status = client.status()
-            assert status["state"] == "STOPPED"
-            assert any(c["name"] == "startup" for c in status["causes"])
+            assert status.report.state == "STOPPED"
+            assert "startup" in {c.name for c in status.report.causes}
         assert client.fileno() < 0
         served.until(lambda loop: bool(loop.of_type(Closed)))
     assert served.requests() == [Hello("planner"), Heartbeat(), Heartbeat(), Heartbeat(), Status()]
@@ -127,8 +128,8 @@ def test_every_method_sends_its_request(sock_path: Path) -> None:
         client.vibrate("left")
         client.subscribe("state", "records")
         client.subscribe()
-        assert client.reset()["ok"] is True
-        assert client.commission()["ok"] is True
+        client.reset()
+        assert client.commission() == CommissionReply(key85=1, remote_status=True)
     assert served.requests() == [
         Estop(),
         Hold(),
@@ -180,7 +181,7 @@ def test_pushes_during_a_call_are_kept_for_next_event(sock_path: Path) -> None:
         first, second = client.next_event(), client.next_event()
         assert isinstance(first, Push)
         assert first.event == "state"
-        assert first.data["state"] == "STOPPED"
+        assert first.json()["state"] == "STOPPED"
         assert second is not None
         assert client.next_event(timeout=0.01) is None
 

@@ -9,13 +9,18 @@ from pathlib import Path
 
 import pytest
 
+from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
+from supervisord.api.status import LoopStatus
 from supervisord.daemon.api_listener import ApiListener
+from supervisord.daemon.loop import Snapshot
+from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import ClientDisconnected, Event
+from tests.api.samples import LOOP
 from tests.api.test_api_server import READ, WRITE, Loop, Peer
 
 
@@ -31,6 +36,8 @@ class Judged(Loop):
         self.listener.decided(self.core.decision)
         self.decisions: list[Decision] = []
         self.events: list[Event] = []
+        # What the loop hands the listener: a fixed status, no stops measured.
+        self.loop = Snapshot(self.snapshot, StopTimes())
 
     def feed(self, event: Event) -> Decision:
         self.events.append(event)
@@ -39,14 +46,20 @@ class Judged(Loop):
         self.listener.decided(decision)
         return decision
 
+    def snapshot(self, now: int) -> LoopStatus:
+        """What the loop says about itself: a fixed one, there being no daemon behind."""
+        return LOOP
+
     def turn(self, timeout: float = 0.0) -> list[Result]:
         self.sync()
         for key, mask in self.selector.select(timeout):
             readable, writable = bool(mask & READ), bool(mask & WRITE)
-            self.listener.handle(key.fd, readable, writable, self.clock(), self.feed)
+            self.listener.handle(
+                key.fd, readable, writable, self.clock(), self.feed, snapshot=self.loop
+            )
         if (due := self.listener.next_deadline()) is not None and self.clock() >= due:
-            self.listener.due(self.clock(), self.feed)
-        self.listener.settle(self.clock(), self.feed)
+            self.listener.due(self.clock(), self.feed, snapshot=self.loop)
+        self.listener.settle(self.clock(), self.feed, snapshot=self.loop)
         return []
 
     def refusals(self) -> list[str]:
@@ -157,3 +170,29 @@ def test_every_end_reaches_the_core_once(judged: Judged, peers: Callable[[], Pee
         fresh = peers()
         assert fresh.ask(judged, {"op": "hello", "name": name})["ok"] is True, name
     assert judged.refusals() == []
+
+
+def test_status_says_each_connections_command_until_it_ends(
+    judged: Judged, peers: Callable[[], Peer]
+) -> None:
+    """SR-4.6, SR-8: ``status``, built by the listener from the loop's snapshot and taken from
+    the server's one queue, says that a client's connection declared a non-zero command; the
+    declaration ends with its connection: the same name on a new connection is at zero."""
+
+    def commands(asker: Peer) -> list[tuple[str, bool]]:
+        status = read_reply(asker.ask(judged, {"op": "status", "id": 3}))
+        assert isinstance(status, StatusReply)
+        assert (status.id, status.daemon.loop) == (3, LOOP)
+        return [(c.name, c.command_nonzero) for c in status.daemon.clients]
+
+    nav, watcher = peers(), peers()
+    assert nav.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    assert commands(watcher) == [("nav", False)]
+    assert nav.ask(judged, {"op": "command", "nonzero": True})["ok"] is True
+    assert commands(watcher) == [("nav", True)]
+    nav.close()
+    judged.until(lambda: len(judged.server.clients()) == 1)
+    assert commands(watcher) == []
+    again = peers()
+    assert again.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    assert commands(watcher) == [("nav", False)]

@@ -17,12 +17,14 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from supervisord.api.pushes import RecordPush
 from supervisord.api.views import message_push, message_topic, record_push, state_push
 from supervisord.config import load_config
 from supervisord.daemon.assemble import build_api, build_supervisor
 from supervisord.daemon.loop import Supervisor
 from supervisord.protocol.codes import MessageType
 from supervisord.protocol.framing import encode_frame
+from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
 from supervisord.protocol.payload import FIXED_LENGTH, decode_payload
 from supervisord.record.format import record_json
@@ -302,7 +304,8 @@ def test_every_push_of_arbitrary_vsc_payloads_encodes(
     """Every VSC message any payload decodes to, and every decision and record it causes
     (with a local e-stop, release and reset by a caller with any name, surrogates included),
     gives ``gps``/``joystick``/``remote_status``, ``state`` and ``record`` pushes that the
-    strictest encoder takes, and records the store's own encoder files."""
+    strictest encoder takes, and records the store's own encoder files. A message push is
+    its ``srcsctl decode`` JSON under ``event``, and a record push the record as filed."""
     core = SafetyCore(SafetyConfig(), 0)
     utc = dt.datetime(2026, 3, 1, tzinfo=dt.timezone.utc)
     now = 1
@@ -311,18 +314,23 @@ def test_every_push_of_arbitrary_vsc_payloads_encodes(
         now += 1_000_000
         if message_topic(message) is not None:
             assert isinstance(message, Joystick | Gps | RemoteStatus)
-            strict(message_push(message))
+            push = message_push(message).json()
+            strict(push)
+            assert push == {"event": push["type"], **message_json(message)}
         decisions.append(core.handle(VscReceived(now, message)))
     decisions += [
         core.handle(LocalRelease(now + 1, caller)),
         core.handle(ResetRequest(now + 2, caller)),
     ]
     for decision in decisions:
-        strict(state_push(decision))
+        strict(state_push(decision).json())
         for record in decision.records:
             entry = record_json(record, utc)
             encode_record(entry)
-            strict(record_push(entry))
+            pushed = record_push(entry)
+            assert isinstance(pushed, RecordPush)  # it read back as the typed record
+            assert pushed.json() == {"event": "record", **entry}
+            strict(pushed.json())
 
 
 @st.composite

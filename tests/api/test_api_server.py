@@ -20,6 +20,8 @@ import pytest
 
 from supervisord.api.credentials import PeerCredentials, caller, process_groups
 from supervisord.api.names import UserNames
+from supervisord.api.pushes import OtherPush
+from supervisord.api.replies import CommissionReply, Reply
 from supervisord.api.requests import Commission, Estop, Hello, Reset, Status, Topic
 from supervisord.api.server import (
     Accepted,
@@ -33,7 +35,7 @@ from supervisord.api.server import (
     ServerError,
     core_event,
 )
-from supervisord.api.views import decision_json, refusal_error, state_push
+from supervisord.api.views import refusal_error, state_push, state_report
 from supervisord.clock import MONOTONIC
 from supervisord.errors import ConfigError
 from supervisord.safety.config import SafetyConfig
@@ -46,6 +48,7 @@ from supervisord.safety.events import (
     LocalEstop,
     ResetRequest,
 )
+from tests.api.samples import status_reply
 
 NOBODY = 65534
 READ, WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
@@ -106,9 +109,13 @@ class Loop:
             if isinstance(result, Received) and self.before_reply is not None:
                 self.before_reply(result)
             if isinstance(result, Received) and self.answer:
-                status = isinstance(result.request, Status)
-                fields = decision_json(self.core.decision) if status else {}
-                self.server.reply(result, **fields)
+                request = result.request
+                reply: Reply | None = None
+                if isinstance(request, Status):
+                    reply = status_reply(state_report(self.core.decision), request.id)
+                elif isinstance(request, Commission):
+                    reply = CommissionReply(id=request.id, key85=1, remote_status=True)
+                self.server.reply(result, reply)
         self.results += new
         return new
 
@@ -432,7 +439,7 @@ def test_a_stopped_client_is_disconnected_without_blocking(
     slow, healthy = peers(), peers()
     for peer in (slow, healthy):
         assert peer.ask(loop, {"op": "subscribe", "topics": ["state"]})["ok"] is True
-    push = {**state_push(loop.core.decision), "pad": "p" * 4000}
+    push = OtherPush("state", {**state_push(loop.core.decision).json(), "pad": "p" * 4000})
     for _ in range(2000):
         loop.server.broadcast(Topic.STATE, push)
         healthy.has(0)  # the healthy client keeps reading
@@ -466,7 +473,7 @@ def test_a_sigstopped_process_is_disconnected(loop: Loop, sock_path: Path) -> No
         loop.turn()
         assert child.stdout.readline() == b"ready\n"
         child.send_signal(signal.SIGSTOP)
-        push = {**state_push(loop.core.decision), "pad": "p" * 4000}
+        push = OtherPush("state", {**state_push(loop.core.decision).json(), "pad": "p" * 4000})
         for _ in range(2000):
             loop.server.broadcast(Topic.STATE, push)
             loop.turn()

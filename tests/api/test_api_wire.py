@@ -36,13 +36,13 @@ from supervisord.api.requests import (
 )
 from supervisord.api.translate import ClientInfo, to_core_event
 from supervisord.api.views import (
-    decision_json,
     message_push,
     message_topic,
     ok_reply,
     record_push,
     refusal_error,
     state_push,
+    state_report,
 )
 from supervisord.protocol.codes import DisplayMode
 from supervisord.protocol.j1939 import (
@@ -290,14 +290,9 @@ def test_field_errors_name_the_op_and_field() -> None:
 
 
 def test_ok_reply_echoes_op_and_id() -> None:
-    """A success reply names the op and echoes the id, followed by the extra fields."""
-    assert ok_reply(Status(id=5), state="RUN") == {
-        "ok": True,
-        "op": "status",
-        "id": 5,
-        "state": "RUN",
-    }
-    assert ok_reply(Heartbeat()) == {"ok": True, "op": "heartbeat"}
+    """A success reply names the op and echoes the id."""
+    assert ok_reply(Status(id=5)).json() == {"ok": True, "op": "status", "id": 5}
+    assert ok_reply(Heartbeat()).json() == {"ok": True, "op": "heartbeat"}
 
 
 def test_refusal_error_carries_the_reason_name() -> None:
@@ -315,9 +310,9 @@ def test_refusal_error_carries_the_reason_name() -> None:
 def test_state_push_describes_the_decision() -> None:
     """The state push names the state, every cause with its details, outputs and e-stop byte."""
     decision = SafetyCore(SafetyConfig(), 7).decision
-    push = state_push(decision)
+    push = state_push(decision).json()
     assert push["event"] == "state"
-    assert push == {"event": "state", **decision_json(decision)}
+    assert push == {"event": "state", **state_report(decision).json()}
     assert push["state"] == "STOPPED"
     assert push["mono_ns"] == 7
     assert push["heartbeat_estop"] == 1
@@ -331,10 +326,10 @@ def test_state_push_describes_the_decision() -> None:
 
 def test_message_pushes_use_the_topic_as_event() -> None:
     """Joystick, GPS and remote-status messages are pushed under their topic; others are not."""
-    assert message_push(Joystick())["event"] == "joystick"
-    assert message_push(Joystick())["type"] == "joystick"
-    assert message_push(Gps(1, "$GPGGA,,"))["event"] == "gps"
-    assert message_push(RemoteStatus(80))["battery_level"] == 80
+    assert message_push(Joystick()).json()["event"] == "joystick"
+    assert message_push(Joystick()).json()["type"] == "joystick"
+    assert message_push(Gps(1, "$GPGGA,,")).json()["event"] == "gps"
+    assert message_push(RemoteStatus(80)).json()["battery_level"] == 80
     assert message_topic(RemoteStatus(80)) is Topic.REMOTE_STATUS
     assert message_topic(VscHeartbeat(mode=9)) is None
 
@@ -349,7 +344,7 @@ def test_can_joystick_push_agrees_with_decode_on_reserved_magnitudes(magnitude: 
     assert isinstance(basic, JoystickBasic)
     assert basic.hand is Hand.LEFT
     decoded_value = message_json(basic)["x_joystick_value"]["value"]
-    pushed = message_push(JoystickAssembler().update(basic))
+    pushed = message_push(JoystickAssembler().update(basic)).json()
     assert pushed["left_x_joystick_value"]["value"] == decoded_value
     assert decoded_value == (None if magnitude >= 1022 else -magnitude)
     assert pushed["left_x_joystick_value"]["magnitude"] == magnitude
@@ -357,7 +352,7 @@ def test_can_joystick_push_agrees_with_decode_on_reserved_magnitudes(magnitude: 
 
 def test_serial_joystick_push_keeps_1023_as_full_deflection() -> None:
     """PR-3.2, PR-2.1: on serial the reserved pair does not exist: 1023 is a full deflection."""
-    pushed = message_push(Joystick(right_z=Axis.from_value(1023)))
+    pushed = message_push(Joystick(right_z=Axis.from_value(1023))).json()
     assert pushed["right_z_joystick_value"]["value"] == 1023
 
 
@@ -439,7 +434,7 @@ def test_a_proper_surrogate_pair_in_an_id_is_text_and_echoed() -> None:
     """An escaped pair (``\\ud83d\\ude00``) is one character: a valid id, echoed as sent."""
     request = parse_request(b'{"op":"status","id":"\\ud83d\\ude00"}')
     assert request.id == "\U0001f600"
-    assert json.loads(encode(ok_reply(request)))["id"] == "\U0001f600"
+    assert json.loads(encode(ok_reply(request).json()))["id"] == "\U0001f600"
 
 
 @pytest.mark.parametrize(
@@ -558,7 +553,7 @@ def test_a_record_and_a_status_naming_an_odd_user_encode_strictly() -> None:
     assert encode_record(obj).endswith(b"\n")
     strict_utf8(obj)
     assert obj["trigger"]["caller"]["name"] == "r\\xe9mi"
-    strict_utf8(state_push(decision))
-    strict_utf8(record_push(obj))
-    local = next(c for c in decision_json(decision)["causes"] if c["name"] == "local_estop")
+    strict_utf8(state_push(decision).json())
+    strict_utf8(record_push(obj).json())
+    local = next(c for c in state_report(decision).json()["causes"] if c["name"] == "local_estop")
     strict_utf8(local)

@@ -4,31 +4,48 @@ daemon writes them; the waiting itself runs against the real daemon in
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
 
 import pytest
 
 from supervisord.api.readiness import BLOCKING_CAUSES, missing
+from supervisord.api.replies import StatusReply
+from supervisord.api.status import Cause, ProofTestStatus, StateReport
+from tests.api.samples import LOOP, status_reply
+
+WORKING_LINK = dataclasses.replace(LOOP.link, open=True, description="serial /dev/srcs-vsc")
 
 
-def status(*active: str, phase: str = "passed", policy: str = "block") -> dict[str, Any]:
+def status(
+    *active: str, phase: str = "passed", policy: str = "block", state: str = "STOPPED"
+) -> StatusReply:
     """A ``status`` reply of a supervisor whose stop path works, but for ``active``."""
-    return {
-        "state": "STOPPED",
-        "causes": [
-            {"name": name, "active": True, "latched": True, "severity": "stop"} for name in active
-        ],
-        "prooftest": {"policy": policy, "phase": phase, "last": None},
-        "daemon": {
-            "link": {"open": True, "description": "serial /dev/srcs-vsc"},
-            "outputs_not_acquired": [],
-        },
-    }
+    causes = tuple(
+        Cause(name=name, severity="stop", active=True, latched=True, raised_ns=1, cleared_ns=None)
+        for name in active
+    )
+    report = StateReport(
+        state=state,
+        mono_ns=1,
+        causes=causes,
+        outputs={},
+        heartbeat_estop=1,
+        prooftest=ProofTestStatus(policy=policy, phase=phase, last=None),
+    )
+    reply = status_reply(report)
+    loop = dataclasses.replace(reply.daemon.loop, link=WORKING_LINK)
+    return dataclasses.replace(reply, daemon=dataclasses.replace(reply.daemon, loop=loop))
+
+
+def latched_only(reply: StatusReply) -> StatusReply:
+    """``reply`` with its causes cleared, held by their latches only."""
+    causes = tuple(dataclasses.replace(c, active=False) for c in reply.report.causes)
+    return dataclasses.replace(reply, report=dataclasses.replace(reply.report, causes=causes))
 
 
 def test_a_working_stop_path_is_ready_whatever_the_state_and_the_stops() -> None:
     assert missing(status()) == []
-    assert missing({**status(), "state": "RUN"}) == []
+    assert missing(status(state="RUN")) == []
     # a pressed e-stop, a held client: the stop path working, not missing
     assert missing(status("vsc_estop", "client_hold:planner", "startup")) == []
 
@@ -36,9 +53,7 @@ def test_a_working_stop_path_is_ready_whatever_the_state_and_the_stops() -> None
 @pytest.mark.parametrize("cause", [*sorted(BLOCKING_CAUSES), "output_fault:drive"])
 def test_each_cause_that_breaks_the_stop_path_is_named(cause: str) -> None:
     assert missing(status(cause)) == [BLOCKING_CAUSES[cause.split(":", maxsplit=1)[0]]]
-    latched_only = status(cause)
-    latched_only["causes"][0]["active"] = False
-    assert missing(latched_only) == []
+    assert missing(latched_only(status(cause))) == []
 
 
 @pytest.mark.parametrize("phase", ["waiting", "withholding", "resumed", "failed"])
@@ -54,10 +69,12 @@ def test_a_config_without_a_proof_test_does_not_wait_for_one() -> None:
 
 def test_a_closed_link_and_outputs_not_held_are_named() -> None:
     reply = status()
-    reply["daemon"] = {
-        "link": {"open": False, "description": "serial /dev/srcs-vsc"},
-        "outputs_not_acquired": ["drive", "brake"],
-    }
+    loop = dataclasses.replace(
+        reply.daemon.loop,
+        link=dataclasses.replace(WORKING_LINK, open=False),
+        outputs_not_acquired=("drive", "brake"),
+    )
+    reply = dataclasses.replace(reply, daemon=dataclasses.replace(reply.daemon, loop=loop))
     assert missing(reply) == [
         "the link to the VSC is not open (serial /dev/srcs-vsc)",
         "outputs not held by the supervisor: drive, brake",

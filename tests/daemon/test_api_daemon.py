@@ -38,8 +38,8 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
             # Heartbeats at 10 Hz, VSC traffic flowing, until the proof test of the VSC's
             # watchdog has passed (SR-5.3: it comes before any RUN), then for
             # longer than the re-arm hold.
-            while robot.status()["prooftest"]["phase"] != "passed":
-                assert time.monotonic() < deadline, robot.status()["prooftest"]
+            while robot.status().json()["prooftest"]["phase"] != "passed":
+                assert time.monotonic() < deadline, robot.status().json()["prooftest"]
                 robot.heartbeat()
                 peer.serve()
                 time.sleep(0.02)
@@ -49,11 +49,11 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
                 peer.serve()
                 time.sleep(0.02)
             assert "client_lost:autonomy" not in {
-                c["name"] for c in robot.status()["causes"] if c["active"]
+                c["name"] for c in robot.status().json()["causes"] if c["active"]
             }
             peer.mode = VscMode.OPERATIONAL
             deadline = time.monotonic() + 5
-            while robot.status()["state"] != "RUN":
+            while robot.status().json()["state"] != "RUN":
                 assert time.monotonic() < deadline
                 robot.heartbeat()
                 peer.serve()
@@ -63,8 +63,8 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
             with SupervisorClient.connect(tmp_path / "api.sock") as operator:
                 operator.estop()  # no hello: the operator's local e-stop
                 status = operator.status()
-                assert status["state"] == "STOPPED"
-                assert "local_estop" in {c["name"] for c in status["causes"] if c["active"]}
+                assert status.report.state == "STOPPED"
+                assert "local_estop" in status.report.active()
                 assert (tmp_path / "drive").read_text() == "0\n"
                 operator.release("estop")
                 with pytest.raises(ApiError, match="local reset is not allowed"):
@@ -73,7 +73,7 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
             pushes = []
             while (push := robot.next_event(timeout=0.2)) is not None:
                 pushes.append(push)
-            assert any(p.event == "state" and p.data["state"] == "STOPPED" for p in pushes)
+            assert any(p.event == "state" and p.json()["state"] == "STOPPED" for p in pushes)
     assert daemon.exit_status == 0
     assert not (tmp_path / "api.sock").exists()
 
@@ -109,13 +109,13 @@ def test_commissioning_writes_key85_reads_it_back_and_records_it(tmp_path: Path)
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port, key85=0)
         with _daemon(tmp_path, peer) as daemon, SupervisorClient.connect(daemon.socket) as admin:
-            wait(peer, lambda: "vsc_watchdog_off" in _active(admin.status()))
+            wait(peer, lambda: "vsc_watchdog_off" in _active(admin.status().json()))
             with peer.serving():
-                reply = admin.commission()
+                reply = admin.commission().json()
             assert (reply["key85"], reply["remote_status"]) == (1, True)
             assert peer.key85 == 1
             assert peer.remote_status_ms == 1000
-            wait(peer, lambda: "vsc_watchdog_off" not in _active(admin.status()))
+            wait(peer, lambda: "vsc_watchdog_off" not in _active(admin.status().json()))
     assert daemon.exit_status == 0
     [entry] = _commissionings(tmp_path)
     assert entry["reason"] == "key85=1 remote_status=on"

@@ -9,9 +9,9 @@ from collections.abc import Iterable
 
 import pytest
 
+from supervisord.api.status import EstopAvailable
 from supervisord.daemon.availability import (
     REMOTE_STATUS_FRESH_NS,
-    Availability,
     estop_available,
 )
 from supervisord.protocol.codes import VscMode
@@ -31,7 +31,7 @@ def _check(
     age_ns: int = 0,
     prooftest: ProofStatus | None = PASSED,
     min_battery: int = 20,
-) -> Availability:
+) -> EstopAvailable:
     remote = RemoteStatus(battery) if battery is not None else None
     return estop_available(
         NOW,

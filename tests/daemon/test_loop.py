@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from supervisord.daemon import loop
-from supervisord.daemon.loop import Listener, Supervisor
+from supervisord.daemon.loop import Listener, Snapshot, Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
@@ -30,6 +30,7 @@ from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
+from tests.api.samples import status_reply
 from tests.daemon.peer import VscPeer
 from tests.record.conftest import full_disk
 
@@ -266,7 +267,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
     )
     try:
         assert "output_fault:drive" in supervisor.start().active_names
-        assert supervisor.info()["outputs_not_acquired"] == ["drive"]
+        assert supervisor.snapshot(clock()).outputs_not_acquired == ("drive",)
         late.mkdir()  # the device appears
         for _ in range(50):  # 100 ms of the loop's clock a turn: the retry's backoff passes
             if "output_fault:drive" not in active(supervisor):
@@ -275,7 +276,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
             supervisor.step()
         assert "output_fault:drive" not in active(supervisor), "never acquired"
         assert level(late, "drive") == "0"
-        assert supervisor.info()["outputs_not_acquired"] == []
+        assert supervisor.snapshot(clock()).outputs_not_acquired == ()
         assert supervisor.decision is not None
         fault = supervisor.decision.cause("output_fault:drive")
         assert fault is not None
@@ -470,7 +471,14 @@ class _RecordingListener(Listener):
         return [(ours.fileno(), False) for ours, _ in self.pairs]
 
     def handle(
-        self, fd: int, readable: bool, writable: bool, now: int, feed: Callable[[Event], Decision]
+        self,
+        fd: int,
+        readable: bool,
+        writable: bool,
+        now: int,
+        feed: Callable[[Event], Decision],
+        *,
+        snapshot: Snapshot,
     ) -> None:
         self.order.append(f"client:{fd}")
 
@@ -591,18 +599,18 @@ def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
         )
         try:
             supervisor.start()
-            assert supervisor.info()["link"]["error_frames"] == 0  # type: ignore[index]
+            assert supervisor.snapshot(0).link.error_frames == 0
             for _ in range(3):
                 vsc_bus.send(can.Message(arbitration_id=0x08, data=bytes(8), is_error_frame=True))
             end = time.monotonic() + 5
             while supervisor.link.error_frames < 3:  # type: ignore[attr-defined]
                 assert time.monotonic() < end
                 supervisor.step()
-            info = supervisor.info()
-            assert info["link"]["error_frames"] == 3  # type: ignore[index]
+            info = supervisor.snapshot(0)
+            assert info.link.error_frames == 3
             assert supervisor.link.is_open  # counted, not a fault
             assert "transport_fault" not in supervisor.decision.active_names  # type: ignore[union-attr]
-            text = format_status({"state": "STOPPED", "daemon": info})
+            text = format_status(status_reply(loop=info))
             assert "3 CAN error frames" in text
         finally:
             supervisor.shutdown()
@@ -615,6 +623,6 @@ def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer
 
     supervisor, _peer, _path = rig
     supervisor.start()
-    info = supervisor.info()
-    assert info["link"]["error_frames"] is None  # type: ignore[index]
-    assert "error frame" not in format_status({"state": "STOPPED", "daemon": info})
+    info = supervisor.snapshot(0)
+    assert info.link.error_frames is None
+    assert "error frame" not in format_status(status_reply(loop=info))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import datetime as dt
 
+from supervisord.api.status import PeriodicDue
 from supervisord.daemon.maintenance import (
     NS_PER_DAY,
     PeriodicTest,
@@ -32,11 +33,9 @@ def test_a_test_is_overdue_past_its_interval_or_never_passed() -> None:
     never = due(PeriodicTest.PROOFTEST, interval, None, MONO)
     assert (never.overdue, never.age_s) == (True, None)
     assert not due(PeriodicTest.STOPTEST, 0, None, MONO).overdue
-    assert due(PeriodicTest.STOPTEST, 1, MONO - 5 * NS_PER_S, MONO).json() == {
-        "interval_days": 1,
-        "last_pass_age_s": 5.0,
-        "overdue": False,
-    }
+    assert due(PeriodicTest.STOPTEST, 1, MONO - 5 * NS_PER_S, MONO).report() == PeriodicDue(
+        interval_days=1, last_pass_age_s=5.0, overdue=False
+    )
 
 
 def test_a_pass_from_the_file_is_placed_on_the_monotonic_clock_or_not_at_all() -> None:
@@ -69,18 +68,14 @@ def test_the_schedule_ages_by_the_monotonic_clock_and_a_pass_resets_it() -> None
     schedule.found = {PeriodicTest.STOPTEST: WALL - dt.timedelta(days=29)}
     schedule.start(WALL, MONO)
     in_a_day = MONO + NS_PER_DAY + NS_PER_S
-    view = schedule.json(in_a_day)
-    assert view["stoptest"] == {
-        "interval_days": 30,
-        "last_pass_age_s": 30 * 86_400.0 + 1,
-        "overdue": True,
-    }
-    assert view["prooftest"] == {"interval_days": 7, "last_pass_age_s": None, "overdue": True}
+    view = schedule.status(in_a_day)
+    assert view.stoptest == PeriodicDue(
+        interval_days=30, last_pass_age_s=30 * 86_400.0 + 1, overdue=True
+    )
+    assert view.prooftest == PeriodicDue(interval_days=7, last_pass_age_s=None, overdue=True)
     schedule.recorded({"kind": "stoptest", "mono_ns": in_a_day, "stoptest": {"result": "failed"}})
-    assert schedule.json(in_a_day)["stoptest"]["overdue"] is True  # type: ignore[index]
+    assert schedule.status(in_a_day).stoptest == view.stoptest
     schedule.recorded({"kind": "stoptest", "mono_ns": in_a_day, "stoptest": {"result": "passed"}})
-    assert schedule.json(in_a_day + 3 * NS_PER_S)["stoptest"] == {
-        "interval_days": 30,
-        "last_pass_age_s": 3.0,
-        "overdue": False,
-    }
+    assert schedule.status(in_a_day + 3 * NS_PER_S).stoptest == PeriodicDue(
+        interval_days=30, last_pass_age_s=3.0, overdue=False
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import os
@@ -16,10 +17,13 @@ from typing import Any
 
 import pytest
 
+from supervisord.api.pushes import StatePush
+from supervisord.api.status import Cause
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import SrcsdProcess
+from tests.api.samples import STOPPED
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsd import CONFIG
 
@@ -433,8 +437,10 @@ def test_log_marks_and_time_zone_agree_with_watch(tmp_path: Path) -> None:
 
     from supervisord.cli.control import format_push  # noqa: PLC0415
 
-    cleared = {"name": "vsc_estop", "active": False, "latched": True}
-    line = format_push("state", {"state": "STOPPED", "causes": [cleared], "outputs": {}})
+    cleared = Cause(
+        name="vsc_estop", severity="stop", active=False, latched=True, raised_ns=1, cleared_ns=2
+    )
+    line = format_push(StatePush(dataclasses.replace(STOPPED, causes=(cleared,))))
     assert "vsc_estop*" in line
 
 

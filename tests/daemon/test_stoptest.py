@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 
+from supervisord.api.status import Maintenance, PeriodicDue
 from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
@@ -159,7 +160,7 @@ def _scenario(robot: Robot) -> None:
     assert any(("PASSED" if passed else "FAILED") in line for line in lines), lines
     assert tests[0]["reason"].startswith("passed" if passed else "FAILED")
     # The verdict is the record's alone: the robot stays stopped until a re-arm.
-    assert robot.status()["state"] == "STOPPED"
+    assert robot.status().report.state == "STOPPED"
 
 
 def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path) -> None:
@@ -174,7 +175,7 @@ def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path
         assert "not done: no stop within 1 s" in out, out
         assert time.monotonic() - t >= 1.0
         assert not [r for r in robot.records() if r.get("kind") == "stoptest"]
-        wait_until(lambda: robot.status()["state"] == "RUN", what="still RUN")
+        wait_until(lambda: robot.status().report.state == "RUN", what="still RUN")
 
 
 def _stoptest_line(seq: int, when: dt.datetime, result: str = "passed") -> str:
@@ -195,9 +196,15 @@ def _stoptest_line(seq: int, when: dt.datetime, result: str = "passed") -> str:
     return json.dumps(record, separators=(",", ":")) + "\n"
 
 
-def _schedule(robot: Robot) -> dict[str, Any]:
-    found = robot.status()["daemon"]["maintenance"]
-    assert isinstance(found, dict)
+def _schedule(robot: Robot) -> Maintenance:
+    found = robot.status().daemon.loop.maintenance
+    assert found is not None
+    return found
+
+
+def _due(schedule: Maintenance, test: str) -> PeriodicDue:
+    found = getattr(schedule, test)
+    assert isinstance(found, PeriodicDue), schedule
     return found
 
 
@@ -218,15 +225,17 @@ def test_the_last_pass_comes_from_the_record_and_survives_a_restart(tmp_path: Pa
                 assert robot.stop_daemon() == 0
                 robot.start_daemon()
             wait_until(
-                lambda: _schedule(robot)["prooftest"]["last_pass_age_s"] is not None,
+                lambda: _due(_schedule(robot), "prooftest").last_pass_age_s is not None,
                 what="the proof test passed at this start",
             )
             schedule = _schedule(robot)
-            age = schedule["stoptest"]["last_pass_age_s"]
+            stop = _due(schedule, "stoptest")
+            age = stop.last_pass_age_s
+            assert age is not None, schedule
             assert 2 * 86_400 <= age <= 2 * 86_400 + 600, schedule
-            assert schedule["stoptest"]["overdue"] is False
-            assert schedule["stoptest"]["interval_days"] == 30
-            assert schedule["prooftest"]["overdue"] is False
+            assert stop.overdue is False
+            assert stop.interval_days == 30
+            assert _due(schedule, "prooftest").overdue is False
         robot.arm()
         assert "stop test passed 2 d 0 h ago (every 30 d)" in _status_text(robot)
 
@@ -242,14 +251,12 @@ def test_an_unreadable_record_means_never_passed_and_the_daemon_runs(tmp_path: P
     )
     with robot:
         schedule = _schedule(robot)
-        assert schedule["stoptest"] == {
-            "interval_days": 30,
-            "last_pass_age_s": None,
-            "overdue": True,
-        }
+        assert schedule.stoptest == PeriodicDue(
+            interval_days=30, last_pass_age_s=None, overdue=True
+        )
         assert "stop test OVERDUE: never passed (every 30 d)" in _status_text(robot)
         robot.arm()
-        assert robot.status()["state"] == "RUN"
+        assert robot.status().report.state == "RUN"
 
 
 def _status_text(robot: Robot) -> str:

@@ -10,7 +10,7 @@ from typing import cast
 
 import pytest
 
-from supervisord.api.views import histograms_json
+from supervisord.api.views import histogram_status
 from supervisord.daemon.loop import Supervisor
 from supervisord.histogram import (
     HEARTBEAT_BOUNDS_NS,
@@ -72,13 +72,16 @@ def test_the_shipped_bounds_hold_the_targets_they_cite() -> None:
 
 
 def test_the_wire_view_is_cumulative_with_count_as_inf() -> None:
-    """``histograms_json`` carries ``le``, cumulative ``counts``, ``sum`` and ``count`` by name,
+    """``histogram_status`` carries ``le``, cumulative ``counts``, ``sum`` and ``count`` by name,
     as docs/api.md "status" says."""
     histogram = Histogram((1 * MS, 2 * MS))
     histogram.observe(1 * MS)
     histogram.observe(5 * MS)
-    assert histograms_json({"x_seconds": histogram}) == {
-        "x_seconds": {"le": [0.001, 0.002], "counts": [1, 1], "sum": 0.006, "count": 2}
+    assert histogram_status(histogram).json() == {
+        "le": [0.001, 0.002],
+        "counts": [1, 1],
+        "sum": 0.006,
+        "count": 2,
     }
 
 
@@ -114,8 +117,7 @@ def timed(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, ManualClock]]:
 
 
 def _histogram(supervisor: Supervisor, name: str) -> dict[str, object]:
-    histograms = cast(dict[str, dict[str, object]], supervisor.info()["histograms"])
-    return histograms[name]
+    return supervisor.snapshot(supervisor.clock()).histograms[name].json()
 
 
 def _count_at(histogram: dict[str, object], le: float) -> int:

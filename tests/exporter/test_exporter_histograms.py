@@ -5,23 +5,25 @@ histograms by prometheus-client's custom-collector API."""
 from __future__ import annotations
 
 import copy
-from typing import Any
 
+import pytest
 from prometheus_client.openmetrics.exposition import generate_latest
 from prometheus_client.openmetrics.parser import text_string_to_metric_families
 from prometheus_client.registry import CollectorRegistry
 
+from supervisord.api.replies import StatusReply
+from supervisord.api.wire import WireError
 from supervisord.exporter.collector import ModelCollector
 from supervisord.exporter.model import ExporterModel, HistogramValue, Kind, scraped_names
-from tests.exporter.test_exporter_model import STATUS
+from tests.exporter.test_exporter_model import STATUS, status_reply
 
 PERIODS = {"le": [0.045, 0.055, 0.1], "counts": [2, 40, 41], "sum": 2.1, "count": 42}
 
 
-def _status(histograms: object) -> dict[str, Any]:
+def _status(histograms: object) -> StatusReply:
     status = copy.deepcopy(STATUS)
     status["daemon"]["histograms"] = histograms
-    return status
+    return status_reply(status)
 
 
 def _model(histograms: object) -> ExporterModel:
@@ -59,24 +61,37 @@ def test_histograms_go_with_the_connection() -> None:
 
 def test_a_histogram_that_is_not_one_is_skipped() -> None:
     """Bounds that do not increase, counts that decrease or exceed ``count``, lengths that
-    differ, wrong types: each such histogram is skipped without raising, the others kept."""
+    differ: each such histogram is skipped without raising, the others kept."""
     bad: list[object] = [
         {**PERIODS, "le": [0.1, 0.055, 0.2]},
         {**PERIODS, "counts": [5, 4, 41]},
         {**PERIODS, "counts": [2, 40, 43]},
         {**PERIODS, "counts": [2, 40]},
-        {**PERIODS, "sum": "2.1"},
-        {**PERIODS, "count": True},
-        {**PERIODS, "le": [0.045, None, 0.1]},
-        [1, 2, 3],
-        None,
     ]
     for histogram in bad:
         model = _model(
             {"vsc_heartbeat_period_seconds": histogram, "user_heartbeat_period_seconds": PERIODS}
         )
         assert set(_histograms(model)) == {"srcs_user_heartbeat_period_seconds"}, histogram
-    assert _histograms(_model("not a mapping")) == {}
+
+
+@pytest.mark.parametrize(
+    "histogram",
+    [
+        {**PERIODS, "sum": "2.1"},
+        {**PERIODS, "count": True},
+        {**PERIODS, "le": [0.045, None, 0.1]},
+        [1, 2, 3],
+        None,
+    ],
+)
+def test_a_histogram_of_the_wrong_types_is_refused_by_the_client(histogram: object) -> None:
+    """Wrong types are refused by the client's reader (the follower reconnects): the model
+    never sees them."""
+    with pytest.raises(WireError):
+        _status({"vsc_heartbeat_period_seconds": histogram})
+    with pytest.raises(WireError):
+        _status("not a mapping")
 
 
 def test_the_collector_serves_buckets_sum_and_count_in_openmetrics() -> None:

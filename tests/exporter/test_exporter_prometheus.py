@@ -87,7 +87,7 @@ def test_a_remote_estop_is_a_stop_prometheus_sees(private_network: None, stack: 
     assert prom.value('srcs_cause_latched{cause="vsc_estop"}') == 0
 
     with robot.client() as api:  # root is an admin (docs/api.md "Who may do what")
-        assert api.commission()["remote_status"] is True
+        assert api.commission().remote_status is True
     robot.sim.control.request("remote_status", battery_level=60, connection_strength_src=1)
     prom.wait_value("srcs_remote_battery_percent", 60)
     assert prom.value('srcs_remote_link_strength{seen_by="remote"}') == 1

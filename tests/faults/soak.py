@@ -263,10 +263,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"soak: {(time.monotonic() - end) / 60 + args.minutes:5.1f} min: "
                     f"RSS {rss_kib(pid)} KiB, {fd_count(pid)} fds, "
-                    f"{counters['messages']} messages, rounds {sum(soak.rounds.values())}",
+                    f"{counters.messages} messages, rounds {sum(soak.rounds.values())}",
                     flush=True,
                 )
-        wait_until(lambda: robot.status()["state"] == "RUN", what="RUN at the end")
+        wait_until(lambda: robot.status().report.state == "RUN", what="RUN at the end")
         time.sleep(2.0)
         last = (rss_kib(pid), fd_count(pid))
         counters = robot.counters()
@@ -276,9 +276,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"soak: end RSS {last[0]} KiB, {last[1]} descriptors", flush=True)
         print(f"soak: rounds {dict(sorted(soak.rounds.items()))}", flush=True)
         print(
-            f"soak: daemon messages {counters['messages']}, rejections {counters['rejections']},"
-            f" link opens {counters['link']['opens']}, record errors {counters['record_errors']},"
-            f" internal faults {counters['internal_faults']}; records in the files {records}",
+            f"soak: daemon messages {counters.messages}, rejections {dict(counters.rejections)},"
+            f" link opens {counters.link.opens}, record errors {counters.record_errors},"
+            f" internal faults {counters.internal_faults}; records in the files {records}",
             flush=True,
         )
         print(f"soak: pushes read {dict(subscriber.pushes)}", flush=True)

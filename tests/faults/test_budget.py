@@ -54,7 +54,7 @@ def _state_once_served(robot: Robot) -> str | None:
     left in its backlog: a status then may find every ordinary and e-stop slot taken, and an
     admin's connection evicts only a non-admin's (SR-8.4; the churners run as root here)."""
     try:
-        state = robot.status()["state"]
+        state = robot.status().report.state
     except ApiError as error:
         if error.code != ErrorCode.TOO_MANY_CLIENTS:
             raise
@@ -112,5 +112,5 @@ def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
             BUDGET_WINDOW_NS / 1e9 + ALLOWANCE_S + 5,
             what="RUN once the hold's budget allows",
         )
-        assert robot.counters()["internal_faults"] == 0
+        assert robot.counters().internal_faults == 0
         robot.assert_serving()

@@ -31,7 +31,7 @@ def test_can_silence_is_a_lost_link(tmp_path: Path) -> None:
         robot.vsc.silence(False)
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         time.sleep(0.4)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         robot.recover(stop)
 
 
@@ -53,7 +53,7 @@ def test_can_heartbeats_that_do_not_arrive_whole_are_a_lost_link(
         robot.vsc.fault(**fault, only_types=[HEARTBEAT])
         stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
         if rejection is not None:
-            assert robot.counters()["rejections"].get(rejection, 0) > 0
+            assert robot.counters().rejections.get(rejection, 0) > 0
         robot.vsc.fault()
         robot.recover(stop)
 
@@ -68,12 +68,12 @@ def test_can_bus_off_is_a_transport_fault(tmp_path: Path) -> None:
         t0 = robot.now()
         robot.vsc.bus_off(True)
         stop = robot.expect_stop("transport_fault", t0, 0.0)
-        wait_until(lambda: robot.counters()["link"]["open"], what="the bus reopened")
+        wait_until(lambda: robot.counters().link.open, what="the bus reopened")
         wait_until(lambda: "vsc_link_lost" in robot.active_stops(), what="the silent bus")
         robot.vsc.bus_off(False)
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         time.sleep(0.4)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         robot.recover(stop)
 
 
@@ -108,7 +108,7 @@ def test_can_noise_keeps_running_and_still_carries_the_estop(tmp_path: Path) -> 
         robot.arm()
         robot.vsc.fault(duplicate=1.0, unknown_type=0.5, garbage=0.3)
         robot.stays_running(1.0)
-        assert robot.counters()["rejections"].get("unknown_id", 0) > 0
+        assert robot.counters().rejections.get("unknown_id", 0) > 0
         stop = robot.remote_estop()
         robot.vsc.release()
         robot.vsc.fault()
@@ -142,5 +142,5 @@ def test_can_vsc_unplugged_and_back(tmp_path: Path) -> None:
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         assert robot.vsc.state()["mode_name"] == "operational"
         time.sleep(0.4)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         robot.recover(stop)

@@ -29,7 +29,7 @@ def test_required_client_killed_is_lost_at_once(tmp_path: Path) -> None:
         robot.start_clients()
         wait_until(lambda: not robot.active_stops(), what="nav back")
         time.sleep(0.3)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         robot.recover(stop)
 
 
@@ -48,7 +48,7 @@ def test_required_client_stopped_is_lost_after_its_timeout(tmp_path: Path) -> No
             nav.signal(signal.SIGCONT)
         wait_until(lambda: not robot.active_stops(), what="nav beating again")
         time.sleep(0.3)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         robot.recover(stop)
 
 
@@ -64,7 +64,7 @@ def test_required_client_that_stops_reading_is_dropped_and_lost(tmp_path: Path) 
         nav.signal(signal.SIGUSR1)
         stop = robot.expect_stop("client_lost:nav", t0, CLIENT_TIMEOUT_S)
         nav.wait_log("stalled")
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         nav.kill()
         robot.start_clients()
         robot.recover(stop)

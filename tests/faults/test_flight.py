@@ -111,8 +111,8 @@ def test_a_hung_disk_under_the_windows_never_delays_the_outputs_or_a_record(
             robot.recover(first)
             second = robot.remote_estop()
             counters = robot.counters()
-            assert counters["flight_windows"] == 0, counters
-            assert counters["record_errors"] == 0, counters
+            assert counters.sink["flight_windows"] == 0, counters
+            assert counters.record_errors == 0, counters
             sent = robot.sigterm()
             time.sleep(1.0)  # the disk hangs a while longer
         robot.exit_within_stop_timeout(sent)
@@ -142,7 +142,9 @@ def test_a_full_disk_under_the_windows_is_counted_and_stops_nothing(tmp_path: Pa
                     pass
             robot.arm()
             stop = robot.remote_estop()
-            wait_until(lambda: robot.counters()["flight_errors"] >= 1, what="a window not written")
+            wait_until(
+                lambda: robot.counters().sink["flight_errors"] >= 1, what="a window not written"
+            )
             # The log line takes the sink's log lane, on its own thread's time (SR-7.7).
             wait_until(lambda: "flight recorder window not written" in robot.log(), what="its log")
             robot.vsc.release()

@@ -167,8 +167,8 @@ def test_client_flood_neither_delays_the_estop_nor_starves_the_heartbeat(tmp_pat
         # caller: SR-8.5); a few records of the VSC's own besides.
         assert len(during) <= (RECORDS_PER_UID + 5) * (seconds + 1), len(during)
         counters = robot.counters()
-        assert counters["rate_limited"] > 0
-        assert counters["internal_faults"] == 0
+        assert counters.rate_limited > 0
+        assert counters.internal_faults == 0
         robot.vsc.release()
         wait_until(lambda: _release_hold(robot, "flood"), what="the flood's hold released")
         rearm = robot.rearm()

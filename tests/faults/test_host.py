@@ -63,10 +63,10 @@ def test_full_disk_under_the_record_still_stops(tmp_path: Path) -> None:
             watch.subscribe("records")
             # Use up the slack of the record file's last page: holds and releases make
             # records until one of them does not fit.
-            wait_until(lambda: _hold_and_release(watch) or robot.counters()["record_errors"])
-            errors = robot.counters()["record_errors"]
+            wait_until(lambda: _hold_and_release(watch) or robot.counters().record_errors)
+            errors = robot.counters().record_errors
             stop = robot.remote_estop_unrecorded(watch)
-        assert robot.counters()["record_errors"] >= errors >= 1
+        assert robot.counters().record_errors >= errors >= 1
         # The log line takes the sink's log lane, on its own thread's time (SR-7.7).
         wait_until(lambda: "stop record not written" in robot.log(), what="its log line")
         assert robot.daemon is not None
@@ -103,9 +103,9 @@ def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
             off = robot.watcher.wait("power", False, on.t)
             assert off.t - rearm["mono_ns"] / 1e9 <= ALLOWANCE_S
             status = robot.wait_state("STOPPED")
-            fault = next(c for c in status["causes"] if c["name"] == "output_fault:drive")
-            assert fault["latched"], fault
-            assert status["outputs"] == {"drive": False, "power": False}
+            fault = next(c for c in status.report.causes if c.name == "output_fault:drive")
+            assert fault.latched, fault
+            assert status.report.outputs == {"drive": False, "power": False}
             assert robot.watcher.first("drive", True, 0.0) is None
             assert robot.output_file("power") is False
 
@@ -138,6 +138,6 @@ def test_output_stuck_on_never_lets_the_robot_run(tmp_path: Path) -> None:
         assert "user_request" in robot.vsc.state()["estop_bits"]
         assert "output_fault:drive" in robot.refused_takeover()["reason"]
         time.sleep(0.3)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         assert robot.watcher.first("power", True, 0.0) is None
         assert robot.output_file("drive") is True  # stuck: what the line really does

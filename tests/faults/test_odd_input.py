@@ -195,9 +195,9 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
             # reply, SR-6.1), whatever its interpreter's start took on a busy machine.
             robot.expect_stop("local_estop", t0, robot.now() - t0)
             status = robot.status()
-            local = next(c for c in status["causes"] if c["name"] == "local_estop")
-            assert local["active"]
-            assert local["details"]["caller"] == SHOWN_NAME
+            local = next(c for c in status.report.causes if c.name == "local_estop")
+            assert local.active
+            assert local.details["caller"] == SHOWN_NAME
             [record] = [
                 r
                 for r in robot.records_since(t0)
@@ -241,15 +241,15 @@ def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Pa
 
             def two_odd_pushes() -> bool:
                 while (push := api.next_event(timeout=0.1)) is not None:
-                    if push.event == "gps" and push.data["string"] == SUPERSCRIPT_GGA:
-                        pushes.append(push.data)
+                    if push.event == "gps" and push.json()["string"] == SUPERSCRIPT_GGA:
+                        pushes.append(push.json())
                 return len(pushes) >= 2  # the simulator sends GPS once a second
 
             wait_until(two_odd_pushes, 10.0, what="two pushes of the odd GGA")
         assert pushes[0]["fix_quality"] is None
         assert pushes[0]["latitude"] == pytest.approx(48.1173)
         status = robot.status()
-        assert status["state"] == "RUN"
+        assert status.report.state == "RUN"
         assert robot.watcher is not None
         assert robot.watcher.ons_between(t0, robot.now()) == []
         assert internal_records(robot) == []

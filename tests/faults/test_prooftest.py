@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from supervisord.api.status import ProofTestResult, ProofTestStatus
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
 
@@ -22,14 +23,19 @@ UNTESTED = "vsc_watchdog_untested"
 CLEAR_MS = 2000  # vsc.prooftest_clear_ms for these robots: a held bit's wait, kept short
 
 
-def _proof(robot: Robot) -> dict[str, Any]:
-    proof = robot.status().get("prooftest")
-    assert isinstance(proof, dict)
+def _proof(robot: Robot) -> ProofTestStatus:
+    proof = robot.status().report.prooftest
+    assert proof is not None
     return proof
 
 
-def _wait_phase(robot: Robot, *phases: str, timeout: float = WAIT_S) -> dict[str, Any]:
-    wait_until(lambda: _proof(robot)["phase"] in phases, timeout=timeout, what=f"{phases}")
+def _last(proof: ProofTestStatus) -> ProofTestResult:
+    assert proof.last is not None, proof
+    return proof.last
+
+
+def _wait_phase(robot: Robot, *phases: str, timeout: float = WAIT_S) -> ProofTestStatus:
+    wait_until(lambda: _proof(robot).phase in phases, timeout=timeout, what=f"{phases}")
     return _proof(robot)
 
 
@@ -55,14 +61,15 @@ def test_a_healthy_vsc_passes_at_start_and_the_robot_then_runs(tmp_path: Path) -
     itself, records it with the trip time; the operator's takeover then reaches RUN."""
     with _robot(tmp_path) as robot:
         proof = _wait_phase(robot, "passed", "failed")
-        assert proof["phase"] == "passed", proof
-        last = proof["last"]
-        assert 450 <= last["trip_ms"] <= 700, last
-        assert last["cleared"] == "by_itself", last
+        assert proof.phase == "passed", proof
+        last = _last(proof)
+        assert last.trip_ms is not None
+        assert 450 <= last.trip_ms <= 700, last
+        assert last.cleared == "by_itself", last
         records = _written(robot, 1)
         assert [r["prooftest"]["result"] for r in records] == ["passed"], records
         robot.arm()
-        assert robot.status()["state"] == "RUN"
+        assert robot.status().report.state == "RUN"
 
 
 @pytest.mark.parametrize(
@@ -91,18 +98,18 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
             with pytest.raises(Exception, match="e-stop active"):
                 robot.vsc.takeover()
         proof = _wait_phase(robot, "failed", "passed", timeout=WAIT_S + CLEAR_MS / 1000)
-        assert proof["phase"] == "failed", proof
-        assert proof["last"]["failure"] == failure, proof
-        cause = next(c for c in robot.status()["causes"] if c["name"] == UNTESTED)
-        assert cause["active"], cause
-        assert "failed" in cause["details"]["observed"], cause
+        assert proof.phase == "failed", proof
+        assert _last(proof).failure == failure, proof
+        cause = next(c for c in robot.status().report.causes if c.name == UNTESTED)
+        assert cause.active, cause
+        assert "failed" in cause.details["observed"], cause
         assert [r["prooftest"]["result"] for r in _written(robot, 1)] == ["failed"]
         if failure != "not_cleared":
             robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
             time.sleep(0.5)
             robot.vsc.takeover()
             time.sleep(0.5)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         assert UNTESTED in robot.active_stops()
 
 
@@ -118,14 +125,14 @@ def test_a_late_watchdog_fails_with_the_longest_vsc_timeout(tmp_path: Path) -> N
     robot.sim.start = lambda: robot.sim  # type: ignore[method-assign]  # started above
     with robot:
         proof = _wait_phase(robot, "failed", "passed")
-        assert proof["phase"] == "failed", proof
-        assert proof["last"]["failure"] == "late", proof
-        assert proof["last"]["trip_ms"] >= 1200, proof
+        assert proof.phase == "failed", proof
+        assert _last(proof).failure == "late", proof
+        assert (_last(proof).trip_ms or 0) >= 1200, proof
         robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
         time.sleep(0.5)
         robot.vsc.takeover()
         time.sleep(0.5)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         assert UNTESTED in robot.active_stops()
 
 
@@ -141,10 +148,10 @@ def test_a_vsc_that_holds_the_bit_until_a_takeover_passes(tmp_path: Path) -> Non
         time.sleep(0.7)  # past the 500 ms in which a bit that clears by itself clears
         robot.vsc.takeover()  # acknowledges the held bit; the remote stays in Local
         proof = _wait_phase(robot, "passed", "failed")
-        assert proof["phase"] == "passed", proof
-        assert proof["last"]["cleared"] == "held", proof
+        assert proof.phase == "passed", proof
+        assert _last(proof).cleared == "held", proof
         robot.arm()
-        assert robot.status()["state"] == "RUN"
+        assert robot.status().report.state == "RUN"
 
 
 def test_a_vsc_reboot_repeats_the_proof_test(tmp_path: Path) -> None:
@@ -153,11 +160,11 @@ def test_a_vsc_reboot_repeats_the_proof_test(tmp_path: Path) -> None:
     with _robot(tmp_path) as robot:
         robot.arm()
         robot.vsc.call("reboot", delay=0.5, unplug=False)
-        wait_until(lambda: robot.status()["state"] == "STOPPED", what="the reboot stops")
+        wait_until(lambda: robot.status().report.state == "STOPPED", what="the reboot stops")
         wait_until(lambda: len(_proof_records(robot)) == 2, what="a second proof test")
         assert _proof_records(robot)[-1]["prooftest"]["result"] == "passed"
         robot.rearm()
-        assert robot.status()["state"] == "RUN"
+        assert robot.status().report.state == "RUN"
 
 
 def _srcsctl(robot: Robot, *, admin: bool) -> subprocess.CompletedProcess[str]:
@@ -198,4 +205,4 @@ def _srcsctl_scenario(robot: Robot) -> None:
         in_run = _srcsctl(robot, admin=True)
         assert in_run.returncode == 1, in_run
         assert "only while STOPPED" in in_run.stderr, in_run
-        assert robot.status()["state"] == "RUN"
+        assert robot.status().report.state == "RUN"

@@ -215,7 +215,7 @@ def test_a_stuck_journald_never_holds_a_stop_record(tmp_path: Path) -> None:
                     api.release("hold")
             stop = robot.remote_estop()
             _stop_in_file(robot, stop)
-            wait_until(lambda: robot.counters()["journal_errors"] > 0, what="a refused entry")
+            wait_until(lambda: robot.counters().sink["journal_errors"] > 0, what="a refused entry")
             sent = robot.sigterm()
             robot.exit_within_stop_timeout(sent)
             _stop_in_file(robot, stop)
@@ -264,7 +264,7 @@ def _pushed_records(watch: SupervisorClient, into: list[dict[str, Any]]) -> None
     with contextlib.suppress(ClientError, OSError):
         while (push := watch.next_event(timeout=0.2)) is not None:
             if push.event == "record":
-                into.append({k: v for k, v in push.data.items() if k != "event"})
+                into.append({k: v for k, v in push.json().items() if k != "event"})
 
 
 @ROOT_ONLY
@@ -288,8 +288,8 @@ def test_a_slow_disk_delays_records_never_the_stop_and_loses_none(tmp_path: Path
                 robot.vsc.estop()
                 robot.expect_off(t, robot.beat_s)
                 status = robot.status()
-                assert status["state"] == "STOPPED", status
-                assert status["daemon"]["records_pending"] >= 1, status
+                assert status.report.state == "STOPPED", status
+                assert status.daemon.loop.sink["records_pending"] >= 1, status
                 _pushed_records(watch, pushed)
                 early = [r for r in pushed if r["mono_ns"] >= t * 1e9]
                 assert not early, f"pushed before the disk took them: {early}"
@@ -323,7 +323,7 @@ def test_a_record_file_removed_or_replaced_is_opened_again(tmp_path: Path, how: 
             path.write_text("")
         stop = robot.remote_estop()
         assert stop.record["seq"] > 1
-        assert robot.counters()["record_reopens"] == 1
+        assert robot.counters().sink["record_reopens"] == 1
         said = f"record file {path} was {how}"
         wait_until(lambda: said in robot.log(), what="the reopening logged")
 

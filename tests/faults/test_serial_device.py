@@ -29,16 +29,16 @@ def test_unplug_is_a_transport_fault_and_replug_is_a_new_start(
     (SR-5)."""
     with Robot(tmp_path) as robot:
         robot.arm()
-        opens = robot.counters()["link"]["opens"]
+        opens = robot.counters().link.opens
         t0 = robot.now()
         robot.vsc.unplug()
         time.sleep(unplugged_s)
         robot.vsc.replug()
         stop = robot.expect_stop("transport_fault", t0, 0.0)
-        wait_until(lambda: robot.counters()["link"]["opens"] > opens, what="the reopen")
+        wait_until(lambda: robot.counters().link.opens > opens, what="the reopen")
         wait_until(lambda: not robot.active_stops(), what="the link back")
         time.sleep(0.5)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         assert not [r for r in robot.records_since(t0) if r.get("rearm")]
         wait_until(lambda: robot.record_raising("vsc_watchdog_off", t0), what="key 85 read again")
         robot.recover(stop)
@@ -121,7 +121,7 @@ def test_hung_daemon_lets_the_vsc_stop_and_wakes_as_an_internal_fault(tmp_path: 
             robot.daemon.send_signal(signal.SIGCONT)
         stop = robot.expect_stop("internal", t1, 0.0)
         assert "late" in str(stop.record["trigger"]) or "late" in str(stop.record["causes"])
-        assert robot.counters()["internal_faults"] == 0  # an overrun, not an exception
+        assert robot.counters().internal_faults == 0  # an overrun, not an exception
         robot.recover(stop)
 
 

@@ -33,14 +33,14 @@ def test_heartbeats_that_do_not_arrive_whole_are_a_lost_link(
     or of a wrong length, while the joystick frames keep flowing: off within ``vsc_timeout``."""
     with Robot(tmp_path) as robot:
         robot.arm()
-        before = robot.counters()["rejections"]
+        before = robot.counters().rejections
         t0 = robot.now()
         robot.vsc.fault(**fault, only_types=[HEARTBEAT])
         stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
         counters = robot.counters()
         assert robot.vsc.state()["frames_sent"] > 0
         if rejection is not None:
-            assert counters["rejections"].get(rejection, 0) > before.get(rejection, 0)
+            assert counters.rejections.get(rejection, 0) > before.get(rejection, 0)
         robot.vsc.fault()
         robot.recover(stop)
 
@@ -59,8 +59,8 @@ def test_heartbeats_delayed_past_the_timeout_are_a_lost_link_that_stays_latched(
         wait_until(lambda: "vsc_link_lost" not in robot.active(), what="late heartbeats")
         time.sleep(0.3)
         status = robot.status()
-        assert status["state"] == "STOPPED"
-        assert next(c for c in status["causes"] if c["name"] == "vsc_link_lost")["latched"]
+        assert status.report.state == "STOPPED"
+        assert next(c for c in status.report.causes if c.name == "vsc_link_lost").latched
         robot.vsc.fault()
         time.sleep(0.5)  # the frames still held back drain before the takeover
         robot.recover(stop)
@@ -87,7 +87,7 @@ def test_noisy_line_keeps_running_and_still_carries_the_estop(
         robot.vsc.fault(**fault)
         robot.stays_running(1.0)
         if rejection is not None:
-            assert robot.counters()["rejections"].get(rejection, 0) > 0
+            assert robot.counters().rejections.get(rejection, 0) > 0
         assert sum(robot.vsc.state()["fault_counts"].values()) > 10
         stop = robot.remote_estop()
         assert stop.record["causes"][0]["name"] == "vsc_estop"
@@ -114,7 +114,7 @@ def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
         time.sleep(0.3)
         robot.vsc.takeover()  # the model moves; the frozen heartbeat does not
         time.sleep(0.5)
-        assert robot.status()["state"] == "STOPPED"
+        assert robot.status().report.state == "STOPPED"
         assert not [r for r in robot.records_since(t0) if r.get("rearm")]
         robot.vsc.fault()
         robot.recover(stop)
@@ -172,7 +172,7 @@ def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
     assert first.t - t0 <= robot.beat_s + ALLOWANCE_S
     # RUN again by itself, or a stop (a stall after the flap, before the dwell ended, too).
     wait_until(
-        lambda: robot.status()["state"] == "RUN" or _stops(robot.records_since(t0)),
+        lambda: robot.status().report.state == "RUN" or _stops(robot.records_since(t0)),
         what="RUN again, or a stop",
     )
     records = robot.records_since(t0)
@@ -231,7 +231,7 @@ def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:
         assert off.t - t0 <= robot.beat_s + ALLOWANCE_S
         status = robot.wait_state("HOLD")
         assert "vsc_mode:unknown_0x42" in robot.active(status)
-        assert status["outputs"] == {"drive": False, "power": True}
+        assert status.report.outputs == {"drive": False, "power": True}
         assert robot.watcher.first("power", False, t0) is None
         robot.vsc.mode("operational")
         robot.wait_state("RUN")

@@ -26,7 +26,7 @@ def test_a_category_1_output_goes_off_its_delay_after_the_motion_output(tmp_path
     with Robot(tmp_path, outputs=OUTPUTS) as robot:
         watcher = robot.watcher
         assert watcher is not None
-        assert robot.status()["daemon"]["outputs_off_delay_ms"] == {"brakes": DELAY_MS}
+        assert robot.counters().outputs_off_delay_ms == {"brakes": DELAY_MS}
         robot.arm()
         t = robot.now()
         robot.vsc.estop()
@@ -45,4 +45,4 @@ def test_a_category_1_output_goes_off_its_delay_after_the_motion_output(tmp_path
         )
         assert brakes.t - stopped <= DELAY_MS / 1000 + ALLOWANCE_S
         assert watcher.level_at("brakes", drive.t) is True  # on while the drives brake
-        assert robot.status()["outputs"] == {"brakes": False, "drive": False, "lights": False}
+        assert robot.status().report.outputs == {"brakes": False, "drive": False, "lights": False}

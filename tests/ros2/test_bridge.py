@@ -66,8 +66,8 @@ def _arm(robot: Robot, ros: RosPeer) -> None:
 
 def _declared(robot: Robot, nonzero: bool) -> bool:
     """Whether ``status`` shows the bridge's client declaring ``nonzero`` (SR-4.6)."""
-    clients = robot.status()["daemon"]["clients"]
-    return any(c["name"] == "ros" and c["command_nonzero"] is nonzero for c in clients)
+    clients = robot.status().daemon.clients
+    return any(c.name == "ros" and c.command_nonzero is nonzero for c in clients)
 
 
 def test_joystick_and_gps_arrive_scaled(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
@@ -181,7 +181,7 @@ def test_ready_says_when_the_stop_path_works(
     reaches only a subscriber discovered before the true replaced it: not asserted.)"""
     running, _ = robot
     ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true")
-    assert running.status()["state"] == "STOPPED"
+    assert running.status().report.state == "STOPPED"
     assert running.stop_daemon() == 0
     ros.spin_until(lambda: ros.ready[-1:] == [False], what="ready false without srcsd")
     running.start_daemon()
@@ -215,7 +215,7 @@ def test_an_overdue_stop_test_is_a_warning_in_the_diagnostics(
     assert float(seen["proof test last pass age s"]) >= 0
     assert seen["level"] == "1", seen  # WARN
     assert seen["message"].endswith("; overdue: stop test"), seen
-    assert running.status()["state"] == "RUN"
+    assert running.status().report.state == "RUN"
 
 
 def test_estop_available_says_when_the_remote_estop_works(
@@ -235,7 +235,7 @@ def test_estop_available_says_when_the_remote_estop_works(
     assert ros.available[-1:] == [False]
     assert "battery is not reported" in (ros.supervisor() or {})["e-stop missing"]
     with SupervisorClient.connect(running.socket_path, timeout=30.0) as admin:
-        assert admin.commission()["remote_status"] is True
+        assert admin.commission().remote_status is True
     ros.spin_until(lambda: ros.available[-1:] == [True], what="e-stop available")
     _arm(running, ros)
     running.vsc.call("remote_status", battery_level=10)
@@ -246,7 +246,7 @@ def test_estop_available_says_when_the_remote_estop_works(
 
     ros.spin_until(low, what="the low battery in the diagnostics")
     ros.spin_until(lambda: ros.available[-1:] == [False], what="e-stop not available")
-    assert running.status()["state"] == "RUN"
+    assert running.status().report.state == "RUN"
 
 
 def test_killed_bridge_stops_the_robot(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
@@ -325,7 +325,7 @@ def test_a_nonzero_cmd_vel_in_blocks_the_takeover_and_zero_lets_it(
     refused = running.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
     assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
     assert not [r for r in running.records_since(stop.t_fault) if r.get("rearm")]
-    assert running.status()["state"] == "STOPPED"
+    assert running.status().report.state == "STOPPED"
     forwarded = len(ros.cmd_out)
     ros.cmd_in.publish(go)  # still refused: the gate stays closed
 

@@ -2,34 +2,58 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
 
+from supervisord.api.messages import RemoteStatusReport
+from supervisord.api.status import Cause, DaemonStatus, Maintenance, PeriodicDue, StateReport
 from supervisord.ros2.diagnostics import GateCounts, Level, remote_status, supervisor_status
+from tests.api.samples import LOOP
 
-STATUS = {
-    "state": "STOPPED",
-    "causes": [
-        {
-            "name": "vsc_estop",
-            "severity": "stop",
-            "active": True,
-            "latched": True,
-            "details": {"sources": "remote"},
-        },
-        {"name": "client_lost:ros", "severity": "stop", "active": False, "latched": True},
-    ],
-    "outputs": {"drive": False},
-    "heartbeat_estop": 1,
-}
-DAEMON = {
-    "robot": "rover-1",
-    "pid": 42,
-    "link": {"description": "serial /dev/srcs-vsc", "open": True, "opens": 2, "open_failures": 1},
-    "messages": 1234,
-    "rejections": {"bad_checksum": 3, "wrong_length": 1},
-    "record_errors": 0,
-    "internal_faults": 0,
-}
+STATUS = StateReport(
+    state="STOPPED",
+    mono_ns=1,
+    causes=(
+        Cause(
+            name="vsc_estop",
+            severity="stop",
+            active=True,
+            latched=True,
+            raised_ns=1,
+            cleared_ns=None,
+            details={"sources": "remote"},
+        ),
+        Cause(
+            name="client_lost:ros",
+            severity="stop",
+            active=False,
+            latched=True,
+            raised_ns=1,
+            cleared_ns=1,
+        ),
+    ),
+    outputs={"drive": False},
+    heartbeat_estop=1,
+)
+DAEMON = DaemonStatus(
+    robot="rover-1",
+    loop=dataclasses.replace(
+        LOOP,
+        pid=42,
+        link=dataclasses.replace(
+            LOOP.link, description="serial /dev/srcs-vsc", open=True, opens=2, open_failures=1
+        ),
+        messages=1234,
+        rejections={"bad_checksum": 3, "wrong_length": 1},
+    ),
+    clients=(),
+    connections=1,
+    remote=None,
+    in_state_s=None,
+)
+
+
+def _state(state: str) -> StateReport:
+    return dataclasses.replace(STATUS, state=state, causes=())
 
 
 def _status(**kw: object) -> dict[str, str]:
@@ -65,7 +89,7 @@ def test_estop_available_is_a_value_and_its_loss_in_run_a_warning() -> None:
     """SR-8.11: ``e-stop available`` and, when it is not, ``e-stop missing`` with each part;
     in RUN its loss makes the status WARN and says so in the message (a warning: the
     supervisor does not stop for it); in STOPPED the level stays ERROR."""
-    run = {"state": "RUN", "causes": []}
+    run = _state("RUN")
     fine = _status(status=run, available=(True, ()))
     assert (fine["level"], fine["e-stop available"], fine["message"]) == ("0", "true", "RUN")
     assert "e-stop missing" not in fine
@@ -80,8 +104,8 @@ def test_estop_available_is_a_value_and_its_loss_in_run_a_warning() -> None:
 
 def test_levels_follow_the_state_and_unreachable_is_error() -> None:
     """RUN is OK, HOLD WARN; an unreachable supervisor is ERROR saying why."""
-    assert _status(status={"state": "RUN", "causes": []})["level"] == "0"
-    assert _status(status={"state": "HOLD", "causes": []})["level"] == "1"
+    assert _status(status=_state("RUN"))["level"] == "0"
+    assert _status(status=_state("HOLD"))["level"] == "1"
     values = _status(status=None, unreachable="cannot connect")
     assert values["level"] == "2"
     assert values["connected"] == "false"
@@ -91,27 +115,39 @@ def test_levels_follow_the_state_and_unreachable_is_error() -> None:
 def test_remote_status_levels() -> None:
     """No remote status yet is STALE; a low battery or no radio link is WARN, else OK."""
     assert remote_status(None, "r").level is Level.STALE
-    good = {"battery_level": 87, "connection_strength_vsc": 4, "connection_strength_src": 4}
+    good = RemoteStatusReport(
+        battery_level=87,
+        battery_charging=0,
+        connection_strength_vsc=4,
+        connection_strength_src=4,
+        rssi_vsc=200,
+        rssi_src=190,
+    )
     assert remote_status(good, "r").level is Level.OK
     assert dict(remote_status(good, "r").values)["battery level %"] == "87"
-    assert remote_status({**good, "battery_level": 10}, "r").level is Level.WARN
-    assert remote_status({**good, "connection_strength_src": 0}, "r").level is Level.WARN
+    low = dataclasses.replace(good, battery_level=10)
+    assert remote_status(low, "r").level is Level.WARN
+    no_link = dataclasses.replace(good, connection_strength_src=0)
+    assert remote_status(no_link, "r").level is Level.WARN
 
 
 def test_an_overdue_periodic_test_is_a_warning_in_run() -> None:
     """SR-12.2: each periodic test of the daemon's ``maintenance`` is two keys (the last
     pass's age in seconds, or ``never``, and ``overdue``); an overdue one makes RUN a WARN and
-    is named in the message; STOPPED stays ERROR; none overdue changes nothing."""
-    schedule = {
-        "stoptest": {"interval_days": 30, "last_pass_age_s": None, "overdue": True},
-        "prooftest": {"interval_days": 30, "last_pass_age_s": 12.5, "overdue": False},
-    }
-    run = {"state": "RUN", "causes": []}
+    is named in the message; STOPPED stays ERROR; none overdue, or a daemon that says nothing
+    of its tests, changes nothing."""
+    never = PeriodicDue(interval_days=30, last_pass_age_s=None, overdue=True)
+    schedule = Maintenance(
+        stoptest=never,
+        prooftest=PeriodicDue(interval_days=30, last_pass_age_s=12.5, overdue=False),
+    )
+    run = _state("RUN")
 
-    def diagnosed(status: Mapping[str, object], maintenance: object) -> dict[str, str]:
+    def diagnosed(status: StateReport, maintenance: Maintenance | None) -> dict[str, str]:
+        loop = dataclasses.replace(DAEMON.loop, maintenance=maintenance)
         found = supervisor_status(
             status,
-            {**DAEMON, "maintenance": maintenance},
+            dataclasses.replace(DAEMON, loop=loop),
             socket="/run/srcsd/api.sock",
             client_name="ros",
             gate=GateCounts(),
@@ -126,7 +162,9 @@ def test_an_overdue_periodic_test_is_a_warning_in_run() -> None:
     assert late["proof test last pass age s"] == "12.5"
     assert late["proof test overdue"] == "false"
     assert diagnosed(STATUS, schedule)["level"] == str(int(Level.ERROR))
-    schedule["stoptest"] = {"interval_days": 30, "last_pass_age_s": 60.0, "overdue": False}
-    fine = diagnosed(run, schedule)
+    passed = dataclasses.replace(never, last_pass_age_s=60.0, overdue=False)
+    fine = diagnosed(run, dataclasses.replace(schedule, stoptest=passed))
     assert (fine["level"], fine["message"]) == ("0", "RUN")
-    assert diagnosed(run, "garbage")["level"] == "0"
+    older = diagnosed(run, None)
+    assert (older["level"], older["message"]) == ("0", "RUN")
+    assert "stop test overdue" not in older

@@ -20,7 +20,13 @@ CLIENT_MODULES = frozenset(
         "supervisord",
         "supervisord.api",
         "supervisord.api.framing",
+        "supervisord.api.messages",
         "supervisord.api.ops",
+        "supervisord.api.pushes",
+        "supervisord.api.records",
+        "supervisord.api.replies",
+        "supervisord.api.status",
+        "supervisord.api.wire",
         "supervisord.client",
         "supervisord.compat",
         "supervisord.errors",
@@ -97,6 +103,17 @@ def test_the_client_library_loads_only_its_named_modules() -> None:
     assert not set(DAEMON_DEPENDENCIES) & {name.split(".")[0] for name in files}
     for name in ours:
         assert Path(files[name]).is_relative_to(REPO / "supervisord"), (name, files[name])
+
+
+def test_the_client_library_loads_no_safety_module() -> None:
+    """SR-8: ``import supervisord.client`` (and with it the typed replies and pushes it
+    returns) loads no module of the safety core, checked in a fresh ``python -I -c``."""
+    files = loaded("supervisord.client")
+    assert "supervisord.api.replies" in files  # the typed vocabulary is what it reads with
+    safety = sorted(
+        n for n in files if n == "supervisord.safety" or n.startswith("supervisord.safety.")
+    )
+    assert safety == []
 
 
 @pytest.mark.parametrize("module", sorted(BRIDGE_MODULES))

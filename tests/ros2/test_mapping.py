@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from typing import Any
 
+from supervisord.api.messages import AxisReport, GpsReport
+from supervisord.api.status import EstopAvailable, StateReport
+from supervisord.api.views import gps_report, joystick_report
+from supervisord.protocol.codes import FieldStatus
+from supervisord.protocol.messages import Axis, DPad, Gps, Joystick, NumberedButtons
 from supervisord.ros2.mapping import (
     FixStatus,
     State,
+    axis_value,
     display_rows,
     estop_available_of,
     estop_of,
@@ -15,90 +21,103 @@ from supervisord.ros2.mapping import (
     joy_values,
     state_of,
 )
+from tests.api.samples import status_reply
+
+SET = FieldStatus.SET
+GGA = "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47"
 
 
-def _joystick(**values: int | None) -> dict[str, Any]:
-    push: dict[str, Any] = {"event": "joystick", "type": "joystick"}
-    for name in ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z"):
-        push[f"{name}_joystick_value"] = {"value": values.get(name, 0)}
-    push["left_button_values"] = {"pressed": ["left"]}
-    push["right_button_values"] = {"pressed": ["button_1", "button_4"]}
-    return push
+def _joystick(**values: int) -> Joystick:
+    axes = {name: Axis.from_value(value) for name, value in values.items()}
+    return Joystick(
+        **axes,
+        left_buttons=DPad(left=SET),
+        right_buttons=NumberedButtons(button_1=SET, button_4=SET),
+    )
+
+
+def _quality(quality: int, *, valid: bool) -> GpsReport:
+    """The GGA push with another fix quality and validity."""
+    report = gps_report(Gps(1, GGA))
+    assert report.fix is not None
+    fix = dataclasses.replace(report.fix, fix_quality=quality, valid=valid)
+    return dataclasses.replace(report, fix=fix)
+
+
+def _state(state: str) -> StateReport:
+    return StateReport(state=state, mono_ns=0, causes=(), outputs={}, heartbeat_estop=1)
 
 
 def test_axes_scale_to_unit_range_in_driver_order() -> None:
     """Full deflection is exactly +-1, and the axes keep the public drivers' order."""
-    values = joy_values(_joystick(left_x=1023, left_y=-1023, right_z=512))
+    values = joy_values(joystick_report(_joystick(left_x=1023, left_y=-1023, right_z=512)))
     assert values.axes == (1.0, -1.0, 0.0, 0.0, 0.0, 512 / 1023)
 
 
-def test_invalid_or_missing_axis_is_zero() -> None:
-    """An invalid axis (value null), a missing one or one out of range reads as neutral."""
-    push = _joystick(left_x=None, right_x=4000)
-    del push["left_y_joystick_value"]
-    push["left_z_joystick_value"] = "garbage"
-    assert joy_values(push).axes == (0.0,) * 6
+def test_invalid_or_out_of_range_axis_is_zero() -> None:
+    """An invalid axis (value null) or one out of range reads as neutral."""
+    invalid = Axis(FieldStatus.ERROR, FieldStatus.NOT_SET, FieldStatus.NOT_SET, 500)
+    report = joystick_report(Joystick(left_x=invalid))
+    assert report.left_x.value is None
+    assert joy_values(report).axes == (0.0,) * 6
+    assert axis_value(dataclasses.replace(report.left_y, value=4000)) == 0.0
+    assert axis_value(AxisReport(value=-4000, magnitude=0, neutral_status=0,
+                                 negative_status=1, positive_status=0)) == 0.0  # fmt: skip
 
 
 def test_buttons_left_pad_then_numbered() -> None:
     """Buttons 0-3 are the left pad (down, right, up, left), 4-7 the right buttons 1-4."""
-    assert joy_values(_joystick()).buttons == (0, 0, 0, 1, 1, 0, 0, 1)
-    assert joy_values({}).buttons == (0,) * 8
+    assert joy_values(joystick_report(_joystick())).buttons == (0, 0, 0, 1, 1, 0, 0, 1)
+    assert joy_values(joystick_report(Joystick())).buttons == (0,) * 8
 
 
 def test_state_and_estop_rule() -> None:
-    """estop is true unless the supervisor is reached and in RUN or HOLD; unreadable or
-    unreachable counts as STOPPED."""
-    assert state_of({"state": "RUN"}) is State.RUN
-    assert state_of({"state": "run"}) is State.STOPPED
+    """estop is true unless the supervisor is reached and in RUN or HOLD; a state the bridge
+    does not know or no supervisor counts as STOPPED."""
+    assert state_of(_state("RUN")) is State.RUN
+    assert state_of(_state("run")) is State.STOPPED
     assert state_of(None) is State.STOPPED
     assert [estop_of(s) for s in (State.RUN, State.HOLD, State.STOPPED)] == [False, False, True]
 
 
 def test_estop_available_only_when_the_status_reply_says_so() -> None:
     """SR-8.11: the ``estop_available`` topic is true only for a ``status`` reply saying
-    ``available: true``; no supervisor, a reply without the field (an older daemon) or with
-    a wrong type is false, with the reason."""
+    ``available: true``; no supervisor or a reply without the field (an older daemon) is
+    false, with the reason."""
     low = "the remote's battery is 10 %, below 20 %"
-    assert estop_available_of({"estop_available": {"available": True, "missing": []}}) == (
-        True,
-        (),
-    )
-    assert estop_available_of({"estop_available": {"available": False, "missing": [low]}}) == (
-        False,
-        (low,),
-    )
+    reply = status_reply(_state("RUN"))
+    available = EstopAvailable(available=True, missing=())
+    not_available = EstopAvailable(available=False, missing=(low,))
+    yes = dataclasses.replace(reply, estop_available=available)
+    no = dataclasses.replace(reply, estop_available=not_available)
+    assert estop_available_of(yes) == (True, ())
+    assert estop_available_of(no) == (False, (low,))
     assert estop_available_of(None) == (False, ("the supervisor is not reached",))
-    assert estop_available_of({"state": "RUN"}) == (False, ("the supervisor does not say",))
-    assert estop_available_of({"estop_available": {"available": "yes"}})[0] is False
+    older = dataclasses.replace(reply, estop_available=None)
+    assert estop_available_of(older) == (False, ("the supervisor does not say",))
 
 
 def test_gga_becomes_a_fix_with_ellipsoid_altitude() -> None:
     """A GGA push gives its position, its quality as a NavSatStatus and the altitude above
     the ellipsoid (MSL plus geoid separation)."""
-    push = {
-        "sentence_type": "GGA",
-        "string": "$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47",
-        "latitude": 48.1173,
-        "longitude": 11.516666666666667,
-        "fix_quality": 1,
-        "valid": True,
-    }
-    fix = gps_fix(push)
+    fix = gps_fix(gps_report(Gps(1, GGA)))
     assert fix is not None
     assert fix.status is FixStatus.FIX
     assert (fix.latitude, fix.longitude) == (48.1173, 11.516666666666667)
     assert math.isclose(fix.altitude, 545.4 + 46.9)
-    assert gps_fix({**push, "fix_quality": 5}).status is FixStatus.GBAS_FIX  # type: ignore[union-attr]
+    assert gps_fix(_quality(5, valid=True)).status is FixStatus.GBAS_FIX  # type: ignore[union-attr]
 
 
 def test_no_fix_and_other_sentences() -> None:
-    """A GGA without a fix is NO_FIX with NaN position; an RMC gives no message at all."""
-    fix = gps_fix({"sentence_type": "GGA", "fix_quality": 0, "valid": False})
+    """A GGA without a fix is NO_FIX with NaN position; an RMC or an unreadable sentence
+    gives no message at all."""
+    fix = gps_fix(_quality(0, valid=False))
     assert fix is not None
     assert fix.status is FixStatus.NO_FIX
     assert math.isnan(fix.latitude)
-    assert gps_fix({"sentence_type": "RMC", "latitude": 1.0}) is None
+    rmc = "$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A"
+    assert gps_fix(gps_report(Gps(1, rmc))) is None
+    assert gps_fix(gps_report(Gps(1, "$GPGGA,,"))) is None
 
 
 def test_display_rows_cut_cleaned_and_padded() -> None:

@@ -10,6 +10,7 @@ import pytest
 
 from supervisord.errors import ConfigError
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.record.format import proof_result, proof_status
 from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, VscReceived
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import Decision, RecordNote, RefusalReason
@@ -248,11 +249,15 @@ def test_the_prooftest_record_and_status_give_the_measured_times() -> None:
     proof = _passed(120 * MS)
     passed = proof.take_outcome()
     assert passed is not None
-    assert proof.status().json() == {"policy": "block", "phase": "passed", "last": passed.json()}
+    assert proof_status(proof.status()).json() == {
+        "policy": "block",
+        "phase": "passed",
+        "last": proof_result(passed).json(),
+    }
     assert passed.text == (
         "passed: trip 600 ms (manual: 500 ms); cleared by itself 120 ms after the heartbeat resumed"
     )
-    assert passed.json() == {
+    assert proof_result(passed).json() == {
         "result": "passed",
         "failure": None,
         "trip_ms": 600,
@@ -265,7 +270,11 @@ def test_the_prooftest_record_and_status_give_the_measured_times() -> None:
     assert held.text.endswith("; cleared held, then cleared 800 ms after the heartbeat resumed")
 
     late = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS, late_tries=1)
-    assert late.status().json() == {"policy": "block", "phase": "waiting", "last": None}
+    assert proof_status(late.status()).json() == {
+        "policy": "block",
+        "phase": "waiting",
+        "last": None,
+    }
     late.sent(START_NS)
     late.advance(START_NS + 10 * MS, True, 1, LOCAL)
     late.heartbeat(LOCAL, 0x80, START_NS + 750 * MS)
@@ -274,7 +283,7 @@ def test_the_prooftest_record_and_status_give_the_measured_times() -> None:
     assert failed.text == (
         "failed: the VSC reported the user-timeout e-stop late; trip 750 ms (manual: 500 ms)"
     )
-    assert failed.json() == {
+    assert proof_result(failed).json() == {
         "result": "failed",
         "failure": "late",
         "trip_ms": 750,
@@ -282,7 +291,11 @@ def test_the_prooftest_record_and_status_give_the_measured_times() -> None:
         "cleared_ms": None,
         "text": failed.text,
     }
-    assert late.status().json() == {"policy": "block", "phase": "failed", "last": failed.json()}
+    assert proof_status(late.status()).json() == {
+        "policy": "block",
+        "phase": "failed",
+        "last": proof_result(failed).json(),
+    }
 
 
 def _try(proof: ProofTest, sent_ns: int, trip_after_ns: int) -> int:

@@ -215,7 +215,7 @@ def socket_path(instance: str) -> Path:
 
 def status(instance: str) -> dict[str, Any]:
     with SupervisorClient.connect(socket_path(instance), timeout=10) as client:
-        return client.status()
+        return client.status().json()
 
 
 def state(instance: str) -> str:
@@ -1115,7 +1115,7 @@ def powercut_burst() -> None:
                     release_within_budget(client)
                     while (push := client.next_event(0)) is not None:
                         if push.event == "record":
-                            record = {k: v for k, v in push.data.items() if k != "event"}
+                            record = {k: v for k, v in push.json().items() if k != "event"}
                             emit("ACK", record)
             except ClientError as error:
                 log(f"burst: {error}; srcsd's journal:\n{journal('srcsd@cut.service')[-3000:]}")
