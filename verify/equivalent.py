@@ -37,6 +37,24 @@ _KEPT = (
 )
 
 EQUIVALENT: tuple[Equivalent, ...] = (
+    Equivalent(
+        "book.py",
+        "CauseBook._raise",
+        "entry.active, entry.latched = True, entry.latched or stop",
+        "entry.active, entry.latched = True, entry.latched and stop",
+        "an entry is made with latched = stop (its cause's severity, fixed per cause) and this "
+        "line is the only other that writes latched: so an existing entry's latched equals stop, "
+        "and latched or stop equals latched and stop",
+    ),
+    Equivalent(
+        "book.py",
+        "CauseBook.stops_clear_since",
+        "if entry.active or entry.cleared_ns is None:",
+        "if entry.active and entry.cleared_ns is None:",
+        "active and cleared_ns are written together: _raise sets active with cleared_ns None, "
+        "set (to clear) and pulse clear active with cleared_ns now, and nothing else writes "
+        "either: so active is true exactly when cleared_ns is None, and the two tests agree",
+    ),
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 3", _KEPT),
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 5", _KEPT),
     Equivalent(
