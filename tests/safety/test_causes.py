@@ -286,3 +286,20 @@ def test_causes_sort_by_name() -> None:
         "vsc_mode:remote",
     ]
     assert not Cause(CauseKind.STARTUP) < Cause(CauseKind.STARTUP)
+
+
+def test_stop_active_is_an_active_stop_condition_alone() -> None:
+    """SR-2, SR-3: a decision's ``stop_active`` is true while a stop cause's condition holds,
+    and false for a stop that is only latched and for an active hold."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    assert not rig.hold().stop_active  # a hold is no stop
+    rig.advance(10)
+    rig.release(request=Request.HOLD)
+    rig.advance(10)
+    assert rig.estop().stop_active
+    rig.advance(10)
+    released = rig.release()
+    assert released.latched_names == {"client_estop:planner"}
+    assert not released.stop_active  # latched, its condition clear

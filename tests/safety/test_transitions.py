@@ -7,7 +7,7 @@ import itertools
 import pytest
 
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
-from supervisord.safety.transitions import next_state
+from supervisord.safety.transitions import Transition, _index, next_state
 from tests.safety.rig import Rig
 
 ILLEGAL = {
@@ -27,6 +27,18 @@ def test_table_covers_exactly_the_legal_moves() -> None:
     assert len(pairs) == len(set(pairs))
     assert set(pairs) | ILLEGAL == set(itertools.product(State, Situation))
     assert not set(pairs) & ILLEGAL
+
+
+def test_the_index_is_the_table_and_refuses_two_rows_for_one_move() -> None:
+    """SR-1: ``next_state`` answers from an index of the table, one target per move, and a
+    table with two rows for one move (even if they agree) contradicts itself and is refused."""
+    assert _index(TABLE) == {(row.source, row.situation): row.target for row in TABLE}
+    again = Transition(State.RUN, Situation.CLEAR, State.HOLD, "a contradiction")
+    with pytest.raises(IllegalTransition) as refused:
+        _index((*TABLE, again))
+    assert (refused.value.state, refused.value.situation) == (State.RUN, Situation.CLEAR)
+    with pytest.raises(IllegalTransition):
+        _index((*TABLE, TABLE[0]))
 
 
 @pytest.mark.parametrize(("state", "situation"), sorted(ILLEGAL, key=str))
