@@ -24,6 +24,11 @@ _LATER_EQUAL = (
     "to the candidate: the same value, and earliest is all the function returns"
 )
 
+_PROOF_SETTLED = (
+    "_only_heartbeat_due runs only from _cheap, after it has declined unless the proof test is "
+    "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
+)
+
 _WAITING_CLEARS = (
     "every step into WAITING (__init__, restart, abort, a late try cleared) sets _withheld_from, "
     "_trip_ns and _resumed_ns to None, only a heartbeat while WITHHOLDING sets _trip_ns and only "
@@ -99,6 +104,56 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "_steady_estop = 1  # the user heartbeat's byte from the conditions alone (no urgent "
         "raise)",
         _STEADY_ESTOP,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._cheap",
+        "now = event.now if event.now > self._now else self._now",
+        "now = event.now if event.now >= self._now else self._now",
+        "the two differ only when event.now equals self._now, where both choices are the same "
+        "number",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._cheap",
+        'raise AssertionError("a heartbeat of an unchanged mode asked for a re-arm")',
+        "pass",
+        "unreachable: _on_vsc returns a request only for an Operational heartbeat after one of "
+        "another mode (_on_mode), the cheap path takes a heartbeat only of the last one's mode "
+        "(message.mode == self._vsc_mode, checked above), and for any other message _on_vsc "
+        "returns None",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._only_heartbeat_due",
+        "and (proof is None or proof > now)",
+        "and (proof is None or proof <= now)",
+        _PROOF_SETTLED,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._only_heartbeat_due",
+        "and (proof is None or proof > now)",
+        "and (proof is None or proof >= now)",
+        _PROOF_SETTLED,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "steady, self._steady = self._steady and self.cheap_path, False",
+        "steady, self._steady = self._steady and self.cheap_path, True",
+        "_steady is read only by handle (before a step) and canonical (between steps), and every "
+        "step ends by setting it: True at its normal end, False in handle when it raised; the "
+        "value written at a step's start is never read",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._charged, self._limited = None, False",
+        "self._charged, self._limited = None, True",
+        "_limited is read only in step 2 (the test after its assignment, and the handlers of a "
+        "local e-stop and of a disconnection), each time after _step has assigned it from the "
+        "event; an input that is no event applies nothing: this value is never read",
     ),
     Equivalent(
         "core.py",

@@ -7,12 +7,23 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from supervisord.safety import ClientHello, ClientSpec, LocalEstop, Request, State
+import pytest
+
+from supervisord.safety import (
+    ClientHello,
+    ClientSpec,
+    Event,
+    LocalEstop,
+    Request,
+    SafetyCore,
+    State,
+)
 from supervisord.safety.budget import (
     BUDGET_WINDOW_NS,
     RECORDS_OF_ALL_CLIENTS,
     RECORDS_PER_UID,
     RecordBudget,
+    Uid,
 )
 from supervisord.safety.decision import RefusalReason
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
@@ -96,6 +107,43 @@ def test_the_budget_is_per_user() -> None:
     rig.hold(3)
     refused = rig.release(3, Request.HOLD)
     assert [r.reason for r in refused.refusals] == [RefusalReason.RATE_LIMITED]
+
+
+def test_a_step_charges_only_its_own_user(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SR-8.5, SR-2.9: whom a step's records are charged to is the step's own business: a step
+    that fails before it has learnt its user (the record of that failure) charges nobody, and
+    never the user of the step before. So a user one record short of its budget still has
+    that record after the failure."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(2, "arm", uid=1001)
+    start = len(rig.decisions)
+    for _ in range(RECORDS_PER_UID // 2 - 1):
+        rig.advance(0.05)
+        rig.hold(2)
+        rig.advance(0.05)
+        rig.release(2, Request.HOLD)
+    rig.advance(0.05)
+    rig.hold(2)
+    assert _records(rig, start) == RECORDS_PER_UID - 1
+    real = SafetyCore._uid
+    calls: list[int] = []
+
+    def fails_once(core: SafetyCore, event: Event) -> Uid:
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return real(core, event)
+
+    monkeypatch.setattr(SafetyCore, "_uid", fails_once)
+    rig.advance(0.05)
+    failed = rig.release(2, Request.HOLD)
+    assert "internal" in failed.latched_names
+    assert failed.records
+    rig.advance(0.05)
+    released = rig.release(2, Request.HOLD)
+    assert not released.refusals
+    assert released.records
 
 
 def test_a_reset_flood_makes_a_bounded_number_of_records() -> None:

@@ -113,6 +113,62 @@ def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyP
     assert decision.next_deadline > decision.now
 
 
+def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+    """Make ``SafetyCore.<name>`` raise the first time it is called, as a bug of the core
+    would, and work from then on."""
+    real = getattr(SafetyCore, name)
+    calls = []
+
+    def once(self: SafetyCore, *args: object) -> object:
+        calls.append(name)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return real(self, *args)
+
+    monkeypatch.setattr(SafetyCore, name, once)
+
+
+def test_after_a_failure_in_a_step_the_next_input_sees_every_condition(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.9, SR-2.5, SR-5: a step that fails half way stops with ``internal`` with its event
+    applied but the conditions not recomputed; the next input recomputes them (no shortcut
+    trusts a decision the core failed on), so a client's e-stop of that step is a cause and
+    sets the user heartbeat's e-stop byte at once."""
+    rig = Rig()
+    rig.bring_up()
+    _fails_once(monkeypatch, "_end_unnamed_due")  # step 2 is done, step 3 not yet
+    rig.advance(10)
+    failed = rig.estop()
+    assert "internal" in failed.latched_names
+    assert "client_estop:planner" not in failed.active_names
+    rig.advance(10)
+    after = rig.tick()
+    assert "client_estop:planner" in after.active_names
+    assert after.heartbeat_estop == 1
+    assert after.state is State.STOPPED
+
+
+def test_after_a_failure_in_the_cheap_path_the_next_input_takes_the_full_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.9, docs/performance.md "The cheap path": the cheap path answers only after a step
+    that ended normally; once the core failed on an input (here inside the cheap path itself),
+    the next input is decided by the full step, every condition recomputed."""
+    rig = Rig()
+    rig.bring_up()
+    _fails_once(monkeypatch, "_fixed_point")  # only the cheap path asks it
+    rig.advance(10)
+    failed = rig.tick()
+    assert failed.state is State.STOPPED
+    assert "internal" in failed.latched_names
+    refreshes = rig.count_refreshes()
+    rig.advance(10)
+    after = rig.tick()
+    assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
+    assert after.state is State.STOPPED
+
+
 def test_input_that_is_not_an_event_is_refused() -> None:
     """Anything that is not a safety event is refused by name and changes nothing."""
     rig = Rig()
