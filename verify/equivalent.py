@@ -29,6 +29,8 @@ _PROOF_SETTLED = (
     "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
 )
 
+_ONE_UID = "_charged is a tuple of one (the step's user): its first item is its last"
+
 _WAITING_CLEARS = (
     "every step into WAITING (__init__, restart, abort, a late try cleared) sets _withheld_from, "
     "_trip_ns and _resumed_ns to None, only a heartbeat while WITHHOLDING sets _trip_ns and only "
@@ -154,6 +156,30 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "_limited is read only in step 2 (the test after its assignment, and the handlers of a "
         "local e-stop and of a disconnection), each time after _step has assigned it from the "
         "event; an input that is no event applies nothing: this value is never read",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._charged[0], now",
+        "self._charged[-1], now",
+        _ONE_UID,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._finish",
+        "self._budget.charge(self._charged[0], now)",
+        "self._budget.charge(self._charged[-1], now)",
+        _ONE_UID,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)",
+        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-0].message)",
+        "a step that checks a re-arm has no refusal before the check: the events that ask one (a "
+        "reset, a VSC heartbeat on an open link) are applied without a refusal, and a refused or "
+        "limited event asks none; the check adds at most one. So the refusal is the first and "
+        "the last alike",
     ),
     Equivalent(
         "core.py",

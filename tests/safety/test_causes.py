@@ -21,7 +21,7 @@ from supervisord.safety import (
     State,
 )
 from supervisord.safety.causes import Cause, CauseKind
-from tests.safety.rig import ADMIN, LOCAL, OPERATIONAL, PAUSE, Rig
+from tests.safety.rig import ADMIN, LOCAL, NOBODY, OPERATIONAL, PAUSE, Rig
 
 
 @dataclass(frozen=True)
@@ -303,3 +303,33 @@ def test_stop_active_is_an_active_stop_condition_alone() -> None:
     released = rig.release()
     assert released.latched_names == {"client_estop:planner"}
     assert not released.stop_active  # latched, its condition clear
+
+
+def test_a_second_local_estop_names_its_caller() -> None:
+    """SR-2.6, SR-7: a local e-stop while one is active keeps the stop and names the newer
+    caller in the cause's details (an update of the cause, recorded)."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    first = rig.feed(LocalEstop(rig.now, ADMIN)).cause("local_estop")
+    assert first is not None
+    assert first.detail("caller") == ADMIN.name
+    rig.advance(10)
+    decision = rig.feed(LocalEstop(rig.now, NOBODY))
+    second = decision.cause("local_estop")
+    assert second is not None
+    assert second.active
+    assert second.detail("caller") == NOBODY.name
+    assert decision.records
+
+
+def test_a_local_release_without_a_local_estop_is_refused() -> None:
+    """SR-2.6: releasing a local e-stop that is not there is refused by name
+    (``nothing_to_release``) and changes nothing."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    decision = rig.feed(LocalRelease(rig.now, ADMIN))
+    assert [r.reason for r in decision.refusals] == [RefusalReason.NOTHING_TO_RELEASE]
+    assert decision.state is State.RUN
+    assert not decision.records

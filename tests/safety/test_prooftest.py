@@ -776,3 +776,32 @@ def test_a_passed_proof_test_asks_for_no_more_deadlines() -> None:
             vsc.beat()
     assert vsc.status().phase is Phase.PASSED
     assert end not in [d.next_deadline for d in vsc.decisions[passed:]]
+
+
+@pytest.mark.parametrize("policy", [ProofTestPolicy.BLOCK, ProofTestPolicy.RECORD])
+def test_an_outcome_is_one_record_of_its_own_kind(policy: ProofTestPolicy) -> None:
+    """SR-5.3, SR-7.1: the step in which a proof test passes makes one record, a ``prooftest``
+    record whose text is the outcome's and which carries the outcome, whether or not a cause
+    changed with it (under ``block`` the untested cause clears, under ``record`` nothing does)."""
+    vsc = Vsc(replace(BLOCK, prooftest=policy))
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    (decision,) = [d for d in vsc.decisions if any(r.prooftest for r in d.records)]
+    (record,) = decision.records
+    assert record.note is RecordNote.PROOFTEST
+    assert record.prooftest is not None
+    assert record.reason == record.prooftest.text
+
+
+def test_a_vsc_silent_for_its_timeout_is_proven_again() -> None:
+    """SR-5.6, docs/safety.md "The proof test": a VSC silent for ``vsc_timeout`` (200 ms, to
+    the nanosecond, as for ``vsc_link_lost``) may have rebooted, so its watchdog is proven
+    again; a gap 1 ms shorter is no silence and keeps the pass."""
+    vsc = Vsc()
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.beat(199)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.beat(200)
+    assert vsc.status().phase is not Phase.PASSED
+    assert UNTESTED in vsc.proof.active_names

@@ -172,14 +172,16 @@ def test_heartbeats_read_together_still_make_a_takeover() -> None:
     assert decision.state is State.RUN, decision.refusals
 
 
-def test_a_silent_gap_starts_the_run_again() -> None:
-    """Heartbeats more than ``vsc_timeout`` apart do not make one run: after a gap the dwell
-    is counted again from the first heartbeat after it (fresh evidence after a lost link)."""
+@pytest.mark.parametrize("gap_ms", [200, 300])
+def test_a_silent_gap_starts_the_run_again(gap_ms: int) -> None:
+    """Heartbeats ``vsc_timeout`` or more apart (200 ms to the nanosecond, as for
+    ``vsc_link_lost``, SR-2.2) do not make one run: after a gap the dwell is counted again from
+    the first heartbeat after it (fresh evidence after a lost link)."""
     config = dataclasses.replace(ROBOT, rearm_hold_ms=100)
     rig = Rig(config)
     rig.stopped_and_cleared()
     rig.run_for(1000, LOCAL)
-    rig.advance(250)  # a gap past the 200 ms timeout: vsc_link_lost
+    rig.advance(gap_ms - 50)  # the next VSC heartbeat comes 50 ms later: vsc_link_lost
     rig.beat()
     # conditions clear for 150 ms >= the 100 ms hold
     refused = rig.take_over(150)

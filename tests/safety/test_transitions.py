@@ -6,7 +6,9 @@ import itertools
 
 import pytest
 
+from supervisord.protocol.messages import UserHeartbeat
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
+from supervisord.safety.book import CauseBook
 from supervisord.safety.transitions import Transition, _index, next_state
 from tests.safety.rig import Rig
 
@@ -95,8 +97,12 @@ def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPat
     assert "internal" in decision.latched_names
 
 
-def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyPatch) -> None:
-    """When even the normal fail-safe path fails, a bare all-off STOPPED decision comes back."""
+@pytest.mark.parametrize(("owner", "name"), [(SafetyCore, "_finish"), (CauseBook, "pulse")])
+def test_core_survives_even_when_the_fail_safe_fails(
+    monkeypatch: pytest.MonkeyPatch, owner: type, name: str
+) -> None:
+    """When even the normal fail-safe path fails (its record, or its very first act, the
+    ``internal`` cause), a bare all-off STOPPED decision comes back, and the core is STOPPED."""
     rig = Rig()
     rig.bring_up()
 
@@ -104,13 +110,33 @@ def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyP
         raise RuntimeError("boom")
 
     monkeypatch.setattr(SafetyCore, "_apply", broken)
-    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    monkeypatch.setattr(owner, name, broken)
     rig.advance(10)
     decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
     assert decision.state is State.STOPPED
+    assert rig.core.state is State.STOPPED  # the core's own state says so too
     assert not any(decision.outputs.values())
     assert decision.heartbeat_estop == 1
+    assert decision.frames == (UserHeartbeat(1),)  # SR-5: the stop reaches the VSC at once
     assert decision.next_deadline > decision.now
+
+
+def test_the_last_line_of_defence_sends_no_heartbeat_on_a_closed_link(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.3, SR-5: when even the fail-safe path fails, the bare decision asks for a user
+    heartbeat only on an open serial link: nothing can be sent on a closed one."""
+    rig = Rig()  # the link not opened yet
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(SafetyCore, "_apply", broken)
+    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    rig.advance(10)
+    decision = rig.connect(name=None)
+    assert decision.state is State.STOPPED
+    assert decision.frames == ()
 
 
 def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
