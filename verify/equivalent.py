@@ -183,6 +183,16 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "core.py",
+        "SafetyCore._on_link_opened",
+        "self._run = None",
+        "pass",
+        "the same handler forgets the last heartbeat's time, its mode and the mode's hold, so "
+        "the first heartbeat after it either starts a new run (it cannot be unbroken) or, "
+        "Operational, asks no takeover (no mode before it) and clears the run; _settle reads "
+        "the run only while a mode is held: the run kept is never read",
+    ),
+    Equivalent(
+        "core.py",
         _DEADLINE,
         "if free is not None and now < free < earliest:",
         "if free is not None and now < free <= earliest:",
