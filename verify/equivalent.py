@@ -31,6 +31,14 @@ _PROOF_SETTLED = (
 
 _ONE_UID = "_charged is a tuple of one (the step's user): its first item is its last"
 
+_DOWN = "SafetyCore._on_link_down"
+_CLOSED = (
+    "read only while the link is open (by the handling of a VSC message, refused while it is "
+    "closed, and by the link's frames and deadlines, which a closed link skips), and "
+    "LinkOpened sets it again before the link is open: the value a closed link keeps is never "
+    "read"
+)
+
 _WAITING_CLEARS = (
     "every step into WAITING (__init__, restart, abort, a late try cleared) sets _withheld_from, "
     "_trip_ns and _resumed_ns to None, only a heartbeat while WITHHOLDING sets _trip_ns and only "
@@ -190,6 +198,30 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "the first heartbeat after it either starts a new run (it cannot be unbroken) or, "
         "Operational, asks no takeover (no mode before it) and clears the run; _settle reads "
         "the run only while a mode is held: the run kept is never read",
+    ),
+    Equivalent(
+        "core.py",
+        _DOWN,
+        "self._vsc_mode = None",
+        "pass",
+        _CLOSED
+        + " (the proof test reads the mode only when it starts, which needs the VSC heard on "
+        "an open link)",
+    ),
+    Equivalent("core.py", _DOWN, "self._run = None", "pass", _CLOSED),
+    Equivalent("core.py", _DOWN, "self._remote_linked = False", "pass", _CLOSED),
+    Equivalent(
+        "core.py", _DOWN, "self._remote_linked = False", "self._remote_linked = True", _CLOSED
+    ),
+    Equivalent("core.py", _DOWN, "self._next_key85_ns = None", "pass", _CLOSED),
+    Equivalent("core.py", _DOWN, "self._next_heartbeat_ns = None", "pass", _CLOSED),
+    Equivalent(
+        "core.py",
+        "SafetyCore._on_hello",
+        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-1].message)",
+        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-0].message)",
+        "the refusal just made is the step's only one: a hello is applied only when no refusal "
+        "came before it (past the budget it is refused instead, and not applied)",
     ),
     Equivalent(
         "core.py",

@@ -12,6 +12,7 @@ from supervisord.safety import (
     Decision,
     InternalFault,
     LinkBroken,
+    LinkClosed,
     LocalEstop,
     LocalRelease,
     OutputReadback,
@@ -333,3 +334,29 @@ def test_a_local_release_without_a_local_estop_is_refused() -> None:
     assert [r.reason for r in decision.refusals] == [RefusalReason.NOTHING_TO_RELEASE]
     assert decision.state is State.RUN
     assert not decision.records
+
+
+@pytest.mark.parametrize("down", [LinkBroken, LinkClosed])
+def test_a_link_that_went_down_refuses_the_vsc_until_it_opens_again(
+    down: type[LinkBroken | LinkClosed],
+) -> None:
+    """SR-2.3, SR-2.2, SR-4.4: a link that broke or closed stops at once with
+    ``transport_fault`` and ``vsc_link_lost`` (no heartbeat since), forgets the VSC's mode and
+    its hold, and refuses VSC messages (``link_not_open``) until it opens again."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    assert "vsc_mode:local" in rig.vsc(LOCAL).active_names
+    rig.advance(10)
+    decision = rig.feed(down(rig.now, "unplugged"))
+    assert decision.state is State.STOPPED
+    assert {"transport_fault", "vsc_link_lost"} <= decision.active_names
+    assert not any(name.startswith("vsc_mode:") for name in decision.active_names)
+    lost = decision.cause("vsc_link_lost")
+    assert lost is not None
+    assert lost.detail("reason") == "no heartbeat since link open"
+    rig.advance(10)
+    refused = rig.vsc(LOCAL)
+    assert [r.reason for r in refused.refusals] == [RefusalReason.LINK_NOT_OPEN]
+    assert refused.active_names == decision.active_names
+    assert not refused.records

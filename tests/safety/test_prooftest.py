@@ -10,7 +10,16 @@ import pytest
 
 from supervisord.errors import ConfigError
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
-from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, VscReceived
+from supervisord.safety import (
+    LinkBroken,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    SafetyCore,
+    State,
+    Tick,
+    VscReceived,
+)
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
@@ -805,3 +814,31 @@ def test_a_vsc_silent_for_its_timeout_is_proven_again() -> None:
     vsc.beat(200)
     assert vsc.status().phase is not Phase.PASSED
     assert UNTESTED in vsc.proof.active_names
+
+
+@pytest.mark.parametrize("down", [LinkBroken, LinkClosed])
+def test_a_link_that_went_down_is_proven_again(down: type[LinkBroken | LinkClosed]) -> None:
+    """SR-5.6: a link that broke or closed may come back to another VSC, or to one that
+    rebooted: from the moment it went down, the watchdog is untested again."""
+    vsc = Vsc()
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.now += 10 * MS
+    decision = vsc.feed(down(vsc.now, "unplugged"))
+    assert UNTESTED in decision.active_names
+    assert vsc.status().phase is Phase.WAITING
+
+
+def test_a_proof_test_is_refused_when_there_is_none_or_one_runs() -> None:
+    """SR-5.3, docs/safety.md "The proof test": ``srcsctl prooftest`` is refused by name when
+    the policy is ``off`` (``prooftest_not_possible``) and while a test runs
+    (``prooftest_running``)."""
+    core = SafetyCore(replace(ROBOT, clients=()), START_NS)
+    off = core.handle(ProofTestRequest(START_NS + 1, ADMIN))
+    assert [r.reason for r in off.refusals] == [RefusalReason.PROOFTEST_NOT_POSSIBLE]
+    vsc = Vsc()
+    while vsc.status().phase is not Phase.WITHHOLDING:
+        vsc.beat()
+    running = vsc.feed(ProofTestRequest(vsc.now, ADMIN))
+    assert [r.reason for r in running.refusals] == [RefusalReason.PROOFTEST_RUNNING]
+    assert vsc.status().phase is Phase.WITHHOLDING

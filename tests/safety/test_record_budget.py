@@ -146,6 +146,29 @@ def test_a_step_charges_only_its_own_user(monkeypatch: pytest.MonkeyPatch) -> No
     assert released.records
 
 
+def test_a_release_before_hello_costs_one_record() -> None:
+    """SR-8.5: a release made before hello costs its user one record, as any release does:
+    ten e-stops and releases from a connection that never said hello are twenty records, all
+    honoured; the next release is the one past the budget."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(7, name=None, uid=1001)
+    start = len(rig.decisions)
+    for _ in range(RECORDS_PER_UID // 2):
+        rig.advance(0.05)
+        rig.estop(7)
+        rig.advance(0.05)
+        released = rig.release(7)
+        assert not released.refusals
+        assert "client_estop:#uid1001" not in released.active_names
+    assert _records(rig, start) == RECORDS_PER_UID
+    rig.advance(0.05)
+    rig.estop(7)
+    rig.advance(0.05)
+    refused = rig.release(7)
+    assert [r.reason for r in refused.refusals] == [RefusalReason.RATE_LIMITED]
+
+
 def test_a_reset_flood_makes_a_bounded_number_of_records() -> None:
     """A non-admin caller flooding ``reset`` (each refusal would be a ``rearm_refused``
     record) causes at most ``RECORDS_PER_UID`` records; the rest are refused as
