@@ -12,8 +12,9 @@ from supervisord.safety import (
     RefusalReason,
     Request,
     State,
+    Transport,
 )
-from tests.safety.rig import NOBODY, OPERATIONAL, ROBOT, Rig
+from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
 
 def test_hello_refusals() -> None:
@@ -178,3 +179,20 @@ def test_a_closed_connection_forgets_its_user() -> None:
     rig.disconnect(7)
     rig.advance(10)
     assert "client_estop:#7" in rig.estop(7).active_names
+
+
+def test_a_client_that_said_goodbye_sets_no_deadline() -> None:
+    """SR-2.4, SR-2.11: after a required client's goodbye its heartbeat's timeout is no
+    deadline any more (it is lost already): the next deadline is the VSC's, not a wake-up at
+    the timeout of a heartbeat from before the goodbye."""
+    can = replace(ROBOT, transport=Transport.CAN, require_watchdog=False)  # no user heartbeat
+    rig = Rig(can)
+    rig.bring_up()
+    rig.advance(10)
+    rig.beat()  # the client's last heartbeat: its timeout would fall 500 ms from here
+    for _ in range(9):
+        rig.advance(50)
+        rig.vsc(OPERATIONAL)
+    decision = rig.disconnect()
+    assert "client_lost:planner" in decision.active_names
+    assert decision.next_deadline == rig.now + 300 * MS  # the VSC's timeout on CAN
