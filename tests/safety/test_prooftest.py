@@ -21,7 +21,7 @@ from supervisord.safety import (
     VscReceived,
 )
 from supervisord.safety.config import SafetyConfig, Transport
-from supervisord.safety.decision import Decision, RecordNote, RefusalReason
+from supervisord.safety.decision import ChangeKind, Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
 from supervisord.safety.prooftest import (
     KEY85_WAIT_NS,
@@ -800,6 +800,50 @@ def test_an_outcome_is_one_record_of_its_own_kind(policy: ProofTestPolicy) -> No
     assert record.note is RecordNote.PROOFTEST
     assert record.prooftest is not None
     assert record.reason == record.prooftest.text
+    untested = [c.kind for c in record.changes if c.cause.name == UNTESTED]
+    assert untested == [ChangeKind.CLEARED]  # a pass raises nothing
+
+
+def test_under_record_a_failure_is_a_stop_raised_with_what_was_observed() -> None:
+    """SR-5.3, docs/safety.md "The proof test": under ``record`` the step in which the test
+    fails raises ``vsc_watchdog_untested`` as a momentary stop (raised and clear, latched, a
+    stop a takeover must come after) with what was observed in its details."""
+    vsc = Vsc(replace(BLOCK, prooftest=ProofTestPolicy.RECORD), trip_ms=None)
+    vsc.run(2500)
+    (decision,) = [d for d in vsc.decisions if any(r.prooftest for r in d.records)]
+    (record,) = decision.records
+    assert record.prooftest is not None
+    assert not record.prooftest.passed
+    kinds = [c.kind for c in record.changes if c.cause.name == UNTESTED]
+    assert kinds == [ChangeKind.RAISED]  # and clear at once: no condition of its own
+    cause = decision.cause(UNTESTED)
+    assert cause is not None
+    assert (cause.active, cause.latched) == (False, True)
+    assert cause.detail("observed") == record.prooftest.text
+
+
+def test_a_vsc_silent_for_its_timeout_aborts_the_test_at_that_nanosecond() -> None:
+    """SR-5.3, SR-2.2: a VSC silent for ``vsc_timeout`` is not heard, to the nanosecond: a
+    test whose wait for the bits to clear ends at that very instant is aborted (tried again
+    once the VSC is back), not failed on a VSC that is gone."""
+    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
+    vsc.never_clears = True
+    proof = vsc.core._proof  # the one deadline this test needs exactly
+    while proof.phase is not Phase.RESUMED or proof.next_deadline(1) is None:
+        vsc.beat()
+    due = proof.next_deadline(1)
+    assert due is not None
+    silent_from = due - 200 * MS  # the VSC's last heartbeat: its timeout falls on the due time
+    while vsc.now + 50 * MS <= silent_from:
+        vsc.beat()
+    vsc.beat((silent_from - vsc.now) // MS)
+    assert vsc.now == silent_from
+    assert vsc.status().phase is Phase.RESUMED
+    vsc.now = due
+    decision = vsc.feed(Tick(due))
+    assert "vsc_link_lost" in decision.active_names
+    assert vsc.status().phase is Phase.WAITING
+    assert not any(r.prooftest for r in decision.records)
 
 
 def test_a_vsc_silent_for_its_timeout_is_proven_again() -> None:

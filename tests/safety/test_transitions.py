@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+from typing import Any
 
 import pytest
 
@@ -10,7 +12,7 @@ from supervisord.protocol.messages import UserHeartbeat
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
 from supervisord.safety.book import CauseBook
 from supervisord.safety.transitions import Transition, _index, next_state
-from tests.safety.rig import Rig
+from tests.safety.rig import ROBOT, Rig
 
 ILLEGAL = {
     (State.STOPPED, Situation.HOLD),
@@ -193,6 +195,37 @@ def test_after_a_failure_in_the_cheap_path_the_next_input_takes_the_full_step(
     after = rig.tick()
     assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
     assert after.state is State.STOPPED
+
+
+def test_a_rearm_after_a_failed_fail_safe_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SR-4.1, SR-2.9: when the fail-safe could not even latch ``internal`` (the last line of
+    defence left the core STOPPED with nothing latched), a local reset is still refused:
+    nothing latched is no evidence that stop conditions were clear for the hold time; the
+    table's refusal of STOPPED without a latch then latches ``internal``."""
+    rig = Rig(dataclasses.replace(ROBOT, local_reset=True))
+    rig.bring_up()
+    real = CauseBook.pulse
+    calls: list[int] = []
+
+    def pulse_fails_once(book: CauseBook, *args: Any) -> None:
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        real(book, *args)
+
+    monkeypatch.setattr(CauseBook, "pulse", pulse_fails_once)
+    _fails_once(monkeypatch, "_apply")
+    rig.advance(10)
+    bare = rig.beat()
+    assert bare.state is State.STOPPED
+    assert bare.latched_names == set()
+    rig.advance(10)
+    refused = rig.reset()
+    assert [(r.reason, r.detail) for r in refused.refusals] == [
+        (RefusalReason.HOLD_TIME_NOT_ELAPSED, "clear for 0 ms of 500 ms")
+    ]
+    assert refused.state is State.STOPPED
+    assert "internal" in refused.latched_names
 
 
 def test_input_that_is_not_an_event_is_refused() -> None:
