@@ -227,6 +227,15 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "core.py",
         _DEADLINE,
         "if free is not None and now < free < earliest:",
+        "if free is not None and now <= free < earliest:",
+        "free_at is None unless the user is past its budget at now, and then it is the time the "
+        "oldest record that counts is a window old, which is after now (a record exactly a "
+        "window old no longer counts): free is never now",
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if free is not None and now < free < earliest:",
         "if free is not None and now < free <= earliest:",
         _LATER_EQUAL,
     ),

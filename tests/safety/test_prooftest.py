@@ -11,6 +11,8 @@ import pytest
 from supervisord.errors import ConfigError
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
 from supervisord.safety import (
+    ClientConnected,
+    ClientEstop,
     LinkBroken,
     LinkClosed,
     LinkOpened,
@@ -639,14 +641,17 @@ def test_the_record_policy_records_a_failure_and_lets_a_takeover_run() -> None:
     assert vsc.takeover().state is State.RUN
 
 
-def test_a_stop_of_our_own_aborts_the_withholding_at_once() -> None:
-    """SR-5.2: a local e-stop during the withholding sends the heartbeat with the byte at
-    once; the proof test waits and runs again once the stop condition is clear."""
+@pytest.mark.parametrize("by", ["local", "client"])
+def test_a_stop_of_our_own_aborts_the_withholding_at_once(by: str) -> None:
+    """SR-5.2: a local or a client's e-stop during the withholding sends the heartbeat with
+    the byte at once; the proof test waits and runs again once the stop condition is clear."""
     vsc = Vsc()
+    vsc.feed(ClientConnected(vsc.now, 1))
     vsc.run(200)
     assert vsc.proof.prooftest is not None
     assert vsc.proof.prooftest.phase is Phase.WITHHOLDING
-    decision = vsc.feed(LocalEstop(vsc.now, ADMIN))
+    stop = LocalEstop(vsc.now, ADMIN) if by == "local" else ClientEstop(vsc.now, 1)
+    decision = vsc.feed(stop)
     assert UserHeartbeat(1) in decision.frames
     assert decision.prooftest is not None
     assert decision.prooftest.phase is Phase.WAITING

@@ -17,6 +17,7 @@ from supervisord.safety import (
     Request,
     SafetyCore,
     State,
+    Transport,
 )
 from supervisord.safety.budget import (
     BUDGET_WINDOW_NS,
@@ -260,6 +261,25 @@ def test_a_deferred_end_comes_exactly_when_the_budget_allows() -> None:
     ended = rig.tick()
     assert ended.state is State.RUN
     assert "client_hold:#uid1000" not in ended.active_names
+
+
+def test_deferred_ends_of_two_users_each_come_at_their_own_time() -> None:
+    """SR-8.5, SR-2.11: with two users' ends deferred, the next deadline is the earlier end's
+    (never a later one): a tick at it ends the first user's hold and leaves the second's."""
+    rig = Rig(replace(ROBOT, transport=Transport.CAN, require_watchdog=False, clients=()))
+    rig.bring_up()
+    for i in range(RECORDS_PER_UID // 2 + 1):  # the last cycles' ends wait: deferred
+        for uid, base in ((1000, 100), (1001, 200)):  # one user's cycle, then the other's
+            rig.advance(0.05)
+            _cycle(rig, base + i, uid)
+    assert {"client_hold:#uid1000", "client_hold:#uid1001"} <= rig.last.active_names
+    rig.advance(400)  # the VSC falls silent: only the deferred ends are due
+    waiting = rig.tick()
+    assert waiting.next_deadline < waiting.now + 1000 * MS
+    rig.now = waiting.next_deadline
+    first = rig.tick()
+    assert "client_hold:#uid1000" not in first.active_names
+    assert "client_hold:#uid1001" in first.active_names
 
 
 def test_the_connections_of_one_user_share_one_hold_before_hello() -> None:
