@@ -24,6 +24,21 @@ _LATER_EQUAL = (
     "to the candidate: the same value, and earliest is all the function returns"
 )
 
+_PROOF_SETTLED = (
+    "_only_heartbeat_due runs only from _cheap, after it has declined unless the proof test is "
+    "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
+)
+
+_ONE_UID = "_charged is a tuple of one (the step's user): its first item is its last"
+
+_DOWN = "SafetyCore._on_link_down"
+_CLOSED = (
+    "read only while the link is open (by the handling of a VSC message, refused while it is "
+    "closed, and by the link's frames and deadlines, which a closed link skips), and "
+    "LinkOpened sets it again before the link is open: the value a closed link keeps is never "
+    "read"
+)
+
 _WAITING_CLEARS = (
     "every step into WAITING (__init__, restart, abort, a late try cleared) sets _withheld_from, "
     "_trip_ns and _resumed_ns to None, only a heartbeat while WITHHOLDING sets _trip_ns and only "
@@ -37,6 +52,24 @@ _KEPT = (
 )
 
 EQUIVALENT: tuple[Equivalent, ...] = (
+    Equivalent(
+        "book.py",
+        "CauseBook._raise",
+        "entry.active, entry.latched = True, entry.latched or stop",
+        "entry.active, entry.latched = True, entry.latched and stop",
+        "an entry is made with latched = stop (its cause's severity, fixed per cause) and this "
+        "line is the only other that writes latched: so an existing entry's latched equals stop, "
+        "and latched or stop equals latched and stop",
+    ),
+    Equivalent(
+        "book.py",
+        "CauseBook.stops_clear_since",
+        "if entry.active or entry.cleared_ns is None:",
+        "if entry.active and entry.cleared_ns is None:",
+        "active and cleared_ns are written together: _raise sets active with cleared_ns None, "
+        "set (to clear) and pulse clear active with cleared_ns now, and nothing else writes "
+        "either: so active is true exactly when cleared_ns is None, and the two tests agree",
+    ),
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 3", _KEPT),
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 5", _KEPT),
     Equivalent(
@@ -81,6 +114,123 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "_steady_estop = 1  # the user heartbeat's byte from the conditions alone (no urgent "
         "raise)",
         _STEADY_ESTOP,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._cheap",
+        "now = event.now if event.now > self._now else self._now",
+        "now = event.now if event.now >= self._now else self._now",
+        "the two differ only when event.now equals self._now, where both choices are the same "
+        "number",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._cheap",
+        'raise AssertionError("a heartbeat of an unchanged mode asked for a re-arm")',
+        "pass",
+        "unreachable: _on_vsc returns a request only for an Operational heartbeat after one of "
+        "another mode (_on_mode), the cheap path takes a heartbeat only of the last one's mode "
+        "(message.mode == self._vsc_mode, checked above), and for any other message _on_vsc "
+        "returns None",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._only_heartbeat_due",
+        "and (proof is None or proof > now)",
+        "and (proof is None or proof <= now)",
+        _PROOF_SETTLED,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._only_heartbeat_due",
+        "and (proof is None or proof > now)",
+        "and (proof is None or proof >= now)",
+        _PROOF_SETTLED,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "steady, self._steady = self._steady and self.cheap_path, False",
+        "steady, self._steady = self._steady and self.cheap_path, True",
+        "_steady is read only by handle (before a step) and canonical (between steps), and every "
+        "step ends by setting it: True at its normal end, False in handle when it raised; the "
+        "value written at a step's start is never read",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._charged, self._limited = None, False",
+        "self._charged, self._limited = None, True",
+        "_limited is read only in step 2 (the test after its assignment, and the handlers of a "
+        "local e-stop and of a disconnection), each time after _step has assigned it from the "
+        "event; an input that is no event applies nothing: this value is never read",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._charged[0], now",
+        "self._charged[-1], now",
+        _ONE_UID,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._finish",
+        "self._budget.charge(self._charged[0], now)",
+        "self._budget.charge(self._charged[-1], now)",
+        _ONE_UID,
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._step",
+        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)",
+        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-0].message)",
+        "a step that checks a re-arm has no refusal before the check: the events that ask one (a "
+        "reset, a VSC heartbeat on an open link) are applied without a refusal, and a refused or "
+        "limited event asks none; the check adds at most one. So the refusal is the first and "
+        "the last alike",
+    ),
+    Equivalent(
+        "core.py",
+        "SafetyCore._on_link_opened",
+        "self._run = None",
+        "pass",
+        "the same handler forgets the last heartbeat's time, its mode and the mode's hold, so "
+        "the first heartbeat after it either starts a new run (it cannot be unbroken) or, "
+        "Operational, asks no takeover (no mode before it) and clears the run; _settle reads "
+        "the run only while a mode is held: the run kept is never read",
+    ),
+    Equivalent(
+        "core.py",
+        _DOWN,
+        "self._vsc_mode = None",
+        "pass",
+        _CLOSED
+        + " (the proof test reads the mode only when it starts, which needs the VSC heard on "
+        "an open link)",
+    ),
+    Equivalent("core.py", _DOWN, "self._run = None", "pass", _CLOSED),
+    Equivalent("core.py", _DOWN, "self._remote_linked = False", "pass", _CLOSED),
+    Equivalent(
+        "core.py", _DOWN, "self._remote_linked = False", "self._remote_linked = True", _CLOSED
+    ),
+    Equivalent("core.py", _DOWN, "self._next_key85_ns = None", "pass", _CLOSED),
+    Equivalent("core.py", _DOWN, "self._next_heartbeat_ns = None", "pass", _CLOSED),
+    Equivalent(
+        "core.py",
+        "SafetyCore._on_hello",
+        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-1].message)",
+        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-0].message)",
+        "the refusal just made is the step's only one: a hello is applied only when no refusal "
+        "came before it (past the budget it is refused instead, and not applied)",
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
+        "if free is not None and now < free < earliest:",
+        "if free is not None and now <= free < earliest:",
+        "free_at is None unless the user is past its budget at now, and then it is the time the "
+        "oldest record that counts is a window old, which is after now (a record exactly a "
+        "window old no longer counts): free is never now",
     ),
     Equivalent(
         "core.py",

@@ -12,6 +12,7 @@ from supervisord.safety import (
     Decision,
     InternalFault,
     LinkBroken,
+    LinkClosed,
     LocalEstop,
     LocalRelease,
     OutputReadback,
@@ -21,7 +22,7 @@ from supervisord.safety import (
     State,
 )
 from supervisord.safety.causes import Cause, CauseKind
-from tests.safety.rig import ADMIN, LOCAL, OPERATIONAL, PAUSE, Rig
+from tests.safety.rig import ADMIN, LOCAL, NOBODY, OPERATIONAL, PAUSE, Rig
 
 
 @dataclass(frozen=True)
@@ -286,3 +287,76 @@ def test_causes_sort_by_name() -> None:
         "vsc_mode:remote",
     ]
     assert not Cause(CauseKind.STARTUP) < Cause(CauseKind.STARTUP)
+
+
+def test_stop_active_is_an_active_stop_condition_alone() -> None:
+    """SR-2, SR-3: a decision's ``stop_active`` is true while a stop cause's condition holds,
+    and false for a stop that is only latched and for an active hold."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    assert not rig.hold().stop_active  # a hold is no stop
+    rig.advance(10)
+    rig.release(request=Request.HOLD)
+    rig.advance(10)
+    assert rig.estop().stop_active
+    rig.advance(10)
+    released = rig.release()
+    assert released.latched_names == {"client_estop:planner"}
+    assert not released.stop_active  # latched, its condition clear
+
+
+def test_a_second_local_estop_names_its_caller() -> None:
+    """SR-2.6, SR-7: a local e-stop while one is active keeps the stop and names the newer
+    caller in the cause's details (an update of the cause, recorded)."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    first = rig.feed(LocalEstop(rig.now, ADMIN)).cause("local_estop")
+    assert first is not None
+    assert first.detail("caller") == ADMIN.name
+    rig.advance(10)
+    decision = rig.feed(LocalEstop(rig.now, NOBODY))
+    second = decision.cause("local_estop")
+    assert second is not None
+    assert second.active
+    assert second.detail("caller") == NOBODY.name
+    assert decision.records
+
+
+def test_a_local_release_without_a_local_estop_is_refused() -> None:
+    """SR-2.6: releasing a local e-stop that is not there is refused by name
+    (``nothing_to_release``) and changes nothing."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    decision = rig.feed(LocalRelease(rig.now, ADMIN))
+    assert [r.reason for r in decision.refusals] == [RefusalReason.NOTHING_TO_RELEASE]
+    assert decision.state is State.RUN
+    assert not decision.records
+
+
+@pytest.mark.parametrize("down", [LinkBroken, LinkClosed])
+def test_a_link_that_went_down_refuses_the_vsc_until_it_opens_again(
+    down: type[LinkBroken | LinkClosed],
+) -> None:
+    """SR-2.3, SR-2.2, SR-4.4: a link that broke or closed stops at once with
+    ``transport_fault`` and ``vsc_link_lost`` (no heartbeat since), forgets the VSC's mode and
+    its hold, and refuses VSC messages (``link_not_open``) until it opens again."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    assert "vsc_mode:local" in rig.vsc(LOCAL).active_names
+    rig.advance(10)
+    decision = rig.feed(down(rig.now, "unplugged"))
+    assert decision.state is State.STOPPED
+    assert {"transport_fault", "vsc_link_lost"} <= decision.active_names
+    assert not any(name.startswith("vsc_mode:") for name in decision.active_names)
+    lost = decision.cause("vsc_link_lost")
+    assert lost is not None
+    assert lost.detail("reason") == "no heartbeat since link open"
+    rig.advance(10)
+    refused = rig.vsc(LOCAL)
+    assert [r.reason for r in refused.refusals] == [RefusalReason.LINK_NOT_OPEN]
+    assert refused.active_names == decision.active_names
+    assert not refused.records

@@ -10,8 +10,8 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
-from supervisord.protocol.messages import UserHeartbeat
-from supervisord.safety import Decision, State
+from supervisord.protocol.messages import FeedbackSet, UserHeartbeat
+from supervisord.safety import Decision, DisplayUpdate, State
 from tests.safety.rig import MS, Rig
 
 HEARTBEAT_MS = 50  # ROBOT's heartbeat_hz 20 (SR-5.1)
@@ -69,6 +69,58 @@ def test_the_heartbeat_tick_takes_the_full_path_when_a_timeout_expires_with_it()
     assert refreshes[before:] == [decision.now, decision.now]  # this tick took the full step
     assert "vsc_link_lost" in decision.active_names
     assert decision.frames == (UserHeartbeat(1),)
+
+
+def _to_a_heartbeat_time(rig: Rig) -> None:
+    """Tick on until a tick sends the user heartbeat, everyone alive: ``rig.now`` is then one
+    of the heartbeat's times (the cadence keeps them 50 ms apart)."""
+    for _ in range(HEARTBEAT_MS):  # a heartbeat is due within 50 ms
+        if rig.last.frames:
+            return
+        rig.beat()
+        rig.vsc()
+        rig.now = rig.last.next_deadline
+        rig.tick()
+    raise AssertionError("no user heartbeat within 50 ms")
+
+
+def test_the_heartbeat_tick_takes_the_full_path_when_a_client_times_out_with_it() -> None:
+    """SR-2.4, SR-5.2: when a required client's 500 ms timeout expires at the very tick the
+    user heartbeat is due, the cheap path declines: the full step raises ``client_lost`` at
+    that nanosecond, and the heartbeat of that tick carries byte 1."""
+    rig = Rig()
+    rig.bring_up()
+    _to_a_heartbeat_time(rig)
+    last_beat = rig.now
+    rig.beat()  # the client's last heartbeat, at a heartbeat time: its timeout falls on one
+    for _ in range(500 // HEARTBEAT_MS):  # heartbeat ticks up to the client's timeout
+        rig.vsc()  # the VSC stays alive (SR-2.2)
+        rig.now = rig.last.next_deadline
+        decision = rig.tick()
+        if decision.state is not State.RUN:
+            break
+    assert decision.now == last_beat + 500 * MS
+    assert "client_lost:planner" in decision.active_names
+    assert decision.frames == (UserHeartbeat(1),)
+
+
+def test_the_heartbeat_tick_takes_the_full_path_when_a_display_frame_is_due_with_it() -> None:
+    """PR-2, SR-9.4: a display value waiting for its 50 ms rate slot goes at the slot, also
+    when the slot is the very tick the user heartbeat is due: the cheap path declines and the
+    tick sends both."""
+    rig = Rig()
+    rig.bring_up()
+    _to_a_heartbeat_time(rig)
+    rig.beat()
+    rig.vsc()
+    first = rig.feed(DisplayUpdate(rig.now, FeedbackSet(1, 5)))  # goes at once: a slot starts
+    assert FeedbackSet(1, 5) in first.frames
+    waiting = rig.feed(DisplayUpdate(rig.now, FeedbackSet(2, 7)))  # waits for the next slot
+    assert FeedbackSet(2, 7) not in waiting.frames
+    assert waiting.next_deadline == rig.now + HEARTBEAT_MS * MS  # the slot and the heartbeat
+    rig.now = waiting.next_deadline
+    decision = rig.tick()
+    assert set(decision.frames) == {UserHeartbeat(0), FeedbackSet(2, 7)}
 
 
 def test_the_cheap_decision_lists_every_field_of_a_decision() -> None:

@@ -2,8 +2,19 @@
 
 from __future__ import annotations
 
-from supervisord.safety import ClientHello, RefusalReason, Request, State
-from tests.safety.rig import OPERATIONAL, Rig
+from dataclasses import replace
+
+from supervisord.safety import (
+    Caller,
+    ClientHello,
+    ClientSpec,
+    RecordNote,
+    RefusalReason,
+    Request,
+    State,
+    Transport,
+)
+from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
 
 def test_hello_refusals() -> None:
@@ -108,3 +119,80 @@ def test_a_release_of_hold_does_not_release_the_estop() -> None:
     assert decision.state is State.STOPPED
     rig.advance(10)
     assert rig.vsc(OPERATIONAL).state is State.STOPPED
+
+
+def test_a_bound_name_from_another_user_is_refused_and_recorded() -> None:
+    """SR-8.6: a hello under the name of a client bound to uid 1000, from uid 1001 or from a
+    caller the kernel did not name, is refused (``wrong_user``) and recorded as a refused
+    hello that says who asked; from uid 1000 it names the connection."""
+    config = replace(ROBOT, clients=(ClientSpec("planner", uid=1000),))
+    rig = Rig(config)
+    for connection, caller, who in ((1, NOBODY, "uid 1001"), (2, None, "an unknown caller")):
+        rig.connect(connection, name=None)
+        decision = rig.feed(ClientHello(rig.now, connection, "planner", caller))
+        (refusal,) = decision.refusals
+        assert refusal.reason is RefusalReason.WRONG_USER
+        assert refusal.detail == f"planner from {who}"
+        (record,) = decision.records
+        assert record.note is RecordNote.HELLO_REFUSED
+        assert record.reason == refusal.message
+    owner = Caller(uid=1000, pid=44, name="robot", admin=False)
+    rig.connect(3, name=None)
+    assert rig.feed(ClientHello(rig.now, 3, "planner", owner)).refusals == ()
+
+
+def test_a_lost_client_says_whether_it_ever_connected() -> None:
+    """SR-2.4: ``client_lost``'s reason tells a required client that never said hello since
+    the start from one that did and went away."""
+    rig = Rig()
+    never = rig.last.cause("client_lost:planner")
+    assert never is not None
+    assert never.detail("reason") == "never connected"
+    rig.bring_up()
+    rig.advance(10)
+    gone = rig.disconnect().cause("client_lost:planner")
+    assert gone is not None
+    assert gone.detail("reason") == "disconnected"
+
+
+def test_inputs_from_an_unknown_connection_are_refused() -> None:
+    """SR-8.7: a heartbeat or a goodbye from a connection the core never saw
+    connect is refused by name (``unknown_connection``) and changes nothing."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    for decision in (rig.beat(9), rig.disconnect(9)):
+        assert [r.reason for r in decision.refusals] == [RefusalReason.UNKNOWN_CONNECTION]
+        assert decision.state is State.RUN
+        assert not decision.records
+
+
+def test_a_closed_connection_forgets_its_user() -> None:
+    """SR-8.5, SR-2.5: a connection's user is known while it is open; after its goodbye, an
+    e-stop under its number (still honoured, SR-0) is filed under the number, not under the
+    user it had."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(7, name=None, uid=1001)
+    assert "client_estop:#uid1001" in rig.estop(7).active_names
+    rig.release(7)
+    rig.disconnect(7)
+    rig.advance(10)
+    assert "client_estop:#7" in rig.estop(7).active_names
+
+
+def test_a_client_that_said_goodbye_sets_no_deadline() -> None:
+    """SR-2.4, SR-2.11: after a required client's goodbye its heartbeat's timeout is no
+    deadline any more (it is lost already): the next deadline is the VSC's, not a wake-up at
+    the timeout of a heartbeat from before the goodbye."""
+    can = replace(ROBOT, transport=Transport.CAN, require_watchdog=False)  # no user heartbeat
+    rig = Rig(can)
+    rig.bring_up()
+    rig.advance(10)
+    rig.beat()  # the client's last heartbeat: its timeout would fall 500 ms from here
+    for _ in range(9):
+        rig.advance(50)
+        rig.vsc(OPERATIONAL)
+    decision = rig.disconnect()
+    assert "client_lost:planner" in decision.active_names
+    assert decision.next_deadline == rig.now + 300 * MS  # the VSC's timeout on CAN

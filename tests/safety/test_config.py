@@ -9,12 +9,14 @@ import pytest
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.safety import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
+from supervisord.safety.prooftest import ProofTestPolicy
 from supervisord.timebase import NS_PER_MS as MS
 
 
 def test_defaults_follow_the_rules() -> None:
     """Defaults: serial, 200 ms VSC timeout, 20 Hz, 500 ms hold, no local reset, watchdog
-    required, and a 500 ms client timeout."""
+    required, a 500 ms client timeout, and a proof test's clear wait of 10 s (docs/safety.md
+    "The proof test", SR-5.3)."""
     config = SafetyConfig()
     assert config.transport is Transport.SERIAL
     assert config.vsc_timeout_ns == 200 * MS
@@ -22,7 +24,27 @@ def test_defaults_follow_the_rules() -> None:
     assert config.rearm_hold_ms == 500
     assert config.local_reset is False
     assert config.require_watchdog is True
+    assert config.prooftest_clear_ms == 10_000
     assert ClientSpec("planner").timeout_ms == 500
+
+
+@pytest.mark.parametrize(
+    ("transport", "timeout_ms"),
+    [(Transport.SERIAL, 200), (Transport.CAN, 300), (Transport.HID, 200)],
+)
+def test_each_transport_has_its_vsc_timeout(transport: Transport, timeout_ms: int) -> None:
+    """SR-2.2, docs/configuration.md: ``vsc_link_lost`` after 200 ms of silence on serial and
+    HID and 300 ms on CAN, unless ``vsc_timeout_ms`` says otherwise."""
+    config = SafetyConfig(transport=transport, require_watchdog=transport is Transport.SERIAL)
+    assert config.vsc_timeout_ns == timeout_ms * MS
+    assert config.vsc_timeout_ns == timeout_ms * 1_000_000
+
+
+@pytest.mark.parametrize("policy", list(ProofTestPolicy))
+def test_serial_takes_every_proof_test_policy(policy: ProofTestPolicy) -> None:
+    """SR-5.3, docs/configuration.md: on serial every policy of ``vsc.prooftest`` is accepted
+    (only CAN and HID are limited to ``off``)."""
+    assert SafetyConfig(prooftest=policy).prooftest is policy
 
 
 @pytest.mark.parametrize(
@@ -39,6 +61,21 @@ def test_defaults_follow_the_rules() -> None:
         ({"transport": Transport.CAN}, "vsc.require_watchdog"),
         ({"clients": (ClientSpec("a"), ClientSpec("a"))}, "clients.name"),
         ({"outputs": [OutputSpec("x", OutputRole.POWER)]}, "outputs"),
+        ({"outputs": ("drive",)}, "outputs"),
+        ({"outputs": (OutputSpec("a"), OutputSpec("a", OutputRole.POWER))}, "outputs.name"),
+        ({"clients": [ClientSpec("a")]}, "clients"),
+        ({"clients": ("a",)}, "clients"),
+        ({"require_watchdog": 1}, "vsc.require_watchdog"),
+        ({"prooftest": "block"}, "vsc.prooftest"),
+        ({"transport": Transport.HID, "prooftest": ProofTestPolicy.BLOCK}, "vsc.prooftest"),
+        (
+            {
+                "transport": Transport.CAN,
+                "require_watchdog": False,
+                "prooftest": ProofTestPolicy.RECORD,
+            },
+            "vsc.prooftest",
+        ),
     ],
 )
 def test_bad_values_are_refused(kwargs: dict[str, object], key: str) -> None:
@@ -57,7 +94,8 @@ def test_can_needs_the_watchdog_switched_off_explicitly() -> None:
 
 
 def test_bad_client_and_output_specs_are_refused() -> None:
-    """Names must fit the name pattern and timeouts their range."""
+    """Names must fit the name pattern and timeouts their range; a bad output name is refused
+    naming its key."""
     with pytest.raises(ConfigError):
         ClientSpec("has space")
     with pytest.raises(ConfigError):
@@ -66,6 +104,10 @@ def test_bad_client_and_output_specs_are_refused() -> None:
         ClientSpec("ok", timeout_ms=5)
     with pytest.raises(ConfigError):
         OutputSpec("drive", "motion")  # type: ignore[arg-type]
+    for name in ("has space", "#1", "", "x" * 33):
+        with pytest.raises(ConfigError) as caught:
+            OutputSpec(name)
+        assert caught.value.key == "outputs.name"
 
 
 ROBOT_FILE = """\

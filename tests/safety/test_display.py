@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 
 from supervisord.protocol.messages import FeedbackName, FeedbackSet
-from supervisord.safety import DisplayUpdate, RefusalReason
+from supervisord.safety import DisplayUpdate, LinkOpened, RefusalReason
 from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, SEARCHING, Rig
 
 
@@ -60,8 +60,9 @@ def test_values_go_out_at_most_every_50_ms() -> None:
 
 
 def test_display_is_sent_again_after_the_remote_relinks() -> None:
-    """Labels and the display mode are sent again when the remote re-links (Searching then a
-    linked mode); vibration is not repeated."""
+    """PR-2.12: labels and the display mode are sent again when the remote re-links
+    (Searching then a linked mode), not before: a remote that is searching has no display to
+    show them; vibration is not repeated."""
     rig = _ready()
     rig.feed(DisplayUpdate(rig.now, FeedbackName(1, "speed")))
     rig.feed(DisplayUpdate(rig.now, FeedbackSet(99, 2)))
@@ -71,6 +72,27 @@ def test_display_is_sent_again_after_the_remote_relinks() -> None:
     assert first == 3
     rig.advance(10)
     rig.vsc(SEARCHING)
+    _run_deadlines(rig, 40)
+    assert len(_sent(rig)) == first  # nothing while the remote searches
+    rig.advance(50)
+    rig.vsc(LOCAL)
+    _run_deadlines(rig, 500)
+    again = [f for _, f in _sent(rig)[first:]]
+    assert again == [FeedbackName(1, "speed"), FeedbackSet(99, 2)]
+
+
+def test_display_is_sent_again_after_the_link_opens_again() -> None:
+    """PR-2.12, SR-4.4: a VSC reconnect (the link reported open again, here without a close
+    first) is a re-link: the labels and values kept go again with its first linked heartbeat."""
+    rig = _ready()
+    rig.feed(DisplayUpdate(rig.now, FeedbackName(1, "speed")))
+    rig.feed(DisplayUpdate(rig.now, FeedbackSet(99, 2)))
+    _run_deadlines(rig, 500)
+    first = len(_sent(rig))
+    assert first == 2
+    rig.advance(10)
+    rig.feed(LinkOpened(rig.now))
+    rig.key85(1)
     rig.advance(50)
     rig.vsc(LOCAL)
     _run_deadlines(rig, 500)

@@ -101,6 +101,46 @@ def test_two_operational_heartbeats_200_ms_apart_do_not_settle_the_hold() -> Non
     assert rig.vsc(OPERATIONAL).state is State.RUN  # 3 heartbeats, 210 ms
 
 
+SLOW = replace(FREE, vsc_timeout_ms=1000, rearm_hold_ms=100, local_reset=True)
+"""A VSC with a long timeout: heartbeats 300 ms apart are an unbroken run (SR-2.2)."""
+
+
+def test_two_heartbeats_spanning_the_dwell_do_not_settle_the_hold_however_far_apart() -> None:
+    """SR-3.3: with a timeout long enough that two Operational heartbeats 300 ms apart are
+    unbroken, they still do not end the hold: it takes three, however long the span."""
+    rig = Rig(SLOW)
+    rig.bring_up()
+    rig.advance(50)
+    rig.vsc(LOCAL)
+    rig.advance(50)
+    assert rig.vsc(OPERATIONAL).state is State.HOLD  # a glitch is no operator's act
+    rig.advance(300)
+    assert rig.vsc(OPERATIONAL).state is State.HOLD  # 2 heartbeats, 300 ms
+    rig.advance(50)
+    assert rig.vsc(OPERATIONAL).state is State.RUN  # 3 heartbeats, 350 ms
+
+
+def test_after_a_silence_the_hold_counts_its_heartbeats_again() -> None:
+    """SR-3.3, SR-2.2: a silence of ``vsc_timeout`` in the Operational run that may end a
+    glitch's hold starts the run again at the first heartbeat after it, counted as one: after a
+    local reset (SR-4) the hold stays until that run has three heartbeats spanning the dwell."""
+    rig = Rig(SLOW)
+    rig.bring_up()
+    rig.advance(50)
+    rig.vsc(LOCAL)
+    rig.advance(50)
+    rig.vsc(OPERATIONAL)
+    rig.advance(1000)
+    lost = rig.vsc(OPERATIONAL)  # a silence of the whole timeout: stopped
+    assert lost.state is State.STOPPED
+    assert "vsc_link_lost" in lost.latched_names
+    rig.advance(300)
+    rig.vsc(OPERATIONAL)  # 2 heartbeats since the silence, 300 ms
+    assert rig.reset().state is State.HOLD
+    rig.advance(50)
+    assert rig.vsc(OPERATIONAL).state is State.RUN  # 3 heartbeats, 350 ms
+
+
 @pytest.mark.parametrize(("pause_ms", "state"), [(200, State.RUN), (150, State.HOLD)])
 def test_the_operators_pause_resumes_at_once_and_a_short_one_waits(
     pause_ms: int, state: State

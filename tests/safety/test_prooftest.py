@@ -11,9 +11,20 @@ import pytest
 from supervisord.errors import ConfigError
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbeat
 from supervisord.record.format import proof_result, proof_status
-from supervisord.safety import LinkOpened, LocalEstop, SafetyCore, State, Tick, VscReceived
+from supervisord.safety import (
+    ClientConnected,
+    ClientEstop,
+    LinkBroken,
+    LinkClosed,
+    LinkOpened,
+    LocalEstop,
+    SafetyCore,
+    State,
+    Tick,
+    VscReceived,
+)
 from supervisord.safety.config import SafetyConfig, Transport
-from supervisord.safety.decision import Decision, RecordNote, RefusalReason
+from supervisord.safety.decision import ChangeKind, Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
 from supervisord.safety.prooftest import (
     KEY85_WAIT_NS,
@@ -686,14 +697,17 @@ def test_the_record_policy_records_a_failure_and_lets_a_takeover_run() -> None:
     assert vsc.takeover().state is State.RUN
 
 
-def test_a_stop_of_our_own_aborts_the_withholding_at_once() -> None:
-    """SR-5.2: a local e-stop during the withholding sends the heartbeat with the byte at
-    once; the proof test waits and runs again once the stop condition is clear."""
+@pytest.mark.parametrize("by", ["local", "client"])
+def test_a_stop_of_our_own_aborts_the_withholding_at_once(by: str) -> None:
+    """SR-5.2: a local or a client's e-stop during the withholding sends the heartbeat with
+    the byte at once; the proof test waits and runs again once the stop condition is clear."""
     vsc = Vsc()
+    vsc.feed(ClientConnected(vsc.now, 1))
     vsc.run(200)
     assert vsc.proof.prooftest is not None
     assert vsc.proof.prooftest.phase is Phase.WITHHOLDING
-    decision = vsc.feed(LocalEstop(vsc.now, ADMIN))
+    stop = LocalEstop(vsc.now, ADMIN) if by == "local" else ClientEstop(vsc.now, 1)
+    decision = vsc.feed(stop)
     assert UserHeartbeat(1) in decision.frames
     assert decision.prooftest is not None
     assert decision.prooftest.phase is Phase.WAITING
@@ -832,3 +846,106 @@ def test_a_passed_proof_test_asks_for_no_more_deadlines() -> None:
             vsc.beat()
     assert vsc.status().phase is Phase.PASSED
     assert end not in [d.next_deadline for d in vsc.decisions[passed:]]
+
+
+@pytest.mark.parametrize("policy", [ProofTestPolicy.BLOCK, ProofTestPolicy.RECORD])
+def test_an_outcome_is_one_record_of_its_own_kind(policy: ProofTestPolicy) -> None:
+    """SR-5.3, SR-7.1: the step in which a proof test passes makes one record, a ``prooftest``
+    record whose text is the outcome's and which carries the outcome, whether or not a cause
+    changed with it (under ``block`` the untested cause clears, under ``record`` nothing does)."""
+    vsc = Vsc(replace(BLOCK, prooftest=policy))
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    (decision,) = [d for d in vsc.decisions if any(r.prooftest for r in d.records)]
+    (record,) = decision.records
+    assert record.note is RecordNote.PROOFTEST
+    assert record.prooftest is not None
+    assert record.reason == record.prooftest.text
+    untested = [c.kind for c in record.changes if c.cause.name == UNTESTED]
+    assert untested == [ChangeKind.CLEARED]  # a pass raises nothing
+
+
+def test_under_record_a_failure_is_a_stop_raised_with_what_was_observed() -> None:
+    """SR-5.3, docs/safety.md "The proof test": under ``record`` the step in which the test
+    fails raises ``vsc_watchdog_untested`` as a momentary stop (raised and clear, latched, a
+    stop a takeover must come after) with what was observed in its details."""
+    vsc = Vsc(replace(BLOCK, prooftest=ProofTestPolicy.RECORD), trip_ms=None)
+    vsc.run(2500)
+    (decision,) = [d for d in vsc.decisions if any(r.prooftest for r in d.records)]
+    (record,) = decision.records
+    assert record.prooftest is not None
+    assert not record.prooftest.passed
+    kinds = [c.kind for c in record.changes if c.cause.name == UNTESTED]
+    assert kinds == [ChangeKind.RAISED]  # and clear at once: no condition of its own
+    cause = decision.cause(UNTESTED)
+    assert cause is not None
+    assert (cause.active, cause.latched) == (False, True)
+    assert cause.detail("observed") == record.prooftest.text
+
+
+def test_a_vsc_silent_for_its_timeout_aborts_the_test_at_that_nanosecond() -> None:
+    """SR-5.3, SR-2.2: a VSC silent for ``vsc_timeout`` is not heard, to the nanosecond: a
+    test whose wait for the bits to clear ends at that very instant is aborted (tried again
+    once the VSC is back), not failed on a VSC that is gone."""
+    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
+    vsc.never_clears = True
+    proof = vsc.core._proof  # the one deadline this test needs exactly
+    for _ in range(60):  # within 3 s the heartbeat is withheld, the bit trips, it resumes
+        if proof.phase is Phase.RESUMED and proof.next_deadline(1) is not None:
+            break
+        vsc.beat()
+    due = proof.next_deadline(1)
+    assert due is not None
+    silent_from = due - 200 * MS  # the VSC's last heartbeat: its timeout falls on the due time
+    while vsc.now + 50 * MS <= silent_from:  # at most 1 s of heartbeats
+        vsc.beat()
+    vsc.beat((silent_from - vsc.now) // MS)
+    assert vsc.now == silent_from
+    assert vsc.status().phase is Phase.RESUMED
+    vsc.now = due
+    decision = vsc.feed(Tick(due))
+    assert "vsc_link_lost" in decision.active_names
+    assert vsc.status().phase is Phase.WAITING
+    assert not any(r.prooftest for r in decision.records)
+
+
+def test_a_vsc_silent_for_its_timeout_is_proven_again() -> None:
+    """SR-5.6, docs/safety.md "The proof test": a VSC silent for ``vsc_timeout`` (200 ms, to
+    the nanosecond, as for ``vsc_link_lost``) may have rebooted, so its watchdog is proven
+    again; a gap 1 ms shorter is no silence and keeps the pass."""
+    vsc = Vsc()
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.beat(199)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.beat(200)
+    assert vsc.status().phase is not Phase.PASSED
+    assert UNTESTED in vsc.proof.active_names
+
+
+@pytest.mark.parametrize("down", [LinkBroken, LinkClosed])
+def test_a_link_that_went_down_is_proven_again(down: type[LinkBroken | LinkClosed]) -> None:
+    """SR-5.6: a link that broke or closed may come back to another VSC, or to one that
+    rebooted: from the moment it went down, the watchdog is untested again."""
+    vsc = Vsc()
+    vsc.run(1000)
+    assert vsc.status().phase is Phase.PASSED
+    vsc.now += 10 * MS
+    decision = vsc.feed(down(vsc.now, "unplugged"))
+    assert UNTESTED in decision.active_names
+    assert vsc.status().phase is Phase.WAITING
+
+
+def test_a_proof_test_is_refused_when_there_is_none_or_one_runs() -> None:
+    """SR-5.3, docs/safety.md "The proof test": ``srcsctl prooftest`` is refused by name when
+    the policy is ``off`` (``prooftest_not_possible``) and while a test runs
+    (``prooftest_running``)."""
+    core = SafetyCore(replace(ROBOT, clients=()), START_NS)
+    off = core.handle(ProofTestRequest(START_NS + 1, ADMIN))
+    assert [r.reason for r in off.refusals] == [RefusalReason.PROOFTEST_NOT_POSSIBLE]
+    vsc = Vsc()
+    while vsc.status().phase is not Phase.WITHHOLDING:
+        vsc.beat()
+    running = vsc.feed(ProofTestRequest(vsc.now, ADMIN))
+    assert [r.reason for r in running.refusals] == [RefusalReason.PROOFTEST_RUNNING]
+    assert vsc.status().phase is Phase.WITHHOLDING

@@ -182,6 +182,40 @@ def test_vsc_reconnect_is_a_new_start() -> None:
     assert "vsc_watchdog_off" in decision.active_names
 
 
+def test_a_vsc_reconnect_forgets_the_mode_seen_before_it() -> None:
+    """SR-4.4, SR-4.5: a VSC reconnect is a new start also for the takeover: the mode reported
+    before it is forgotten, so the first heartbeat after it, Operational, is no takeover edge
+    (nothing to refuse), however long the VSC was in Local before."""
+    rig = Rig()
+    rig.stopped_and_cleared()
+    rig.run_for(600, LOCAL)
+    rig.advance(10)
+    rig.feed(LinkOpened(rig.now))  # reported again, without a close first
+    rig.key85(1)
+    rig.advance(50)
+    decision = rig.vsc(OPERATIONAL)
+    assert decision.state is State.STOPPED
+    assert decision.rearm is None
+    assert decision.refusals == ()
+
+
+def test_a_vsc_reconnect_ends_the_hold_of_its_mode() -> None:
+    """SR-4.4, SR-3.1: the hold of the VSC's mode names a mode the VSC reported before the
+    reconnect; the new start forgets it: the causes are the reconnect's own (the link and key
+    85 not heard yet), and the mode's hold comes back only with a heartbeat that reports it."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(10)
+    assert "vsc_mode:local" in rig.vsc(LOCAL).active_names
+    rig.advance(10)
+    decision = rig.feed(LinkOpened(rig.now))  # reported again, without a close first
+    assert not any(name.startswith("vsc_mode:") for name in decision.active_names)
+    assert decision.state is State.STOPPED
+    rig.key85(1)
+    rig.advance(10)
+    assert "vsc_mode:local" in rig.vsc(LOCAL).active_names
+
+
 def test_client_reconnection_is_a_new_start() -> None:
     """A required client that disconnects and reconnects keeps the supervisor STOPPED until a
     re-arm, even once it beats again."""

@@ -7,12 +7,24 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from supervisord.safety import ClientHello, ClientSpec, LocalEstop, Request, State
+import pytest
+
+from supervisord.safety import (
+    ClientHello,
+    ClientSpec,
+    Event,
+    LocalEstop,
+    Request,
+    SafetyCore,
+    State,
+    Transport,
+)
 from supervisord.safety.budget import (
     BUDGET_WINDOW_NS,
     RECORDS_OF_ALL_CLIENTS,
     RECORDS_PER_UID,
     RecordBudget,
+    Uid,
 )
 from supervisord.safety.decision import RefusalReason
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
@@ -95,6 +107,66 @@ def test_the_budget_is_per_user() -> None:
     assert released.records
     rig.hold(3)
     refused = rig.release(3, Request.HOLD)
+    assert [r.reason for r in refused.refusals] == [RefusalReason.RATE_LIMITED]
+
+
+def test_a_step_charges_only_its_own_user(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SR-8.5, SR-2.9: whom a step's records are charged to is the step's own business: a step
+    that fails before it has learnt its user (the record of that failure) charges nobody, and
+    never the user of the step before. So a user one record short of its budget still has
+    that record after the failure."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(2, "arm", uid=1001)
+    start = len(rig.decisions)
+    for _ in range(RECORDS_PER_UID // 2 - 1):
+        rig.advance(0.05)
+        rig.hold(2)
+        rig.advance(0.05)
+        rig.release(2, Request.HOLD)
+    rig.advance(0.05)
+    rig.hold(2)
+    assert _records(rig, start) == RECORDS_PER_UID - 1
+    real = SafetyCore._uid
+    calls: list[int] = []
+
+    def fails_once(core: SafetyCore, event: Event) -> Uid:
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return real(core, event)
+
+    monkeypatch.setattr(SafetyCore, "_uid", fails_once)
+    rig.advance(0.05)
+    failed = rig.release(2, Request.HOLD)
+    assert "internal" in failed.latched_names
+    assert failed.records
+    rig.advance(0.05)
+    released = rig.release(2, Request.HOLD)
+    assert not released.refusals
+    assert released.records
+
+
+def test_a_release_before_hello_costs_one_record() -> None:
+    """SR-8.5: a release made before hello costs its user one record, as any release does:
+    ten e-stops and releases from a connection that never said hello are twenty records, all
+    honoured; the next release is the one past the budget."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(7, name=None, uid=1001)
+    start = len(rig.decisions)
+    for _ in range(RECORDS_PER_UID // 2):
+        rig.advance(0.05)
+        rig.estop(7)
+        rig.advance(0.05)
+        released = rig.release(7)
+        assert not released.refusals
+        assert "client_estop:#uid1001" not in released.active_names
+    assert _records(rig, start) == RECORDS_PER_UID
+    rig.advance(0.05)
+    rig.estop(7)
+    rig.advance(0.05)
+    refused = rig.release(7)
     assert [r.reason for r in refused.refusals] == [RefusalReason.RATE_LIMITED]
 
 
@@ -189,6 +261,25 @@ def test_a_deferred_end_comes_exactly_when_the_budget_allows() -> None:
     ended = rig.tick()
     assert ended.state is State.RUN
     assert "client_hold:#uid1000" not in ended.active_names
+
+
+def test_deferred_ends_of_two_users_each_come_at_their_own_time() -> None:
+    """SR-8.5, SR-2.11: with two users' ends deferred, the next deadline is the earlier end's
+    (never a later one): a tick at it ends the first user's hold and leaves the second's."""
+    rig = Rig(replace(ROBOT, transport=Transport.CAN, require_watchdog=False, clients=()))
+    rig.bring_up()
+    for i in range(RECORDS_PER_UID // 2 + 1):  # the last cycles' ends wait: deferred
+        for uid, base in ((1000, 100), (1001, 200)):  # one user's cycle, then the other's
+            rig.advance(0.05)
+            _cycle(rig, base + i, uid)
+    assert {"client_hold:#uid1000", "client_hold:#uid1001"} <= rig.last.active_names
+    rig.advance(400)  # the VSC falls silent: only the deferred ends are due
+    waiting = rig.tick()
+    assert waiting.next_deadline < waiting.now + 1000 * MS
+    rig.now = waiting.next_deadline
+    first = rig.tick()
+    assert "client_hold:#uid1000" not in first.active_names
+    assert "client_hold:#uid1001" in first.active_names
 
 
 def test_the_connections_of_one_user_share_one_hold_before_hello() -> None:

@@ -172,14 +172,16 @@ def test_heartbeats_read_together_still_make_a_takeover() -> None:
     assert decision.state is State.RUN, decision.refusals
 
 
-def test_a_silent_gap_starts_the_run_again() -> None:
-    """Heartbeats more than ``vsc_timeout`` apart do not make one run: after a gap the dwell
-    is counted again from the first heartbeat after it (fresh evidence after a lost link)."""
+@pytest.mark.parametrize("gap_ms", [200, 300])
+def test_a_silent_gap_starts_the_run_again(gap_ms: int) -> None:
+    """Heartbeats ``vsc_timeout`` or more apart (200 ms to the nanosecond, as for
+    ``vsc_link_lost``, SR-2.2) do not make one run: after a gap the dwell is counted again from
+    the first heartbeat after it (fresh evidence after a lost link)."""
     config = dataclasses.replace(ROBOT, rearm_hold_ms=100)
     rig = Rig(config)
     rig.stopped_and_cleared()
     rig.run_for(1000, LOCAL)
-    rig.advance(250)  # a gap past the 200 ms timeout: vsc_link_lost
+    rig.advance(gap_ms - 50)  # the next VSC heartbeat comes 50 ms later: vsc_link_lost
     rig.beat()
     # conditions clear for 150 ms >= the 100 ms hold
     refused = rig.take_over(150)
@@ -307,3 +309,37 @@ def test_an_operators_takeover_rearms(
     assert decision.state is State.RUN, decision.refusals
     assert decision.rearm is not None
     assert decision.rearm.kind is RearmKind.TAKEOVER
+
+
+def test_a_granted_takeover_ends_the_quiet_of_a_refusal() -> None:
+    """docs/safety.md "Re-arming": the quiet of a repeated refusal lasts until a takeover is
+    granted: after a re-arm and a new stop, the same refusal less than a second after the
+    first is reported again (it is about the new stop)."""
+    rig = Rig(dataclasses.replace(ROBOT, rearm_hold_ms=100))
+    rig.stopped_and_cleared()
+    first = rig.take_over(100)  # two Local heartbeats, 50 ms apart: too short
+    assert [r.reason for r in first.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+    assert rig.take_over(250).state is State.RUN
+    rig.advance(10)
+    rig.estop()
+    rig.advance(10)
+    rig.release()
+    again = rig.take_over(100)
+    assert again.now - first.now < 1000 * MS
+    assert [r.reason for r in again.refusals] == [RefusalReason.TAKEOVER_TOO_SHORT]
+
+
+def test_a_stop_raised_by_the_runs_last_heartbeat_is_no_new_cause_during_it() -> None:
+    """SR-4.2, SR-4.3 (docs/safety.md "Re-arming" rules 2 and 3): the run's heartbeats must
+    come after the last stop began, and the heartbeat that began it (a Local one carrying an
+    e-stop word) does: a takeover right after it is refused for the hold time alone (SR-4.1),
+    not as a new cause during the re-arm."""
+    rig = Rig()
+    rig.stopped_and_cleared()
+    rig.run_for(300, LOCAL)
+    rig.advance(50)
+    assert "vsc_estop" in rig.vsc(LOCAL, estop=0b11).active_names
+    rig.beat()
+    rig.advance(50)
+    refused = rig.vsc(OPERATIONAL)
+    assert [r.reason for r in refused.refusals] == [RefusalReason.HOLD_TIME_NOT_ELAPSED]

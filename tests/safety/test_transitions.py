@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+from typing import Any
 
 import pytest
 
+from supervisord.protocol.messages import UserHeartbeat
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
-from supervisord.safety.transitions import next_state
-from tests.safety.rig import Rig
+from supervisord.safety.book import CauseBook
+from supervisord.safety.transitions import Transition, _index, next_state
+from tests.safety.rig import ROBOT, Rig
 
 ILLEGAL = {
     (State.STOPPED, Situation.HOLD),
@@ -27,6 +31,18 @@ def test_table_covers_exactly_the_legal_moves() -> None:
     assert len(pairs) == len(set(pairs))
     assert set(pairs) | ILLEGAL == set(itertools.product(State, Situation))
     assert not set(pairs) & ILLEGAL
+
+
+def test_the_index_is_the_table_and_refuses_two_rows_for_one_move() -> None:
+    """SR-1: ``next_state`` answers from an index of the table, one target per move, and a
+    table with two rows for one move (even if they agree) contradicts itself and is refused."""
+    assert _index(TABLE) == {(row.source, row.situation): row.target for row in TABLE}
+    again = Transition(State.RUN, Situation.CLEAR, State.HOLD, "a contradiction")
+    with pytest.raises(IllegalTransition) as refused:
+        _index((*TABLE, again))
+    assert (refused.value.state, refused.value.situation) == (State.RUN, Situation.CLEAR)
+    with pytest.raises(IllegalTransition):
+        _index((*TABLE, TABLE[0]))
 
 
 @pytest.mark.parametrize(("state", "situation"), sorted(ILLEGAL, key=str))
@@ -83,8 +99,12 @@ def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPat
     assert "internal" in decision.latched_names
 
 
-def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyPatch) -> None:
-    """When even the normal fail-safe path fails, a bare all-off STOPPED decision comes back."""
+@pytest.mark.parametrize(("owner", "name"), [(SafetyCore, "_finish"), (CauseBook, "pulse")])
+def test_core_survives_even_when_the_fail_safe_fails(
+    monkeypatch: pytest.MonkeyPatch, owner: type, name: str
+) -> None:
+    """When even the normal fail-safe path fails (its record, or its very first act, the
+    ``internal`` cause), a bare all-off STOPPED decision comes back, and the core is STOPPED."""
     rig = Rig()
     rig.bring_up()
 
@@ -92,13 +112,120 @@ def test_core_survives_even_when_the_fail_safe_fails(monkeypatch: pytest.MonkeyP
         raise RuntimeError("boom")
 
     monkeypatch.setattr(SafetyCore, "_apply", broken)
-    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    monkeypatch.setattr(owner, name, broken)
     rig.advance(10)
     decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
     assert decision.state is State.STOPPED
+    assert rig.core.state is State.STOPPED  # the core's own state says so too
     assert not any(decision.outputs.values())
     assert decision.heartbeat_estop == 1
+    assert decision.frames == (UserHeartbeat(1),)  # SR-5: the stop reaches the VSC at once
     assert decision.next_deadline > decision.now
+
+
+def test_the_last_line_of_defence_sends_no_heartbeat_on_a_closed_link(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.3, SR-5: when even the fail-safe path fails, the bare decision asks for a user
+    heartbeat only on an open serial link: nothing can be sent on a closed one."""
+    rig = Rig()  # the link not opened yet
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(SafetyCore, "_apply", broken)
+    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    rig.advance(10)
+    decision = rig.connect(name=None)
+    assert decision.state is State.STOPPED
+    assert decision.frames == ()
+
+
+def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+    """Make ``SafetyCore.<name>`` raise the first time it is called, as a bug of the core
+    would, and work from then on."""
+    real = getattr(SafetyCore, name)
+    calls = []
+
+    def once(self: SafetyCore, *args: object) -> object:
+        calls.append(name)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return real(self, *args)
+
+    monkeypatch.setattr(SafetyCore, name, once)
+
+
+def test_after_a_failure_in_a_step_the_next_input_sees_every_condition(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.9, SR-2.5, SR-5: a step that fails half way stops with ``internal`` with its event
+    applied but the conditions not recomputed; the next input recomputes them (no shortcut
+    trusts a decision the core failed on), so a client's e-stop of that step is a cause and
+    sets the user heartbeat's e-stop byte at once."""
+    rig = Rig()
+    rig.bring_up()
+    _fails_once(monkeypatch, "_end_unnamed_due")  # step 2 is done, step 3 not yet
+    rig.advance(10)
+    failed = rig.estop()
+    assert "internal" in failed.latched_names
+    assert "client_estop:planner" not in failed.active_names
+    rig.advance(10)
+    after = rig.tick()
+    assert "client_estop:planner" in after.active_names
+    assert after.heartbeat_estop == 1
+    assert after.state is State.STOPPED
+
+
+def test_after_a_failure_in_the_cheap_path_the_next_input_takes_the_full_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-2.9, docs/performance.md "The cheap path": the cheap path answers only after a step
+    that ended normally; once the core failed on an input (here inside the cheap path itself),
+    the next input is decided by the full step, every condition recomputed."""
+    rig = Rig()
+    rig.bring_up()
+    _fails_once(monkeypatch, "_fixed_point")  # only the cheap path asks it
+    rig.advance(10)
+    failed = rig.tick()
+    assert failed.state is State.STOPPED
+    assert "internal" in failed.latched_names
+    refreshes = rig.count_refreshes()
+    rig.advance(10)
+    after = rig.tick()
+    assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
+    assert after.state is State.STOPPED
+
+
+def test_a_rearm_after_a_failed_fail_safe_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SR-4.1, SR-2.9: when the fail-safe could not even latch ``internal`` (the last line of
+    defence left the core STOPPED with nothing latched), a local reset is still refused:
+    nothing latched is no evidence that stop conditions were clear for the hold time; the
+    table's refusal of STOPPED without a latch then latches ``internal``."""
+    rig = Rig(dataclasses.replace(ROBOT, local_reset=True))
+    rig.bring_up()
+    real = CauseBook.pulse
+    calls: list[int] = []
+
+    def pulse_fails_once(book: CauseBook, *args: Any) -> None:
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        real(book, *args)
+
+    monkeypatch.setattr(CauseBook, "pulse", pulse_fails_once)
+    _fails_once(monkeypatch, "_apply")
+    rig.advance(10)
+    bare = rig.beat()
+    assert bare.state is State.STOPPED
+    assert bare.latched_names == set()
+    rig.advance(10)
+    refused = rig.reset()
+    assert [(r.reason, r.detail) for r in refused.refusals] == [
+        (RefusalReason.HOLD_TIME_NOT_ELAPSED, "clear for 0 ms of 500 ms")
+    ]
+    assert refused.state is State.STOPPED
+    assert "internal" in refused.latched_names
 
 
 def test_input_that_is_not_an_event_is_refused() -> None:
