@@ -223,8 +223,8 @@ def event_from_json(data: object) -> Event:
 
 
 def config_to_json(config: SafetyConfig) -> JsonDict:
-    """The safety core's configuration (only what the core reads: an output's name and role,
-    not the output kind's own options)."""
+    """The safety core's configuration (only what the core reads: an output's name, role and
+    stop category, not the output kind's own options)."""
     return {
         "transport": config.transport.value,
         "vsc_timeout_ms": config.vsc_timeout_ms,
@@ -235,7 +235,10 @@ def config_to_json(config: SafetyConfig) -> JsonDict:
         "clients": [
             {"name": c.name, "timeout_ms": c.timeout_ms, "uid": c.uid} for c in config.clients
         ],
-        "outputs": [{"name": o.name, "role": o.role.value} for o in config.outputs],
+        "outputs": [
+            {"name": o.name, "role": o.role.value, "off_delay_ms": o.off_delay_ms}
+            for o in config.outputs
+        ],
         "prooftest": config.prooftest.value,
         "prooftest_clear_ms": config.prooftest_clear_ms,
     }
@@ -263,7 +266,12 @@ def config_from_json(data: object) -> SafetyConfig:
                 for c in clients
             ),
             outputs=tuple(
-                OutputSpec(_text(o.get("name")), OutputRole(o.get("role"))) for o in outputs
+                OutputSpec(
+                    _text(o.get("name")),
+                    OutputRole(o.get("role")),
+                    _int(o.get("off_delay_ms", 0)),  # a window written before SR-1.4: none
+                )
+                for o in outputs
             ),
             prooftest=ProofTestPolicy(data.get("prooftest")),
             prooftest_clear_ms=_int(data.get("prooftest_clear_ms")),

@@ -188,7 +188,11 @@ CONFIGS = [
         rearm_hold_ms=100,
         local_reset=True,
         clients=(ClientSpec("nav"), ClientSpec("arm", 300, uid=1000)),
-        outputs=(OutputSpec("drive"), OutputSpec("lamp", OutputRole.POWER)),
+        outputs=(
+            OutputSpec("drive"),
+            OutputSpec("lamp", OutputRole.POWER),
+            OutputSpec("brakes", OutputRole.POWER, off_delay_ms=400),
+        ),
         prooftest=ProofTestPolicy.BLOCK,
         prooftest_clear_ms=5000,
     ),
@@ -205,6 +209,13 @@ def test_the_configuration_round_trips(config: SafetyConfig) -> None:
 def test_the_configuration_encoding_names_every_field() -> None:
     """SR-7.10: a field added to the core's configuration fails here until it is written."""
     assert set(config_to_json(SafetyConfig())) == {f.name for f in dataclasses.fields(SafetyConfig)}
+
+
+def test_the_encoding_of_an_output_names_every_field_the_core_reads() -> None:
+    """SR-7.10, SR-1.4: an output's name, role and stop category; a field added to the core's
+    output fails here until it is written."""
+    (output,) = config_to_json(SafetyConfig(outputs=(OutputSpec("drive"),)))["outputs"]
+    assert set(output) == {f.name for f in dataclasses.fields(OutputSpec)}
 
 
 def test_a_configuration_the_core_would_refuse_is_refused() -> None:
