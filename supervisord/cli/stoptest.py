@@ -90,11 +90,15 @@ def run_stoptest(
     try:
         for source in ("remote", "wired") if wired else ("remote",):
             _wait_run(client, out, timeout_s, clock, first=not steps)
-            print(f"stoptest: {PROMPTS[source]} (waiting up to {timeout_s:g} s)", file=out)
+            # Each line of the dialogue is flushed: piped into a log (tee), a buffered prompt
+            # would never show while the test waits for its press.
+            print(
+                f"stoptest: {PROMPTS[source]} (waiting up to {timeout_s:g} s)", file=out, flush=True
+            )
             steps.append((source, _wait_press(client, source, timeout_s, clock)))
             _wait_off(client, clock)
     except NotDone as why:
-        print(f"stoptest: not done: {why}", file=out)
+        print(f"stoptest: not done: {why}", file=out, flush=True)
         return EXIT_NOT_DONE
     result = client.stoptest(tuple(steps)).stoptest
     out.write(report(result))
@@ -103,6 +107,7 @@ def run_stoptest(
         + ("s" if wired else "")
         + " and take over on the remote to go on",
         file=out,
+        flush=True,
     )
     return EXIT_PASSED if result.passed else EXIT_FAILED
 
@@ -119,7 +124,7 @@ def _wait_run(
     if client.status().report.state == "RUN":
         return
     what = "take over on the remote" if first else "release the remote's e-stop and take over"
-    print(f"stoptest: {what} (the supervisor must be in RUN; waiting)", file=out)
+    print(f"stoptest: {what} (the supervisor must be in RUN; waiting)", file=out, flush=True)
     deadline = clock() + timeout_s
     while clock() < deadline:
         if client.status().report.state == "RUN":
