@@ -28,75 +28,55 @@ from supervisord.api.wire import Fields, JsonDict
 class StatePush:
     """The state changed (the state, a cause or an output), or the first after subscribing."""
 
-    EVENT: ClassVar[str] = "state"
+    event: ClassVar[str] = "state"
     report: StateReport
 
-    @property
-    def event(self) -> str:
-        return self.EVENT
-
     def json(self) -> JsonDict:
-        return {"event": self.EVENT, **self.report.json()}
+        return {"event": self.event, **self.report.json()}
 
 
 @dataclass(frozen=True, slots=True)
 class RecordPush:
     """A stop record, as written to the record file (docs/record.md)."""
 
-    EVENT: ClassVar[str] = "record"
+    event: ClassVar[str] = "record"
     record: StopRecord
 
-    @property
-    def event(self) -> str:
-        return self.EVENT
-
     def json(self) -> JsonDict:
-        return {"event": self.EVENT, **self.record.json()}
+        return {"event": self.event, **self.record.json()}
 
 
 @dataclass(frozen=True, slots=True)
 class JoystickPush:
     """A joystick message from the VSC (meaningful only in RUN: the VSC zeroes it otherwise)."""
 
-    EVENT: ClassVar[str] = "joystick"
+    event: ClassVar[str] = "joystick"
     message: JoystickReport
 
-    @property
-    def event(self) -> str:
-        return self.EVENT
-
     def json(self) -> JsonDict:
-        return {"event": self.EVENT, **self.message.json()}
+        return {"event": self.event, **self.message.json()}
 
 
 @dataclass(frozen=True, slots=True)
 class GpsPush:
     """A GPS message from the VSC."""
 
-    EVENT: ClassVar[str] = "gps"
+    event: ClassVar[str] = "gps"
     message: GpsReport
 
-    @property
-    def event(self) -> str:
-        return self.EVENT
-
     def json(self) -> JsonDict:
-        return {"event": self.EVENT, **self.message.json()}
+        return {"event": self.event, **self.message.json()}
 
 
 @dataclass(frozen=True, slots=True)
 class RemoteStatusPush:
     """A remote-status message from the VSC (1 Hz once commissioned)."""
 
-    EVENT: ClassVar[str] = "remote_status"
+    event: ClassVar[str] = "remote_status"
     message: RemoteStatusReport
 
-    @property
-    def event(self) -> str:
-        return self.EVENT
-
     def json(self) -> JsonDict:
-        return {"event": self.EVENT, **self.message.json()}
+        return {"event": self.event, **self.message.json()}
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,17 +99,17 @@ def read_push(obj: object) -> Push:
     f = Fields(obj, "push")
     event = f.text("event")
     f = Fields(obj, event)
-    if event == StatePush.EVENT:
+    if event == StatePush.event:
         return StatePush(StateReport.read(f))
-    if event == RecordPush.EVENT:
+    if event == RecordPush.event:
         return RecordPush(StopRecord.read(f))
-    if event == JoystickPush.EVENT:
+    if event == JoystickPush.event:
         check_type(f, JoystickReport.TYPE)
         return JoystickPush(JoystickReport.read(f))
-    if event == GpsPush.EVENT:
+    if event == GpsPush.event:
         check_type(f, GpsReport.TYPE)
         return GpsPush(GpsReport.read(f))
-    if event == RemoteStatusPush.EVENT:
+    if event == RemoteStatusPush.event:
         check_type(f, RemoteStatusReport.TYPE)
         return RemoteStatusPush(RemoteStatusReport.read(f))
     assert isinstance(obj, Mapping)  # Fields checked it
