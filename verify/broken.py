@@ -96,6 +96,20 @@ FAULTS = (
         "P18",
     ),
     Fault(
+        "the remote's battery report never goes stale before another input",
+        "if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old",
+        "if False:  # SR-8.12: the report is too old",
+        "battery_stop",
+        "P8",
+    ),
+    Fault(
+        "a low battery is read as a good one",
+        "missing = battery_missing(now, level, seen, config.min_remote_battery)",
+        "missing = battery_missing(now, 100, seen, config.min_remote_battery)",
+        "battery_stop",
+        "P19",
+    ),
+    Fault(
         "the re-arm hold is not waited for",
         "if clear_since is None or now - clear_since < hold:",
         "if clear_since is None:",

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
+from supervisord.protocol.messages import FeedbackSet, RemoteStatus, VscHeartbeat
 from supervisord.safety import (
     Caller,
     ClientCommand,
@@ -46,6 +46,7 @@ from supervisord.safety import (
     Transport,
     VscReceived,
 )
+from supervisord.safety.availability import Reaction
 from supervisord.safety.budget import RECORDS_OF_ALL_CLIENTS, RecordBudget
 from supervisord.safety.events import ProofTestRequest
 from supervisord.safety.prooftest import ProofTestPolicy
@@ -102,7 +103,7 @@ class Input:
     connects: bool = False  # or, for its connection, only while it is not (the API's order)
 
 
-TICK, VSC, BEAT, CLIENT, REARM, PROOF, KEY85_ANSWER, OTHER = (
+TICK, VSC, BEAT, CLIENT, REARM, PROOF, KEY85_ANSWER, BATTERY, OTHER = (
     "tick",
     "vsc",
     "beat",
@@ -110,6 +111,7 @@ TICK, VSC, BEAT, CLIENT, REARM, PROOF, KEY85_ANSWER, OTHER = (
     "rearm",
     "proof",
     "key85",
+    "battery",
     "other",
 )
 TIMED = frozenset({TICK, VSC, BEAT, REARM, PROOF})
@@ -143,6 +145,8 @@ SEEN_BY: dict[str, frozenset[str]] = {
     "proof:withheld": frozenset({TICK, VSC}),
     "proof:resumed": frozenset({TICK, VSC}),
     "proof:sent": frozenset(),
+    # the remote's battery report goes stale by itself; a new report restarts it (SR-8.12)
+    "battery": frozenset({TICK, BATTERY}) | _STATE_READERS,
     # the record budget: the inputs it limits or charges, and a deferred end
     "budget": frozenset({TICK, BEAT, CLIENT, REARM, PROOF}),
 }
@@ -235,6 +239,13 @@ FAULTS = [
     Input("drive reads back", lambda now: OutputReadback(now, "drive", False, False), OTHER),
 ]
 TICKS = [Input("tick", Tick, TICK)]
+BATTERY_REPORTS = [
+    Input("battery 80", lambda now: VscReceived(now, RemoteStatus(80)), BATTERY),
+    Input("battery 10", lambda now: VscReceived(now, RemoteStatus(10)), BATTERY),
+]
+"""The remote's battery above and below the minimum (20 %) of ``vsc.min_remote_battery``."""
+BATTERY_GRID_NS = 500_000_000
+"""The battery models' grid: 3 s, the age at which a report goes stale, is six steps."""
 REQUIRED_CLIENT = client(REQUIRED, REQUIRED_CONNECTION, REQUIRED_UID, BEAT)
 OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
 ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)
@@ -367,6 +378,33 @@ MODELS = {
             what="the proof test of the VSC's watchdog under block (the link opens once; key 85 "
             "answers 1 or never), to a bounded depth",
             depth=16,
+        ),
+        Model(
+            "battery_hold",
+            dataclasses.replace(
+                BASE,
+                vsc_timeout_ms=1000,
+                require_watchdog=False,
+                on_estop_unavailable=Reaction.HOLD,
+            ),
+            (*vsc((OPERATIONAL, LOCAL), (0,)), LINK[0], *BATTERY_REPORTS, *TICKS),
+            what="the remote's battery under on_estop_unavailable = 'hold': reports above and "
+            "below the minimum, and none for 3 s or more (on a grid of 500 ms, so that 3 s is "
+            "within reach; the VSC's timeout at its longest to keep a takeover possible on it)",
+            grid_ns=BATTERY_GRID_NS,
+        ),
+        Model(
+            "battery_stop",
+            dataclasses.replace(
+                BASE,
+                transport=Transport.CAN,
+                vsc_timeout_ms=1000,
+                require_watchdog=False,
+                on_estop_unavailable=Reaction.STOP,
+            ),
+            (*vsc((OPERATIONAL, LOCAL), (0,)), LINK[0], *BATTERY_REPORTS, *TICKS),
+            what="the same under 'stop', on CAN: no user heartbeat hides the report's deadline",
+            grid_ns=BATTERY_GRID_NS,
         ),
         Model(
             "all",

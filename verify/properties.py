@@ -16,7 +16,13 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.messages import FeedbackGet, FeedbackSet, UserHeartbeat, VscHeartbeat
+from supervisord.protocol.messages import (
+    FeedbackGet,
+    FeedbackSet,
+    RemoteStatus,
+    UserHeartbeat,
+    VscHeartbeat,
+)
 from supervisord.safety import (
     ClientCommand,
     ClientConnected,
@@ -42,6 +48,7 @@ from supervisord.safety import (
     Transport,
     VscReceived,
 )
+from supervisord.safety.availability import Reaction
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.decision import ChangeKind, RefusalReason
 from supervisord.safety.events import ProofTestRequest
@@ -58,10 +65,11 @@ MS = 1_000_000
 DWELL_NS = 200 * MS  # SR-4.5: the non-Operational run spans at least 200 ms
 MIN_HEARTBEATS = 3  # SR-4.5: and holds at least three heartbeats
 FASTEST_NS = 20 * MS  # SR-4.5: at no more than one heartbeat per 20 ms (manual §8.3.6)
+BATTERY_FRESH_NS = 3_000 * MS  # SR-8.12: a battery report 3 s old is no report
 READ_TOGETHER = 2  # docs/safety.md rule 4: plus two frames read in one loop turn
 RATE_SLACK_NS = 60 * MS  # where the ghost clips its rate clock, as the core's canonical form
 OPERATIONAL = VscMode.OPERATIONAL.value
-HOLDS = frozenset({"vsc_mode", "client_hold"})  # SR-3
+HOLDS = frozenset({"vsc_mode", "client_hold", "estop_unavailable_hold"})  # SR-3, SR-8.12
 OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the heartbeat's byte
     {
         "vsc_link_lost",
@@ -72,6 +80,7 @@ OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the hea
         "output_fault",
         "vsc_watchdog_off",
         "internal",
+        "estop_unavailable",  # SR-8.12
     }
 )
 
@@ -95,6 +104,7 @@ class Ghost:
     nonzero: frozenset[int] = frozenset()  # named connections declaring a non-zero command
     local_estop: bool = False
     proven: bool = False  # a proof test passed since the last new start
+    battery: tuple[int, int] | None = None  # the remote's last battery report: level, when
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
 
     def key(self, now: int, config: SafetyConfig) -> tuple[object, ...]:
@@ -112,6 +122,11 @@ class Ghost:
         if self.required_beat is not None:
             timeout = config.clients[0].timeout_ns
             clocks.append(clock("client", self.required_beat, now, timeout))
+        battery_low = None
+        if _watches_battery(config) and self.battery is not None:
+            level, seen = self.battery
+            clocks.append(clock("battery", seen, now, BATTERY_FRESH_NS))
+            battery_low = level < config.min_remote_battery
         return (
             self.link_open,
             self.mode,
@@ -126,6 +141,7 @@ class Ghost:
             self.nonzero,
             self.local_estop,
             self.proven,
+            battery_low,
             tuple(clocks),
         )
 
@@ -186,6 +202,8 @@ def _vsc(ghost: Ghost, seen: _Seen) -> Ghost:
         return ghost
     if isinstance(message, FeedbackSet) and message.key == 85:
         return replace(ghost, key85_one=message.value == 1)
+    if isinstance(message, RemoteStatus):
+        return replace(ghost, battery=(message.battery_level, now))
     if not isinstance(message, VscHeartbeat):
         return ghost
     last, run = ghost.last_hb, ghost.run
@@ -479,6 +497,30 @@ def _p16(step: Step) -> Iterator[str]:
         yield f"heartbeats {step.beats}, byte {step.after.heartbeat_estop}"
 
 
+def _watches_battery(config: SafetyConfig) -> bool:
+    return config.on_estop_unavailable is not Reaction.WARN and config.min_remote_battery > 0
+
+
+def _p19(step: Step) -> Iterator[str]:
+    config = step.config
+    if not _watches_battery(config):
+        return
+    battery = step.seen.battery
+    unavailable = (
+        battery is None
+        or step.now - battery[1] >= BATTERY_FRESH_NS
+        or battery[0] < config.min_remote_battery
+    )
+    stop = config.on_estop_unavailable is Reaction.STOP
+    name = "estop_unavailable" if stop else "estop_unavailable_hold"
+    if (name in step.active) != unavailable:
+        yield f"{name} active: {name in step.active}, battery {battery} at {step.now}"
+    if unavailable and step.state is State.RUN:
+        yield f"RUN with the remote's battery {battery} at {step.now}"
+    if unavailable and stop and step.state is not State.STOPPED:
+        yield f"{step.state.name} under stop with the remote's battery {battery}"
+
+
 def _p18(step: Step) -> Iterator[str]:
     nonzero = sorted(step.seen.nonzero)
     if step.before.state is State.STOPPED and not step.stopped and nonzero:
@@ -599,6 +641,12 @@ PROPERTIES = {
         "command, and a re-arm is refused for one only while one is",
         _p18,
     ),
+    "P19": Property(
+        "SR-8.12: under on_estop_unavailable hold or stop, the cause is active exactly while "
+        "the remote's battery is not reported, reported 3 s ago or more, or below the "
+        "minimum; meanwhile never RUN, and under stop STOPPED",
+        _p19,
+    ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""
 
@@ -663,15 +711,24 @@ def _unrecorded(before: Decision, after: Decision, ghost: Ghost) -> list[str]:
     return problems
 
 
-def _pending(config: SafetyConfig, core: SafetyCore, ghost: Ghost) -> list[tuple[str, int]]:
-    """Every timer that is pending after the step: the ghost's (the VSC's silence, the
-    required client's) and the core's own (the user heartbeat, key 85, the proof test, the
-    display, a deferred end)."""
+def _ghost_timers(config: SafetyConfig, ghost: Ghost) -> list[tuple[str, int]]:
+    """The timers the checker knows of by itself: the VSC's silence, the required client's,
+    the remote's battery report going stale."""
     pending: list[tuple[str, int]] = []
     if ghost.link_open and ghost.last_hb is not None:
         pending.append(("vsc timeout", ghost.last_hb + config.vsc_timeout_ns))
     if ghost.required_beat is not None:
         pending.append(("client timeout", ghost.required_beat + config.clients[0].timeout_ns))
+    if _watches_battery(config) and ghost.battery is not None:
+        pending.append(("battery report stale", ghost.battery[1] + BATTERY_FRESH_NS))
+    return pending
+
+
+def _pending(config: SafetyConfig, core: SafetyCore, ghost: Ghost) -> list[tuple[str, int]]:
+    """Every timer that is pending after the step: the ghost's (the VSC's silence, the
+    required client's) and the core's own (the user heartbeat, key 85, the proof test, the
+    display, a deferred end)."""
+    pending = _ghost_timers(config, ghost)
     proof = core._proof
     if ghost.link_open:
         if core._next_heartbeat_ns is not None and not proof.withholding:

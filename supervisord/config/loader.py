@@ -58,6 +58,7 @@ from supervisord.config.schema import (
     HIDRAW,
     MAINTENANCE,
     MIN_REMOTE_BATTERY,
+    ON_ESTOP_UNAVAILABLE,
     OUTPUT_NAME_KEY,
     PORT,
     PROOFTEST,
@@ -81,6 +82,7 @@ from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
 from supervisord.record.jsonl import not_a_regular_file, record_paths
+from supervisord.safety.availability import Reaction
 from supervisord.safety.config import (
     VSC_TIMEOUT_MS,
     ClientSpec,
@@ -303,8 +305,7 @@ class _Loader:
         )
         if high < low:
             raise fields.refuse(REOPEN_MAX.name, high, f"make it at least reopen_min_ms ({low})")
-        battery = fields.whole(MIN_REMOTE_BATTERY)
-        return VscConfig(transport, link, Reopen(low, high), can_errors, battery)
+        return VscConfig(transport, link, Reopen(low, high), can_errors)
 
     @staticmethod
     def can_bus(fields: strict.Fields) -> CanBus:
@@ -447,6 +448,8 @@ class _Loader:
             require_watchdog=require_watchdog,
             prooftest=prooftest,
             prooftest_clear_ms=prooftest_clear,
+            min_remote_battery=fields.whole(MIN_REMOTE_BATTERY),
+            on_estop_unavailable=Reaction(fields.read(ON_ESTOP_UNAVAILABLE)),
             clients=clients,
             outputs=tuple(outputs),
         )

@@ -22,7 +22,6 @@ from supervisord.config.schema import (
     DEFAULT_SOCKET,
     SERIAL_BAUD,
 )
-from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY
 from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES
@@ -96,9 +95,6 @@ class VscConfig:
     reopen: Reopen = Reopen()
     can_errors: CanErrors = CanErrors()
     """Used only on CAN (``[output_bus]`` errors are not read: it only sends)."""
-    min_remote_battery: int = DEFAULT_MIN_REMOTE_BATTERY
-    """Below this battery percent the remote e-stop counts as not available (a warning, SR-8.11);
-    0: no battery check."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

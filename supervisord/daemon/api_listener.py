@@ -37,12 +37,13 @@ from supervisord.api.views import (
     state_push,
     state_report,
 )
-from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, estop_available
+from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.loop import Listener, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
+from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event, StopTested

@@ -77,7 +77,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
         has_key85=isinstance(config.vsc.link, SerialPort),
         robot=config.robot.name,
         required={c.name: c.timeout_ms for c in config.safety.clients},
-        min_remote_battery=config.vsc.min_remote_battery,
+        min_remote_battery=config.safety.min_remote_battery,
     )
 
 

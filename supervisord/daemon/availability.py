@@ -6,9 +6,10 @@ linked to it, the remote's battery is reported and not low, and the VSC's own ke
 is proven. :func:`estop_available` says whether all of that holds, and names what does not, in
 words; it is pure (no clock: the caller passes ``now`` from the loop, SR-2.11).
 
-It is a warning, never a stop: the safety core does not read it. docs/safety.md argues why
-that is safe: each part's loss is already a stop or blocks a re-arm, or comes ahead of a stop
-the VSC itself makes.
+What the supervisor does when it is lost is the core's: each part's loss is a stop of its own
+or blocks a re-arm, but for the remote's battery, whose judgement (one rule,
+:func:`~supervisord.safety.availability.battery_missing`) the core reacts to as
+``vsc.on_estop_unavailable`` says (SR-8.12, docs/safety.md "Is the e-stop available?").
 """
 
 from __future__ import annotations
@@ -20,21 +21,10 @@ from supervisord.api.readiness import BLOCKING_CAUSES
 from supervisord.api.status import EstopAvailable
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import RemoteStatus, VscHeartbeat
+from supervisord.safety.availability import battery_missing
 from supervisord.safety.core import LINKED_MODES
 from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
-from supervisord.timebase import NS_PER_S
 
-DEFAULT_MIN_REMOTE_BATTERY: Final = 20
-"""``vsc.min_remote_battery``: below this battery percent the e-stop counts as not available.
-The remote reports its battery in 10 % steps; 20 % leaves the operator time to swap it before
-the remote dies and its link drops (which the VSC turns into an e-stop)."""
-MIN_REMOTE_BATTERY_RANGE: Final = (0, 100)
-"""0 turns the battery check off (a VSC whose remote status is not enabled)."""
-REMOTE_STATUS_FRESH_NS: Final = 3 * NS_PER_S
-"""A battery report older than this is no report. The VSC sends remote status once a second
-(manual §8.3.4, once commissioned): 3 s lets two reports in a row be late or lost (a busy
-loop, a noisy serial line) without the condition flapping, yet a VSC that has stopped sending
-them is noticed within seconds. The boundary counts as fresh."""
 _WATCHDOG_CAUSES: Final = ("transport_fault", "vsc_link_lost", "vsc_watchdog_off")
 
 
@@ -67,22 +57,10 @@ def estop_available(
         if mode not in LINKED_MODES:
             name = mode.name.lower() if mode is not None else f"0x{heartbeat.mode:02x}"
             missing.append(f"no remote is linked to the VSC (its mode is {name})")
-    if min_battery > 0:
-        if remote is None or remote_seen is None:
-            missing.append(
-                "the remote's battery is not reported (the VSC sends remote status once "
-                "commissioned: srcsctl commission)"
-            )
-        elif now - remote_seen > REMOTE_STATUS_FRESH_NS:
-            age = (now - remote_seen) / NS_PER_S
-            fresh = REMOTE_STATUS_FRESH_NS // NS_PER_S
-            missing.append(
-                f"the remote's battery was last reported {age:.1f} s ago (more than {fresh} s)"
-            )
-        elif remote.battery_level < min_battery:
-            missing.append(
-                f"the remote's battery is {remote.battery_level} %, below {min_battery} %"
-            )
+    level = None if remote is None else remote.battery_level
+    battery = battery_missing(now, level, remote_seen, min_battery)
+    if battery is not None:
+        missing.append(battery)
     if (
         prooftest is not None
         and prooftest.policy is not ProofTestPolicy.OFF

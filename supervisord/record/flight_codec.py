@@ -22,6 +22,7 @@ from supervisord.protocol.codes import MessageType
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 from supervisord.protocol.payload import decode_payload, encode_payload, payload_length_ok
 from supervisord.record.format import TRIGGER_EVENTS
+from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY, Reaction
 from supervisord.safety.config import (
     ClientSpec,
     OutputRole,
@@ -241,6 +242,8 @@ def config_to_json(config: SafetyConfig) -> JsonDict:
         ],
         "prooftest": config.prooftest.value,
         "prooftest_clear_ms": config.prooftest_clear_ms,
+        "min_remote_battery": config.min_remote_battery,
+        "on_estop_unavailable": config.on_estop_unavailable.value,
     }
 
 
@@ -275,6 +278,9 @@ def config_from_json(data: object) -> SafetyConfig:
             ),
             prooftest=ProofTestPolicy(data.get("prooftest")),
             prooftest_clear_ms=_int(data.get("prooftest_clear_ms")),
+            # A window written before SR-8.12: the defaults it ran with.
+            min_remote_battery=_int(data.get("min_remote_battery", DEFAULT_MIN_REMOTE_BATTERY)),
+            on_estop_unavailable=Reaction(data.get("on_estop_unavailable", Reaction.WARN.value)),
         )
     except (AttributeError, ValueError) as error:  # ConfigError is a ValueError too
         raise FlightFormatError(f"not a configuration: {error}") from error

@@ -42,8 +42,10 @@ class CauseKind(enum.Enum):
     VSC_WATCHDOG_OFF = "vsc_watchdog_off"
     VSC_WATCHDOG_UNTESTED = "vsc_watchdog_untested"  # SR-5.3: key 85 not proven to act
     INTERNAL = "internal"
+    ESTOP_UNAVAILABLE = "estop_unavailable"  # SR-8.12, vsc.on_estop_unavailable = "stop"
     VSC_MODE = "vsc_mode"  # SR-3 hold
     CLIENT_HOLD = "client_hold"  # SR-3 hold
+    ESTOP_UNAVAILABLE_HOLD = "estop_unavailable_hold"  # SR-8.12, on_estop_unavailable = "hold"
 
     @property
     def severity(self) -> Severity:
@@ -73,7 +75,9 @@ class CauseKind(enum.Enum):
         return self.severity is Severity.STOP and self not in _NOT_USER_ESTOP_KINDS
 
 
-_HOLD_KINDS = frozenset({CauseKind.VSC_MODE, CauseKind.CLIENT_HOLD})
+_HOLD_KINDS = frozenset(
+    {CauseKind.VSC_MODE, CauseKind.CLIENT_HOLD, CauseKind.ESTOP_UNAVAILABLE_HOLD}
+)
 _SUBJECT_KINDS = frozenset(
     {
         CauseKind.CLIENT_LOST,

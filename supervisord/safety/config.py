@@ -16,6 +16,11 @@ from typing import Final
 from supervisord import strict
 from supervisord.compat import StrEnum
 from supervisord.errors import ConfigError
+from supervisord.safety.availability import (
+    DEFAULT_MIN_REMOTE_BATTERY,
+    MIN_REMOTE_BATTERY_RANGE,
+    Reaction,
+)
 from supervisord.safety.prooftest import ProofTestPolicy
 from supervisord.timebase import NS_PER_MS, NS_PER_S
 
@@ -53,6 +58,7 @@ leaving power on for seconds after a stop; drives brake well within it (docs/out
 categories")."""
 _ROLES = ", ".join(f'"{role.value}"' for role in OutputRole)
 _POLICIES = ", ".join(f'"{p.value}"' for p in ProofTestPolicy)
+_REACTIONS = ", ".join(f'"{r.value}"' for r in Reaction)
 
 DEFAULT_VSC_TIMEOUT_MS = {Transport.SERIAL: 200, Transport.CAN: 300, Transport.HID: 200}
 """SR-2.2 ``vsc_link_lost``: 200 ms on serial, 300 ms on CAN."""
@@ -164,6 +170,9 @@ class SafetyConfig:
     ``supervisord.config``); a core built in code for tests of other rules runs none. On CAN
     and HID only ``OFF`` is accepted: there is no user heartbeat to withhold.
 
+    ``min_remote_battery`` and ``on_estop_unavailable`` (SR-8.11, SR-8.12): the remote's
+    battery below that percent, or not reported, is warned of, or holds or stops the robot.
+
     Every error names the key as the robot's file spells it (``vsc.timeout_ms``,
     ``rearm.hold_ms``), for a config read from the file as for one built in code.
     """
@@ -178,6 +187,8 @@ class SafetyConfig:
     outputs: tuple[OutputSpec, ...] = ()
     prooftest: ProofTestPolicy = ProofTestPolicy.OFF
     prooftest_clear_ms: int = DEFAULT_PROOFTEST_CLEAR_MS
+    min_remote_battery: int = DEFAULT_MIN_REMOTE_BATTERY
+    on_estop_unavailable: Reaction = Reaction.WARN
 
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
@@ -212,6 +223,16 @@ class SafetyConfig:
             *PROOFTEST_CLEAR_RANGE_MS,
             ConfigError,
         )
+        strict.whole(
+            "vsc.min_remote_battery",
+            self.min_remote_battery,
+            *MIN_REMOTE_BATTERY_RANGE,
+            ConfigError,
+        )
+        if not isinstance(self.on_estop_unavailable, Reaction):
+            raise ConfigError(
+                "vsc.on_estop_unavailable", self.on_estop_unavailable, f"use one of {_REACTIONS}"
+            )
         if not isinstance(self.clients, tuple) or not all(
             isinstance(c, ClientSpec) for c in self.clients
         ):

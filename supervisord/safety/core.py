@@ -37,6 +37,11 @@ from supervisord.protocol.messages import (
     UserHeartbeat,
     VscHeartbeat,
 )
+from supervisord.safety.availability import (
+    REMOTE_STATUS_FRESH_NS,
+    Reaction,
+    battery_missing,
+)
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.canonical import Canonical, Clock, clock
@@ -136,7 +141,8 @@ unknown mode or no heartbeat is a re-link that loses the remote's display (PR-2)
 INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
 """VSC messages that change no fact the core keeps (``_on_vsc`` ignores them): in a steady
 state they take the cheap path (docs/performance.md "The cheap path"). A whitelist, so that a
-message type added later takes the full path until someone decides otherwise."""
+message type added later takes the full path until someone decides otherwise. Remote status
+is inert only while the core does not react to the remote's battery (SR-8.12)."""
 
 
 def mode_name(mode: int) -> str:
@@ -248,6 +254,15 @@ class SafetyCore:
     # ----------------------------------------------------------------- public API
 
     @functools.cached_property
+    def _battery_cause(self) -> Cause | None:
+        """The cause the remote's battery raises (SR-8.12), or ``None`` when the core does not
+        watch it (``on_estop_unavailable = "warn"``, or no battery check); computed once."""
+        config = self._config
+        if config.min_remote_battery <= 0:
+            return None
+        return _BATTERY_CAUSES.get(config.on_estop_unavailable)
+
+    @functools.cached_property
     def _off_delays_ns(self) -> dict[str, int]:
         """Each category-1 output's delay (SR-1.4); the config is frozen: computed once."""
         return {o.name: o.off_delay_ns for o in self._config.outputs if o.off_delay_ms}
@@ -327,6 +342,11 @@ class SafetyCore:
             keep("decision:next", self.decision.next_deadline, 0)
         for name, beat in sorted(self._client_beat_ns.items()):
             keep(f"client:{name}", beat, self._client_timeout_ns[name])
+        battery_low = None
+        battery = self._battery
+        if self._battery_cause is not None and battery is not None:  # SR-8.12: when watched
+            keep("battery:seen", battery[1], REMOTE_STATUS_FRESH_NS)
+            battery_low = battery[0] < self._config.min_remote_battery
         proof_facts, proof_clocks = self._proof.canonical(now, self._key85)
         display_facts, display_clocks = self._display.canonical(now)
         clocks += [*proof_clocks, *display_clocks, *self._budget.canonical(now)]
@@ -368,6 +388,7 @@ class SafetyCore:
             ),
             ("local_estop", self._local_estop),
             ("output_faults", tuple(sorted(self._output_faults.items()))),
+            ("battery_low", battery_low),
             ("proof", proof_facts),
             ("display", display_facts),
         )
@@ -385,6 +406,7 @@ class SafetyCore:
             "_heartbeat_period_ns",
             "_client_timeout_ns",
             "_serial",
+            "_battery_cause",
             # The reference every clock is measured from; the record's sequence number.
             "_now",
             "_sequence",
@@ -410,6 +432,8 @@ class SafetyCore:
     # on while a category-1 output may still be on, that time again.
     _motion_off_ns: int | None = None
     _braking_since: int | None = None
+    # SR-8.12: the last remote status's battery percent and when it came, kept while watched.
+    _battery: tuple[int, int] | None = None
 
     def handle(self, event: Event) -> Decision:
         """Feed one input; never raises (a failure of the core stops with ``internal``)."""
@@ -467,7 +491,9 @@ class SafetyCore:
                     or (self._held_mode is not None and message.mode != self._held_mode)
                 ):
                     return None
-            elif type(message) not in _INERT_TYPES:
+            elif type(message) not in _INERT_TYPES or (
+                self._battery_cause is not None and type(message) is RemoteStatus
+            ):
                 return None
             self._now = now
             if self._on_vsc(event, now) is not None:  # cannot happen: the mode is unchanged
@@ -515,8 +541,10 @@ class SafetyCore:
         key85 = self._next_key85_ns
         display = self._display.next_due()
         proof = self._proof.next_deadline(self._key85)
+        stale = self._battery_stale_at()
         return (
-            (key85 is None or key85 > now)
+            (stale is None or stale > now)
+            and (key85 is None or key85 > now)
             and (display is None or display > now)
             and (proof is None or proof > now)
         )
@@ -785,6 +813,9 @@ class SafetyCore:
             if linked and not self._remote_linked:
                 self._display.relink()
             self._remote_linked = linked
+        elif isinstance(message, RemoteStatus):
+            if self._battery_cause is not None:
+                self._battery = (message.battery_level, now)
         elif isinstance(message, FeedbackSet):
             if message.key == FeedbackKey.USER_ESTOP_TIMEOUT:
                 self._key85 = message.value
@@ -1134,6 +1165,23 @@ class SafetyCore:
             {Cause(CauseKind.CLIENT_HOLD, n): () for n in self._client_holds},
             now,
         )
+        battery_cause, battery = self._battery_cause, self._battery
+        if battery_cause is not None:
+            level, seen = (None, None) if battery is None else battery
+            missing = battery_missing(now, level, seen, config.min_remote_battery)
+            book.set(
+                battery_cause,
+                missing is not None,
+                now,
+                make_details([("reason", missing)]) if missing is not None else (),
+            )
+
+    def _battery_stale_at(self) -> int | None:
+        """When the last battery report stops counting (SR-8.12), if the core watches it."""
+        battery = self._battery
+        if self._battery_cause is None or battery is None:
+            return None
+        return battery[1] + REMOTE_STATUS_FRESH_NS
 
     def _advance_proof(self, now: int) -> None:
         """Start, abort or time out the proof test (docs/safety.md "The proof test"). It runs
@@ -1366,6 +1414,9 @@ class SafetyCore:
         last = self._last_vsc_ns
         if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:
             earliest = due
+        stale = self._battery_stale_at()
+        if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old
+            earliest = stale
         since = self._braking_since
         if since is not None:  # SR-1.4: a category-1 output goes off at its delay, never later
             for delay in self._off_delays_ns.values():
@@ -1424,6 +1475,14 @@ _VSC_ESTOP = Cause(CauseKind.VSC_ESTOP)
 _VSC_WATCHDOG_OFF = Cause(CauseKind.VSC_WATCHDOG_OFF)
 _VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
 _LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
+_BATTERY_CAUSES: Final[Mapping[Reaction, Cause]] = MappingProxyType(
+    {
+        Reaction.HOLD: Cause(CauseKind.ESTOP_UNAVAILABLE_HOLD),
+        Reaction.STOP: Cause(CauseKind.ESTOP_UNAVAILABLE),
+    }
+)
+"""SR-8.12: the cause the remote's battery raises under each ``vsc.on_estop_unavailable``
+(none under ``warn``)."""
 _CHEAP_EVENTS = frozenset({Tick, VscReceived})
 _CLIENT_EVENTS = (
     ClientConnected,

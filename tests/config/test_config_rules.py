@@ -31,6 +31,7 @@ from supervisord.config import (
 from supervisord.config.schema import RECORD
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
+from supervisord.safety.availability import Reaction
 from supervisord.safety.config import Transport
 from supervisord.strict import shown
 from supervisord.timebase import NS_PER_MS as MS
@@ -228,6 +229,8 @@ VSC_CASES: list[Case] = [
     ({"vsc.min_remote_battery": -1}, "vsc.min_remote_battery", "from 0 to 100"),
     ({"vsc.min_remote_battery": 101}, "vsc.min_remote_battery", "from 0 to 100"),
     ({"vsc.min_remote_battery": "20"}, "vsc.min_remote_battery", "without quotes"),
+    ({"vsc.on_estop_unavailable": "halt"}, "vsc.on_estop_unavailable", '"hold"'),
+    ({"vsc.on_estop_unavailable": True}, "vsc.on_estop_unavailable", '"warn"'),
     ({"vsc.timeout_ms": 49}, "vsc.timeout_ms", "from 50 to 1000"),
     ({"vsc.timeout_ms": 1001}, "vsc.timeout_ms", "from 50 to 1000"),
     ({"vsc.timeout_ms": "200"}, "vsc.timeout_ms", "without quotes"),
@@ -266,9 +269,27 @@ def test_serial_defaults_and_fixed_baud(tmp_path: Path) -> None:
 def test_min_remote_battery(tmp_path: Path, changes: dict[str, object], expected: int) -> None:
     """vsc.min_remote_battery (SR-8.11): 20 % by default, 0 (no battery check) to 100, on
     every transport."""
-    assert load(tmp_path, changes).vsc.min_remote_battery == expected
+    assert load(tmp_path, changes).safety.min_remote_battery == expected
     can = {**CAN_VSC, **{key.removeprefix("vsc."): value for key, value in changes.items()}}
-    assert load(tmp_path, {"vsc": can}).vsc.min_remote_battery == expected
+    assert load(tmp_path, {"vsc": can}).safety.min_remote_battery == expected
+
+
+@pytest.mark.parametrize(
+    ("changes", "expected"),
+    [
+        ({}, Reaction.WARN),
+        ({"vsc.on_estop_unavailable": "hold"}, Reaction.HOLD),
+        ({"vsc.on_estop_unavailable": "stop"}, Reaction.STOP),
+    ],
+)
+def test_on_estop_unavailable(
+    tmp_path: Path, changes: dict[str, object], expected: Reaction
+) -> None:
+    """vsc.on_estop_unavailable (SR-8.12): a warning by default, a hold or a stop when given,
+    on every transport."""
+    assert load(tmp_path, changes).safety.on_estop_unavailable is expected
+    can = {**CAN_VSC, **{key.removeprefix("vsc."): value for key, value in changes.items()}}
+    assert load(tmp_path, {"vsc": can}).safety.on_estop_unavailable is expected
 
 
 def test_can_vsc_defaults(tmp_path: Path) -> None:

@@ -24,10 +24,14 @@ from typing import Final
 from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
-from supervisord.daemon.availability import DEFAULT_MIN_REMOTE_BATTERY, MIN_REMOTE_BATTERY_RANGE
 from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
+from supervisord.safety.availability import (
+    DEFAULT_MIN_REMOTE_BATTERY,
+    MIN_REMOTE_BATTERY_RANGE,
+    Reaction,
+)
 from supervisord.safety.config import (
     CLIENT_TIMEOUT_RANGE_MS,
     DEFAULT_CLIENT_TIMEOUT_MS,
@@ -150,13 +154,25 @@ PROOFTEST_CLEAR: Final = strict.Whole(
 )
 MIN_REMOTE_BATTERY: Final = strict.Whole(
     name="min_remote_battery",
-    doc="Below this battery percent of the remote, the e-stop counts as not available: a "
-    'warning in status, never a stop (SR-8.11, docs/safety.md "Is the e-stop available?"); '
-    "0: no battery check.",
+    doc="Below this battery percent of the remote, or with its battery not reported for 3 s, "
+    'the e-stop counts as not available (SR-8.11, docs/safety.md "Is the e-stop available?"); '
+    "on_estop_unavailable says what follows. 0: no battery check.",
     default=DEFAULT_MIN_REMOTE_BATTERY,
     example=DEFAULT_MIN_REMOTE_BATTERY,
     low=MIN_REMOTE_BATTERY_RANGE[0],
     high=MIN_REMOTE_BATTERY_RANGE[1],
+)
+ON_ESTOP_UNAVAILABLE: Final = strict.Choice(
+    name="on_estop_unavailable",
+    doc="What the remote's battery below min_remote_battery, or not reported, does (SR-8.12, "
+    'docs/safety.md "Is the e-stop available?").',
+    values={
+        Reaction.WARN.value: "a warning in status, the exporter and the ROS 2 bridge",
+        Reaction.HOLD.value: "HOLD (cause estop_unavailable_hold) until the battery is back",
+        Reaction.STOP.value: "STOPPED (cause estop_unavailable), a takeover once it is back",
+    },
+    default=Reaction.WARN.value,
+    example=Reaction.HOLD.value,
 )
 REOPEN_MIN: Final = strict.Whole(
     name="reopen_min_ms",
@@ -270,6 +286,7 @@ VSC_COMMON: Final = (
     PROOFTEST,
     PROOFTEST_CLEAR,
     MIN_REMOTE_BATTERY,
+    ON_ESTOP_UNAVAILABLE,
     REOPEN_MIN,
     REOPEN_MAX,
 )

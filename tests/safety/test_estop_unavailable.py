@@ -1,0 +1,162 @@
+"""The remote's battery as the e-stop's availability (SR-8.12): under
+``vsc.on_estop_unavailable`` a battery below ``vsc.min_remote_battery``, or not reported for
+more than 3 s, is a warning only, holds the robot, or stops it. Time is the rig's own."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from supervisord.protocol.messages import RemoteStatus
+from supervisord.safety import SafetyConfig, State
+from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction
+from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
+
+HOLD = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.HOLD)
+STOP = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.STOP)
+
+
+def running(config: SafetyConfig, battery: int = 80) -> Rig:
+    """RUN with the remote reporting ``battery`` percent just before the takeover."""
+    rig = Rig(config)
+    rig.open_link()
+    rig.key85(1)
+    rig.connect()
+    rig.from_vsc(RemoteStatus(battery))
+    decision = rig.take_over(600)
+    assert decision.state is State.RUN, decision.causes
+    return rig
+
+
+def active(rig: Rig) -> set[str]:
+    return {c.name for c in rig.last.causes if c.active}
+
+
+def test_a_low_battery_is_only_a_warning_by_default() -> None:
+    """``warn`` (the default): the core does not read the battery; RUN stays RUN."""
+    rig = running(ROBOT)
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(10))
+    assert rig.state is State.RUN
+    assert rig.run_for(REMOTE_STATUS_FRESH_NS * 3 // MS, OPERATIONAL).state is State.RUN
+
+
+def test_a_low_battery_holds_and_a_good_one_runs_again() -> None:
+    """``hold``: 10 % (below 20) holds with ``estop_unavailable_hold`` naming it; motion off,
+    power on; a report of 80 % ends the hold, as every hold ends (SR-3)."""
+    rig = running(HOLD)
+    rig.advance(10)
+    decision = rig.from_vsc(RemoteStatus(10))
+    assert decision.state is State.HOLD
+    (cause,) = [c for c in decision.causes if c.active]
+    assert cause.name == "estop_unavailable_hold"
+    assert cause.detail("reason") == "the remote's battery is 10 %, below 20 %"
+    assert decision.outputs == {"drive": False, "lights": True}
+    rig.advance(10)
+    assert rig.from_vsc(RemoteStatus(80)).state is State.RUN
+
+
+def test_a_low_battery_stops_latches_and_sets_the_heartbeat_byte() -> None:
+    """``stop``: STOPPED in the same step with ``estop_unavailable``, every output off and the
+    user heartbeat's e-stop byte set (SR-5.2); a good report clears the condition but only a
+    takeover re-arms (SR-4)."""
+    rig = running(STOP)
+    rig.advance(10)
+    decision = rig.from_vsc(RemoteStatus(19))
+    assert decision.state is State.STOPPED
+    assert active(rig) == {"estop_unavailable"}
+    assert not any(decision.outputs.values())
+    assert decision.heartbeat_estop == 1
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(20))  # the minimum itself counts as enough
+    rig.run_for(600, OPERATIONAL)
+    assert rig.state is State.STOPPED
+    assert active(rig) == set()
+    assert rig.take_over(600).state is State.RUN
+
+
+def test_a_report_three_seconds_old_holds_at_that_nanosecond() -> None:
+    """The last report counts while younger than 3 s; the core's deadline is the nanosecond it
+    turns 3 s old, and a tick there holds (heartbeats and the client keep coming meanwhile)."""
+    rig = running(HOLD)
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(80))
+    seen = rig.now
+    while rig.now + 50 * MS < seen + REMOTE_STATUS_FRESH_NS:
+        rig.advance(50)
+        rig.vsc()
+        rig.beat()
+    assert rig.state is State.RUN
+    assert rig.last.next_deadline <= seen + REMOTE_STATUS_FRESH_NS
+    rig.now = seen + REMOTE_STATUS_FRESH_NS - 1
+    assert rig.tick().state is State.RUN
+    rig.now += 1
+    decision = rig.tick()
+    assert decision.state is State.HOLD
+    (cause,) = [c for c in decision.causes if c.active]
+    assert cause.detail("reason") == "the remote's battery has not been reported for 3 s"
+    since = len(rig.decisions)
+    rig.run_for(500, OPERATIONAL)  # the same words as time goes on: nothing new to record
+    assert [d.records for d in rig.decisions[since:] if d.records] == []
+
+
+def test_no_report_at_all_keeps_a_takeover_from_running() -> None:
+    """``hold`` with no remote status yet (a VSC not commissioned): a takeover reaches HOLD,
+    not RUN, until the first good report."""
+    rig = Rig(HOLD)
+    rig.open_link()
+    rig.key85(1)
+    rig.connect()
+    decision = rig.take_over(600)
+    assert decision.state is State.HOLD
+    assert active(rig) == {"estop_unavailable_hold"}
+    rig.advance(10)
+    assert rig.from_vsc(RemoteStatus(90)).state is State.RUN
+
+
+def test_a_minimum_of_zero_watches_nothing() -> None:
+    """``min_remote_battery = 0`` turns the check off, whatever the reaction."""
+    rig = running(dataclasses.replace(STOP, min_remote_battery=0), battery=0)
+    assert rig.run_for(REMOTE_STATUS_FRESH_NS * 2 // MS, OPERATIONAL).state is State.RUN
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    reaction=st.sampled_from([Reaction.HOLD, Reaction.STOP]),
+    levels=st.lists(st.integers(0, 100), min_size=1, max_size=8),
+    minimum=st.integers(1, 100),
+)
+def test_the_cause_is_active_exactly_while_the_last_level_is_below_the_minimum(
+    reaction: Reaction, levels: list[int], minimum: int
+) -> None:
+    """For any sequence of fresh reports, the cause is active after each exactly when that
+    report is below the minimum."""
+    config = dataclasses.replace(ROBOT, on_estop_unavailable=reaction, min_remote_battery=minimum)
+    rig = Rig(config)
+    rig.open_link()
+    name = "estop_unavailable_hold" if reaction is Reaction.HOLD else "estop_unavailable"
+    for level in levels:
+        rig.advance(100)
+        rig.vsc()
+        rig.from_vsc(RemoteStatus(level))
+        assert (name in active(rig)) == (level < minimum)
+
+
+@pytest.mark.parametrize("reaction", [Reaction.HOLD, Reaction.STOP])
+def test_remote_status_is_not_cheap_when_watched(reaction: Reaction) -> None:
+    """A remote status takes the full step when the core reacts to the battery: the same
+    decisions with the cheap path off (SR-9.4)."""
+    config = dataclasses.replace(ROBOT, on_estop_unavailable=reaction)
+    rigs = [running(config), running(config)]
+    rigs[1].core.cheap_path = False
+    for rig in rigs:
+        for level in (80, 80, 10, 10, 90):
+            rig.advance(20)
+            rig.vsc()
+            rig.beat()
+            rig.from_vsc(RemoteStatus(level))
+    assert [d.state for d in rigs[0].decisions] == [d.state for d in rigs[1].decisions]
+    assert rigs[0].last.causes == rigs[1].last.causes
