@@ -9,6 +9,7 @@ import pytest
 
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from tests.faults.test_flight import _window_of, srcsctl
 
 REPORT_S = 1.0  # the VSC's remote status comes once a second once commissioned
 CAUSES = {"hold": "estop_unavailable_hold", "stop": "estop_unavailable"}
@@ -26,7 +27,8 @@ def test_a_low_remote_battery_in_run_holds_or_stops_and_a_good_one_is_needed_aga
     motion output goes off and the change is recorded with the cause and its reason. Under
     ``hold`` the power output stays on and RUN comes back by itself once the battery reads
     80 % again; under ``stop`` every output is off, and back at 80 % the robot stays STOPPED
-    until the operator's takeover."""
+    until the operator's takeover; the stop's flight window, replayed, decides the same (the
+    remote status it was fed and the reaction in its configuration, SR-7.12)."""
     extra = f'on_estop_unavailable = "{reaction}"'
     with Robot(tmp_path, extra_vsc=extra) as robot:
         assert robot.watcher is not None
@@ -45,6 +47,10 @@ def test_a_low_remote_battery_in_run_holds_or_stops_and_a_good_one_is_needed_aga
         reason = {c["name"]: c for c in record["causes"]}[cause]["details"]["reason"]
         assert reason == "the remote's battery is 10 %, below 20 %"
         assert robot.output_file("power") is (reaction == "hold")
+        if reaction == "stop":  # its window, replayed, decides as the daemon did (SR-7.12)
+            _window_of(robot, record)
+            done = srcsctl("replay", str(record["seq"]), "--config", str(robot.config_path))
+            assert "replay matches the record" in done.stdout, done.stdout + done.stderr
         robot.vsc.call("remote_status", battery_level=80)
         if reaction == "hold":
             robot.wait_state("RUN", timeout=REPORT_S * 5)

@@ -9,14 +9,15 @@ import pytest
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.safety import ClientSpec, OutputRole, OutputSpec, SafetyConfig, Transport
+from supervisord.safety.availability import Reaction
 from supervisord.safety.prooftest import ProofTestPolicy
 from supervisord.timebase import NS_PER_MS as MS
 
 
 def test_defaults_follow_the_rules() -> None:
     """Defaults: serial, 200 ms VSC timeout, 20 Hz, 500 ms hold, no local reset, watchdog
-    required, a 500 ms client timeout, and a proof test's clear wait of 10 s (docs/safety.md
-    "The proof test", SR-5.3)."""
+    required, a 500 ms client timeout, a proof test's clear wait of 10 s (docs/safety.md
+    "The proof test", SR-5.3), and the remote's battery at 20 % only warned of (SR-8.12)."""
     config = SafetyConfig()
     assert config.transport is Transport.SERIAL
     assert config.vsc_timeout_ns == 200 * MS
@@ -25,6 +26,8 @@ def test_defaults_follow_the_rules() -> None:
     assert config.local_reset is False
     assert config.require_watchdog is True
     assert config.prooftest_clear_ms == 10_000
+    assert config.min_remote_battery == 20
+    assert config.on_estop_unavailable is Reaction.WARN
     assert ClientSpec("planner").timeout_ms == 500
 
 
@@ -67,6 +70,7 @@ def test_serial_takes_every_proof_test_policy(policy: ProofTestPolicy) -> None:
         ({"clients": ("a",)}, "clients"),
         ({"require_watchdog": 1}, "vsc.require_watchdog"),
         ({"prooftest": "block"}, "vsc.prooftest"),
+        ({"on_estop_unavailable": "hold"}, "vsc.on_estop_unavailable"),
         ({"transport": Transport.HID, "prooftest": ProofTestPolicy.BLOCK}, "vsc.prooftest"),
         (
             {
@@ -181,6 +185,7 @@ def test_the_loader_names_the_file_and_key(tmp_path: Path, old: str, new: str, k
         ("heartbeat_hz", "vsc.heartbeat_hz", 20, 50),
         ("rearm_hold_ms", "rearm.hold_ms", 100, 60_000),
         ("prooftest_clear_ms", "vsc.prooftest_clear_ms", 1_000, 600_000),
+        ("min_remote_battery", "vsc.min_remote_battery", 0, 100),
     ],
 )
 def test_each_range_takes_its_ends_and_refuses_one_past_them(
