@@ -256,6 +256,13 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "core.py",
         _DEADLINE,
+        "if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old",
+        "if stale is not None and now < stale <= earliest:  # SR-8.12: the report is too old",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
         "if later is not None and now < later < earliest:",
         "if later is not None and now < later <= earliest:",
         _LATER_EQUAL,

@@ -51,6 +51,7 @@ TARGETS = (
     "transitions.py",
     "decision.py",
     "events.py",
+    "availability.py",
 )
 SUITE = "tests/safety"
 SKIPPED_FUNCTIONS = frozenset({"canonical"})

@@ -10,9 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from supervisord.protocol.messages import RemoteStatus
-from supervisord.safety import SafetyConfig, State
+from supervisord.protocol.messages import Joystick, RemoteStatus, UserHeartbeat
+from supervisord.safety import SafetyConfig, State, Transport
 from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction
+from supervisord.safety.core import IDLE_NS
 from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
 
 HOLD = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.HOLD)
@@ -160,3 +161,55 @@ def test_remote_status_is_not_cheap_when_watched(reaction: Reaction) -> None:
             rig.from_vsc(RemoteStatus(level))
     assert [d.state for d in rigs[0].decisions] == [d.state for d in rigs[1].decisions]
     assert rigs[0].last.causes == rigs[1].last.causes
+
+
+def test_a_heartbeat_due_with_the_report_going_stale_takes_the_full_step() -> None:
+    """The report goes stale at the very instant a user heartbeat is due, and a VSC heartbeat
+    arrives then: the step holds (the cheap path, which only sends the heartbeat, declines at
+    the report's deadline), one nanosecond before it does not."""
+    rig = running(HOLD)
+    while not any(isinstance(f, UserHeartbeat) for f in rig.last.frames):
+        rig.advance(10)  # to an instant at which a user heartbeat is due, and sent
+        rig.vsc()
+    rig.from_vsc(RemoteStatus(80))
+    seen = rig.now
+    while rig.now + 50 * MS < seen + REMOTE_STATUS_FRESH_NS:
+        rig.advance(50)
+        rig.vsc()
+        rig.beat()
+    rig.now = seen + REMOTE_STATUS_FRESH_NS
+    decision = rig.vsc()
+    assert any(isinstance(f, UserHeartbeat) for f in decision.frames)  # the heartbeat was due
+    assert decision.state is State.HOLD
+
+
+@pytest.mark.parametrize("reaction", list(Reaction))
+def test_an_inert_message_is_cheap_and_a_remote_status_only_when_not_watched(
+    reaction: Reaction,
+) -> None:
+    """In a steady RUN a joystick frame takes the cheap path whatever the reaction; a remote
+    status does under ``warn``, and takes the full step when the core reacts to it (SR-9.4)."""
+    rig = running(dataclasses.replace(ROBOT, on_estop_unavailable=reaction))
+    refreshes = rig.count_refreshes()
+    rig.advance(1)
+    rig.from_vsc(Joystick())
+    assert refreshes == []
+    rig.advance(1)
+    rig.from_vsc(RemoteStatus(80))
+    assert (refreshes == []) is (reaction is Reaction.WARN)
+
+
+def test_a_minimum_of_zero_sets_no_deadline_for_the_report() -> None:
+    """With ``min_remote_battery = 0`` no report is watched, so none has a deadline: on CAN
+    (no user heartbeat) with the VSC silent, the core sleeps its whole idle second right up to
+    and past the instant a watched report would have gone stale."""
+    config = dataclasses.replace(
+        STOP, transport=Transport.CAN, require_watchdog=False, clients=(), min_remote_battery=0
+    )
+    rig = Rig(config)
+    rig.open_link()
+    rig.from_vsc(RemoteStatus(80))
+    seen = rig.now
+    rig.now = seen + REMOTE_STATUS_FRESH_NS - 500 * MS
+    decision = rig.tick()
+    assert decision.next_deadline == decision.now + IDLE_NS
