@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from supervisord.protocol.messages import Joystick, RemoteStatus, UserHeartbeat
 from supervisord.safety import SafetyConfig, State, Transport
-from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction
+from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction, battery_missing
 from supervisord.safety.core import IDLE_NS
 from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
 
@@ -213,3 +213,14 @@ def test_a_minimum_of_zero_sets_no_deadline_for_the_report() -> None:
     rig.now = seen + REMOTE_STATUS_FRESH_NS - 500 * MS
     decision = rig.tick()
     assert decision.next_deadline == decision.now + IDLE_NS
+
+
+def test_the_rule_checks_nothing_at_a_minimum_of_zero_and_names_a_missing_report() -> None:
+    """``battery_missing``, the one rule of the core and of ``status``: a minimum of 0 checks
+    nothing, whatever was reported; a report of which either half is missing is no report."""
+    assert battery_missing(0, None, None, 0) is None
+    assert battery_missing(REMOTE_STATUS_FRESH_NS * 9, 0, 0, 0) is None
+    for level, seen in ((None, None), (50, None), (None, 0)):
+        assert (battery_missing(0, level, seen, 20) or "").startswith(
+            "the remote's battery is not reported"
+        )
