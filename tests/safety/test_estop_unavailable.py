@@ -32,6 +32,18 @@ def running(config: SafetyConfig, battery: int = 80) -> Rig:
     return rig
 
 
+def reported_until_stale(rig: Rig) -> int:
+    """A good report now, then the VSC and the client beating every 50 ms up to the last step
+    before the report turns 3 s old; the time of the report."""
+    rig.from_vsc(RemoteStatus(80))
+    seen = rig.now
+    while rig.now + 50 * MS < seen + REMOTE_STATUS_FRESH_NS:
+        rig.advance(50)
+        rig.vsc()
+        rig.beat()
+    return seen
+
+
 def active(rig: Rig) -> set[str]:
     return {c.name for c in rig.last.causes if c.active}
 
@@ -84,12 +96,7 @@ def test_a_report_three_seconds_old_holds_at_that_nanosecond() -> None:
     turns 3 s old, and a tick there holds (heartbeats and the client keep coming meanwhile)."""
     rig = running(HOLD)
     rig.advance(10)
-    rig.from_vsc(RemoteStatus(80))
-    seen = rig.now
-    while rig.now + 50 * MS < seen + REMOTE_STATUS_FRESH_NS:
-        rig.advance(50)
-        rig.vsc()
-        rig.beat()
+    seen = reported_until_stale(rig)
     assert rig.state is State.RUN
     assert rig.last.next_deadline <= seen + REMOTE_STATUS_FRESH_NS
     rig.now = seen + REMOTE_STATUS_FRESH_NS - 1
@@ -165,18 +172,13 @@ def test_remote_status_is_not_cheap_when_watched(reaction: Reaction) -> None:
 
 def test_a_heartbeat_due_with_the_report_going_stale_takes_the_full_step() -> None:
     """The report goes stale at the very instant a user heartbeat is due, and a VSC heartbeat
-    arrives then: the step holds (the cheap path, which only sends the heartbeat, declines at
-    the report's deadline), one nanosecond before it does not."""
+    arrives then: the step holds (the cheap path, which would only send the heartbeat,
+    declines at the report's deadline)."""
     rig = running(HOLD)
     while not any(isinstance(f, UserHeartbeat) for f in rig.last.frames):
         rig.advance(10)  # to an instant at which a user heartbeat is due, and sent
         rig.vsc()
-    rig.from_vsc(RemoteStatus(80))
-    seen = rig.now
-    while rig.now + 50 * MS < seen + REMOTE_STATUS_FRESH_NS:
-        rig.advance(50)
-        rig.vsc()
-        rig.beat()
+    seen = reported_until_stale(rig)
     rig.now = seen + REMOTE_STATUS_FRESH_NS
     decision = rig.vsc()
     assert any(isinstance(f, UserHeartbeat) for f in decision.frames)  # the heartbeat was due
