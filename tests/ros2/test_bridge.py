@@ -321,12 +321,18 @@ def test_a_nonzero_cmd_vel_in_blocks_the_takeover_and_zero_lets_it(
     ros.spin_until(moving, what="the bridge's non-zero declaration")
     stop = running.remote_estop()
     ros.spin_until(lambda: ros.state[-1:] == ["STOPPED"], what="state STOPPED")
+    # The zero the bridge sends as RUN ends follows everything it forwarded before (one
+    # publisher, one reliable topic, in order): once it is in, no earlier command is still on
+    # its way to be counted as one forwarded after the stop.
+    ros.spin_until(
+        lambda: bool(ros.cmd_out) and ros.cmd_out[-1] == Twist(), what="the zero as RUN ended"
+    )
+    forwarded = len(ros.cmd_out)
     running.vsc.release()
     refused = running.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
     assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
     assert not [r for r in running.records_since(stop.t_fault) if r.get("rearm")]
     assert running.status().report.state == "STOPPED"
-    forwarded = len(ros.cmd_out)
     ros.cmd_in.publish(go)  # still refused: the gate stays closed
 
     def stopped() -> bool:
