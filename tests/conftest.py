@@ -1,10 +1,13 @@
 """The whole session's network rule (docs/testing.md "Network"): a private namespace when
 the session can make one, a clear skip for multicast when it cannot, and a guard that fails
-any test sending off loopback outside such a namespace."""
+any test sending off loopback outside such a namespace. And where its files go: in memory,
+where the machine has a tmpfs for it (docs/testing.md "Under load")."""
 
 from __future__ import annotations
 
+import os
 import sys
+import tempfile
 from collections.abc import Generator
 
 import pytest
@@ -17,8 +20,32 @@ NO_PRIVATE_NETWORK: str | None = None
 AUDIT = SocketAudit()
 
 
+MEMORY_TEMP_DIR = "/dev/shm"  # noqa: S108 -- a tmpfs on every Debian and Ubuntu
+
+
+def _in_memory(path: str) -> bool:
+    """Whether ``path`` is the mount point of a tmpfs this process can write to."""
+    try:
+        with open("/proc/self/mounts", encoding="utf-8") as mounts:
+            kinds = {fields[1]: fields[2] for line in mounts if len(fields := line.split()) > 2}
+    except OSError:
+        return False
+    return kinds.get(path) == "tmpfs" and os.access(path, os.W_OK)
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    """Before any test: leave the machine's network, then watch every socket of this process."""
+    """Before any test: the temporary files in memory, then leave the machine's network and
+    watch every socket of this process.
+
+    The tests' files (``tmp_path``, and everything the daemons and simulators they start write:
+    the simulated outputs' files, the logs, the records) go to a tmpfs unless ``TMPDIR`` says
+    otherwise. A simulated output stands for an enable line, which no disk delays; its file on
+    a journaled disk is renamed on the disk's time, unbounded while other processes ``fsync``,
+    and a stop would be timed late by the disk's stall, not the daemon's. What a slow disk
+    does to the daemon is the system tier's ``slowdisk`` scenario."""
+    if "TMPDIR" not in os.environ and _in_memory(MEMORY_TEMP_DIR):
+        os.environ["TMPDIR"] = MEMORY_TEMP_DIR  # children too: srcsd, srcs-sim, srcsctl
+        tempfile.tempdir = None  # read again from TMPDIR by pytest's tmp_path
     global NO_PRIVATE_NETWORK  # noqa: PLW0603 -- one fact for the whole session
     NO_PRIVATE_NETWORK = enter_private_namespace()
     AUDIT.devices = frozenset(interfaces())
