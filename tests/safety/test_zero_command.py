@@ -391,3 +391,26 @@ def test_frames_of_the_notice_are_valid_messages() -> None:
     assert rows
     assert all(len(f.text) <= 20 for f in rows)
     assert rows[-1].text == "a +1"
+
+
+def test_the_row_of_names_is_the_remotes_twenty_characters() -> None:
+    """SR-4.6, PR-2.12: the row that names who commands motion fills the remote's 20
+    characters and no more: a name of 32 shows its first 20; with a second client declaring,
+    its first 17 and " +1"."""
+    rig = Rig(dataclasses.replace(ROBOT, clients=()))
+    rig.open_link()
+    rig.key85(1)
+    rig.connect(1, "n" * 32)
+    rig.connect(2, "o")
+    assert rig.take_over(600, clients=()).state is State.RUN
+    rig.estop()
+    rig.release()
+    command(rig, True)
+    assert rig.take_over(500, clients=()).refusals[0].reason is RefusalReason.COMMAND_NONZERO
+    rig.run_for(800, OPERATIONAL, clients=())
+    assert rows_sent(rig)[92] == "n" * 20
+    since = len(rig.decisions)
+    command(rig, True, connection=2)
+    assert rig.take_over(500, clients=()).refusals[0].reason is RefusalReason.COMMAND_NONZERO
+    rig.run_for(800, OPERATIONAL, clients=())
+    assert rows_sent(rig, since)[92] == "n" * 17 + " +1"
