@@ -14,6 +14,10 @@ from typing import ClassVar
 
 from supervisord.api.wire import Fields, JsonDict, WireError
 
+LEFT_BUTTONS: tuple[str, ...] = ("down", "right", "up", "left")
+"""The left hand's pad in wire order (PR-2.4); on the wire each is ``NAME_status``."""
+RIGHT_BUTTONS: tuple[str, ...] = ("button_1", "button_2", "button_3", "button_4")
+"""The right hand's buttons in wire order (PR-2.4)."""
 JOYSTICK_AXES: tuple[str, ...] = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
 """The axes in wire order; on the wire each is ``NAME_joystick_value``."""
 
@@ -64,8 +68,9 @@ class ButtonsReport:
         return out
 
     @classmethod
-    def read(cls, f: Fields) -> ButtonsReport:
-        names = [k.removesuffix("_status") for k in f.names() if k.endswith("_status")]
+    def read(cls, f: Fields, names: tuple[str, ...]) -> ButtonsReport:
+        """The buttons ``names`` (``LEFT_BUTTONS`` or ``RIGHT_BUTTONS``): a newer daemon's
+        field that happens to end in ``_status`` is no button."""
         return cls(
             byte=f.integer("byte"),
             statuses=tuple((name, f.integer(f"{name}_status")) for name in names),
@@ -108,8 +113,8 @@ class JoystickReport:
         axes = {name: AxisReport.read(f.obj(f"{name}_joystick_value")) for name in JOYSTICK_AXES}
         return cls(
             **axes,
-            left_buttons=ButtonsReport.read(f.obj("left_button_values")),
-            right_buttons=ButtonsReport.read(f.obj("right_button_values")),
+            left_buttons=ButtonsReport.read(f.obj("left_button_values"), LEFT_BUTTONS),
+            right_buttons=ButtonsReport.read(f.obj("right_button_values"), RIGHT_BUTTONS),
         )
 
 

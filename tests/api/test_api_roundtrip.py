@@ -7,6 +7,7 @@ exception."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -17,6 +18,8 @@ from hypothesis import strategies as st
 
 from supervisord.api.framing import ApiError, encode
 from supervisord.api.messages import (
+    LEFT_BUTTONS,
+    RIGHT_BUTTONS,
     AxisReport,
     ButtonsReport,
     GpsFixReport,
@@ -67,7 +70,10 @@ from supervisord.api.status import (
     RemoteReport,
     StateReport,
 )
+from supervisord.api.views import joystick_report
 from supervisord.api.wire import WireError
+from supervisord.protocol.codes import FieldStatus
+from supervisord.protocol.messages import DPad, Joystick, NumberedButtons
 
 T = TypeVar("T")
 
@@ -293,8 +299,8 @@ PUSHES: st.SearchStrategy[Push] = st.one_of(
             right_x=AXES,
             right_y=AXES,
             right_z=AXES,
-            left_buttons=buttons(("down", "right", "up", "left")),
-            right_buttons=buttons(("button_1", "button_2", "button_3", "button_4")),
+            left_buttons=buttons(LEFT_BUTTONS),
+            right_buttons=buttons(RIGHT_BUTTONS),
         ),
     ),
     st.builds(
@@ -394,6 +400,28 @@ def test_a_push_with_new_fields_reads_as_without(pair: tuple[Push, object]) -> N
         assert dict(read.data).items() >= dict(push.data).items()
     else:
         assert read == push
+
+
+@pytest.mark.parametrize("hand", ["left_button_values", "right_button_values"])
+def test_a_new_field_named_like_a_button_is_no_button(hand: str) -> None:
+    """SR-8: a newer daemon's field that ends in ``_status`` inside a hand's buttons (which
+    Hypothesis drew once as ``new_status``) is ignored like any other: each hand's buttons are
+    the ones the manual names, not whatever the wire's keys end in."""
+    pressed = Joystick(
+        left_buttons=DPad(up=FieldStatus.SET),
+        right_buttons=NumberedButtons(button_2=FieldStatus.SET),
+    )
+    push = JoystickPush(joystick_report(pressed))
+    sent = json.loads(json.dumps(push.json()))
+    sent[hand]["new_status"] = None
+    sent[hand]["spare_status"] = 3
+    assert read_push(sent) == push
+
+
+def test_the_hands_buttons_are_the_protocols() -> None:
+    """PR-2.4: the client's names of each hand's buttons, in wire order, are the decoder's."""
+    assert tuple(f.name for f in dataclasses.fields(DPad)) == LEFT_BUTTONS
+    assert tuple(f.name for f in dataclasses.fields(NumberedButtons)) == RIGHT_BUTTONS
 
 
 @settings(max_examples=100, deadline=None)
