@@ -165,8 +165,10 @@ def _scenario(robot: Robot) -> None:
 
 def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path) -> None:
     """SR-12.1: nobody presses within ``--timeout``: exit 3 (not done), no ``stoptest``
-    record, the robot still in RUN."""
-    with Robot(tmp_path) as robot:
+    record, the robot still in RUN. The VSC timeout is the longest allowed (1 s, SR-2): the
+    robot must stay in RUN for the whole second, and at the harness's 200 ms a process of the
+    test late by that much on a busy machine stops it (``vsc_link_lost``), as it should."""
+    with Robot(tmp_path, extra_vsc="timeout_ms = 1000") as robot:
         robot.arm()
         t = time.monotonic()
         proc = _stoptest(robot, "--timeout", "1")
