@@ -263,6 +263,13 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "core.py",
         _DEADLINE,
+        "if now < (due := since + delay) < earliest:",
+        "if now < (due := since + delay) <= earliest:",
+        _LATER_EQUAL,
+    ),
+    Equivalent(
+        "core.py",
+        _DEADLINE,
         "if later is not None and now < later < earliest:",
         "if later is not None and now < later <= earliest:",
         _LATER_EQUAL,

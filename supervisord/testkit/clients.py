@@ -21,6 +21,13 @@ from supervisord.errors import SrcsError
 from supervisord.testkit.wait import WAIT_S, wait_until
 from supervisord.tooling.children import kill, log_tail
 
+BELOW_THE_DAEMON = ("nice", "-n", "10")
+"""The prefix for a client a scenario runs to flood or churn the socket as fast as it can. On
+a robot ``srcsd`` runs SCHED_FIFO 10 (``units/srcsd@.service``), above every client however
+busy; the harness starts it without real-time scheduling, so such a client, left at the
+daemon's own priority, would take CPU time the unit never lets it take and starve the loop
+for reasons of the harness. Nice 10 keeps the order of the unit without its privilege."""
+
 
 class ClientProcess:
     """A robot program as a separate process (``python -m supervisord.testkit.clients``):
@@ -45,6 +52,8 @@ class ClientProcess:
     ) -> None:
         self.log_path = log
         command = [sys.executable, "-m", "supervisord.testkit.clients", mode, str(socket_path)]
+        if mode == "flood":  # as fast as the socket takes it: below the daemon, as on a robot
+            command = [*BELOW_THE_DAEMON, *command]
         if name:
             command += ["--name", name]
         command += ["--period", str(period), *extra]

@@ -62,13 +62,6 @@ from supervisord.tooling.children import kill, log_tail, terminate
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.
 # The rules' own latencies (SR-9) are the benchmarks' job, not this suite's.
 ALLOWANCE_S = float(os.environ.get("SRCS_FAULTS_ALLOWANCE_S", "0.75"))
-BELOW_THE_DAEMON = ("nice", "-n", "10")
-"""The prefix for a client a scenario runs to flood or churn the socket as fast as it can. On
-a robot ``srcsd`` runs SCHED_FIFO 10 (``units/srcsd@.service``), above every client however
-busy; the harness starts it without real-time scheduling, so such a client, left at the
-daemon's own priority, would take CPU time the unit never lets it take and starve the loop
-for reasons of the harness. Nice 10 keeps the order of the unit without its privilege."""
-
 SERIAL_BEAT_S = 0.05  # the VSC heartbeat period on serial (manual table 5: 20 Hz)
 CAN_BEAT_S = 0.1  # on CAN (manual table 23: 10 Hz)
 HOLD_MS = 100  # the shortest re-arm hold the config allows: quick scenarios

@@ -14,7 +14,8 @@ from typing import Any
 
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.safety.budget import BUDGET_WINDOW_NS, RECORDS_PER_UID
-from supervisord.testkit.robot import ALLOWANCE_S, BELOW_THE_DAEMON, Robot
+from supervisord.testkit.clients import BELOW_THE_DAEMON
+from supervisord.testkit.robot import ALLOWANCE_S, Robot
 from supervisord.testkit.wait import wait_until
 
 CHURN_S = 3.0

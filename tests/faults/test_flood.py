@@ -21,7 +21,8 @@ from supervisord.api.framing import ApiError
 from supervisord.client import ClientError, SupervisorClient
 from supervisord.safety.budget import RECORDS_PER_UID
 from supervisord.sim.process import SimControl, SimError
-from supervisord.testkit.robot import BELOW_THE_DAEMON, Robot
+from supervisord.testkit.clients import BELOW_THE_DAEMON
+from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog (SR-5, docs/faults.md)

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, note, settings
 
 from supervisord.errors import ConfigError
+from supervisord.protocol.messages import Joystick
 from supervisord.safety import (
     ClientSpec,
     Decision,
@@ -144,6 +145,52 @@ def test_a_failure_of_the_core_is_a_stop_of_category_0() -> None:
     assert not any(decision.outputs.values())
     rig.advance(10)
     assert not any(rig.tick().outputs.values())
+
+
+def test_once_the_last_delay_is_over_the_stop_is_steady_again() -> None:
+    """SR-1.4, SR-9.4: the braking ends at the longest delay, to the nanosecond: from the step
+    at that instant the core no longer follows time for it, and an inert frame from the VSC
+    takes the cheap path again (while braking, every input takes the full step)."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(10)
+    stop = rig.estop()
+    rig.now = stop.now + FANS_MS * MS - 1
+    refreshes = rig.count_refreshes()
+    rig.from_vsc(Joystick())
+    assert refreshes  # braking: the full step
+    rig.now += 1
+    assert not any(rig.tick().outputs.values())
+    rig.now += 1
+    refreshes.clear()
+    rig.from_vsc(Joystick())
+    assert refreshes == []
+
+
+def test_the_last_line_of_defence_while_braking_leaves_nothing_on(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-1.4, SR-2.9: while the category-1 outputs brake after a stop, a step whose fail-safe
+    fails too (the core's last line of defence) switches every output off, and the braking is
+    over: the steps after it, the core working again, leave every output off, not back on
+    for what was left of the delay."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(10)
+    stop = rig.estop()
+    assert _levels(stop)["brakes"] is True
+
+    def broken(*args: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(SafetyCore, "_apply", broken)
+    monkeypatch.setattr(SafetyCore, "_finish", broken)
+    rig.advance(10)
+    assert not any(rig.beat().outputs.values())
+    monkeypatch.undo()
+    for _ in range(3):
+        rig.advance(10)
+        assert not any(rig.beat().outputs.values())
 
 
 def test_no_delay_is_category_0() -> None:
