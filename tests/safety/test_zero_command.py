@@ -372,16 +372,23 @@ def test_no_rearm_while_any_client_commands_motion(
             before = after
 
 
-def test_frames_of_the_notice_are_valid_messages() -> None:
-    """SR-4.6, PR-2.12: a client name of 32 characters still makes a row of at most 20."""
+def _long_named_and_stopped(other: str) -> Rig:
+    """RUN with two clients, none required: connection 1 named with 32 characters, connection
+    2 named ``other``; then an e-stop, released."""
     rig = Rig(dataclasses.replace(ROBOT, clients=()))
     rig.open_link()
     rig.key85(1)
     rig.connect(1, "n" * 32)
-    rig.connect(2, "a")
+    rig.connect(2, other)
     assert rig.take_over(600, clients=()).state is State.RUN
     rig.estop()
     rig.release()
+    return rig
+
+
+def test_frames_of_the_notice_are_valid_messages() -> None:
+    """SR-4.6, PR-2.12: a client name of 32 characters still makes a row of at most 20."""
+    rig = _long_named_and_stopped("a")
     command(rig, True)
     command(rig, True, connection=2)
     assert rig.take_over(500, clients=()).refusals[0].reason is RefusalReason.COMMAND_NONZERO
@@ -397,14 +404,7 @@ def test_the_row_of_names_is_the_remotes_twenty_characters() -> None:
     """SR-4.6, PR-2.12: the row that names who commands motion fills the remote's 20
     characters and no more: a name of 32 shows its first 20; with a second client declaring,
     its first 17 and " +1"."""
-    rig = Rig(dataclasses.replace(ROBOT, clients=()))
-    rig.open_link()
-    rig.key85(1)
-    rig.connect(1, "n" * 32)
-    rig.connect(2, "o")
-    assert rig.take_over(600, clients=()).state is State.RUN
-    rig.estop()
-    rig.release()
+    rig = _long_named_and_stopped("o")
     command(rig, True)
     assert rig.take_over(500, clients=()).refusals[0].reason is RefusalReason.COMMAND_NONZERO
     rig.run_for(800, OPERATIONAL, clients=())
