@@ -60,7 +60,9 @@ def as_nobody(work: Callable[[], None]) -> int:
     above every program, which the harness cannot give it; a nice value alone (10 below the
     daemon, ``BELOW_THE_DAEMON``) left five programs that connect as fast as they can ahead of
     its accepts on two cores kept busy by ``--stress`` (in the one run that tried it; at the
-    daemon's own priority, in the run before it, too). Idle priority also puts
+    daemon's own priority, in the run before it, too; both runs raised the whole suite above
+    the kernel's worker threads, which docs/testing.md "Under load" since found starves the
+    suite's pseudo-terminals, so that may have been part of it). Idle priority also puts
     them below the operator's ``srcsctl``, which on a robot they are not: that case is a
     residual hazard (docs/safety.md "The client socket cannot shut out a stop")."""
     pid = os.fork()

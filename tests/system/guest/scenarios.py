@@ -234,6 +234,43 @@ def wait_state(instance: str, want: str, timeout: float) -> float:
     return wait_for(f"srcsd@{instance} {want}", lambda: state(instance) == want, timeout, 0.2)
 
 
+def quiet(instance: str) -> bool:
+    """srcsd is up and none of its stop conditions is active (latched ones may remain)."""
+    try:
+        causes = status(instance)["causes"]
+    except Exception:  # not up yet, or restarting
+        return False
+    return not any(c["active"] and c["severity"] == "stop" for c in causes)
+
+
+def take_over(instance: str, sim: SimProcess, timeout: float = 60) -> float:
+    """Take over on the remote until RUN; the seconds from the takeover that re-armed it.
+
+    The safety core takes a takeover as a re-arm only once every stop condition has been
+    clear for rearm.hold_ms (500 ms), so it waits for that first; a takeover refused for
+    being early is repeated, from Pause, as an operator would. The remote itself refuses
+    one while an e-stop bit of the VSC is still set (its user-timeout bit after a restart
+    clears a few heartbeats later): tried again, as an operator would."""
+    start = time.monotonic()
+    while time.monotonic() - start < timeout:
+        wait_for("stop conditions clear", lambda: quiet(instance), timeout, 0.2)
+        time.sleep(0.7)
+        try:
+            if sim.control.state()["mode_name"] == "operational":
+                sim.control.pause()
+                # Pause in heartbeats spanning the takeover dwell (docs/safety.md rule 4)
+                time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.15)
+            took = time.monotonic()
+            sim.control.takeover()
+        except SimError as refused:
+            log(f"take_over: the remote refused: {refused}")
+            continue
+        with contextlib.suppress(Failed):
+            wait_state(instance, "RUN", 5)
+            return time.monotonic() - took
+    raise Failed(f"srcsd@{instance} not in RUN within {timeout:.0f} s of takeovers")
+
+
 GPIO_CONFIG = """
 [vsc]
 transport = "serial"
@@ -341,40 +378,9 @@ class Bench:
         check(relay == 0, f"{when}: relay line still pulsing ({relay} edges in 0.3 s)")
         check(self.gpio.value(RELAY) == 0, f"{when}: relay line is on")
 
-    def quiet(self) -> bool:
-        """srcsd is up and none of its stop conditions is active (latched ones may remain)."""
-        try:
-            causes = status(self.instance)["causes"]
-        except Exception:  # not up yet, or restarting
-            return False
-        return not any(c["active"] and c["severity"] == "stop" for c in causes)
-
     def to_run(self, timeout: float = 60) -> float:
-        """Take over on the remote until RUN; the seconds from the takeover that re-armed it.
-
-        The safety core takes a takeover as a re-arm only once every stop condition has been
-        clear for rearm.hold_ms (500 ms), so it waits for that first; a takeover refused for
-        being early is repeated, from Pause, as an operator would. The remote itself refuses
-        one while an e-stop bit of the VSC is still set (its user-timeout bit after a restart
-        clears a few heartbeats later): tried again, as an operator would."""
-        start = time.monotonic()
-        while time.monotonic() - start < timeout:
-            wait_for("stop conditions clear", self.quiet, timeout, 0.2)
-            time.sleep(0.7)
-            try:
-                if self.sim.control.state()["mode_name"] == "operational":
-                    self.sim.control.pause()
-                    # Pause in heartbeats spanning the takeover dwell (docs/safety.md rule 4)
-                    time.sleep(TAKEOVER_DWELL_NS / 1e9 + 0.15)
-                took = time.monotonic()
-                self.sim.control.takeover()
-            except SimError as refused:
-                log(f"to_run: the remote refused: {refused}")
-                continue
-            with contextlib.suppress(Failed):
-                wait_state(self.instance, "RUN", 5)
-                return time.monotonic() - took
-        raise Failed(f"srcsd@{self.instance} not in RUN within {timeout:.0f} s of takeovers")
+        """Take over on the bench's remote until srcsd@gpio-a is in RUN (``take_over``)."""
+        return take_over(self.instance, self.sim, timeout)
 
     def restarted(self, old_pid: int, timeout: float) -> tuple[int, float]:
         """Wait for systemd to run a new main process that told READY=1."""
@@ -994,8 +1000,9 @@ def scenario_can(_bench: Bench) -> tuple[str, Measured]:
         enable = [f for f in frames if f.arbitration_id == 0x201]
         check(bool(enable), "no enable frames at all")
         check(all(f.data[0] == 0x06 for f in enable), "on frame before any takeover")
-        sim.control.takeover()
-        wait_state("can-a", "RUN", 30)
+        # As the GPIO scenarios do: a takeover before every stop condition has been clear for
+        # rearm.hold_ms is refused (SR-4.1), and this daemon has just started.
+        take_over("can-a", sim)
         frames = collect(bus, 1.0)
         on = [f for f in frames if f.arbitration_id == 0x201 and f.data[0] == 0x0F]
         check(len(on) >= 5, f"only {len(on)} on frames in 1 s of RUN")
@@ -1996,7 +2003,9 @@ def run_main() -> int:
             except Exception as error:  # one scenario's failure is reported
                 failed += 1
                 log(traceback.format_exc())
-                log(journal(bench.unit)[-3000:])
+                # Every instance's, not only the bench's: a scenario may have its own, and
+                # one instance's start-up can starve the other on the one emulated CPU.
+                log(journal("srcsd@*")[-6000:])
                 emit("RESULT", {"name": name, "ok": False, "detail": describe(error)})
                 # A scenario that failed with the remote's e-stop pressed must not fail the
                 # ones after it for that.
