@@ -379,7 +379,7 @@ class Bench:
         check(self.gpio.value(RELAY) == 0, f"{when}: relay line is on")
 
     def to_run(self, timeout: float = 60) -> float:
-        """Take over on the bench's remote until srcsd@gpio-a is in RUN (``take_over``)."""
+        """Take over on the bench's remote until its srcsd instance is in RUN (``take_over``)."""
         return take_over(self.instance, self.sim, timeout)
 
     def restarted(self, old_pid: int, timeout: float) -> tuple[int, float]:
