@@ -2,7 +2,8 @@
 
 :func:`parse_request` turns one request line into a frozen request value or raises
 :class:`~supervisord.api.framing.ApiError` with a stable ``code``: garbage from a peer either
-parses or raises ``ApiError``, nothing else. The values and :func:`request_json`, the inverse
+parses or raises ``ApiError``, nothing else. :func:`readable_stop` reads the e-stop or hold a
+refused line still asks for (SR-8.13). The values and :func:`request_json`, the inverse
 for clients, live in :mod:`supervisord.api.ops` (the client library imports only that) and
 are re-exported here.
 
@@ -12,6 +13,7 @@ Nothing here touches a socket or a clock.
 from __future__ import annotations
 
 import enum
+import itertools
 import json
 import re
 from collections.abc import Mapping
@@ -74,7 +76,9 @@ __all__ = [
     "Subscribe",
     "Topic",
     "Vibrate",
+    "honoured_error",
     "parse_request",
+    "readable_stop",
     "request_json",
 ]
 
@@ -371,3 +375,94 @@ def parse_request(line: bytes) -> ApiRequest:
     request = parser(fields)
     fields.finish()
     return request
+
+
+# -- a malformed e-stop or hold (SR-8.13) ---------------------------------------------------
+
+STOP_OPS: Final[dict[str, type[Estop] | type[Hold]]] = {"estop": Estop, "hold": Hold}
+"""The ops honoured even in a malformed request: the ones that only add a reason to stop."""
+_TOKEN = re.compile(rb'"(?:[^"\\]|\\.)*"|[{}\[\]:,]')
+_GAP = re.compile(rb"[ \t\r\n]*")
+
+
+def readable_stop(line: bytes) -> Estop | Hold | None:
+    """The e-stop or hold a line :func:`parse_request` refused still asks for, or ``None``.
+
+    SR-8.13 (``docs/api.md`` "A malformed e-stop or hold"): the op is read as ``estop`` or
+    ``hold`` when the line is a JSON object whose ``"op"`` is that text (whatever its other
+    fields, its ``id``, or a missing one), or, when the line is no JSON (a syntax error, a
+    duplicate key, ``NaN``, nesting too deep, bytes that are not UTF-8), when a key ``"op"``
+    of the outermost object is followed by ``:`` and that text as a whole JSON string. An
+    e-stop wins over a hold when a broken line names both. The ``id`` is kept when it is
+    valid, in a JSON object only. Never raises; linear in the line."""
+    try:
+        obj = _load(line)
+    except ApiError:
+        op = _op_in_broken(line)
+        return None if op is None else STOP_OPS[op]()
+    op = obj.get("op") if isinstance(obj, dict) else None
+    if not isinstance(op, str) or op not in STOP_OPS:
+        return None
+    try:
+        request_id = _request_id(obj)  # type: ignore[arg-type]
+    except ApiError:
+        request_id = None  # a wrong id is answered without one, as every refused request
+    return STOP_OPS[op](id=request_id)
+
+
+def _op_in_broken(line: bytes) -> str | None:
+    """``estop`` or ``hold`` when a key of the outermost object of a broken line says so."""
+    tokens = list(_TOKEN.finditer(line))
+    found: set[str] = set()
+    depth: list[bytes] = []  # the open brackets, outside strings
+    for i, token in enumerate(tokens):
+        text = token.group()
+        if text in (b"{", b"["):
+            depth.append(text)
+        elif text in (b"}", b"]"):
+            if depth:
+                depth.pop()
+        elif (
+            text.startswith(b'"')
+            and depth == [b"{"]
+            and i >= 1
+            and tokens[i - 1].group() in (b"{", b",")
+            and i + 2 < len(tokens)
+            and tokens[i + 1].group() == b":"
+            and tokens[i + 2].group().startswith(b'"')
+            and _adjacent(line, tokens[i - 1], token, tokens[i + 1], tokens[i + 2])
+            and _string(text) == "op"
+        ):
+            op = _string(tokens[i + 2].group())
+            if op in STOP_OPS:
+                found.add(op)
+    return "estop" if "estop" in found else ("hold" if found else None)
+
+
+def _adjacent(line: bytes, *tokens: re.Match[bytes]) -> bool:
+    """Whether only JSON whitespace stands between each token and the next."""
+    return all(
+        _GAP.fullmatch(line, before.end(), after.start()) is not None
+        for before, after in itertools.pairwise(tokens)
+    )
+
+
+def _string(token: bytes) -> str | None:
+    """One JSON string token as text, or ``None`` when it is not valid JSON or UTF-8."""
+    try:
+        value = json.loads(token)
+    except ValueError:  # UnicodeDecodeError is one
+        return None
+    return value if isinstance(value, str) else None
+
+
+def honoured_error(error: ApiError, request: ApiRequest) -> ApiError:
+    """The reply to a malformed e-stop or hold that was honoured (SR-8.13): the error that
+    says what was wrong, with the op and id that were read and ``"honoured": true``."""
+    return ApiError(
+        error.code,
+        f"{error.message}; the {request.OP} was honoured",
+        op=request.OP,
+        request_id=request.id,
+        extra={"honoured": True},
+    )

@@ -7,7 +7,8 @@ the daemon takes it with :meth:`ApiServer.take`, one result at a time:
 
 - :class:`Accepted` - a client connected (``ClientConnected`` for the core);
 - :class:`Received` - a valid request the daemon must act on and answer with :meth:`reply`
-  or :meth:`reply_error`, exactly once, before it takes the next result;
+  or :meth:`reply_error`, exactly once (before it takes the next result, but for the few
+  answered later, as ``commission``);
 - :class:`Denied` - an admin-only request from a non-admin, already answered ``not_allowed``;
 - :class:`Closed` - a connection ended (``ClientDisconnected``), queued once per
   :class:`Accepted`, wherever it ended: while reading, while answering, while pushing.
@@ -16,6 +17,17 @@ One queue is the one place the daemon learns of every end, so no end can be drop
 way (a lost ``Closed`` would keep its client's name in use in the core). A request is turned
 into its result only when it is taken, so it sees the answers to the requests before it: a
 ``hello`` answered ok names the connection for the requests after it, even in one write.
+
+**Replies leave in the order the requests came** (``docs/api.md`` "Framing"), on each
+connection, whatever answers them (the server at once, for a malformed line, or the daemon,
+later): every request line read takes its place in its connection's order, and a reply
+waits until every reply before it has left. A client that pipelines without ids reads each
+reply as its own request's. Pushes are no replies: they leave at once.
+
+**A malformed e-stop or hold still stops** (SR-8.13): a line refused as malformed whose op
+can still be read as ``estop`` or ``hold`` (:func:`~supervisord.api.requests.readable_stop`)
+is acted on as that request, and its reply is the error that says what was wrong, with
+``"honoured": true``.
 
 The server holds no rules of the safety core's: whether a ``hello`` may name the connection
 (a second hello, a name in use, a client bound to another user) is the core's to judge; the
@@ -46,7 +58,7 @@ import errno
 import os
 import socket
 import stat
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
@@ -72,7 +84,9 @@ from supervisord.api.requests import (
     Status,
     Subscribe,
     Topic,
+    honoured_error,
     parse_request,
+    readable_stop,
 )
 from supervisord.api.translate import ClientInfo, to_core_event
 from supervisord.api.views import ok_reply
@@ -189,10 +203,12 @@ class Accepted:
 @dataclass(frozen=True, slots=True)
 class Received:
     """A valid request; ``client`` is the connection as it was when the request was taken
-    (named once a ``hello`` was answered ok)."""
+    (named once a ``hello`` was answered ok). ``place`` is where its reply goes in its
+    connection's order (the server's own)."""
 
     client: ClientInfo
     request: ApiRequest
+    place: _Place = field(compare=False, repr=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -231,16 +247,30 @@ def core_event(result: Result, now: int) -> Event | None:
             return to_core_event(request, client, now)
 
 
+class _Place:
+    """One reply's place in its connection's order: made when its request line is read,
+    filled when it is answered. ``malformed``: the error of a malformed e-stop or hold that
+    is honoured anyway (SR-8.13), sent in place of its ok."""
+
+    __slots__ = ("line", "malformed")
+
+    def __init__(self, malformed: ApiError | None = None) -> None:
+        self.line: bytes | None = None
+        self.malformed = malformed
+
+
 class _Connection:
     __slots__ = (
         "accepted",
         "credentials",
         "dead",
         "deferred",
+        "held",
         "info",
         "last_ns",
         "naming_until",
         "out",
+        "places",
         "reader",
         "slot",
         "sock",
@@ -251,8 +281,11 @@ class _Connection:
     def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
         self.sock, self.info, self.reader = sock, info, reader
         self.naming_until: int | None = None  # its user's name is awaited until then (SR-10.3)
-        self.deferred: list[ApiRequest] = []  # requests that wait for that name, in order
+        self.deferred: list[_Waiting] = []  # requests that wait for that name, in order
         self.out = bytearray()
+        # Replies not yet sent, in request order: one waits for those before it (docs/api.md).
+        self.places: collections.deque[_Place] = collections.deque()
+        self.held = 0  # bytes of replies answered but waiting for an earlier one
         self.topics: frozenset[Topic] = frozenset()
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
         self.dead = False  # ended: shut down, its descriptor released at the next descriptors()
@@ -271,6 +304,7 @@ class _Waiting:
 
     conn: _Connection
     request: ApiRequest
+    place: _Place
 
 
 _Queued = Accepted | Closed | _Waiting
@@ -379,7 +413,7 @@ class ApiServer:
             if not isinstance(item, _Waiting):
                 return item
             if not item.conn.dead:
-                result = self._serve(item.conn, item.request)
+                result = self._serve(item)
                 if result is not None:
                     return result
         return None
@@ -424,7 +458,7 @@ class ApiServer:
             conn.taken += 1
             self._turn_left -= 1
             if isinstance(item, ApiError):
-                self._queue(conn, encode(item.reply()))
+                self._answer(conn, self._place(conn), encode(item.reply()))
             else:
                 self._dispatch(conn, item, now)
             if conn.dead:  # ended while answering: nothing more to read
@@ -451,12 +485,19 @@ class ApiServer:
             return
         if isinstance(received.request, Hello):
             conn.info = replace(conn.info, name=received.request.name)
-        answer = reply if reply is not None else ok_reply(received.request)
-        self._queue(conn, encode(answer.json()))
+        malformed = received.place.malformed
+        if malformed is not None:  # honoured, but what was wrong is said (SR-8.13)
+            line = encode(honoured_error(malformed, received.request).reply())
+        else:
+            answer = reply if reply is not None else ok_reply(received.request)
+            line = encode(answer.json())
+        self._answer(conn, received.place, line)
 
     def reply_error(self, received: Received, error: ApiError) -> None:
         """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
-        self._send_line(received.client.connection, encode(error.reply()))
+        conn = self._connections.get(received.client.connection)
+        if conn is not None:
+            self._answer(conn, received.place, encode(error.reply()))
 
     def send(self, connection: int, message: Reply | Push) -> None:
         """Send one reply or push to one connection (if it is still there)."""
@@ -600,27 +641,35 @@ class ApiServer:
         if name != conn.info.caller.name:
             conn.info = replace(conn.info, caller=replace(conn.info.caller, name=name))
         waiting, conn.deferred, conn.naming_until = conn.deferred, [], None
-        self._results.extend(_Waiting(conn, request) for request in waiting)
+        self._results.extend(waiting)
 
     def _dispatch(self, conn: _Connection, line: bytes, now: int) -> None:
         if not line.strip():
             return  # blank lines are allowed (handy when typing requests by hand)
+        malformed: ApiError | None = None
         try:
-            request = parse_request(line)
+            request: ApiRequest = parse_request(line)
         except ApiError as e:
-            self._queue(conn, encode(e.reply()))
-            return
+            stop = readable_stop(line)
+            if stop is None:
+                self._answer(conn, self._place(conn), encode(e.reply()))
+                return
+            # A malformed e-stop or hold still stops (SR-8.13): acted on as the request it
+            # names, on every connection and e-stop slot; its reply says what was wrong.
+            request, malformed = stop, e
         conn.last_ns = now
+        waiting = _Waiting(conn, request, self._place(conn, malformed))
         if conn.naming and not conn.slot and not isinstance(request, NAMELESS_REQUESTS):
-            conn.deferred.append(request)  # served once the name is known (SR-10.3)
+            conn.deferred.append(waiting)  # served once the name is known (SR-10.3)
             return
-        self._results.append(_Waiting(conn, request))
+        self._results.append(waiting)
 
-    def _serve(self, conn: _Connection, request: ApiRequest) -> Received | Denied | None:
+    def _serve(self, waiting: _Waiting) -> Received | Denied | None:
         """A request taken: its result, or ``None`` when the server answered it itself."""
+        conn, request = waiting.conn, waiting.request
         error = self._check(conn, request)
         if error is not None:
-            self._queue(conn, encode(error.reply()))
+            self._answer(conn, waiting.place, encode(error.reply()))
             if conn.slot:  # an e-stop slot is no way in for a client: closed (docs/api.md)
                 self._end(conn, CloseReason.EVICTED)
             if error.code == ErrorCode.NOT_ALLOWED:
@@ -628,7 +677,7 @@ class ApiServer:
             return None
         if isinstance(request, Subscribe):
             conn.topics = request.topics
-        return Received(conn.info, request)
+        return Received(conn.info, request, waiting.place)
 
     def _check(self, conn: _Connection, request: ApiRequest) -> ApiError | None:
         def error(code: ErrorCode, message: str) -> ApiError:
@@ -649,11 +698,33 @@ class ApiServer:
             return error(ErrorCode.NOT_HELLO, f"say hello with a name before {request.OP}")
         return None
 
+    @staticmethod
+    def _place(conn: _Connection, malformed: ApiError | None = None) -> _Place:
+        """A place at the end of ``conn``'s replies, for the request line just read."""
+        place = _Place(malformed)
+        conn.places.append(place)
+        return place
+
+    def _answer(self, conn: _Connection, place: _Place, line: bytes) -> None:
+        """Fill ``place`` with its reply (once), then send every reply now at the front, in
+        order: a reply never overtakes the one of an earlier request (docs/api.md)."""
+        if conn.dead or place.line is not None:
+            return
+        place.line = line
+        conn.held += len(line)
+        ready = bytearray()
+        while conn.places and (front := conn.places[0].line) is not None:
+            conn.places.popleft()
+            conn.held -= len(front)
+            ready += front
+        self._queue(conn, bytes(ready))
+
     def _queue(self, conn: _Connection, line: bytes) -> None:
         if conn.dead:
             return
         conn.out += line
-        if len(conn.out) > self.config.max_output:
+        # Replies held for an earlier one wait for this client as much as its unsent output.
+        if len(conn.out) + conn.held > self.config.max_output:
             self._end(conn, CloseReason.OUTPUT_OVERFLOW)
         else:
             self._flush(conn)
@@ -679,6 +750,8 @@ class ApiServer:
         self._connections.pop(conn.info.connection, None)
         self._by_fd.pop(conn.sock.fileno(), None)
         conn.out.clear()
+        conn.places.clear()
+        conn.held = 0
         with contextlib.suppress(OSError):
             conn.sock.shutdown(socket.SHUT_RDWR)
         self._ended.append(conn.sock)

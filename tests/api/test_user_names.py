@@ -105,17 +105,17 @@ def test_a_full_queue_asks_for_nothing_more(held: HeldLookup) -> None:
 def test_a_connection_waiting_for_its_name_is_served_estop_and_the_rest_in_order(
     tmp_path: Path, held: HeldLookup
 ) -> None:
-    """SR-10.3, SR-8.4: while the lookup of the caller's name hangs, an ``estop`` sent after a
-    ``hello`` is served at once (the uid names the caller), the ``hello`` and the heartbeat
-    behind it wait; 2 s of the loop's clock later they are served, in order, under the uid;
-    when the lookup ends, the connection is named."""
+    """SR-10.3, SR-8.4, SR-8.13: while the lookup of the caller's name hangs, an ``estop`` sent
+    after a ``hello`` is acted on at once (the uid names the caller), the ``hello`` and the
+    heartbeat behind it wait; 2 s of the loop's clock later they are served, under the uid,
+    and the three replies leave in request order (the e-stop's behind the hello's); when the
+    lookup ends, the connection is named."""
     clock = ManualClock()
     loop = Loop(ServerConfig(tmp_path / "api.sock"), clock=clock, names=UserNames(held))
     peer = Peer(tmp_path / "api.sock")
     try:
         peer.send(b'{"op":"hello","name":"nav"}\n{"op":"estop"}\n{"op":"heartbeat"}\n')
-        (estop_reply,) = peer.read(loop)
-        assert estop_reply == {"ok": True, "op": "estop"}
+        loop.until(lambda: bool(loop.of_type(Received)))
         served = [r.request for r in loop.of_type(Received)]
         assert served == [Estop()]
         uid = os.getuid()
@@ -124,9 +124,11 @@ def test_a_connection_waiting_for_its_name_is_served_estop_and_the_rest_in_order
         for _ in range(5):
             loop.turn()
         assert [r.request for r in loop.of_type(Received)] == [Estop()]
+        assert not peer.has(1)  # the e-stop's reply waits for the hello's
         clock.advance(1)
-        hello, heartbeat = peer.read(loop, 2)
-        assert (hello["op"], heartbeat["op"]) == ("hello", "heartbeat")
+        hello, estop, heartbeat = peer.read(loop, 3)
+        assert [r["op"] for r in (hello, estop, heartbeat)] == ["hello", "estop", "heartbeat"]
+        assert estop == {"ok": True, "op": "estop"}
         served = [r.request for r in loop.of_type(Received)]
         assert served == [Estop(), Hello(name="nav"), Heartbeat()]
         held.released.set()
