@@ -77,7 +77,8 @@ def raw_exchange(path: Path, data: bytes, replies: int) -> list[dict[str, Any]]:
 
 ODD_LINES = [
     (b'{"op":"status","id":"\\ud800"}', "bad_request"),  # a lone surrogate
-    (b'{"op":"hold","id":"a\\udce9"}', "bad_request"),
+    # Not a hold: a malformed hold still holds (SR-8.13, tests/faults/test_malformed_stop.py).
+    (b'{"op":"release","id":"a\\udce9"}', "bad_request"),
     (b'{"op":"status","\\udfff":1}', "bad_request"),  # a field name no encoder takes
     (b'{"op":"\\ud800"}', "unknown_op"),
     (b'{"op":"status","id":' + b"[" * 900 + b"]" * 900 + b"}", "bad_json"),
