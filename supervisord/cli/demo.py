@@ -336,7 +336,7 @@ class StoryDemo(Demo):
                 fresh = self.records[seen:]
                 if any(r.get("kind") == "rearm_refused" for r in fresh):
                     break
-                if self.state == "RUN":
+                if self._recorded("RUN"):
                     return
                 time.sleep(0.02)
             self.settle()
@@ -365,11 +365,17 @@ class StoryDemo(Demo):
             self.refresh()
             time.sleep(0.02)
 
+    def _recorded(self, state: str) -> bool:
+        """Whether the supervisor is in ``state`` and the record of the change into it is in:
+        the status can show a change before its record's push arrives, and the story is told
+        in the order it happened (the record, then the next act)."""
+        return self.state == state and bool(self.records) and self.records[-1].get("to") == state
+
     def expect(self, state: str, limit: float = 10.0) -> None:
         end = time.monotonic() + limit
         while True:
             self.refresh()
-            if self.state == state:
+            if self._recorded(state):
                 outputs = self.status.outputs if self.status else {}
                 levels = ", ".join(f"{k} {'ON' if v else 'off'}" for k, v in outputs.items())
                 print(f"  supervisor: {state}; outputs {levels}", file=self.out, flush=True)

@@ -50,7 +50,8 @@ def test_the_story_shows_stops_and_rearms() -> None:
     a remote e-stop, a cut link and a pause, each followed by a re-arm, with every stop record
     from the first (#1, written before the demo could subscribe) as one line each: the local
     time (the zone of TZ), the state change, the kind and which cause was raised or cleared,
-    never the whole cause set again; it cleans up and exits 0."""
+    never the whole cause set again, each state it reports after the record of the change into
+    it (the story in the order it happened); it cleans up and exits 0."""
     zone = "Asia/Kolkata"  # +05:30: a time of day in UTC is hours away from it
     before = dt.datetime.now(ZoneInfo(zone))
     done = subprocess.run(
@@ -88,6 +89,21 @@ def test_the_story_shows_stops_and_rearms() -> None:
     assert re.search(r"RUN -> HOLD +state_change +raised vsc_mode:pause$", done.stdout, re.M)
     assert re.search(r"STOPPED -> RUN +state_change +re-armed by takeover", done.stdout)
     assert "[demo] srcsctl finds this demo: srcsctl --demo status (socket " in done.stdout
+    assert _told_in_order(done.stdout)
+
+
+def _told_in_order(story: str) -> bool:
+    """Whether every ``supervisor: STATE`` line of the story comes after a record whose state
+    (the state it changed into) is STATE: the record of a change before the next act."""
+    recorded = None
+    for line in story.splitlines():
+        record = re.match(r"  record \S+ +#\d+ +(?:\w+ -> )?(\w+) ", line)
+        if record:
+            recorded = record.group(1)
+        shown = re.match(r"  supervisor: (\w+);", line)
+        if shown and shown.group(1) != recorded:
+            raise AssertionError(f"{line!r} before the record of it (last: {recorded}):\n{story}")
+    return True
 
 
 SEEN: list[bytes] = [b""]
