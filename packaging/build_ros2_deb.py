@@ -1,7 +1,7 @@
 """Build the ROS 2 bridge's wheel and ``python3-srcs-ros2_VERSION_all.deb`` (docs/ros2.md
 "Install").
 
-usage: .venv/bin/python packaging/build_ros2_deb.py [--out DIR] [--work DIR]
+usage: ./dev deb --ros2 [--out DIR] [--work DIR]
 
 The wheel is built from ``ros2/`` with its links resolved (the bridge and the client library it
 imports, nothing of the daemon), by this environment's setuptools: no build isolation and no
@@ -83,6 +83,17 @@ def manifest() -> tuple[str, str]:
     if not name or not version:
         raise BuildError(f"{SOURCE / 'package.xml'}: no name or version")
     return name.strip(), version.strip()
+
+
+def maintainer() -> str:
+    """The package's Maintainer, ``NAME <EMAIL>``: ``ros2/package.xml``'s, the one place the
+    bridge's maintainer is written, never the builder's DEBEMAIL, so that two builds by
+    different people are the same bytes."""
+    root = ElementTree.parse(SOURCE / "package.xml").getroot()  # noqa: S314 -- our own file
+    found = root.find("maintainer")
+    if found is None or not (found.text or "").strip() or not found.get("email"):
+        raise BuildError(f"{SOURCE / 'package.xml'}: no maintainer with an email")
+    return f"{(found.text or '').strip()} <{found.get('email')}>"
 
 
 def source_epoch() -> int:
@@ -169,13 +180,11 @@ def install_files(root: Path) -> None:
 
 def control(root: Path, version: str) -> str:
     size = sum(p.lstat().st_size for p in root.rglob("*") if not p.is_dir()) // 1024 + 1
-    maintainer = os.environ.get("DEBFULLNAME", "srcs-supervisord maintainers")
-    email = os.environ.get("DEBEMAIL", "root@localhost")
     return (
         f"Package: {PACKAGE}\n"
         f"Version: {version}\n"
         "Architecture: all\n"
-        f"Maintainer: {maintainer} <{email}>\n"
+        f"Maintainer: {maintainer()}\n"
         f"Installed-Size: {size}\n"
         # ROS's own packages are not Debian's: rosdep installs them (ros2/package.xml).
         f"Depends: python3 (>= {PYTHON_MIN})\n"

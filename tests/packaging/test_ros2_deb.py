@@ -44,11 +44,12 @@ def _module_file(name: str) -> str:
     return f"{path}/__init__.py" if (ROOT / path).is_dir() else f"{path}.py"
 
 
-def build_packages(out: Path) -> tuple[Path, Path]:
-    """The .deb and the wheel, built from this tree into ``out``."""
+def build_packages(out: Path, env: dict[str, str] | None = None) -> tuple[Path, Path]:
+    """The .deb and the wheel, built from this tree into ``out`` (in ``env`` when given)."""
     result = subprocess.run(
         [sys.executable, "packaging/build_ros2_deb.py", "--out", out / "dist", "--work", out / "w"],
         cwd=ROOT,
+        env=env,
         capture_output=True,
         text=True,
         timeout=300,
@@ -137,6 +138,17 @@ def test_files_are_the_bridge_and_the_client_set(listing: dict[str, str]) -> Non
         assert mode[1:] == ("rwxr-xr-x" if executable else "rw-r--r--"), line
 
 
+def test_the_maintainer_is_the_projects_one_address(deb: Path) -> None:
+    """SR-0.2: the bridge's Maintainer is the one the supervisor's package and its changelog
+    name (one address for the project, written in ros2/package.xml for the bridge)."""
+    control = subprocess.run(
+        ["dpkg-deb", "-f", str(deb), "Maintainer"], capture_output=True, text=True, check=True
+    ).stdout.strip()
+    changelog = (ROOT / "packaging/changelog").read_text()
+    signed = next(line for line in changelog.splitlines() if line.startswith(" -- "))
+    assert signed.startswith(f" -- {control}  "), (control, signed)
+
+
 def test_control_holds_no_maintainer_script(unpacked: Path) -> None:
     """Nothing runs at install or removal: the control archive is the control file and the
     checksums."""
@@ -181,8 +193,10 @@ def test_carries_no_path_of_the_build_machine(built: tuple[Path, Path], unpacked
 
 
 def test_the_build_is_deterministic(built: tuple[Path, Path], tmp_path: Path) -> None:
-    """A second build of the same tree gives the same bytes, package and wheel."""
-    again = build_packages(tmp_path)
+    """A second build of the same tree, by someone else (another DEBEMAIL and DEBFULLNAME),
+    gives the same bytes, package and wheel."""
+    someone_else = {**os.environ, "DEBEMAIL": "someone.else@build.invalid", "DEBFULLNAME": "Else"}
+    again = build_packages(tmp_path, someone_else)
     for first, second in zip(built, again, strict=True):
         assert first.name == second.name
         assert (

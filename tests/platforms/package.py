@@ -60,6 +60,7 @@ INSTALL = (
     + r"""
 apt_get install -y -q "/srv/debs/$DEB" || exit 1
 echo "== status"; dpkg-query -W -f '${Status} ${Version}\n' srcs-supervisord
+echo "== said"; grep '^srcs-supervisord: ' /tmp/apt.log || true
 echo "== version"; srcsd --version
 echo "== users"; getent passwd srcsd | cut -d: -f1,7
 for group in srcsd srcs-dev srcs-admin; do getent group "$group" | cut -d: -f1; done
@@ -91,6 +92,7 @@ getent passwd srcsd >/dev/null && echo "user srcsd" || echo "no user srcsd"
 
 PURGE = r"""
 apt-get purge -y -q srcs-supervisord >/tmp/apt.log 2>&1 || { cat /tmp/apt.log; exit 1; }
+echo "== said"; grep '^srcs-supervisord: ' /tmp/apt.log || true
 echo "== status"; dpkg-query -W -f '${Status}\n' srcs-supervisord 2>&1 || true
 echo "== left"
 while read -r path; do
@@ -218,6 +220,12 @@ def main(argv: list[str]) -> int:
         parts["status"] == [f"install ok installed {version}"], "dpkg: installed", parts["status"]
     )
     report.check(
+        parts["said"]
+        == ["srcs-supervisord: installed; nothing runs until a robot is configured. Next:"],
+        "the first install says what to do next",
+        parts["said"],
+    )
+    report.check(
         any(version in line for line in parts["version"]),
         f"srcsd --version names {version}",
         parts["version"],
@@ -292,6 +300,13 @@ def main(argv: list[str]) -> int:
             or "not-installed" in " ".join(parts["status"]),
             "dpkg: purged",
             parts["status"],
+        )
+        report.check(
+            len(parts["said"]) == 2
+            and parts["said"][0].startswith("srcs-supervisord: purge deletes the stop record")
+            and parts["said"][1].startswith("srcs-supervisord: kept /etc/srcs:"),
+            "purge says that it deletes the stop record and keeps /etc/srcs",
+            parts["said"],
         )
         report.check(
             parts["left"] == [],
