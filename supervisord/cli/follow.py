@@ -23,7 +23,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Final
 
-from supervisord.record.jsonl import REQUIRED_FIELDS, StoredRecord, cause_names, parse_utc
+from supervisord.record.jsonl import (
+    REQUIRED_FIELDS,
+    RecordUnreadable,
+    StoredRecord,
+    cause_names,
+    parse_utc,
+)
 
 _IN_MODIFY: Final = 0x0000_0002
 _IN_MOVED_FROM: Final = 0x0000_0040
@@ -106,9 +112,11 @@ class Follower:
         flags = os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY
         try:
             fd = os.open(self.path, flags)
-        except OSError:
+        except FileNotFoundError:
             self.fd = None  # not there yet: made by the writer's first record
             return
+        except OSError as error:  # there, but closed to us: never a silent follow (SR-7.9)
+            raise RecordUnreadable(self.path, error) from None
         self.fd = fd
         self.offset = os.fstat(fd).st_size if at_end else 0
         self.pending = b""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 import signal
 import sys
 from collections.abc import Mapping
@@ -19,7 +20,7 @@ from typing import IO, Any, Final
 from supervisord.cli.follow import Follower
 from supervisord.cli.record_text import record_line
 from supervisord.cli.times import BadTime, parse_time, show_time
-from supervisord.record.jsonl import BadLine, StoredRecord, read_records
+from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
 
 EXIT_BAD_INPUT: Final = 2
 FOLLOW_LAST: Final = 10
@@ -54,7 +55,8 @@ def run_log(
     causes: bool = False,
 ) -> int:
     """Print the records (the ``last`` N of them when given; newest first with ``reverse``);
-    with ``follow``, then every record appended after, until Ctrl-C or SIGTERM (exit 0)."""
+    with ``follow``, then every record appended after, until Ctrl-C or SIGTERM (exit 0). A
+    record (or its folder) that cannot be read raises :class:`RecordUnreadable`."""
     now = dt.datetime.now(dt.timezone.utc)
     try:
         start = parse_time(since, now, utc=utc) if since else None
@@ -102,11 +104,23 @@ def _refusal(path: Path, *, follow: bool, reverse: bool) -> str | None:
     """Why these options cannot be served, or ``None``."""
     if follow and reverse:
         return "-r and -f do not go together (as in journalctl)"
-    if not path.exists() and not follow:
+    if not _there(path) and not follow:
         return f"{path}: no record yet"
-    if follow and not path.parent.is_dir():
+    if follow and not _there(path.parent):
         return f"{path.parent}: no such directory"
     return None
+
+
+def _there(path: Path) -> bool:
+    """Whether something is at ``path``; a folder on the way closed to this user is
+    :class:`RecordUnreadable`, never "no record yet"."""
+    try:
+        os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return False
+    except OSError as error:
+        raise RecordUnreadable(path.parent, error) from None
+    return True
 
 
 class _Printer:
@@ -140,7 +154,7 @@ def _scan(
     errors: IO[str],
 ) -> list[StoredRecord]:
     found: list[StoredRecord] = []
-    if not path.exists():
+    if not _there(path):
         return found
     for item in read_records(path, since=start, until=end, cause=cause):
         if isinstance(item, BadLine):

@@ -9,11 +9,13 @@ from pathlib import Path
 
 from supervisord import __version__
 from supervisord.cli import control, decode_options
+from supervisord.cli.access import advice
 from supervisord.cli.demo_find import NoDemo, demo_config
 from supervisord.cli.log import FOLLOW_LAST, run_log
 from supervisord.cli.replay import run_replay
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
+from supervisord.record.jsonl import RecordUnreadable
 
 CONFIG_DIR = Path("/etc/srcs")
 """Where install.md puts the robots' configs, one ``NAME.toml`` per ``srcsd@NAME``."""
@@ -238,20 +240,24 @@ def _log(args: argparse.Namespace) -> int:
     if args.lines is not None and args.lines < 0:
         print("srcsctl log: -n needs a number of records, 0 or more", file=sys.stderr)
         return 2
-    return run_log(
-        path,
-        sys.stdout,
-        sys.stderr,
-        since=args.since,
-        until=args.until,
-        cause=args.cause,
-        as_json=args.json or args.output == "json",
-        utc=args.utc,
-        last=args.lines,
-        follow=args.follow,
-        reverse=args.reverse,
-        causes=args.causes,
-    )
+    try:
+        return run_log(
+            path,
+            sys.stdout,
+            sys.stderr,
+            since=args.since,
+            until=args.until,
+            cause=args.cause,
+            as_json=args.json or args.output == "json",
+            utc=args.utc,
+            last=args.lines,
+            follow=args.follow,
+            reverse=args.reverse,
+            causes=args.causes,
+        )
+    except RecordUnreadable as error:  # never an empty answer with exit 0 (SR-7.9)
+        print(f"srcsctl log: {error}{advice(error.path, error.errno)}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -14,11 +14,13 @@ from pathlib import Path
 from typing import Final, TextIO
 
 from supervisord import __version__
+from supervisord.cli.access import advice
 from supervisord.config import check_config_main
 from supervisord.config.check import report_lines
 from supervisord.config.collect import collect
 from supervisord.daemon import signals
 from supervisord.errors import SrcsError
+from supervisord.record.jsonl import RecordError
 
 EXIT_CONFIG: Final = 78
 """sysexits.h EX_CONFIG, systemd's "not configured": the unit lists it in
@@ -207,7 +209,9 @@ def _serve(path: str, log: logging.Logger) -> int:
             api.close()
         if isinstance(error, Interrupted):
             raise
-        log.error("cannot start: %s", error)
+        # A record left root's by a run by hand says whose it is and how to give it back.
+        hint = advice(error.path, error.errno) if isinstance(error, RecordError) else ""
+        log.error("cannot start: %s%s", error, hint)
         return EXIT_CANNOT_START
     log.info(
         "srcsd %s, robot %s: %s, %d outputs",

@@ -76,6 +76,16 @@ class RecordError(SrcsError):
         return self.errno in (errno_codes.ENOSPC, errno_codes.EDQUOT)
 
 
+class RecordUnreadable(SrcsError):
+    """A record file, or the folder that holds it, is there but cannot be read (no
+    permission, an I/O error). A reader says so and stops: it never takes a record it cannot
+    read for an empty one (SR-7.9). ``errno`` is the OS error number."""
+
+    def __init__(self, path: Path, error: OSError) -> None:
+        self.path, self.errno = Path(path), error.errno
+        super().__init__(f"cannot read {path}: {error.strerror or error}")
+
+
 def _file_kind(mode: int) -> str | None:
     """What a file of ``mode`` is, when it is not a regular file (``None`` when it is)."""
     kinds = (
@@ -204,14 +214,16 @@ def record_files(path: Path) -> list[Path]:
     numbered = []
     try:
         names = os.listdir(path.parent)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return []
+    except OSError as error:  # there, but not ours to read: say so, never "no records"
+        raise RecordUnreadable(path.parent, error) from None
     for name in names:
         m = pattern.fullmatch(name)
         if m:
             numbered.append((int(m.group(1)), path.with_name(name)))
     files = [p for _, p in sorted(numbered, reverse=True)]
-    if path.exists():
+    if path.name in names:
         files.append(path)
     return files
 
@@ -550,8 +562,10 @@ def scan_file(file: Path) -> Iterator[StoredRecord | BadLine]:
         fd = os.open(file, flags)
     except FileNotFoundError:
         return  # rotated away while we listed: the next listing shows it under a new name
-    except OSError as error:  # a symlink put there since the look (ELOOP)
-        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, str(error))
+    except OSError as error:
+        if error.errno != errno_codes.ELOOP:  # not allowed, or the disk fails: not a bad line
+            raise RecordUnreadable(file, error) from None
+        yield BadLine(file, 0, BadLineReason.NOT_A_FILE, str(error))  # a symlink put there since
         return
     kind = _file_kind(os.fstat(fd).st_mode)
     if kind is not None:  # replaced since the look
