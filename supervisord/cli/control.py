@@ -24,6 +24,7 @@ from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusP
 from supervisord.api.requests import StartProofTest
 from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli.log import interruptible
+from supervisord.cli.numbers import positive
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.record_text import MARK_MEANS, mark, record_line, verdict
 from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
@@ -176,7 +177,7 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     ready.add_argument(
         "--timeout",
-        type=float,
+        type=positive,  # nan or inf would never time out (SR-8.10, SR-11.3)
         default=DEFAULT_TIMEOUT_S,
         metavar="S",
         help=f"give up after S seconds (default {DEFAULT_TIMEOUT_S:g})",

@@ -12,6 +12,7 @@ from supervisord.cli import control, decode_options
 from supervisord.cli.access import advice
 from supervisord.cli.demo_find import NoDemo, demo_config
 from supervisord.cli.log import FOLLOW_LAST, run_log
+from supervisord.cli.numbers import count, positive
 from supervisord.cli.replay import run_replay
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
@@ -77,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     log.add_argument(
         "-n",
         "--lines",
-        type=int,
+        type=count,
         nargs="?",
         const=FOLLOW_LAST,
         metavar="N",
@@ -127,7 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--auto", action="store_true", help="play the story instead of keys")
     demo.add_argument(
-        "--speed", type=float, default=1.0, help="story pauses run this much faster (default 1)"
+        "--speed",
+        type=positive,  # a pause divided by 0 or nan (SR-11.3)
+        default=1.0,
+        help="story pauses run this much faster (default 1)",
     )
     demo.add_argument("--config", type=Path, help="another demo config (default: the packaged one)")
     return parser
@@ -236,9 +240,6 @@ def _replay(args: argparse.Namespace) -> int:
 def _log(args: argparse.Namespace) -> int:
     path = _record_path(args, "log")
     if path is None:
-        return 2
-    if args.lines is not None and args.lines < 0:
-        print("srcsctl log: -n needs a number of records, 0 or more", file=sys.stderr)
         return 2
     try:
         return run_log(

@@ -18,6 +18,7 @@ from supervisord.cli.access import advice
 from supervisord.config import check_config_main
 from supervisord.config.check import report_lines
 from supervisord.config.collect import collect
+from supervisord.config.loader import MAX_CONFIG_BYTES
 from supervisord.daemon import signals
 from supervisord.errors import SrcsError
 from supervisord.record.jsonl import RecordError
@@ -147,7 +148,9 @@ def read_until_stopped(path: Path) -> bytes:
     and Python runs a signal's handler only between bytecodes: a signal that lands between
     the ``open`` and the ``read`` system calls would wait with the read (seen: a SIGHUP lost in
     about 4 of 10 starts on a FIFO). So the file is opened without waiting and the wait is a
-    poll on it and on the signal wakeup fd, to which the C handler writes every signal."""
+    poll on it and on the signal wakeup fd, to which the C handler writes every signal. It
+    stops one byte beyond the largest config (``MAX_CONFIG_BYTES``): ``/dev/zero`` or an
+    endless pipe is refused as too large, not read until memory runs out (SR-11.2)."""
     wake_r, wake_w = os.pipe2(os.O_NONBLOCK | os.O_CLOEXEC)
     previous = signal.set_wakeup_fd(wake_w)
     try:
@@ -169,6 +172,7 @@ def _read_polling(fd: int, wake: int) -> bytes:
     poller.register(fd, select.POLLIN)
     poller.register(wake, select.POLLIN)
     chunks: list[bytes] = []
+    size = 0
     while True:  # the loop's jump back runs a handler whose signal woke the poll
         for ready, _ in poller.poll():
             if ready == wake:
@@ -182,6 +186,9 @@ def _read_polling(fd: int, wake: int) -> bytes:
             if not chunk:
                 return b"".join(chunks)
             chunks.append(chunk)
+            size += len(chunk)
+            if size > MAX_CONFIG_BYTES:
+                return b"".join(chunks)
 
 
 def _serve(path: str, log: logging.Logger) -> int:

@@ -18,6 +18,7 @@ from typing import Final, TextIO
 
 from supervisord.api.pushes import RecordPush
 from supervisord.api.records import StopTestReport
+from supervisord.cli.numbers import positive
 from supervisord.client import SupervisorClient
 
 EXIT_PASSED: Final = 0
@@ -49,7 +50,7 @@ def add_stoptest(add: Callable[[str, str], argparse.ArgumentParser]) -> None:
     )
     parser.add_argument(
         "--timeout",
-        type=float,
+        type=positive,  # nan or inf would never time out (SR-11.3)
         default=DEFAULT_TIMEOUT_S,
         metavar="S",
         help=f"wait at most S seconds for each takeover and press (default {DEFAULT_TIMEOUT_S:g})",

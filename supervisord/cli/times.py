@@ -28,9 +28,9 @@ _UNITS: Final = {
     **dict.fromkeys(("M", "month", "months"), dt.timedelta(days=30.44)),
     **dict.fromkeys(("y", "year", "years"), dt.timedelta(days=365.25)),
 }
-_SPAN: Final = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([a-zA-Zµ]+)")
-_AGE: Final = re.compile(r"([+-])?((?:\s*\d+(?:\.\d+)?\s*[a-zA-Zµ]+)+)(\s+ago)?")
-_TIME_OF_DAY: Final = re.compile(r"\d{1,2}:\d{2}(:\d{2}(\.\d+)?)?")
+_SPAN: Final = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([a-zA-Zµ]+)", re.ASCII)  # ASCII digits (SR-8.7)
+_AGE: Final = re.compile(r"([+-])?((?:\s*\d+(?:\.\d+)?\s*[a-zA-Zµ]+)+)(\s+ago)?", re.ASCII)
+_TIME_OF_DAY: Final = re.compile(r"\d{1,2}:\d{2}(:\d{2}(\.\d+)?)?", re.ASCII)
 FORMS: Final = (
     "ISO 8601, a time of day, now, today, yesterday, tomorrow, or an age like "
     "'5 min ago', -5min, 2h, 3d"
@@ -64,7 +64,18 @@ def _age(text: str) -> dt.timedelta | None:
 
 def parse_time(text: str, now: dt.datetime, *, utc: bool = False) -> dt.datetime:
     """The aware time ``text`` names (the forms in the module's doc); ``now`` is aware.
-    Raises :class:`BadTime` naming the forms."""
+    Raises :class:`BadTime` naming the forms, for any text that names no time, also one
+    beyond the calendar (``-99999999999y``, year 1 in a zone east of UTC): a usage error,
+    never a traceback (SR-11.3)."""
+    try:
+        return _parse_time(text, now, utc=utc)
+    except BadTime:
+        raise
+    except (OverflowError, ValueError) as error:  # datetime's range is years 1 to 9999
+        raise BadTime(f"not a time: {text!r} (beyond years 1 to 9999)") from error
+
+
+def _parse_time(text: str, now: dt.datetime, *, utc: bool) -> dt.datetime:
     word = text.strip().lower()
     midnight = now.astimezone(zone(utc)).replace(hour=0, minute=0, second=0, microsecond=0)
     days = {"today": 0, "yesterday": -1, "tomorrow": 1}

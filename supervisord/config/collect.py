@@ -29,7 +29,7 @@ from typing import Final
 
 from supervisord import strict
 from supervisord.config.lines import KeyPath, Position, key_path, key_positions, position
-from supervisord.config.loader import NotOnMachine, build_config, read_toml_text
+from supervisord.config.loader import NotOnMachine, build_config, read_at_most, read_toml_text
 from supervisord.config.model import DaemonConfig
 from supervisord.config.schema import OUTPUT_COMMON, SECTION, VSC_COMMON
 from supervisord.errors import ConfigError
@@ -74,7 +74,7 @@ def collect(
     strict_machine: bool = False,
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
-    read: Callable[[Path], bytes] = Path.read_bytes,
+    read: Callable[[Path], bytes] = read_at_most,
 ) -> Report:
     """Every mistake of the config at ``path`` (see the module's doc), its file read once with
     ``read``. ``strict_machine``: a user or group missing on this machine is an error, not a

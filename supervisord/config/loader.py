@@ -44,6 +44,7 @@ from supervisord.config.model import (
     SerialPort,
     VscConfig,
 )
+from supervisord.config.nesting import MAX_DEPTH, too_deep
 from supervisord.config.schema import (
     API,
     BAUD,
@@ -167,6 +168,17 @@ def _group_exists(name: str) -> bool:
 
 
 _POSITION = re.compile(r"\(at line (\d+), column (\d+)\)$")
+MAX_CONFIG_BYTES: Final = 1 << 20
+"""A robot's config is a few kB (the shipped examples: under 4 kB); a file larger than 1 MiB
+is not one (``/dev/zero``, a log, an image) and is refused before it is parsed, so that the
+daemon's start never waits on a parse of it or runs out of memory reading it (SR-11.2)."""
+
+
+def read_at_most(source: Path) -> bytes:
+    """The file's bytes, but never more than one beyond :data:`MAX_CONFIG_BYTES`: enough to
+    see it is too large (``/dev/zero`` never ends)."""
+    with source.open("rb") as file:
+        return file.read(MAX_CONFIG_BYTES + 1)
 
 
 def read_toml(source: Path) -> dict[str, object]:
@@ -176,16 +188,25 @@ def read_toml(source: Path) -> dict[str, object]:
 
 
 def read_toml_text(
-    source: Path, read: Callable[[Path], bytes] = Path.read_bytes
+    source: Path, read: Callable[[Path], bytes] = read_at_most
 ) -> tuple[str, dict[str, object]]:
     """The file's text and what it parses to (:func:`read_toml`); ``read`` gives the file's
-    bytes (``srcsd`` reads so that a stopping signal ends the wait)."""
+    bytes (``srcsd`` reads so that a stopping signal ends the wait), at most one beyond
+    :data:`MAX_CONFIG_BYTES`. Any file, however hostile (too large, not UTF-8, not TOML,
+    nested too deep), raises :class:`ConfigError`, with its line where it has one (SR-11.2)."""
     try:
         raw = read(source)
     except OSError as error:
         raise ConfigError(
             "file", str(source), f"give the path of a readable TOML file ({error.strerror})"
         ) from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(
+            "file",
+            str(source),
+            f"give the robot's config: this file is larger than {MAX_CONFIG_BYTES} bytes "
+            "(1 MiB), and a config is a few kB",
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as error:
@@ -194,6 +215,15 @@ def read_toml_text(
         raise ConfigError(
             f"line {line}, column {column}", raw[error.start : error.end], "save the file as UTF-8"
         ) from None
+    deep = too_deep(text)
+    if deep is not None:  # the parser would recurse past Python's limit (SR-11.2)
+        start = text.rfind("\n", 0, deep) + 1
+        end = text.find("\n", deep)
+        raise ConfigError(
+            f"line {text.count(chr(10), 0, deep) + 1}, column {deep - start + 1}",
+            text[start : len(text) if end < 0 else end],
+            f"nest arrays and tables at most {MAX_DEPTH} deep (a robot's config needs 3)",
+        )
     try:
         return text, toml.loads(text)
     except toml.TOMLDecodeError as error:
