@@ -401,7 +401,7 @@ def _expect(reply: Reply, kind: type[R]) -> R:
 def _decode(line: bytes) -> dict[str, Any]:
     try:
         obj = json.loads(line)
-    except ValueError as e:
+    except (ValueError, RecursionError) as e:  # RecursionError: nested thousands deep
         raise ProtocolError(f"not JSON from the supervisor: {line[:80]!r}") from e
     if not isinstance(obj, dict):
         raise ProtocolError(f"not a JSON object from the supervisor: {line[:80]!r}")

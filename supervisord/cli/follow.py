@@ -88,7 +88,7 @@ def parse_record(file: Path, line: bytes) -> StoredRecord | None:
     ``read_records``, names bad lines; the follower shows records only)."""
     try:
         obj = json.loads(line)
-    except ValueError:
+    except (ValueError, RecursionError):  # RecursionError: nested thousands deep (SR-8.7)
         return None
     if not isinstance(obj, dict) or any(field not in obj for field in REQUIRED_FIELDS):
         return None

@@ -590,7 +590,9 @@ def _parse_line(file: Path, number: int, raw: bytes, last: bool) -> StoredRecord
 
     try:
         obj = json.loads(raw)
-    except ValueError:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+    # UnicodeDecodeError and JSONDecodeError are ValueErrors; a line nested thousands deep
+    # raises RecursionError in the decoder (SR-8.7: a bad line, never a traceback)
+    except (ValueError, RecursionError):
         obj = None
     if last and (not raw.endswith(b"\n") or not isinstance(obj, dict)):
         return bad(BadLineReason.TORN_TAIL)

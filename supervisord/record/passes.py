@@ -89,7 +89,7 @@ def _read(file: Path, budget: int) -> bytes:
 def _passed_at(line: bytes, kind: str) -> dt.datetime | None:
     try:
         record = json.loads(line)
-    except ValueError:
+    except (ValueError, RecursionError):  # RecursionError: nested thousands deep (SR-8.7)
         return None  # a torn or damaged line is no pass
     if not isinstance(record, dict) or record.get("kind") != kind:
         return None

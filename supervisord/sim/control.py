@@ -128,7 +128,7 @@ class ControlServer:
 def _answer(line: bytes, handler: Handler) -> dict[str, Any]:
     try:
         request = json.loads(line)
-    except (ValueError, UnicodeDecodeError) as error:
+    except (ValueError, RecursionError) as error:  # RecursionError: nested thousands deep
         return {"ok": False, "error": f"not JSON: {error}"}
     try:
         return handler(request)

@@ -55,7 +55,7 @@ def load_eeprom(path: Path | None, transport: SimTransport) -> Eeprom:
         return Eeprom.defaults(transport)
     try:
         return Eeprom.from_json(json.loads(path.read_text()), transport)
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError, RecursionError) as error:  # Recursion: nested thousands deep
         raise ValueError(f"{path}: {error}") from error
 
 
