@@ -60,6 +60,7 @@ from supervisord.safety.events import (
     LinkBroken,
     LinkOpened,
     OutputReadback,
+    Shutdown,
     Tick,
     VscReceived,
 )
@@ -359,6 +360,11 @@ class Supervisor:
         for release in self._release:
             with contextlib.suppress(Exception):
                 release()
+        # Then the stop's record, after the outputs (SR-7.14): the core makes it, so its
+        # ``seq`` continues the file's and a replay makes it again; the outputs and the link
+        # are closed by now, so the decision switches and sends nothing.
+        with contextlib.suppress(Exception):
+            self._record_shutdown(self.clock())
         if self.sink is not None:
             # The records first, with a deadline well inside the unit's stop timeout, then
             # pushed; then journal copies and log lines, best effort (SR-7.7).
@@ -373,6 +379,19 @@ class Supervisor:
         self._wake_r.close()
         self._wake_w.close()
         self.notifier.close()
+
+    def _record_shutdown(self, now: int) -> None:
+        """The ``shutdown:REASON`` stop (SR-7.14): REASON is the signal that asked for the
+        exit (``SIGTERM``), ``requested`` for :meth:`request_stop` without one, or ``error``
+        when an exception ends :meth:`run` (its start failed). Every exit
+        is recorded, in STOPPED and HOLD too (a cause raised, or a stop)."""
+        if self.core is None:
+            return  # the core never started: there is no sequence to continue
+        if self._stop_signal is not None:
+            reason = signals.name(self._stop_signal)
+        else:  # asked for without a signal (an embedding program), or an exception
+            reason = "requested" if self._stop_requested else "error"
+        self._apply(self._feed(Shutdown(now, reason)))
 
     def run(self) -> int:
         """Start, loop until a stopping signal, shut down. Every signal that would end the

@@ -182,6 +182,7 @@ FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "reset_request": _CALLER,
     "output_readback": (("output", TEXT), ("requested", FLAG), ("read_back", OPTIONAL_FLAG)),
     "internal_fault": (("reason", TEXT),),
+    "shutdown": (("reason", TEXT),),
     "display_update": (("message", DISPLAY),),
     "commissioned": (("caller", CALLER), ("key85", OPTIONAL_INT), ("remote_status", FLAG)),
     "proof_test_request": _CALLER,

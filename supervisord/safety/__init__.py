@@ -49,6 +49,7 @@ from supervisord.safety.events import (
     OutputReadback,
     Request,
     ResetRequest,
+    Shutdown,
     Tick,
     VscReceived,
 )
@@ -97,6 +98,7 @@ __all__ = [
     "SafetyConfig",
     "SafetyCore",
     "Severity",
+    "Shutdown",
     "Situation",
     "State",
     "Tick",

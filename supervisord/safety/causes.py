@@ -42,6 +42,7 @@ class CauseKind(enum.Enum):
     VSC_WATCHDOG_OFF = "vsc_watchdog_off"
     VSC_WATCHDOG_UNTESTED = "vsc_watchdog_untested"  # SR-5.3: key 85 not proven to act
     INTERNAL = "internal"
+    SHUTDOWN = "shutdown"  # SR-7.14: the daemon exits (``shutdown:SIGTERM``)
     ESTOP_UNAVAILABLE = "estop_unavailable"  # SR-8.12, vsc.on_estop_unavailable = "stop"
     VSC_MODE = "vsc_mode"  # SR-3 hold
     CLIENT_HOLD = "client_hold"  # SR-3 hold
@@ -53,13 +54,14 @@ class CauseKind(enum.Enum):
 
     @property
     def has_subject(self) -> bool:
-        """Whether the cause name carries ``:NAME`` (a client, an output or a mode)."""
+        """Whether the cause name carries ``:NAME`` (a client, an output, a mode, or the
+        signal that ended the daemon)."""
         return self in _SUBJECT_KINDS
 
     @property
     def momentary(self) -> bool:
         """A cause whose condition is an instant, not a lasting state: it fires and is clear
-        at once, and only its latch remains (``startup``, ``internal``)."""
+        at once, and only its latch remains (``startup``, ``internal``, ``shutdown``)."""
         return self in _MOMENTARY_KINDS
 
     @property
@@ -85,9 +87,10 @@ _SUBJECT_KINDS = frozenset(
         CauseKind.OUTPUT_FAULT,
         CauseKind.VSC_MODE,
         CauseKind.CLIENT_HOLD,
+        CauseKind.SHUTDOWN,
     }
 )
-_MOMENTARY_KINDS = frozenset({CauseKind.STARTUP, CauseKind.INTERNAL})
+_MOMENTARY_KINDS = frozenset({CauseKind.STARTUP, CauseKind.INTERNAL, CauseKind.SHUTDOWN})
 _NOT_USER_ESTOP_KINDS = frozenset(
     {CauseKind.VSC_ESTOP, CauseKind.STARTUP, CauseKind.VSC_WATCHDOG_UNTESTED}
 )

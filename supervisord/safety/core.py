@@ -81,6 +81,7 @@ from supervisord.safety.events import (
     ProofTestRequest,
     Request,
     ResetRequest,
+    Shutdown,
     StopTested,
     Tick,
     VscReceived,
@@ -776,6 +777,14 @@ class SafetyCore:
             Cause(CauseKind.INTERNAL), now, make_details([("reason", event.reason[:200])])
         )
 
+    def _on_shutdown(self, event: Shutdown, now: int) -> None:
+        # SR-7.14: the daemon exits, its outputs already off; the stop is the core's like any
+        # other, so its record continues the sequence and a replay makes it again (SR-7.13).
+        # Momentary and latched, as ``internal``: in RUN or HOLD a stop, in STOPPED a cause
+        # raised, so every exit of the daemon is a record.
+        reason = event.reason[:60] if event.reason else "unknown"
+        self._book.pulse(Cause(CauseKind.SHUTDOWN, reason), now, ())
+
     def _on_commissioned(self, event: Commissioned, now: int) -> None:
         key85 = "no answer" if event.key85 is None else str(event.key85)
         result = f"key85={key85} remote_status={'on' if event.remote_status else 'not seen'}"
@@ -1458,6 +1467,7 @@ _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
         ResetRequest: SafetyCore._on_reset,
         OutputReadback: SafetyCore._on_readback,
         InternalFault: SafetyCore._on_internal_fault,
+        Shutdown: SafetyCore._on_shutdown,
         Commissioned: SafetyCore._on_commissioned,
         DisplayUpdate: SafetyCore._on_display,
         ProofTestRequest: SafetyCore._on_prooftest,

@@ -188,6 +188,15 @@ class InternalFault(_Event):
 
 
 @dataclass(frozen=True, slots=True)
+class Shutdown(_Event):
+    """The daemon is exiting (SR-7.14): ``reason`` is the signal that asked for it
+    (``SIGTERM``, ``SIGHUP``, ...) or ``error`` when the daemon's start failed. The daemon's
+    outputs are already off; the core records the stop, ``shutdown:REASON``."""
+
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
 class DisplayUpdate(_Event):
     """A client's display content for the remote: a value (keys 1-12, 99) or a label or text
     row (keys 1-9, 90-93). The core forwards it within the manual's rate limits and sends it
@@ -244,6 +253,7 @@ Event = (
     | ResetRequest
     | OutputReadback
     | InternalFault
+    | Shutdown
     | DisplayUpdate
     | Commissioned
     | ProofTestRequest

@@ -47,6 +47,7 @@ TRIGGERS = {
     "reset_request": ("caller",),
     "output_readback": ("output", "requested", "read_back"),
     "internal_fault": ("reason",),
+    "shutdown": ("reason",),
     "display_update": ("message",),
     "commissioned": ("caller", "key85", "remote_status"),
     "proof_test_request": ("caller",),
