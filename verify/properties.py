@@ -81,6 +81,7 @@ OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the hea
         "vsc_watchdog_off",
         "internal",
         "estop_unavailable",  # SR-8.12
+        "shutdown",  # SR-7.14 (the daemon's exit: the link is closed by then)
     }
 )
 

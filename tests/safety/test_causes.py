@@ -253,10 +253,14 @@ def test_read_back_of_an_unknown_output_is_internal() -> None:
     assert decision.state is State.STOPPED
 
 
-def test_only_startup_and_internal_are_momentary() -> None:
-    """SR-1.3, SR-2: ``startup`` and ``internal`` fire and are clear at once (only their latch
-    remains); every other cause lasts as long as its condition."""
-    assert {k for k in CauseKind if k.momentary} == {CauseKind.STARTUP, CauseKind.INTERNAL}
+def test_only_startup_internal_and_shutdown_are_momentary() -> None:
+    """SR-1.3, SR-2, SR-7.14: ``startup``, ``internal`` and ``shutdown`` fire and are clear at
+    once (only their latch remains); every other cause lasts as long as its condition."""
+    assert {k for k in CauseKind if k.momentary} == {
+        CauseKind.STARTUP,
+        CauseKind.INTERNAL,
+        CauseKind.SHUTDOWN,
+    }
 
 
 @pytest.mark.parametrize(
