@@ -2,9 +2,16 @@
 step, that it makes the decisions the record holds (SR-7.13; docs/record.md "Replay",
 docs/srcsctl.md).
 
-Exit 0 when every record the replay makes that the record holds is the same, the stop record
-included; 1 at the first that differs (the step and the fields are printed); 2 when the window
-cannot be read or replayed (another version's snapshot, a window whose start the bound cut).
+The record file is the record that counts (SR-7.13): the replay is compared with its records,
+the stop record included, and the window's own copy of the stop record is checked against it.
+
+Exit 0 when every record the replay makes that the record file holds is the same, the stop
+record included; 1 at the first that differs (the step and the fields are printed); 2 when the
+window cannot be read or replayed (damaged, nested too deep, another version's snapshot, a
+window whose start the bound cut); 3 when the record file does not hold the stop record or
+cannot be read (the replay is then compared with the window's own copy, and says so: nothing
+was checked against the record file); 5 when the window's copy of the stop record differs from
+the record file's (the fields are printed): the window was edited, or is another record's.
 """
 
 from __future__ import annotations
@@ -21,11 +28,23 @@ from supervisord.record.flight import LoadedWindow, read_window, record_of, wind
 from supervisord.record.flight_codec import FlightFormatError
 from supervisord.record.format import trigger_json
 from supervisord.record.jsonl import StoredRecord, read_records
-from supervisord.record.replay import Mismatch, Replay, ReplayError, Step, differing, replay
+from supervisord.record.replay import (
+    Mismatch,
+    Replay,
+    ReplayError,
+    Step,
+    copy_differs,
+    differing,
+    replay,
+)
 from supervisord.safety.events import Event, VscReceived
 
 EXIT_MISMATCH: Final = 1
 EXIT_BAD_INPUT: Final = 2
+EXIT_NOT_CHECKED: Final = 3
+"""The record file does not hold the window's stop record, or cannot be read (SR-7.13)."""
+EXIT_NOT_THE_RECORD: Final = 5
+"""The window's copy of its stop record differs from the record file's (SR-7.13)."""
 INPUT_WIDTH: Final = 64
 
 Json = Any
@@ -49,15 +68,26 @@ def find_window(which: str | None, record: Path | None) -> Path:
     return found[-1][1]
 
 
-def recorded_records(record: Path | None, after: int) -> dict[int, Mapping[str, Json]]:
-    """The records of ``record`` (all its files) numbered after ``after``, by number."""
-    if record is None or not record.exists():
-        return {}
-    return {
-        item.seq: item.data
-        for item in read_records(record)
-        if isinstance(item, StoredRecord) and item.seq > after
-    }
+def recorded_records(
+    record: Path | None, after: int
+) -> tuple[dict[int, Mapping[str, Json]], str | None]:
+    """The records of ``record`` (all its files) numbered after ``after``, by number, and why
+    some of it could not be read (``None``: it all could)."""
+    if record is None:
+        return {}, "no record file named (--file or --config)"
+    found: dict[int, Mapping[str, Json]] = {}
+    unread = None
+    try:
+        for item in read_records(record):
+            if isinstance(item, StoredRecord):
+                if item.seq > after:
+                    found[item.seq] = item.data
+            elif item.line == 0:  # not a regular file, or not opened
+                unread = f"{item.file} cannot be read: {item.text}"
+    except (OSError, RecursionError, ValueError) as error:
+        # A line nested past the interpreter's limit, a folder that cannot be listed.
+        unread = f"{record} cannot be read: {type(error).__name__}: {error}"
+    return found, unread
 
 
 def describe(event: Event | None) -> str:
@@ -97,8 +127,11 @@ def _record_line(record: Mapping[str, Json]) -> str:
 
 
 class _Printer:
-    def __init__(self, out: IO[str], stop_ns: int, show_all: bool) -> None:
+    def __init__(
+        self, out: IO[str], stop_ns: int, show_all: bool, copy_only: int | None = None
+    ) -> None:
         self.out, self.stop_ns, self.show_all = out, stop_ns, show_all
+        self.copy_only = copy_only  # the stop record the record file does not hold
         self.quiet = 0  # inputs passed without a line
 
     def time(self, step: Step | None) -> str:
@@ -121,6 +154,8 @@ class _Printer:
             verdict = "as recorded" if recorded is not None else "(not in the record files)"
             if recorded is not None and not _same(recorded, replayed):
                 verdict = "DIFFERS"
+            elif recorded is not None and replayed.get("seq") == self.copy_only:
+                verdict = "as the window's copy (not in the record files)"
             self.out.write(f"{'':>20}{_record_line(replayed)}  {verdict}\n")
 
     def flush(self) -> None:
@@ -175,6 +210,23 @@ def _mismatch(mismatch: Mismatch, result: Replay, printer: _Printer, out: IO[str
         out.write(f"  {' ' * len(field)}  replayed {_compact(replayed.get(field))}\n")
 
 
+def _copy_differs(
+    window: LoadedWindow, record: Path | None, fields: tuple[str, ...], out: IO[str]
+) -> None:
+    out.write(
+        f"NOT THE RECORD: the window's copy of stop record #{window.seq} differs from the "
+        f"record file ({record}): differing fields: {', '.join(fields)}; the replay is compared "
+        "with the record file\n"
+    )
+
+
+def _copy_only(window: LoadedWindow, unread: str | None, record: Path | None) -> str:
+    """Why the stop record was compared with the window's own copy only."""
+    if unread is not None:
+        return unread
+    return f"{record} does not hold record #{window.seq} (rotated away, or never written)"
+
+
 def run_replay(
     which: str | None,
     record: Path | None,
@@ -192,22 +244,46 @@ def run_replay(
         return EXIT_BAD_INPUT
     record = record or record_of(path)
     after = window.base.get("after_seq")
-    recorded = recorded_records(record, after if isinstance(after, int) else 0)
+    recorded, unread = recorded_records(record, after if isinstance(after, int) else 0)
+    checked = window.seq in recorded  # the stop record is the record file's (SR-7.13)
     stop_ns = _header(window, out)
+    contradicted = copy_differs(window, recorded)
+    if contradicted:
+        _copy_differs(window, record, contradicted, out)
     try:
         result: Replay = replay(window, recorded)
     except ReplayError as error:
         print(f"srcsctl replay: {error}", file=errors)
         return EXIT_BAD_INPUT
-    printer = _Printer(out, stop_ns, show_all)
+    except RecursionError:
+        # A snapshot's state nested past the interpreter's limit: damaged (SR-7.13).
+        print("srcsctl replay: the window cannot be replayed: nested too deep", file=errors)
+        return EXIT_BAD_INPUT
+    printer = _Printer(out, stop_ns, show_all, None if checked else window.seq)
     for step in result.steps:
         printer.step(step)
     printer.flush()
     if result.mismatch is not None:
         _mismatch(result.mismatch, result, printer, out)
+    if contradicted:
+        out.write(
+            f"the window is not the record's: its copy of stop record #{window.seq} says "
+            f"otherwise than the record file in {', '.join(contradicted)}\n"
+        )
+        out.flush()
+        return EXIT_NOT_THE_RECORD
+    if result.mismatch is not None:
         out.flush()
         return EXIT_MISMATCH
     unchecked = f" ({result.not_compared} not in the record files)" if result.not_compared else ""
+    if not checked:
+        out.write(
+            f"NOT CHECKED against the record file: {_copy_only(window, unread, record)}; the "
+            f"replay reproduces only the window's own copy of the stop "
+            f"{_record_line(window.stop)}, {result.compared} records compared{unchecked}\n"
+        )
+        out.flush()
+        return EXIT_NOT_CHECKED
     out.write(
         f"replay matches the record: {result.compared} records compared{unchecked}; "
         f"the stop {_record_line(window.stop)} reproduced\n"

@@ -52,6 +52,10 @@ YIELD_EVERY: Final = 64
 """Inputs encoded between two hand-overs of the interpreter's lock (``time.sleep(0)``): the
 lane's thread never holds the loop's thread back for more than about that many encodings
 (SR-7.12)."""
+MAX_NESTING: Final = 64
+"""How deep a window's line may nest (objects and lists). A window's deepest line is the
+snapshot's, some ten levels for a core with clients and causes; a deeper one is damaged, and is
+refused as that before anything walks it with the interpreter's own stack (SR-7.13)."""
 _NAME = re.compile(r"([1-9][0-9]*)\.jsonl")
 _TEMPORARY = re.compile(r"\.([1-9][0-9]*)\.jsonl\.tmp")
 
@@ -324,6 +328,26 @@ def read_window(path: Path) -> LoadedWindow:
 def _json_lines(file: Any) -> Iterator[Json]:
     for number, raw in enumerate(file, 1):
         try:
-            yield json.loads(raw)
+            value = json.loads(raw)
         except ValueError as error:
             raise FlightFormatError(f"line {number} is not JSON: {error}") from error
+        except RecursionError as error:  # deeper than the parser's own stack can go
+            raise FlightFormatError(f"line {number} is nested too deep") from error
+        if _nesting_over(value, MAX_NESTING):
+            raise FlightFormatError(f"line {number} is nested deeper than {MAX_NESTING} levels")
+        yield value
+
+
+def _nesting_over(value: Json, limit: int) -> bool:
+    """Whether ``value`` nests objects and lists more than ``limit`` deep; walked with a list of
+    its own, never the interpreter's stack."""
+    todo = [(value, 1)]
+    while todo:
+        item, depth = todo.pop()
+        if isinstance(item, dict | list):
+            if depth > limit:
+                return True
+            todo.extend(
+                (child, depth + 1) for child in (item.values() if isinstance(item, dict) else item)
+            )
+    return False

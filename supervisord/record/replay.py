@@ -5,7 +5,9 @@ The window's base gives the core's state where the window starts: a fresh
 :class:`~supervisord.safety.core.SafetyCore` built from the recorded configuration at the
 daemon's start, or one restored from the snapshot the daemon took then. Each input is fed as
 the daemon fed it, and each record the replayed core makes is compared with the record of the
-same sequence number: the stop record the window carries, and any other in the record files.
+same sequence number in the record files, the record that counts; the stop record the window
+carries stands in for its own only where the files do not hold it (the caller says so:
+``srcsctl replay`` exits 3 then, and 5 when the window's copy differs from the file's).
 Every field counts but the two the daemon stamps from outside the core (``utc``, the wall
 clock; ``version``, on a start's first record).
 
@@ -95,6 +97,16 @@ def differing(recorded: Mapping[str, Json], replayed: Mapping[str, Json]) -> tup
     return tuple(sorted(key for key in a.keys() | b.keys() if a.get(key) != b.get(key)))
 
 
+def copy_differs(
+    window: LoadedWindow, recorded: Mapping[int, Mapping[str, Json]]
+) -> tuple[str, ...]:
+    """The fields in which the window's copy of its stop record differs from the record files'
+    record of the same ``seq`` (none when the files do not hold it): a window edited since, or
+    another record's (SR-7.13)."""
+    on_file = recorded.get(window.seq)
+    return () if on_file is None else differing(on_file, window.stop)
+
+
 def start_core(window: LoadedWindow) -> tuple[SafetyCore, Decision | None]:
     """The core where the window starts, and the start's decision for a fresh one."""
     kind = window.base.get("kind")
@@ -117,14 +129,15 @@ def start_core(window: LoadedWindow) -> tuple[SafetyCore, Decision | None]:
 
 def replay(window: LoadedWindow, recorded: Mapping[int, Mapping[str, Json]]) -> Replay:
     """Run the window through a core and compare every record it makes with ``recorded``
-    (records by ``seq``, from the record files; the window's own stop record wins)."""
+    (records by ``seq``, from the record files). The stop record is the files' where they hold
+    it, else the window's own copy (SR-7.13: the record file is the record that counts)."""
     core, first = start_core(window)
     offset = window.header.get("sequence_offset")
     after = window.base.get("after_seq")
     if not isinstance(offset, int) or not isinstance(after, int):
         raise ReplayError("the window's header lacks its sequence numbers")
     expected = {seq: record for seq, record in recorded.items() if seq > after}
-    expected[window.seq] = window.stop
+    expected.setdefault(window.seq, window.stop)
     waiting = deque(sorted(expected))  # the recorded numbers the replay must make, in order
     result = Replay()
     seen: set[int] = set()

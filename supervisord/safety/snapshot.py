@@ -20,9 +20,11 @@ configuration holds the output kinds' own specifications (a GPIO chip, a file pa
 core never reads and a snapshot need not know.
 
 Safe to read from a file: :func:`restore` makes only instances of the classes defined in the
-core's own modules and the protocol's message modules (:data:`MODULES`), sets only plain
-attribute names on them, and never calls a constructor, a method or anything named in the
-data. Tied to the code that wrote it: the state of one version of the core is not a state of
+core's own modules and the protocol's message modules (:data:`MODULES`), sets on each exactly
+the fields its class declares (:class:`_Declared`: a dataclass's fields, else the attributes a
+fresh core's instance holds and the class's own annotated or cached ones; never a name that is
+a method of the class, never one missing), each of its declared type, and never calls a
+constructor, a method or anything named in the data (SR-7.13). Tied to the code that wrote it: the state of one version of the core is not a state of
 another, which the window's header says (``srcsd`` version) and ``srcsctl replay`` checks.
 
 Pure, as the rest of the core (``tests/safety/test_purity.py``).
@@ -30,9 +32,13 @@ Pure, as the rest of the core (``tests/safety/test_purity.py``).
 
 from __future__ import annotations
 
+import dataclasses
 import enum
+import functools
+import types
+import typing
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from types import MappingProxyType, ModuleType
 from typing import Any, Final
 
@@ -176,9 +182,108 @@ def snapshot(safety: SafetyCore) -> Json:
     return {"t": "obj", "c": _name(SafetyCore), "i": -1, "f": state}
 
 
+def _conforms(value: object, hint: Any) -> bool:
+    """Whether ``value`` is of the declared type ``hint`` (the forms the core's annotations
+    use: classes, ``X | None``, and the builtin containers with their item types)."""
+    if hint is Any or hint is object:
+        return True
+    if hint is None or hint is type(None):
+        return value is None
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Union or origin is types.UnionType:
+        return any(_conforms(value, arg) for arg in args)
+    if origin is None:
+        if hint is float:
+            return isinstance(value, int | float) and not isinstance(value, bool)
+        return isinstance(hint, type) and isinstance(value, hint)
+    if origin is typing.Literal:
+        return value in args
+    if not isinstance(value, origin):
+        return False
+    if origin is tuple and isinstance(value, tuple):
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_conforms(item, args[0]) for item in value)
+        return len(args) == len(value) and all(map(_conforms, value, args))
+    if isinstance(value, Mapping) and len(args) == 2:
+        return all(_conforms(k, args[0]) and _conforms(v, args[1]) for k, v in value.items())
+    if isinstance(value, list | set | frozenset | deque) and len(args) == 1:
+        return all(_conforms(item, args[0]) for item in value)
+    return True
+
+
+class _Declared:
+    """The fields the snapshot format declares for each class, with their types: a dataclass's
+    fields and their annotations; for the core's other classes, the attributes an instance of
+    a fresh core holds (typed as the fresh value's class, or ``None``), and the class's own
+    annotated, defaulted or cached attributes, which a snapshot may leave out (the class's
+    value then stands). Never a name the class defines as a method or property (SR-7.13)."""
+
+    def __init__(self, config: SafetyConfig) -> None:
+        self.required: dict[type, dict[str, Any]] = {}
+        self.optional: dict[type, dict[str, Any]] = {}
+        self._fresh(SafetyCore(config, 0))
+
+    def _fresh(self, core: SafetyCore) -> None:
+        todo: list[object] = [core]
+        seen: set[int] = set()
+        while todo:
+            obj = todo.pop()
+            if id(obj) in seen or isinstance(obj, type):
+                continue
+            seen.add(id(obj))
+            if isinstance(obj, dict | MappingProxyType):
+                todo.extend(obj.values())
+            elif isinstance(obj, list | tuple | set | frozenset | deque):
+                todo.extend(obj)
+            elif type(obj) in CLASSES.values() and not dataclasses.is_dataclass(obj):
+                fields = self.required.setdefault(type(obj), {})
+                for name, value in getattr(obj, "__dict__", {}).items():
+                    if obj is core and name == CONFIG:
+                        continue  # never in a snapshot: restore gives it back
+                    fields[name] = Any if value is None else type(value) | None
+                    todo.append(value)
+
+    def of(self, cls: type) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The required and the optional fields of ``cls``, by name, with their types."""
+        if dataclasses.is_dataclass(cls):
+            hints = _hints(cls)
+            return {f.name: hints.get(f.name, Any) for f in dataclasses.fields(cls)}, {}
+        optional = self.optional.get(cls)
+        if optional is None:
+            optional = self.optional[cls] = _class_fields(cls)
+        return self.required.get(cls, {}), optional
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _class_fields(cls: type) -> dict[str, Any]:
+    """The attributes ``cls`` declares itself that an instance may hold: annotated or given a
+    plain value in the class body, or cached properties (typed by what they return)."""
+    found: dict[str, Any] = {}
+    hints = _hints(cls)
+    for klass in reversed(cls.__mro__[:-1]):
+        for name, value in vars(klass).items():
+            if name.startswith("__"):
+                continue
+            if isinstance(value, functools.cached_property):
+                found[name] = typing.get_type_hints(value.func).get("return", Any)
+            elif name in hints:
+                found[name] = hints[name]
+            elif isinstance(value, bool | int | str | float) or value is None:
+                found[name] = type(value)
+    for name, hint in hints.items():
+        if typing.get_origin(hint) is not typing.ClassVar:
+            found.setdefault(name, hint)
+    return found
+
+
 class _Reader:
-    def __init__(self) -> None:
+    def __init__(self, declared: _Declared) -> None:
         self.made: dict[int, object] = {}
+        self.declared = declared
 
     def value(self, data: Json) -> Any:
         if data is None or isinstance(data, bool | int | str | float):
@@ -272,11 +377,19 @@ class _Reader:
         attributes = data.get("f")
         if not isinstance(attributes, dict):
             raise SnapshotError(f"{data.get('c')} without attributes")
+        required, optional = self.declared.of(cls)
+        unknown = sorted(set(attributes) - required.keys() - optional.keys())
+        if unknown:
+            raise SnapshotError(f"{data.get('c')}: fields its class does not declare: {unknown}")
+        missing = sorted(required.keys() - attributes.keys())
+        if missing:
+            raise SnapshotError(f"{data.get('c')}: declared fields missing: {missing}")
         for key, value in attributes.items():
-            if not key.isidentifier() or key.startswith("__"):
-                raise SnapshotError(f"not an attribute name: {key!r}")
+            restored = self.value(value)
+            if not _conforms(restored, required.get(key, optional.get(key))):
+                raise SnapshotError(f"{data.get('c')}.{key}: not of its declared type")
             try:
-                object.__setattr__(made, key, self.value(value))
+                object.__setattr__(made, key, restored)
             except (AttributeError, TypeError) as error:
                 raise SnapshotError(f"{data.get('c')}.{key}: {error}") from error
         return made
@@ -289,7 +402,7 @@ def restore(data: Json, config: SafetyConfig) -> SafetyCore:
     if not isinstance(data, dict) or data.get("c") != _name(SafetyCore):
         raise SnapshotError("the snapshot is not of a safety core")
     try:
-        made = _Reader().value(data)
+        made = _Reader(_Declared(config)).value(data)
     except SnapshotError:
         raise
     except RecursionError as error:

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from supervisord.record.flight import flight_dir, read_window, window_path
+from supervisord.record.replay import replay
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 from tests.faults.test_record_faults import (
@@ -61,12 +62,31 @@ def _stop_heartbeat_cleared(window: Path, into: Path) -> None:
     into.write_text("\n".join(lines) + "\n")
 
 
+def _stop_word_and_copy_forged(window: Path, into: Path) -> None:
+    """A copy of ``window`` whose stopping heartbeat says e-stop word 0x04 and whose copy of the
+    stop record was edited to what a core makes of that."""
+    lines = window.read_text().splitlines()
+    last = json.loads(lines[-2])
+    payload = bytes.fromhex(last["message"]["payload"])
+    last["message"]["payload"] = (payload[:2] + (4).to_bytes(4, "little")).hex()
+    lines[-2] = json.dumps(last)
+    into.write_text("\n".join(lines) + "\n")
+    made = replay(read_window(into), {}).steps[-1].records[0][0]
+    header = json.loads(lines[0])
+    header["stop"] = {**made, "utc": header["stop"]["utc"]}
+    lines[0] = json.dumps(header)
+    into.write_text("\n".join(lines) + "\n")
+
+
 def test_a_stop_leaves_its_window_and_srcsctl_replay_reproduces_it(tmp_path: Path) -> None:
     """SR-7.10, SR-7.12, SR-7.13: a remote e-stop in RUN. Its window appears beside the record
     (``stops.jsonl.flight/SEQ.jsonl``), its last input the stopping heartbeat; ``srcsctl
     replay SEQ --config`` runs it through a fresh core and reproduces every record, the stop's
     included (exit 0). A copy whose stopping heartbeat was edited to say no e-stop is a
-    mismatch (exit 1, the first differing step named). The robot then re-arms and runs."""
+    mismatch (exit 1, the first differing step named). A copy whose stopping e-stop word says
+    0x04 and whose copy of the stop record was edited to match is not the record: the record
+    file's stop record says otherwise (exit 5, the fields named). The robot then re-arms and
+    runs."""
     with Robot(tmp_path) as robot:
         robot.arm()
         stop = robot.remote_estop()
@@ -85,6 +105,12 @@ def test_a_stop_leaves_its_window_and_srcsctl_replay_reproduces_it(tmp_path: Pat
         assert bad.returncode == 1, bad.stdout + bad.stderr
         assert "MISMATCH at " in bad.stdout, bad.stdout
         assert f": record #{stop.record['seq']}\n" in bad.stdout, bad.stdout
+        forged = tmp_path / "forged.jsonl"
+        _stop_word_and_copy_forged(path, forged)
+        done = srcsctl("replay", str(forged), "--file", str(robot.record_path))
+        assert done.returncode == 5, done.stdout + done.stderr
+        assert "differing fields: causes" in done.stdout, done.stdout
+        assert "replay matches" not in done.stdout, done.stdout
         robot.vsc.release()
         robot.recover(stop)
 
