@@ -156,8 +156,16 @@ COMMANDS: tuple[Command, ...] = (
                 "usage or configuration error; decode: some input was unreadable; replay: the "
                 "window cannot be read or replayed",
             ),
-            ("3", "no daemon answers at the socket"),
+            (
+                "3",
+                "no daemon answers at the socket; replay: not checked against the record file "
+                "(it does not hold the stop record, or cannot be read)",
+            ),
             ("4", "the socket exists but this user may not open it"),
+            (
+                "5",
+                "replay: the window's copy of the stop record differs from the record file's",
+            ),
         ),
         environment=(
             ("SRCS_SOCKET", "the API socket when neither --socket nor --config is given"),

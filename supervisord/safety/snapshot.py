@@ -24,8 +24,9 @@ core's own modules and the protocol's message modules (:data:`MODULES`), sets on
 the fields its class declares (:class:`_Declared`: a dataclass's fields, else the attributes a
 fresh core's instance holds and the class's own annotated or cached ones; never a name that is
 a method of the class, never one missing), each of its declared type, and never calls a
-constructor, a method or anything named in the data (SR-7.13). Tied to the code that wrote it: the state of one version of the core is not a state of
-another, which the window's header says (``srcsd`` version) and ``srcsctl replay`` checks.
+constructor, a method or anything named in the data (SR-7.13). Tied to the code that wrote
+it: the state of one version of the core is not a state of another, which the window's header
+says (``srcsd`` version) and ``srcsctl replay`` checks.
 
 Pure, as the rest of the core (``tests/safety/test_purity.py``).
 """
