@@ -27,7 +27,7 @@ from supervisord.protocol.messages import VscHeartbeat
 from supervisord.record.flight import LoadedWindow, read_window, record_of, window_path, windows
 from supervisord.record.flight_codec import FlightFormatError
 from supervisord.record.format import trigger_json
-from supervisord.record.jsonl import StoredRecord, read_records
+from supervisord.record.jsonl import RecordUnreadable, StoredRecord, read_records
 from supervisord.record.replay import (
     Mismatch,
     Replay,
@@ -84,8 +84,10 @@ def recorded_records(
                     found[item.seq] = item.data
             elif item.line == 0:  # not a regular file, or not opened
                 unread = f"{item.file} cannot be read: {item.text}"
+    except RecordUnreadable as error:  # there, but closed to this user (SR-7.9)
+        unread = str(error)
     except (OSError, RecursionError, ValueError) as error:
-        # A line nested past the interpreter's limit, a folder that cannot be listed.
+        # A line nested past the interpreter's limit.
         unread = f"{record} cannot be read: {type(error).__name__}: {error}"
     return found, unread
 
