@@ -23,6 +23,14 @@ JsonDict = dict[str, Any]
 DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 """Where the daemon serves the API unless its config says otherwise (docs/api.md "The
 socket"); the client connects there by default."""
+
+
+def operator_socket_path(client_socket: Path) -> Path:
+    """The operator socket beside a client socket (SR-8.14, docs/api.md "The operator
+    socket"), unless the config names one: ``api.sock`` gives ``api-operator.sock``."""
+    return client_socket.with_name(f"{client_socket.stem}-operator{client_socket.suffix}")
+
+
 DEFAULT_MAX_LINE: Final = 4096
 """The longest request line in bytes, its newline included (``docs/api.md`` "Limits")."""
 DEFAULT_MAX_DISCARD: Final = 64 * 1024

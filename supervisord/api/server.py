@@ -46,7 +46,13 @@ Two rules keep the stop path open whatever the other programs do (SR-8.4,
 - **a read budget**: one :meth:`ApiServer.handle` call handles at most ``requests_per_call``
   requests of a connection, and one turn (from one :meth:`ApiServer.descriptors` call to the
   next) at most ``requests_per_turn`` shared evenly among the connections; what is not read
-  stays in the socket, so its descriptor is readable again next turn.
+  stays in the socket, so its descriptor is readable again next turn;
+- **an operator socket** (SR-8.14): a second listening socket at ``operator_path`` that only
+  root and ``operator_group`` can reach, with its own backlog and its own
+  ``operator_max_clients`` connections, outside ``max_clients`` and the e-stop slots, accepted
+  first whenever the server is handed a listening socket (:meth:`ApiServer.urgent` tells the
+  loop to hand it first). The same protocol, every op but a robot program's (``heartbeat``,
+  ``command``).
 """
 
 from __future__ import annotations
@@ -79,7 +85,9 @@ from supervisord.api.requests import (
     ADMIN_REQUESTS,
     NAMED_REQUESTS,
     ApiRequest,
+    Command,
     Estop,
+    Heartbeat,
     Hello,
     Status,
     Subscribe,
@@ -114,6 +122,12 @@ DEFAULT_RESERVED_SLOTS: Final = 4
 DEFAULT_SLOT_IDLE_MS: Final = 1000
 DEFAULT_REQUESTS_PER_CALL: Final = 8
 DEFAULT_REQUESTS_PER_TURN: Final = 64
+DEFAULT_OPERATOR_MAX_CLIENTS: Final = 8
+OPERATOR_MODE_GROUP: Final = 0o660  # root, the daemon's user and operator_group (SR-8.14)
+OPERATOR_MODE_OWNER: Final = 0o600  # no operator_group: root and the daemon's user only
+ROBOT_REQUESTS: Final = (Heartbeat, Command)
+"""What the operator socket does not serve: a robot program's own requests (SR-8.14), which
+belong on the client socket, where ``api.max_clients`` counts them."""
 SLOT_REQUESTS: Final = (Estop, Status)
 """What an e-stop slot serves: the operator's stop and a look at the state (docs/api.md)."""
 NAMELESS_REQUESTS: Final = (Estop, Status)
@@ -137,7 +151,9 @@ class ServerConfig:
     (``None``: only root). ``known_uids``: users whose login names are looked up at start
     (the bound clients' users), so that their connections never wait for a name (SR-10.3).
     ``reserved_slots``, ``slot_idle_ms``, ``requests_per_call`` and ``requests_per_turn`` are
-    the limits of the module docstring.
+    the limits of the module docstring. ``operator_path`` (``None``: none) is the operator
+    socket (SR-8.14), mode 0660 and group ``operator_group``, or mode 0600 without one; it
+    takes ``operator_max_clients`` connections.
     Raises :class:`ConfigError` for a value out of range.
     """
 
@@ -154,6 +170,14 @@ class ServerConfig:
     slot_idle_ms: int = DEFAULT_SLOT_IDLE_MS
     requests_per_call: int = DEFAULT_REQUESTS_PER_CALL
     requests_per_turn: int = DEFAULT_REQUESTS_PER_TURN
+    operator_path: Path | None = None
+    operator_group: str | None = None
+    operator_max_clients: int = DEFAULT_OPERATOR_MAX_CLIENTS
+
+    @property
+    def operator_mode(self) -> int:
+        """The operator socket's mode: its group may connect only if there is one."""
+        return OPERATOR_MODE_GROUP if self.operator_group is not None else OPERATOR_MODE_OWNER
 
     @property
     def discard_limit(self) -> int:
@@ -166,6 +190,12 @@ class ServerConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "path", Path(self.path))
+        if self.operator_path is not None:
+            object.__setattr__(self, "operator_path", Path(self.operator_path))
+            if self.operator_path == self.path:
+                raise ConfigError(
+                    "api.operator_socket", str(self.operator_path), "use a path of its own"
+                )
         if not isinstance(self.mode, int) or self.mode & ~0o770 or not self.mode & 0o200:
             raise ConfigError(
                 "api.mode", self.mode, "use 0600, 0620 or 0660: owner and group only, never others"
@@ -179,6 +209,7 @@ class ServerConfig:
             ("api.slot_idle_ms", self.slot_idle_ms, 10, 60_000),
             ("api.requests_per_call", self.requests_per_call, 1, 1024),
             ("api.requests_per_turn", self.requests_per_turn, 1, 1 << 16),
+            ("api.operator_max_clients", self.operator_max_clients, 1, 256),
         ):
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
                 raise ConfigError(key, value, f"use a whole number from {low} to {high}")
@@ -269,6 +300,7 @@ class _Connection:
         "info",
         "last_ns",
         "naming_until",
+        "operator",
         "out",
         "places",
         "reader",
@@ -290,6 +322,7 @@ class _Connection:
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
         self.dead = False  # ended: shut down, its descriptor released at the next descriptors()
         self.slot = False  # an e-stop slot: estop and status only, never reported to the core
+        self.operator = False  # came through the operator socket (SR-8.14)
         self.last_ns = 0  # when it was accepted or last sent a request (e-stop slots expire)
         self.taken = 0  # requests handled in this turn (the read budget)
 
@@ -329,6 +362,7 @@ class ApiServer:
         self.config = config
         self._admin_gid = group_id(config.admin_group)
         socket_gid = group_id(config.group, "api.group")
+        operator_gid = group_id(config.operator_group, "api.operator_group")
         self._own_uid = os.geteuid()
         self._connections: dict[int, _Connection] = {}  # by connection number
         self._by_fd: dict[int, _Connection] = {}
@@ -340,6 +374,18 @@ class ApiServer:
         self._turn_left = config.requests_per_turn
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
+        self._operator: socket.socket | None = None
+        self._operator_identity = (0, 0)
+        if config.operator_path is not None:
+            try:
+                self._operator, self._operator_identity = _listen(
+                    config.operator_path, config.operator_mode, operator_gid
+                )
+            except ServerError:  # a start that fails removes the socket it made (rule 4)
+                self._listener.close()
+                _unlink_if_ours(config.path, self._identity)
+                raise
+        self._operator_fd = self._operator.fileno() if self._operator is not None else -1
         # Login names are looked up off the loop (SR-10.3); the users known ahead are asked for
         # now, so their connections never wait. Made once the socket is ours: nothing to undo.
         self._names = names if names is not None else UserNames(user_name)
@@ -359,6 +405,8 @@ class ApiServer:
             return []
         self._new_turn(now)
         watched = [(self._listen_fd, False), (self._names_fd, False)]
+        if self._operator is not None:
+            watched.insert(0, (self._operator_fd, False))
         watched += [(fd, bool(conn.out)) for fd, conn in self._by_fd.items()]
         return watched
 
@@ -380,6 +428,12 @@ class ApiServer:
             if conn.naming_until is not None and now >= conn.naming_until:
                 self._named(conn, conn.info.caller.name)
 
+    def urgent(self) -> frozenset[int]:
+        """The descriptors the loop serves before every other client descriptor, outside its
+        per-turn count: the operator socket's (SR-8.14), so no number of busy connections
+        delays the operator's accept."""
+        return frozenset((self._operator_fd,)) if self._operator is not None else frozenset()
+
     def turn_limit(self) -> int:
         """The most requests one turn can hand to the loop: ``requests_per_turn``, or one per
         connection when there are more connections than that (every one gets its turn)."""
@@ -389,9 +443,13 @@ class ApiServer:
         """Act on one ready descriptor; what happened is queued for :meth:`take`."""
         if self._closed:
             return
-        if fd == self._listen_fd:
+        if fd in (self._listen_fd, self._operator_fd):
             if readable:
-                self.accept(now)
+                # The operator's waiting connections first, whichever socket is ready
+                # (SR-8.14): a turn that accepts churn accepts the operator before it.
+                self.accept_operators(now)
+                if fd == self._listen_fd:
+                    self.accept(now)
         elif fd == self._names_fd:
             self._names_known(now)
         else:
@@ -428,6 +486,19 @@ class ApiServer:
             except OSError:  # e.g. out of descriptors: try again on the next turn
                 break
             self._adopt(sock, now)
+
+    def accept_operators(self, now: int) -> None:
+        """Accept the operator socket's waiting connections (SR-8.14), a bounded number."""
+        if self._operator is None:
+            return
+        for _ in range(ACCEPTS_PER_CALL):
+            try:
+                sock, _address = self._operator.accept()
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                break
+            self._adopt(sock, now, operator=True)
 
     def on_readable(self, fd: int, now: int) -> None:
         """Read what one connection sent and queue its requests (and its end, if it ended).
@@ -542,6 +613,9 @@ class ApiServer:
         self._listener.close()
         self._names.close()
         _unlink_if_ours(self.config.path, self._identity)
+        if self._operator is not None and self.config.operator_path is not None:
+            self._operator.close()
+            _unlink_if_ours(self.config.operator_path, self._operator_identity)
 
     def __enter__(self) -> Self:
         return self
@@ -584,7 +658,7 @@ class ApiServer:
             if conn.slot and now - conn.last_ns >= idle:
                 self._refuse_slot(conn, "an e-stop slot left idle is closed")
 
-    def _adopt(self, sock: socket.socket, now: int) -> None:
+    def _adopt(self, sock: socket.socket, now: int, *, operator: bool = False) -> None:
         sock.setblocking(False)
         try:
             credentials = peer_credentials(sock)
@@ -601,9 +675,26 @@ class ApiServer:
         conn.last_ns = now
         if name is None:
             conn.naming_until = now + NAME_WAIT_NS
-        ordinary = sum(not c.slot for c in self._connections.values())
+        conn.operator = operator
+        ordinary = sum(not c.slot and not c.operator for c in self._connections.values())
+        operators = sum(c.operator for c in self._connections.values())
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
+        if operator:
+            # Its own count, outside max_clients and the e-stop slots (SR-8.14): only root
+            # and the operators' group reach this socket, so no robot program can fill it.
+            if operators < self.config.operator_max_clients:
+                self._results.append(Accepted(conn.info))
+            else:  # never reported to the core, as an e-stop slot refused
+                conn.accepted = False
+                error = ApiError(
+                    ErrorCode.TOO_MANY_CLIENTS,
+                    f"the operator socket takes at most {self.config.operator_max_clients} "
+                    "connections",
+                )
+                self._queue(conn, encode(error.reply()))
+                self._end(conn, CloseReason.EVICTED)
+            return
         if ordinary < self.config.max_clients:
             self._results.append(Accepted(conn.info))
             return
@@ -688,6 +779,12 @@ class ApiServer:
                 ErrorCode.TOO_MANY_CLIENTS,
                 f"the server takes at most {self.config.max_clients} clients; this e-stop "
                 "slot serves estop and status only",
+            )
+        if conn.operator and isinstance(request, ROBOT_REQUESTS):
+            # Not Denied: the core never sees it (a heartbeat is no reset to record).
+            return error(
+                ErrorCode.BAD_REQUEST,
+                f"{request.OP} is a robot program's: use the client socket (SR-8.14)",
             )
         if isinstance(request, ADMIN_REQUESTS) and not conn.info.caller.admin:
             return error(ErrorCode.NOT_ALLOWED, f"{request.OP} needs root or the admin group")

@@ -1,7 +1,9 @@
 """The ``srcsctl`` commands that talk to a running ``srcsd`` over its API socket.
 
 Each command is one connection and a few requests through :class:`SupervisorClient`
-(``docs/api.md``). Exit status: 0 done, 1 refused or failed (the daemon's reason is printed),
+(``docs/api.md``), on the operator socket when this user can open it, else on the client
+socket (SR-8.14; ``wait-ready``, a robot service's gate, always on the client socket).
+Exit status: 0 done, 1 refused or failed (the daemon's reason is printed),
 2 a usage or configuration error, 3 no daemon to talk to.
 """
 
@@ -18,7 +20,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Final, TextIO
 
-from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.framing import ApiError, ErrorCode, operator_socket_path
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.requests import StartProofTest
@@ -206,7 +208,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
     """Run one of :data:`COMMANDS`; returns the exit status."""
     prog = f"srcsctl {args.command}"
     try:
-        path = socket_path(getattr(args, "config", None), getattr(args, "socket", None))
+        path, operator = socket_paths(getattr(args, "config", None), getattr(args, "socket", None))
     except ConfigError as error:
         print(f"{prog}: {error}", file=err)
         return EXIT_USAGE
@@ -217,14 +219,14 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         print(f"{prog}: not confirmed; nothing was done", file=err)
         return 3  # not done (docs/srcsctl.md "The field stop test")
     if args.command == "watch":
-        return _watch(path, args, out, err)
+        return _watch(path, operator, args, out, err)
     try:
         if args.command == "wait-ready":
             return wait_ready(path, args.timeout, out, err)
         if args.command == "stoptest":
-            with SupervisorClient.connect(path, timeout=10.0) as client:
+            with connect(path, operator) as client:
                 return run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout)
-        with SupervisorClient.connect(path, timeout=10.0) as client:
+        with connect(path, operator) as client:
             return _one_shot(client, args, out)
     except ConnectError as error:
         if isinstance(error.__cause__, PermissionError):
@@ -252,6 +254,32 @@ def denied(path: Path, error: ConnectError) -> str:
     except (OSError, KeyError):
         how = "run it as root, or as a user who may open the socket and its directory"
     return f"{error}: permission denied; {how}"
+
+
+def connect(path: Path, operator: Path | None, timeout: float = 10.0) -> SupervisorClient:
+    """A connection on the ``operator`` socket if this user can open it, else on the client
+    socket at ``path`` (SR-8.14, docs/srcsctl.md "Which socket"). The operator socket is
+    missing under an older srcsd and closed to a user outside its group; any failure to
+    connect there falls back, and only the client socket's failure is reported."""
+    if operator is not None:
+        try:
+            return SupervisorClient.connect(operator, timeout=timeout)
+        except ConnectError:
+            pass  # not there, or not for this user: the client socket, as before
+    return SupervisorClient.connect(path, timeout=timeout)
+
+
+def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | None]:
+    """The client socket (as :func:`socket_path`) and the operator socket to try first:
+    the config's ``[api] operator_socket``, else the one beside the client socket; none with
+    ``--socket``, which names exactly the socket to use. Raises :class:`ConfigError`."""
+    if socket:
+        return Path(socket), None
+    if config:
+        api = load_config(config).api
+        return api.socket, api.operator_path
+    path = socket_path(None, None)
+    return path, operator_socket_path(path)
 
 
 def socket_path(config: str | None, socket: str | None) -> Path:
@@ -487,7 +515,9 @@ def _cause_text(cause: Cause) -> str:
 # -- watch ---------------------------------------------------------------------------------
 
 
-def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+def _watch(
+    path: Path, operator: Path | None, args: argparse.Namespace, out: TextIO, err: TextIO
+) -> int:
     """Follow the daemon until Ctrl-C or SIGTERM, reconnecting when it restarts.
 
     The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
@@ -514,7 +544,7 @@ def _watch(path: Path, args: argparse.Namespace, out: TextIO, err: TextIO) -> in
         interruptible()  # inside: a signal from here on ends it with exit 0 (SR-8.9)
         while True:
             try:
-                with SupervisorClient.connect(path, timeout=10.0) as client:
+                with connect(path, operator) as client:
                     said_waiting = False
                     if not args.json:
                         print(daemon_line(client.status()), file=out, flush=True)

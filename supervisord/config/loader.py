@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Final
 
 from supervisord import strict
+from supervisord.api.framing import operator_socket_path
 from supervisord.config import toml
 from supervisord.config.model import (
     ApiConfig,
@@ -109,6 +110,8 @@ API_GROUP: Final = strict.named(API, "group", strict.Text)
 API_ADMIN_GROUP: Final = strict.named(API, "admin_group", strict.Text)
 API_MAX_CLIENTS: Final = strict.named(API, "max_clients", strict.Whole)
 API_MAX_MESSAGE: Final = strict.named(API, "max_message_bytes", strict.Whole)
+API_OPERATOR_SOCKET: Final = strict.named(API, "operator_socket", strict.Text)
+API_OPERATOR_GROUP: Final = strict.named(API, "operator_group", strict.Text)
 
 
 class NotOnMachine(ConfigError):
@@ -545,8 +548,22 @@ class _Loader:
                 f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
                 f'socket address), e.g. "{API_SOCKET.default}"',
             )
+        operator = (
+            self.path(fields, API_OPERATOR_SOCKET)
+            if fields.read(API_OPERATOR_SOCKET) is not None
+            else operator_socket_path(socket)
+        )
+        if len(str(operator).encode()) > SOCKET_PATH_MAX_BYTES:
+            raise fields.refuse(
+                "operator_socket",
+                str(operator),
+                f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
+                "socket address); without the key it is the socket's path with -operator "
+                "before its suffix",
+            )
         group = self.group(fields, API_GROUP)
         admin_group = self.group(fields, API_ADMIN_GROUP)
+        operator_group = self.group(fields, API_OPERATOR_GROUP)
         max_clients = fields.whole(API_MAX_CLIENTS)
         if max_clients < required_clients + 1:
             raise fields.refuse(
@@ -561,6 +578,8 @@ class _Loader:
             admin_group=admin_group,
             max_clients=max_clients,
             max_message_bytes=fields.whole(API_MAX_MESSAGE),
+            operator_socket=operator,
+            operator_group=operator_group,
         )
 
 
@@ -606,6 +625,7 @@ def _path_claims(
         for file, part in record_paths(record.path, record.keep)
     ]
     claims.append(("api.socket", str(api.socket), api.socket, ""))
+    claims.append(("api.operator_socket", str(api.operator_path), api.operator_path, ""))
     return claims
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from supervisord.api.framing import operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS
 from supervisord.config.schema import (
     DEFAULT_CAN_BITRATE,
@@ -122,7 +123,9 @@ class ApiConfig:
     ``group`` owns the socket (mode 0660): the robot's programs must be in it to connect
     (``None``: the daemon's own group). ``admin_group`` ``None`` means no group: commands that
     can re-enable motion or write the VSC are then allowed only to root and to the daemon's
-    own user.
+    own user. ``operator_socket`` is the operators' own socket (SR-8.14; ``None``: the one
+    beside ``socket``, :func:`~supervisord.api.framing.operator_socket_path`), reachable by
+    root and ``operator_group`` only (``None``: root and the daemon's user).
     """
 
     socket: Path = Path(DEFAULT_SOCKET)
@@ -130,6 +133,18 @@ class ApiConfig:
     admin_group: str | None = None
     max_clients: int = DEFAULT_MAX_CLIENTS
     max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES
+    operator_socket: Path | None = None
+    operator_group: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.operator_socket is None:
+            object.__setattr__(self, "operator_socket", operator_socket_path(self.socket))
+
+    @property
+    def operator_path(self) -> Path:
+        """The operator socket's path, named or derived (never ``None`` once built)."""
+        assert self.operator_socket is not None
+        return self.operator_socket
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

@@ -85,6 +85,9 @@ class ApiListener(Listener):
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
         return self.server.descriptors(now)
 
+    def urgent(self) -> frozenset[int]:
+        return self.server.urgent()  # the operator socket (SR-8.14)
+
     def handle(
         self,
         fd: int,

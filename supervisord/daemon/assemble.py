@@ -66,6 +66,10 @@ def build_api(config: DaemonConfig) -> ApiListener:
             group=api.group,
             admin_group=api.admin_group,
             max_clients=api.max_clients,
+            # The operators' own socket (SR-8.14, docs/safety.md "The client socket cannot
+            # shut out a stop").
+            operator_path=api.operator_path,
+            operator_group=api.operator_group,
             max_line=api.max_message_bytes,
             # The bound clients' users: their names are looked up at start. Whether a hello
             # under a bound name is allowed is the safety core's to judge (ClientSpec.uid).

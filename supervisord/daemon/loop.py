@@ -137,6 +137,11 @@ class Listener:
         """(fd, wants_write) pairs to watch now (``now``: the loop's clock, as everywhere)."""
         return ()
 
+    def urgent(self) -> frozenset[int]:
+        """Descriptors (of :meth:`descriptors`) served before the other client descriptors
+        and outside :data:`MAX_CLIENTS_PER_TURN`: the operator socket (SR-8.14)."""
+        return frozenset()
+
     def handle(
         self,
         fd: int,
@@ -468,12 +473,24 @@ class Supervisor:
     def _serve_clients(self, ready: list[tuple[selectors.SelectorKey, int]]) -> None:
         """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, starting after the one
         served last (so every client gets its turn), and stop early when the link has bytes
-        waiting or a core deadline has come: those go first (docs/safety.md)."""
+        waiting or a core deadline has come: those go first (docs/safety.md). The listener's
+        urgent descriptors (the operator socket, SR-8.14) come before them all, uncounted."""
         if not ready:
             return
-        ready.sort(key=lambda item: item[0].fd)
+        urgent = self.listener.urgent()
+        first = [item for item in ready if item[0].fd in urgent]
+        ready = sorted((item for item in ready if item[0].fd not in urgent), key=lambda i: i[0].fd)
         later = [item for item in ready if item[0].fd > self._client_cursor]
         ordered = later + [item for item in ready if item[0].fd <= self._client_cursor]
+        for key, mask in first:
+            self.listener.handle(
+                key.fd,
+                bool(mask & selectors.EVENT_READ),
+                bool(mask & selectors.EVENT_WRITE),
+                self.clock(),
+                self._feed_and_apply,
+                snapshot=self._snapshot,
+            )
         for served, (key, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them

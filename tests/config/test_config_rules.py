@@ -613,10 +613,32 @@ def test_api(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> 
 
 
 def test_socket_path_at_the_limit_is_accepted(tmp_path: Path) -> None:
-    """A socket path of exactly 107 bytes fits in sun_path with its NUL."""
+    """A socket path of exactly 107 bytes fits in sun_path with its NUL (the operator socket
+    named apart: the one beside it would not fit, SR-8.14)."""
     socket = "/run/" + "s" * 102
     assert len(socket) == 107
-    assert load(tmp_path, {"api.socket": socket}).api.socket == Path(socket)
+    changes = {"api.socket": socket, "api.operator_socket": "/run/srcsd/op.sock"}
+    assert load(tmp_path, changes).api.socket == Path(socket)
+
+
+def test_the_operator_socket_beside_the_socket_is_its_default_and_must_fit(
+    tmp_path: Path,
+) -> None:
+    """SR-8.14: without the key the operator socket is the socket's path with -operator
+    before its suffix; when that would not fit a socket address the config is refused with
+    the fix (name one), never served without an operator socket."""
+    config = load(tmp_path, {"api.socket": "/run/srcsd/robot-a.sock"})
+    assert config.api.operator_path == Path("/run/srcsd/robot-a-operator.sock")
+    error = refused(tmp_path, {"api.socket": "/run/" + "s" * 102})
+    assert error.key.endswith("api.operator_socket")
+    assert "operator" in error.fix
+
+
+def test_the_operator_socket_must_not_be_the_socket(tmp_path: Path) -> None:
+    """SR-8.14: an operator socket at the client socket's own path is refused (one owner
+    per path)."""
+    error = refused(tmp_path, {"api.socket": "a.sock", "api.operator_socket": "a.sock"})
+    assert "operator_socket" in error.key
 
 
 def test_admin_group_is_looked_up_on_the_system(tmp_path: Path) -> None:

@@ -53,23 +53,25 @@ def shared_dir() -> Iterator[Path]:
     shutil.rmtree(folder, ignore_errors=True)
 
 
-def as_nobody(work: Callable[[], None]) -> int:
+def as_nobody(work: Callable[[], None], *, idle: bool = True) -> int:
     """Fork a child that becomes nobody (group nogroup, no other groups) and runs ``work``
     until it is killed; returns its pid. (Fork, not exec: the interpreter lives where nobody
-    cannot read it.) The child runs at ``SCHED_IDLE``: on a robot the daemon runs SCHED_FIFO,
-    above every program, which the harness cannot give it; a nice value alone (10 below the
+    cannot read it.) With ``idle`` false it keeps this process's priority, the operator's
+    ``srcsctl``'s (SR-8.14). With ``idle`` the child runs at ``SCHED_IDLE``: on a robot the
+    daemon runs SCHED_FIFO, above every program, which the harness cannot give it; a nice value alone (10 below the
     daemon, ``BELOW_THE_DAEMON``) left five programs that connect as fast as they can ahead of
     its accepts on two cores kept busy by ``--stress`` (in the one run that tried it; at the
     daemon's own priority, in the run before it, too; both runs raised the whole suite above
     the kernel's worker threads, which docs/testing.md "Under load" since found starves the
     suite's pseudo-terminals, so that may have been part of it). Idle priority also puts
-    them below the operator's ``srcsctl``, which on a robot they are not: that case is a
-    residual hazard (docs/safety.md "The client socket cannot shut out a stop")."""
+    them below the operator's ``srcsctl``, which on a robot they are not: that case is the
+    operator socket's (SR-8.14; docs/safety.md "The client socket cannot shut out a stop")."""
     pid = os.fork()
     if pid == 0:
         code = 1
         try:
-            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+            if idle:
+                os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
             os.setgroups([])
             os.setgid(NOBODY)
             os.setuid(NOBODY)
@@ -129,10 +131,11 @@ def churn(path: Path) -> Callable[[], None]:
     return work
 
 
-def srcsctl(path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    """The real ``srcsctl`` command, as the operator runs it (here as root)."""
+def srcsctl(path: Path, *args: str, where: str = "--socket") -> subprocess.CompletedProcess[str]:
+    """The real ``srcsctl`` command, as the operator runs it (here as root): ``--socket`` the
+    client socket only, ``--config`` the robot's config (the operator socket first)."""
     return subprocess.run(
-        [sys.executable, "-m", "supervisord.cli.srcsctl", *args, "--socket", str(path)],
+        [sys.executable, "-m", "supervisord.cli.srcsctl", *args, where, str(path)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -177,6 +180,43 @@ def test_operator_estop_gets_through_every_slot_held_and_churn(shared_dir: Path)
         finally:
             end(pids)
         release = srcsctl(path, "release")
+        assert release.returncode == 0, release.stderr
+        robot.recover(stop)
+
+
+def test_operator_gets_through_churn_at_the_operators_own_priority(shared_dir: Path) -> None:
+    """SR-8.14: as the test above, but the four churners run at the operator's own priority
+    (on a robot, programs need not be below the operator), where a full client backlog
+    failed ``srcsctl status`` (1 to 3 of 10): ``srcsctl`` with the robot's config goes
+    through the operator socket, which no program of the socket's group can reach, and
+    ``status`` answers every time, ``estop`` succeeds at once and is recorded as root's."""
+    with SharedRobot(shared_dir / "robot") as robot:
+        robot.arm()
+        path, config = robot.socket_path, robot.config_path
+        operator = path.with_name("api-operator.sock")
+        assert operator.stat().st_mode & 0o777 == 0o600  # root and the daemon's user only
+        pids = [as_nobody(hog(path, MAX_CLIENTS))]
+        try:
+            time.sleep(0.5)  # the hog has taken every ordinary slot
+            pids += [as_nobody(churn(path), idle=False) for _ in range(CHURNERS)]
+            time.sleep(0.5)
+            t = robot.now()
+            statuses = [srcsctl(config, "status", where="--config") for _ in range(10)]
+            failed = [s.stderr for s in statuses if s.returncode != 0]
+            assert not failed, failed
+            print(
+                f"10 srcsctl status under churn at the operator's priority: {robot.now() - t:.2f} s"
+            )
+            t0 = robot.now()
+            estop = srcsctl(config, "estop", where="--config")
+            took = robot.now() - t0
+            assert estop.returncode == 0, estop.stderr
+            assert "estop (local): done; the supervisor is STOPPED" in estop.stdout
+            stop = robot.expect_stop("local_estop", t0, took)
+            assert stop.record["trigger"]["caller"]["uid"] == 0
+        finally:
+            end(pids)
+        release = srcsctl(config, "release", where="--config")
         assert release.returncode == 0, release.stderr
         robot.recover(stop)
 

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.framing import DEFAULT_SOCKET_PATH
+from supervisord.api.framing import DEFAULT_SOCKET_PATH, operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
 from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
@@ -78,6 +78,7 @@ CAN_ERROR_WINDOW_RANGE_MS: Final = (100, 10_000)
 CAN_ERROR_PASSIVE_RANGE_MS: Final = (0, 10_000)
 DEFAULT_RECORD_PATH: Final = "/var/lib/srcsd/stops.jsonl"
 DEFAULT_SOCKET: Final = str(DEFAULT_SOCKET_PATH)
+DEFAULT_OPERATOR_SOCKET: Final = str(operator_socket_path(DEFAULT_SOCKET_PATH))
 SOCKET_PATH_MAX_BYTES: Final = 107  # sun_path holds 108 bytes, the last one the NUL
 DEFAULT_MAX_MESSAGE_BYTES: Final = 65_536
 ROBOT_NAME_MAX: Final = 64
@@ -419,6 +420,22 @@ API: Final = (
         "Default: none (root and the daemon's user only).",
         "srcs-admin",
     ),
+    strict.Text(
+        name="operator_socket",
+        doc="The operators' own socket (SR-8.14: srcsctl tries it first; no robot program can "
+        "reach it); at most "
+        f"{SOCKET_PATH_MAX_BYTES} bytes once resolved. Default: the socket's path with "
+        "-operator before its suffix.",
+        default=None,
+        not_dir=True,
+        example=DEFAULT_OPERATOR_SOCKET,
+    ),
+    _group(
+        "operator_group",
+        "May connect to the operator socket (mode 0660); it must exist, and robot programs "
+        "must not be in it. Default: none (mode 0600: root and the daemon's user only).",
+        "srcs-operator",
+    ),
     strict.Whole(
         name="max_clients",
         doc="Connections at once, srcsctl included; at least the required clients and one.",
@@ -524,6 +541,8 @@ CROSS_CHECKS: Final[Mapping[str, str]] = {
     "CAN; not the VSC's own bus",
     "api.group": "an existing group on this machine",
     "api.admin_group": "an existing group on this machine",
+    "api.operator_group": "an existing group on this machine",
+    "api.operator_socket": f"at most {SOCKET_PATH_MAX_BYTES} bytes once resolved; not the socket",
     "api.max_clients": "at least the number of required clients plus one",
     "api.socket": f"at most {SOCKET_PATH_MAX_BYTES} bytes once resolved",
     "paths": "every file the config names (port, hidraw, sim outputs' paths, the record and "
