@@ -113,14 +113,18 @@ def test_the_operator_socket_refuses_a_robot_programs_requests(tmp_path: Path, b
     program's requests belong on the client socket)."""
     operator = Peer(tmp_path / "api-operator.sock")
     try:
-        served = (
+        served: tuple[dict[str, object], ...] = (
             {"op": "hello", "name": "srcsctl"},
             {"op": "hold"},
             {"op": "subscribe", "topics": ["state"]},
         )
         for op in served:
             assert operator.ask(both, op)["ok"] is True, op
-        for op in ({"op": "heartbeat"}, {"op": "command", "nonzero": False}):
+        robots: tuple[dict[str, object], ...] = (
+            {"op": "heartbeat"},
+            {"op": "command", "nonzero": False},
+        )
+        for op in robots:
             reply = operator.ask(both, op)
             assert (reply["ok"], reply["code"]) == (False, "bad_request"), reply
         assert operator.ask(both, {"op": "release", "what": "hold"})["ok"] is True

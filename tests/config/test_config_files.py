@@ -43,8 +43,8 @@ def write(tmp_path: Path, text: str | bytes) -> Path:
 
 
 def srcs_admin_exists(name: str) -> bool:
-    """A group lookup in which only the examples' admin group exists."""
-    return name == "srcs-admin"
+    """A group lookup in which only the examples' admin and operator groups exist."""
+    return name in ("srcs-admin", "srcs-operator")
 
 
 def test_the_three_examples_are_shipped() -> None:

@@ -58,14 +58,15 @@ def as_nobody(work: Callable[[], None], *, idle: bool = True) -> int:
     until it is killed; returns its pid. (Fork, not exec: the interpreter lives where nobody
     cannot read it.) With ``idle`` false it keeps this process's priority, the operator's
     ``srcsctl``'s (SR-8.14). With ``idle`` the child runs at ``SCHED_IDLE``: on a robot the
-    daemon runs SCHED_FIFO, above every program, which the harness cannot give it; a nice value alone (10 below the
-    daemon, ``BELOW_THE_DAEMON``) left five programs that connect as fast as they can ahead of
-    its accepts on two cores kept busy by ``--stress`` (in the one run that tried it; at the
-    daemon's own priority, in the run before it, too; both runs raised the whole suite above
-    the kernel's worker threads, which docs/testing.md "Under load" since found starves the
-    suite's pseudo-terminals, so that may have been part of it). Idle priority also puts
-    them below the operator's ``srcsctl``, which on a robot they are not: that case is the
-    operator socket's (SR-8.14; docs/safety.md "The client socket cannot shut out a stop")."""
+    daemon runs SCHED_FIFO, above every program, which the harness cannot give it; a nice
+    value alone (10 below the daemon, ``BELOW_THE_DAEMON``) left five programs that connect
+    as fast as they can ahead of its accepts on two cores kept busy by ``--stress`` (in the
+    one run that tried it; at the daemon's own priority, in the run before it, too; both runs
+    raised the whole suite above the kernel's worker threads, which docs/testing.md "Under
+    load" since found starves the suite's pseudo-terminals, so that may have been part of
+    it). Idle priority also puts them below the operator's ``srcsctl``, which on a robot they
+    are not: that case is the operator socket's (SR-8.14; docs/safety.md "The client socket
+    cannot shut out a stop")."""
     pid = os.fork()
     if pid == 0:
         code = 1

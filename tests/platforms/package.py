@@ -63,7 +63,7 @@ echo "== status"; dpkg-query -W -f '${Status} ${Version}\n' srcs-supervisord
 echo "== said"; grep '^srcs-supervisord: ' /tmp/apt.log || true
 echo "== version"; srcsd --version
 echo "== users"; getent passwd srcsd | cut -d: -f1,7
-for group in srcsd srcs-dev srcs-admin; do getent group "$group" | cut -d: -f1; done
+for group in srcsd srcs-dev srcs-admin srcs-operator; do getent group "$group" | cut -d: -f1; done
 echo "== dirs"; stat -c '%n %U:%G %a' /etc/srcs /var/lib/srcsd /var/log/srcsd
 echo "== gpiod"
 /opt/srcsd/bin/python3 -c 'import gpiod, sys; print(gpiod.__version__, sys.version.split()[0])'
@@ -102,7 +102,7 @@ done </srv/job/files
 for path in /opt/srcsd /usr/share/doc/srcs-supervisord /var/lib/srcsd /var/log/srcsd; do
     [ -e "$path" ] && echo "file $path"
 done
-for name in srcsd srcs-dev srcs-admin; do
+for name in srcsd srcs-dev srcs-admin srcs-operator; do
     getent group "$name" >/dev/null && echo "group $name"
 done
 getent passwd srcsd >/dev/null && echo "user srcsd"
@@ -231,8 +231,9 @@ def main(argv: list[str]) -> int:
         parts["version"],
     )
     report.check(
-        parts["users"] == ["srcsd:/usr/sbin/nologin", "srcsd", "srcs-dev", "srcs-admin"],
-        "sysusers: user srcsd (nologin), groups srcsd, srcs-dev, srcs-admin",
+        parts["users"]
+        == ["srcsd:/usr/sbin/nologin", "srcsd", "srcs-dev", "srcs-admin", "srcs-operator"],
+        "sysusers: user srcsd (nologin), groups srcsd, srcs-dev, srcs-admin, srcs-operator",
         parts["users"],
     )
     report.check(
