@@ -94,9 +94,14 @@ class CauseBook:
     def any_hold(self) -> bool:
         return any(e.active and c.severity is Severity.HOLD for c, e in self._entries.items())
 
-    def user_estop(self) -> bool:
-        """Whether any condition that sets the user heartbeat's e-stop byte is active (SR-5)."""
-        return any(e.active and c.kind.sets_user_estop for c, e in self._entries.items())
+    def user_estop(self, quiet: frozenset[CauseKind] = frozenset()) -> bool:
+        """Whether any condition that sets the user heartbeat's e-stop byte is active (SR-5),
+        those of the kinds in ``quiet`` aside (SR-8.15: a missing required client during a
+        proof test)."""
+        return any(
+            e.active and c.kind.sets_user_estop and c.kind not in quiet
+            for c, e in self._entries.items()
+        )
 
     def stops_clear_since(self) -> int | None:
         """When the last latched stop condition cleared; ``None`` if any is still active

@@ -630,10 +630,15 @@ class SafetyCore:
         return Situation.HOLD if hold else Situation.CLEAR
 
     def _finish(self, event: Event, previous: State, now: int) -> Decision:
-        estop = self._steady_estop = 1 if self._book.user_estop() else 0
+        # SR-8.15: while an unfinished proof test needs the byte at 0, a missing required
+        # client neither sets it nor aborts the test (the outputs are off: STOPPED).
+        quiet = self._proof.quiet(self._state is State.STOPPED)
+        estop = self._steady_estop = 1 if self._book.user_estop(quiet) else 0
         changes = self._book.take_changes()
         raised_user_estop = any(
-            ch.cause.kind.sets_user_estop for ch in changes if ch.kind is ChangeKind.RAISED
+            ch.cause.kind.sets_user_estop and ch.cause.kind not in quiet
+            for ch in changes
+            if ch.kind is ChangeKind.RAISED
         )
         if raised_user_estop:
             estop = 1  # a momentary cause (``internal``) still reaches the VSC once (SR-5)
@@ -1204,8 +1209,10 @@ class SafetyCore:
             and self._last_vsc_ns is not None
             and now - self._last_vsc_ns < self._vsc_timeout_ns
         )
-        calm = not self._book.user_estop() and self._local_estop is None
         stopped = self._state is State.STOPPED
+        # SR-8.15: a required client not there yet is no reason to wait (its service may
+        # start behind ``srcsctl wait-ready``, which waits for this test).
+        calm = not self._book.user_estop(proof.quiet(stopped)) and self._local_estop is None
         if proof.running and not (heard and calm and stopped):
             proof.abort()  # our own stop must reach the VSC at once (SR-5.2)
         ready = heard and calm and stopped and self._vsc_estop_word & USER_BITS == 0

@@ -19,6 +19,7 @@ from typing import Final
 
 from supervisord.protocol.codes import VscMode
 from supervisord.safety.canonical import Canonical, clock
+from supervisord.safety.causes import CauseKind
 from supervisord.timebase import NS_PER_MS
 
 USER_BITS: Final = 0xC0
@@ -58,6 +59,16 @@ VSC held them (until the operator's takeover, the manual does not say which it d
 KEY85_WAIT_NS: Final = 3_000 * NS_PER_MS
 """How long the test waits for key 85 to answer once the VSC is heard (it is asked every
 second, SR-5.3): no answer by then and the watchdog cannot be proven."""
+
+
+NOT_IN_THE_WAY: Final = frozenset({CauseKind.CLIENT_LOST})
+"""The stop causes that neither keep an unfinished proof test from starting nor set the user
+heartbeat's byte while it is unfinished and the supervisor STOPPED (SR-8.15): a required
+client not connected yet. Its service may itself start behind ``srcsctl wait-ready``, which
+waits for the proof test; the test needs the byte at 0 (PR-2.6). It cannot move the robot:
+the outputs are off (STOPPED) and ``client_lost`` stays active, latched and blocking every
+re-arm; the withholding itself opens the VSC's relays, and once the test is over the byte is
+1 again until the client is there."""
 
 
 class ProofTestPolicy(enum.Enum):
@@ -170,6 +181,16 @@ class ProofTest:
         if self.phase in (Phase.OFF, Phase.PASSED):
             return False
         return self.phase is not Phase.FAILED or self.policy is ProofTestPolicy.BLOCK
+
+    @property
+    def unfinished(self) -> bool:
+        """Pending or running: neither passed nor failed since the last new start."""
+        return self.phase in (Phase.WAITING, Phase.WITHHOLDING, Phase.RESUMED)
+
+    def quiet(self, stopped: bool) -> frozenset[CauseKind]:
+        """The cause kinds that do not count against the test now (SR-8.15): those of
+        :data:`NOT_IN_THE_WAY` while it is unfinished and the supervisor ``stopped``."""
+        return NOT_IN_THE_WAY if stopped and self.unfinished else frozenset()
 
     def details(self) -> tuple[tuple[str, str], ...]:
         if self.phase is Phase.FAILED and self.last is not None:

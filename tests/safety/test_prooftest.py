@@ -13,7 +13,10 @@ from supervisord.protocol.messages import FeedbackSet, UserHeartbeat, VscHeartbe
 from supervisord.record.format import proof_result, proof_status
 from supervisord.safety import (
     ClientConnected,
+    ClientDisconnected,
     ClientEstop,
+    ClientHeartbeat,
+    ClientHello,
     LinkBroken,
     LinkClosed,
     LinkOpened,
@@ -23,7 +26,7 @@ from supervisord.safety import (
     Tick,
     VscReceived,
 )
-from supervisord.safety.config import SafetyConfig, Transport
+from supervisord.safety.config import ClientSpec, SafetyConfig, Transport
 from supervisord.safety.decision import ChangeKind, Decision, RecordNote, RefusalReason
 from supervisord.safety.events import Commissioned, ProofTestRequest
 from supervisord.safety.prooftest import (
@@ -711,6 +714,65 @@ def test_a_stop_of_our_own_aborts_the_withholding_at_once(by: str) -> None:
     assert UserHeartbeat(1) in decision.frames
     assert decision.prooftest is not None
     assert decision.prooftest.phase is Phase.WAITING
+
+
+def test_a_required_client_not_there_yet_does_not_keep_the_proof_test_waiting() -> None:
+    """SR-8.15: with a required client never connected, the proof test runs and passes with
+    the byte at 0, the byte is 1 again once it passed, the robot stays STOPPED until the
+    client is there, and then the operator's takeover reaches RUN."""
+    vsc = Vsc(replace(BLOCK, clients=(ClientSpec("motion"),)))
+    lost = "client_lost:motion"
+    vsc.run(1000)
+    status = vsc.status()
+    assert status.phase is Phase.PASSED, status
+    assert lost in vsc.proof.active_names
+    withholding = [
+        d for d in vsc.decisions if d.prooftest and d.prooftest.phase is Phase.WITHHOLDING
+    ]
+    assert withholding, "the heartbeat was never withheld"
+    unfinished = [  # once the VSC is heard: until then vsc_link_lost sets the byte
+        d
+        for d in vsc.decisions
+        if d.prooftest
+        and d.prooftest.phase is not Phase.PASSED
+        and "vsc_link_lost" not in d.active_names
+    ]
+    assert {d.heartbeat_estop for d in unfinished} == {0}
+    assert [f for d in unfinished for f in d.frames if f == UserHeartbeat(1)] == []
+    assert vsc.proof.heartbeat_estop == 1  # the test is over: the missing client's byte again
+    assert vsc.takeover().state is State.STOPPED  # refused: the client is missing (SR-2.4)
+    vsc.feed(ClientConnected(vsc.now, 1))
+    vsc.feed(ClientHello(vsc.now, 1, "motion"))
+    vsc.mode = LOCAL
+    for _ in range(20):  # 1 s in Local with the client beating: every stop clear
+        vsc.beat()
+        vsc.feed(ClientHeartbeat(vsc.now, 1))
+    assert lost not in vsc.proof.active_names
+    assert vsc.proof.heartbeat_estop == 0
+    vsc.mode = PAUSE
+    for _ in range(6):
+        vsc.beat()
+        vsc.feed(ClientHeartbeat(vsc.now, 1))
+    vsc.mode = OPERATIONAL
+    assert vsc.beat().state is State.RUN
+
+
+def test_a_required_client_lost_after_the_proof_test_sets_the_byte_at_once() -> None:
+    """SR-8.15, SR-5.2: the exception ends with the proof test: a required client that goes
+    silent once the test has passed sends the byte at 1 at once, as every stop of ours."""
+    vsc = Vsc(replace(BLOCK, clients=(ClientSpec("motion"),)))
+    vsc.feed(ClientConnected(vsc.now, 1))
+    vsc.feed(ClientHello(vsc.now, 1, "motion"))
+    vsc.feed(ClientHeartbeat(vsc.now, 1))
+    for _ in range(8):  # within the client's 500 ms timeout
+        vsc.beat()
+        vsc.feed(ClientHeartbeat(vsc.now, 1))
+    vsc.run(1000)  # the client silent: lost during the test, which still passes
+    assert vsc.status().phase is Phase.PASSED
+    assert "client_lost:motion" in vsc.proof.active_names
+    assert vsc.proof.heartbeat_estop == 1
+    decision = vsc.feed(ClientDisconnected(vsc.now, 1))
+    assert decision.heartbeat_estop == 1
 
 
 def test_a_reconnect_and_a_silent_vsc_repeat_the_proof_test() -> None:
