@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final, TextIO
 
-from supervisord.api.readiness import missing
+from supervisord.api.readiness import for_run, missing
 from supervisord.client import ClientError, ConnectError, SupervisorClient
 
 POLL_S: Final = 0.2
@@ -35,32 +35,41 @@ def wait_ready(
     deadline = clock() + timeout_s
     said: list[str] | None = None
     while True:
-        gaps = _gaps(path)
+        seen = _seen(path)
+        gaps, also = seen if seen is not None else (None, "")
         if gaps is not None and not gaps:
-            print(f"wait-ready: ready ({path})", file=out)
+            print(f"wait-ready: ready ({path}){also}", file=out)
             return 0
-        if gaps != said and gaps is not None:
-            print(f"wait-ready: waiting: {'; '.join(gaps)}", file=err)
-        said = gaps
+        if gaps is not None and [*gaps, also] != said:
+            print(f"wait-ready: waiting for: {'; '.join(gaps)}{also}", file=err)
+        said = None if gaps is None else [*gaps, also]
         if clock() >= deadline:
             break
         sleep(POLL_S)
     if said is None:
         print(f"wait-ready: no supervisor answers at {path} (is srcsd running?)", file=err)
         return 3
-    print(f"wait-ready: not ready after {timeout_s:g} s: {'; '.join(said)}", file=err)
+    print(
+        f"wait-ready: not ready after {timeout_s:g} s: {'; '.join(said[:-1])}{said[-1]}", file=err
+    )
     return 1
 
 
-def _gaps(path: Path) -> list[str] | None:
-    """What is missing, or ``None`` when no supervisor answers (yet). A socket this user may
-    not open raises: waiting would not change that."""
+def _seen(path: Path) -> tuple[list[str], str] | None:
+    """What is missing for ready, and what else RUN still needs said as a tail (SR-8.15: a
+    required client, which the gate does not wait for: its service may be behind it); or
+    ``None`` when no supervisor answers (yet). A socket this user may not open raises:
+    waiting would not change that."""
     try:
         with SupervisorClient.connect(path, timeout=2.0) as client:
-            return missing(client.status())
+            status = client.status()
     except ConnectError as error:
         if isinstance(error.__cause__, PermissionError):
             raise
         return None
     except ClientError:
         return None
+    also = for_run(status)
+    return missing(
+        status
+    ), f"; also missing for RUN, not for ready: {', '.join(also)}" if also else ""

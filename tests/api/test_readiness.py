@@ -8,9 +8,11 @@ import dataclasses
 
 import pytest
 
-from supervisord.api.readiness import BLOCKING_CAUSES, missing
+from supervisord.api.readiness import BLOCKING_CAUSES, OURS_IN_THE_WAY, for_run, missing
 from supervisord.api.replies import StatusReply
 from supervisord.api.status import Cause, ProofTestStatus, StateReport
+from supervisord.safety.causes import CauseKind
+from supervisord.safety.prooftest import NOT_IN_THE_WAY
 from tests.api.samples import LOOP, status_reply
 
 WORKING_LINK = dataclasses.replace(LOOP.link, open=True, description="serial /dev/srcs-vsc")
@@ -79,3 +81,46 @@ def test_a_closed_link_and_outputs_not_held_are_named() -> None:
         "the link to the VSC is not open (serial /dev/srcs-vsc)",
         "outputs not held by the supervisor: drive, brake",
     ]
+
+
+def with_details(reply: StatusReply, name: str, **details: str) -> StatusReply:
+    """``reply`` with ``details`` on its cause ``name``."""
+    causes = tuple(
+        dataclasses.replace(c, details=details) if c.name == name else c
+        for c in reply.report.causes
+    )
+    return dataclasses.replace(reply, report=dataclasses.replace(reply.report, causes=causes))
+
+
+def test_a_missing_required_client_is_no_gap_and_is_named_for_run() -> None:
+    """SR-8.15: a required client not there keeps nothing from ready (its service may be
+    behind the gate) and is named, by its name and in words, as what RUN still needs."""
+    reply = status("client_lost:motion", "client_lost:bridge")
+    reply = with_details(reply, "client_lost:motion", reason="never connected")
+    reply = with_details(reply, "client_lost:bridge", reason="timeout")
+    assert missing(reply) == []
+    assert for_run(reply) == [
+        "required client `motion` not connected",
+        "required client `bridge` silent for its timeout",
+    ]
+    assert for_run(latched_only(reply)) == []
+
+
+def test_a_waiting_proof_test_says_what_it_waits_for() -> None:
+    """SR-8.15, SR-8.10: a proof test that has not started names what it waits for: a stop
+    of ours by its name, the VSC's user e-stop bits, never a missing required client."""
+    reply = status("local_estop", "client_lost:motion", "vsc_estop", phase="waiting")
+    reply = with_details(reply, "vsc_estop", word="0x00000080", sources="user_timeout")
+    assert missing(reply) == [
+        "the proof test of the VSC's watchdog has not passed (waiting for local_estop to clear "
+        "and the VSC's user e-stop bits to clear)"
+    ]
+    remote = with_details(status("vsc_estop", phase="waiting"), "vsc_estop", word="0x00000001")
+    assert missing(remote) == ["the proof test of the VSC's watchdog has not passed (waiting)"]
+
+
+def test_the_stops_named_in_the_way_are_the_core_s() -> None:
+    """SR-8.15: the stops readiness names as keeping the proof test from starting are exactly
+    those that set the user heartbeat's byte, less the ones the proof test lets pass."""
+    core = {k.value for k in CauseKind if k.sets_user_estop and k not in NOT_IN_THE_WAY}
+    assert core == OURS_IN_THE_WAY

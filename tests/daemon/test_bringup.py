@@ -1,0 +1,126 @@
+"""A robot's bringup as docs/ros2.md and docs/srcsctl.md describe it (SR-8.10, SR-8.15): a
+service that is a required client starts behind ``srcsctl wait-ready``, in both orders, against
+the real ``srcsd`` and ``srcs-sim`` (the simulated VSC, its key-85 watchdog commissioned)."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+from supervisord.sim.pty import PtyPort
+from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
+from supervisord.testkit.robot import Robot
+from supervisord.testkit.wait import wait_until
+from tests.daemon.peer import VscPeer
+from tests.daemon.test_srcsctl import SRCSCTL
+
+GATE_S = 30
+"""The gate's timeout: far beyond a start with a proof test (the simulator's 1 s boot, then
+0.5 to 0.7 s of the test), so that only a gate that never opens reaches it."""
+LOST = "client_lost:motion"
+
+
+def _gate(robot: Robot) -> subprocess.CompletedProcess[str]:
+    """``srcsctl wait-ready`` as a unit's ``ExecStartPre`` runs it."""
+    return subprocess.run(
+        [SRCSCTL, "wait-ready", "--config", str(robot.config_path), "--timeout", str(GATE_S)],
+        capture_output=True,
+        text=True,
+        timeout=GATE_S + 30,
+        check=False,
+    )
+
+
+def test_a_required_client_started_behind_the_gate_comes_up_and_the_robot_runs(
+    tmp_path: Path,
+) -> None:
+    """SR-8.15, SR-8.10: with the required client ``motion`` not started, the gate opens (the
+    proof test passes without it, the robot STOPPED with ``client_lost:motion``) and names the
+    client as what RUN still needs; the client, started after the gate, then reaches RUN with
+    the operator's takeover."""
+    with Robot(tmp_path, clients=("motion",)) as robot:
+        gate = _gate(robot)
+        assert gate.returncode == 0, gate.stderr
+        assert "wait-ready: ready" in gate.stdout
+        assert "also missing for RUN, not for ready: required client `motion` not connected" in (
+            gate.stdout
+        )
+        status = robot.status()
+        assert status.report.state == "STOPPED"
+        assert LOST in robot.active_stops(status)
+        assert status.report.prooftest is not None
+        assert status.report.prooftest.last is not None
+        assert status.report.prooftest.last.result == "passed", status.report.prooftest
+        robot.arm()  # the service behind the gate starts; the operator takes over
+        assert robot.status().report.state == "RUN"
+
+
+def test_a_required_client_started_before_the_gate_comes_up_and_the_robot_runs(
+    tmp_path: Path,
+) -> None:
+    """SR-8.15, SR-8.10: with the required client already running, the gate opens and says
+    nothing more is missing; the operator's takeover reaches RUN."""
+    with Robot(tmp_path, clients=("motion",)) as robot:
+        robot.start_clients()
+        wait_until(lambda: LOST not in robot.active(), what="the client connected and beating")
+        gate = _gate(robot)
+        assert gate.returncode == 0, gate.stderr
+        assert "also missing" not in gate.stdout, gate.stdout
+        robot.arm()
+        assert robot.status().report.state == "RUN"
+
+
+def test_wait_ready_names_a_missing_required_client_and_what_the_proof_test_waits_for(
+    tmp_path: Path,
+) -> None:
+    """SR-8.15, SR-8.10: while it waits, and when it gives up, ``wait-ready`` names each part
+    missing in words: the VSC not heard, key 85 unread, the proof test with what it waits for, the
+    required client ``motion`` by its name, as something RUN needs and ready does not."""
+    config = tmp_path / "robot.toml"
+    config.write_text(MINIMAL_CONFIG + '[[clients]]\nname = "motion"\n')
+    with PtyPort(tmp_path / "vsc"), SrcsdProcess(config).start():
+        silent = subprocess.run(
+            [SRCSCTL, "wait-ready", "--config", str(config), "--timeout", "1"],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            check=False,
+        )
+    assert silent.returncode == 1, silent.stderr
+    parts = (
+        "the VSC is not heard; the VSC's key-85 watchdog is off; the proof test of the VSC's "
+        "watchdog has not passed (waiting for the VSC to be heard and key 85 to read 1); also "
+        "missing for RUN, not for ready: required client `motion` not connected"
+    )
+    assert f"wait-ready: waiting for: {parts}\n" in silent.stderr
+    assert f"wait-ready: not ready after 1 s: {parts}\n" in silent.stderr
+
+
+def test_wait_ready_names_a_stop_of_ours_that_keeps_the_proof_test_waiting(
+    tmp_path: Path,
+) -> None:
+    """SR-8.15, SR-8.10: a local e-stop pressed before the VSC is heard keeps the proof test
+    from starting once it is heard, and ``wait-ready`` names it as what the test waits for."""
+    config = tmp_path / "robot.toml"
+    config.write_text(MINIMAL_CONFIG)
+    with PtyPort(tmp_path / "vsc") as port, SrcsdProcess(config).start() as daemon:
+        pressed = subprocess.run(
+            [SRCSCTL, "estop", "--config", str(config)],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            check=False,
+        )
+        assert pressed.returncode == 0, pressed.stderr
+        peer = VscPeer(port)
+        with peer.serving():
+            waiting = subprocess.run(
+                [SRCSCTL, "wait-ready", "--config", str(config), "--timeout", "3"],
+                capture_output=True,
+                text=True,
+                timeout=30,
+                check=False,
+            )
+    assert daemon.exit_status == 0
+    assert waiting.returncode == 1, waiting.stderr
+    assert "has not passed (waiting for local_estop to clear)" in waiting.stderr, waiting.stderr
