@@ -75,6 +75,20 @@ FAULTS = (
         "P6",
     ),
     Fault(
+        "a required client not there keeps the proof test waiting",
+        "calm = not self._book.user_estop(proof.quiet(stopped)) and",
+        "calm = not self._book.user_estop() and",
+        "proof_clients",
+        "P20",
+    ),
+    Fault(
+        "a missing required client's byte stays 0 after the proof test",
+        "quiet = self._proof.quiet(self._state is State.STOPPED)",
+        "quiet = frozenset({CauseKind.CLIENT_LOST})",
+        "proof_clients",
+        "P5",
+    ),
+    Fault(
         "the deadline forgets the VSC's timeout",
         "if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:",
         "if False:",

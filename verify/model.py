@@ -380,6 +380,21 @@ MODELS = {
             depth=16,
         ),
         Model(
+            "proof_clients",
+            SMALL,
+            (
+                *vsc((LOCAL,), (0, USER_ESTOP)),
+                KEY85[0],
+                LINK[0],
+                *[i for i in REQUIRED_CLIENT if i.name.split()[-1] in ("connect", "hello", "beat")],
+                *TICKS,
+            ),
+            what="the proof test under block with the required client not there yet, coming and "
+            "going silent (SR-8.15: the test runs without it, the byte 0 only meanwhile; the VSC "
+            "in Local: no takeover, the proof model has those), to a bounded depth",
+            depth=12,
+        ),
+        Model(
             "battery_hold",
             dataclasses.replace(
                 BASE,

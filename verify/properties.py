@@ -84,6 +84,9 @@ OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the hea
         "shutdown",  # SR-7.14 (the daemon's exit: the link is closed by then)
     }
 )
+QUIET_IN_PROOF = frozenset({"client_lost"})  # SR-8.15: no byte while a proof test is unfinished
+UNFINISHED = frozenset({Phase.WAITING, Phase.WITHHOLDING, Phase.RESUMED})
+USER_BITS = 0xC0  # PR-2.6: bits 6-7 of the VSC's e-stop word, the user e-stop
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,6 +108,7 @@ class Ghost:
     nonzero: frozenset[int] = frozenset()  # named connections declaring a non-zero command
     local_estop: bool = False
     proven: bool = False  # a proof test passed since the last new start
+    beat_sent: bool = False  # a user heartbeat went out since the link opened
     battery: tuple[int, int] | None = None  # the remote's last battery report: level, when
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
 
@@ -142,6 +146,7 @@ class Ghost:
             self.nonzero,
             self.local_estop,
             self.proven,
+            self.beat_sent,
             battery_low,
             tuple(clocks),
         )
@@ -194,7 +199,16 @@ def _link_opened(ghost: Ghost, seen: _Seen) -> Ghost:
 
 
 def _link_down(ghost: Ghost, seen: _Seen) -> Ghost:
-    return replace(ghost, link_open=False, last_hb=None, mode=None, word=0, run=None, proven=False)
+    return replace(
+        ghost,
+        link_open=False,
+        last_hb=None,
+        mode=None,
+        word=0,
+        run=None,
+        proven=False,
+        beat_sent=False,
+    )
 
 
 def _vsc(ghost: Ghost, seen: _Seen) -> Ghost:
@@ -319,6 +333,8 @@ def advance(ghost: Ghost, config: SafetyConfig, event: Event, after: Decision) -
         ghost = take_in(ghost, seen)
     if any(r.prooftest is not None and r.prooftest.passed for r in after.records):
         ghost = replace(ghost, proven=True)
+    if ghost.link_open and any(isinstance(f, UserHeartbeat) for f in after.frames):
+        ghost = replace(ghost, beat_sent=True)
     stop = any(_kind(name) not in HOLDS for name in _raised(after))
     if stop and ghost.run is not None and after.now > ghost.run[1]:
         ghost = replace(ghost, stop_after_run=True)
@@ -406,13 +422,37 @@ def _p4(step: Step) -> Iterator[str]:
 
 
 def _p5(step: Step) -> Iterator[str]:
-    ours = [n for n in step.raised if _kind(n) in OURS]
+    proof = step.after.prooftest
+    unfinished = proof is not None and proof.phase in UNFINISHED and step.stopped
+    counted = OURS - QUIET_IN_PROOF if unfinished else OURS  # SR-8.15
+    ours = [n for n in step.raised if _kind(n) in counted]
     serial = step.config.transport is Transport.SERIAL
     if ours and step.seen.link_open and serial and 1 not in step.beats:
         yield f"raised {ours}, user heartbeats {step.beats}"
-    byte = 1 if ours or any(_kind(n) in OURS for n in step.active) else 0
+    byte = 1 if ours or any(_kind(n) in counted for n in step.active) else 0
     if step.after.heartbeat_estop != byte:
         yield f"byte {step.after.heartbeat_estop}, active {sorted(step.active)}"
+
+
+def _p20(step: Step) -> Iterator[str]:
+    proof = step.after.prooftest
+    if proof is None or proof.phase is not Phase.WAITING:
+        return
+    was, seen = step.was, step.seen
+    if step.before.state is not State.STOPPED or not step.stopped:
+        return
+    if not (was.link_open and was.beat_sent and seen.link_open and seen.key85_one):
+        return
+    if seen.last_hb is None or step.now - seen.last_hb >= step.config.vsc_timeout_ns:
+        return
+    if seen.word & USER_BITS:
+        return
+    # The test reads the conditions as the previous step left them (it moves first in the
+    # step's refresh): a stop of ours that clears in this step lets it start in the next.
+    before = {c.name for c in step.before.causes if c.active}
+    ours = {n for n in {*before, *step.active, *step.raised} if _kind(n) in OURS}
+    if all(_kind(n) in QUIET_IN_PROOF for n in ours):
+        yield f"the proof test waits, STOPPED with {sorted(ours)} of ours"
 
 
 def _p6(step: Step) -> Iterator[str]:
@@ -590,8 +630,9 @@ PROPERTIES = {
         _p4,
     ),
     "P5": Property(
-        "SR-5.2: every stop cause of ours raised sends a user heartbeat with its byte at 1 in the "
-        "same step; the byte is 1 exactly while one of ours is active or was just raised",
+        "SR-5.2, SR-8.15: every stop cause of ours raised sends a user heartbeat with its byte at "
+        "1 in the same step; the byte is 1 exactly while one of ours is active or was just "
+        "raised, client_lost aside while STOPPED with the proof test unfinished",
         _p5,
     ),
     "P6": Property(
@@ -647,6 +688,12 @@ PROPERTIES = {
         "the remote's battery is not reported, reported 3 s ago or more, or below the "
         "minimum; meanwhile never RUN, and under stop STOPPED",
         _p19,
+    ),
+    "P20": Property(
+        "SR-8.15: a required client not there never keeps the proof test waiting: STOPPED, "
+        "the VSC heard, key 85 read 1, its user bits clear, a user heartbeat sent since the "
+        "link opened and no stop of ours but client_lost, the test has started",
+        _p20,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""
