@@ -30,7 +30,7 @@ BLOCKING_CAUSES: Final[Mapping[str, str]] = {
 
 OURS_IN_THE_WAY: Final = frozenset(
     {"transport_fault", "vsc_link_lost", "client_estop", "local_estop", "output_fault"}
-    | {"vsc_watchdog_off", "internal", "estop_unavailable"}
+    | {"vsc_watchdog_off", "internal", "estop_unavailable", "shutdown"}
 )
 """The stop causes that keep a proof test from starting: those that set the user heartbeat's
 byte, ``client_lost`` aside (SR-8.15). Written out here, since the ROS 2 bridge imports this
