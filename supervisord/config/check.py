@@ -5,9 +5,12 @@ One line per mistake, in file order, as a compiler prints them (editors jump to 
     robot.toml:21: error: rearm.local-reset = true: unknown key: did you mean 'local_reset'? ...
     robot.toml:4:13: error: line 4, column 13 = "name = mower": correct the TOML syntax there ...
     robot.toml:62: warning: api.admin_group = "srcs-admin": no such group on this machine: ...
+    robot.toml:17: warning: clients[0].user = (not set): unbound: any program that can ...
 
 with the value as TOML writes it (``true``, ``"text"``), then a last line with the verdict.
-A user or group missing on this machine is a warning (exit 0) unless ``--strict``.
+A user or group missing on this machine is a warning (exit 0) unless ``--strict``; a valid
+config's own warnings (:meth:`DaemonConfig.warnings`) stay warnings with ``--strict`` too,
+as the daemon starts with them.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import TextIO
 
 from supervisord import strict
 from supervisord.config.collect import Finding, Report, collect
+from supervisord.config.loader import NotOnMachine
 
 SHOWN_ITEMS = 3
 """Items of an array or table shown in a message before ``...``."""
@@ -64,7 +68,8 @@ def finding_line(file: str, finding: Finding) -> str:
         syntax = error.key.startswith("line ")
         where = f"{line}:{column}:" if syntax else f"{line}:"
     kind = "warning" if finding.warning else "error"
-    machine = " (an error with --strict, and for the daemon's start)" if finding.warning else ""
+    on_machine = isinstance(error, NotOnMachine) and finding.warning
+    machine = " (an error with --strict, and for the daemon's start)" if on_machine else ""
     return f"{file}:{where} {kind}: {error.key} = {toml_value(error.value)}: {error.fix}{machine}"
 
 
@@ -105,8 +110,6 @@ def check_config_main(
         f"{outputs} output{'s' * (outputs != 1)}, {clients} client{'s' * (clients != 1)}",
         file=out,
     )
-    for line in report_lines(str(path), report):
+    for line in report_lines(str(path), report):  # the warnings, each at its key's line
         print(line, file=err)
-    for note in config.warnings():
-        print(f"{path}: warning: {note}", file=err)
     return 0

@@ -7,12 +7,22 @@ file (removed, so that its default applies; a required key gets its declared exa
 the loader runs again, until it accepts the copy. What it refused on the way is the list.
 Nothing here decides validity: a file is valid exactly when the loader takes it unchanged.
 
-Two rules keep the list to the file's own mistakes. A mistake that only setting a key aside
+The rules between entries and sections (two outputs on one GPIO line, one file named twice,
+no motion output) come last in the loader, after every section's own keys, and the loader
+hands over every broken one at once (:class:`~supervisord.config.loader.RulesBroken`): they
+are listed and the list is complete, as nothing is left to judge after them.
+
+Three rules keep the list to the file's own mistakes. A mistake that only setting a key aside
 caused (a required key then missing) is not listed. When the key that decides the shape of
 its table is wrong (``vsc.transport``, an output's ``kind``), the keys it decides are not
-judged against a guess (only the keys every such table has are): a note says so. Where
-setting aside cannot go on (a rule between sections that no one key breaks), the list ends
-there and says that the checks after it did not run.
+judged against a guess (only the keys every such table has are): a note says so. When an
+array of tables is not one (``[outputs.drive]`` for ``[[outputs]]``, ``clients = 3``), it is
+replaced by a stand-in (:data:`STAND_INS`) that no key of the file is judged against, so
+that the other sections are still judged: a note says so. Where setting aside cannot go on
+at all, the list ends there and says that the checks after it did not run.
+
+A valid config's warnings (:meth:`DaemonConfig.warnings`: simulated outputs, an unbound
+client) are listed too, each at its key's line.
 
 A user or group the config names that this machine lacks (:class:`NotOnMachine`) is a
 warning, for a config written on one machine for another; ``strict`` makes it an error, as
@@ -29,7 +39,13 @@ from typing import Final
 
 from supervisord import strict
 from supervisord.config.lines import KeyPath, Position, key_path, key_positions, position
-from supervisord.config.loader import NotOnMachine, build_config, read_at_most, read_toml_text
+from supervisord.config.loader import (
+    NotOnMachine,
+    RulesBroken,
+    build_config,
+    read_at_most,
+    read_toml_text,
+)
 from supervisord.config.model import DaemonConfig
 from supervisord.config.schema import OUTPUT_COMMON, SECTION, VSC_COMMON
 from supervisord.errors import ConfigError
@@ -42,6 +58,13 @@ SHAPERS: Final[Mapping[KeyPath, frozenset[str]]] = {
 }
 """Keys whose value decides which other keys their table may have (``-1``: any index), and
 the keys their table has whatever the value."""
+STAND_INS: Final[Mapping[str, list[dict[str, object]]]] = {
+    "clients": [],
+    "outputs": [{"name": "stand_in", "kind": "sim", "role": "motion"}],
+}
+"""What an array of tables that is not one is judged as, so that the loader goes on to the
+sections after it: no client, and one simulated motion output that claims no device or
+file (nothing of the file can clash with it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,13 +113,25 @@ def collect(
     work = _Work(data, positions, strict_machine)
     for _ in range(ROUNDS):
         try:
-            config = build_config(data, source, base_dir=base_dir, group_exists=group_exists)
+            config = build_config(
+                data, source, base_dir=base_dir, group_exists=group_exists, every_rule=True
+            )
         except ConfigError as error:
             if not work.take(error):
                 break
             continue
+        except RulesBroken as broken:  # every section's own keys were judged: the list is whole
+            for error in broken.errors:
+                work.list(error)
+            break
         if work.report.errors == 0:
             work.report.config = config
+            for warning in config.warnings():
+                path = key_path(warning.key)
+                where = position(positions, path) if path else None
+                value = strict.MISSING if warning.value is None else warning.value
+                error = ConfigError(warning.key, value, warning.text)
+                work.report.findings.append(Finding(error, True, where))
         break
     else:  # pragma: no cover - more rounds than a file has keys
         work.report.notes.append("too many mistakes to list: correct these and check again")
@@ -129,20 +164,37 @@ class _Work:
         self.set_aside: set[str] = set()  # keys removed or given their example
         self.given_example: set[str] = set()
         self.unjudged: dict[str, frozenset[str]] = {}  # a table's prefix: the keys still judged
+        self.stood_in: set[str] = set()  # arrays of tables replaced by their stand-in
 
-    def take(self, error: ConfigError) -> bool:
-        """List ``error`` (unless setting a key aside caused it, or its table is not judged)
-        and set its key aside; ``False`` when the loader cannot be taken past it."""
+    def list(self, error: ConfigError) -> bool:
+        """List ``error`` unless setting a key aside caused it or its table is not judged;
+        whether it was listed."""
         path = key_path(error.key)
-        own = error.key not in self.set_aside and not any(
-            error.key.startswith(prefix) and error.key[len(prefix) :] not in common
-            for prefix, common in self.unjudged.items()
+        own = (
+            error.key not in self.set_aside
+            and not any(
+                error.key.startswith(prefix) and error.key[len(prefix) :] not in common
+                for prefix, common in self.unjudged.items()
+            )
+            and not any(
+                error.key == name or error.key.startswith((f"{name}.", f"{name}["))
+                for name in self.stood_in
+            )
         )
         if own:
             warning = isinstance(error, NotOnMachine) and not self.strict_machine
             where = position(self.positions, path) if path else None
             self.report.findings.append(Finding(error, warning, where))
+        return own
+
+    def take(self, error: ConfigError) -> bool:
+        """List ``error`` (:meth:`list`) and set its key aside; ``False`` when the loader
+        cannot be taken past it."""
+        path = key_path(error.key)
+        if self.list(error):
             self._shaper(error.key, path)
+        if path is not None and self._stand_in(error.key, path):
+            return True
         if path is None or not self._aside(error.key, path):
             self.report.notes.append(
                 f"the checks after {error.key} did not run: correct it and check again"
@@ -163,6 +215,23 @@ class _Work:
                     f"the keys of {table} that {key} decides were not judged: correct it and "
                     "check again"
                 )
+
+    def _stand_in(self, key: str, path: KeyPath) -> bool:
+        """Replace an array of tables that is not one (``path`` names it, or a table under it
+        by name: ``outputs.drive``) by its stand-in, once; ``False`` when ``path`` is not
+        such a key."""
+        name = path[0]
+        shape = len(path) == 1 or isinstance(path[1], str)
+        if not (isinstance(name, str) and name in STAND_INS and shape) or name in self.stood_in:
+            return False
+        if name in self.data:  # (none written: nothing of the file goes unjudged)
+            self.report.notes.append(
+                f"the [[{name}]] tables were not judged, as {key} is not one: correct it and "
+                "check again"
+            )
+        self.data[name] = copy.deepcopy(STAND_INS[name])
+        self.stood_in.add(name)
+        return True
 
     def _aside(self, key: str, path: KeyPath) -> bool:
         """Remove ``path`` from the copy (its default applies), or give it its declared

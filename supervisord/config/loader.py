@@ -9,8 +9,11 @@ exist. It raises :class:`~supervisord.errors.ConfigError` naming the file, the k
 path such as ``vsc.timeout_ms`` or ``outputs[1].chip``), the value and the fix, for the first
 mistake it meets; the daemon refuses to start. (``--check-config`` and the daemon's refusal
 list every mistake at once: :mod:`supervisord.config.collect` runs this loader again past
-each one.) Each key is read on its own before the rules between sections are applied, so
-that a rule between sections never hides a mistake in one key.
+each one.) Every section's own keys are read first, and the rules between entries and
+sections (:func:`broken_rules`: one owner per device and per path, a motion output, the
+output bus) only after all of them, so that a rule between sections never hides a mistake in
+one key; ``every_rule`` hands every broken rule over at once (:class:`RulesBroken`) instead
+of the first, so that ``--check-config`` lists them all (SR-11.2).
 
 A key the schema does not declare is an error, never ignored: a misspelt safety option must not
 silently fall back to its default. Relative paths are resolved against the config file's
@@ -25,7 +28,7 @@ import grp
 import os
 import pwd
 import re
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from pathlib import Path
 from typing import Final
 
@@ -114,6 +117,16 @@ API_OPERATOR_SOCKET: Final = strict.named(API, "operator_socket", strict.Text)
 API_OPERATOR_GROUP: Final = strict.named(API, "operator_group", strict.Text)
 
 
+class RulesBroken(Exception):
+    """Every rule between entries and sections that the file breaks, in the order of the
+    rules (raised by :func:`build_config` with ``every_rule``): each section's own keys were
+    read and found valid, so nothing else is left to judge."""
+
+    def __init__(self, errors: Sequence[ConfigError]) -> None:
+        super().__init__(f"{len(errors)} rules between sections broken")
+        self.errors = tuple(errors)
+
+
 class NotOnMachine(ConfigError):
     """A user or group the config names does not exist on this machine: a mistake of the
     machine (a package not installed yet, a developer's laptop) rather than of the file.
@@ -153,13 +166,22 @@ def build_config(
     *,
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
+    every_rule: bool = False,
 ) -> DaemonConfig:
-    """:func:`load_config` of the parsed ``data`` of the file ``source``."""
+    """:func:`load_config` of the parsed ``data`` of the file ``source``. ``every_rule``: when
+    every section's own keys are valid but rules between them are broken, raise
+    :class:`RulesBroken` with all of them rather than the first (what ``--check-config``
+    lists; the verdict is the same)."""
     base = Path(base_dir) if base_dir is not None else source.parent
+    loader = _Loader(source, base.absolute(), group_exists or _group_exists, every_rule)
     try:
-        return _Loader(source, base.absolute(), group_exists or _group_exists).build(data)
+        return loader.build(data)
     except ConfigError as error:
         raise (error if error.file else error.in_file(str(source))) from None
+    except RulesBroken as broken:
+        raise RulesBroken(
+            [error if error.file else error.in_file(str(source)) for error in broken.errors]
+        ) from None
 
 
 def _group_exists(name: str) -> bool:
@@ -257,6 +279,7 @@ class _Loader:
     source: Path
     base: Path
     group_exists: Callable[[str], bool]
+    every_rule: bool = False
 
     def build(self, data: dict[str, object]) -> DaemonConfig:
         root = strict.Fields(data, error=ConfigError, renamed=RENAMED)
@@ -270,10 +293,15 @@ class _Loader:
         api = self.api(_section(root, SECTION["api"]), len(clients))
         record = self.record(_section(root, SECTION["record"]))
         maintenance = _section(root, SECTION["maintenance"])
-        # The rules between sections last: every key has been read on its own by now.
+        intervals = (maintenance.whole(STOPTEST_INTERVAL), maintenance.whole(PROOFTEST_INTERVAL))
+        output_bus = self.output_bus(root)
         safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
-        output_bus = self.output_bus(root, vsc, outputs)
-        _check_path_owners(vsc, outputs, record, api)
+        # The rules between entries and sections last, once every section's own keys have
+        # been read: a clash between two outputs must not hide a wrong key after them
+        # (SR-11.2). ``--check-config`` gets every broken rule, the daemon the first.
+        broken = list(broken_rules(vsc, outputs, output_bus, record, api))
+        if broken:
+            raise RulesBroken(broken) if self.every_rule else broken[0]
         return DaemonConfig(
             source=self.source,
             robot=robot,
@@ -283,9 +311,7 @@ class _Loader:
             output_bus=output_bus,
             record=record,
             api=api,
-            maintenance=MaintenanceConfig(
-                maintenance.whole(STOPTEST_INTERVAL), maintenance.whole(PROOFTEST_INTERVAL)
-            ),
+            maintenance=MaintenanceConfig(*intervals),
         )
 
     def path(self, fields: strict.Fields, key: strict.Text) -> Path:
@@ -297,7 +323,23 @@ class _Loader:
 
     @staticmethod
     def vsc_fields(root: strict.Fields) -> strict.Fields:
-        fields = _section(root, SECTION["vsc"])
+        fields = root.table_at(SECTION["vsc"].name)
+        # An unknown key's hint lists the keys this transport takes, never another
+        # transport's (those are errors here); every key when the transport is unknown.
+        written = fields.table.get(TRANSPORT.name)
+        chosen = next((t for t in Transport if t.value == written), None)
+        known = VSC_COMMON + VSC_BY_TRANSPORT[chosen] if chosen else SECTION["vsc"].keys
+        declared = {key.name for key in SECTION["vsc"].keys}
+        for name, value in fields.table.items():
+            if name not in declared:
+                raise strict.unknown_key(
+                    fields.key(name),
+                    name,
+                    value,
+                    [key.name for key in known],
+                    renamed=fields.renamed,
+                    error=ConfigError,
+                )
         transport = Transport(fields.read(TRANSPORT))
         allowed = {key.name for key in VSC_COMMON + VSC_BY_TRANSPORT[transport]}
         for name in fields.table:
@@ -407,46 +449,26 @@ class _Loader:
                 "add at least one [[outputs]] table: without an enable line to gate, the "
                 "supervisor holds nothing",
             )
-        specs = []
+        specs: list[DeviceSpec] = []
         for fields in entries:
             name = fields.text(OUTPUT_NAME_KEY)
             kind = fields.read(KIND)
             fields.check_keys(option_names(str(kind)))
+            for i, earlier in enumerate(specs):
+                if earlier.name == name:
+                    raise fields.refuse(
+                        OUTPUT_NAME_KEY.name, name, f"rename it: outputs[{i}] ({name}) has it"
+                    )
             specs.append(read_spec(name, fields).resolved(self.base))
-        _check_claims(specs)
         return tuple(specs)
 
     @staticmethod
-    def output_bus(
-        root: strict.Fields, vsc: VscConfig, outputs: Sequence[DeviceSpec]
-    ) -> CanBus | None:
-        can_outputs = [i for i, spec in enumerate(outputs) if spec.kind is OutputKind.CAN]
+    def output_bus(root: strict.Fields) -> CanBus | None:
+        """``[output_bus]``'s own keys; whether it may or must be there is a rule between
+        sections (:func:`broken_rules`)."""
         if not root.has("output_bus"):
-            if can_outputs and vsc.transport is not Transport.CAN:
-                raise root.refuse(
-                    f"outputs[{can_outputs[0]}].kind",
-                    "can",
-                    "add an [output_bus] section (interface, channel, bitrate) for the enable "
-                    'frames: only a VSC on transport = "can" lends its bus to CAN outputs',
-                )
             return None
-        fields = _section(root, SECTION["output_bus"])
-        bus = _Loader.can_bus(fields)
-        if not can_outputs:
-            raise root.refuse(
-                "output_bus", dict(fields.table), 'remove it: no output has kind = "can"'
-            )
-        if isinstance(vsc.link, CanBus) and (vsc.link.interface, vsc.link.channel) == (
-            bus.interface,
-            bus.channel,
-        ):
-            raise fields.refuse(
-                "channel",
-                bus.channel,
-                "remove [output_bus]: CAN outputs already send on the VSC's bus; give "
-                "[output_bus] only for a second CAN network",
-            )
-        return bus
+        return _Loader.can_bus(_section(root, SECTION["output_bus"]))
 
     # SafetyConfig -------------------------------------------------------------------------
 
@@ -463,13 +485,6 @@ class _Loader:
         vsc_timeout_ms, heartbeat_hz = fields.whole(VSC_TIMEOUT_MS), fields.whole(HEARTBEAT_HZ)
         prooftest = self.prooftest(vsc.transport, require_watchdog, fields)
         prooftest_clear = fields.whole(PROOFTEST_CLEAR)
-        if not any(spec.role is OutputRole.MOTION for spec in outputs):
-            raise ConfigError(
-                "outputs",
-                [f"{spec.name}: {spec.role.value}" for spec in outputs],
-                'give at least one output role = "motion": otherwise a hold (pause, menu, '
-                "a client's hold) leaves motion enabled",
-            )
         # Its errors (the checks across keys: a watchdog or a proof test on CAN) name the keys
         # as the file spells them.
         return SafetyConfig(
@@ -583,24 +598,76 @@ class _Loader:
         )
 
 
-def _check_claims(specs: Sequence[DeviceSpec]) -> None:
-    """Names are unique, and no two outputs hold the same device (what each spec claims)."""
+def broken_rules(
+    vsc: VscConfig,
+    outputs: Sequence[DeviceSpec],
+    output_bus: CanBus | None,
+    record: RecordConfig,
+    api: ApiConfig,
+) -> Iterator[ConfigError]:
+    """Every broken rule between entries and sections, in this order: no two outputs hold one
+    device, at least one motion output, the output bus, one owner per path (SR-11.1). Each
+    names the later key of a clash, so the earlier entry stays judged."""
+    yield from _device_clashes(outputs)
+    if not any(spec.role is OutputRole.MOTION for spec in outputs):
+        yield ConfigError(
+            "outputs",
+            [f"{spec.name}: {spec.role.value}" for spec in outputs],
+            'give at least one output role = "motion": otherwise a hold (pause, menu, '
+            "a client's hold) leaves motion enabled",
+        )
+    yield from _output_bus_rules(vsc, outputs, output_bus)
+    yield from _path_clashes(vsc, outputs, record, api)
+
+
+def _device_clashes(specs: Sequence[DeviceSpec]) -> Iterator[ConfigError]:
+    """No two outputs hold the same device (what each spec claims): each later claimant."""
     seen: dict[Hashable, int] = {}
     for j, spec in enumerate(specs):
-        claims: list[tuple[Hashable, str, object, str]] = [
-            (("name", spec.name), "name", spec.name, "rename it")
-        ]
-        claims += [
-            (claim.identity, claim.option, claim.value, f"give each output its own {claim.what}")
-            for claim in spec.claims()
-            if claim.identity is not None
-        ]
-        for identity, option, value, fix in claims:
-            i = seen.setdefault(identity, j)
+        for claim in spec.claims():
+            if claim.identity is None:
+                continue
+            i = seen.setdefault(claim.identity, j)
             if i != j:
-                raise ConfigError(
-                    f"outputs[{j}].{option}", value, f"{fix}: outputs[{i}] ({specs[i].name}) has it"
+                yield ConfigError(
+                    f"outputs[{j}].{claim.option}",
+                    claim.value,
+                    f"give each output its own {claim.what}: outputs[{i}] ({specs[i].name}) "
+                    "has it",
                 )
+
+
+def _output_bus_rules(
+    vsc: VscConfig, outputs: Sequence[DeviceSpec], bus: CanBus | None
+) -> Iterator[ConfigError]:
+    """``[output_bus]`` is there exactly when a CAN output needs a bus the VSC does not lend,
+    and is not the VSC's own bus."""
+    can_outputs = [i for i, spec in enumerate(outputs) if spec.kind is OutputKind.CAN]
+    if bus is None:
+        if can_outputs and vsc.transport is not Transport.CAN:
+            yield ConfigError(
+                f"outputs[{can_outputs[0]}].kind",
+                "can",
+                "add an [output_bus] section (interface, channel, bitrate) for the enable "
+                'frames: only a VSC on transport = "can" lends its bus to CAN outputs',
+            )
+        return
+    if not can_outputs:
+        yield ConfigError(
+            "output_bus",
+            {"interface": bus.interface, "channel": bus.channel, "bitrate": bus.bitrate},
+            'remove it: no output has kind = "can"',
+        )
+    elif isinstance(vsc.link, CanBus) and (vsc.link.interface, vsc.link.channel) == (
+        bus.interface,
+        bus.channel,
+    ):
+        yield ConfigError(
+            "output_bus.channel",
+            bus.channel,
+            "remove [output_bus]: CAN outputs already send on the VSC's bus; give "
+            "[output_bus] only for a second CAN network",
+        )
 
 
 def _path_claims(
@@ -629,23 +696,25 @@ def _path_claims(
     return claims
 
 
-def _check_path_owners(
+def _path_clashes(
     vsc: VscConfig, outputs: Sequence[DeviceSpec], record: RecordConfig, api: ApiConfig
-) -> None:
+) -> Iterator[ConfigError]:
     """Every file has one owner (SR-11.1; docs/configuration.md "One owner per path"): two
     keys that name one file once relative paths and symlinks are resolved would destroy each
     other's file (an output's write replacing the record, the socket's start removing an
     output). The later key is refused, naming the earlier one."""
     seen: dict[str, tuple[str, str, str]] = {}
+    refused: set[str] = set()  # a key once: the record's rotated files may clash each
     for key, value, path, part in _path_claims(vsc, outputs, record, api):
         resolved = os.path.realpath(path)
         first = seen.setdefault(resolved, (key, value, part))
-        if first == (key, value, part):
+        if first == (key, value, part) or key in refused:
             continue
+        refused.add(key)
         other_key, other_value, other_part = first
         mine = f"its {part}" if part else "it"
         other = f"{other_key} = {other_value!r}" + (f" (its {other_part})" if other_part else "")
-        raise ConfigError(
+        yield ConfigError(
             key,
             value,
             f"give it its own file: {mine} and {other} are one file once relative paths and "

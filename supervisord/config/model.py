@@ -4,6 +4,7 @@ returns, and what the daemon is assembled from (``supervisord.daemon.assemble``)
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 from supervisord.api.framing import operator_socket_path
@@ -175,27 +176,76 @@ class DaemonConfig:
             return self.output_bus
         return self.vsc.link if isinstance(self.vsc.link, CanBus) else None
 
-    def warnings(self) -> tuple[str, ...]:
-        """What is valid but deserves a loud word at start and in ``--check-config``."""
+    def warnings(self) -> tuple[ConfigWarning, ...]:
+        """What is valid but deserves a loud word at start and in ``--check-config``, each at
+        the key it is about (so that ``--check-config`` gives its line)."""
         notes = []
         if self.vsc.transport is Transport.HID:
             notes.append(
-                'transport "hid" is never a safety channel: the supervisor stays STOPPED '
-                "and its outputs stay off (docs/configuration.md, [vsc])"
+                ConfigWarning(
+                    "vsc.transport",
+                    "hid",
+                    "never a safety channel: the supervisor stays STOPPED and its outputs "
+                    "stay off (docs/configuration.md, [vsc])",
+                )
             )
         if self.vsc.transport is Transport.SERIAL and not self.safety.require_watchdog:
             notes.append(
-                "vsc.require_watchdog = false: the VSC's own user watchdog (key 85) is not "
-                "checked, so the VSC does not stop when the supervisor falls silent"
+                ConfigWarning(
+                    "vsc.require_watchdog",
+                    False,
+                    "the VSC's own user watchdog (key 85) is not checked, so the VSC does not "
+                    "stop when the supervisor falls silent",
+                )
             )
         if self.vsc.transport is Transport.SERIAL and self.safety.prooftest is ProofTestPolicy.OFF:
             notes.append(
-                'vsc.prooftest = "off": the VSC\'s watchdog is never seen to act, so a VSC that '
-                "reads key 85 = 1 but ignores a missing heartbeat goes unnoticed (docs/safety.md)"
+                ConfigWarning(
+                    "vsc.prooftest",
+                    "off",
+                    "the VSC's watchdog is never seen to act, so a VSC that reads key 85 = 1 "
+                    "but ignores a missing heartbeat goes unnoticed (docs/safety.md)",
+                )
             )
+        # An unbound required client (SR-8.6's hazard, docs/safety.md "Clients bound to a
+        # user"): valid, as configurations written before the key must keep starting, but
+        # said at every check and start.
         notes += [
-            f"outputs[{i}] ({spec.name}) is simulated: it drives no hardware"
+            ConfigWarning(
+                f"clients[{i}].user",
+                None,
+                f'unbound: any program that can reach the socket may say hello as "{client.name}" '
+                "and keep it alive after it died: bind it to the user it runs as "
+                '(user = "NAME", or uid = N)',
+            )
+            for i, client in enumerate(self.safety.clients)
+            if client.uid is None
+        ]
+        notes += [
+            ConfigWarning(
+                f"outputs[{i}].kind", "sim", f"{spec.name} is simulated: it drives no hardware"
+            )
             for i, spec in enumerate(self.outputs)
             if spec.kind is OutputKind.SIM
         ]
         return tuple(notes)
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class ConfigWarning:
+    """A warning of a valid config: the ``key`` it is about (a dotted path, as errors name
+    keys), its ``value`` (``None``: not set) and what it means (``text``)."""
+
+    key: str
+    value: str | bool | None
+    text: str
+
+    def __str__(self) -> str:
+        """``key = value: text``, the value as TOML writes it, as the daemon logs it."""
+        if self.value is None:
+            shown = "(not set)"
+        elif isinstance(self.value, bool):
+            shown = "true" if self.value else "false"
+        else:
+            shown = json.dumps(self.value)
+        return f"{self.key} = {shown}: {self.text}"
