@@ -127,6 +127,8 @@ def collect(
         if work.report.errors == 0:
             work.report.config = config
             for warning in config.warnings():
+                if warning.key in work.set_aside:  # of the copy, not of the file (a user
+                    continue  # this machine lacks, set aside, leaves its client unbound)
                 path = key_path(warning.key)
                 where = position(positions, path) if path else None
                 value = strict.MISSING if warning.value is None else warning.value

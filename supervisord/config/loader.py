@@ -142,12 +142,14 @@ def load_config(
     *,
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
+    user_uid: Callable[[str], int | None] | None = None,
 ) -> DaemonConfig:
     """Read and validate the robot's TOML file at ``path``.
 
     Relative paths in the file are resolved against ``base_dir`` (default: the file's own
     directory). ``group_exists`` says whether a group name exists (default: ask the system
-    with ``grp.getgrnam``). Raises :class:`ConfigError` naming ``path``, the key, the value and
+    with ``grp.getgrnam``), ``user_uid`` a user's uid, ``None`` when it does not exist
+    (default: ``pwd.getpwnam``). Raises :class:`ConfigError` naming ``path``, the key, the value and
     the fix for the first problem found: a missing or unreadable file, a TOML syntax error
     (key ``line L, column C``), an unknown section or key, a bad value or a contradiction
     between sections.
@@ -157,7 +159,9 @@ def load_config(
         data = read_toml(source)
     except ConfigError as error:
         raise (error if error.file else error.in_file(str(path))) from None
-    return build_config(data, source, base_dir=base_dir, group_exists=group_exists)
+    return build_config(
+        data, source, base_dir=base_dir, group_exists=group_exists, user_uid=user_uid
+    )
 
 
 def build_config(
@@ -167,13 +171,16 @@ def build_config(
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
     every_rule: bool = False,
+    user_uid: Callable[[str], int | None] | None = None,
 ) -> DaemonConfig:
     """:func:`load_config` of the parsed ``data`` of the file ``source``. ``every_rule``: when
     every section's own keys are valid but rules between them are broken, raise
     :class:`RulesBroken` with all of them rather than the first (what ``--check-config``
     lists; the verdict is the same)."""
     base = Path(base_dir) if base_dir is not None else source.parent
-    loader = _Loader(source, base.absolute(), group_exists or _group_exists, every_rule)
+    loader = _Loader(
+        source, base.absolute(), group_exists or _group_exists, user_uid or _user_uid, every_rule
+    )
     try:
         return loader.build(data)
     except ConfigError as error:
@@ -182,6 +189,13 @@ def build_config(
         raise RulesBroken(
             [error if error.file else error.in_file(str(source)) for error in broken.errors]
         ) from None
+
+
+def _user_uid(name: str) -> int | None:
+    try:
+        return pwd.getpwnam(name).pw_uid
+    except KeyError:
+        return None
 
 
 def _group_exists(name: str) -> bool:
@@ -279,6 +293,7 @@ class _Loader:
     source: Path
     base: Path
     group_exists: Callable[[str], bool]
+    user_uid: Callable[[str], int | None]
     every_rule: bool = False
 
     def build(self, data: dict[str, object]) -> DaemonConfig:
@@ -405,8 +420,7 @@ class _Loader:
             clients.append(ClientSpec(name, timeout, self.client_user(fields)))
         return tuple(clients)
 
-    @staticmethod
-    def client_user(fields: strict.Fields) -> int | None:
+    def client_user(self, fields: strict.Fields) -> int | None:
         """The uid a client is bound to (``user`` by name or ``uid`` by number), or ``None``:
         unbound, any user who can reach the socket may say hello under the name
         (docs/safety.md "Clients bound to a user")."""
@@ -419,15 +433,15 @@ class _Loader:
         if user is None:
             return None
         assert isinstance(user, str)
-        try:
-            return pwd.getpwnam(user).pw_uid
-        except KeyError:
+        uid = self.user_uid(user)
+        if uid is None:
             raise NotOnMachine(
                 fields.key("user"),
                 user,
                 f"no such user on this machine: create it (useradd --system {user}) or name "
                 "the user the client runs as",
-            ) from None
+            )
+        return uid
 
     # [[outputs]] --------------------------------------------------------------------------
 
@@ -632,8 +646,7 @@ def _device_clashes(specs: Sequence[DeviceSpec]) -> Iterator[ConfigError]:
                 yield ConfigError(
                     f"outputs[{j}].{claim.option}",
                     claim.value,
-                    f"give each output its own {claim.what}: outputs[{i}] ({specs[i].name}) "
-                    "has it",
+                    f"give each output its own {claim.what}: outputs[{i}] ({specs[i].name}) has it",
                 )
 
 

@@ -8,6 +8,7 @@ import grp
 import pwd
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -137,14 +138,25 @@ def test_a_missing_group_is_a_warning_unless_strict(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("example", ["config/example-serial-gpio.toml", "config/example-can.toml"])
 def test_the_readme_examples_pass_on_a_developers_machine(example: str) -> None:
-    """SR-11.2: the README's ``srcsd --check-config config/example-...toml`` passes on a
-    machine without the package's ``srcs-admin`` group (exit 0); the group is named as a
-    warning when it is missing."""
+    """SR-11.2, SR-8.6: the README's ``srcsd --check-config config/example-...toml`` passes on
+    a machine without the package's ``srcs-admin`` group or the clients' user ``robot``
+    (exit 0), each named as a warning when it is missing; no client is unbound."""
     checked = _srcsd("--check-config", example)
     assert checked.returncode == 0, checked.stderr
     assert checked.stdout.startswith(f"{example}: OK — ")
     if not _group("srcs-admin"):
         assert 'warning: api.admin_group = "srcs-admin"' in checked.stderr
+    if not _user("robot"):
+        assert 'warning: clients[0].user = "robot": no such user' in checked.stderr
+    assert "unbound" not in checked.stderr
+
+
+def _user(name: str) -> bool:
+    try:
+        pwd.getpwnam(name)
+    except KeyError:
+        return False
+    return True
 
 
 def _group(name: str) -> bool:
@@ -172,8 +184,8 @@ def test_a_syntax_error_has_its_line_and_column(tmp_path: Path) -> None:
 def test_a_wrong_transport_does_not_judge_the_keys_it_decides(tmp_path: Path) -> None:
     """SR-11.2: with ``transport`` misspelt, the CAN keys are not called wrong for a transport
     nobody chose (a note says they were not judged), while a key every transport has still
-    is; a rule between sections ends the list with a note that the checks after it did not
-    run."""
+    is; a rule between sections (no motion output) is listed with the rest, and no check is
+    left unrun."""
     config = tmp_path / "robot.toml"
     config.write_text(
         '[robot]\nname = "m"\n[vsc]\ntransport = "cann"\nchannel = "can0"\ntimeout_ms = 3\n'
@@ -184,7 +196,7 @@ def test_a_wrong_transport_does_not_judge_the_keys_it_decides(tmp_path: Path) ->
     assert keys == ["vsc.transport", "vsc.timeout_ms", "outputs"]
     assert [finding.where for finding in report.findings] == [(4, 1), (6, 1), (7, 1)]
     assert any("that vsc.transport decides were not judged" in note for note in report.notes)
-    assert any("the checks after outputs did not run" in note for note in report.notes)
+    assert not any("did not run" in note for note in report.notes)
 
 
 VARIANTS = [
@@ -281,3 +293,214 @@ def test_each_key_is_found_on_its_line() -> None:
     assert ("y",) not in positions
     assert position(positions, ("api", "socket")) is None
     assert key_path("line 3, column 5") is None
+
+
+SIX_MISTAKES = """\
+[robot]
+name = "mower-3"
+
+[vsc]
+transport = "serial"
+port = "/dev/srcs-vsc"
+timeout_ms = 200
+reopen_min_ms = 100
+heartbeat_hz = 10
+require_watchdog = true
+
+[rearm]
+local_reset = "yes"
+hold_ms = 500
+
+[[clients]]
+name = "autonomy"
+timeout_ms = 5
+
+[[outputs]]
+name = "traction"
+kind = "gpio"
+role = "motion"
+chip = "/dev/gpiochip0"
+line = 17
+
+[[outputs]]
+name = "safety_relay"
+kind = "gpio"
+role = "power"
+chip = "/dev/gpiochip0"
+line = 17
+pulse_period_ms = 1
+
+[record]
+path = "/var/lib/srcsd/stops.jsonl"
+keep = 0
+"""
+
+
+def test_a_clash_between_outputs_hides_no_other_mistake(tmp_path: Path) -> None:
+    """SR-11.2: the real ``srcsd --check-config`` lists all six mistakes of a file in one run,
+    each at its line: the rule between outputs (one GPIO line twice, line 32) is judged after
+    every section's own keys and stops nothing, neither the keys above it in loading order
+    (``heartbeat_hz``, ``local_reset``) nor the sections after it (``record.keep``)."""
+    config = tmp_path / "robot.toml"
+    config.write_text(SIX_MISTAKES)
+    checked = _srcsd("--check-config", str(config))
+    assert checked.returncode == 1, checked.stderr
+    f = str(config)
+    assert checked.stderr.splitlines() == [
+        f"{f}:9: error: vsc.heartbeat_hz = 10: use a whole number from 20 to 50",
+        f'{f}:13: error: rearm.local_reset = "yes": use true or false, without quotes',
+        f"{f}:18: error: clients[0].timeout_ms = 5: use a whole number from 20 to 10000",
+        f"{f}:32: error: outputs[1].line = 17: give each output its own line: outputs[0] "
+        "(traction) has it",
+        f"{f}:33: error: outputs[1].pulse_period_ms = 1: use a whole number from 2 to 1000",
+        f"{f}:37: error: record.keep = 0: use a whole number from 1 to 99",
+        f"{f}: not valid: 6 errors",
+    ]
+
+
+def test_every_rule_between_sections_is_listed(tmp_path: Path) -> None:
+    """SR-11.2, SR-11.1: two broken rules between sections (one GPIO line twice, the record
+    and an output one file) are both listed, each at the later key; the daemon, which stops
+    at the first, is refused by the same first one."""
+    text = SIX_MISTAKES.replace("heartbeat_hz = 10", "heartbeat_hz = 20")
+    text = text.replace('"yes"', "false").replace("timeout_ms = 5\n", "")
+    text = text.replace("pulse_period_ms = 1", "pulse_period_ms = 10")
+    text = text.replace("keep = 0", "keep = 2")
+    text += '\n[[outputs]]\nname = "mirror"\nkind = "sim"\npath = "/var/lib/srcsd/stops.jsonl"\n'
+    config = tmp_path / "robot.toml"
+    config.write_text(text)
+    checked = _srcsd("--check-config", str(config))
+    f = str(config)
+    lines = checked.stderr.splitlines()
+    assert lines[0].startswith(f"{f}:31: error: outputs[1].line = 17: give each output its own")
+    assert lines[1].startswith(f"{f}:35: error: record.path = ")
+    assert "outputs[2].path = '/var/lib/srcsd/stops.jsonl'" in lines[1]
+    assert lines[2:] == [f"{f}: not valid: 2 errors"]
+    first = _refusal(config)
+    assert first is not None
+    assert first.startswith(f"{f}: outputs[1].line = 17: give each output its own line")
+
+
+def test_a_wrongly_shaped_outputs_table_hides_no_other_section(tmp_path: Path) -> None:
+    """SR-11.2: ``[outputs.drive]`` for ``[[outputs]]`` is listed once, its keys are not
+    judged (a note says so), and the sections after it still are: a wrong ``record.path``
+    is listed; the hint of an unknown ``[vsc]`` key of a serial VSC lists only the keys a
+    serial VSC takes."""
+    config = tmp_path / "robot.toml"
+    config.write_text(
+        '[robot]\nname = "m"\n\n[vsc]\ntransport = "serial"\ncolour = 1\n\n[outputs.drive]\n'
+        'kind = "gpio"\nchip = "gpiochip0"\nline = 3\n\n[record]\npath = "/var/lib/srcsd/"\n'
+    )
+    checked = _srcsd("--check-config", str(config))
+    assert checked.returncode == 1
+    f = str(config)
+    assert checked.stderr.splitlines() == [
+        f"{f}:6: error: vsc.colour = 1: unknown key: remove it (known: transport, timeout_ms, "
+        "require_watchdog, prooftest, prooftest_clear_ms, min_remote_battery, "
+        "on_estop_unavailable, reopen_min_ms, reopen_max_ms, port, baud, heartbeat_hz)",
+        f'{f}:8: error: outputs.drive = {{ kind = "gpio", chip = "gpiochip0", line = 3 }}: write '
+        '[[outputs]] with name = "drive" instead of [outputs.drive]',
+        f"{f}:14: error: record.path = \"/var/lib/srcsd/\": use a file's path, not a directory's, "
+        'e.g. "/var/lib/srcsd/stops.jsonl"',
+        f"{f}: note: the [[outputs]] tables were not judged, as outputs.drive is not one: "
+        "correct it and check again",
+        f"{f}: not valid: 3 errors",
+    ]
+
+
+def test_the_vsc_hint_follows_the_transport(tmp_path: Path) -> None:
+    """SR-11.2: an unknown ``[vsc]`` key's hint lists the keys of the transport written (CAN
+    keys for CAN, never the serial or HID ones), and every key when the transport is itself
+    unknown (a note then says the transport's keys were not judged)."""
+    for transport, listed, absent in (
+        ("can", "channel", "hidraw"),
+        ("serial", "heartbeat_hz", "channel"),
+        ("hid", "hidraw", "port"),
+    ):
+        config = tmp_path / f"{transport}.toml"
+        config.write_text(f'[robot]\nname = "m"\n[vsc]\ntransport = "{transport}"\nchanel = 1\n')
+        report = collect(config)
+        hint = next(f.error.fix for f in report.findings if f.error.key == "vsc.chanel")
+        known = hint.split("(known: ")[1].rstrip(")").split(", ")
+        assert listed in known and absent not in known, (transport, hint)
+    config = tmp_path / "unknown.toml"
+    config.write_text('[robot]\nname = "m"\n[vsc]\ntransport = "cann"\nchanel = 1\n')
+    hint = next(f.error.fix for f in collect(config).findings if f.error.key == "vsc.chanel")
+    assert "did you mean 'channel'?" in hint and "hidraw" in hint and "port" in hint
+
+
+WARNED = """\
+[robot]
+name = "bench"
+
+[vsc]
+transport = "serial"
+require_watchdog = false
+
+[[clients]]
+name = "autonomy"
+
+[[clients]]
+name = "mapper"
+uid = 4000
+
+[[outputs]]
+name = "drive"
+kind = "sim"
+"""
+
+
+def test_every_warning_carries_its_line_and_strict_keeps_them_warnings(tmp_path: Path) -> None:
+    """SR-11.2, SR-8.6: a valid config's warnings are printed each at its key's line (an
+    unbound required client at its table, saying the hazard and how to bind it; a bound one
+    is not named); ``--strict``, which is what the daemon's start refuses, keeps them
+    warnings (exit 0), as the daemon starts with them."""
+    config = tmp_path / "robot.toml"
+    config.write_text(WARNED)
+    f = str(config)
+    wanted = [
+        f"{f}:6: warning: vsc.require_watchdog = false: the VSC's own user watchdog (key 85) "
+        "is not checked, so the VSC does not stop when the supervisor falls silent",
+        f"{f}:8: warning: clients[0].user = (not set): unbound: any program that can reach the "
+        'socket may say hello as "autonomy" and keep it alive after it died: bind it to the '
+        'user it runs as (user = "NAME", or uid = N)',
+        f'{f}:17: warning: outputs[0].kind = "sim": drive is simulated: it drives no hardware',
+    ]
+    for strict_flag in ((), ("--strict",)):
+        checked = _srcsd("--check-config", str(config), *strict_flag)
+        assert checked.returncode == 0, checked.stderr
+        assert checked.stdout.startswith(f"{f}: OK — robot bench")
+        assert checked.stderr.splitlines() == wanted
+
+
+def test_the_daemon_logs_an_unbound_client_at_start(tmp_path: Path) -> None:
+    """SR-8.6: the real daemon's start logs the unbound required client's warning (the hazard
+    and how to bind it) before its start line; it is stopped with SIGTERM once started."""
+    text = WARNED.replace('transport = "serial"', 'transport = "serial"\nport = "no-vsc"')
+    text += '\n[record]\npath = "stops.jsonl"\njournal = false\n[api]\nsocket = "api.sock"\n'
+    config = tmp_path / "robot.toml"
+    config.write_text(text)
+    daemon = subprocess.Popen(
+        [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(config)],
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        cwd=ROOT,
+    )
+    bound = threading.Timer(120, daemon.kill)  # a failure's bound, never waited for
+    bound.start()
+    logged = []
+    try:
+        assert daemon.stderr is not None
+        for line in daemon.stderr:
+            logged.append(line)
+            if "robot bench:" in line:  # the start line: every warning is logged before it
+                break
+    finally:
+        daemon.terminate()
+        daemon.communicate()  # reads the rest and closes the pipe
+        bound.cancel()
+    unbound = "clients[0].user = (not set): unbound: any program that can reach the socket"
+    assert any(unbound in line and "WARNING" in line for line in logged), logged
+    assert not any("clients[1].user" in line for line in logged), logged

@@ -11,13 +11,24 @@ import pytest
 
 import supervisord
 from supervisord.cli.demo import DEMO_CONFIG
-from supervisord.config import CanBus, SerialPort, check_config_main, load_config
+from supervisord.config import (
+    CanBus,
+    DaemonConfig,
+    SerialPort,
+    check_config_main,
+    load_config,
+    read_toml,
+)
+from supervisord.config.collect import collect
+from supervisord.config.loader import NotOnMachine
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.config import Transport
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 EXAMPLES = [*sorted(CONFIG_DIR.glob("*.toml")), DEMO_CONFIG]
+ROBOT_USER = "robot"
+"""The user the examples' clients run as: the administrator creates it on the robot."""
 
 VALID = """\
 [robot]
@@ -59,10 +70,35 @@ def test_the_three_examples_are_shipped() -> None:
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_every_example_loads(path: Path) -> None:
-    """Each shipped example passes the whole validator."""
-    config = load_config(path, group_exists=srcs_admin_exists)
-    assert config.outputs
-    assert config.source == path
+    """Each shipped example passes the whole validator, but for the users its clients are bound
+    to, which this machine may lack (a warning, SR-11.2)."""
+    report = collect(path, group_exists=srcs_admin_exists)
+    assert report.config is not None, report.findings
+    assert report.config.outputs
+    assert report.config.source == path
+    for finding in report.findings:
+        assert finding.warning, finding
+        if isinstance(finding.error, NotOnMachine):
+            assert finding.error.key.endswith(".user") and finding.error.value == ROBOT_USER
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_every_example_binds_its_clients(path: Path) -> None:
+    """SR-8.6: each shipped example binds every required client to a user (docs/safety.md
+    "Clients bound to a user"), so none is warned about as unbound."""
+    clients = read_toml(path).get("clients", [])
+    assert isinstance(clients, list)
+    assert all("user" in client or "uid" in client for client in clients), path
+    report = collect(path, group_exists=srcs_admin_exists)
+    assert not any("unbound" in finding.error.fix for finding in report.findings)
+
+
+def example(name: str) -> DaemonConfig:
+    """The shipped example ``name``, loaded as on a robot with its user and group (the user's
+    lookup on this machine set aside)."""
+    config = collect(CONFIG_DIR / name, group_exists=srcs_admin_exists).config
+    assert config is not None
+    return config
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
@@ -78,7 +114,7 @@ def test_every_example_line_is_commented(path: Path) -> None:
 
 def test_serial_gpio_example(tmp_path: Path) -> None:
     """The serial example: a serial VSC, two GPIO outputs (motion, pulsed power), two clients."""
-    config = load_config(CONFIG_DIR / "example-serial-gpio.toml", group_exists=srcs_admin_exists)
+    config = example("example-serial-gpio.toml")
     assert config.vsc.transport is Transport.SERIAL
     assert isinstance(config.vsc.link, SerialPort)
     assert [(o.kind, o.role) for o in config.outputs] == [
@@ -91,7 +127,7 @@ def test_serial_gpio_example(tmp_path: Path) -> None:
 
 def test_can_example_is_the_docs_worked_example() -> None:
     """The CAN example's traction output is the worked example, on the VSC's bus."""
-    config = load_config(CONFIG_DIR / "example-can.toml", group_exists=srcs_admin_exists)
+    config = example("example-can.toml")
     assert config.vsc.transport is Transport.CAN
     assert config.can_output_bus == CanBus("socketcan", "can0", 250_000)
     traction = config.outputs[0]
@@ -183,7 +219,14 @@ def test_check_config_ok(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert check_config_main(file) == 0
     out, err = capsys.readouterr()
     assert out == f"{file}: OK — robot bot, transport serial, 1 output, 1 client\n"
-    assert err == f"{file}: warning: outputs[0] (drive) is simulated: it drives no hardware\n"
+    line = 1 + VALID.splitlines().index('kind = "sim"')
+    assert err.splitlines() == [
+        f'{file}:{line}: warning: outputs[0].kind = "sim": drive is simulated: it drives no '
+        "hardware",
+        f"{file}:{line + 2}: warning: clients[0].user = (not set): unbound: any program that can "
+        'reach the socket may say hello as "nav" and keep it alive after it died: bind it to the '
+        'user it runs as (user = "NAME", or uid = N)',
+    ]
 
 
 def test_check_config_counts_in_plural(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

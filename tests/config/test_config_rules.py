@@ -324,14 +324,14 @@ def test_hid_loads_with_a_warning(tmp_path: Path) -> None:
     """transport "hid" is accepted, with its hidraw path and a warning that it never runs."""
     config = load(tmp_path, {"vsc": {"transport": "hid", "hidraw": "/dev/hidraw3"}})
     assert config.vsc.link == HidDevice(Path("/dev/hidraw3"))
-    assert any("never a safety channel" in note for note in config.warnings())
+    assert any("never a safety channel" in note.text for note in config.warnings())
 
 
 def test_watchdog_off_on_serial_warns(tmp_path: Path) -> None:
     """require_watchdog = false on serial is allowed, with a warning."""
     config = load(tmp_path, {"vsc.require_watchdog": False})
     assert config.safety.require_watchdog is False
-    assert any("key 85" in note for note in config.warnings())
+    assert any("key 85" in note.text for note in config.warnings())
 
 
 REARM_CASES: list[Case] = [

@@ -162,7 +162,7 @@ def loader_verdict(tmp_path: Path, data: dict[str, object]) -> ConfigError | Non
     file = tmp_path / "robot.toml"
     file.write_text(dump(data))
     try:
-        load_config(file, base_dir=tmp_path, group_exists=lambda _: True)
+        load_config(file, base_dir=tmp_path, group_exists=lambda _: True, user_uid=lambda _: 1000)
     except ConfigError as error:
         return error
     return None
