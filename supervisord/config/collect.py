@@ -121,19 +121,19 @@ def collect(
                 break
             continue
         except RulesBroken as broken:  # every section's own keys were judged: the list is whole
-            for error in broken.errors:
-                work.list(error)
+            for refused in broken.errors:
+                work.list(refused)
             break
         if work.report.errors == 0:
             work.report.config = config
             for warning in config.warnings():
                 if warning.key in work.set_aside:  # of the copy, not of the file (a user
                     continue  # this machine lacks, set aside, leaves its client unbound)
-                path = key_path(warning.key)
-                where = position(positions, path) if path else None
+                at = key_path(warning.key)
+                where = position(positions, at) if at else None
                 value = strict.MISSING if warning.value is None else warning.value
-                error = ConfigError(warning.key, value, warning.text)
-                work.report.findings.append(Finding(error, True, where))
+                said = ConfigError(warning.key, value, warning.text)
+                work.report.findings.append(Finding(said, True, where))
         break
     else:  # pragma: no cover - more rounds than a file has keys
         work.report.notes.append("too many mistakes to list: correct these and check again")

@@ -79,7 +79,8 @@ def test_every_example_loads(path: Path) -> None:
     for finding in report.findings:
         assert finding.warning, finding
         if isinstance(finding.error, NotOnMachine):
-            assert finding.error.key.endswith(".user") and finding.error.value == ROBOT_USER
+            assert finding.error.key.endswith(".user")
+            assert finding.error.value == ROBOT_USER
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
