@@ -25,8 +25,9 @@ from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.requests import StartProofTest
 from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
+from supervisord.cli import numbers
 from supervisord.cli.log import interruptible
-from supervisord.cli.numbers import positive
+from supervisord.cli.numbers import whole_in
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.record_text import MARK_MEANS, mark, record_line, verdict
 from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
@@ -40,7 +41,8 @@ from supervisord.client import (
 )
 from supervisord.config import load_config
 from supervisord.errors import ConfigError
-from supervisord.protocol.codes import DisplayMode
+from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode
+from supervisord.protocol.messages import I32
 
 EXIT_REFUSED: Final = 1
 EXIT_USAGE: Final = 2
@@ -48,6 +50,8 @@ EXIT_NO_DAEMON: Final = 3
 EXIT_DENIED: Final = 4
 DEFAULT_NAME: Final = "srcsctl"
 RECONNECT_S: Final = 1.0
+DISPLAY_ROWS: Final = range(1, 5)
+"""The remote's text rows (docs/api.md "display")."""
 
 DISPLAY_MODES: Final[Mapping[str, DisplayMode]] = {
     "gps": DisplayMode(0),
@@ -144,14 +148,15 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         return kinds.add_parser(name, help=help_text, parents=[socket_options()])
 
     row = kind("row", "text row 1-4 (at most 20 characters)")
-    row.add_argument("index", type=int)
+    # Out of range is a usage error here (exit 2), not the daemon's refusal (SR-11.3).
+    row.add_argument("index", type=whole_in(DISPLAY_ROWS.start, DISPLAY_ROWS.stop - 1))
     row.add_argument("text")
     value = kind("value", "user value 1-9, optionally with its label")
-    value.add_argument("key", type=int)
-    value.add_argument("value", type=int)
+    value.add_argument("key", type=whole_in(USER_VALUE_KEYS.start, USER_VALUE_KEYS.stop - 1))
+    value.add_argument("value", type=whole_in(*I32))
     value.add_argument("--label", help="the value's label (at most 20 characters)")
     label = kind("label", "the label of user value 1-9")
-    label.add_argument("key", type=int)
+    label.add_argument("key", type=whole_in(USER_VALUE_KEYS.start, USER_VALUE_KEYS.stop - 1))
     label.add_argument("text")
     mode = kind("mode", "the page: gps, text, labelled or values (or 0-3)")
     mode.add_argument("mode", choices=(*DISPLAY_MODES, "0", "1", "2", "3"))
@@ -179,10 +184,11 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     ready.add_argument(
         "--timeout",
-        type=positive,  # nan or inf would never time out (SR-8.10, SR-11.3)
+        type=numbers.duration,  # nan or inf would never time out (SR-8.10, SR-11.3)
         default=DEFAULT_TIMEOUT_S,
-        metavar="S",
-        help=f"give up after S seconds (default {DEFAULT_TIMEOUT_S:g})",
+        metavar="TIME",
+        help="give up after TIME: seconds, or a time span such as 2s, 500ms, 1min, 1m30s "
+        f"(default {DEFAULT_TIMEOUT_S:g})",
     )
 
 

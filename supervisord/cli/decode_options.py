@@ -13,7 +13,8 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         "decode",
         help="decode a capture of VSC traffic into JSON lines",
         description="Decode a capture into one JSON object per frame or rejection, each "
-        "flushed as it is decoded (docs/protocol.md, 'srcsctl decode'). Exit status 2 when "
+        "flushed as it is decoded (protocol.md in /usr/share/doc/srcs-supervisord/docs). Exit "
+        "status 2 when "
         "any input was unreadable.",
     )
     decode.add_argument(

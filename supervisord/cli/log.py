@@ -1,9 +1,14 @@
 """``srcsctl log``: the record of stops, filtered by time and cause, as text or JSON lines.
 
-journalctl's habits (docs/srcsctl.md "log"): ``-n`` alone is the last 10, ``-f`` prints the
-last 10 and then each record as it is written (the file is watched, :mod:`follow`), ``-r``
-newest first, ``-o json`` as ``--json``, and journalctl's relative times. One time rule with
+journalctl's habits (docs/srcsctl.md "log"): ``-n`` alone is the last 10, ``-e`` the last
+1000, ``-f`` prints the last 10 and then each record as it is written (the file is watched,
+:mod:`follow`), ``-r`` newest first, ``-b`` since the machine booted, ``-o`` its output modes,
+``-- No entries --`` when nothing matched, and journalctl's relative times. One time rule with
 ``watch`` (:mod:`times`), one line per record with ``watch`` and the demo (:mod:`record_text`).
+
+``--cause NAME`` selects the records *about* that cause: those that raised, updated, cleared or
+released it (the record's ``changes``), as ``journalctl`` selects the entries a unit wrote;
+``--cause-present NAME`` the records made while it was present, latched included.
 """
 
 from __future__ import annotations
@@ -18,13 +23,40 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 from supervisord.cli.follow import Follower
-from supervisord.cli.record_text import record_line
+from supervisord.cli.record_text import changes, record_line
 from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
 
 EXIT_BAD_INPUT: Final = 2
 FOLLOW_LAST: Final = 10
 """What ``-n`` alone and ``-f`` without ``-n`` show first: the last 10, as journalctl."""
+PAGER_END_LAST: Final = 1000
+"""What ``-e`` shows without ``-n``: the last 1000, as journalctl's ``-e`` implies ``-n1000``."""
+NO_ENTRIES: Final = "-- No entries --"
+"""What journalctl prints on stdout when nothing matched (not in a JSON mode, not following)."""
+OUTPUTS: Final = ("short", "short-iso", "cat", "verbose", "json", "json-pretty")
+"""``-o``'s modes: ``short`` (and ``short-iso``, the same: the time is ISO 8601 already), ``cat``
+the line without its time, ``verbose`` as ``--causes``, ``json`` a line per record,
+``json-pretty`` each record indented."""
+JSON_OUTPUTS: Final = frozenset({"json", "json-pretty"})
+PROC_STAT: Final = Path("/proc/stat")
+
+
+class NoBootTime(Exception):
+    """``/proc/stat`` gives no boot time (``-b`` cannot be served)."""
+
+
+def boot_time(stat: Path = PROC_STAT) -> dt.datetime:
+    """When the machine booted: ``/proc/stat``'s ``btime`` (seconds since the epoch, UTC).
+    Raises :class:`NoBootTime` when it cannot be read."""
+    try:
+        for line in stat.read_text(encoding="ascii", errors="replace").splitlines():
+            name, _, value = line.partition(" ")
+            if name == "btime" and value.strip().isdigit():
+                return dt.datetime.fromtimestamp(int(value), dt.timezone.utc)
+    except OSError as error:
+        raise NoBootTime(f"{stat}: {error.strerror}") from None
+    raise NoBootTime(f"{stat} has no btime")
 
 
 def format_record(
@@ -47,57 +79,75 @@ def run_log(
     since: str | None = None,
     until: str | None = None,
     cause: str | None = None,
-    as_json: bool = False,
+    cause_present: str | None = None,
+    output: str = "short",
     utc: bool = False,
     last: int | None = None,
     follow: bool = False,
     reverse: bool = False,
     causes: bool = False,
+    this_boot: bool = False,
+    quiet: bool = False,
 ) -> int:
     """Print the records (the ``last`` N of them when given; newest first with ``reverse``);
     with ``follow``, then every record appended after, until Ctrl-C or SIGTERM (exit 0). A
-    record (or its folder) that cannot be read raises :class:`RecordUnreadable`."""
-    now = dt.datetime.now(dt.timezone.utc)
+    record (or its folder) that cannot be read raises :class:`RecordUnreadable`. Nothing
+    matched: :data:`NO_ENTRIES` on ``out`` (unless ``quiet``, following or JSON)."""
     try:
-        start = parse_time(since, now, utc=utc) if since else None
-        end = parse_time(until, now, utc=utc) if until else None
-    except BadTime as error:
+        start, end = _times(since, until, utc=utc, this_boot=this_boot)
+    except (BadTime, NoBootTime) as error:
         print(f"srcsctl log: {error}", file=errors)
         return EXIT_BAD_INPUT
+    wanted = _Filter(start, end, cause, cause_present)
     refused = _refusal(path, follow=follow, reverse=reverse)
     if refused:
         print(f"srcsctl log: {refused}", file=errors)
         return EXIT_BAD_INPUT
-    if follow and last is None and since is None and until is None:
+    if follow and last is None and start is None and end is None:
         last = FOLLOW_LAST
-    printer = _Printer(out, as_json=as_json, utc=utc, causes=causes)
+    printer = _Printer(out, output=output, utc=utc, causes=causes)
     follower: Follower | None = None
     try:  # from the handlers on: a signal that comes while the follower opens ends it too
         if follow:
             interruptible()
             follower = Follower(path)  # opened first: nothing falls between
-        records = _scan(path, start, end, cause, errors)
+        every = _scan(path, start, end, errors)
+        records = wanted.select(every)
         shown = [] if last == 0 else records[-last:] if last is not None else records
-        if len(records) > len(shown) and shown:  # the one before: what the first changed
-            printer.previous = records[-len(shown) - 1].data
+        if shown:  # the one before: what the first changed
+            printer.previous = wanted.before.get(_identity(shown[0]))
         printer.show(shown, reverse=reverse)
         if follower is None:
+            if not shown and not quiet and output not in JSON_OUTPUTS:
+                print(NO_ENTRIES, file=out)
             return 0
         # A record written between the follower's start and the scan is in both: shown once.
         # Known by seq and monotonic time, so that a numbering started again is still shown.
-        scanned = {_identity(record) for record in records}
+        scanned = {_identity(record) for record in every}
         for fresh in follower:
-            wanted = [
-                r for r in fresh if _identity(r) not in scanned and _wanted(r, start, end, cause)
-            ]
-            if wanted:
-                printer.show(wanted)
+            new = wanted.select([r for r in fresh if _identity(r) not in scanned])
+            if new:
+                printer.show(new)
     except KeyboardInterrupt:
         return 0
     finally:
         if follower is not None:
             follower.close()
     return 0  # pragma: no cover - the follower never ends by itself
+
+
+def _times(
+    since: str | None, until: str | None, *, utc: bool, this_boot: bool
+) -> tuple[dt.datetime | None, dt.datetime | None]:
+    """``--since`` (or the boot, whichever is later, with ``-b``) and ``--until`` as times.
+    Raises :class:`BadTime` or :class:`NoBootTime`."""
+    now = dt.datetime.now(dt.timezone.utc)
+    start = parse_time(since, now, utc=utc) if since else None
+    end = parse_time(until, now, utc=utc) if until else None
+    if this_boot:
+        booted = boot_time()
+        start = booted if start is None else max(start, booted)
+    return start, end
 
 
 def _refusal(path: Path, *, follow: bool, reverse: bool) -> str | None:
@@ -127,19 +177,21 @@ class _Printer:
     """Prints records as lines (or JSON), each line saying what changed since the one
     before it (:attr:`previous`, for records that do not say it themselves)."""
 
-    def __init__(self, out: IO[str], *, as_json: bool, utc: bool, causes: bool) -> None:
-        self.out, self.as_json, self.utc, self.causes = out, as_json, utc, causes
+    def __init__(self, out: IO[str], *, output: str, utc: bool, causes: bool) -> None:
+        self.out, self.output, self.utc = out, output, utc
+        self.causes = causes or output == "verbose"
         self.previous: Mapping[str, Any] | None = None
 
     def show(self, records: list[StoredRecord], *, reverse: bool = False) -> None:
         lines = []
         for record in records:
-            if self.as_json:
-                lines.append(json.dumps(record.data))
+            if self.output in JSON_OUTPUTS:
+                indent = 2 if self.output == "json-pretty" else None
+                lines.append(json.dumps(record.data, indent=indent))
                 continue
-            lines.append(
-                format_record(record.data, utc=self.utc, previous=self.previous, causes=self.causes)
-            )
+            when = "" if self.output == "cat" else show_time(record.data.get("utc"), utc=self.utc)
+            line = record_line(record.data, when, previous=self.previous, causes=self.causes)
+            lines.append(line.lstrip() if self.output == "cat" else line)
             self.previous = record.data
         for line in reversed(lines) if reverse else lines:
             self.out.write(line + "\n")
@@ -147,16 +199,13 @@ class _Printer:
 
 
 def _scan(
-    path: Path,
-    start: dt.datetime | None,
-    end: dt.datetime | None,
-    cause: str | None,
-    errors: IO[str],
+    path: Path, start: dt.datetime | None, end: dt.datetime | None, errors: IO[str]
 ) -> list[StoredRecord]:
+    """The records within the times, in file order; each bad line said on ``errors``."""
     found: list[StoredRecord] = []
     if not _there(path):
         return found
-    for item in read_records(path, since=start, until=end, cause=cause):
+    for item in read_records(path, since=start, until=end):
         if isinstance(item, BadLine):
             print(f"srcsctl log: {item.file}:{item.line}: {item.reason.value}", file=errors)
         elif isinstance(item, StoredRecord):
@@ -168,14 +217,48 @@ def _identity(record: StoredRecord) -> tuple[object, object]:
     return record.seq, record.data.get("mono_ns")
 
 
-def _wanted(
-    record: StoredRecord, start: dt.datetime | None, end: dt.datetime | None, cause: str | None
-) -> bool:
-    if start is not None and record.utc < start:
-        return False
-    if end is not None and record.utc >= end:
-        return False
-    return cause is None or record.matches_cause(cause)
+class _Filter:
+    """Which records ``log`` shows: within the times, and, with ``--cause``, those whose
+    changes name the cause (a record without ``changes``, written by another tool, by its
+    difference from the record before it); with ``--cause-present``, those that hold it.
+    Keeps the record before each one chosen (:attr:`before`), for what its line says changed."""
+
+    def __init__(
+        self,
+        start: dt.datetime | None,
+        end: dt.datetime | None,
+        cause: str | None,
+        present: str | None,
+    ) -> None:
+        self.start, self.end, self.cause, self.present = start, end, cause, present
+        self.last: Mapping[str, Any] | None = None  # the record read before, chosen or not
+        self.before: dict[tuple[object, object], Mapping[str, Any] | None] = {}
+
+    def select(self, records: list[StoredRecord]) -> list[StoredRecord]:
+        """The records wanted, in order; each record is seen once (the last one is kept)."""
+        chosen = []
+        for record in records:
+            previous, self.last = self.last, record.data
+            if self._wanted(record, previous):
+                self.before[_identity(record)] = previous
+                chosen.append(record)
+        return chosen
+
+    def _wanted(self, record: StoredRecord, previous: Mapping[str, Any] | None) -> bool:
+        if self.start is not None and record.utc < self.start:
+            return False
+        if self.end is not None and record.utc >= self.end:
+            return False
+        if self.present is not None and not record.matches_cause(self.present):
+            return False
+        if self.cause is None:
+            return True
+        return any(_under(name, self.cause) for _, name in changes(record.data, previous))
+
+
+def _under(name: str, cause: str) -> bool:
+    """``client_lost`` names ``client_lost`` and ``client_lost:autonomy``, not ``client_lostx``."""
+    return name == cause or name.startswith(cause + ":")
 
 
 def interruptible() -> None:

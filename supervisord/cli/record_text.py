@@ -95,7 +95,7 @@ def _details(cause: Mapping[str, Any] | None, every: bool) -> str:
     return f" ({text[: _DETAIL_CHARS - 3]}...)"
 
 
-def _changes(data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> list[tuple[str, str]]:
+def changes(data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> list[tuple[str, str]]:
     """``(change, cause name)`` pairs: the record's ``changes``, or for a record without them
     the difference from ``previous`` (raised: new and active; cleared: active before, not
     now)."""
@@ -141,7 +141,7 @@ def what_changed(
     ``raised vsc_estop (sources=remote); cleared vsc_mode:local``. A cleared cause that its
     latch still holds is marked. ``every``: every released latch by name, not their number,
     and every detail of a raised cause in full."""
-    pairs = _changes(data, previous)
+    pairs = changes(data, previous)
     causes = _by_name(data.get("causes"))
     parts = []
     prooftest = data.get("kind") == "prooftest"  # its verdict says what the update was

@@ -35,6 +35,7 @@ from argparse_manpage.manpage import Manpage
 
 from supervisord import __version__
 from supervisord.cli import exporter, sim, srcsctl, srcsd
+from supervisord.cli.cause_names import CAUSE_NAMES
 
 PROJECT = "srcs-supervisord"
 DOC_DIR = f"/usr/share/doc/{PROJECT}"
@@ -44,6 +45,38 @@ FILE_METAVARS = frozenset({"FILE", "PATH", "SOCKET", "SYMLINK"})
 """Options whose value is a path: completed with file names (shtab.FILE)."""
 FILE_POSITIONALS = frozenset({("srcsctl decode", "file"), ("srcsctl replay", "window")})
 """Positional arguments that name a file, by (parser, dest)."""
+
+ROBOTS = {
+    "bash": "_srcs_robots_compgen",
+    "zsh": "_srcs_robots",
+    "preamble": {
+        "bash": "_srcs_robots_compgen() {\n"
+        "  local robots=() f\n"
+        f"  for f in {srcsctl.CONFIG_DIR}/*.toml; do\n"
+        '    [ -f "$f" ] || continue\n'
+        "    f=${f##*/}\n"
+        '    robots+=("${f%.toml}")\n'
+        "  done\n"
+        '  compgen -W "${robots[*]}" -- "$1"\n'
+        "}\n",
+        "zsh": "_srcs_robots() {\n"
+        "  local -a robots\n"
+        f"  robots=({srcsctl.CONFIG_DIR}/*.toml(N:t:r))\n"
+        "  compadd -a robots\n"
+        "}\n",
+    },
+}
+"""``--robot``'s values: the robots of ``/etc/srcs/NAME.toml``, as ``--robot`` finds them,
+read when completing (a robot added later is offered)."""
+_CAUSE_WORDS = " ".join(CAUSE_NAMES)
+CAUSES = {
+    "bash": "_srcs_causes_compgen",
+    "zsh": f"({_CAUSE_WORDS})",
+    "preamble": {"bash": f'_srcs_causes_compgen() {{\n  compgen -W "{_CAUSE_WORDS}" -- "$1"\n}}\n'},
+}
+"""``--cause``'s values: the safety core's cause names."""
+COMPLETE_BY_DEST = {"robot": ROBOTS, "cause": CAUSES, "cause_present": CAUSES}
+"""Options completed from a list of their own, by ``dest``."""
 
 
 @dataclass(frozen=True)
@@ -263,6 +296,8 @@ def prepared(command: Command) -> argparse.ArgumentParser:
         for action in each._actions:
             if action.metavar in FILE_METAVARS or (path, action.dest) in FILE_POSITIONALS:
                 action.complete = shtab.FILE  # type: ignore[attr-defined]  # shtab's documented hook
+            elif action.option_strings and action.dest in COMPLETE_BY_DEST:
+                action.complete = COMPLETE_BY_DEST[action.dest]  # type: ignore[attr-defined]
     return parser
 
 

@@ -60,12 +60,55 @@ def find_window(which: str | None, record: Path | None) -> Path:
     if which is not None:
         path = window_path(record, int(which))
         if not path.exists():
-            raise LookupError(f"no window of record {which}: {path} does not exist")
+            raise LookupError(no_window(record, int(which)))
         return path
     found = windows(record)
     if not found:
         raise LookupError(f"no flight recorder window beside {record} yet")
     return found[-1][1]
+
+
+def no_window(record: Path, seq: int) -> str:
+    """Why record ``seq`` has no window, in words: what the record is (windows are written for
+    stops only, SR-7.12), and the stops nearest to it that have one."""
+    data = _record_numbered(record, seq)
+    if data is None:
+        what = f"there is no record {seq} in {record}"
+    elif data.get("to") == "STOPPED" and data.get("from") != "STOPPED":
+        what = (
+            f"record {seq} is a stop, but its window is not kept: only the newest windows are "
+            "(the record's keep + 1), and one that could not be written is counted in status"
+        )
+    else:
+        what = f"record {seq} is {_what_record(data)}: windows are kept for stops only"
+    kept = [number for number, _ in windows(record)]
+    below = [number for number in kept if number < seq][-1:]
+    above = [number for number in kept if number > seq][:1]
+    nearest = ", ".join(f"#{number}" for number in below + above)
+    near = f"; the nearest stops with windows: {nearest}" if nearest else "; no window is kept"
+    return f"no window of record {seq}: {what}{near} (srcsctl replay SEQ)"
+
+
+def _record_numbered(record: Path, seq: int) -> Mapping[str, Json] | None:
+    """The newest record numbered ``seq`` (numbering starts again only with a new file)."""
+    found = None
+    try:
+        for item in read_records(record):
+            if isinstance(item, StoredRecord) and item.seq == seq:
+                found = item.data
+    except (RecordUnreadable, OSError, RecursionError, ValueError):
+        return None
+    return found
+
+
+def _what_record(data: Mapping[str, Json]) -> str:
+    """``a re-arm (STOPPED -> RUN)``, ``a cause_cleared record (STOPPED)``."""
+    before, after = data.get("from"), data.get("to")
+    if before == "STOPPED" and after != "STOPPED":
+        return f"a re-arm ({before} -> {after})"
+    if before != after:
+        return f"a change of state ({before} -> {after})"
+    return f"a {data.get('kind') or 'state_change'} record ({after})"
 
 
 def recorded_records(

@@ -10,8 +10,9 @@ from pathlib import Path
 from supervisord import __version__
 from supervisord.cli import control, decode_options
 from supervisord.cli.access import advice
+from supervisord.cli.cause_names import cause_name
 from supervisord.cli.demo_find import NoDemo, demo_config
-from supervisord.cli.log import FOLLOW_LAST, run_log
+from supervisord.cli.log import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST, run_log
 from supervisord.cli.numbers import count, positive
 from supervisord.cli.replay import run_replay
 from supervisord.config import load_config
@@ -58,23 +59,45 @@ def build_parser() -> argparse.ArgumentParser:
         help="show the record of stops",
         description="Show the record of stops, oldest first, one line each: the time, the "
         "state change, the kind, the causes raised or cleared and the reason "
-        "(docs/srcsctl.md). A time is ISO 8601 (local time unless it names a zone; UTC with "
+        "(srcsctl(1)). A time is ISO 8601 (local time unless it names a zone; UTC with "
         "--utc), a time of day, now, today, yesterday, or an age such as '5 min ago', "
         "-5min, 2h, 3d. A * after a cause: its condition has cleared and its latch holds the "
-        "stop until a re-arm. Without --config, --robot or --file: the only config in "
-        "/etc/srcs.",
+        "stop until a re-arm. Nothing matched: '-- No entries --', as journalctl. Without "
+        "--config, --robot or --file: the only config in /etc/srcs.",
         parents=[control.socket_options(record=True)],
     )
     log.add_argument("--file", metavar="PATH", help="the record file itself")
     log.add_argument("-S", "--since", metavar="TIME", help="records at or after TIME")
     log.add_argument("-U", "--until", metavar="TIME", help="records before TIME")
     log.add_argument(
+        "-b",
+        "--boot",
+        nargs="?",
+        const="0",
+        metavar="0",
+        help="records since the machine booted (its boot time in /proc/stat); only this boot",
+    )
+    log.add_argument(
         "--cause",
         metavar="NAME",
-        help="records with this cause (client_lost matches client_lost:autonomy)",
+        type=cause_name,
+        help="records that raised, updated, cleared or released this cause (client_lost "
+        "matches client_lost:autonomy)",
+    )
+    log.add_argument(
+        "--cause-present",
+        metavar="NAME",
+        type=cause_name,
+        help="records made while this cause was present, active or latched",
     )
     log.add_argument("--json", action="store_true", help="the records as JSON lines")
-    log.add_argument("-o", "--output", choices=("short", "json"), help="json: as --json")
+    log.add_argument(
+        "-o",
+        "--output",
+        choices=OUTPUTS,
+        help="short (the default; short-iso the same), cat (no time), verbose (as --causes), "
+        "json (as --json), json-pretty (indented)",
+    )
     log.add_argument(
         "-n",
         "--lines",
@@ -83,6 +106,12 @@ def build_parser() -> argparse.ArgumentParser:
         const=FOLLOW_LAST,
         metavar="N",
         help=f"only the last N records (alone: {FOLLOW_LAST})",
+    )
+    log.add_argument(
+        "-e",
+        "--pager-end",
+        action="store_true",
+        help=f"the last {PAGER_END_LAST} records, unless -n says how many (as journalctl -e)",
     )
     log.add_argument(
         "-f",
@@ -95,6 +124,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--causes", action="store_true", help="also every cause of each record, and its trigger"
     )
     log.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
+    log.add_argument(
+        "-q", "--quiet", action="store_true", help="no '-- No entries --' when nothing matched"
+    )
+    log.add_argument(
+        "--no-pager", action="store_true", help="accepted and ignored: there is no pager"
+    )
+    log.add_argument(
+        "-x",
+        "--catalog",
+        action="store_true",
+        help="accepted and ignored: each line says in words what happened",
+    )
 
     replay = commands.add_parser(
         "replay",
@@ -102,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run the inputs the supervisor's safety core was given before a stop (its "
         "flight recorder window, written beside the record) through a fresh core with the "
         "recorded configuration, and show step by step that it makes the recorded decisions "
-        "(docs/record.md). Exit 1 at the first record that differs. Without --config, "
+        "(srcsctl(1)). Exit 1 at the first record that differs. Without --config, "
         "--robot or --file: the only config in /etc/srcs.",
         parents=[control.socket_options(record=True)],
     )
@@ -138,7 +179,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
+    if unknown:  # said with the command's own usage, never the top level's (SR-11.3)
+        command_parser(parser, args).error(f"unrecognized arguments: {' '.join(unknown)}")
     if args.command != "demo":
         try:
             chosen = chosen_config(args)
@@ -167,6 +211,19 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return run_demo(sys.stdout, speed=args.speed, auto=args.auto or None, config=args.config)
     return 2  # pragma: no cover - argparse rejects unknown commands first
+
+
+def command_parser(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the command ``args`` were parsed for (``srcsctl log``, ``srcsctl display
+    row``): its ``error`` shows that command's usage."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            chosen = action.choices.get(getattr(args, action.dest, None) or "")
+            if chosen is not None:
+                return command_parser(chosen, args)
+    return parser
 
 
 def robot_config(name: str, directory: Path = CONFIG_DIR) -> Path:
@@ -238,9 +295,18 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _log(args: argparse.Namespace) -> int:
+    if args.boot not in (None, "", "0"):
+        # journalctl -b -1: the record keeps no boot ids; a time says which (SR-11.3).
+        print(
+            f"srcsctl log: -b {args.boot}: only this boot (-b or -b 0); for an earlier one "
+            "give --since and --until",
+            file=sys.stderr,
+        )
+        return 2
     path = _record_path(args, "log")
     if path is None:
         return 2
+    last = args.lines if args.lines is not None or not args.pager_end else PAGER_END_LAST
     try:
         return run_log(
             path,
@@ -249,12 +315,15 @@ def _log(args: argparse.Namespace) -> int:
             since=args.since,
             until=args.until,
             cause=args.cause,
-            as_json=args.json or args.output == "json",
+            cause_present=args.cause_present,
+            output="json" if args.json and not args.output else args.output or "short",
             utc=args.utc,
-            last=args.lines,
+            last=last,
             follow=args.follow,
             reverse=args.reverse,
             causes=args.causes,
+            this_boot=args.boot is not None,
+            quiet=args.quiet,
         )
     except RecordUnreadable as error:  # never an empty answer with exit 0 (SR-7.9)
         print(f"srcsctl log: {error}{advice(error.path, error.errno)}", file=sys.stderr)

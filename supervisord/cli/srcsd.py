@@ -125,8 +125,21 @@ def _interrupt(signum: int) -> None:
     raise Interrupted(signum)
 
 
+FLAGS: Final = ("--strict", "--verbose")
+"""srcsd's options that take no value."""
+
+
+def flags_first(argv: Sequence[str]) -> list[str]:
+    """``argv`` with the options that take no value moved to the front, so that any order
+    works: ``--check-config --strict FILE`` as ``--strict --check-config FILE`` (argparse would
+    take ``--strict`` for the missing FILE). Nothing after ``--`` moves."""
+    end = list(argv).index("--") if "--" in argv else len(argv)
+    head = list(argv[:end])
+    return [a for a in head if a in FLAGS] + [a for a in head if a not in FLAGS] + list(argv[end:])
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(flags_first(sys.argv[1:] if argv is None else argv))
     if args.check_config:
         return check_config_main(args.check_config, strict_machine=args.strict)
     setup_logging(args.verbose)

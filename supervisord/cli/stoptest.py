@@ -18,9 +18,12 @@ from typing import Final, TextIO
 
 from supervisord.api.pushes import RecordPush
 from supervisord.api.records import StopTestReport
-from supervisord.cli.numbers import positive
+from supervisord.cli.numbers import duration
 from supervisord.client import SupervisorClient
 
+REQUIREMENTS: Final = "/usr/share/doc/srcs-supervisord/docs/requirements.md"
+"""Where a robot has the requirements: the package's copy of docs/ (docs/install.md); the
+repository's paths are not on a robot."""
 EXIT_PASSED: Final = 0
 EXIT_FAILED: Final = 1
 EXIT_NOT_DONE: Final = 3
@@ -50,10 +53,11 @@ def add_stoptest(add: Callable[[str, str], argparse.ArgumentParser]) -> None:
     )
     parser.add_argument(
         "--timeout",
-        type=positive,  # nan or inf would never time out (SR-11.3)
+        type=duration,  # nan or inf would never time out (SR-11.3)
         default=DEFAULT_TIMEOUT_S,
-        metavar="S",
-        help=f"wait at most S seconds for each takeover and press (default {DEFAULT_TIMEOUT_S:g})",
+        metavar="TIME",
+        help="wait at most TIME for each takeover and press: seconds, or a time span such as "
+        f"90s, 2min (default {DEFAULT_TIMEOUT_S:g})",
     )
     parser.add_argument(
         "--yes", action="store_true", help="do not ask before starting (scripts, tests)"
@@ -180,6 +184,6 @@ def report(result: StopTestReport) -> str:
     overall = "PASSED" if result.passed else "FAILED"
     lines.append(
         f"stoptest: {overall}: every output off within {limit} ms of the e-stop's frame "
-        "(docs/requirements.md SR-12.1); recorded"
+        f"({REQUIREMENTS} SR-12.1); recorded"
     )
     return "\n".join(lines) + "\n"

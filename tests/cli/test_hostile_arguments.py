@@ -16,7 +16,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from supervisord.cli import srcsctl
-from supervisord.cli.numbers import count, positive
+from supervisord.cli.numbers import count, duration
 from supervisord.cli.times import BadTime, parse_time
 from tests.daemon.test_srcsctl import SRCSCTL
 
@@ -122,6 +122,8 @@ def parses_as_usage_error_or(argv: list[str]) -> argparse.Namespace | None:
 @example("nan")
 @example("0")
 @example("1e999")
+@example("1m30s")
+@example("9" * 400 + "d")
 def test_any_timeout_text_is_a_finite_positive_number_or_a_usage_error(text: str) -> None:
     """SR-11.3: whatever text follows ``wait-ready --timeout``, the parser gives a finite
     number above 0 or its usage error; the one type says the same for every duration."""
@@ -129,7 +131,7 @@ def test_any_timeout_text_is_a_finite_positive_number_or_a_usage_error(text: str
     if args is not None:
         assert math.isfinite(args.timeout)
         assert args.timeout > 0
-        assert positive(text) == args.timeout
+        assert duration(text) == args.timeout
 
 
 @settings(max_examples=300, deadline=None)
@@ -169,3 +171,13 @@ def test_any_since_text_is_a_time_or_a_bad_time(text: str, now: dt.datetime, utc
     except BadTime:
         return
     assert when.tzinfo is not None
+
+
+def test_a_duration_is_seconds_or_a_systemd_time_span() -> None:
+    """SR-11.3: a plain number is seconds; ``2s``, ``500ms``, ``1min``, ``1m30s``, ``1min 30s``
+    and ``1h`` are systemd.time(7)'s spans; a unit alone or a number after a span is refused."""
+    spans = ("2", "2s", "500ms", "1min", "1m30s", "1min 30s", "1h")
+    assert [duration(t) for t in spans] == [2.0, 2.0, 0.5, 60.0, 90.0, 90.0, 3600.0]
+    for bad in ("s", "1m 30", "2 fortnights", "0s", "\uff12s"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            duration(bad)
