@@ -158,6 +158,9 @@ def _scenario(robot: Robot) -> None:
     assert result["limit_ms"] == LIMIT_MS
     assert status == (0 if passed else 1), (status, lines)
     assert any(("PASSED" if passed else "FAILED") in line for line in lines), lines
+    # It cites what a robot has: the installed docs, not a path of the repository (SR-12.1).
+    cited = "(/usr/share/doc/srcs-supervisord/docs/requirements.md SR-12.1)"
+    assert any(cited in line for line in lines), lines
     assert tests[0]["reason"].startswith("passed" if passed else "FAILED")
     # The verdict is the record's alone: the robot stays stopped until a re-arm.
     assert robot.status().report.state == "STOPPED"
