@@ -134,9 +134,9 @@ def test_display_and_vibrate_reach_the_vsc(robot: Robot) -> None:
     names = [m for m in robot.peer.received if isinstance(m, FeedbackName)]
     assert any(m.text.startswith("HELLO") for m in names)
     assert any(m.text.startswith("SPEED") for m in names)
-    bad = robot.ctl("display", "row", "7", "X")
-    assert bad.returncode == 1
-    assert "bad_request" in bad.stderr
+    bad = robot.ctl("display", "row", "7", "X")  # a usage error, found before the daemon is asked
+    assert bad.returncode == 2
+    assert "'7' is not a whole number from 1 to 4" in bad.stderr
 
 
 def test_commission_asks_for_confirmation_then_writes_and_reads_back(robot: Robot) -> None:
