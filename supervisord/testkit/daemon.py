@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 from supervisord.config import load_config
 from supervisord.errors import SrcsError
+from supervisord.safety.config import CLIENT_TIMEOUT_RANGE_MS, VSC_TIMEOUT_MS
 from supervisord.tooling.children import kill, spawn, terminate, wait_started
 
 if TYPE_CHECKING:
@@ -46,6 +47,22 @@ socket = "api.sock"
 """
 """A robot in one directory: the VSC's pty at ``vsc``, one simulated motion output mirrored
 to ``drive``, the record ``stops.jsonl``, the socket ``api.sock``, a 100 ms re-arm hold."""
+
+LONGEST_VSC_TIMEOUT_MS = VSC_TIMEOUT_MS.high
+"""``vsc.timeout_ms`` at its largest (SR-2.2: 1000 ms). A test or bench that needs the robot
+in RUN for a while, with the VSC (or a client) fed by its own process, takes its deadlines
+from that need: on a busy two-core machine such a process is late by a few hundred ms at
+times, which at the default 200 ms is a real ``vsc_link_lost`` (the daemon stops, as it
+should) and not what the test is about (docs/testing.md "Under load")."""
+
+LONGEST_CLIENT_TIMEOUT_MS = CLIENT_TIMEOUT_RANGE_MS[1]
+"""``clients[i].timeout_ms`` at its largest (SR-8: 10 s), for the same reason."""
+
+LASTING_CONFIG = MINIMAL_CONFIG.replace(
+    "[vsc]\n", f"[vsc]\ntimeout_ms = {LONGEST_VSC_TIMEOUT_MS}\n", 1
+)
+"""``MINIMAL_CONFIG`` with the longest VSC timeout: a robot that stays in RUN however late
+the process feeding its VSC is, up to a second."""
 
 
 class DaemonError(SrcsError):

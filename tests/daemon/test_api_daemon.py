@@ -14,18 +14,21 @@ from supervisord.api.framing import ApiError
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
 from supervisord.sim.pty import PtyPort
-from supervisord.testkit.daemon import SrcsdProcess
+from supervisord.testkit.daemon import LONGEST_CLIENT_TIMEOUT_MS, SrcsdProcess
 from tests.daemon.peer import VscPeer
-from tests.daemon.test_srcsd import CONFIG, wait
+from tests.daemon.test_srcsd import CONFIG, SERVED_CONFIG, wait
 
-REQUIRED_CLIENT = '\n[[clients]]\nname = "autonomy"\ntimeout_ms = 500\n'
+REQUIRED_CLIENT = f'\n[[clients]]\nname = "autonomy"\ntimeout_ms = {LONGEST_CLIENT_TIMEOUT_MS}\n'
+"""The client is this test process: the longest client timeout (SR-8), as RUN must last while
+it blocks on its own requests; ``tests/faults/test_clients.py`` proves the timeout itself."""
 
 
 def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Path) -> None:
     """SR-0.2, SR-8.1, SR-8.2: a required client's hello and heartbeats let a takeover run the
     robot; its silence stops it; an operator's local e-stop over the socket stops it; a reset
-    without local_reset is refused with the core's reason; a state push reaches subscribers."""
-    (tmp_path / "robot.toml").write_text(CONFIG + REQUIRED_CLIENT)
+    without local_reset is refused with the core's reason; a state push reaches subscribers.
+    The VSC and the client are this process: their timeouts are the longest allowed."""
+    (tmp_path / "robot.toml").write_text(SERVED_CONFIG + REQUIRED_CLIENT)
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port)
         with (

@@ -15,12 +15,16 @@ from pathlib import Path
 
 from supervisord.protocol.codes import VscMode
 from supervisord.sim.pty import PtyPort
-from supervisord.testkit.daemon import MINIMAL_CONFIG
+from supervisord.testkit.daemon import LASTING_CONFIG, MINIMAL_CONFIG
 from tests.daemon.peer import VscPeer
 
 SRCSD = shutil.which("srcsd") or str(Path(__file__).parents[2] / ".venv/bin/srcsd")
 
 CONFIG = MINIMAL_CONFIG
+SERVED_CONFIG = LASTING_CONFIG
+"""For a daemon whose VSC is a ``VscPeer`` this test process serves: the longest VSC timeout
+(SR-2.2), since a busy machine may leave the test process late by hundreds of ms, and a
+test that needs RUN (or just a quiet link) to last must not stop on that."""
 
 
 def notifications(sock: socket.socket) -> list[str]:
@@ -42,8 +46,10 @@ def wait(peer: VscPeer, done: Callable[[], bool], limit: float = 10.0) -> None:
 
 def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
     """SR-0.2, SR-6.5: READY=1 comes only once the output is off; WATCHDOG=1 keeps coming; a
-    takeover runs the output; SIGTERM turns it off, flushes the record and exits 0."""
-    (tmp_path / "robot.toml").write_text(CONFIG)
+    takeover runs the output; SIGTERM turns it off, flushes the record and exits 0. The VSC is
+    served by this process: the longest VSC timeout (``SERVED_CONFIG``), as RUN must last
+    until the SIGTERM."""
+    (tmp_path / "robot.toml").write_text(SERVED_CONFIG)
     notify_path = tmp_path / "notify"
     with (
         socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as notify,
