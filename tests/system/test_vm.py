@@ -47,7 +47,12 @@ def test_the_wait_for_a_cpu_is_read_from_the_kernel(
     a process that no longer exists reads as not measured."""
     meter = Starvation(two_on_one_cpu.pid)
     meter.sample()
-    wait_until(lambda: (meter.sample(), meter.lost_s() > 0.05)[1], what="a wait for the CPU")
+
+    def waited() -> bool:
+        meter.sample()
+        return meter.lost_s() > 0.05
+
+    wait_until(waited, what="a wait for the CPU")
     assert meter.samples[-1][1] > meter.samples[0][1]
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()
