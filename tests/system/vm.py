@@ -94,7 +94,7 @@ class Starvation:
         worst = 0.0
         for i, (t, w) in enumerate(inside):
             later = [w2 for t2, w2 in inside[i:] if t2 - t <= 1.0 + SAMPLE_S / 2]
-            worst = max(worst, later[-1] - w)
+            worst = max(worst, min(later[-1] - w, 1.0))  # the window is a second, give or take
         span = inside[-1][0] - inside[0][0]
         waited = inside[-1][1] - inside[0][1]
         return {
@@ -201,6 +201,7 @@ class Vm:
         starvation = Starvation(proc.pid)
         result.starvation = starvation
         starvation.sample()
+        said = 0.0  # when the console was last told of a starved second
         while True:
             # The budget is the guest's time: what the host held it back for comes on top.
             budget = timeout + min(starvation.lost_s(), (BUDGET_GROWTH_LIMIT - 1) * timeout)
@@ -216,6 +217,7 @@ class Vm:
                 break
             ready, _, _ = select.select([proc.stdout], [], [], min(left, SAMPLE_S))
             starvation.sample()
+            said = self._say_starved(starvation, started, said)
             if not ready:
                 continue
             chunk = os.read(proc.stdout.fileno(), 65536)
@@ -235,6 +237,22 @@ class Vm:
         result.wall_s = result.ended - started
         print(f"[host {result.wall_s:7.2f}] qemu exited ({proc.returncode})", flush=True)
         return result
+
+    @staticmethod
+    def _say_starved(starvation: Starvation, started: float, said: float) -> float:
+        """Tell the console, beside the guest's own lines, when the host held the guest back
+        for ``STARVED_S`` or more within the last second (at most every 5 s)."""
+        now = time.monotonic()
+        last = starvation.between(now - 1.0, now)
+        if now - said < 5.0 or not starved(last):
+            return said
+        assert last is not None
+        print(
+            f"[host {now - started:7.2f}] the host held the guest back "
+            f"{last['most in one second s']} s in the last second",
+            flush=True,
+        )
+        return now
 
     @staticmethod
     def _line(line: str, started: float, result: Boot) -> None:
