@@ -25,9 +25,10 @@ it blocks on its own requests; ``tests/faults/test_clients.py`` proves the timeo
 
 def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Path) -> None:
     """SR-0.2, SR-8.1, SR-8.2: a required client's hello and heartbeats let a takeover run the
-    robot; its silence stops it; an operator's local e-stop over the socket stops it; a reset
-    without local_reset is refused with the core's reason; a state push reaches subscribers.
-    The VSC and the client are this process: their timeouts are the longest allowed."""
+    robot; an operator's local e-stop over the socket stops it; a reset without local_reset
+    is refused with the core's reason; a state push reaches subscribers. The VSC and the
+    client are this process: their timeouts are the longest allowed (a client's silence
+    stopping the robot is ``tests/faults/test_clients.py``'s, with a client of its own)."""
     (tmp_path / "robot.toml").write_text(SERVED_CONFIG + REQUIRED_CLIENT)
     with PtyPort(tmp_path / "vsc") as port:
         peer = VscPeer(port)
