@@ -100,7 +100,8 @@ class Starvation:
         return {
             "held back s": round(waited, 1),
             "of s": round(span, 1),
-            "share": round(waited / span, 2) if span > 0 else 0.0,
+            # Two threads that wait at once count twice: at most the whole span.
+            "share": round(min(waited / span, 1.0), 2) if span > 0 else 0.0,
             "most in one second s": round(worst, 2),
         }
 
