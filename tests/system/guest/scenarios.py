@@ -1966,6 +1966,20 @@ def scenario_usb_hid(bench: Bench) -> tuple[str, Measured]:
 # ---------------------------------------------------------------------------------- runner
 
 Scenario = Callable[[Bench], tuple[str, Measured]]
+
+
+def bringup(name: str) -> Scenario:
+    """A scenario of guest/bringup.py (a robot booted whole), imported when it runs: it uses
+    this module's helpers."""
+
+    def scenario(bench: Bench) -> tuple[str, Measured]:
+        from tests.system.guest.bringup import BRINGUP  # noqa: PLC0415
+
+        return dict(BRINGUP)[name](bench)
+
+    return scenario
+
+
 MAIN: list[tuple[str, Scenario]] = [
     ("install", scenario_install),
     ("gpio", scenario_gpio),
@@ -1977,6 +1991,11 @@ MAIN: list[tuple[str, Scenario]] = [
     ("prooftest", scenario_prooftest),
     ("rttime", scenario_rttime),
     ("slowdisk", scenario_slowdisk),
+    # A robot booted whole (guest/bringup.py): srcsd@robot, its motion service, the exporter.
+    ("robot_boot", bringup("robot_boot")),
+    ("robot_motion_killed", bringup("robot_motion_killed")),
+    ("robot_restart", bringup("robot_restart")),
+    ("robot_stop", bringup("robot_stop")),
     # On the USB VSC (they move /dev/srcs-vsc from the pty to the gadget): last.
     ("usb_enum", scenario_usb_enum),
     ("usb_unplug", scenario_usb_unplug),
