@@ -96,6 +96,16 @@ def wheel() -> float | None:
         return None
 
 
+def metric(series: str) -> float | None:
+    """One series' value as the exporter serves it (None: not served)."""
+    with urllib.request.urlopen(METRICS, timeout=30) as reply:
+        for line in reply.read().decode().splitlines():
+            name, _, value = line.rpartition(" ")
+            if name == series:
+                return float(value)
+    return None
+
+
 def monotonic_s(unit: str, name: str) -> float:
     """A systemd timestamp of ``unit`` on the guest's monotonic clock, in seconds."""
     return int(prop(unit, name)) / 1e6
@@ -185,10 +195,9 @@ def scenario_robot_boot(bench: Bench) -> tuple[str, Measured]:
     check(state(ROBOT) == "STOPPED", "not STOPPED before a takeover")
     check(wheel() == 0.0, f"the wheel at {wheel()} before a takeover")
     took = to_run(bench)
-    with urllib.request.urlopen(METRICS, timeout=30) as reply:
-        metrics = reply.read().decode()
-    check("srcs_up 1" in metrics, "the exporter does not say srcs_up 1")
-    check('srcs_state{state="RUN"} 1' in metrics, "the exporter does not say RUN")
+    run_series = 'srcs_state{state="RUN"}'
+    wait_for("the exporter says RUN", lambda: metric(run_series) == 1, 30, 0.5)
+    check(metric("srcs_up") == 1, f"the exporter says srcs_up {metric('srcs_up')}")
     return "all active; srcsd READY and proven before motion started; RUN by takeover", {
         "systemctl start of the three s": round(started, 2),
         "srcsd READY to the gate's start s": round(gate_began - srcsd_ready, 2),
@@ -280,8 +289,7 @@ def scenario_robot_stop(bench: Bench) -> tuple[str, Measured]:
         bench.assert_off("after systemctl stop srcsd@robot")
         told = journal(MOTION, cursor)
         check("robot-motion: stopped" in told, f"the motion service's last words: {told[-400:]}")
-        with urllib.request.urlopen(METRICS, timeout=30) as reply:
-            check("srcs_up 0" in reply.read().decode(), "the exporter does not say srcs_up 0")
+        wait_for("the exporter says srcs_up 0", lambda: metric("srcs_up") == 0, 30, 0.5)
     finally:
         subprocess.run(["systemctl", "disable", "--now", *UNITS], check=False)
     return "every output off, the motion service stopped with srcsd, the exporter on", {
