@@ -247,15 +247,20 @@ def scenario_robot_restart(bench: Bench) -> tuple[str, Measured]:
     timeline = Timeline(bench.gpio, (DRIVE,))
     t0 = time.monotonic()
     timeline.t0 = t0
-    run("systemctl", "restart", SRCSD)  # returns once the jobs are done, motion's too
+    run("systemctl", "restart", SRCSD)  # returns once srcsd@robot's own job is done
+    restarted = time.monotonic() - t0
+
+    def both_new() -> bool:
+        return all(
+            main_pid(unit) not in (0, old[unit]) and prop(unit, "ActiveState") == "active"
+            for unit in (SRCSD, MOTION)
+        )
+
+    wait_for("srcsd@robot and the motion service restarted", both_new, RESTART_LIMIT_S, 0.1)
     took = time.monotonic() - t0
     timeline.stop()
     offs = [t for t, level in timeline.of(DRIVE) if t >= 0 and level == 0]
     check(bool(offs), f"the drive line never went off: {timeline.of(DRIVE)}")
-    new = {unit: main_pid(unit) for unit in (SRCSD, MOTION)}
-    for unit in (SRCSD, MOTION):
-        check(prop(unit, "ActiveState") == "active", f"{unit} not active after the restart")
-        check(new[unit] not in (0, old[unit]), f"{unit} kept its process {old[unit]}")
     motion_main = monotonic_s(MOTION, "ExecMainStartTimestampMonotonic")
     check(
         monotonic_s(SRCSD, "ActiveEnterTimestampMonotonic") <= motion_main,
@@ -267,7 +272,8 @@ def scenario_robot_restart(bench: Bench) -> tuple[str, Measured]:
     back = to_run(bench)
     return "outputs off at once, motion restarted with srcsd, RUN only by a takeover", {
         "restart to drive line off ms": round(offs[0] * 1000),
-        "systemctl restart (both units, the gate) s": round(took, 2),
+        "systemctl restart (srcsd to READY) s": round(restarted, 2),
+        "restart to the motion service up again (the gate) s": round(took, 2),
         "takeover to RUN s": round(back, 2),
     }
 
