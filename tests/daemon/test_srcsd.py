@@ -105,8 +105,11 @@ def test_notify_takeover_and_sigterm(tmp_path: Path) -> None:
         assert "STOPPING=1" in notifications(notify)
         records = [json.loads(line) for line in (tmp_path / "stops.jsonl").read_text().splitlines()]
         assert records[0]["to"] == "STOPPED"
-        assert records[-1]["to"] == "RUN"
-        assert records[-1]["rearm"]["kind"] == "takeover"
+        assert records[-2]["to"] == "RUN"
+        assert records[-2]["rearm"]["kind"] == "takeover"
+        # The exit is a stop of its own, recorded last (SR-7.14).
+        assert (records[-1]["from"], records[-1]["to"]) == ("RUN", "STOPPED")
+        assert "shutdown:SIGTERM" in [cause["name"] for cause in records[-1]["causes"]]
         assert "Traceback" not in errors
 
 

@@ -25,7 +25,7 @@ from supervisord.cli.replay import (
     run_replay,
 )
 from supervisord.protocol.messages import VscHeartbeat
-from supervisord.record.flight import MAX_NESTING, FlightWriter, read_window, window_path
+from supervisord.record.flight import MAX_NESTING, FlightWriter, read_window
 from supervisord.record.jsonl import RecordWriter
 from supervisord.record.replay import ReplayError, replay
 from supervisord.safety.events import VscReceived
@@ -202,10 +202,11 @@ def test_a_snapshot_of_another_version_cannot_be_replayed(tmp_path: Path) -> Non
 
 
 def test_a_missing_window_is_a_usage_error(tmp_path: Path) -> None:
-    """SR-7.13: a number with no window beside the record, or no window at all: exit 2."""
+    """SR-7.13: a number with no window beside the record, or no window at all: exit 2, the
+    message naming the record it looked in."""
     code, said = _replay(tmp_path, "12")
     assert code == EXIT_BAD_INPUT
-    assert str(window_path(tmp_path / RECORD, 12)) in said
+    assert f"no window of record 12: there is no record 12 in {tmp_path / RECORD}" in said
     assert _replay(tmp_path, None)[0] == EXIT_BAD_INPUT  # type: ignore[arg-type]
 
 
