@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 
 from supervisord import __version__
 from supervisord.ros2.parameters import PARAMETERS
@@ -25,11 +26,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="srcs-ros2",
         usage="%(prog)s [-h] [--version] [--ros-args -p NAME:=VALUE ... | --params-file FILE]",
-        description="The ROS 2 bridge to srcsd, the safety supervisor: its state, causes and "
-        "remote as topics, its e-stop, hold and display as services, a client heartbeat "
-        "(ros2.md in /usr/share/doc/srcs-supervisord/docs). Needs rclpy from a ROS 2 "
-        "installation (source /opt/ros/DISTRO/setup.bash).",
-        epilog=f"Parameters, with their defaults: {defaults}.",
+        description=textwrap.fill(
+            "The ROS 2 bridge to srcsd, the safety supervisor: its state, causes and remote as "
+            "topics, its e-stop, hold and display as services, a client heartbeat (ros2.md in "
+            "/usr/share/doc/srcs-supervisord/docs). Needs rclpy from a ROS 2 installation "
+            "(source /opt/ros/DISTRO/setup.bash)."
+        ),
+        epilog=textwrap.fill(f"Parameters, with their defaults: {defaults}.")
+        + "\n\nexample:\n  srcs-ros2 --ros-args -p socket:=/run/srcsd/api.sock",
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the example's own line
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     return parser
