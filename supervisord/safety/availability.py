@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Final
 
 from supervisord.compat import StrEnum
-from supervisord.timebase import NS_PER_S
+from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 DEFAULT_MIN_REMOTE_BATTERY: Final = 20
 """``vsc.min_remote_battery``: below this battery percent the e-stop counts as not available.
@@ -21,12 +21,20 @@ The remote reports its battery in 10 % steps; 20 % leaves the operator time to s
 the remote dies and its link drops (which the VSC turns into an e-stop)."""
 MIN_REMOTE_BATTERY_RANGE: Final = (0, 100)
 """0 turns the battery check off (a VSC whose remote status is not enabled)."""
-REMOTE_STATUS_FRESH_NS: Final = 3 * NS_PER_S
-"""A battery report this old is no report. The VSC sends remote status once a second
-(manual §8.3.4, once commissioned): 3 s lets two reports in a row be late or lost (a busy
-loop, a noisy serial line) without the condition flapping, yet a VSC that has stopped sending
-them is noticed within seconds. The boundary counts as stale, as at every timeout of the core
-(a guard ``now - t >= constant``, the form docs/verification.md's time abstraction needs)."""
+REMOTE_STATUS_FRESH_NS: Final = 3500 * NS_PER_MS
+"""A battery report this old is no report (SR-8.12). The VSC sends remote status once a second
+(manual §8.3.4, once commissioned): two reports in a row lost put the next one 3 s after the
+last, and 3.5 s lets that next one also be up to 500 ms late (a busy loop, a noisy serial line)
+without a hold or a stop; three lost in a row (4 s) are one, at 3.5 s. The boundary counts as
+stale, as at every timeout of the core (a guard ``now - t >= constant``, the form
+docs/verification.md's time abstraction needs), except for a report arriving at that very
+instant: it is taken in before the old one is judged (:func:`report_stale`)."""
+BATTERY_SETTLE_NS: Final = NS_PER_S
+"""SR-3.4: the battery's hold or stop condition ends only once the battery has been reported
+good in an unbroken run of reports whose first and last are at least this far apart (two
+reports at the VSC's 1 Hz), and while it lasts its reason changes at most once per this but
+for a report going stale. So the condition ends at most once a second however fast a VSC
+reports (20 ms at the fastest)."""
 
 
 class Reaction(StrEnum):
@@ -38,13 +46,29 @@ class Reaction(StrEnum):
     STOP = "stop"  # the cause estop_unavailable: STOPPED, latched, a takeover after it is back
 
 
+def report_stale(now: int, seen_ns: int, *, arriving: bool = False) -> bool:
+    """Whether the battery report of ``seen_ns`` counts as none at ``now`` (SR-8.12): from
+    ``REMOTE_STATUS_FRESH_NS`` on; with a new report ``arriving`` at ``now``, only past it. The
+    new report is taken in before the old one is judged, so a report exactly at the limit
+    refreshes it, while a deadline that passed before it is still judged stale."""
+    age = now - seen_ns
+    return age > REMOTE_STATUS_FRESH_NS if arriving else age >= REMOTE_STATUS_FRESH_NS
+
+
+def stale_words() -> str:
+    """The reason of a report gone stale (no age in it: details that changed with every step
+    would be a change of the cause, recorded at every step, SR-7.1)."""
+    return f"the remote's battery has not been reported for {REMOTE_STATUS_FRESH_NS / NS_PER_S:g} s"
+
+
 def battery_missing(
-    now: int, level: int | None, seen_ns: int | None, min_battery: int
+    now: int, level: int | None, seen_ns: int | None, min_battery: int, *, arriving: bool = False
 ) -> str | None:
     """What is wrong with the remote's battery at ``now`` (ns), in words, or ``None``.
 
     ``level`` and ``seen_ns``: the last remote status's battery percent and when it came
-    (``None``: none yet); ``min_battery``: ``vsc.min_remote_battery``, 0 for no check.
+    (``None``: none yet); ``min_battery``: ``vsc.min_remote_battery``, 0 for no check;
+    ``arriving``: a new report comes at ``now`` and is judged next (:func:`report_stale`).
     """
     if min_battery <= 0:
         return None
@@ -53,11 +77,8 @@ def battery_missing(
             "the remote's battery is not reported (the VSC sends remote status once "
             "commissioned: srcsctl commission)"
         )
-    if now - seen_ns >= REMOTE_STATUS_FRESH_NS:
-        # No age in the words: they are the cause's details, and a text that changed with
-        # every step would be a change of the cause, recorded at every step (SR-7.1).
-        fresh = REMOTE_STATUS_FRESH_NS // NS_PER_S
-        return f"the remote's battery has not been reported for {fresh} s"
+    if report_stale(now, seen_ns, arriving=arriving):
+        return stale_words()
     if level < min_battery:
         return f"the remote's battery is {level} %, below {min_battery} %"
     return None

@@ -38,9 +38,11 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.safety.availability import (
+    BATTERY_SETTLE_NS,
     REMOTE_STATUS_FRESH_NS,
     Reaction,
     battery_missing,
+    stale_words,
 )
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget, Uid
@@ -346,8 +348,12 @@ class SafetyCore:
         battery_low = None
         battery = self._battery
         if self._battery_cause is not None and battery is not None:  # SR-8.12: when watched
-            keep("battery:seen", battery[1], REMOTE_STATUS_FRESH_NS)
+            # ``age > FRESH`` for a report arriving (report_stale) is ``age >= FRESH + 1``.
+            keep("battery:seen", battery[1], REMOTE_STATUS_FRESH_NS, REMOTE_STATUS_FRESH_NS + 1)
             battery_low = battery[0] < self._config.min_remote_battery
+        if self._battery_words is not None:  # SR-3.4: the condition's reason and its run
+            keep("battery:words_since", self._battery_words_since, BATTERY_SETTLE_NS)
+            keep("battery:good_since", self._battery_good_since, BATTERY_SETTLE_NS)
         proof_facts, proof_clocks = self._proof.canonical(now, self._key85)
         display_facts, display_clocks = self._display.canonical(now)
         clocks += [*proof_clocks, *display_clocks, *self._budget.canonical(now)]
@@ -390,6 +396,8 @@ class SafetyCore:
             ("local_estop", self._local_estop),
             ("output_faults", tuple(sorted(self._output_faults.items()))),
             ("battery_low", battery_low),
+            ("battery_words", self._battery_words),
+            ("battery_good", self._battery_good_since is not None),
             ("proof", proof_facts),
             ("display", display_facts),
         )
@@ -419,6 +427,8 @@ class SafetyCore:
             "_charged",
             "_limited",
             "_proof_outcome",
+            "_arriving",
+            "_taken_in",
         }
     )
     """Attributes ``canonical`` leaves out, and why (``decision`` is read for its deadline)."""
@@ -435,6 +445,15 @@ class SafetyCore:
     _braking_since: int | None = None
     # SR-8.12: the last remote status's battery percent and when it came, kept while watched.
     _battery: tuple[int, int] | None = None
+    # SR-3.4: the battery's condition: its reason (``None``: clear) and since when it has had
+    # it, and the first report of the unbroken run of good reports that may end it.
+    _battery_words: str | None = None
+    _battery_words_since = 0
+    _battery_good_since: int | None = None
+    # Per-step scratch (SR-8.12): the step's input is a watched remote status, and it has been
+    # taken in (a report is taken in before the old one is judged stale).
+    _arriving = False
+    _taken_in = False
 
     def handle(self, event: Event) -> Decision:
         """Feed one input; never raises (a failure of the core stops with ``internal``)."""
@@ -572,6 +591,7 @@ class SafetyCore:
         self._rearm = None
         self._note = None
         self._charged, self._limited = None, False
+        self._arriving = self._taken_in = False
         request: _RearmRequest | None = None
         if not is_event(event):
             self._refuse(RefusalReason.NOT_AN_EVENT, type(event).__name__, event)
@@ -580,6 +600,11 @@ class SafetyCore:
         else:
             # A clock that goes back is treated as not moving: no deadline is ever un-expired.
             now = self._now = max(self._now, event.now)
+            self._arriving = (
+                self._battery_cause is not None
+                and type(event) is VscReceived
+                and type(event.message) is RemoteStatus
+            )
             if not (
                 # Before the previous decision's deadline, after a normal step, with the proof
                 # test settled, time passing changes no condition (the cheap path's argument,
@@ -830,6 +855,7 @@ class SafetyCore:
         elif isinstance(message, RemoteStatus):
             if self._battery_cause is not None:
                 self._battery = (message.battery_level, now)
+                self._taken_in = True
         elif isinstance(message, FeedbackSet):
             if message.key == FeedbackKey.USER_ESTOP_TIMEOUT:
                 self._key85 = message.value
@@ -1179,16 +1205,56 @@ class SafetyCore:
             {Cause(CauseKind.CLIENT_HOLD, n): () for n in self._client_holds},
             now,
         )
-        battery_cause, battery = self._battery_cause, self._battery
+        battery_cause = self._battery_cause
         if battery_cause is not None:
-            level, seen = (None, None) if battery is None else battery
-            missing = battery_missing(now, level, seen, config.min_remote_battery)
+            words = self._judge_battery(now)
             book.set(
                 battery_cause,
-                missing is not None,
+                words is not None,
                 now,
-                make_details([("reason", missing)]) if missing is not None else (),
+                make_details([("reason", words)]) if words is not None else (),
             )
+
+    def _judge_battery(self, now: int) -> str | None:
+        """The battery's condition at ``now`` (SR-8.12, SR-3.4): its reason, or ``None``.
+
+        Raised in the step that sees the battery missing. It ends only at a good report that
+        completes an unbroken run of good reports (none missing between them) whose first and
+        last are at least ``BATTERY_SETTLE_NS`` apart; while it lasts, a report renames it at
+        most once per that, and a report going stale at once (a silence of 3.5 s is its own
+        bound). Both happen only at a report or at the report's deadline, steps the cheap path
+        never takes, so the two paths agree (SR-9.4). So the condition ends at most once per
+        second, whatever a VSC reports, and a 50 Hz flap around the minimum holds once."""
+        battery = self._battery
+        level, seen = (None, None) if battery is None else battery
+        taken_in = self._taken_in
+        missing = battery_missing(
+            now,
+            level,
+            seen,
+            self._config.min_remote_battery,
+            arriving=self._arriving and not taken_in,  # SR-8.12: the report first
+        )
+        words = self._battery_words
+        if missing is not None:
+            self._battery_good_since = None  # the good run is broken
+            if (
+                words is None
+                or missing == stale_words() != words
+                or (
+                    missing != words
+                    and taken_in
+                    and now - self._battery_words_since >= BATTERY_SETTLE_NS
+                )
+            ):
+                self._battery_words, self._battery_words_since = missing, now
+        elif words is not None and taken_in:
+            first = self._battery_good_since
+            if first is None:
+                self._battery_good_since = now
+            elif now - first >= BATTERY_SETTLE_NS:
+                self._battery_words = self._battery_good_since = None
+        return self._battery_words
 
     def _battery_stale_at(self) -> int | None:
         """When the last battery report stops counting (SR-8.12), if the core watches it."""

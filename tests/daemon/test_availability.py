@@ -103,7 +103,7 @@ def test_a_battery_report_as_old_as_the_limit_is_missing() -> None:
     that old does not (the core's rule, SR-8.12)."""
     assert _check(age_ns=REMOTE_STATUS_FRESH_NS - 1).available
     result = _check(age_ns=REMOTE_STATUS_FRESH_NS)
-    assert result.missing == ("the remote's battery has not been reported for 3 s",)
+    assert result.missing == ("the remote's battery has not been reported for 3.5 s",)
 
 
 def test_no_battery_report_is_missing() -> None:

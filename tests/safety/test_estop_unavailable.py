@@ -12,7 +12,12 @@ from hypothesis import strategies as st
 
 from supervisord.protocol.messages import Joystick, RemoteStatus, UserHeartbeat
 from supervisord.safety import SafetyConfig, State, Transport
-from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction, battery_missing
+from supervisord.safety.availability import (
+    BATTERY_SETTLE_NS,
+    REMOTE_STATUS_FRESH_NS,
+    Reaction,
+    battery_missing,
+)
 from supervisord.safety.core import IDLE_NS
 from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
 
@@ -21,11 +26,14 @@ STOP = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.STOP)
 
 
 def running(config: SafetyConfig, battery: int = 80) -> Rig:
-    """RUN with the remote reporting ``battery`` percent just before the takeover."""
+    """RUN with the remote reporting ``battery`` percent twice, a second apart, before the
+    takeover (SR-3.4: a run of good reports at least 1 s long)."""
     rig = Rig(config)
     rig.open_link()
     rig.key85(1)
     rig.connect()
+    rig.from_vsc(RemoteStatus(battery))
+    rig.run_for(BATTERY_SETTLE_NS // MS)
     rig.from_vsc(RemoteStatus(battery))
     decision = rig.take_over(600)
     assert decision.state is State.RUN, decision.causes
@@ -59,7 +67,7 @@ def test_a_low_battery_is_only_a_warning_by_default() -> None:
 
 def test_a_low_battery_holds_and_a_good_one_runs_again() -> None:
     """``hold``: 10 % (below 20) holds with ``estop_unavailable_hold`` naming it; motion off,
-    power on; a report of 80 % ends the hold, as every hold ends (SR-3)."""
+    power on; reports of 80 % end the hold once they have run unbroken for 1 s (SR-3.4)."""
     rig = running(HOLD)
     rig.advance(10)
     decision = rig.from_vsc(RemoteStatus(10))
@@ -68,6 +76,10 @@ def test_a_low_battery_holds_and_a_good_one_runs_again() -> None:
     assert cause.name == "estop_unavailable_hold"
     assert cause.detail("reason") == "the remote's battery is 10 %, below 20 %"
     assert decision.outputs == {"drive": False, "lights": True}
+    rig.advance(10)
+    assert rig.from_vsc(RemoteStatus(80)).state is State.HOLD
+    rig.run_for(BATTERY_SETTLE_NS // MS - 10, OPERATIONAL, step_ms=10)
+    assert rig.from_vsc(RemoteStatus(80)).state is State.HOLD
     rig.advance(10)
     assert rig.from_vsc(RemoteStatus(80)).state is State.RUN
 
@@ -85,6 +97,8 @@ def test_a_low_battery_stops_latches_and_sets_the_heartbeat_byte() -> None:
     assert decision.heartbeat_estop == 1
     rig.advance(10)
     rig.from_vsc(RemoteStatus(20))  # the minimum itself counts as enough
+    rig.run_for(BATTERY_SETTLE_NS // MS, OPERATIONAL)
+    rig.from_vsc(RemoteStatus(20))  # and the run is 1 s long (SR-3.4)
     rig.run_for(600, OPERATIONAL)
     assert rig.state is State.STOPPED
     assert active(rig) == set()
@@ -105,7 +119,7 @@ def test_a_report_three_seconds_old_holds_at_that_nanosecond() -> None:
     decision = rig.tick()
     assert decision.state is State.HOLD
     (cause,) = [c for c in decision.causes if c.active]
-    assert cause.detail("reason") == "the remote's battery has not been reported for 3 s"
+    assert cause.detail("reason") == "the remote's battery has not been reported for 3.5 s"
     since = len(rig.decisions)
     rig.run_for(500, OPERATIONAL)  # the same words as time goes on: nothing new to record
     assert [d.records for d in rig.decisions[since:] if d.records] == []
@@ -122,6 +136,8 @@ def test_no_report_at_all_keeps_a_takeover_from_running() -> None:
     assert decision.state is State.HOLD
     assert active(rig) == {"estop_unavailable_hold"}
     rig.advance(10)
+    assert rig.from_vsc(RemoteStatus(90)).state is State.HOLD
+    rig.run_for(BATTERY_SETTLE_NS // MS, OPERATIONAL)
     assert rig.from_vsc(RemoteStatus(90)).state is State.RUN
 
 
@@ -134,23 +150,30 @@ def test_a_minimum_of_zero_watches_nothing() -> None:
 @settings(max_examples=60, deadline=None)
 @given(
     reaction=st.sampled_from([Reaction.HOLD, Reaction.STOP]),
-    levels=st.lists(st.integers(0, 100), min_size=1, max_size=8),
+    reports=st.lists(st.tuples(st.integers(20, 600), st.integers(0, 100)), min_size=1, max_size=12),
     minimum=st.integers(1, 100),
 )
-def test_the_cause_is_active_exactly_while_the_last_level_is_below_the_minimum(
-    reaction: Reaction, levels: list[int], minimum: int
+def test_the_cause_is_active_exactly_until_a_second_of_good_reports(
+    reaction: Reaction, reports: list[tuple[int, int]], minimum: int
 ) -> None:
-    """For any sequence of fresh reports, the cause is active after each exactly when that
-    report is below the minimum."""
+    """SR-8.12, SR-3.4: for any sequence of fresh reports, the cause is active from the start
+    and after every report below the minimum, until a report at or above it that is at least
+    1 s after the first of the good reports since."""
     config = dataclasses.replace(ROBOT, on_estop_unavailable=reaction, min_remote_battery=minimum)
     rig = Rig(config)
     rig.open_link()
     name = "estop_unavailable_hold" if reaction is Reaction.HOLD else "estop_unavailable"
-    for level in levels:
-        rig.advance(100)
+    held, good_since = True, None
+    for gap_ms, level in reports:
+        rig.advance(gap_ms)
         rig.vsc()
         rig.from_vsc(RemoteStatus(level))
-        assert (name in active(rig)) == (level < minimum)
+        if level < minimum:
+            held, good_since = True, None
+        elif held:
+            good_since = rig.now if good_since is None else good_since
+            held = rig.now - good_since < BATTERY_SETTLE_NS
+        assert (name in active(rig)) == held
 
 
 @pytest.mark.parametrize("reaction", [Reaction.HOLD, Reaction.STOP])
