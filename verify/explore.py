@@ -33,6 +33,7 @@ from verify.properties import (
     Violation,
     advance,
     check,
+    first_ghost,
     full_step,
     without_cheap,
 )
@@ -180,7 +181,7 @@ class _Search:
         self.violated: set[str] = set()
         root = target.start(core_class)
         first = root.decision
-        ghost = Ghost(sequence=first.records[-1].sequence if first.records else 0)
+        ghost = first_ghost(first)
         key, clocks = self.state(root, ghost)
         self.seen: dict[object, int] = {key: 0}
         # For each state, the state it was reached from and the input that reached it.

@@ -242,10 +242,13 @@ TICKS = [Input("tick", Tick, TICK)]
 BATTERY_REPORTS = [
     Input("battery 80", lambda now: VscReceived(now, RemoteStatus(80)), BATTERY),
     Input("battery 10", lambda now: VscReceived(now, RemoteStatus(10)), BATTERY),
+    Input("battery 0", lambda now: VscReceived(now, RemoteStatus(0)), BATTERY),
 ]
-"""The remote's battery above and below the minimum (20 %) of ``vsc.min_remote_battery``."""
+"""The remote's battery above and below the minimum (20 %) of ``vsc.min_remote_battery``, and
+a second level below it, whose reason renames the cause (SR-3.4)."""
 BATTERY_GRID_NS = 500_000_000
-"""The battery models' grid: 3 s, the age at which a report goes stale, is six steps."""
+"""The battery models' grid: 3.5 s, the age at which a report goes stale, is seven steps, and
+the 1 s of good reports that ends its condition (SR-3.4) two."""
 REQUIRED_CLIENT = client(REQUIRED, REQUIRED_CONNECTION, REQUIRED_UID, BEAT)
 OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
 ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)

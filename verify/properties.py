@@ -65,11 +65,13 @@ MS = 1_000_000
 DWELL_NS = 200 * MS  # SR-4.5: the non-Operational run spans at least 200 ms
 MIN_HEARTBEATS = 3  # SR-4.5: and holds at least three heartbeats
 FASTEST_NS = 20 * MS  # SR-4.5: at no more than one heartbeat per 20 ms (manual §8.3.6)
-BATTERY_FRESH_NS = 3_000 * MS  # SR-8.12: a battery report 3 s old is no report
+BATTERY_FRESH_NS = 3_500 * MS  # SR-8.12: a battery report 3.5 s old is no report
+BATTERY_SETTLE_NS = 1_000 * MS  # SR-3.4: a second of good reports ends the battery's condition
 READ_TOGETHER = 2  # docs/safety.md rule 4: plus two frames read in one loop turn
 RATE_SLACK_NS = 60 * MS  # where the ghost clips its rate clock, as the core's canonical form
 OPERATIONAL = VscMode.OPERATIONAL.value
 HOLDS = frozenset({"vsc_mode", "client_hold", "estop_unavailable_hold"})  # SR-3, SR-8.12
+BATTERY = frozenset({"estop_unavailable", "estop_unavailable_hold"})  # SR-8.12
 OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the heartbeat's byte
     {
         "vsc_link_lost",
@@ -110,6 +112,12 @@ class Ghost:
     proven: bool = False  # a proof test passed since the last new start
     beat_sent: bool = False  # a user heartbeat went out since the link opened
     battery: tuple[int, int] | None = None  # the remote's last battery report: level, when
+    # SR-3.4: the battery's condition as the checker judges it, the first report of the good
+    # run that may end it, and the reason the core gives it and since when (its last change)
+    battery_held: bool = True
+    battery_good: int | None = None
+    battery_reason: str | None = None
+    battery_renamed: int | None = None
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
 
     def key(self, now: int, config: SafetyConfig) -> tuple[object, ...]:
@@ -130,8 +138,12 @@ class Ghost:
         battery_low = None
         if _watches_battery(config) and self.battery is not None:
             level, seen = self.battery
-            clocks.append(clock("battery", seen, now, BATTERY_FRESH_NS))
+            clocks.append(clock("battery", seen, now, BATTERY_FRESH_NS, BATTERY_FRESH_NS + 10 * MS))
             battery_low = level < config.min_remote_battery
+        if self.battery_good is not None:
+            clocks.append(clock("battery:good", self.battery_good, now, BATTERY_SETTLE_NS))
+        if self.battery_renamed is not None:
+            clocks.append(clock("battery:renamed", self.battery_renamed, now, BATTERY_SETTLE_NS))
         return (
             self.link_open,
             self.mode,
@@ -148,6 +160,8 @@ class Ghost:
             self.proven,
             self.beat_sent,
             battery_low,
+            self.battery_held,
+            self.battery_reason,
             tuple(clocks),
         )
 
@@ -192,6 +206,55 @@ class _Seen:
     @property
     def required(self) -> str | None:
         return self.config.clients[0].name if self.config.clients else None
+
+
+def first_ghost(first: Decision) -> Ghost:
+    """The ghost after the core's startup decision: its record's sequence number, and the
+    battery's reason it raised then (SR-3.4: renames are counted from it)."""
+    reasons = [c.detail("reason") for c in first.causes if c.active and _kind(c.name) in BATTERY]
+    return Ghost(
+        sequence=first.records[-1].sequence if first.records else 0,
+        battery_reason=reasons[0] if reasons else None,
+        battery_renamed=first.now if reasons else None,
+    )
+
+
+def _battery_missing(
+    battery: tuple[int, int] | None, config: SafetyConfig, now: int, *, arriving: bool
+) -> bool:
+    """SR-8.12: no report, one below the minimum, or one too old: from 3.5 s on, or past it
+    when a new report arrives at ``now`` (the new one is taken in first)."""
+    if battery is None or battery[0] < config.min_remote_battery:
+        return True
+    age = now - battery[1]
+    return age > BATTERY_FRESH_NS if arriving else age >= BATTERY_FRESH_NS
+
+
+def _battery_judged(ghost: Ghost, was: tuple[int, int] | None, seen: _Seen) -> Ghost:
+    """SR-8.12, SR-3.4: held from a step that finds the battery missing until a good report
+    at least 1 s after the first of an unbroken run of good ones; the reason the core gives."""
+    now, config = seen.now, seen.config
+    report = ghost.battery is not was  # a report taken in
+    held, good = ghost.battery_held, ghost.battery_good
+    if _battery_missing(was, config, now, arriving=report):
+        held, good = True, None
+    if report:
+        if _battery_missing(ghost.battery, config, now, arriving=False):
+            held, good = True, None
+        elif held:
+            good = now if good is None else good
+            if now - good >= BATTERY_SETTLE_NS:
+                held, good = False, None
+    reasons = [
+        c.detail("reason") for c in seen.after.causes if c.active and _kind(c.name) in BATTERY
+    ]
+    reason = reasons[0] if reasons else None
+    renamed = ghost.battery_renamed
+    if reason != ghost.battery_reason:
+        renamed = now if reason is not None else None
+    return replace(
+        ghost, battery_held=held, battery_good=good, battery_reason=reason, battery_renamed=renamed
+    )
 
 
 def _link_opened(ghost: Ghost, seen: _Seen) -> Ghost:
@@ -328,9 +391,12 @@ _TAKE_IN: dict[type, Callable[[Ghost, _Seen], Ghost]] = {
 def advance(ghost: Ghost, config: SafetyConfig, event: Event, after: Decision) -> Ghost:
     """The ghost after ``event`` and the decision it brought."""
     seen = _Seen(config, event, after, bool(after.refusals))
+    was_battery = ghost.battery
     take_in = _TAKE_IN.get(type(event))
     if take_in is not None:
         ghost = take_in(ghost, seen)
+    if _watches_battery(config):
+        ghost = _battery_judged(ghost, was_battery, seen)
     if any(r.prooftest is not None and r.prooftest.passed for r in after.records):
         ghost = replace(ghost, proven=True)
     if ghost.link_open and any(isinstance(f, UserHeartbeat) for f in after.frames):
@@ -547,11 +613,7 @@ def _p19(step: Step) -> Iterator[str]:
     if not _watches_battery(config):
         return
     battery = step.seen.battery
-    unavailable = (
-        battery is None
-        or step.now - battery[1] >= BATTERY_FRESH_NS
-        or battery[0] < config.min_remote_battery
-    )
+    unavailable = step.seen.battery_held
     stop = config.on_estop_unavailable is Reaction.STOP
     name = "estop_unavailable" if stop else "estop_unavailable_hold"
     if (name in step.active) != unavailable:
@@ -560,6 +622,18 @@ def _p19(step: Step) -> Iterator[str]:
         yield f"RUN with the remote's battery {battery} at {step.now}"
     if unavailable and stop and step.state is not State.STOPPED:
         yield f"{step.state.name} under stop with the remote's battery {battery}"
+
+
+def _p21(step: Step) -> Iterator[str]:
+    was, seen = step.was.battery_reason, step.seen.battery_reason
+    if was is None or seen is None or was == seen:
+        return
+    if seen.startswith("the remote's battery has not been reported"):
+        return  # a report gone stale: bounded by its own 3.5 s of silence
+    report = isinstance(step.event, VscReceived) and isinstance(step.event.message, RemoteStatus)
+    renamed = step.was.battery_renamed
+    if not report or renamed is None or step.now - renamed < BATTERY_SETTLE_NS:
+        yield f"renamed {was!r} to {seen!r} at {step.now}, last at {renamed}"
 
 
 def _p18(step: Step) -> Iterator[str]:
@@ -684,9 +758,11 @@ PROPERTIES = {
         _p18,
     ),
     "P19": Property(
-        "SR-8.12: under on_estop_unavailable hold or stop, the cause is active exactly while "
-        "the remote's battery is not reported, reported 3 s ago or more, or below the "
-        "minimum; meanwhile never RUN, and under stop STOPPED",
+        "SR-8.12, SR-3.4: under on_estop_unavailable hold or stop, the cause is raised in "
+        "the step that finds the remote's battery not reported, reported 3.5 s ago or more "
+        "(past it when a report arrives then), or below the minimum, and is active exactly "
+        "until a good report at least 1 s after the first of an unbroken run of good ones; "
+        "meanwhile never RUN, and under stop STOPPED",
         _p19,
     ),
     "P20": Property(
@@ -694,6 +770,11 @@ PROPERTIES = {
         "the VSC heard, key 85 read 1, its user bits clear, a user heartbeat sent since the "
         "link opened and no stop of ours but client_lost, the test has started",
         _p20,
+    ),
+    "P21": Property(
+        "SR-3.4: while the battery's cause is active, its reason changes only at a report at "
+        "least 1 s after it last changed, or to the words of a report gone stale",
+        _p21,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""
@@ -808,7 +889,7 @@ def check_trace(
     config = model.config
     core = model.start(core_class)
     before = core.decision
-    ghost = Ghost(sequence=before.records[-1].sequence if before.records else 0)
+    ghost = first_ghost(before)
     found: list[Violation] = []
     for event in events:
         full = full_step(core, event)

@@ -118,6 +118,10 @@ what a VSC at its slowest documented rate sends in the dwell). A span is measure
 stamps, and a loop that was starved reads a heartbeat late, stretching the span; the number of
 heartbeats cannot be stretched (seen: a VSC flapping every 100 ms, Local at 0 and 50 ms, the
 50 ms one read at 210 ms, re-armed a starved supervisor)."""
+BATTERY_SEEN_CLIP_NS = REMOTE_STATUS_FRESH_NS + 10 * NS_PER_MS
+"""Where ``canonical`` clips the age of the last battery report (SR-8.12): past the 3.5 s
+limit, so that the age exactly at it (a report arriving then refreshes it) and one past it (a
+report arriving then finds it stale) are two forms; every age beyond is alike."""
 SETTLE_DWELL_NS = TAKEOVER_DWELL_NS
 """docs/safety.md "Leaving a hold of the VSC's mode" (SR-3.3): after a non-Operational mode
 that was no operator's act (a glitch, a flap), the hold ends once the VSC has reported
@@ -348,8 +352,9 @@ class SafetyCore:
         battery_low = None
         battery = self._battery
         if self._battery_cause is not None and battery is not None:  # SR-8.12: when watched
-            # ``age > FRESH`` for a report arriving (report_stale) is ``age >= FRESH + 1``.
-            keep("battery:seen", battery[1], REMOTE_STATUS_FRESH_NS, REMOTE_STATUS_FRESH_NS + 1)
+            # A report arriving judges the old one ``age > FRESH`` (report_stale): the clock
+            # runs on 10 ms past the limit, so that an age exactly at it stays told apart.
+            keep("battery:seen", battery[1], REMOTE_STATUS_FRESH_NS, BATTERY_SEEN_CLIP_NS)
             battery_low = battery[0] < self._config.min_remote_battery
         if self._battery_words is not None:  # SR-3.4: the condition's reason and its run
             keep("battery:words_since", self._battery_words_since, BATTERY_SETTLE_NS)

@@ -1,7 +1,7 @@
 """The exhaustive exploration of the real safety core, bounded to run with every test run, and
 the faults it must catch (docs/verification.md; ``./dev verify`` runs it without the bound).
 
-Every step of the exploration is checked against the properties P1-P20 of
+Every step of the exploration is checked against the properties P1-P21 of
 ``verify/properties.py``, which prove SR-1.1 to SR-1.3, SR-2, SR-3.1, SR-4, SR-5.1 to SR-5.3,
 SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15 and SR-10.1 over every input sequence the bound
 allows (the battery models completely).
