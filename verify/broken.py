@@ -118,10 +118,24 @@ FAULTS = (
     ),
     Fault(
         "a low battery is read as a good one",
-        "missing = battery_missing(now, level, seen, config.min_remote_battery)",
-        "missing = battery_missing(now, 100, seen, config.min_remote_battery)",
+        "            now,\n            level,\n            seen,\n",
+        "            now,\n            100,\n            seen,\n",
         "battery_stop",
         "P19",
+    ),
+    Fault(
+        "the battery's hold ends at the first good report",
+        "            elif now - first >= BATTERY_SETTLE_NS:",
+        "            elif now - first >= 0:",
+        "battery_hold",
+        "P19",
+    ),
+    Fault(
+        "the battery's cause follows every report's reason",
+        "                    and now - self._battery_words_since >= BATTERY_SETTLE_NS",
+        "                    and now - self._battery_words_since >= 0",
+        "battery_stop",
+        "P20",
     ),
     Fault(
         "the re-arm hold is not waited for",
