@@ -135,7 +135,7 @@ FAULTS = (
         "                    and now - self._battery_words_since >= BATTERY_SETTLE_NS",
         "                    and now - self._battery_words_since >= 0",
         "battery_stop",
-        "P20",
+        "P21",
     ),
     Fault(
         "the re-arm hold is not waited for",

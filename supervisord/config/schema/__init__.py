@@ -155,7 +155,7 @@ PROOFTEST_CLEAR: Final = strict.Whole(
 )
 MIN_REMOTE_BATTERY: Final = strict.Whole(
     name="min_remote_battery",
-    doc="Below this battery percent of the remote, or with its battery not reported for 3 s, "
+    doc="Below this battery percent of the remote, or with its battery not reported for 3.5 s, "
     'the e-stop counts as not available (SR-8.11, docs/safety.md "Is the e-stop available?"); '
     "on_estop_unavailable says what follows. 0: no battery check.",
     default=DEFAULT_MIN_REMOTE_BATTERY,
