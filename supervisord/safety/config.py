@@ -99,12 +99,14 @@ class ClientSpec:
     Until it has connected, said hello and sent a heartbeat, and whenever it stays silent for
     ``timeout_ms``, the cause ``client_lost:NAME`` is active. With ``uid``, only a process of
     that user may say hello under the name (docs/safety.md "Clients bound to a user");
-    ``None``, the default, lets any user who can reach the socket.
+    ``None``, the default, lets any user who can reach the socket. With ``progress``, every
+    heartbeat must carry a new progress value (SR-8.16); one that does not keeps no deadline.
     """
 
     name: str
     timeout_ms: int = DEFAULT_CLIENT_TIMEOUT_MS
     uid: int | None = None
+    progress: bool = False
 
     def __post_init__(self) -> None:
         strict.name("clients.name", self.name, NAME, ConfigError)
@@ -116,6 +118,8 @@ class ClientSpec:
         )
         if self.uid is not None:
             strict.whole(f"clients.{self.name}.uid", self.uid, *UID_RANGE, ConfigError)
+        if type(self.progress) is not bool:
+            raise ConfigError(f"clients.{self.name}.progress must be true or false")
 
     @property
     def timeout_ns(self) -> int:

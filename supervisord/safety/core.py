@@ -45,6 +45,7 @@ from supervisord.safety.availability import (
     stale_words,
 )
 from supervisord.safety.book import CauseBook
+from supervisord.safety.progress import ProgressBook
 from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
@@ -237,6 +238,8 @@ class SafetyCore:
         self._connections: dict[int, str | None] = {}
         self._by_name: dict[str, int] = {}
         self._client_beat_ns: dict[str, int | None] = {}
+        # SR-8.16: only a heartbeat with new progress counts, where the client is bound to it.
+        self._progress = ProgressBook(frozenset(c.name for c in config.clients if c.progress))
         self._ever_connected: set[str] = set()
         self._client_estops: set[str] = set()
         self._client_holds: set[str] = set()
@@ -384,6 +387,7 @@ class SafetyCore:
             ("connections", tuple(sorted(self._connections.items()))),
             ("by_name", tuple(sorted(self._by_name.items()))),
             ("beaten", tuple(sorted((n, b is None) for n, b in self._client_beat_ns.items()))),
+            ("progress", self._progress.canonical()),
             ("ever_connected", tuple(sorted(self._ever_connected))),
             ("client_estops", tuple(sorted(self._client_estops))),
             ("client_holds", tuple(sorted(self._client_holds))),
@@ -790,8 +794,13 @@ class SafetyCore:
 
     def _on_client_heartbeat(self, event: ClientHeartbeat, now: int) -> None:
         name = self._named(event, event.connection)
-        if name is not None and name in self._client_beat_ns:
+        if name is None or name not in self._client_beat_ns:
+            return
+        stale = self._progress.beat(name, event.progress)
+        if stale is None:
             self._client_beat_ns[name] = now
+        else:  # SR-8.16: a duplicate, a replay or a missing value extends no deadline
+            self._refuse(stale, f"{name} progress {event.progress}", event)
 
     def _on_local_estop(self, event: LocalEstop, now: int) -> None:
         # Past the budget an active local e-stop keeps its caller: a new one would only
@@ -993,6 +1002,7 @@ class SafetyCore:
             if name in self._required:
                 # SR-4: a client's (re)connection is a new start; it must send a heartbeat.
                 self._client_beat_ns[name] = None
+                self._progress.restart(name)  # SR-8.16: its counter starts again
 
     def _wrong_user(self, event: ClientHello) -> bool:
         spec = self._required.get(event.name) if isinstance(event.name, str) else None
@@ -1089,6 +1099,7 @@ class SafetyCore:
             self._nonzero.discard(name)  # the process commanding it is gone (SR-4.6)
             if name in self._client_beat_ns:
                 self._client_beat_ns[name] = None
+                self._progress.restart(name)
 
     def _on_readback(self, event: OutputReadback, now: int) -> None:
         if event.output not in self._output_names:
@@ -1306,10 +1317,12 @@ class SafetyCore:
                 reason = "disconnected" if name in self._ever_connected else "never connected"
             else:
                 beat = self._client_beat_ns.get(name)
+                # SR-8.16: heartbeats that came but did not count are named as such.
+                stale = self._progress.stale(name)
                 if beat is None:
-                    reason = "no heartbeat since hello"
+                    reason = stale or "no heartbeat since hello"
                 elif now - beat >= spec.timeout_ns:  # ">=": a beat 500 ms late is too late
-                    reason = "timeout"
+                    reason = stale or "timeout"
                 else:
                     continue
             lost[Cause(CauseKind.CLIENT_LOST, name)] = make_details(

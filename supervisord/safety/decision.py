@@ -84,6 +84,8 @@ class RefusalReason(enum.Enum):
     DISPLAY_VALUE_OUT_OF_RANGE = "the display value is out of range for its key"
     NOT_AN_EVENT = "the input is not a safety event"
     WRONG_USER = "this client name is bound to another user"
+    STALE_PROGRESS = "the heartbeat's progress is not ahead of the last one: it keeps no deadline"
+    NO_PROGRESS = "this client's heartbeats must carry a new progress value (SR-8.16)"
     RATE_LIMITED = (
         "this user's clients caused too many records in the last second; try again shortly"
     )

@@ -85,9 +85,11 @@ class ClientHello(_Event):
 
 @dataclass(frozen=True, slots=True)
 class ClientHeartbeat(_Event):
-    """A named client's heartbeat."""
+    """A named client's heartbeat, with the progress value its control loop moves on each turn
+    (0 to 2**32 - 1; ``None``: none sent; SR-8.16)."""
 
     connection: int
+    progress: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
