@@ -158,9 +158,14 @@ class SupervisorClient:
         self.call(Hello(name))
         self.name = name
 
-    def heartbeat(self) -> None:
-        """Tell the supervisor this client is alive (at least every timeout, default 500 ms)."""
-        self.call(Heartbeat())
+    def heartbeat(self, progress: int | None = None) -> None:
+        """Tell the supervisor this client is alive (at least every timeout, default 500 ms).
+
+        ``progress`` (0 to 2**32 - 1, wrapping to 0) is a counter the control loop moves on
+        each turn: once given, a heartbeat keeps the client alive only with a new one, so a
+        loop that is stuck while the heartbeat's thread goes on is lost (SR-8.16). A repeated
+        or older value raises ``ApiError`` (``refused``, reason ``stale_progress``)."""
+        self.call(Heartbeat(progress))
 
     def estop(self) -> None:
         """Ask for an e-stop: ``client_estop:NAME`` after hello, ``local_estop`` before."""

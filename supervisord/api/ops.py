@@ -72,9 +72,11 @@ class Hello(_Request):
 
 @dataclass(frozen=True, slots=True)
 class Heartbeat(_Request):
-    """A named client is alive."""
+    """A named client is alive; ``progress`` (0 to 2**32 - 1, or ``None``) is the value its
+    control loop moves on each turn: once sent, only a new one keeps it alive (SR-8.16)."""
 
     OP = "heartbeat"
+    progress: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -235,6 +237,8 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["what"] = what.value
         case Command(nonzero=nonzero):
             obj["nonzero"] = nonzero
+        case Heartbeat(progress=progress) if progress is not None:
+            obj["progress"] = progress
         case Subscribe(topics=topics):
             obj["topics"] = sorted(t.value for t in topics)
         case DisplayValue(key=key, value=value):

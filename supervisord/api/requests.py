@@ -50,6 +50,7 @@ from supervisord.protocol.messages import I32, NAME_TEXT_LENGTH, check_text
 from supervisord.protocol.text import clean, is_clean
 from supervisord.release import Request
 from supervisord.safety.config import NAME_PATTERN
+from supervisord.safety.progress import PROGRESS_MODULUS
 
 __all__ = [
     "ADMIN_REQUESTS",
@@ -249,6 +250,12 @@ def _release(f: _Fields) -> ApiRequest:
     return Release(what, id=f.id)
 
 
+def _heartbeat(f: _Fields) -> ApiRequest:
+    if f.fields.raw("progress") is strict.MISSING:
+        return Heartbeat(id=f.id)
+    return Heartbeat(f.integer("progress", 0, PROGRESS_MODULUS - 1), id=f.id)
+
+
 def _command(f: _Fields) -> ApiRequest:
     nonzero = f.get("nonzero")
     if not isinstance(nonzero, bool):
@@ -336,7 +343,7 @@ def _stoptest(f: _Fields) -> ApiRequest:
 
 _PARSERS = {
     "hello": _hello,
-    "heartbeat": lambda f: Heartbeat(id=f.id),
+    "heartbeat": _heartbeat,
     "estop": lambda f: Estop(id=f.id),
     "hold": lambda f: Hold(id=f.id),
     "release": _release,

@@ -92,8 +92,8 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
     match request:
         case Hello(name=name):
             return ClientHello(now, connection, name)
-        case Heartbeat():
-            return ClientHeartbeat(now, connection) if named else None
+        case Heartbeat(progress=progress):
+            return ClientHeartbeat(now, connection, progress) if named else None
         case Estop():
             return ClientEstop(now, connection) if named else LocalEstop(now, client.caller)
         case Hold():

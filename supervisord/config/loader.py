@@ -102,6 +102,7 @@ CLIENT_NAME: Final = strict.named(CLIENTS, "name", strict.Text)
 CLIENT_TIMEOUT: Final = strict.named(CLIENTS, "timeout_ms", strict.Whole)
 CLIENT_USER: Final = strict.named(CLIENTS, "user", strict.Text)
 CLIENT_UID: Final = strict.named(CLIENTS, "uid", strict.Whole)
+CLIENT_PROGRESS: Final = strict.named(CLIENTS, "progress", strict.Flag)
 STOPTEST_INTERVAL: Final = strict.named(MAINTENANCE, "stoptest_interval_days", strict.Whole)
 PROOFTEST_INTERVAL: Final = strict.named(MAINTENANCE, "prooftest_interval_days", strict.Whole)
 RECORD_PATH: Final = strict.named(RECORD, "path", strict.Text)
@@ -417,7 +418,8 @@ class _Loader:
             for j, earlier in enumerate(clients):
                 if earlier.name == name:
                     raise fields.refuse("name", name, f"rename it: clients[{j}] has the same name")
-            clients.append(ClientSpec(name, timeout, self.client_user(fields)))
+            progress = fields.flag(CLIENT_PROGRESS)
+            clients.append(ClientSpec(name, timeout, self.client_user(fields), progress))
         return tuple(clients)
 
     def client_user(self, fields: strict.Fields) -> int | None:

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.client import SupervisorClient
 from supervisord.errors import SrcsError
 from supervisord.testkit.wait import WAIT_S, wait_until
@@ -34,6 +35,7 @@ class ClientProcess:
 
     - ``client``: says hello as ``name`` and sends a heartbeat every ``period`` s, reconnecting
       when the daemon closes the connection; ``--estop`` asks for an e-stop once first;
+      ``--progress`` gives each heartbeat a progress value one ahead of the last (SR-8.16);
     - ``flood``: connects and writes one endless line as fast as the socket takes it;
     - ``subscriber``: subscribes to every topic and never reads a byte.
 
@@ -90,9 +92,12 @@ class ClientProcess:
 def _client_main(args: argparse.Namespace) -> int:
     """Hello, then heartbeats, reconnecting whenever the daemon closes the connection.
     SIGUSR1 makes it stall: it pipelines thousands of requests, never reads a reply, and
-    stops itself (SIGSTOP), as a program hung in the middle of its work."""
-    stall = threading.Event()
+    stops itself (SIGSTOP), as a program hung in the middle of its work. With ``--progress``,
+    SIGUSR2 freezes its progress value while its heartbeats go on, as a control loop stuck
+    while the heartbeat's thread runs (SR-8.16); it logs each refusal and carries on."""
+    stall, stuck = threading.Event(), threading.Event()
     signal.signal(signal.SIGUSR1, lambda *_: stall.set())
+    signal.signal(signal.SIGUSR2, lambda *_: stuck.set())
     while True:
         try:
             with SupervisorClient.connect(args.socket, name=args.name, timeout=2.0) as api:
@@ -100,13 +105,27 @@ def _client_main(args: argparse.Namespace) -> int:
                 if args.estop:
                     api.estop()
                     _say("estop")
+                progress = 0
                 while not stall.is_set():
-                    api.heartbeat()
+                    if not args.progress:
+                        api.heartbeat()
+                    else:
+                        progress += 0 if stuck.is_set() else 1
+                        _progress_beat(api, progress)
                     time.sleep(args.period)
                 _stall(api)
         except SrcsError as error:  # closed, refused (too_many_clients), timed out
             _say(f"closed: {type(error).__name__}")
             time.sleep(0.05)
+
+
+def _progress_beat(api: SupervisorClient, progress: int) -> None:
+    try:
+        api.heartbeat(progress=progress)
+    except ApiError as error:
+        if error.code != ErrorCode.REFUSED:
+            raise
+        _say(f"refused: {error.extra.get('reason')} at progress {progress}")
 
 
 def _stall(api: SupervisorClient) -> None:
@@ -163,6 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--name", default=None)
     parser.add_argument("--period", type=float, default=0.1)
     parser.add_argument("--estop", action="store_true", help="client: ask for an e-stop first")
+    parser.add_argument(
+        "--progress", action="store_true", help="client: heartbeats carry a progress value"
+    )
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     runs: dict[str, Callable[[argparse.Namespace], int]] = {

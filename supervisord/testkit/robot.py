@@ -105,7 +105,8 @@ class Robot:
     """The real ``srcsd`` against ``srcs-sim``, in ``workdir`` (see the module docstring).
 
     ``clients``: required client names (``[[clients]]``, 500 ms timeout) run as
-    ``ClientProcess``es from ``arm`` on. ``record_tmpfs_bytes``: put the record directory on
+    ``ClientProcess``es from ``arm`` on; those also in ``progress_clients`` have ``progress =
+    true`` and send a progress value (SR-8.16). ``record_tmpfs_bytes``: put the record directory on
     a tmpfs of that size in a private mount namespace (the full-disk scenario; root only).
     ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
 
@@ -113,6 +114,7 @@ class Robot:
     transport: Literal["serial", "can"] = "serial"
     outputs: Sequence[OutputDef] = DEFAULT_OUTPUTS
     clients: Sequence[str] = ()
+    progress_clients: Sequence[str] = ()
     record_tmpfs_bytes: int | None = None
     clock: FakeWallClock | None = None
     local_reset: bool = False
@@ -191,6 +193,7 @@ class Robot:
         lines += ["local_reset = true"] if self.local_reset else []
         for name in self.clients:
             lines += ["[[clients]]", f'name = "{name}"', "timeout_ms = 500"]
+            lines += ["progress = true"] if name in self.progress_clients else []
         for output in self.outputs:
             lines += ["[[outputs]]", f'name = "{output.name}"', 'kind = "sim"']
             lines += [f'role = "{output.role}"', f'path = "{self.output_paths[output.name]}"']
@@ -381,7 +384,8 @@ class Robot:
     def start_clients(self) -> None:
         for name in self.clients:
             if name not in self.client_processes or not self.client_processes[name].alive():
-                self.client_processes[name] = self.run_client(name)
+                extra = ("--progress",) if name in self.progress_clients else ()
+                self.client_processes[name] = self.run_client(name, extra=extra)
 
     def run_client(
         self, name: str, mode: str = "client", period: float = 0.1, extra: Sequence[str] = ()

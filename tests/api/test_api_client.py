@@ -161,6 +161,19 @@ def test_refusals_raise_api_error_and_the_client_goes_on(sock_path: Path) -> Non
         client.heartbeat()
 
 
+def test_heartbeat_sends_its_progress_value(sock_path: Path) -> None:
+    """SR-8.16: ``heartbeat(progress=n)`` sends the value docs/api.md describes; without it the
+    heartbeat carries none."""
+    with (
+        Served(ServerConfig(sock_path)) as served,
+        SupervisorClient.connect(sock_path, name="planner") as client,
+    ):
+        client.heartbeat(progress=7)
+        client.heartbeat(progress=2**32 - 1)
+        client.heartbeat()
+    assert served.requests() == [Hello("planner"), Heartbeat(7), Heartbeat(2**32 - 1), Heartbeat()]
+
+
 def test_command_declares_the_clients_motion(sock_path: Path) -> None:
     """SR-4.6: ``command`` sends the declaration docs/api.md describes, after hello."""
     with (

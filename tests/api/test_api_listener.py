@@ -16,10 +16,10 @@ from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Snapshot
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
-from supervisord.safety.config import SafetyConfig
+from supervisord.safety.config import ClientSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import ClientDisconnected, Event
+from supervisord.safety.events import ClientDisconnected, ClientHeartbeat, Event
 from tests.api.samples import LOOP
 from tests.api.test_api_server import READ, WRITE, Loop, Peer
 
@@ -196,3 +196,29 @@ def test_status_says_each_connections_command_until_it_ends(
     again = peers()
     assert again.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
     assert commands(watcher) == [("nav", False)]
+
+
+def test_a_heartbeat_with_stale_progress_is_refused_with_its_reason(tmp_path: Path) -> None:
+    """SR-8.16: through the real listener and core, a required client's heartbeat whose
+    progress repeats the last is refused (``refused``, reason ``stale_progress``), one ahead is
+    ok, one without a value after that is refused (``no_progress``), and a value out of range
+    is ``bad_request`` before the core sees it."""
+    safety = SafetyConfig(clients=(ClientSpec("nav"),))
+    loop = Judged(ServerConfig(tmp_path / "api.sock", max_clients=3), safety)
+    nav = Peer(tmp_path / "api.sock")
+    try:
+        assert nav.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
+        assert nav.ask(loop, {"op": "heartbeat", "progress": 4294967295})["ok"] is True
+        assert nav.ask(loop, {"op": "heartbeat", "progress": 0})["ok"] is True
+        again = nav.ask(loop, {"op": "heartbeat", "progress": 0})
+        assert (again["ok"], again["code"], again["reason"]) == (False, "refused", "stale_progress")
+        plain = nav.ask(loop, {"op": "heartbeat"})
+        assert (plain["code"], plain["reason"]) == ("refused", "no_progress")
+        beats = [e for e in loop.events if isinstance(e, ClientHeartbeat)]
+        assert [e.progress for e in beats] == [4294967295, 0, 0, None]
+        wrong = nav.ask(loop, {"op": "heartbeat", "progress": 2**32})
+        assert wrong["code"] == "bad_request" and "progress" in wrong["error"]
+        assert len([e for e in loop.events if isinstance(e, ClientHeartbeat)]) == 4
+    finally:
+        nav.close()
+        loop.close()

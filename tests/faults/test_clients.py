@@ -52,6 +52,27 @@ def test_required_client_stopped_is_lost_after_its_timeout(tmp_path: Path) -> No
         robot.recover(stop)
 
 
+def test_required_client_whose_progress_stops_is_lost_after_its_timeout(tmp_path: Path) -> None:
+    """SR-8.16: the required client ``nav`` (``progress = true``) freezes its progress value
+    while its heartbeats go on, as a control loop stuck while the heartbeat's thread runs.
+    Its heartbeats are refused (``stale_progress``) and keep nothing alive: off within its
+    500 ms timeout, ``client_lost:nav`` with the reason ``stale progress``. Restarted, it
+    beats with progress again and a takeover runs the robot."""
+    with Robot(tmp_path, clients=("nav",), progress_clients=("nav",)) as robot:
+        robot.arm()
+        nav = robot.client_processes["nav"]
+        t0 = robot.now()
+        nav.signal(signal.SIGUSR2)
+        stop = robot.expect_stop("client_lost:nav", t0, CLIENT_TIMEOUT_S)
+        lost = {c["name"]: c for c in stop.record["causes"]}["client_lost:nav"]
+        assert lost["details"]["reason"] == "stale progress", stop.record
+        nav.wait_log("refused: stale_progress")
+        assert "client_lost:nav" in robot.active_stops()  # its beats go on, and count for nothing
+        nav.kill()
+        robot.start_clients()
+        robot.recover(stop)
+
+
 def test_required_client_that_stops_reading_is_dropped_and_lost(tmp_path: Path) -> None:
     """SR-8 "the supervisor never waits for a client": the required client pipelines 4096
     requests, never reads a reply and hangs (SIGSTOP). The daemon does not block on it: it

@@ -351,6 +351,13 @@ CLIENTS: Final = (
         low=UID_RANGE[0],
         high=UID_RANGE[1],
     ),
+    strict.Flag(
+        name="progress",
+        doc="Every heartbeat must carry a progress value newer than the last (SR-8.16); one "
+        "that does not keeps no deadline, so a stuck control loop is client_lost.",
+        default=False,
+        example=True,
+    ),
 )
 OUTPUT_NAME_KEY: Final = strict.Text(
     name="name",
