@@ -144,6 +144,20 @@ FAULTS = (
         "takeover",
         "P2",
     ),
+    Fault(
+        "a heartbeat counts whatever its progress",
+        "stale = self._progress.beat(name, event.progress)",
+        "stale = None",
+        "progress",
+        "P22",
+    ),
+    Fault(
+        "a refused heartbeat still extends the deadline",
+        "        if stale is None:\n            self._client_beat_ns[name] = now\n        else:",
+        "        self._client_beat_ns[name] = now\n        if stale is not None:",
+        "progress",
+        "P8",
+    ),
 )
 
 

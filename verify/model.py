@@ -250,6 +250,19 @@ BATTERY_GRID_NS = 500_000_000
 """The battery models' grid: 3.5 s, the age at which a report goes stale, is seven steps, and
 the 1 s of good reports that ends its condition (SR-3.4) two."""
 REQUIRED_CLIENT = client(REQUIRED, REQUIRED_CONNECTION, REQUIRED_UID, BEAT)
+PROGRESS_VALUES = (0, 0x5555_5556, 0xAAAA_AAAB)
+"""Three progress values a third of the 32-bit circle apart: each is ahead of the one before it
+and 0 of the last (the wrap-around), each behind the one after it (a replay), SR-8.16."""
+PROGRESS_BEATS = [
+    Input(
+        f"{REQUIRED} beat {value:#x}",
+        lambda now, value=value: ClientHeartbeat(now, REQUIRED_CONNECTION, value),
+        BEAT,
+        REQUIRED_CONNECTION,
+    )
+    for value in PROGRESS_VALUES
+]
+"""The required client's heartbeats with a progress value (SR-8.16)."""
 OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
 ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)
 ALL_WORDS = (0, REMOTE_ESTOP, USER_ESTOP)
@@ -357,6 +370,22 @@ MODELS = {
             ),
             what="a required client and an optional one (holds: its e-stops are the required "
             "one's) against a VSC in Operational, re-armed by a local reset",
+        ),
+        Model(
+            "progress",
+            dataclasses.replace(BASE, clients=(_REQUIRED_SPEC,), require_watchdog=False),
+            (
+                _vsc(OPERATIONAL, 0),
+                LINK[0],
+                *[i for i in REQUIRED_CLIENT if i.name.split()[-1] in ("connect", "hello", "beat")],
+                *PROGRESS_BEATS,
+                REQUIRED_CLIENT[-1],
+                LOCAL_COMMANDS[2],
+                *TICKS,
+            ),
+            what="the required client's heartbeats with and without a progress value, new, "
+            "repeated, replayed and wrapped around (SR-8.16), against a VSC in Operational, "
+            "re-armed by a local reset",
         ),
         Model(
             "budget",

@@ -106,6 +106,8 @@ class Ghost:
     connected: frozenset[int] = frozenset()  # client connections open
     names: tuple[tuple[int, str], ...] = ()  # connections that said hello, and their names
     required_beat: int | None = None  # the required client's last beat since its hello
+    required_progress: int | None = None  # its last progress value accepted (SR-8.16)
+    progress_bound: bool = False  # its heartbeats must carry a new value (SR-8.16)
     estops: frozenset[str] = frozenset()  # named clients' e-stops not released
     nonzero: frozenset[int] = frozenset()  # named connections declaring a non-zero command
     local_estop: bool = False
@@ -154,6 +156,8 @@ class Ghost:
             self.connected,
             self.names,
             self.required_beat is None,
+            self.required_progress,
+            self.progress_bound,
             self.estops,
             self.nonzero,
             self.local_estop,
@@ -313,14 +317,39 @@ def _hello(ghost: Ghost, seen: _Seen) -> Ghost:
     if seen.refused:
         return ghost
     names = tuple(sorted((*ghost.names, (seen.event.connection, seen.event.name))))
-    beat = None if seen.event.name == seen.required else ghost.required_beat
-    return replace(ghost, names=names, required_beat=beat)
+    if seen.event.name != seen.required:
+        return replace(ghost, names=names)
+    return _progress_restarts(replace(ghost, names=names, required_beat=None), seen.config)
+
+
+def _progress_restarts(ghost: Ghost, config: SafetyConfig) -> Ghost:
+    """SR-8.16: a new connection of the required client starts its counter again, bound to
+    progress only when its config says so."""
+    return replace(ghost, required_progress=None, progress_bound=config.clients[0].progress)
+
+
+PROGRESS_CIRCLE = 2**32  # SR-8.16: progress values are 0 to 2**32 - 1 and wrap around
+PROGRESS_REFUSALS = frozenset({RefusalReason.STALE_PROGRESS, RefusalReason.NO_PROGRESS})
+
+
+def fresh(ghost: Ghost, progress: int | None) -> bool:
+    """SR-8.16, written again: whether the required client's heartbeat with ``progress``
+    keeps it alive: none is fine while not bound, a value must be 1 to 2**31 - 1 ahead."""
+    if progress is None:
+        return not ghost.progress_bound
+    last = ghost.required_progress
+    return last is None or 0 < (progress - last) % PROGRESS_CIRCLE < PROGRESS_CIRCLE // 2
 
 
 def _beat(ghost: Ghost, seen: _Seen) -> Ghost:
     if _name_of(ghost, seen.event.connection) != seen.required:
         return ghost
-    return replace(ghost, required_beat=seen.now)
+    progress = seen.event.progress
+    if not fresh(ghost, progress):
+        return ghost  # SR-8.16: it extends no deadline
+    if progress is None:
+        return replace(ghost, required_beat=seen.now)
+    return replace(ghost, required_beat=seen.now, required_progress=progress, progress_bound=True)
 
 
 def _estop(ghost: Ghost, seen: _Seen) -> Ghost:
@@ -338,7 +367,10 @@ def _release(ghost: Ghost, seen: _Seen) -> Ghost:
 def _disconnected(ghost: Ghost, seen: _Seen) -> Ghost:
     connection = seen.event.connection
     names = tuple(n for n in ghost.names if n[0] != connection)
-    beat = None if _name_of(ghost, connection) == seen.required else ghost.required_beat
+    required = _name_of(ghost, connection) == seen.required
+    beat = None if required else ghost.required_beat
+    if required:
+        ghost = _progress_restarts(ghost, seen.config)
     return replace(
         ghost,
         names=names,
@@ -569,6 +601,19 @@ def _p11(step: Step) -> Iterator[str]:
         yield f"{required.name} lost: {lost(step.seen)}, active {sorted(step.active)}"
 
 
+def _p22(step: Step) -> Iterator[str]:
+    event = step.event
+    if not isinstance(event, ClientHeartbeat):
+        return
+    refused = {r.reason for r in step.after.refusals} & PROGRESS_REFUSALS
+    clients = step.config.clients
+    if not clients or _name_of(step.was, event.connection) != clients[0].name:
+        if refused:
+            yield f"a heartbeat of a client not required refused: {refused}"
+    elif fresh(step.was, event.progress) is bool(refused):
+        yield f"progress {event.progress} after {step.was.required_progress}: refused {refused}"
+
+
 def _p12(step: Step) -> Iterator[str]:
     wanted = {f"client_estop:{n}" for n in step.seen.estops}
     if step.seen.local_estop:
@@ -775,6 +820,13 @@ PROPERTIES = {
         "SR-3.4: while the battery's cause is active, its reason changes only at a report at "
         "least 1 s after it last changed, or to the words of a report gone stale",
         _p21,
+    ),
+    "P22": Property(
+        "SR-8.16: a required client's heartbeat is refused exactly when its progress value is "
+        "not 1 to 2**31 - 1 ahead of the last accepted on its connection (wrapping around), or "
+        "it has none once one was given or the config demands it; a refused one extends no "
+        "deadline (P11 against the ghost's own rule)",
+        _p22,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""

@@ -274,3 +274,14 @@ def test_a_huge_value_is_shown_cut(tmp_path: Path) -> None:
     message = str(caught.value)
     assert message.startswith(f"{file}: robot.name = 'xxxx")
     assert len(message) < len(str(file)) + 200
+
+
+def test_a_client_may_demand_progress(tmp_path: Path) -> None:
+    """SR-8.16: ``progress = true`` in a ``[[clients]]`` entry reaches the core's client spec;
+    it defaults to false, and a value that is not true or false is refused with its key."""
+    both = '\n[[clients]]\nname = "nav"\nprogress = true\n[[clients]]\nname = "map"\n'
+    config = load_config(write(tmp_path, VALID + both))
+    assert [(c.name, c.progress) for c in config.safety.clients] == [("nav", True), ("map", False)]
+    wrong = write(tmp_path, VALID + '\n[[clients]]\nname = "nav"\nprogress = 1\n')
+    with pytest.raises(ConfigError, match=r"clients\[0\]\.progress = 1"):
+        load_config(wrong)

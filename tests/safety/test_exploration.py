@@ -1,10 +1,10 @@
 """The exhaustive exploration of the real safety core, bounded to run with every test run, and
 the faults it must catch (docs/verification.md; ``./dev verify`` runs it without the bound).
 
-Every step of the exploration is checked against the properties P1-P21 of
+Every step of the exploration is checked against the properties P1-P22 of
 ``verify/properties.py``, which prove SR-1.1 to SR-1.3, SR-2, SR-3.1, SR-4, SR-5.1 to SR-5.3,
-SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15 and SR-10.1 over every input sequence the bound
-allows (the battery models completely).
+SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16 and SR-10.1 over every input sequence
+the bound allows (the battery models completely).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ BOUNDS = {
     "can": 6,
     "vsc": 5,
     "clients": 6,
+    "progress": 8,
     "budget": 6,
     "proof": 6,
     "proof_clients": 6,
@@ -43,7 +44,7 @@ took 86 s on a two-core machine at load 9); the suite's 120 s guard against a ha
 def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
     """SR-1.1, SR-1.2, SR-1.3, SR-2.1, SR-2.2, SR-2.3, SR-2.4, SR-2.5, SR-2.6, SR-2.9,
     SR-2.11, SR-3.1, SR-4.1, SR-4.2, SR-4.3, SR-4.5, SR-4.6, SR-5.1, SR-5.2, SR-5.3, SR-5.6,
-    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-10.1: every input sequence of the
+    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-10.1: every input sequence of the
     model, each input now and at every boundary a clock can see, up to the bound, keeps every
     property in every step."""
     result = explore(model.MODELS[name], max_depth=BOUNDS[name])
@@ -57,10 +58,11 @@ def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
 @pytest.mark.parametrize("fault", FAULTS, ids=[f.name for f in FAULTS])
 def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
     """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-4.6, SR-5.2, SR-5.6, SR-7.1, SR-8.12,
-    SR-8.15, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off by one, a
+    SR-8.15, SR-8.16, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off by one, a
     takeover without the dwell, a missing record, a late e-stop byte, the proof test skipped, a
     forgotten deadline, an ignored hold, a re-arm while a client commands motion, a battery
-    report that never goes stale, a low battery read as a good one, no re-arm hold) breaks the
+    report that never goes stale, a low battery read as a good one, no re-arm hold, a heartbeat
+    that counts whatever its progress, a refused one that extends the deadline) breaks the
     property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
