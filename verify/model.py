@@ -253,15 +253,18 @@ REQUIRED_CLIENT = client(REQUIRED, REQUIRED_CONNECTION, REQUIRED_UID, BEAT)
 PROGRESS_VALUES = (0, 0x5555_5556, 0xAAAA_AAAB)
 """Three progress values a third of the 32-bit circle apart: each is ahead of the one before it
 and 0 of the last (the wrap-around), each behind the one after it (a replay), SR-8.16."""
-PROGRESS_BEATS = [
-    Input(
+
+
+def _progress_beat(value: int) -> Input:
+    return Input(
         f"{REQUIRED} beat {value:#x}",
-        lambda now, value=value: ClientHeartbeat(now, REQUIRED_CONNECTION, value),
+        lambda now: ClientHeartbeat(now, REQUIRED_CONNECTION, value),
         BEAT,
         REQUIRED_CONNECTION,
     )
-    for value in PROGRESS_VALUES
-]
+
+
+PROGRESS_BEATS = [_progress_beat(value) for value in PROGRESS_VALUES]
 """The required client's heartbeats with a progress value (SR-8.16)."""
 OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
 ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)

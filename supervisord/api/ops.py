@@ -227,6 +227,21 @@ ApiRequest = (
 :class:`Release` carries."""
 
 
+def _display_json(
+    request: DisplayValue | DisplayLabel | DisplayRow | DisplayModeRequest,
+) -> JsonDict:
+    """The fields of a ``display`` request: exactly one of value, label, row and mode."""
+    match request:
+        case DisplayValue(key=key, value=value):
+            return {"value": {"key": key, "value": value}}
+        case DisplayLabel(key=key, text=text):
+            return {"label": {"key": key, "text": text}}
+        case DisplayRow(index=index, text=text):
+            return {"row": {"index": index, "text": text}}
+        case DisplayModeRequest(mode=mode):
+            return {"mode": int(mode)}
+
+
 def request_json(request: ApiRequest) -> JsonDict:
     """The request as its JSON object: what a client sends (the inverse of parsing)."""
     obj: JsonDict = {"op": request.OP}
@@ -241,14 +256,8 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["progress"] = progress
         case Subscribe(topics=topics):
             obj["topics"] = sorted(t.value for t in topics)
-        case DisplayValue(key=key, value=value):
-            obj["value"] = {"key": key, "value": value}
-        case DisplayLabel(key=key, text=text):
-            obj["label"] = {"key": key, "text": text}
-        case DisplayRow(index=index, text=text):
-            obj["row"] = {"index": index, "text": text}
-        case DisplayModeRequest(mode=mode):
-            obj["mode"] = int(mode)
+        case DisplayValue() | DisplayLabel() | DisplayRow() | DisplayModeRequest():
+            obj.update(_display_json(request))
         case Vibrate(side=side):
             obj["side"] = side.value
         case Commission():

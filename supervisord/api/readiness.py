@@ -10,6 +10,11 @@ publishes it on ``ready`` (docs/srcsctl.md "Starting behind the supervisor").
 
 A required client is not part of it (SR-8.15): its own service may start behind the gate, and
 the proof test runs without it. What it still keeps from RUN is said apart (:func:`for_run`).
+
+Ready is not *re-armable*: a takeover is accepted only once every stop condition has been clear
+for ``rearm.hold_ms`` (SR-4.1), so one right after ready may still be refused. When it will be
+accepted is said too (:func:`takeover_said`), and ``wait-ready --rearmable`` waits for it
+(:func:`for_takeover`, SR-8.10).
 """
 
 from __future__ import annotations
@@ -77,6 +82,46 @@ def for_run(status: StatusReply) -> list[str]:
             how = _CLIENT_REASONS.get(cause.details.get("reason", ""), "lost")
             said.append(f"required client `{name}` {how}")
     return said
+
+
+def for_takeover(status: StatusReply) -> list[str]:
+    """What keeps a takeover from being accepted now, in words; empty when one would be (the
+    operator's act on the remote aside, SR-4.5). Read from ``status``'s ``rearm`` (the re-arm
+    hold) and its causes: every stop condition clear, clear for ``rearm.hold_ms``, and no
+    client declaring a non-zero command (SR-4.6)."""
+    if status.report.state != "STOPPED":
+        return []  # nothing to re-arm: a takeover only leaves the remote's pause (SR-3)
+    waits: list[str] = []
+    stops = sorted(c.name for c in status.report.causes if c.active and c.severity == "stop")
+    rearm = status.rearm
+    hold = "" if rearm is None else f" and stay clear for {rearm.hold_ms} ms"
+    if stops:
+        waits.append(f"{', '.join(stops)} to clear{hold} (the re-arm hold)")
+    elif rearm is None:
+        waits.append("a supervisor that says when its re-arm hold ends (update srcsd)")
+    elif rearm.accepted_in_s is None or rearm.accepted_in_s > 0:
+        left = "" if rearm.accepted_in_s is None else f" {rearm.accepted_in_s:g} s more"
+        waits.append(
+            f"the stop conditions to stay clear{left} (the re-arm hold, {rearm.hold_ms} ms)"
+        )
+    nonzero = sorted(c.name for c in status.daemon.clients if c.command_nonzero)
+    if nonzero:
+        waits.append(f"a zero command from {', '.join(nonzero)}")
+    return waits
+
+
+def takeover_said(status: StatusReply) -> str:
+    """When a takeover will be accepted, in words, as a tail of ``wait-ready``'s line."""
+    if status.report.state != "STOPPED":
+        return f"; {status.report.state}: no takeover needed"
+    waits = for_takeover(status)
+    if not waits:
+        return "; a takeover is accepted now"
+    rearm = status.rearm
+    stops = any(c.active and c.severity == "stop" for c in status.report.causes)
+    if len(waits) == 1 and rearm is not None and rearm.accepted_in_s and not stops:
+        return f"; a takeover is accepted in {rearm.accepted_in_s:g} s (the re-arm hold)"
+    return f"; a takeover is accepted once: {'; '.join(waits)}"
 
 
 def _proof_waits_for(status: StatusReply) -> list[str]:

@@ -19,7 +19,7 @@ from typing import ClassVar
 from supervisord.api.framing import ApiError
 from supervisord.api.ops import RequestId
 from supervisord.api.records import StopTestReport
-from supervisord.api.status import DaemonStatus, EstopAvailable, StateReport
+from supervisord.api.status import DaemonStatus, EstopAvailable, RearmStatus, StateReport
 from supervisord.api.wire import Fields, JsonDict, WireError
 
 _ERROR_FIELDS = ("ok", "code", "error", "op", "id")
@@ -62,22 +62,27 @@ class StatusReply:
     report: StateReport
     estop_available: EstopAvailable | None
     daemon: DaemonStatus
+    rearm: RearmStatus | None = None  # None: a daemon older than this field does not say
 
     def json(self) -> JsonDict:
         out = {**_head(self.OP, self.id), **self.report.json()}
         if self.estop_available is not None:
             out["estop_available"] = self.estop_available.json()
+        if self.rearm is not None:
+            out["rearm"] = self.rearm.json()
         out["daemon"] = self.daemon.json()
         return out
 
     @classmethod
     def read(cls, f: Fields) -> StatusReply:
         available = f.maybe_obj("estop_available")
+        rearm = f.maybe_obj("rearm")
         return cls(
             id=_id(f),
             report=StateReport.read(f),
             estop_available=None if available is None else EstopAvailable.read(available),
             daemon=DaemonStatus.read(f.obj("daemon")),
+            rearm=None if rearm is None else RearmStatus.read(rearm),
         )
 
 

@@ -176,6 +176,34 @@ class EstopAvailable:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class RearmStatus:
+    """What a re-arm waits for now (SR-4.1, SR-8.10): ``hold_ms`` is ``rearm.hold_ms``;
+    ``clear_for_s`` how long every stop condition has been clear since the last latched one
+    cleared (``None`` while one is active, or nothing is latched); ``accepted_in_s`` the
+    seconds until a takeover's hold is met (0: now; ``None`` while a stop condition is
+    active: the hold has not begun). The operator's act and a zero command are not in it."""
+
+    hold_ms: int
+    clear_for_s: float | None
+    accepted_in_s: float | None
+
+    def json(self) -> JsonDict:
+        return {
+            "hold_ms": self.hold_ms,
+            "clear_for_s": self.clear_for_s,
+            "accepted_in_s": self.accepted_in_s,
+        }
+
+    @classmethod
+    def read(cls, f: Fields) -> RearmStatus:
+        return cls(
+            hold_ms=f.integer("hold_ms"),
+            clear_for_s=f.maybe_number("clear_for_s"),
+            accepted_in_s=f.maybe_number("accepted_in_s"),
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class LinkStatus:
     """The link to the VSC: ``since_s`` since it last opened or broke, ``last_error`` why it
     last broke or failed to open, ``error_frames`` CAN's error frames (``None`` elsewhere)."""

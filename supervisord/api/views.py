@@ -34,7 +34,7 @@ from supervisord.api.pushes import (
 from supervisord.api.records import StopRecord
 from supervisord.api.replies import OkReply
 from supervisord.api.requests import ApiRequest, Topic
-from supervisord.api.status import HistogramStatus, RemoteReport, StateReport
+from supervisord.api.status import HistogramStatus, RearmStatus, RemoteReport, StateReport
 from supervisord.api.wire import Fields, WireError
 from supervisord.histogram import Histogram
 from supervisord.protocol.messages import (
@@ -47,7 +47,9 @@ from supervisord.protocol.messages import (
     RemoteStatus,
 )
 from supervisord.record.format import cause_report, proof_status
+from supervisord.safety.causes import Severity
 from supervisord.safety.decision import Decision, Refusal, RefusalReason
+from supervisord.timebase import NS_PER_MS, seconds_since
 
 # -- replies -------------------------------------------------------------------------------
 
@@ -82,6 +84,26 @@ def refusal_error(request: ApiRequest, refusal: Refusal) -> ApiError:
 
 
 # -- the state of the supervisor -----------------------------------------------------------
+
+
+def rearm_status(decision: Decision, now: int, hold_ms: int) -> RearmStatus:
+    """What a re-arm waits for at ``now`` after ``decision`` (docs/api.md "status", SR-4.1):
+    the core's own rule, read from its causes: every stop condition clear, and the latest
+    clearing of a latched one at least ``hold_ms`` ago. ``accepted_in_s`` is rounded up to the
+    millisecond, so that waiting that long is always enough."""
+    causes = decision.causes
+    if any(c.active and c.cause.severity is Severity.STOP for c in causes):
+        return RearmStatus(hold_ms=hold_ms, clear_for_s=None, accepted_in_s=None)
+    cleared = [c.cleared_ns for c in causes if c.latched and c.cleared_ns is not None]
+    if not cleared:
+        return RearmStatus(hold_ms=hold_ms, clear_for_s=None, accepted_in_s=0.0)
+    clear_for = max(0, now - max(cleared))
+    left_ns = max(0, hold_ms * NS_PER_MS - clear_for)
+    return RearmStatus(
+        hold_ms=hold_ms,
+        clear_for_s=seconds_since(now, max(cleared)),
+        accepted_in_s=-(-left_ns // NS_PER_MS) / 1000,
+    )
 
 
 def state_report(decision: Decision) -> StateReport:

@@ -190,6 +190,12 @@ def add_arguments(commands: argparse._SubParsersAction[argparse.ArgumentParser])
         help="give up after TIME: seconds, or a time span such as 2s, 500ms, 1min, 1m30s "
         f"(default {DEFAULT_TIMEOUT_S:g})",
     )
+    ready.add_argument(
+        "--rearmable",
+        action="store_true",
+        help="wait also until a takeover would be accepted: every stop condition clear for "
+        "rearm.hold_ms and no client commanding motion (the operator's act aside)",
+    )
 
 
 COMMANDS: Final = frozenset(
@@ -228,7 +234,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         return _watch(path, operator, args, out, err)
     try:
         if args.command == "wait-ready":
-            return wait_ready(path, args.timeout, out, err)
+            return wait_ready(path, args.timeout, out, err, rearmable=args.rearmable)
         if args.command == "stoptest":
             with connect(path, operator) as client:
                 return run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout)

@@ -9,7 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final, TextIO
 
-from supervisord.api.readiness import for_run, missing
+from supervisord.api.readiness import for_run, for_takeover, missing, takeover_said
+from supervisord.api.replies import StatusReply
 from supervisord.client import ClientError, ConnectError, SupervisorClient
 
 POLL_S: Final = 0.2
@@ -27,18 +28,20 @@ def wait_ready(
     *,
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
+    rearmable: bool = False,
 ) -> int:
     """Ask ``status`` until the supervisor at ``path`` is ready (exit 0) or ``timeout_s``
     passed: then exit 1 naming what is missing, or 3 when no supervisor answered at all. A
     line goes to ``err`` whenever what is missing changes, so a unit's journal shows the
-    wait."""
+    wait. The ready line says when a takeover will be accepted; with ``rearmable`` it waits
+    for that too (SR-8.10: a takeover then is accepted, the operator's act aside)."""
     deadline = clock() + timeout_s
     said: list[str] | None = None
     while True:
-        seen = _seen(path)
-        gaps, also = seen if seen is not None else (None, "")
-        if gaps is not None and not gaps:
-            print(f"wait-ready: ready ({path}){also}", file=out)
+        status = _status(path)
+        gaps, also = (None, "") if status is None else _judged(status, rearmable)
+        if status is not None and gaps is not None and not gaps:
+            print(f"wait-ready: ready ({path}){takeover_said(status)}{also}", file=out)
             return 0
         if gaps is not None and [*gaps, also] != said:
             print(f"wait-ready: waiting for: {'; '.join(gaps)}{also}", file=err)
@@ -55,21 +58,26 @@ def wait_ready(
     return 1
 
 
-def _seen(path: Path) -> tuple[list[str], str] | None:
-    """What is missing for ready, and what else RUN still needs said as a tail (SR-8.15: a
-    required client, which the gate does not wait for: its service may be behind it); or
-    ``None`` when no supervisor answers (yet). A socket this user may not open raises:
-    waiting would not change that."""
+def _status(path: Path) -> StatusReply | None:
+    """The supervisor's ``status``, or ``None`` when no supervisor answers (yet). A socket
+    this user may not open raises: waiting would not change that."""
     try:
         with SupervisorClient.connect(path, timeout=2.0) as client:
-            status = client.status()
+            return client.status()
     except ConnectError as error:
         if isinstance(error.__cause__, PermissionError):
             raise
         return None
     except ClientError:
         return None
-    also = for_run(status)
-    return missing(
-        status
-    ), f"; also missing for RUN, not for ready: {', '.join(also)}" if also else ""
+
+
+def _judged(status: StatusReply, rearmable: bool) -> tuple[list[str], str]:
+    """What is missing for ready (with ``rearmable``, for a takeover to be accepted too), and
+    what else RUN still needs said as a tail (SR-8.15: a required client, which the gate does
+    not wait for: its service may be behind it)."""
+    gaps = missing(status)
+    if rearmable:
+        gaps += for_takeover(status)
+    also = [] if rearmable else for_run(status)  # rearmable: a client in the way is a gap
+    return gaps, f"; also missing for RUN, not for ready: {', '.join(also)}" if also else ""

@@ -31,6 +31,7 @@ from supervisord.api.status import ClientStatus, DaemonStatus, EstopAvailable
 from supervisord.api.views import (
     message_push,
     message_topic,
+    rearm_status,
     record_push,
     refusal_error,
     remote_report,
@@ -45,6 +46,7 @@ from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
 from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY
 from supervisord.safety.causes import CauseKind
+from supervisord.safety.config import DEFAULT_REARM_HOLD_MS
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import Event, StopTested
 from supervisord.safety.stoptest import LIMIT_MS
@@ -55,8 +57,9 @@ class ApiListener(Listener):
     """``has_key85``: the VSC's link is serial (CAN and HID have no key 85 to commission);
     ``robot``: the configured robot name, for ``status``; ``required``: the required clients'
     names and timeouts (ms), for ``status``; ``min_remote_battery``: ``vsc.min_remote_battery``,
-    for ``status``'s ``estop_available`` (SR-8.11). Time comes from the loop, as ``now`` (SR-2.11):
-    the listener keeps no clock of its own."""
+    for ``status``'s ``estop_available`` (SR-8.11); ``rearm_hold_ms``: ``rearm.hold_ms``, for
+    ``status``'s ``rearm`` (SR-8.10: when a takeover is accepted). Time comes from the loop,
+    as ``now`` (SR-2.11): the listener keeps no clock of its own."""
 
     def __init__(
         self,
@@ -66,12 +69,14 @@ class ApiListener(Listener):
         robot: str | None = None,
         required: Mapping[str, int] | None = None,
         min_remote_battery: int = DEFAULT_MIN_REMOTE_BATTERY,
+        rearm_hold_ms: int = DEFAULT_REARM_HOLD_MS,
     ) -> None:
         self.server = server
         self.has_key85 = has_key85
         self.robot = robot
         self.required = dict(required or {})
         self.min_remote_battery = min_remote_battery
+        self.rearm_hold_ms = rearm_hold_ms
         # For ``status`` (docs/api.md "status"): each connection's last accepted heartbeat,
         # the latest remote status and when it came, and when the current state began.
         self._beats: dict[int, int] = {}
@@ -184,6 +189,7 @@ class ApiListener(Listener):
             report=state_report(self.last),
             estop_available=self.estop_available(now),
             daemon=daemon,
+            rearm=rearm_status(self.last, now, self.rearm_hold_ms),
         )
 
     def estop_available(self, now: int) -> EstopAvailable:

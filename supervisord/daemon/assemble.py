@@ -82,6 +82,7 @@ def build_api(config: DaemonConfig) -> ApiListener:
         robot=config.robot.name,
         required={c.name: c.timeout_ms for c in config.safety.clients},
         min_remote_battery=config.safety.min_remote_battery,
+        rearm_hold_ms=config.safety.rearm_hold_ms,
     )
 
 

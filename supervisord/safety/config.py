@@ -69,6 +69,7 @@ CLIENT_TIMEOUT_RANGE_MS = (20, 10_000)
 PROOFTEST_CLEAR_RANGE_MS = (1_000, 600_000)
 DEFAULT_PROOFTEST_CLEAR_MS = 10_000  # docs/safety.md "The proof test": a held bit's wait
 DEFAULT_CLIENT_TIMEOUT_MS = 500  # SR-8
+DEFAULT_REARM_HOLD_MS: Final = 500  # rearm.hold_ms (SR-4.1)
 UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
 
 VSC_TIMEOUT_MS: Final = strict.Whole(
@@ -184,7 +185,7 @@ class SafetyConfig:
     transport: Transport = Transport.SERIAL
     vsc_timeout_ms: int | None = None
     heartbeat_hz: int = 20
-    rearm_hold_ms: int = 500
+    rearm_hold_ms: int = DEFAULT_REARM_HOLD_MS
     local_reset: bool = False
     require_watchdog: bool = True
     clients: tuple[ClientSpec, ...] = ()

@@ -45,7 +45,6 @@ from supervisord.safety.availability import (
     stale_words,
 )
 from supervisord.safety.book import CauseBook
-from supervisord.safety.progress import ProgressBook
 from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
@@ -90,6 +89,7 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
+from supervisord.safety.progress import ProgressBook
 from supervisord.safety.prooftest import (
     USER_BITS,
     Outcome,
@@ -241,8 +241,7 @@ class SafetyCore:
         # SR-8.16: only a heartbeat with new progress counts, where the client is bound to it.
         self._progress = ProgressBook(frozenset(c.name for c in config.clients if c.progress))
         self._ever_connected: set[str] = set()
-        self._client_estops: set[str] = set()
-        self._client_holds: set[str] = set()
+        self._client_estops, self._client_holds = set[str](), set[str]()  # by client name
         self._nonzero: set[str] = set()  # named clients commanding motion now (SR-4.6)
         self._uid_of: dict[int, Uid] = {}  # connection -> the peer's uid (SR-8.5)
         self._unnamed: dict[tuple[Request, str], _Unnamed] = {}  # requests before hello

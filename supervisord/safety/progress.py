@@ -81,6 +81,4 @@ class ProgressBook:
 
     def canonical(self) -> tuple[object, ...]:
         """Every client's last value, whether bound and why stale (docs/verification.md)."""
-        return tuple(
-            (name, c.last, c.bound, c.stale) for name, c in sorted(self._clients.items())
-        )
+        return tuple((name, c.last, c.bound, c.stale) for name, c in sorted(self._clients.items()))

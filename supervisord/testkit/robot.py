@@ -106,7 +106,8 @@ class Robot:
 
     ``clients``: required client names (``[[clients]]``, 500 ms timeout) run as
     ``ClientProcess``es from ``arm`` on; those also in ``progress_clients`` have ``progress =
-    true`` and send a progress value (SR-8.16). ``record_tmpfs_bytes``: put the record directory on
+    true`` and send a progress value (SR-8.16). ``rearm_hold_ms``: ``rearm.hold_ms``.
+    ``record_tmpfs_bytes``: put the record directory on
     a tmpfs of that size in a private mount namespace (the full-disk scenario; root only).
     ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
 
@@ -115,6 +116,7 @@ class Robot:
     outputs: Sequence[OutputDef] = DEFAULT_OUTPUTS
     clients: Sequence[str] = ()
     progress_clients: Sequence[str] = ()
+    rearm_hold_ms: int = HOLD_MS
     record_tmpfs_bytes: int | None = None
     clock: FakeWallClock | None = None
     local_reset: bool = False
@@ -189,7 +191,7 @@ class Robot:
             lines += [f'port = "{self.sim.serial_path}"']
         lines += ["reopen_min_ms = 50", "reopen_max_ms = 400"]
         lines += [self.extra_vsc] if self.extra_vsc else []
-        lines += ["[rearm]", f"hold_ms = {HOLD_MS}"]
+        lines += ["[rearm]", f"hold_ms = {self.rearm_hold_ms}"]
         lines += ["local_reset = true"] if self.local_reset else []
         for name in self.clients:
             lines += ["[[clients]]", f'name = "{name}"', "timeout_ms = 500"]
@@ -432,7 +434,8 @@ class Robot:
                 continue
             # the hold time, a non-Operational heartbeat seen after the last stop (SR-4.2), and
             # heartbeats in it spanning the takeover dwell (docs/safety.md re-arm rule 4)
-            time.sleep(max(HOLD_MS / 1000, TAKEOVER_DWELL_NS / 1e9) + 2 * self.beat_s + 0.05)
+            hold_s = self.rearm_hold_ms / 1000
+            time.sleep(max(hold_s, TAKEOVER_DWELL_NS / 1e9) + 2 * self.beat_s + 0.05)
             if self.active_stops():
                 continue
             t = self.now()

@@ -217,7 +217,8 @@ def test_a_heartbeat_with_stale_progress_is_refused_with_its_reason(tmp_path: Pa
         beats = [e for e in loop.events if isinstance(e, ClientHeartbeat)]
         assert [e.progress for e in beats] == [4294967295, 0, 0, None]
         wrong = nav.ask(loop, {"op": "heartbeat", "progress": 2**32})
-        assert wrong["code"] == "bad_request" and "progress" in wrong["error"]
+        assert wrong["code"] == "bad_request"
+        assert "progress" in wrong["error"]
         assert len([e for e in loop.events if isinstance(e, ClientHeartbeat)]) == 4
     finally:
         nav.close()

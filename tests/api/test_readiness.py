@@ -8,12 +8,21 @@ import dataclasses
 
 import pytest
 
-from supervisord.api.readiness import BLOCKING_CAUSES, OURS_IN_THE_WAY, for_run, missing
+from supervisord.api.readiness import (
+    BLOCKING_CAUSES,
+    OURS_IN_THE_WAY,
+    for_run,
+    for_takeover,
+    missing,
+    takeover_said,
+)
 from supervisord.api.replies import StatusReply
-from supervisord.api.status import Cause, ProofTestStatus, StateReport
+from supervisord.api.status import Cause, ClientStatus, ProofTestStatus, RearmStatus, StateReport
+from supervisord.api.views import rearm_status
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.prooftest import NOT_IN_THE_WAY
 from tests.api.samples import LOOP, status_reply
+from tests.safety.rig import Rig
 
 WORKING_LINK = dataclasses.replace(LOOP.link, open=True, description="serial /dev/srcs-vsc")
 
@@ -124,3 +133,55 @@ def test_the_stops_named_in_the_way_are_the_core_s() -> None:
     those that set the user heartbeat's byte, less the ones the proof test lets pass."""
     core = {k.value for k in CauseKind if k.sets_user_estop and k not in NOT_IN_THE_WAY}
     assert core == OURS_IN_THE_WAY
+
+
+def _rearm(reply: StatusReply, clear_for_s: float | None, in_s: float | None) -> StatusReply:
+    return dataclasses.replace(
+        reply, rearm=RearmStatus(hold_ms=500, clear_for_s=clear_for_s, accepted_in_s=in_s)
+    )
+
+
+def test_wait_ready_says_when_a_takeover_is_accepted() -> None:
+    """SR-8.10, SR-4.1: the ready line says a takeover is accepted now, in the hold's time left,
+    or once the active stops clear and stay clear for the hold; a client commanding motion is
+    named; in RUN no takeover is needed."""
+    clear = latched_only(status("startup"))
+    assert takeover_said(_rearm(clear, 0.6, 0.0)) == "; a takeover is accepted now"
+    assert for_takeover(_rearm(clear, 0.6, 0.0)) == []
+    assert takeover_said(_rearm(clear, 0.251, 0.249)) == (
+        "; a takeover is accepted in 0.249 s (the re-arm hold)"
+    )
+    stopped = _rearm(status("client_lost:nav", "vsc_estop"), None, None)
+    assert takeover_said(stopped) == (
+        "; a takeover is accepted once: client_lost:nav, vsc_estop to clear and stay clear "
+        "for 500 ms (the re-arm hold)"
+    )
+    moving = ClientStatus(
+        name="nav", required=True, connected=True, heartbeat_age_s=0.1, command_nonzero=True
+    )
+    busy = _rearm(clear, 0.6, 0.0)
+    busy = dataclasses.replace(busy, daemon=dataclasses.replace(busy.daemon, clients=(moving,)))
+    assert for_takeover(busy) == ["a zero command from nav"]
+    assert takeover_said(_rearm(status(state="RUN"), None, 0.0)) == "; RUN: no takeover needed"
+
+
+def test_rearm_status_follows_the_cores_hold() -> None:
+    """SR-4.1, SR-8.10: ``status``'s ``rearm`` from the core's own decision: no time while a
+    stop condition is active, then the time clear and the time left of the hold, rounded up to
+    the millisecond, 0 from the hold's end on: the instant the core accepts a re-arm."""
+    rig = Rig()
+    rig.stopped_and_cleared()
+    cleared_at = rig.now
+    hold_ms = 500
+    assert rearm_status(rig.last, rig.now, hold_ms) == RearmStatus(
+        hold_ms=hold_ms, clear_for_s=0.0, accepted_in_s=0.5
+    )
+    rig.advance(250.4)
+    assert rearm_status(rig.last, rig.now, hold_ms) == RearmStatus(
+        hold_ms=hold_ms, clear_for_s=0.25, accepted_in_s=0.25
+    )
+    assert rearm_status(rig.last, cleared_at + hold_ms * 1_000_000, hold_ms).accepted_in_s == 0
+    rig.estop()
+    assert rearm_status(rig.last, rig.now, hold_ms) == RearmStatus(
+        hold_ms=hold_ms, clear_for_s=None, accepted_in_s=None
+    )

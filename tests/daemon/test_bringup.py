@@ -20,10 +20,11 @@ GATE_S = 30
 LOST = "client_lost:motion"
 
 
-def _gate(robot: Robot) -> subprocess.CompletedProcess[str]:
+def _gate(robot: Robot, *options: str) -> subprocess.CompletedProcess[str]:
     """``srcsctl wait-ready`` as a unit's ``ExecStartPre`` runs it."""
+    config = str(robot.config_path)
     return subprocess.run(
-        [SRCSCTL, "wait-ready", "--config", str(robot.config_path), "--timeout", str(GATE_S)],
+        [SRCSCTL, "wait-ready", "--config", config, "--timeout", str(GATE_S), *options],
         capture_output=True,
         text=True,
         timeout=GATE_S + 30,
@@ -68,6 +69,50 @@ def test_a_required_client_started_before_the_gate_comes_up_and_the_robot_runs(
         assert "also missing" not in gate.stdout, gate.stdout
         robot.arm()
         assert robot.status().report.state == "RUN"
+
+
+def test_a_takeover_right_after_wait_ready_rearmable_is_accepted(tmp_path: Path) -> None:
+    """SR-8.10, SR-4.1: ``wait-ready --rearmable`` exits 0 only once a takeover would be
+    accepted (every stop condition clear for ``rearm.hold_ms``, here 1.5 s); the operator's
+    takeover made right after it re-arms, where one right after plain ready could be refused
+    for the hold. Its ready line says a takeover is accepted now."""
+    with Robot(tmp_path, clients=("motion",), rearm_hold_ms=1500) as robot:
+        robot.start_clients()
+        gate = _gate(robot, "--rearmable")
+        assert gate.returncode == 0, gate.stderr
+        assert "; a takeover is accepted now" in gate.stdout, gate.stdout
+        control = robot.sim.control
+        sim = control.wait_for(lambda s: s["linked"] and not s["booting"], timeout=GATE_S)
+        assert sim["estop"] == 0
+        assert sim["mode_name"] != "operational", sim
+        t = robot.now()
+        control.takeover()
+        answer = wait_until(
+            lambda: [
+                r
+                for r in robot.records_since(t)
+                if r.get("rearm") is not None or r.get("kind") == "rearm_refused"
+            ],
+            what="the takeover's record",
+        )
+        assert answer[0].get("rearm") is not None, answer[0]
+        assert answer[0]["to"] == "RUN", answer[0]
+
+
+def test_wait_ready_says_when_a_takeover_is_accepted(tmp_path: Path) -> None:
+    """SR-8.10: plain ``wait-ready`` says in its ready line when a takeover will be accepted:
+    with the required client missing, once its ``client_lost`` clears and stays clear for the
+    re-arm hold; ``status`` carries the hold and no time while a stop condition is active."""
+    with Robot(tmp_path, clients=("motion",), rearm_hold_ms=1500) as robot:
+        gate = _gate(robot)
+        assert gate.returncode == 0, gate.stderr
+        said = gate.stdout.partition("; a takeover is accepted once: ")[2]
+        # vsc_estop may be among them: the VSC's user bits clear just after the proof test.
+        assert LOST in said.partition(" to clear")[0], gate.stdout
+        assert " to clear and stay clear for 1500 ms (the re-arm hold)" in said, gate.stdout
+        rearm = robot.status().rearm
+        assert rearm is not None
+        assert (rearm.hold_ms, rearm.clear_for_s, rearm.accepted_in_s) == (1500, None, None)
 
 
 def test_wait_ready_names_a_missing_required_client_and_what_the_proof_test_waits_for(

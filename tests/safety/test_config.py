@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -208,6 +209,12 @@ def test_a_client_timeout_and_uid_take_their_ends_and_refuse_one_past_them() -> 
         ClientSpec("a", timeout_ms=timeout)
     for uid in (0, (1 << 32) - 2):
         ClientSpec("a", uid=uid)
-    for kwargs in ({"timeout_ms": 19}, {"timeout_ms": 10_001}, {"uid": -1}, {"uid": (1 << 32) - 1}):
+    wrong: tuple[dict[str, Any], ...] = (
+        {"timeout_ms": 19},
+        {"timeout_ms": 10_001},
+        {"uid": -1},
+        {"uid": (1 << 32) - 1},
+    )
+    for kwargs in wrong:
         with pytest.raises(ConfigError):
             ClientSpec("a", **kwargs)

@@ -58,12 +58,12 @@ def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
 @pytest.mark.parametrize("fault", FAULTS, ids=[f.name for f in FAULTS])
 def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
     """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-4.6, SR-5.2, SR-5.6, SR-7.1, SR-8.12,
-    SR-8.15, SR-8.16, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off by one, a
-    takeover without the dwell, a missing record, a late e-stop byte, the proof test skipped, a
-    forgotten deadline, an ignored hold, a re-arm while a client commands motion, a battery
-    report that never goes stale, a low battery read as a good one, no re-arm hold, a heartbeat
-    that counts whatever its progress, a refused one that extends the deadline) breaks the
-    property that guards against it, so the checker cannot silently stop checking."""
+    SR-8.15, SR-8.16, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off
+    by one, a takeover without the dwell, a missing record, a late e-stop byte, the proof test
+    skipped, a forgotten deadline, an ignored hold, a re-arm while a client commands motion, a
+    battery report that never goes stale, a low battery read as a good one, no re-arm hold, a
+    heartbeat that counts whatever its progress, a refused one that extends the deadline) breaks
+    the property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
 

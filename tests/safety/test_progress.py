@@ -61,11 +61,10 @@ def test_an_increasing_progress_value_keeps_the_client_alive() -> None:
         decision = _beat(rig, progress)
         assert decision.refusals == ()
         assert decision.state is State.RUN
-    _vsc_for(rig, 450)
-    assert rig.last.state is State.RUN
-    _vsc_for(rig, 50)
-    assert rig.last.state is State.STOPPED
-    assert _lost_reason(rig.last) == "timeout"  # the beats all counted: plain silence
+    assert _vsc_for(rig, 450).state is State.RUN
+    silent = _vsc_for(rig, 50)
+    assert silent.state is State.STOPPED
+    assert _lost_reason(silent) == "timeout"  # the beats all counted: plain silence
 
 
 def test_progress_wraps_around_and_replays_do_not_count() -> None:
