@@ -48,6 +48,8 @@ _CLIENT_REASONS: Final[Mapping[str, str]] = {
     "disconnected": "not connected",
     "no heartbeat since hello": "connected, no heartbeat yet",
     "timeout": "silent for its timeout",
+    "stale progress": "beating without new progress (SR-8.16)",
+    "heartbeat without progress": "beating without a progress value (SR-8.16)",
 }
 
 
