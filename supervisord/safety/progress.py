@@ -60,9 +60,10 @@ class ProgressBook:
         self._clients[name] = _Connection(bound=name in self._demanded)
 
     def beat(self, name: str, progress: int | None) -> RefusalReason | None:
-        """Judge a heartbeat of ``name``: ``None`` when it keeps the client alive, else the
-        refusal (the heartbeat then extends no deadline)."""
-        client = self._clients.setdefault(name, _Connection(bound=name in self._demanded))
+        """Judge a heartbeat of ``name``, a required client whose hello :meth:`restart` saw:
+        ``None`` when it keeps the client alive, else the refusal (the heartbeat then extends
+        no deadline)."""
+        client = self._clients[name]
         if progress is None:
             if client.bound:
                 client.stale = NO_PROGRESS

@@ -141,3 +141,20 @@ def test_a_value_out_of_range_is_refused_never_raised() -> None:
         decision = _beat(rig, bad)
         assert [r.reason for r in decision.refusals] == [RefusalReason.STALE_PROGRESS]
         assert "internal" not in decision.active_names
+
+
+def test_a_fresh_heartbeat_after_a_stale_one_ends_the_stale_reason() -> None:
+    """SR-8.16: once a new value comes after a stale one, the client is alive again from it and
+    a later silence is named ``timeout``, not ``stale progress``."""
+    rig = Rig()
+    rig.bring_up()
+    _beat(rig, 4)
+    _beat(rig, 4)
+    _vsc_for(rig, 100)
+    assert _beat(rig, 5).refusals == ()
+    _vsc_for(rig, 450)
+    assert rig.last.state is State.RUN
+    rig.advance(50)
+    silent = rig.tick()
+    assert silent.state is State.STOPPED
+    assert _lost_reason(silent) == "timeout"
