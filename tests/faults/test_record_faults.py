@@ -158,9 +158,9 @@ def test_a_stuck_stderr_costs_log_lines_never_a_stop_record(tmp_path: Path) -> N
 # ----------------------------------------------------------------------------- journald
 
 
-class _Journald:
-    """A datagram socket where journald's would be, read by a thread until :meth:`stop`,
-    then left full: a journald that stopped reading."""
+class Journald:
+    """A datagram socket where journald's would be, read by a thread that keeps every entry
+    until :meth:`stop`, then left full: a journald that stopped reading."""
 
     def __init__(self, folder: Path) -> None:
         folder.mkdir()
@@ -168,7 +168,7 @@ class _Journald:
         self.socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
         self.socket.bind(str(self.path))
         self.socket.settimeout(0.1)
-        self.entries = 0
+        self.entries: list[bytes] = []
         self._reading = True
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
@@ -176,8 +176,7 @@ class _Journald:
     def _read(self) -> None:
         while self._reading:
             with contextlib.suppress(TimeoutError):
-                self.socket.recv(1 << 20)
-                self.entries += 1
+                self.entries.append(self.socket.recv(1 << 20))
 
     def stop(self) -> None:
         """Stop reading, and fill its queue so that every send waits (up to 2 s)."""
@@ -202,12 +201,12 @@ def test_a_stuck_journald_never_holds_a_stop_record(tmp_path: Path) -> None:
     then a remote e-stop: its record is in the file at once (the journal copies have a lane
     of their own and cost only themselves: ``journal_errors`` counts them). SIGTERM ends the
     daemon within the unit's ``TimeoutStopSec`` with the stop record on disk."""
-    journald = _Journald(tmp_path / "journal")
+    journald = Journald(tmp_path / "journal")
     try:
         robot = RecordRobot(tmp_path / "robot", journal_dir=journald.path.parent)
         with _running(robot):
             robot.arm()
-            wait_until(lambda: journald.entries > 0, what="journal entries from srcsd")
+            wait_until(lambda: bool(journald.entries), what="journal entries from srcsd")
             journald.stop()
             with robot.client() as api:
                 for _ in range(5):

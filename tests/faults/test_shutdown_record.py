@@ -5,17 +5,14 @@ sequence number."""
 
 from __future__ import annotations
 
-import contextlib
 import signal
-import socket
-import threading
 from pathlib import Path
 from typing import Any
 
 from supervisord.daemon import signals
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
-from tests.faults.test_record_faults import ROOT_ONLY, RecordRobot, unit_stop_timeout_s
+from tests.faults.test_record_faults import ROOT_ONLY, Journald, RecordRobot, unit_stop_timeout_s
 
 # SIGTERM is systemd's stop (``systemctl stop``, KillSignal's default), SIGINT a terminal's
 # Ctrl-C, SIGHUP one of the others that stop as SIGTERM does (SR-6.6).
@@ -81,38 +78,13 @@ def test_a_shutdown_in_stopped_is_a_record_too(tmp_path: Path) -> None:
         robot.start_daemon()
 
 
-class _JournalReader:
-    """A datagram socket where journald's native socket would be, keeping every entry."""
-
-    def __init__(self, folder: Path) -> None:
-        folder.mkdir()
-        self.path = folder / "socket"
-        self.socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        self.socket.bind(str(self.path))
-        self.socket.settimeout(0.1)
-        self.entries: list[bytes] = []
-        self._reading = True
-        self._thread = threading.Thread(target=self._read, daemon=True)
-        self._thread.start()
-
-    def _read(self) -> None:
-        while self._reading:
-            with contextlib.suppress(TimeoutError):
-                self.entries.append(self.socket.recv(1 << 20))
-
-    def close(self) -> None:
-        self._reading = False
-        self._thread.join()
-        self.socket.close()
-
-
 @ROOT_ONLY
 def test_the_shutdown_record_reaches_the_journal(tmp_path: Path) -> None:
     """SR-7.14: with ``journal = true``, the exit's stop in RUN is also a journal entry
     before the process ends (the journal lane drains after the record, docs/record.md),
     with ``SRCS_CAUSE=shutdown:SIGTERM`` at priority 2 (a stop)."""
     sig = signal.SIGTERM
-    journal = _JournalReader(tmp_path / "journal")
+    journal = Journald(tmp_path / "journal")
     try:
         robot = RecordRobot(tmp_path / "robot", journal_dir=journal.path.parent)
         try:
