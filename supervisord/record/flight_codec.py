@@ -171,7 +171,8 @@ FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "link_closed": (("reason", TEXT),),
     "client_connected": (("connection", INT), ("uid", OPTIONAL_INT)),
     "client_hello": (("connection", INT), ("name", TEXT), ("caller", OPTIONAL_CALLER)),
-    "client_heartbeat": _CONNECTION,
+    # progress: absent in windows written before SR-8.16, read as None (no value given).
+    "client_heartbeat": (("connection", INT), ("progress", OPTIONAL_INT)),
     "client_estop": _CONNECTION,
     "client_hold": _CONNECTION,
     "client_command": (("connection", INT), ("nonzero", FLAG)),

@@ -82,6 +82,7 @@ VALUES: dict[str, st.SearchStrategy[Any]] = {
     "remote_status": st.booleans(),
     "nonzero": st.booleans(),
     "result": stoptest_results,
+    "progress": st.integers(0, 2**32 - 1),
 }
 """Values for each field of the events, by its name, from what the field holds (its type in
 the code), not from the encoding's kind: a field given the wrong kind fails to round-trip."""
