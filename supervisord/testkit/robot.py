@@ -107,6 +107,7 @@ class Robot:
     ``clients``: required client names (``[[clients]]``, 500 ms timeout) run as
     ``ClientProcess``es from ``arm`` on; those also in ``progress_clients`` have ``progress =
     true`` and send a progress value (SR-8.16). ``rearm_hold_ms``: ``rearm.hold_ms``.
+    ``record_max_bytes``: ``record.max_bytes``, which also bounds each flight window (SR-7.12).
     ``record_tmpfs_bytes``: put the record directory on
     a tmpfs of that size in a private mount namespace (the full-disk scenario; root only).
     ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
@@ -117,6 +118,7 @@ class Robot:
     clients: Sequence[str] = ()
     progress_clients: Sequence[str] = ()
     rearm_hold_ms: int = HOLD_MS
+    record_max_bytes: int = 65536
     record_tmpfs_bytes: int | None = None
     clock: FakeWallClock | None = None
     local_reset: bool = False
@@ -204,7 +206,7 @@ class Robot:
             if output.off_delay_ms:
                 lines += [f"off_delay_ms = {output.off_delay_ms}"]
         lines += ["[record]", f'path = "{self.record_dir / "stops.jsonl"}"']
-        lines += ["max_bytes = 65536", "keep = 2", "journal = false"]
+        lines += [f"max_bytes = {self.record_max_bytes}", "keep = 2", "journal = false"]
         lines += ["[api]", f'socket = "{self.socket_path}"']
         return "\n".join(lines) + "\n"
 

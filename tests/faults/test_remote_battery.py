@@ -30,7 +30,9 @@ def test_a_low_remote_battery_in_run_holds_or_stops_and_a_good_one_is_needed_aga
     until the operator's takeover; the stop's flight window, replayed, decides the same (the
     remote status it was fed and the reaction in its configuration, SR-7.12)."""
     extra = f'on_estop_unavailable = "{reaction}"'
-    with Robot(tmp_path, extra_vsc=extra) as robot:
+    # A window holds at least the last 5 s of inputs, about 200 a second from the simulator:
+    # more than the test kit's 64 KiB, so the record (which bounds the window) is given 1 MiB.
+    with Robot(tmp_path, extra_vsc=extra, record_max_bytes=1 << 20) as robot:
         assert robot.watcher is not None
         with robot.client() as admin:
             admin.commission()
