@@ -53,6 +53,7 @@ from supervisord.safety import (
     decision,
     display,
     events,
+    progress,
     prooftest,
     transitions,
 )
@@ -68,6 +69,7 @@ MODULES: Final[tuple[ModuleType, ...]] = (
     decision,
     display,
     events,
+    progress,
     prooftest,
     transitions,
     codes,

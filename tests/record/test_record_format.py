@@ -36,7 +36,7 @@ TRIGGERS = {
     "link_closed": ("reason",),
     "client_connected": ("connection", "uid"),
     "client_hello": ("connection", "name", "caller"),
-    "client_heartbeat": ("connection",),
+    "client_heartbeat": ("connection", "progress"),
     "client_estop": ("connection",),
     "client_hold": ("connection",),
     "client_command": ("connection", "nonzero"),
