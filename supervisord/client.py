@@ -24,16 +24,27 @@ the ROS 2 bridge's package (docs/ros2.md "The client library"; tests/ros2/test_i
 from __future__ import annotations
 
 import collections
-import json
 import socket
 import struct
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, TypeVar
+from typing import TYPE_CHECKING, Final, TypeVar
+
+# ClientError and ProtocolError are defined beside the protocol that raises them; this
+# library's names (``__all__``).
+from supervisord.api.connection import (
+    MAX_REPLY_LINE,
+    ClientConnection,
+    ClientError,
+    ErrorWithoutRequest,
+    ProtocolError,
+    PushReceived,
+    ReplyReceived,
+)
 
 # The library's too (as its example above uses it): the alias is the explicit re-export.
 from supervisord.api.framing import DEFAULT_SOCKET_PATH as DEFAULT_SOCKET_PATH  # noqa: PLC0414
-from supervisord.api.framing import ApiError, encode
+from supervisord.api.framing import ApiError
 from supervisord.api.ops import (
     ApiRequest,
     Command,
@@ -54,19 +65,15 @@ from supervisord.api.ops import (
     Subscribe,
     Topic,
     Vibrate,
-    request_json,
 )
-from supervisord.api.pushes import Push, read_push
+from supervisord.api.pushes import Push
 from supervisord.api.replies import (
     CommissionReply,
     OkReply,
     Reply,
     StatusReply,
     StopTestReply,
-    read_reply,
 )
-from supervisord.api.wire import WireError
-from supervisord.errors import SrcsError
 from supervisord.protocol.codes import DisplayMode
 from supervisord.release import Request
 
@@ -76,15 +83,10 @@ if TYPE_CHECKING:
 R = TypeVar("R", StatusReply, CommissionReply, StopTestReply)
 
 DEFAULT_TIMEOUT: Final = 5.0
-MAX_REPLY_LINE: Final = 1 << 20
 MAX_KEPT_EVENTS: Final = 4096
 BACKLOG_WAIT_S: Final = 3.0
 """The longest a full listen backlog is waited out (bounded by the client's timeout too)."""
 BACKLOG_SLICE_S: Final = 0.05
-
-
-class ClientError(SrcsError):
-    """The client could not talk to the supervisor (not a refusal: see ``ApiError``)."""
 
 
 class ConnectError(ClientError):
@@ -98,10 +100,6 @@ class ConnectionClosedError(ClientError):
 class ClientTimeoutError(ClientError, TimeoutError):
     """No reply came in time; the connection is closed because its replies would be out of
     step with its requests."""
-
-
-class ProtocolError(ClientError):
-    """The supervisor sent something this client cannot read."""
 
 
 __all__ = [
@@ -128,7 +126,8 @@ class SupervisorClient:
     def __init__(self, sock: socket.socket, timeout: float = DEFAULT_TIMEOUT) -> None:
         self._sock = sock
         self.timeout = timeout
-        self._buffer = bytearray()
+        # Framing, and the pairing of replies with requests: the sans-IO connection's.
+        self._protocol = ClientConnection()
         self._events: collections.deque[Push] = collections.deque(maxlen=MAX_KEPT_EVENTS)
         self.name: str | None = None
 
@@ -229,14 +228,15 @@ class SupervisorClient:
 
     def call(self, request: ApiRequest) -> Reply:
         """Send any request and return its success reply (raises ``ApiError`` on an error)."""
-        self._send(request_json(request))
+        self._send(self._protocol.send(request))
         deadline = time.monotonic() + self.timeout
         while True:
-            obj = self._read_object(deadline)
-            if "event" in obj:
-                self._events.append(_push(obj))
+            event = self._read_event(deadline)
+            if isinstance(event, PushReceived):
+                self._events.append(event.push)
                 continue
-            reply = _reply(obj)
+            # The one request waits (a timeout closes the connection): this is its reply.
+            reply = event.reply if isinstance(event, ReplyReceived) else event.error
             if isinstance(reply, ApiError):
                 raise reply
             return reply
@@ -249,15 +249,14 @@ class SupervisorClient:
         deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
         while True:
             try:
-                obj = self._read_object(deadline, closing=False)
+                event = self._read_event(deadline, closing=False)
             except ClientTimeoutError:
                 return None
-            if "event" in obj:
-                return _push(obj)
-            reply = _reply(obj)
-            if isinstance(reply, ApiError):  # e.g. too_many_clients, sent before closing
-                raise reply
-            raise ProtocolError(f"a reply without a request: {obj!r}"[:200])
+            if isinstance(event, PushReceived):
+                return event.push
+            if isinstance(event, ErrorWithoutRequest):  # e.g. too_many_clients, then closed
+                raise event.error
+            raise ProtocolError(f"a reply without a request: {event.reply!r}"[:200])
 
     # -- lifetime -------------------------------------------------------------------------
 
@@ -277,12 +276,12 @@ class SupervisorClient:
 
     # -- inside ---------------------------------------------------------------------------
 
-    def _send(self, obj: dict[str, Any]) -> None:
+    def _send(self, line: bytes) -> None:
         if self._sock.fileno() < 0:
             raise ConnectionClosedError("the client is closed")
         try:
             self._sock.settimeout(self.timeout)
-            self._sock.sendall(encode(obj))
+            self._sock.sendall(line)
         except TimeoutError as e:
             self.close()
             raise ClientTimeoutError("the supervisor does not read its requests") from e
@@ -297,29 +296,23 @@ class SupervisorClient:
         """The error line a server sent before it closed the connection, if any."""
         try:
             self._sock.setblocking(False)
-            while len(self._buffer) <= MAX_REPLY_LINE and (data := self._sock.recv(65536)):
-                self._buffer += data
+            while self._protocol.held <= MAX_REPLY_LINE and (data := self._sock.recv(65536)):
+                self._protocol.receive_data(data)
         except OSError:
             pass
-        for line in bytes(self._buffer).split(b"\n"):
-            try:
-                reply = _reply(_decode(line))
-            except ProtocolError:
-                continue
-            if isinstance(reply, ApiError):
-                return reply
-        return None
+        return self._protocol.last_error()
 
-    def _read_object(self, deadline: float, *, closing: bool = True) -> dict[str, Any]:
+    def _read_event(
+        self, deadline: float, *, closing: bool = True
+    ) -> ReplyReceived | PushReceived | ErrorWithoutRequest:
         while True:
-            newline = self._buffer.find(b"\n")
-            if newline >= 0:
-                line = bytes(self._buffer[:newline])
-                del self._buffer[: newline + 1]
-                return _decode(line)
-            if len(self._buffer) > MAX_REPLY_LINE:
+            try:
+                event = self._protocol.next_event()
+            except ProtocolError:
                 self.close()
-                raise ProtocolError("a line from the supervisor is too long")
+                raise
+            if event is not None:
+                return event
             self._fill(deadline, closing=closing)
 
     def _fill(self, deadline: float, *, closing: bool) -> None:
@@ -341,7 +334,7 @@ class SupervisorClient:
         if not data:
             self.close()
             raise ConnectionClosedError("the supervisor closed the connection")
-        self._buffer += data
+        self._protocol.receive_data(data)
 
 
 def _connect(path: Path, timeout: float) -> socket.socket:
@@ -378,36 +371,8 @@ def _connect(path: Path, timeout: float) -> socket.socket:
             raise ConnectError(f"cannot connect to {path}: {e.strerror or e}") from e
 
 
-def _reply(obj: dict[str, Any]) -> Reply | ApiError:
-    try:
-        return read_reply(obj)
-    except WireError as e:
-        raise ProtocolError(
-            f"a reply from the supervisor that docs/api.md does not allow: {e}"
-        ) from e
-
-
-def _push(obj: dict[str, Any]) -> Push:
-    try:
-        return read_push(obj)
-    except WireError as e:
-        raise ProtocolError(
-            f"a push from the supervisor that docs/api.md does not allow: {e}"
-        ) from e
-
-
 def _expect(reply: Reply, kind: type[R]) -> R:
     """The reply as the type its request gets (a reply of another op is out of step)."""
     if not isinstance(reply, kind):
         raise ProtocolError(f"a {reply.json().get('op')!r} reply where {kind.__name__} belongs")
     return reply
-
-
-def _decode(line: bytes) -> dict[str, Any]:
-    try:
-        obj = json.loads(line)
-    except (ValueError, RecursionError) as e:  # RecursionError: nested thousands deep
-        raise ProtocolError(f"not JSON from the supervisor: {line[:80]!r}") from e
-    if not isinstance(obj, dict):
-        raise ProtocolError(f"not a JSON object from the supervisor: {line[:80]!r}")
-    return obj

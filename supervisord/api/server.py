@@ -68,6 +68,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
+from supervisord.api.connection import (
+    DEFAULT_MAX_OUTPUT,
+    Flooded,
+    LineRefused,
+    Place,
+    RequestLine,
+    ServerConnection,
+    server_line,
+)
 from supervisord.api.credentials import caller, group_id, peer_credentials, user_name
 from supervisord.api.framing import (
     DEFAULT_MAX_DISCARD,
@@ -75,8 +84,6 @@ from supervisord.api.framing import (
     DEFAULT_SOCKET_PATH,
     ApiError,
     ErrorCode,
-    LineReader,
-    encode,
 )
 from supervisord.api.names import NAME_WAIT_NS, UserNames
 from supervisord.api.pushes import Push
@@ -111,7 +118,6 @@ MAX_CLIENTS_RANGE: Final = (1, 256)
 """``api.max_clients``: the one range, for the robot's file as for a server built in code."""
 MAX_LINE_RANGE: Final = (256, 1 << 20)
 """``api.max_message_bytes`` (``max_line`` here): the one range, as ``MAX_CLIENTS_RANGE``."""
-DEFAULT_MAX_OUTPUT: Final = 256 * 1024
 RECV_SIZE: Final = 16 * 1024  # bytes looked at per readable event: bounded work per loop turn
 ACCEPTS_PER_CALL: Final = 32
 # Connections the kernel queues before we accept them. Under connect/disconnect churn 16 was
@@ -239,7 +245,7 @@ class Received:
 
     client: ClientInfo
     request: ApiRequest
-    place: _Place = field(compare=False, repr=False)
+    place: Place = field(compare=False, repr=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -278,46 +284,28 @@ def core_event(result: Result, now: int) -> Event | None:
             return to_core_event(request, client, now)
 
 
-class _Place:
-    """One reply's place in its connection's order: made when its request line is read,
-    filled when it is answered. ``malformed``: the error of a malformed e-stop or hold that
-    is honoured anyway (SR-8.13), sent in place of its ok."""
-
-    __slots__ = ("line", "malformed")
-
-    def __init__(self, malformed: ApiError | None = None) -> None:
-        self.line: bytes | None = None
-        self.malformed = malformed
-
-
 class _Connection:
     __slots__ = (
         "accepted",
         "credentials",
         "dead",
         "deferred",
-        "held",
         "info",
         "last_ns",
         "naming_until",
         "operator",
-        "out",
-        "places",
-        "reader",
+        "protocol",
         "slot",
         "sock",
         "taken",
         "topics",
     )
 
-    def __init__(self, sock: socket.socket, info: ClientInfo, reader: LineReader) -> None:
-        self.sock, self.info, self.reader = sock, info, reader
+    def __init__(self, sock: socket.socket, info: ClientInfo, protocol: ServerConnection) -> None:
+        # The framing, the reply order and the output buffer: the sans-IO connection's.
+        self.sock, self.info, self.protocol = sock, info, protocol
         self.naming_until: int | None = None  # its user's name is awaited until then (SR-10.3)
         self.deferred: list[_Waiting] = []  # requests that wait for that name, in order
-        self.out = bytearray()
-        # Replies not yet sent, in request order: one waits for those before it (docs/api.md).
-        self.places: collections.deque[_Place] = collections.deque()
-        self.held = 0  # bytes of replies answered but waiting for an earlier one
         self.topics: frozenset[Topic] = frozenset()
         self.accepted = True  # reported as Accepted, so its end is reported as Closed
         self.dead = False  # ended: shut down, its descriptor released at the next descriptors()
@@ -337,7 +325,7 @@ class _Waiting:
 
     conn: _Connection
     request: ApiRequest
-    place: _Place
+    place: Place
 
 
 _Queued = Accepted | Closed | _Waiting
@@ -407,7 +395,7 @@ class ApiServer:
         watched = [(self._listen_fd, False), (self._names_fd, False)]
         if self._operator is not None:
             watched.insert(0, (self._operator_fd, False))
-        watched += [(fd, bool(conn.out)) for fd, conn in self._by_fd.items()]
+        watched += [(fd, bool(conn.protocol.outgoing)) for fd, conn in self._by_fd.items()]
         return watched
 
     def next_deadline(self) -> int | None:
@@ -520,29 +508,29 @@ class ApiServer:
             self._end(conn, CloseReason.BROKEN)
             return
         if not data:
-            if conn.out:  # a peer that only shut down its sending side gets what waits
+            if conn.protocol.outgoing:  # a peer that only shut down its sending side gets it
                 with contextlib.suppress(OSError):
-                    conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
+                    conn.sock.send(conn.protocol.outgoing, socket.MSG_NOSIGNAL)
             self._end(conn, CloseReason.PEER_CLOSED)
             return
-        for item in conn.reader.feed(data):
+        for event in conn.protocol.receive_data(data):
+            if isinstance(event, Flooded):
+                self._queue(conn, server_line(event.error))
+                self._end(conn, CloseReason.FLOOD)
+                return
             conn.taken += 1
             self._turn_left -= 1
-            if isinstance(item, ApiError):
-                self._answer(conn, self._place(conn), encode(item.reply()))
-            else:
-                self._dispatch(conn, item, now)
+            if isinstance(event, LineRefused):
+                self._answer(conn, event.place, server_line(event.error))
+            elif isinstance(event, RequestLine):
+                self._dispatch(conn, event, now)
             if conn.dead:  # ended while answering: nothing more to read
                 return
-        if conn.reader.flooded:
-            error = ApiError(ErrorCode.FLOOD, "an endless line: the connection is closed")
-            self._queue(conn, encode(error.reply()))
-            self._end(conn, CloseReason.FLOOD)
 
     def on_writable(self, fd: int) -> None:
         """Send what waits for one connection."""
         conn = self._by_fd.get(fd)
-        if conn is not None and conn.out:
+        if conn is not None and conn.protocol.outgoing:
             self._flush(conn)
 
     # -- the daemon's side ----------------------------------------------------------------
@@ -558,21 +546,20 @@ class ApiServer:
             conn.info = replace(conn.info, name=received.request.name)
         malformed = received.place.malformed
         if malformed is not None:  # honoured, but what was wrong is said (SR-8.13)
-            line = encode(honoured_error(malformed, received.request).reply())
+            line = server_line(honoured_error(malformed, received.request))
         else:
-            answer = reply if reply is not None else ok_reply(received.request)
-            line = encode(answer.json())
+            line = server_line(reply if reply is not None else ok_reply(received.request))
         self._answer(conn, received.place, line)
 
     def reply_error(self, received: Received, error: ApiError) -> None:
         """Answer a request with an error (e.g. :func:`~supervisord.api.views.refusal_error`)."""
         conn = self._connections.get(received.client.connection)
         if conn is not None:
-            self._answer(conn, received.place, encode(error.reply()))
+            self._answer(conn, received.place, server_line(error))
 
     def send(self, connection: int, message: Reply | Push) -> None:
         """Send one reply or push to one connection (if it is still there)."""
-        self._send_line(connection, encode(message.json()))
+        self._send_line(connection, server_line(message))
 
     def _send_line(self, connection: int, line: bytes) -> None:
         conn = self._connections.get(connection)
@@ -584,7 +571,7 @@ class ApiServer:
         line: bytes | None = None
         for conn in list(self._connections.values()):
             if topic in conn.topics:
-                line = line if line is not None else encode(push.json())
+                line = line if line is not None else server_line(push)
                 self._queue(conn, line)
 
     def subscribed(self, topic: Topic) -> bool:
@@ -670,8 +657,10 @@ class ApiServer:
         who = caller(credentials, self._admin_gid, own_uid=self._own_uid, name=name)
         number = self._next_number
         self._next_number += 1
-        reader = LineReader(self.config.max_line, self.config.discard_limit)
-        conn = _Connection(sock, ClientInfo(number, who), reader)
+        protocol = ServerConnection(
+            self.config.max_line, self.config.discard_limit, self.config.max_output
+        )
+        conn = _Connection(sock, ClientInfo(number, who), protocol)
         conn.last_ns = now
         if name is None:
             conn.naming_until = now + NAME_WAIT_NS
@@ -692,7 +681,7 @@ class ApiServer:
                     f"the operator socket takes at most {self.config.operator_max_clients} "
                     "connections",
                 )
-                self._queue(conn, encode(error.reply()))
+                self._queue(conn, server_line(error))
                 self._end(conn, CloseReason.EVICTED)
             return
         if ordinary < self.config.max_clients:
@@ -715,7 +704,7 @@ class ApiServer:
             ErrorCode.TOO_MANY_CLIENTS,
             f"the server takes at most {self.config.max_clients} clients; {why}",
         )
-        self._queue(conn, encode(error.reply()))
+        self._queue(conn, server_line(error))
         self._end(conn, CloseReason.EVICTED)
 
     def _names_known(self, now: int) -> None:
@@ -734,22 +723,21 @@ class ApiServer:
         waiting, conn.deferred, conn.naming_until = conn.deferred, [], None
         self._results.extend(waiting)
 
-    def _dispatch(self, conn: _Connection, line: bytes, now: int) -> None:
-        if not line.strip():
-            return  # blank lines are allowed (handy when typing requests by hand)
-        malformed: ApiError | None = None
+    def _dispatch(self, conn: _Connection, event: RequestLine, now: int) -> None:
+        # Blank lines never get here: allowed, answered by nothing (handy when typing).
+        line, place = event.line, event.place
         try:
             request: ApiRequest = parse_request(line)
         except ApiError as e:
             stop = readable_stop(line)
             if stop is None:
-                self._answer(conn, self._place(conn), encode(e.reply()))
+                self._answer(conn, place, server_line(e))
                 return
             # A malformed e-stop or hold still stops (SR-8.13): acted on as the request it
             # names, on every connection and e-stop slot; its reply says what was wrong.
-            request, malformed = stop, e
+            request, place.malformed = stop, e
         conn.last_ns = now
-        waiting = _Waiting(conn, request, self._place(conn, malformed))
+        waiting = _Waiting(conn, request, place)
         if conn.naming and not conn.slot and not isinstance(request, NAMELESS_REQUESTS):
             conn.deferred.append(waiting)  # served once the name is known (SR-10.3)
             return
@@ -760,7 +748,7 @@ class ApiServer:
         conn, request = waiting.conn, waiting.request
         error = self._check(conn, request)
         if error is not None:
-            self._answer(conn, waiting.place, encode(error.reply()))
+            self._answer(conn, waiting.place, server_line(error))
             if conn.slot:  # an e-stop slot is no way in for a client: closed (docs/api.md)
                 self._end(conn, CloseReason.EVICTED)
             if error.code == ErrorCode.NOT_ALLOWED:
@@ -795,49 +783,35 @@ class ApiServer:
             return error(ErrorCode.NOT_HELLO, f"say hello with a name before {request.OP}")
         return None
 
-    @staticmethod
-    def _place(conn: _Connection, malformed: ApiError | None = None) -> _Place:
-        """A place at the end of ``conn``'s replies, for the request line just read."""
-        place = _Place(malformed)
-        conn.places.append(place)
-        return place
-
-    def _answer(self, conn: _Connection, place: _Place, line: bytes) -> None:
-        """Fill ``place`` with its reply (once), then send every reply now at the front, in
-        order: a reply never overtakes the one of an earlier request (docs/api.md)."""
-        if conn.dead or place.line is not None:
-            return
-        place.line = line
-        conn.held += len(line)
-        ready = bytearray()
-        while conn.places and (front := conn.places[0].line) is not None:
-            conn.places.popleft()
-            conn.held -= len(front)
-            ready += front
-        self._queue(conn, bytes(ready))
-
-    def _queue(self, conn: _Connection, line: bytes) -> None:
+    def _answer(self, conn: _Connection, place: Place, line: bytes) -> None:
+        """Fill ``place`` with its reply; the connection sends every reply now at the front,
+        in order: a reply never overtakes the one of an earlier request (docs/api.md)."""
         if conn.dead:
             return
-        conn.out += line
-        # Replies held for an earlier one wait for this client as much as its unsent output.
-        if len(conn.out) + conn.held > self.config.max_output:
-            self._end(conn, CloseReason.OUTPUT_OVERFLOW)
-        else:
+        self._sent_or_ended(conn, conn.protocol.answer(place, line))
+
+    def _queue(self, conn: _Connection, line: bytes) -> None:
+        if not conn.dead:
+            self._sent_or_ended(conn, conn.protocol.send(line))
+
+    def _sent_or_ended(self, conn: _Connection, within_limit: bool) -> None:
+        if within_limit:
             self._flush(conn)
+        else:  # the client does not read its replies and pushes
+            self._end(conn, CloseReason.OUTPUT_OVERFLOW)
 
     def _flush(self, conn: _Connection) -> None:
         """Send what the socket takes now; never waits."""
-        if not conn.out:
+        if not conn.protocol.outgoing:
             return
         try:
-            sent = conn.sock.send(conn.out, socket.MSG_NOSIGNAL)
+            sent = conn.sock.send(conn.protocol.outgoing, socket.MSG_NOSIGNAL)
         except (BlockingIOError, InterruptedError):
             return
         except OSError:
             self._end(conn, CloseReason.BROKEN)
             return
-        del conn.out[:sent]
+        conn.protocol.sent(sent)
 
     def _end(self, conn: _Connection, reason: CloseReason) -> None:
         """Shut the connection down now (dropping its output) and queue its end, once."""
@@ -846,9 +820,7 @@ class ApiServer:
         conn.dead = True
         self._connections.pop(conn.info.connection, None)
         self._by_fd.pop(conn.sock.fileno(), None)
-        conn.out.clear()
-        conn.places.clear()
-        conn.held = 0
+        conn.protocol.clear()
         with contextlib.suppress(OSError):
             conn.sock.shutdown(socket.SHUT_RDWR)
         self._ended.append(conn.sock)

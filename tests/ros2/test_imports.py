@@ -19,6 +19,7 @@ CLIENT_MODULES = frozenset(
     {
         "supervisord",
         "supervisord.api",
+        "supervisord.api.connection",
         "supervisord.api.framing",
         "supervisord.api.messages",
         "supervisord.api.ops",
