@@ -6,7 +6,8 @@ the typed values of :mod:`.replies` and :mod:`.pushes` (their parts in :mod:`.st
 from the daemon's values; :mod:`.translate` turns requests into safety-core events.
 :mod:`.connection` is one connection's protocol, both ends, without I/O: the server and the
 client library each drive it. :mod:`.server` is the non-blocking server the daemon's loop
-drives, :mod:`.credentials` says who is at the other end. The robot's programs use :mod:`supervisord.client`.
+drives, :mod:`.credentials` says who is at the other end. The robot's programs use
+:mod:`supervisord.client`.
 
 Nothing is imported here: the client library imports only :mod:`.connection` and the
 vocabulary (:mod:`.framing`,

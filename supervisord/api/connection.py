@@ -112,7 +112,7 @@ class ServerConnection:
     output held passes ``max_output``: the server then ends the connection (a client that
     does not read can never make the server wait)."""
 
-    __slots__ = ("_held", "_lines", "_out", "_places", "max_output")
+    __slots__ = ("_flooded", "_held", "_lines", "_out", "_places", "max_output")
 
     def __init__(
         self,
@@ -126,10 +126,12 @@ class ServerConnection:
         # Replies not yet sent, in request order: one waits for those before it (docs/api.md).
         self._places: collections.deque[Place] = collections.deque()
         self._held = 0  # bytes of replies answered but waiting for an earlier one
+        self._flooded = False
 
     def receive_data(self, data: bytes) -> list[ServerEvent]:
         """The events of ``data``, in order: one per line (complete or refused), then
-        :class:`Flooded` if the line being discarded passed ``max_discard``."""
+        :class:`Flooded` once the line being discarded passed ``max_discard`` (after which
+        nothing more is read)."""
         events: list[ServerEvent] = []
         for item in self._lines.feed(data):
             if isinstance(item, ApiError):
@@ -138,7 +140,8 @@ class ServerConnection:
                 events.append(BlankLine())
             else:
                 events.append(RequestLine(item, self._place()))
-        if self._lines.flooded:
+        if self._lines.flooded and not self._flooded:
+            self._flooded = True  # said once: the server ends the connection on it
             events.append(
                 Flooded(ApiError(ErrorCode.FLOOD, "an endless line: the connection is closed"))
             )
