@@ -10,8 +10,13 @@ never import it.
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
+
+import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "supervisord"
 KIT = "supervisord.testkit"
@@ -151,3 +156,118 @@ def test_the_loops_world_reads_no_clock_of_its_own() -> None:
     assert clock_reads("import time\nnow = time.monotonic_ns()\n") == [2]
     assert clock_reads("from time import perf_counter, sleep\n") == [1]
     assert clock_reads("import time\ntime.sleep(1)\n") == []
+
+
+# -- the layers the entry points load, and the direction of every import -------------------
+
+ENTRY_POINTS = ("supervisord.cli.srcsctl", "supervisord.cli.exporter", "supervisord.cli.ros2")
+"""``srcsctl``, ``srcs-exporter`` and ``srcs-ros2`` (pyproject.toml's scripts): clients of
+the socket, which decide nothing the safety core decides."""
+SAFETY = "supervisord.safety"
+LOADED = "import json, sys; import {module}; print(json.dumps(sorted(sys.modules)))"
+
+
+@pytest.mark.parametrize("module", ENTRY_POINTS)
+def test_the_clients_entry_points_load_no_module_of_the_safety_core(module: str) -> None:
+    """SR-8.8: importing ``srcsctl``'s, ``srcs-exporter``'s or ``srcs-ros2``'s entry module,
+    in a fresh interpreter, loads no module of ``supervisord/safety``: the operator's
+    commands and the clients stand on the client library, not on the core they talk to
+    (what a command needs of the record or the config is imported when it runs)."""
+    result = subprocess.run(
+        [sys.executable, "-c", LOADED.format(module=module)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+        cwd=PACKAGE.parent,
+    )
+    loaded = json.loads(result.stdout)
+    assert module in loaded
+    assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
+
+
+def test_the_configuration_imports_nothing_of_the_daemon() -> None:
+    """No module of ``supervisord/config`` imports ``supervisord/daemon``: the daemon is built
+    from the configuration, so what the configuration needs lives in it or below it."""
+    files = sorted((PACKAGE / "config").rglob("*.py"))
+    assert len(files) > 5
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}: {name}"
+        for path in files
+        for line, name in _file_imports(path)
+        if name == "supervisord.daemon" or name.startswith("supervisord.daemon.")
+    ]
+    assert found == []
+
+
+def _module_graph(roots: tuple[Path, ...]) -> dict[str, set[str]]:
+    """Every module under ``roots`` and the modules of the same tree it imports (anywhere in
+    the file: a function's import is an import too), each name resolved to its module."""
+    paths = {_module_of(path): path for root in roots for path in sorted(root.rglob("*.py"))}
+    graph: dict[str, set[str]] = {}
+    for module, path in paths.items():
+        names = {name for _, name in _imports(path.read_text(), module, path.name == "__init__.py")}
+        graph[module] = {
+            target
+            for name in names
+            if (target := _known(name, paths)) is not None and target != module
+        }
+    return graph
+
+
+def _module_of(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _known(name: str, modules: dict[str, Path]) -> str | None:
+    """``name`` (a module, or a name inside one) as a module of the tree, if it is one."""
+    while name and name not in modules:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The circles of ``graph``: each strongly connected set of two modules or more (a
+    package's ``__init__`` that imports its own modules is left out: it is their face)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for target in graph.get(node, ()):
+            if target.startswith(node + "."):
+                continue  # a package's face naming its own modules
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            members = []
+            while True:
+                member = stack.pop()
+                members.append(member)
+                if member == node:
+                    break
+            if len(members) > 1:
+                circles.append(sorted(members))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return circles
+
+
+def test_no_module_imports_itself_through_others() -> None:
+    """No import circle among the modules of ``supervisord/`` and ``verify/``: every import
+    runs one way, so each module can be read, tested and changed knowing only what is below
+    it (``verify/mutate.py`` and ``verify/equivalent.py`` once imported each other)."""
+    graph = _module_graph((PACKAGE, PACKAGE.parent / "verify"))
+    assert len(graph) > 100
+    assert import_circles(graph) == []
+    assert import_circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert import_circles({"p": {"p.x"}, "p.x": {"p"}}) == []

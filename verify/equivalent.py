@@ -6,7 +6,26 @@ longer exists, or that a test kills after all."""
 
 from __future__ import annotations
 
-from verify.mutate import Equivalent
+from dataclasses import asdict, dataclass
+
+
+@dataclass(frozen=True)
+class Equivalent:
+    """A mutant no test can tell from the original, and why."""
+
+    file: str
+    where: str  # as Mutant.where
+    original: str
+    mutated: str
+    why: str
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return self.file, self.where, self.original.strip(), self.mutated.strip()
+
+    def json(self) -> dict[str, str]:
+        return asdict(self)
+
 
 _INIT = "SafetyCore.__init__"
 _INIT_HELD_SINCE = (

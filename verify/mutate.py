@@ -32,7 +32,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, ModuleType
 from typing import Any
@@ -577,24 +577,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"stale entry in verify/equivalent.py (no such mutant any more): {entry.key}")
     wrong = outcomes.get("listed but killed", [])
     return 1 if count["survived"] or stale or wrong else 0
-
-
-@dataclass(frozen=True)
-class Equivalent:
-    """A mutant no test can tell from the original, and why."""
-
-    file: str
-    where: str  # as Mutant.where
-    original: str
-    mutated: str
-    why: str
-
-    @property
-    def key(self) -> tuple[str, str, str, str]:
-        return self.file, self.where, self.original.strip(), self.mutated.strip()
-
-    def json(self) -> dict[str, str]:
-        return asdict(self)
 
 
 if __name__ == "__main__":

@@ -22,14 +22,12 @@ from typing import Final, TextIO
 
 from supervisord.api.framing import ApiError, ErrorCode, operator_socket_path
 from supervisord.api.messages import RemoteStatusReport
+from supervisord.api.ops import StartProofTest
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
-from supervisord.api.requests import StartProofTest
 from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli import numbers
-from supervisord.cli.log import interruptible
 from supervisord.cli.numbers import whole_in
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
-from supervisord.cli.record_text import MARK_MEANS, mark, record_line, verdict
 from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
 from supervisord.cli.times import clock, clock_of
 from supervisord.client import (
@@ -39,7 +37,6 @@ from supervisord.client import (
     StatusReply,
     SupervisorClient,
 )
-from supervisord.config import load_config
 from supervisord.errors import ConfigError
 from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode
 from supervisord.protocol.messages import I32
@@ -285,6 +282,8 @@ def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | N
     """The client socket (as :func:`socket_path`) and the operator socket to try first:
     the config's ``[api] operator_socket``, else the one beside the client socket; none with
     ``--socket``, which names exactly the socket to use. Raises :class:`ConfigError`."""
+    from supervisord.config import load_config  # noqa: PLC0415 -- when used (SR-8.8)
+
     if socket:
         return Path(socket), None
     if config:
@@ -297,6 +296,8 @@ def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | N
 def socket_path(config: str | None, socket: str | None) -> Path:
     """``--socket``, else the config's ``[api] socket``, else ``$SRCS_SOCKET``, else the
     default. Raises :class:`ConfigError` for a bad config."""
+    from supervisord.config import load_config  # noqa: PLC0415 -- when used (SR-8.8)
+
     if socket:
         return Path(socket)
     if config:
@@ -364,6 +365,8 @@ PROOFTEST_WAIT_S: Final = 30.0  # a held bit waits for the operator (docs/safety
 def _prooftest(client: SupervisorClient, out: TextIO) -> int:
     """Ask for a proof test (docs/safety.md "The proof test"), then follow ``status`` until
     it has a result: exit 0 when it passed, 1 when it failed or gave none in time."""
+    from supervisord.cli.record_text import verdict  # noqa: PLC0415 -- when used (SR-8.8)
+
     client.call(StartProofTest())
     print("prooftest: started; the user heartbeat is withheld for up to 1.5 s", file=out)
     deadline = time.monotonic() + PROOFTEST_WAIT_S
@@ -401,6 +404,8 @@ def _display(client: SupervisorClient, args: argparse.Namespace) -> None:
 
 def format_status(status: StatusReply) -> str:
     """The human form of a ``status`` reply (``docs/api.md``)."""
+    from supervisord.cli.record_text import MARK_MEANS, verdict  # noqa: PLC0415 -- when used (SR-8.8)
+
     report, daemon = status.report, status.daemon
     loop, link = daemon.loop, daemon.loop.link
     since = daemon.in_state_s
@@ -519,6 +524,8 @@ def remote_text(remote: RemoteReport | RemoteStatusReport) -> str:
 def _cause_text(cause: Cause) -> str:
     """``vsc_estop (stop, active) sources=remote``; a cleared cause its latch still holds is
     marked as everywhere (``vsc_estop* (stop)``, docs/srcsctl.md "Marks")."""
+    from supervisord.cli.record_text import mark  # noqa: PLC0415 -- when used (SR-8.8)
+
     state = ", active" if cause.active else ""
     details = " ".join(f"{k}={v}" for k, v in cause.details.items())
     return f"{mark(cause.name, held=cause.held)} ({cause.severity}{state}) {details}".rstrip()
@@ -535,6 +542,8 @@ def _watch(
     The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
     it is printed once, and with ``--json`` every line is a push; the human form
     starts with one line about the daemon (version, uptime, clients) from ``status``."""
+    from supervisord.cli.log import interruptible  # noqa: PLC0415 -- when used (SR-8.8)
+
     topics = [
         "state",
         "records",
@@ -632,6 +641,8 @@ def format_push(
     """One line for a push: the time of day (local, or UTC with ``utc``: the rule of
     ``log``), then what happened. A record is the line ``log`` prints for it, at its own
     time; a state is the state, its causes (marked as everywhere) and the outputs."""
+    from supervisord.cli.record_text import mark, record_line  # noqa: PLC0415 -- when used (SR-8.8)
+
     stamp = clock(now or dt.datetime.now(dt.timezone.utc), utc=utc)
     if isinstance(push, StatePush):
         report = push.report

@@ -15,7 +15,6 @@ from types import FrameType
 
 from supervisord import __version__
 from supervisord.client import DEFAULT_SOCKET_PATH
-from supervisord.config import load_config
 from supervisord.errors import ConfigError
 
 DEFAULT_LISTEN = "127.0.0.1:9817"
@@ -79,6 +78,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_CONFIG
     socket_path: Path = args.socket or DEFAULT_SOCKET_PATH
     if args.config:
+        from supervisord.config import load_config  # noqa: PLC0415 -- only with --config
+
         try:
             socket_path = load_config(args.config).api.socket
         except ConfigError as error:

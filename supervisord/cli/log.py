@@ -23,21 +23,15 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 from supervisord.cli.follow import Follower
+from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_text import changes, record_line
 from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
 
 EXIT_BAD_INPUT: Final = 2
-FOLLOW_LAST: Final = 10
-"""What ``-n`` alone and ``-f`` without ``-n`` show first: the last 10, as journalctl."""
-PAGER_END_LAST: Final = 1000
-"""What ``-e`` shows without ``-n``: the last 1000, as journalctl's ``-e`` implies ``-n1000``."""
 NO_ENTRIES: Final = "-- No entries --"
 """What journalctl prints on stdout when nothing matched (not in a JSON mode, not following)."""
-OUTPUTS: Final = ("short", "short-iso", "cat", "verbose", "json", "json-pretty")
-"""``-o``'s modes: ``short`` (and ``short-iso``, the same: the time is ISO 8601 already), ``cat``
-the line without its time, ``verbose`` as ``--causes``, ``json`` a line per record,
-``json-pretty`` each record indented."""
+
 JSON_OUTPUTS: Final = frozenset({"json", "json-pretty"})
 PROC_STAT: Final = Path("/proc/stat")
 

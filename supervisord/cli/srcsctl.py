@@ -10,14 +10,21 @@ from pathlib import Path
 from supervisord import __version__
 from supervisord.cli import control, decode_options
 from supervisord.cli.access import advice
-from supervisord.cli.cause_names import cause_name
-from supervisord.cli.demo_find import NoDemo, demo_config
-from supervisord.cli.log import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST, run_log
+from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST
 from supervisord.cli.numbers import count, positive
-from supervisord.cli.replay import run_replay
-from supervisord.config import load_config
 from supervisord.errors import ConfigError
-from supervisord.record.jsonl import RecordUnreadable
+
+# What reads the record or the config (and with them the safety core's values) is imported by
+# the command that needs it: the operator's commands load the client library only (SR-8.8,
+# tests/test_layers.py).
+
+
+def cause_name(text: str) -> str:
+    """``--cause``'s type: :func:`supervisord.cli.cause_names.cause_name`, loaded when used."""
+    from supervisord.cli.cause_names import cause_name as known  # noqa: PLC0415
+
+    return known(text)
+
 
 CONFIG_DIR = Path("/etc/srcs")
 """Where install.md puts the robots' configs, one ``NAME.toml`` per ``srcsd@NAME``."""
@@ -253,6 +260,8 @@ def chosen_config(args: argparse.Namespace) -> Path | None:
     if getattr(args, "robot", None):
         return robot_config(args.robot)
     if getattr(args, "demo", False):
+        from supervisord.cli.demo_find import NoDemo, demo_config  # noqa: PLC0415
+
         try:
             return demo_config()
         except NoDemo as error:
@@ -276,6 +285,8 @@ def _record_path(args: argparse.Namespace, command: str) -> Path | None:
     /etc/srcs; ``None`` after printing why there is none."""
     if args.file:
         return Path(args.file)
+    from supervisord.config import load_config  # noqa: PLC0415
+
     try:
         return load_config(getattr(args, "config", None) or default_config()).record.path
     except (ConfigError, LookupError) as error:
@@ -291,6 +302,8 @@ def _replay(args: argparse.Namespace) -> int:
         record = _record_path(args, "replay")
         if record is None:
             return 2
+    from supervisord.cli.replay import run_replay  # noqa: PLC0415
+
     return run_replay(args.window, record, sys.stdout, sys.stderr, show_all=args.all)
 
 
@@ -307,6 +320,9 @@ def _log(args: argparse.Namespace) -> int:
     if path is None:
         return 2
     last = args.lines if args.lines is not None or not args.pager_end else PAGER_END_LAST
+    from supervisord.cli.log import run_log  # noqa: PLC0415
+    from supervisord.record.jsonl import RecordUnreadable  # noqa: PLC0415
+
     try:
         return run_log(
             path,

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from supervisord.api.framing import operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS
+from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS
 from supervisord.config.schema import (
     DEFAULT_CAN_BITRATE,
     DEFAULT_CAN_CHANNEL,
@@ -24,7 +25,6 @@ from supervisord.config.schema import (
     DEFAULT_SOCKET,
     SERIAL_BAUD,
 )
-from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES
 from supervisord.safety.config import SafetyConfig, Transport

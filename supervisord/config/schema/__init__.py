@@ -24,7 +24,7 @@ from typing import Final
 from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH, operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
-from supervisord.daemon.maintenance import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
+from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
 from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.availability import (
