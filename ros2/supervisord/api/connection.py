@@ -1,0 +1,1 @@
+../../../supervisord/api/connection.py
