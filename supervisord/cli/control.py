@@ -26,6 +26,7 @@ from supervisord.api.ops import StartProofTest
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli import numbers
+from supervisord.cli.interrupt import interruptible
 from supervisord.cli.numbers import whole_in
 from supervisord.cli.ready import DEFAULT_TIMEOUT_S, wait_ready
 from supervisord.cli.stoptest import add_stoptest, confirmed_stoptest, run_stoptest
@@ -542,8 +543,6 @@ def _watch(
     The first state is the push the daemon sends right after ``subscribe`` (docs/api.md), so
     it is printed once, and with ``--json`` every line is a push; the human form
     starts with one line about the daemon (version, uptime, clients) from ``status``."""
-    from supervisord.cli.log import interruptible  # noqa: PLC0415 -- when used (SR-8.8)
-
     topics = [
         "state",
         "records",

@@ -24,7 +24,7 @@ import can
 import serial
 
 from supervisord.cli import capture
-from supervisord.cli.log import interruptible
+from supervisord.cli.interrupt import interruptible
 from supervisord.protocol.framing import FrameDecoder, Rejection
 from supervisord.protocol.hid import (
     INPUT_LENGTH,

@@ -14,25 +14,21 @@ released it (the record's ``changes``), as ``journalctl`` selects the entries a 
 from __future__ import annotations
 
 import datetime as dt
-import json
 import os
-import signal
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any, Final
 
 from supervisord.cli.follow import Follower
+from supervisord.cli.interrupt import interruptible
 from supervisord.cli.log_options import FOLLOW_LAST
+from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
 from supervisord.cli.record_text import changes, record_line
 from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
 
 EXIT_BAD_INPUT: Final = 2
-NO_ENTRIES: Final = "-- No entries --"
-"""What journalctl prints on stdout when nothing matched (not in a JSON mode, not following)."""
-
-JSON_OUTPUTS: Final = frozenset({"json", "json-pretty"})
 PROC_STAT: Final = Path("/proc/stat")
 
 
@@ -99,7 +95,7 @@ def run_log(
         return EXIT_BAD_INPUT
     if follow and last is None and start is None and end is None:
         last = FOLLOW_LAST
-    printer = _Printer(out, output=output, utc=utc, causes=causes)
+    printer = RecordPrinter(out, output=output, utc=utc, causes=causes)
     follower: Follower | None = None
     try:  # from the handlers on: a signal that comes while the follower opens ends it too
         if follow:
@@ -110,7 +106,7 @@ def run_log(
         shown = [] if last == 0 else records[-last:] if last is not None else records
         if shown:  # the one before: what the first changed
             printer.previous = wanted.before.get(_identity(shown[0]))
-        printer.show(shown, reverse=reverse)
+        printer.show([r.data for r in shown], reverse=reverse)
         if follower is None:
             if not shown and not quiet and output not in JSON_OUTPUTS:
                 print(NO_ENTRIES, file=out)
@@ -121,7 +117,7 @@ def run_log(
         for fresh in follower:
             new = wanted.select([r for r in fresh if _identity(r) not in scanned])
             if new:
-                printer.show(new)
+                printer.show([r.data for r in new])
     except KeyboardInterrupt:
         return 0
     finally:
@@ -165,31 +161,6 @@ def _there(path: Path) -> bool:
     except OSError as error:
         raise RecordUnreadable(path.parent, error) from None
     return True
-
-
-class _Printer:
-    """Prints records as lines (or JSON), each line saying what changed since the one
-    before it (:attr:`previous`, for records that do not say it themselves)."""
-
-    def __init__(self, out: IO[str], *, output: str, utc: bool, causes: bool) -> None:
-        self.out, self.output, self.utc = out, output, utc
-        self.causes = causes or output == "verbose"
-        self.previous: Mapping[str, Any] | None = None
-
-    def show(self, records: list[StoredRecord], *, reverse: bool = False) -> None:
-        lines = []
-        for record in records:
-            if self.output in JSON_OUTPUTS:
-                indent = 2 if self.output == "json-pretty" else None
-                lines.append(json.dumps(record.data, indent=indent))
-                continue
-            when = "" if self.output == "cat" else show_time(record.data.get("utc"), utc=self.utc)
-            line = record_line(record.data, when, previous=self.previous, causes=self.causes)
-            lines.append(line.lstrip() if self.output == "cat" else line)
-            self.previous = record.data
-        for line in reversed(lines) if reverse else lines:
-            self.out.write(line + "\n")
-        self.out.flush()  # a pipe sees each record as it comes (line by line, not at exit)
 
 
 def _scan(
@@ -253,18 +224,6 @@ class _Filter:
 def _under(name: str, cause: str) -> bool:
     """``client_lost`` names ``client_lost`` and ``client_lost:autonomy``, not ``client_lostx``."""
     return name == cause or name.startswith(cause + ":")
-
-
-def interruptible() -> None:
-    """Ctrl-C and SIGTERM end a following command, even when it was started with SIGINT
-    ignored (a background job of a script: Python then installs no handler of its own,
-    which is what once made ``watch`` outlive its SIGINT in a test)."""
-
-    def interrupt(_sig: int, _frame: object) -> None:
-        raise KeyboardInterrupt
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, interrupt)
 
 
 if __name__ == "__main__":  # pragma: no cover

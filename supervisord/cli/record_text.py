@@ -17,15 +17,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Final
 
-from supervisord.safety.prooftest import TRIP_LATE_NS, Failure
 from supervisord.timebase import NS_PER_MS
 
 MARK: Final = "*"
 """After a cause's name: cleared, held only by its latch until a re-arm."""
 MARK_MEANS: Final = "* cleared; its latch holds the stop until a re-arm (takeover or reset)"
 """The legend printed once under a list that uses :data:`MARK`."""
-TRIP_LIMIT_MS: Final = TRIP_LATE_NS // NS_PER_MS
-"""The proof test's limit for the VSC's trip (docs/safety.md "The proof test")."""
 RELEASED_LISTED: Final = 3
 """A re-arm releasing more latches than this says how many, not which (``--causes`` lists
 them)."""
@@ -52,10 +49,15 @@ def cause_set(causes: object) -> str:
 def verdict(prooftest: Mapping[str, Any]) -> str:
     """A proof test's result as a verdict: ``proof test passed: tripped after 532 ms, limit
     700 ms; cleared by itself 49 ms after the heartbeat resumed``, or ``proof test FAILED:``
-    and why."""
+    and why. The limit and the failures' words are the safety core's, read here only: the
+    lines of every other record, ``srcsctl fleet``'s on a collector included, need no module
+    of the safety core."""
+    from supervisord.safety.prooftest import TRIP_LATE_NS, Failure  # noqa: PLC0415
+
+    limit_ms = TRIP_LATE_NS // NS_PER_MS  # docs/safety.md "The proof test"
     trip = prooftest.get("trip_ms")
     tripped = (
-        f"tripped after {trip} ms, limit {TRIP_LIMIT_MS} ms" if trip is not None else "no trip seen"
+        f"tripped after {trip} ms, limit {limit_ms} ms" if trip is not None else "no trip seen"
     )
     if prooftest.get("result") == "passed":
         how = "cleared by itself" if prooftest.get("cleared") == "by_itself" else "held, cleared"

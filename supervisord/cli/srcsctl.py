@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from supervisord import __version__
-from supervisord.cli import control, decode_options
+from supervisord.cli import control, decode_options, fleet
 from supervisord.cli.access import advice
 from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST
 from supervisord.cli.numbers import count, positive
@@ -144,6 +144,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="accepted and ignored: each line says in words what happened",
     )
 
+    fleet_command = commands.add_parser(
+        "fleet",
+        help="on a fleet's collector: which robots stopped, and why",
+        description="Show the stop records a fleet's collector holds (systemd-journal-remote's "
+        "journal), read with journalctl, one line each as 'log' prints them, after the "
+        "robot's host name; each robot's in its own order (srcsctl(1), docs/fleet.md). "
+        "--since and --until take log's times and compare them with each robot's own clock. "
+        "Nothing matched: '-- No entries --'.",
+    )
+    fleet.add_arguments(fleet_command)
+
     replay = commands.add_parser(
         "replay",
         help="replay a stop's flight recorder window and check it against the record",
@@ -190,7 +201,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(_ages_as_values(sys.argv[1:] if argv is None else argv))
     if unknown:  # said with the command's own usage, never the top level's (SR-11.3)
         command_parser(parser, args).error(f"unrecognized arguments: {' '.join(unknown)}")
-    if args.command != "demo":
+    if args.command not in ("demo", "fleet"):  # fleet names robots, not a config
         try:
             chosen = chosen_config(args)
         except LookupError as error:
@@ -211,6 +222,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _log(args)
     if args.command == "replay":
         return _replay(args)
+    if args.command == "fleet":
+        return fleet.run(args, sys.stdout, sys.stderr)
     if args.command in control.COMMANDS:
         return control.run(args, sys.stdout, sys.stderr)
     if args.command == "demo":

@@ -31,6 +31,7 @@ from typing import Final
 
 from supervisord.compat import IntEnum
 from supervisord.errors import SrcsError
+from supervisord.journal_ids import MESSAGE_IDS_BY_KIND
 from supervisord.record.format import RecordKind, written_kind
 from supervisord.record.jsonl import RecordUsageError, cause_names
 
@@ -39,14 +40,7 @@ SYSLOG_IDENTIFIER: Final = "srcsd"
 
 
 MESSAGE_IDS: Final[Mapping[RecordKind, uuid.UUID]] = {
-    RecordKind.STATE_CHANGE: uuid.UUID("26c2f33dae3d4a6c8996fc9bc658ad32"),
-    RecordKind.CAUSE_RAISED: uuid.UUID("820501387c1a46049b855bcae8bc9ba2"),
-    RecordKind.CAUSE_CLEARED: uuid.UUID("fd9e4e6d79c643eb9a534d2f8228aa89"),
-    RecordKind.REARM_REFUSED: uuid.UUID("2be6051d1b7c43d0a0bfd08ad06caac8"),
-    RecordKind.COMMISSIONED: uuid.UUID("bdd0782d2f2b45a3bdc4e9984db1024d"),
-    RecordKind.PROOFTEST: uuid.UUID("af4347b3c6a741d6a06ce07e58cea85a"),
-    RecordKind.HELLO_REFUSED: uuid.UUID("31b39d5239c64c748a02ea76dd76a97f"),
-    RecordKind.STOPTEST: uuid.UUID("55afb9fa858e45458a44937c4062ca84"),
+    kind: MESSAGE_IDS_BY_KIND[kind.value] for kind in RecordKind
 }
 """Stable journal MESSAGE_IDs, one per record kind. Never change them: operators' queries and
 alerting depend on them (``docs/record.md`` lists them)."""
@@ -148,6 +142,10 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         fields.append(("SRCS_REASON", reason))
     fields += [("SRCS_CAUSE", name) for name in names]
     fields.append(("SRCS_CAUSES", _text(record.get("causes"))))
+    if isinstance(record.get("changes"), list):
+        # What the record raised, cleared or released: a collector's `srcsctl fleet --cause`
+        # and its lines say it as `srcsctl log` does, without the record before (SR-13.4).
+        fields.append(("SRCS_CHANGES", _text(record.get("changes"))))
     return fields
 
 

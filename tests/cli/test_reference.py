@@ -147,12 +147,14 @@ def test_every_option_of_every_parser_is_in_its_man_page(man_dir: Path, command:
 
 
 def test_an_option_the_page_lacks_is_found() -> None:
-    """The check above can fail: a page without one option of ``srcsctl log`` is caught."""
+    """The check above can fail: a page without ``--lines`` (of ``srcsctl log`` and ``srcsctl
+    fleet``) is caught for each command."""
     command = BY_NAME["srcsctl"]
     page = reference.man_page(command)
     assert "\\fB\\-\\-lines\\fR" in page
     assert missing_from_page(command, page.replace("\\fB\\-\\-lines\\fR", "")) == [
-        "srcsctl log --lines"
+        "srcsctl log --lines",
+        "srcsctl fleet --lines",
     ]
 
 

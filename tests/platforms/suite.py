@@ -68,8 +68,10 @@ FAULTS = {
 """The fault suite's files, by the root that runs them (about 140 s each, measured)."""
 DEBIAN = (
     # ./dev's list (need_debian_packages): venv, the fault suite's socat, faketime and ip,
-    # man and bash-completion for the generated pages, prometheus for the exporter's scrape.
+    # man and bash-completion for the generated pages, prometheus for the exporter's scrape,
+    # systemd-journal-remote for srcsctl fleet's collector.
     "python3-venv socat faketime iproute2 man-db bash-completion prometheus "
+    "systemd-journal-remote "
     # On the host these come with Debian 12's standard system: journald and systemd-analyze
     # (tests/journald.py, the unit checks), mkfs.ext4 and fsfreeze (the record on a frozen
     # disk), setpriv and unshare (the odd-user and hung-userdb scenarios), ps and kill.

@@ -1,0 +1,493 @@
+"""``srcsctl fleet``: on a fleet's collector, which robots stopped and why (SR-13.4).
+
+The collector's journal (systemd-journal-remote's directory, ``/var/log/journal/remote``) is
+read with journalctl, selected by the record kinds' MESSAGE_IDs and the robot's
+``_HOSTNAME`` (:mod:`fleet_journal`), and each entry is printed as ``srcsctl log`` prints a
+record (:mod:`record_print`), after the robot's name. ``log``'s habits: ``--since`` and
+``--until`` in the same forms, ``--cause``, ``-o``, ``-n``, ``-r``, ``-f``, ``-q``, the exit
+statuses. ``--summary``: one line per robot instead.
+
+Order: journalctl's, which keeps each robot's records in the order its journal wrote them
+(the order of its ``seq``) and interleaves robots by their own clocks; nothing here sorts by a
+wall clock (SR-13.5). Nothing here imports the safety core (SR-13.6): ``--cause``'s names
+are checked against it only when given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import errno
+import json
+import os
+import select
+import subprocess
+import sys
+from collections.abc import Iterable, Iterator, Mapping
+from pathlib import Path
+from typing import IO, Any, Final
+
+from supervisord.cli.access import advice
+from supervisord.cli.fleet_journal import (
+    DEFAULT_DIRECTORY,
+    Entry,
+    NoJournalctl,
+    command,
+    entry,
+    robot_name,
+)
+from supervisord.cli.interrupt import interruptible
+from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS
+from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
+from supervisord.cli.record_text import changes
+from supervisord.cli.times import BadTime, parse_time, show_time
+
+EXIT_FAILED: Final = 1
+EXIT_BAD_INPUT: Final = 2
+STOPPED: Final = "STOPPED"
+
+
+def _robot(text: str) -> str:
+    try:
+        return robot_name(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _cause(text: str) -> str:
+    """``log``'s cause names; the safety core's vocabulary is loaded only when one is given."""
+    from supervisord.cli.cause_names import cause_name  # noqa: PLC0415
+
+    return cause_name(text)
+
+
+def _count(text: str) -> int:
+    from supervisord.cli.numbers import count  # noqa: PLC0415
+
+    return count(text)
+
+
+def add_arguments(fleet: argparse.ArgumentParser) -> None:
+    """``srcsctl fleet``'s options (docs/srcsctl.md "fleet")."""
+    where = fleet.add_mutually_exclusive_group()
+    where.add_argument(
+        "-D",
+        "--directory",
+        metavar="DIR",
+        help=f"the collector's journal directory (default: {DEFAULT_DIRECTORY})",
+    )
+    where.add_argument(
+        "--file",
+        metavar="PATH",
+        action="append",
+        help="a journal file instead (a robot's copied file); may be given again",
+    )
+    fleet.add_argument(
+        "--robot", dest="host", metavar="NAME", type=_robot, help="only this robot (its host name)"
+    )
+    fleet.add_argument("-S", "--since", metavar="TIME", help="records at or after TIME")
+    fleet.add_argument("-U", "--until", metavar="TIME", help="records before TIME")
+    fleet.add_argument(
+        "--cause",
+        metavar="NAME",
+        type=_cause,
+        help="records that raised, updated, cleared or released this cause",
+    )
+    fleet.add_argument(
+        "--cause-present",
+        metavar="NAME",
+        type=_cause,
+        help="records made while this cause was present, active or latched",
+    )
+    fleet.add_argument(
+        "--summary",
+        action="store_true",
+        help="one line per robot: its stops, the last one's time and causes",
+    )
+    fleet.add_argument("--json", action="store_true", help="the records as JSON lines")
+    fleet.add_argument("-o", "--output", choices=OUTPUTS, help="as for log")
+    fleet.add_argument(
+        "-n",
+        "--lines",
+        type=_count,
+        nargs="?",
+        const=FOLLOW_LAST,
+        metavar="N",
+        help=f"only the last N records (alone: {FOLLOW_LAST})",
+    )
+    fleet.add_argument(
+        "-f",
+        "--follow",
+        action="store_true",
+        help=f"the last {FOLLOW_LAST} (or -n N), then each new record as the collector gets it",
+    )
+    fleet.add_argument("-r", "--reverse", action="store_true", help="newest first")
+    fleet.add_argument(
+        "--causes", action="store_true", help="also every cause of each record, and its trigger"
+    )
+    fleet.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
+    fleet.add_argument(
+        "-q", "--quiet", action="store_true", help="no '-- No entries --' when nothing matched"
+    )
+    fleet.add_argument(
+        "--no-pager", action="store_true", help="accepted and ignored: there is no pager"
+    )
+
+
+def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
+    """``srcsctl fleet`` with the options :func:`add_arguments` parsed."""
+    output = "json" if args.json and not args.output else args.output or "short"
+    return run_fleet(
+        out,
+        errors,
+        directory=Path(args.directory) if args.directory else None,
+        files=[Path(f) for f in args.file or []],
+        robot=args.host,
+        since=args.since,
+        until=args.until,
+        cause=args.cause,
+        cause_present=args.cause_present,
+        output=output,
+        utc=args.utc,
+        last=args.lines,
+        follow=args.follow,
+        reverse=args.reverse,
+        causes=args.causes,
+        quiet=args.quiet,
+        summary=args.summary,
+    )
+
+
+def run_fleet(
+    out: IO[str],
+    errors: IO[str],
+    *,
+    directory: Path | None = None,
+    files: list[Path] | None = None,
+    robot: str | None = None,
+    since: str | None = None,
+    until: str | None = None,
+    cause: str | None = None,
+    cause_present: str | None = None,
+    output: str = "short",
+    utc: bool = False,
+    last: int | None = None,
+    follow: bool = False,
+    reverse: bool = False,
+    causes: bool = False,
+    quiet: bool = False,
+    summary: bool = False,
+) -> int:
+    """Print the collector's records (see the module's doc). Exit 0 done, 1 the journal could
+    not be read (why printed), 2 a usage error."""
+    now = dt.datetime.now(dt.timezone.utc)
+    try:
+        start = parse_time(since, now, utc=utc) if since else None
+        end = parse_time(until, now, utc=utc) if until else None
+    except BadTime as error:
+        return _say(errors, str(error), EXIT_BAD_INPUT)
+    if follow and (reverse or summary):
+        which = "-r" if reverse else "--summary"
+        return _say(errors, f"{which} and -f do not go together", EXIT_BAD_INPUT)
+    source, status = _source(directory, files or [], errors)
+    if status:
+        return status
+    try:
+        scan = command(source, robot=robot, since=start, until=end)
+        tail = command(source, robot=robot, since=start, until=end, follow=True)
+    except NoJournalctl as error:
+        return _say(errors, str(error), EXIT_FAILED)
+    if follow and last is None and start is None and end is None:
+        last = FOLLOW_LAST
+    wanted = _Filter(cause, cause_present, start, end)
+    try:
+        entries = _scan(scan, errors)
+    except _JournalctlFailed as error:
+        return _say(errors, str(error), EXIT_FAILED)
+    chosen = wanted.select(entries)
+    shown = [] if last == 0 else chosen[-last:] if last is not None else chosen
+    printer = RecordPrinter(out, output=output, utc=utc, causes=causes)
+    printer.before.update(wanted.first_before(shown))  # what each robot's first line changed
+    if summary:
+        _summarize(shown, wanted, out, json_lines=output in JSON_OUTPUTS, utc=utc)
+    else:
+        _show(printer, shown, reverse=reverse)
+    if not follow:
+        if not shown and not quiet and output not in JSON_OUTPUTS:
+            print(NO_ENTRIES, file=out)
+        return 0
+    seen = {e.cursor for e in entries}
+    return _follow(tail, seen=seen, wanted=wanted, printer=printer, errors=errors, source=source)
+
+
+class _JournalctlFailed(Exception):
+    pass
+
+
+def _say(errors: IO[str], text: str, status: int) -> int:
+    print(f"srcsctl fleet: {text}", file=errors)
+    return status
+
+
+def _source(directory: Path | None, files: list[Path], errors: IO[str]) -> tuple[list[str], int]:
+    """journalctl's source options, or a status after saying why there is none."""
+    if files:
+        for path in files:
+            if not path.is_file():
+                what = "no such file" if not path.exists() else "not a file"
+                return [], _say(errors, f"{path}: {what}", EXIT_BAD_INPUT)
+            if not os.access(path, os.R_OK):
+                refused = f"{path}: permission denied{advice(path, errno.EACCES)}"
+                return [], _say(errors, refused, EXIT_FAILED)
+        return [f"--file={path}" for path in files], 0
+    folder = directory or DEFAULT_DIRECTORY
+    if not folder.exists():
+        missing = f"{folder}: no such directory (is this the collector?)"
+        return [], _say(errors, missing, EXIT_BAD_INPUT)
+    if not folder.is_dir():
+        return [], _say(errors, f"{folder}: not a directory", EXIT_BAD_INPUT)
+    try:
+        os.listdir(folder)
+    except OSError as error:  # never an empty answer with exit 0 (SR-7.9)
+        why = error.strerror or str(error)
+        return [], _say(errors, f"{folder}: {why}{advice(folder, error.errno)}", EXIT_FAILED)
+    return [f"--directory={folder}"], 0
+
+
+def _entries(lines: Iterable[str], errors: IO[str]) -> Iterator[Entry]:
+    for line in lines:
+        found = entry(line)
+        if isinstance(found, str):
+            print(f"srcsctl fleet: {found}", file=errors)
+        else:
+            yield found
+
+
+def _scan(line: list[str], errors: IO[str]) -> list[Entry]:
+    """Every entry journalctl gives now, in its order."""
+    try:
+        done = subprocess.run(line, capture_output=True, text=True, check=False)  # noqa: S603
+    except OSError as error:
+        raise _JournalctlFailed(f"{line[0]}: {error.strerror or error}") from None
+    if done.returncode != 0:
+        said = done.stderr.strip().splitlines()
+        raise _JournalctlFailed(f"journalctl: {said[-1] if said else f'exit {done.returncode}'}")
+    return list(_entries(done.stdout.splitlines(), errors))
+
+
+WAKE_S: Final = 1.0
+"""How often ``-f`` looks for a new file in the collector's directory while journalctl is
+quiet."""
+
+
+def _journal_files(source: list[str]) -> frozenset[str]:
+    """The journal files of a ``--directory`` source now (none to watch for ``--file``)."""
+    folder = next((s.partition("=")[2] for s in source if s.startswith("--directory=")), None)
+    if folder is None:
+        return frozenset()
+    try:
+        return frozenset(n for n in os.listdir(folder) if n.endswith((".journal", ".journal~")))
+    except OSError:
+        return frozenset()
+
+
+def _follow(
+    line: list[str],
+    *,
+    seen: set[str],
+    wanted: _Filter,
+    printer: RecordPrinter,
+    errors: IO[str],
+    source: list[str],
+) -> int:
+    """Each record the collector takes in from now on, until Ctrl-C or SIGTERM (exit 0).
+    journalctl follows every entry of the window from each file's start (``--lines=all``);
+    those already shown are known by their cursors. A file that appears later (a robot's
+    first upload, a file the receiver started anew) is placed by journalctl by time among the
+    others, and an entry stamped before the newest one shown would be passed by (a robot
+    whose clock is behind, or that uploads after an outage): journalctl is started again
+    over every file when one appears (SR-13.5)."""
+    interruptible()
+    try:
+        while True:
+            files = _journal_files(source)
+            try:
+                tail = subprocess.Popen(  # noqa: S603
+                    line, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+                )
+            except OSError as error:
+                return _say(errors, f"{line[0]}: {error.strerror or error}", EXIT_FAILED)
+            try:
+                ended = _read_tail(
+                    tail,
+                    files=files,
+                    seen=seen,
+                    wanted=wanted,
+                    printer=printer,
+                    errors=errors,
+                    source=source,
+                )
+            finally:
+                tail.terminate()
+                tail.wait()
+            if ended:
+                said = tail.stderr.read().decode(errors="replace") if tail.stderr else ""
+                lines = said.strip().splitlines()
+                return _say(errors, f"journalctl: {lines[-1] if lines else 'ended'}", 1)
+    except KeyboardInterrupt:
+        return 0
+
+
+def _read_tail(
+    tail: subprocess.Popen[bytes],
+    *,
+    files: frozenset[str],
+    seen: set[str],
+    wanted: _Filter,
+    printer: RecordPrinter,
+    errors: IO[str],
+    source: list[str],
+) -> bool:
+    """Show the new records journalctl prints; ``False`` when a new file appeared (start
+    again), ``True`` when journalctl ended."""
+    assert tail.stdout is not None
+    fd, pending = tail.stdout.fileno(), b""
+    while True:
+        ready, _, _ = select.select([fd], [], [], WAKE_S)
+        if not ready:
+            if _journal_files(source) - files:
+                return False
+            continue
+        chunk = os.read(fd, 1 << 20)
+        if not chunk:
+            return True
+        *complete, pending = (pending + chunk).split(b"\n")
+        text = [raw.decode(errors="replace") for raw in complete]
+        fresh = [e for e in _entries(text, errors) if e.cursor not in seen]
+        seen.update(e.cursor for e in fresh)
+        _show(printer, wanted.select(fresh))
+
+
+def _show(printer: RecordPrinter, shown: list[Entry], *, reverse: bool = False) -> None:
+    width = max((len(e.robot) for e in shown), default=0)
+    sources = [e.robot for e in shown]
+    printer.show([e.data for e in shown], reverse=reverse, sources=sources, width=width)
+
+
+def _under(name: str, cause: str) -> bool:
+    """``client_lost`` names ``client_lost`` and ``client_lost:autonomy``, as in ``log``."""
+    return name == cause or name.startswith(cause + ":")
+
+
+class _Filter:
+    """``--cause`` and ``--cause-present``, as ``log`` judges them; each robot's records are
+    compared with the one before of the same robot (:attr:`last`) when they carry no
+    ``changes`` (written before SRCS_CHANGES)."""
+
+    def __init__(
+        self,
+        cause: str | None,
+        present: str | None,
+        start: dt.datetime | None = None,
+        end: dt.datetime | None = None,
+    ) -> None:
+        self.cause, self.present, self.start, self.end = cause, present, start, end
+        self.last: dict[str, Mapping[str, Any]] = {}
+        self.before: dict[str, Mapping[str, Any] | None] = {}  # by cursor
+
+    def select(self, entries: list[Entry]) -> list[Entry]:
+        chosen = []
+        for item in entries:
+            previous = self.last.get(item.robot)
+            self.last[item.robot] = item.data
+            self.before[item.cursor] = previous
+            if item.within(self.start, self.end) and self._wanted(item.data, previous):
+                chosen.append(item)
+        return chosen
+
+    def first_before(self, shown: list[Entry]) -> dict[str | None, Mapping[str, Any] | None]:
+        """For each robot, the record before its first one shown."""
+        firsts: dict[str | None, Mapping[str, Any] | None] = {}
+        for item in shown:
+            if item.robot not in firsts:
+                firsts[item.robot] = self.before.get(item.cursor)
+        return firsts
+
+    def _wanted(self, data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> bool:
+        if self.present is not None and not any(
+            _under(str(c.get("name")), self.present)
+            for c in data.get("causes", [])
+            if isinstance(c, Mapping)
+        ):
+            return False
+        if self.cause is None:
+            return True
+        return any(_under(name, self.cause) for _, name in changes(data, previous))
+
+
+def stop_causes(data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> list[str] | None:
+    """Why a record is a stop: the stop causes it raised while the robot is STOPPED (a change
+    into STOPPED, or a new stop while stopped), or the stop causes active at a change into
+    STOPPED; ``None`` when it is no stop."""
+    if str(data.get("to")).upper() != STOPPED:
+        return None
+    severity = {
+        str(c.get("name")): c.get("severity")
+        for c in data.get("causes", [])
+        if isinstance(c, Mapping)
+    }
+    raised = [n for change, n in changes(data, previous) if change == "raised"]
+    raised = [n for n in raised if severity.get(n) == "stop"]
+    if raised:
+        return raised
+    if str(data.get("from")).upper() == STOPPED:
+        return None
+    return [
+        str(c.get("name"))
+        for c in data.get("causes", [])
+        if isinstance(c, Mapping) and c.get("active") and c.get("severity") == "stop"
+    ]
+
+
+def _summarize(
+    shown: list[Entry], wanted: _Filter, out: IO[str], *, json_lines: bool, utc: bool
+) -> None:
+    """One line per robot, by name: its records, its stops, the last stop's time and causes."""
+    robots: dict[str, dict[str, Any]] = {}
+    for item in shown:
+        about = robots.setdefault(item.robot, {"records": 0, "stops": 0, "last_stop": None})
+        about["records"] += 1
+        why = stop_causes(item.data, wanted.before.get(item.cursor))
+        if why is not None:
+            about["stops"] += 1
+            about["last_stop"] = {
+                "seq": item.data.get("seq"),
+                "utc": item.data.get("utc"),
+                "causes": why,
+            }
+    width = max((len(name) for name in robots), default=0)
+    for name in sorted(robots):
+        about = robots[name]
+        if json_lines:
+            out.write(json.dumps({"robot": name, **about}) + "\n")
+            continue
+        stops = f"{about['stops']} stop{'' if about['stops'] == 1 else 's'}"
+        line = f"{name:{width}}  {stops}, {about['records']} records"
+        last = about["last_stop"]
+        if last is not None:
+            when = show_time(last["utc"], utc=utc)
+            line += f"; last {when} #{last['seq']} {', '.join(last['causes']) or 'none'}"
+        out.write(line + "\n")
+    out.flush()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``srcsctl fleet`` alone: the command as ``srcsctl`` runs it, for a collector's own
+    scripts and for the check that it loads no module of the safety core (SR-13.6)."""
+    parser = argparse.ArgumentParser(prog="srcsctl fleet", description=__doc__)
+    add_arguments(parser)
+    return run(parser.parse_args(argv), sys.stdout, sys.stderr)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

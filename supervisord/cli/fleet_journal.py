@@ -1,0 +1,172 @@
+"""``srcsctl fleet``'s reading of a collector's journal: journalctl itself, never a parser of
+journal files of our own (docs/fleet.md "srcsctl fleet"), and each entry back as the record
+``srcsctl log`` prints (SR-13.4).
+
+An entry names its robot by ``_HOSTNAME``, which journald adds on the robot and
+systemd-journal-remote keeps; its time is the robot's own (``__REALTIME_TIMESTAMP`` as
+forwarded: the collector adds no time of its own). The record is rebuilt from the ``SRCS_*``
+fields ``supervisord/record/journal.py`` writes; an entry without them is named and skipped.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import re
+import shutil
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+from supervisord.journal_ids import MESSAGE_IDS_BY_KIND
+
+DEFAULT_DIRECTORY: Final = Path("/var/log/journal/remote")
+"""Where systemd-journal-remote writes by default (``remote-HOST.journal``)."""
+ROBOT_NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}", re.ASCII)
+"""A host name as journald records it (at most 64 characters, HOST_NAME_MAX): letters,
+digits, ``.``, ``-`` and ``_``. Anything else is refused before it reaches journalctl, where
+``=`` or a lone ``+`` would change what the match means."""
+_TEXT_FIELDS: Final = (("kind", "SRCS_KIND"), ("from", "SRCS_FROM"), ("to", "SRCS_TO"))
+_JSON_FIELDS: Final = (("causes", "SRCS_CAUSES"), ("changes", "SRCS_CHANGES"))
+
+
+class NoJournalctl(Exception):
+    """journalctl is not installed here."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One record as a collector holds it: the robot that sent it, the journal's cursor (its
+    place in the collector's files) and the record rebuilt from its fields."""
+
+    robot: str
+    cursor: str
+    data: Mapping[str, Any]
+    stamp_us: int | None = None
+    """``__REALTIME_TIMESTAMP``: the robot's clock when its journald took the entry."""
+
+    def within(self, start: dt.datetime | None, end: dt.datetime | None) -> bool:
+        """Whether the robot's stamp is at or after ``start`` and before ``end``. journalctl's
+        ``--since`` only seeks: in a robot's file whose clock went back it goes on past
+        entries stamped before it, which ``log``'s rule leaves out (SR-13.5)."""
+        if self.stamp_us is None:
+            return start is None and end is None
+        when = dt.datetime.fromtimestamp(self.stamp_us / 1e6, dt.timezone.utc)
+        return (start is None or when >= start) and (end is None or when < end)
+
+
+def robot_name(text: str) -> str:
+    """``text`` if it can be a robot's host name (:data:`ROBOT_NAME`); else ``ValueError``
+    naming the rule."""
+    if not ROBOT_NAME.fullmatch(text):
+        raise ValueError(
+            f"{text[:80]!r} is not a robot's host name: letters, digits, '.', '-' and '_', "
+            "at most 64, starting with a letter or digit"
+        )
+    return text
+
+
+def journalctl() -> str:
+    """The journalctl to run. Raises :class:`NoJournalctl`."""
+    found = shutil.which("journalctl")
+    if found is None:
+        raise NoJournalctl("journalctl not found: it comes with systemd, on every collector")
+    return found
+
+
+def _stamp(when: dt.datetime) -> str:
+    """A time as journalctl reads it in any zone: ``@SECONDS.MICROSECONDS`` since the epoch."""
+    micros = round(when.timestamp() * 1_000_000)
+    return f"@{micros // 1_000_000}.{micros % 1_000_000:06d}"
+
+
+def command(
+    source: Sequence[str],
+    *,
+    robot: str | None = None,
+    since: dt.datetime | None = None,
+    until: dt.datetime | None = None,
+    follow: bool = False,
+) -> list[str]:
+    """The journalctl line: ``source`` (``--directory DIR`` or ``--file FILE``...), every
+    field in full (``--all``: journalctl writes a field over 4096 bytes as null without it),
+    the record kinds' MESSAGE_IDs (one match per kind: journalctl ORs a field's values) and
+    the robot's ``_HOSTNAME``; with ``follow``, every entry in the window and then each new one
+    (``--lines=all``, ``--follow``)."""
+    line = [journalctl(), *source, "--output=json", "--no-pager", "--all", "--quiet"]
+    if since is not None:
+        line.append(f"--since={_stamp(since)}")
+    if until is not None:
+        line.append(f"--until={_stamp(until)}")
+    if follow:
+        line += ["--follow", "--lines=all"]
+    line += [f"MESSAGE_ID={uid.hex}" for uid in MESSAGE_IDS_BY_KIND.values()]
+    if robot is not None:
+        line.append(f"_HOSTNAME={robot}")
+    return line
+
+
+def _one(entry: Mapping[str, Any], field: str) -> str | None:
+    """A field's text: journalctl writes a repeated field as a list (the last is taken), a
+    value that is not UTF-8 as a list of bytes (no text: ``None``)."""
+    value = entry.get(field)
+    if isinstance(value, list) and value and isinstance(value[-1], str):
+        return value[-1]
+    return value if isinstance(value, str) else None
+
+
+def _json(text: str | None) -> object:
+    try:
+        return json.loads(text) if text is not None else None
+    except (ValueError, RecursionError):  # RecursionError: nested thousands deep (SR-8.7)
+        return None
+
+
+def entry(line: str) -> Entry | str:
+    """One line of ``journalctl -o json`` as an :class:`Entry`, or why it is not a record."""
+    try:
+        fields = json.loads(line)
+    except (ValueError, RecursionError):
+        return "not a journal entry (journalctl's JSON)"
+    if not isinstance(fields, dict):
+        return "not a journal entry (journalctl's JSON)"
+    robot = _one(fields, "_HOSTNAME") or "?"
+    seq, mono = _one(fields, "SRCS_SEQ"), _one(fields, "SRCS_MONO_NS")
+    utc = _one(fields, "SRCS_UTC")
+    if seq is None or not seq.isdigit() or mono is None or not mono.isdigit() or utc is None:
+        return f"{printable(robot)}: an entry without SRCS_SEQ, SRCS_MONO_NS or SRCS_UTC"
+    causes = _json(_one(fields, "SRCS_CAUSES"))
+    if not isinstance(causes, list):
+        return f"{printable(robot)}: #{seq}: SRCS_CAUSES is not a list"
+    data: dict[str, Any] = {"seq": int(seq), "mono_ns": int(mono), "utc": utc}
+    for name, field in _TEXT_FIELDS:
+        data[name] = _one(fields, field) or ""
+    for name, field in _JSON_FIELDS:
+        value = _json(_one(fields, field))
+        if value is not None:
+            data[name] = value
+    trigger = _one(fields, "SRCS_TRIGGER") or ""
+    parsed = _json(trigger)
+    data["trigger"] = parsed if isinstance(parsed, dict) else trigger
+    reason = _one(fields, "SRCS_REASON")
+    if reason:
+        data["reason"] = reason
+    stamp = _one(fields, "__REALTIME_TIMESTAMP")
+    stamp_us = int(stamp) if stamp is not None and stamp.isdigit() else None
+    return Entry(printable(robot), str(fields.get("__CURSOR", "")), data, stamp_us)
+
+
+def printable(name: str) -> str:
+    """A name from an entry as it may be printed: a sender may put anything in ``_HOSTNAME``
+    (a control character would rewrite the operator's terminal), so anything but a host
+    name's characters is shown escaped."""
+    return name if ROBOT_NAME.fullmatch(name) else name.encode("unicode_escape").decode("ascii")
+
+
+def cause_names(data: Mapping[str, Any]) -> Iterable[str]:
+    """The names of a record's causes."""
+    causes = data.get("causes")
+    for cause in causes if isinstance(causes, list) else []:
+        if isinstance(cause, Mapping):
+            yield str(cause.get("name"))

@@ -1,0 +1,65 @@
+"""How ``srcsctl log`` and ``srcsctl fleet`` print records: ``-o``'s modes, one line per
+record (:func:`~supervisord.cli.record_text.record_line`) or one JSON object, each line saying
+what changed since the one before it. ``fleet`` puts the robot's name before each line and
+keeps "the one before" per robot (docs/srcsctl.md "fleet")."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import IO, Any, Final
+
+from supervisord.cli.record_text import record_line
+from supervisord.cli.times import show_time
+
+NO_ENTRIES: Final = "-- No entries --"
+"""What journalctl prints on stdout when nothing matched (not in a JSON mode, not following)."""
+JSON_OUTPUTS: Final = frozenset({"json", "json-pretty"})
+
+
+class RecordPrinter:
+    """Prints records as lines (or JSON), each line saying what changed since the one
+    before it of the same source (:attr:`previous`, for records that do not say it
+    themselves). A source is ``None`` for ``log`` (one record file) and the robot's name for
+    ``fleet``, written before the line (and as ``robot`` first in JSON)."""
+
+    def __init__(self, out: IO[str], *, output: str, utc: bool, causes: bool) -> None:
+        self.out, self.output, self.utc = out, output, utc
+        self.causes = causes or output == "verbose"
+        self.before: dict[str | None, Mapping[str, Any] | None] = {}
+
+    @property
+    def previous(self) -> Mapping[str, Any] | None:
+        """The record before the next one of ``log``'s single source."""
+        return self.before.get(None)
+
+    @previous.setter
+    def previous(self, data: Mapping[str, Any] | None) -> None:
+        self.before[None] = data
+
+    def show(
+        self,
+        records: list[Mapping[str, Any]],
+        *,
+        reverse: bool = False,
+        sources: list[str] | None = None,
+        width: int = 0,
+    ) -> None:
+        """Print ``records`` (each source's in its own order); ``sources``: each one's robot,
+        written in a column ``width`` wide."""
+        lines = []
+        for index, data in enumerate(records):
+            source = sources[index] if sources is not None else None
+            if self.output in JSON_OUTPUTS:
+                indent = 2 if self.output == "json-pretty" else None
+                shown = data if source is None else {"robot": source, **data}
+                lines.append(json.dumps(shown, indent=indent))
+                continue
+            when = "" if self.output == "cat" else show_time(data.get("utc"), utc=self.utc)
+            line = record_line(data, when, previous=self.before.get(source), causes=self.causes)
+            line = line.lstrip() if self.output == "cat" else line
+            lines.append(line if source is None else f"{source:{width}}  {line}")
+            self.before[source] = data
+        for line in reversed(lines) if reverse else lines:
+            self.out.write(line + "\n")
+        self.out.flush()  # a pipe sees each record as it comes (line by line, not at exit)

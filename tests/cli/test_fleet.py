@@ -1,0 +1,264 @@
+"""``srcsctl fleet`` on a collector made of real parts: real srcsd runs, each as a robot with a
+host name of its own beside a private journald (tests/journald.py), their entries exported in
+journal export format and written into one collector directory by the real
+systemd-journal-remote, read back by the real journalctl (SR-13.4 to SR-13.6)."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import shutil
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from supervisord.testkit.daemon import MINIMAL_CONFIG
+from tests.journald import clock_behind, collect, robot_export
+
+SRCSCTL = str(Path(sys.executable).with_name("srcsctl"))
+BEHIND_S = 3600
+"""robot-b's second run: its clock an hour behind the collector's."""
+FOLLOW_SEEN_S = 15.0
+"""How long ``-f`` may take to show an entry the collector wrote: journalctl wakes on the
+file's inotify event at once; the margin is the loaded two-core machine's start of a Python
+process and journalctl (seen at 1 to 3 s), five times over."""
+
+# One srcsd run: its start (seq 1 and 2: startup, the VSC port that cannot open), an e-stop
+# from srcsctl (local_estop), its SIGTERM (shutdown:SIGTERM). The socket's appearance is
+# awaited as every journald test here awaits its sockets.
+_RUN = """
+cd "$DIR"
+$CLOCK "$SRCSD" --config robot.toml 2>/dev/null &
+daemon=$!
+for _ in $(seq 400); do [ -S api.sock ] && break; sleep 0.05; done
+"$SRCSCTL" --socket api.sock estop >/dev/null
+kill -TERM "$daemon"
+wait "$daemon" || true
+"""
+ONE_RUN = 'start_journald ""\nCLOCK=""\n' + _RUN
+SET_BACK = ONE_RUN + 'stop_journald\nstart_journald "$BEHIND"\nCLOCK="$BEHIND"\n' + _RUN
+"""Two runs; before the second, journald and srcsd restart with the clock an hour back: the
+record's numbering goes on (5 to 8) while its times go back."""
+
+
+def _robot(name: str, body: str, base: Path) -> bytes:
+    folder = base / name
+    folder.mkdir()
+    (folder / "robot.toml").write_text(MINIMAL_CONFIG.replace("journal = false", "journal = true"))
+    bin_dir = Path(sys.executable).parent
+    env = {
+        "DIR": str(folder),
+        "SRCSD": str(bin_dir / "srcsd"),
+        "SRCSCTL": SRCSCTL,
+        "BEHIND": clock_behind(BEHIND_S),
+    }
+    return robot_export(name, body, env)
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
+    """robot-a (one run), robot-b (a run, then one with its clock an hour back) and robot-c
+    (one run, collected only by the follow test), made side by side."""
+    base = tmp_path_factory.mktemp("robots")
+    plan = {"robot-a": ONE_RUN, "robot-b": SET_BACK, "robot-c": ONE_RUN}
+    with ThreadPoolExecutor(len(plan)) as pool:
+        made = {name: pool.submit(_robot, name, body, base) for name, body in plan.items()}
+        return {name: future.result() for name, future in made.items()}
+
+
+@pytest.fixture
+def collector(exports: dict[str, bytes], tmp_path: Path) -> Path:
+    """A collector directory holding robot-a's and robot-b's entries."""
+    directory = tmp_path / "remote"
+    directory.mkdir()
+    for name in ("robot-a", "robot-b"):
+        collect(exports[name], directory / f"remote-{name}.journal")
+    return directory
+
+
+def fleet(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [SRCSCTL, "fleet", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        env={**os.environ, **(env or {})},
+    )
+
+
+def seqs(lines: list[str], robot: str) -> list[int]:
+    return [int(line.split()[2].lstrip("#")) for line in lines if line.split()[0] == robot]
+
+
+def test_every_robot_named_filtered_as_log_filters(collector: Path) -> None:
+    """SR-13.4: each line starts with the robot's host name and says what the record changed
+    as ``log`` does; --robot, --cause, -n, -o json and --summary select and answer per robot."""
+    every = fleet("-D", str(collector))
+    assert every.returncode == 0, every.stderr
+    lines = every.stdout.splitlines()
+    assert sorted(seqs(lines, "robot-a")) == [1, 2, 3, 4]
+    assert sorted(seqs(lines, "robot-b")) == list(range(1, 9))
+    assert len(lines) == 12
+    assert all("raised" in line or "updated" in line for line in lines)
+
+    only_a = fleet("-D", str(collector), "--robot", "robot-a").stdout.splitlines()
+    assert [line.split()[0] for line in only_a] == ["robot-a"] * 4
+
+    estops = fleet("-D", str(collector), "--cause", "local_estop").stdout.splitlines()
+    assert sorted((line.split()[0], line.split()[2]) for line in estops) == [
+        ("robot-a", "#3"),
+        ("robot-b", "#3"),
+        ("robot-b", "#7"),
+    ]
+    assert all("raised local_estop" in line for line in estops)
+
+    as_json = fleet("-D", str(collector), "-o", "json", "-n", "2", "--robot", "robot-b")
+    records = [json.loads(line) for line in as_json.stdout.splitlines()]
+    assert [(r["robot"], r["seq"], r["kind"]) for r in records] == [
+        ("robot-b", 7, "cause_raised"),
+        ("robot-b", 8, "cause_raised"),
+    ]
+    assert records[0]["changes"] == [{"name": "local_estop", "change": "raised"}]
+
+    summary = fleet("-D", str(collector), "--summary", "--cause", "local_estop").stdout
+    a_line, b_line = summary.splitlines()
+    assert a_line.startswith("robot-a  1 stop, 1 records; last ")
+    assert a_line.endswith(" #3 local_estop")
+    assert b_line.startswith("robot-b  2 stops, 2 records; last ")
+    assert b_line.endswith(" #7 local_estop")
+    nothing = fleet("-D", str(collector), "--robot", "robot-z")
+    assert (nothing.returncode, nothing.stdout) == (0, "-- No entries --\n")
+
+
+def test_each_robot_in_its_own_order_and_since_on_its_own_clock(collector: Path) -> None:
+    """SR-13.5: robot-b's records 5 to 8, stamped an hour before its 1 to 4 (its clock set
+    back), come after them, in its own order; --since compares with each robot's own stamp, so
+    "30 min ago" leaves out robot-b's hour-behind records."""
+    lines = fleet("-D", str(collector), "--utc").stdout.splitlines()
+    assert seqs(lines, "robot-b") == list(range(1, 9))
+    assert seqs(lines, "robot-a") == [1, 2, 3, 4]
+    stamps = [line.split()[1] for line in lines if line.startswith("robot-b")]
+    assert stamps[4] < stamps[3]  # the clock went back: the order is not the clock's
+    recent = fleet("-D", str(collector), "--since", "30 min ago").stdout.splitlines()
+    assert seqs(recent, "robot-b") == [1, 2, 3, 4]
+    assert seqs(recent, "robot-a") == [1, 2, 3, 4]
+
+
+class _Lines:
+    """The lines a following process prints, read from its pipe as they come (no buffered
+    reader in between, so that select sees what is not read yet)."""
+
+    def __init__(self, process: subprocess.Popen[bytes]) -> None:
+        assert process.stdout is not None
+        self.fd, self.pending = process.stdout.fileno(), b""
+
+    def take(self, count: int, within_s: float) -> list[str]:
+        deadline = time.monotonic() + within_s
+        while self.pending.count(b"\n") < count:
+            left = deadline - time.monotonic()
+            ready, _, _ = select.select([self.fd], [], [], max(0.0, left))
+            assert ready, f"srcsctl fleet -f showed nothing in time: {self.pending!r}"
+            chunk = os.read(self.fd, 65536)
+            assert chunk, f"srcsctl fleet -f ended: {self.pending!r}"
+            self.pending += chunk
+        *lines, self.pending = self.pending.split(b"\n", count)
+        return [line.decode() for line in lines]
+
+
+def test_follow_shows_a_robot_that_reports_after_it_started(
+    collector: Path, exports: dict[str, bytes]
+) -> None:
+    """SR-13.4: ``fleet -f`` prints the last records, then robot-c's records, which the
+    collector takes in after it started."""
+    follow = subprocess.Popen(
+        [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+    )
+    lines = _Lines(follow)
+    try:
+        first = lines.take(2, FOLLOW_SEEN_S)
+        assert [line.split()[0] for line in first] == ["robot-b", "robot-b"]
+        collect(exports["robot-c"], collector / "remote-robot-c.journal")
+        later = lines.take(4, FOLLOW_SEEN_S)
+        assert seqs(later, "robot-c") == [1, 2, 3, 4]
+    finally:
+        follow.terminate()
+        follow.wait(timeout=30)
+        assert follow.stdout is not None
+        follow.stdout.close()
+    assert follow.returncode == 0
+
+
+@pytest.mark.parametrize(
+    ("args", "status", "said"),
+    [
+        (["-D", "{tmp}/nowhere"], 2, "no such directory"),
+        (["-D", "{tmp}/plain"], 2, "not a directory"),
+        (["--file", "{tmp}/nowhere.journal"], 2, "no such file"),
+        (["--robot", "robot-a; rm"], 2, "is not a robot's host name"),
+        (["--robot", "_HOSTNAME=x"], 2, "is not a robot's host name"),
+        (["--since", "the day before"], 2, "not a time"),
+        (["--cause", "nosuch"], 2, "is not a cause"),
+        (["-f", "-r"], 2, "do not go together"),
+        (["-n", "-1"], 2, "not a whole number"),
+    ],
+)
+def test_bad_input_is_refused_in_words(
+    tmp_path: Path, args: list[str], status: int, said: str
+) -> None:
+    """SR-13.4: every bad input is a typed refusal with srcsctl's exit status, no traceback."""
+    (tmp_path / "plain").write_text("")
+    given = [a.format(tmp=tmp_path) for a in args]
+    if "-D" not in given and "--file" not in given:
+        given += ["-D", str(tmp_path)]
+    refused = fleet(*given)
+    assert refused.returncode == status, refused.stderr
+    assert said in refused.stderr
+    assert "Traceback" not in refused.stderr
+
+
+def test_without_journalctl_it_says_so(tmp_path: Path) -> None:
+    """SR-13.4: a machine without journalctl (not a collector) is told so, exit 1."""
+    bare = tmp_path / "bin"
+    bare.mkdir()
+    refused = fleet("-D", str(tmp_path), env={"PATH": str(bare)})
+    assert refused.returncode == 1
+    assert "journalctl not found" in refused.stderr
+    assert "Traceback" not in refused.stderr
+
+
+def test_fleet_loads_no_module_of_the_safety_core(collector: Path) -> None:
+    """SR-13.6: the fleet command, its lines, JSON and summary, loads no module of the safety
+    core (supervisord.safety), nor the record package that leans on it."""
+    script = (
+        "import sys\n"
+        "from supervisord.cli.fleet import main\n"
+        f"for args in (['-D', {str(collector)!r}], ['-D', {str(collector)!r}, '-o', 'json'],"
+        f" ['-D', {str(collector)!r}, '--summary', '--since=-1d', '--robot', 'robot-b']):\n"
+        "    assert main(args) == 0\n"
+        "loaded = sorted(m for m in sys.modules if m.startswith(('supervisord.safety',"
+        " 'supervisord.record')))\n"
+        "print('LOADED', loaded, file=sys.stderr)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert run.returncode == 0, run.stderr
+    assert "robot-b" in run.stdout
+    assert "LOADED []" in run.stderr, run.stderr
+
+
+def test_the_collector_tools_are_there() -> None:
+    """SR-13.4: the collector's own tools the command and its tests run are installed (./dev
+    installs systemd-journal-remote)."""
+    assert shutil.which("journalctl") is not None
+    assert Path("/lib/systemd/systemd-journal-remote").exists() or shutil.which(
+        "systemd-journal-remote"
+    )
