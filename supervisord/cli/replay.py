@@ -12,6 +12,10 @@ window whose start the bound cut); 3 when the record file does not hold the stop
 cannot be read (the replay is then compared with the window's own copy, and says so: nothing
 was checked against the record file); 5 when the window's copy of the stop record differs from
 the record file's (the fields are printed): the window was edited, or is another record's.
+
+``--mcap FILE`` and ``--plot FILE.svg`` write the window, its records and the replayed
+decisions as an MCAP file and as a picture (SR-7.15, SR-7.16; ``replay_export``); the exit
+status stays the replay's.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 from supervisord import __version__
+from supervisord.cli import replay_export as export
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.record.flight import LoadedWindow, read_window, record_of, window_path, windows
@@ -279,8 +284,14 @@ def run_replay(
     errors: IO[str],
     *,
     show_all: bool = False,
+    mcap: Path | None = None,
+    plot: Path | None = None,
 ) -> int:
-    """``srcsctl replay``: see the module docstring."""
+    """``srcsctl replay``: see the module docstring. ``mcap`` and ``plot`` name the files the
+    window is exported to (SR-7.15, SR-7.16), written whatever the replay's verdict."""
+    if mcap is not None and not export.mcap_available():
+        print(f"srcsctl replay: --mcap: {export.MCAP_MISSING}", file=errors)
+        return EXIT_BAD_INPUT
     try:
         path = find_window(which, record)
         window = read_window(path)
@@ -310,6 +321,12 @@ def run_replay(
     printer.flush()
     if result.mismatch is not None:
         _mismatch(result.mismatch, result, printer, out)
+    if mcap is not None or plot is not None:
+        try:
+            export.write_exports(window, result, out, mcap=mcap, plot=plot)
+        except OSError as error:
+            print(f"srcsctl replay: cannot write {error.filename}: {error.strerror}", file=errors)
+            return EXIT_BAD_INPUT
     if contradicted:
         out.write(
             f"the window is not the record's: its copy of stop record #{window.seq} says "

@@ -175,6 +175,17 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument(
         "--all", action="store_true", help="a line for every input, not only those that decide"
     )
+    replay.add_argument(
+        "--mcap",
+        metavar="OUT",
+        help="also write the window and the replayed decisions as an MCAP file, one JSON "
+        "channel per signal, for Foxglove (needs the mcap package: srcs-supervisord[export])",
+    )
+    replay.add_argument(
+        "--plot",
+        metavar="OUT.svg",
+        help="also draw the window on one time axis as a self-contained SVG picture",
+    )
 
     control.add_arguments(commands)
 
@@ -317,7 +328,15 @@ def _replay(args: argparse.Namespace) -> int:
             return 2
     from supervisord.cli.replay import run_replay  # noqa: PLC0415
 
-    return run_replay(args.window, record, sys.stdout, sys.stderr, show_all=args.all)
+    return run_replay(
+        args.window,
+        record,
+        sys.stdout,
+        sys.stderr,
+        show_all=args.all,
+        mcap=Path(args.mcap) if args.mcap else None,
+        plot=Path(args.plot) if args.plot else None,
+    )
 
 
 def _log(args: argparse.Namespace) -> int:
