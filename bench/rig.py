@@ -30,7 +30,6 @@ import os
 import platform
 import random
 import select
-import selectors
 import signal
 import socket
 import struct
@@ -148,23 +147,22 @@ class TurnStats:
     serves at most ``requests_per_turn`` client requests (docs/api.md "Limits"): its CPU time
     is the loop's own cost; wall time beyond it is time the machine did not give the loop.
 
-    Bench instrumentation only: it wraps the loop's selector of this one process."""
+    Bench instrumentation only: it wraps the loop's wait of this one process."""
 
     def __init__(self, supervisor: Supervisor) -> None:
         self.turns = 0
         self.max_wall_ns = self.max_cpu_ns = self.busy_ns = 0
         self._first_ns: int | None = None
         self._woke: tuple[int, int] | None = None
-        selector = supervisor._selector  # measured from outside: the loop has no hook
-        wait = selector.select
+        wait = supervisor._wait  # the loop's epoll wait, measured from outside: no hook
 
-        def select(timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
+        def select(timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
             self._turn_ends()
-            ready = wait(timeout)
+            ready = wait(timeout, maxevents)
             self._woke = (time.monotonic_ns(), time.thread_time_ns())
             return ready
 
-        selector.select = select  # type: ignore[method-assign]
+        supervisor._wait = select
 
     def _turn_ends(self) -> None:
         now = time.monotonic_ns()

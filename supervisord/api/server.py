@@ -401,6 +401,8 @@ class ApiServer:
     def next_deadline(self) -> int | None:
         """When :meth:`due` has work: an idle e-stop slot to close (checked in
         :meth:`descriptors`) or a name waited for long enough, if any."""
+        if not self._connections:
+            return None  # asked twice a turn (SR-9.4)
         idle = self.config.slot_idle_ms * NS_PER_MS
         ends = [
             end
@@ -576,7 +578,8 @@ class ApiServer:
 
     def subscribed(self, topic: Topic) -> bool:
         """Whether any connection wants ``topic`` (so a push is worth building)."""
-        return any(topic in c.topics for c in self._connections.values())
+        connections = self._connections  # none is the usual case, asked per input (SR-9.4)
+        return bool(connections) and any(topic in c.topics for c in connections.values())
 
     def clients(self) -> tuple[ClientInfo, ...]:
         """The open connections, oldest first."""

@@ -303,16 +303,19 @@ class ApiListener(Listener):
             self.server.broadcast(Topic.RECORDS, record_push(entry))
 
     def received(self, message: Message | HidInput, now: int) -> None:
-        if isinstance(message, HidInput):
+        # By type, not isinstance: the message classes are final, and this runs per input;
+        # a push is built only when someone subscribed to its topic (SR-9.4).
+        kind = type(message)
+        if kind is VscHeartbeat:
+            self._heartbeat = message  # type: ignore[assignment]
+        elif kind is HidInput:
             return
-        if isinstance(message, VscHeartbeat):
-            self._heartbeat = message
-        elif isinstance(message, RemoteStatus):
+        elif kind is RemoteStatus:
             # Its values stay as the VSC last sent them (PR-2.10): the age says how old.
-            self._remote = (message, now)
+            self._remote = (message, now)  # type: ignore[assignment]
         if self._commissioning is not None:
-            self._commissioning[0].received(message)
-        topic = message_topic(message)
+            self._commissioning[0].received(message)  # type: ignore[arg-type]
+        topic = message_topic(message)  # type: ignore[arg-type]
         if topic is not None and self.server.subscribed(topic):
             self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]
 

@@ -25,7 +25,6 @@ import datetime as dt
 import logging
 import os
 import select
-import selectors
 import socket
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -75,7 +74,7 @@ MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at mos
 ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
-_REJECTIONS = (Rejection, CanRejection, HidRejection)
+_REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
 
 
 @dataclass
@@ -235,8 +234,15 @@ class Supervisor:
         self._status_state: State | None = None
         self._next_watchdog: int | None = None
         self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
-        self._selector = selectors.DefaultSelector()
-        self._watched: dict[int, int] = {}
+        # The loop's wait: epoll itself, not the ``selectors`` wrapper, which builds a key per
+        # ready descriptor on every turn (SR-9.4). ``_tags`` says what each watched fd is.
+        self._epoll = select.epoll()
+        self._wait = self._epoll.poll
+        self._tags: dict[int, str] = {}  # fd -> "wake", "sink" or "io" (the link, clients)
+        self._watched: dict[int, int] = {}  # the "io" fds and their epoll events
+        self._watched_api: list[tuple[int, bool]] | None = None  # the listener's, last turn
+        self._watched_link: int | None = None
+        self._watchdog_interval: int | None = None  # the notifier's, read once at start
         self._wake_r, self._wake_w = socket.socketpair()
         self.sink: Sink | None = None
         self._client_cursor = -1  # the last client descriptor served: the next turn starts after
@@ -333,9 +339,10 @@ class Supervisor:
             self._apply(self._feed(event))
         self._try_open_link(now)
         self._wake_r.setblocking(False)
-        self._selector.register(self._wake_r.fileno(), selectors.EVENT_READ, "wake")
-        self._selector.register(self.sink.fileno(), selectors.EVENT_READ, "sink")
-        interval = self.notifier.watchdog_interval_ns
+        for fd, tag in ((self._wake_r.fileno(), "wake"), (self.sink.fileno(), "sink")):
+            self._epoll.register(fd, select.EPOLLIN)
+            self._tags[fd] = tag
+        interval = self._watchdog_interval = self.notifier.watchdog_interval_ns
         self._next_watchdog = now if interval else None
         assert self.decision is not None
         self.notifier.send(READY="1", STATUS=self._status_text(self.decision))
@@ -380,7 +387,7 @@ class Supervisor:
         elif self.writer is not None:
             self.writer.close()
         self.listener.close()
-        self._selector.close()
+        self._epoll.close()
         self._wake_r.close()
         self._wake_w.close()
         self.notifier.close()
@@ -437,29 +444,36 @@ class Supervisor:
             self._rebase_flight(before)  # before the wait: never between an input and its outputs
         timeout = max(0.0, (self._next_deadline() - before) / 1e9)
         self._sync_watches(before)
-        ready = self._selector.select(timeout)
+        ready = self._wait(timeout)
         now = self.clock()
         try:
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
-            link_fd = self.link.fileno() if self.link.is_open else None
-            clients: list[tuple[selectors.SelectorKey, int]] = []
-            sink_ready = False
-            for key, mask in ready:
-                if key.fd == link_fd:
+            link = self.link
+            link_fd = self._watched_link  # the link's fd as watched for this wait (or None)
+            clients: list[tuple[int, int]] = []
+            sink_ready = received = False
+            for fd, mask in ready:
+                if fd == link_fd:
                     self._receive()
-                elif key.data == "wake":
+                    received = True
+                    continue
+                tag = self._tags.get(fd)
+                if tag == "wake":
                     with contextlib.suppress(BlockingIOError):
                         self._wake_r.recv(64)
-                elif key.data == "sink":
+                elif tag == "sink":
                     sink_ready = True  # taken below, after the timers
-                else:
-                    clients.append((key, mask))
-            if link_fd is None and self.link.is_open:
+                elif fd in self._watched:
+                    clients.append((fd, mask))
+            if link_fd is None and link.is_open and link.fileno() is None:
                 self._receive()  # a link without a descriptor is polled
-            self._due(self.clock())
+                received = True
+            # The timers at the time the wait returned, or after the read when there was one
+            # (its work took time): one clock read fewer on a timer's turn (SR-9.4).
+            self._due(self.clock() if received else now)
             if sink_ready:
                 # Only when the sink said so (its socket is readable once a record is
                 # finished): not a system call per turn (SR-9.4).
@@ -470,7 +484,7 @@ class Supervisor:
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
-    def _serve_clients(self, ready: list[tuple[selectors.SelectorKey, int]]) -> None:
+    def _serve_clients(self, ready: list[tuple[int, int]]) -> None:
         """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, starting after the one
         served last (so every client gets its turn), and stop early when the link has bytes
         waiting or a core deadline has come: those go first (docs/safety.md). The listener's
@@ -478,34 +492,42 @@ class Supervisor:
         if not ready:
             return
         urgent = self.listener.urgent()
-        first = [item for item in ready if item[0].fd in urgent]
-        ready = sorted((item for item in ready if item[0].fd not in urgent), key=lambda i: i[0].fd)
-        later = [item for item in ready if item[0].fd > self._client_cursor]
-        ordered = later + [item for item in ready if item[0].fd <= self._client_cursor]
-        for key, mask in first:
+        first = [item for item in ready if item[0] in urgent]
+        ready = sorted(item for item in ready if item[0] not in urgent)
+        later = [item for item in ready if item[0] > self._client_cursor]
+        ordered = later + [item for item in ready if item[0] <= self._client_cursor]
+        for fd, mask in first:
+            readable, writable = self._readiness(fd, mask)
             self.listener.handle(
-                key.fd,
-                bool(mask & selectors.EVENT_READ),
-                bool(mask & selectors.EVENT_WRITE),
-                self.clock(),
-                self._feed_and_apply,
-                snapshot=self._snapshot,
-            )
-        for served, (key, mask) in enumerate(ordered):
-            if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
-                return  # the rest stay ready: the next turn serves them
-            self._client_cursor = key.fd
-            readable = bool(mask & selectors.EVENT_READ)
-            writable = bool(mask & selectors.EVENT_WRITE)
-            # The clock read right before the read: the time this client input was read (SR-2).
-            self.listener.handle(
-                key.fd,
+                fd,
                 readable,
                 writable,
                 self.clock(),
                 self._feed_and_apply,
                 snapshot=self._snapshot,
             )
+        for served, (fd, mask) in enumerate(ordered):
+            if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
+                return  # the rest stay ready: the next turn serves them
+            self._client_cursor = fd
+            readable, writable = self._readiness(fd, mask)
+            # The clock read right before the read: the time this client input was read (SR-2).
+            self.listener.handle(
+                fd,
+                readable,
+                writable,
+                self.clock(),
+                self._feed_and_apply,
+                snapshot=self._snapshot,
+            )
+
+    def _readiness(self, fd: int, mask: int) -> tuple[bool, bool]:
+        """Readable and writable, as ``selectors`` reads an epoll mask: an error or a hang-up
+        counts as both, each only where it is watched."""
+        watched = self._watched.get(fd, 0)
+        readable = bool(mask & ~select.EPOLLOUT and watched & select.EPOLLIN)
+        writable = bool(mask & ~select.EPOLLIN and watched & select.EPOLLOUT)
+        return readable, writable
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -536,23 +558,26 @@ class Supervisor:
         return deadline
 
     def _sync_watches(self, now: int) -> None:
-        wanted: dict[int, int] = {}
         fd = self.link.fileno() if self.link.is_open else None
+        api = self.listener.descriptors(now)
+        if fd == self._watched_link and api == self._watched_api:
+            return  # the usual turn: the same list as the last, nothing to register (SR-9.4)
+        wanted: dict[int, int] = {}
         if fd is not None:
-            wanted[fd] = selectors.EVENT_READ
-        for api_fd, wants_write in self.listener.descriptors(now):
-            wanted[api_fd] = selectors.EVENT_READ | (selectors.EVENT_WRITE if wants_write else 0)
-        if wanted == self._watched:
-            return  # the usual turn: nothing to register again (SR-9.4)
+            wanted[fd] = select.EPOLLIN
+        for api_fd, wants_write in api:
+            wanted[api_fd] = select.EPOLLIN | (select.EPOLLOUT if wants_write else 0)
         for old in set(self._watched) - set(wanted):
             with contextlib.suppress(KeyError, ValueError, OSError):
-                self._selector.unregister(old)
+                self._epoll.unregister(old)
         for new, events in wanted.items():
             if new not in self._watched:
-                self._selector.register(new, events, "io")
+                self._epoll.register(new, events)
             elif self._watched[new] != events:
-                self._selector.modify(new, events, "io")
+                self._epoll.modify(new, events)
         self._watched = wanted
+        self._watched_link = fd
+        self._watched_api = api if isinstance(api, list) else None  # a list compares cheaply
 
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
@@ -577,7 +602,7 @@ class Supervisor:
             )
         if not self.link.is_open and now >= self.backoff.next_attempt:
             self._try_open_link(now)
-        interval = self.notifier.watchdog_interval_ns
+        interval = self._watchdog_interval
         if self._next_watchdog is not None and interval and now >= self._next_watchdog:
             self.notifier.send(WATCHDOG="1")
             self._next_watchdog = now + interval
@@ -624,17 +649,20 @@ class Supervisor:
             return
         now = self.clock()  # what was read counts as received now: right after the read (SR-2)
         heartbeat = False
+        counters, received_by = self.counters, self.listener.received
         for item in received:
-            if isinstance(item, _REJECTIONS):
-                self.counters.reject(
-                    item.reason.value if not isinstance(item, HidRejection) else "wrong_length"
+            kind = type(item)
+            if kind in _REJECTIONS:
+                counters.reject(
+                    item.reason.value if kind is not HidRejection else "wrong_length"  # type: ignore[union-attr]
                 )
                 continue
-            self.counters.messages += 1
-            self.listener.received(item, now)
-            if not isinstance(item, HidInput):
-                self._apply(self._feed(VscReceived(now, item)))
-            heartbeat = heartbeat or type(item) is VscHeartbeat
+            counters.messages += 1
+            received_by(item, now)  # type: ignore[arg-type]
+            if kind is not HidInput:
+                self._apply(self._feed(VscReceived(now, item)))  # type: ignore[arg-type]
+                if kind is VscHeartbeat:
+                    heartbeat = True
         if heartbeat:
             # One period per read that brought heartbeats, on its read stamp: the time the
             # link-loss timer saw between two signs of life (SR-2.2). Heartbeats read together
@@ -712,17 +740,19 @@ class Supervisor:
         comes of them is applied in turn, so none of their records is lost (a read-back fault
         is a stop of its own, SR-7). ``since`` is when the input (or deadline) that led to
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
-        pending, fed, outputs, times = [decision], 0, self.outputs, self.stop_times
-        while pending:
-            decision = pending.pop(0)
+        # The usual decision switches nothing and has no read-backs: no list is made for it
+        # (SR-9.4); ``pending`` holds the decisions of read-backs, in order, when there are.
+        pending: list[Decision] | None = None
+        fed, outputs, times = 0, self.outputs, self.stop_times
+        while True:
             if decision.state is not State.STOPPED:
                 times.ended()
             elif self.decision is not None and self.decision.state is not State.STOPPED:
                 self._stop_began(decision)
-            readbacks = []
+            readbacks: list[ReadBack] = []
             for name, on in decision.outputs.items():
                 output = outputs.get(name)
-                if output is None or not output.is_open or output.requested == on:
+                if output is None or output.requested == on or not output.is_open:
                     continue
                 readback = output.set(on, decision.now)
                 readbacks.append(readback)
@@ -748,9 +778,11 @@ class Supervisor:
             if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
                 fed += 1
                 if readbacks:
-                    pending += [
-                        self._feed(self._readback_event(r, decision.now)) for r in readbacks
-                    ]
+                    settled = [self._feed(self._readback_event(r, decision.now)) for r in readbacks]
+                    pending = settled if pending is None else pending + settled
+            if not pending:
+                return
+            decision = pending.pop(0)
 
     def _stop_began(self, decision: Decision) -> None:
         """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
@@ -764,7 +796,8 @@ class Supervisor:
         if decision is self.decision:
             return
         self.decision = decision
-        self._send(decision.frames, decision.now)
+        if decision.frames:
+            self._send(decision.frames, decision.now)
         for record in decision.records:
             self._write_record(record)
         for refusal in decision.refusals:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from supervisord.protocol import messages
+from supervisord.protocol import framing, messages
 from supervisord.protocol.codes import FieldStatus
 from supervisord.protocol.framing import FRAMES_KEPT, FrameDecoder, Rejection, encode_frame
 from supervisord.protocol.messages import (
@@ -73,3 +73,34 @@ def test_button_bytes_are_reused_per_class() -> None:
     assert isinstance(right, NumberedButtons)
     assert left.pressed == frozenset({"down", "left"})
     assert right.pressed == frozenset({"button_1", "button_4"})
+
+
+def test_a_steady_heartbeat_is_decoded_once_between_moving_sticks(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-9.4: a VSC heartbeat that repeats exactly is decoded once, however many distinct
+    joystick frames (a moving stick, more than ``FRAMES_KEPT``) arrive between two of them,
+    and each read still gives what a fresh decoder gives; a corrupt repeat is still refused."""
+    decodes: list[bytes] = []
+    decode = framing._decode_frame
+
+    def counted(frame: bytes) -> framing.Decoded:
+        decodes.append(frame)
+        return decode(frame)
+
+    beat = encode_frame(VscHeartbeat(9, 0, 0))
+    # One read a turn: a heartbeat and a joystick frame, and what a fresh decoder makes of it.
+    reads = [
+        beat + encode_frame(Joystick(left_x=Axis.from_value(i - 500)))
+        for i in range(3 * FRAMES_KEPT)
+    ]
+    fresh = [FrameDecoder().feed(read) for read in reads]
+    monkeypatch.setattr(framing, "_decode_frame", counted)
+    decoder = FrameDecoder()
+    assert [decoder.feed(read) for read in reads] == fresh
+    assert decodes.count(beat) == 1
+    corrupt = bytearray(beat)
+    corrupt[5] ^= 0x01
+    events = decoder.feed(bytes(corrupt))
+    assert isinstance(events[0], Rejection)
+    assert events[0].reason.value == "bad_checksum"
