@@ -1,6 +1,6 @@
 """The host side of the system tier: boot the guest, collect its results, cut its power.
 
-Three boots (each about 2-8 s before the scenarios start):
+Five boots (each about 2-8 s before the scenarios start):
 
 1. ``srcs.suite=main``: systemd as PID 1 runs the scenarios in ``guest/scenarios.py`` against
    ``srcsd@`` from the package (``--deb``), which they install with ``dpkg -i`` in the guest,
@@ -10,6 +10,13 @@ Three boots (each about 2-8 s before the scenarios start):
    a burst; after ``--acks`` of them this process kills qemu with SIGKILL: a power cut.
 3. ``srcs.mode=run``: a plain boot mounts the disk (ext4 replays its journal, as after a real
    power cut) and checks every acknowledged record against what is on the disk.
+4. ``srcs.suite=reboot-install``: the overlay's writable layer on a second virtual disk
+   (``srcs.upper=``), so what the guest installs survives; the robot of the bringup scenarios
+   (guest/bringup.py) installed and enabled, brought to RUN, then a clean ``systemctl
+   reboot``. qemu exits at the reset (``-no-reboot``) and is started again on the same disk:
+   the same machine coming back up.
+5. ``srcs.suite=reboot-check``: the default target (``multi-user.target``), as a robot boots:
+   the enabled units come up on their own and the scenario checks their order and a takeover.
 
 The guest reports with console lines ``SRCS-PLAN name ...``, ``SRCS-START {json}`` and
 ``SRCS-RESULT {json}``; a planned scenario without a result counts as failed. Only the
@@ -50,6 +57,7 @@ SAMPLE_S = 0.25  # how often qemu's run-queue wait is read
 STARVED_S = 0.5
 """Held back this long within one second, the guest misses deadlines of its own: the tier's
 link-loss deadline is 1 s and the proof test's 700 ms (docs/system-tier.md)."""
+ROOT_DEVICE = "/dev/vda"  # the one virtual disk of a boot (tests/system/init, srcs.upper=)
 BUDGET_GROWTH_LIMIT = 3.0  # a boot's budget grows with the starvation up to this factor
 
 
@@ -156,7 +164,7 @@ class Vm:
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
 
-    def command(self, append: str, *, disk: bool) -> list[str]:
+    def command(self, append: str, *, disk: str | None) -> list[str]:
         a = self.args
         cmd = [
             "qemu-system-x86_64",
@@ -171,10 +179,10 @@ class Vm:
             "-virtfs",
             f"local,path={a.out},mount_tag=srcs_out,security_model=none,multidevs=remap",
         ]
-        if disk:
+        if disk is not None:
             # cache=writeback: what the guest flushed has been written to the image file, and
             # what it did not flush may still be in the guest's page cache, lost with qemu.
-            cmd += ["-drive", f"file={a.disk},format=raw,if=virtio,cache=writeback"]
+            cmd += ["-drive", f"file={disk},format=raw,if=virtio,cache=writeback"]
         # dummy_hcd.num=2: two USB device controllers for the usb scenarios' gadgets.
         append = f"console=ttyS0 panic=-1 quiet dummy_hcd.num=2 srcs.deb={a.deb} srcs.out {append}"
         if Path(a.repo).is_relative_to(GUEST_TMP):  # the guest's /tmp is its own: keep the repo
@@ -185,7 +193,7 @@ class Vm:
         self,
         append: str,
         *,
-        disk: bool = False,
+        disk: str | None = None,
         timeout: float,
         kill_when: Callable[[Boot], bool] | None = None,
     ) -> Boot:
@@ -287,23 +295,25 @@ class Vm:
             result.rc = int(line[at + len(RC) :].split(maxsplit=1)[0])
 
 
-def systemd_boot(vm: Vm, suite: str) -> str:
+def systemd_boot(vm: Vm, suite: str, unit: str = "srcs-system-tier.target") -> str:
     a = vm.args
     prep = Path(a.repo, "tests/system/guest/prep")
     chosen = f" srcs.scenarios={a.scenarios}" if a.scenarios and suite == "main" else ""
     return (
-        f"srcs.mode=systemd srcs.prep={prep} systemd.unit=srcs-system-tier.target "
+        f"srcs.mode=systemd srcs.prep={prep} systemd.unit={unit} "
         f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}{chosen}"
     )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    for name in ("repo", "kernel", "initrd", "deb", "disk", "out", "python"):
+    for name in ("repo", "kernel", "initrd", "deb", "disk", "root-disk", "out", "python"):
         parser.add_argument(f"--{name}", required=True)
     parser.add_argument("--started", type=float, default=time.time())
     parser.add_argument("--acks", type=int, default=40, help="records acknowledged before the cut")
-    parser.add_argument("--only", choices=("main", "powercut"), help="one part of the tier")
+    parser.add_argument(
+        "--only", choices=("main", "powercut", "reboot"), help="one part of the tier"
+    )
     parser.add_argument(
         "--scenarios", help="comma-separated names: only these of the main boot (install runs)"
     )
@@ -311,20 +321,16 @@ def main() -> int:
     vm = Vm(args)
     outcomes: dict[str, bool] = {}
 
-    main_boot = Boot(wall_s=0.0)
+    boots: list[Boot] = []
     if args.only in (None, "main"):
-        main_boot = vm.boot(systemd_boot(vm, "main"), timeout=1200)
-        for name in main_boot.plan:
-            outcomes[name] = False
-        for result in main_boot.results:
-            outcomes[result["name"]] = bool(result["ok"])
-        if not main_boot.plan:
-            outcomes["main-suite"] = False
+        boots.append(scenario_boot(vm, systemd_boot(vm, "main"), "main-suite", outcomes))
     if args.only in (None, "powercut"):
         outcomes["powercut"] = power_cut(vm)
+    if args.only in (None, "reboot"):
+        boots += reboot(vm, outcomes)
 
     print("\n== system tier", flush=True)
-    starved_failures = report(main_boot, outcomes)
+    starved_failures = [name for boot in boots for name in report(boot, outcomes)]
     print(f"total time {time.time() - args.started:.0f} s", flush=True)
     passed = sum(outcomes.values())
     failed = len(outcomes) - passed
@@ -339,23 +345,62 @@ def main() -> int:
     return 1 if failed else 0
 
 
-def report(main_boot: Boot, outcomes: dict[str, bool]) -> list[str]:
-    """Print the main boot's results, each with the time the host held the guest back;
-    returns the failed scenarios during which the guest was starved."""
+def scenario_boot(
+    vm: Vm, append: str, suite: str, outcomes: dict[str, bool], *, disk: str | None = None
+) -> Boot:
+    """A boot whose guest plans scenarios and reports each: every planned one without a result
+    counts as failed, and a boot that planned nothing fails as ``suite``."""
+    boot = vm.boot(append, disk=disk, timeout=1200)
+    for name in boot.plan:
+        outcomes[name] = False
+    for result in boot.results:
+        outcomes[result["name"]] = bool(result["ok"])
+    if not boot.plan:
+        outcomes[suite] = False
+        print(f"FAIL {suite}: the guest planned no scenario", flush=True)
+    return boot
+
+
+def reboot(vm: Vm, outcomes: dict[str, bool]) -> list[Boot]:
+    """Boots 4 and 5 on one disk: the robot installed, enabled and in RUN, a clean reboot,
+    and the same machine booted again to its default target."""
+    disk = vm.args.root_disk
+    before = scenario_boot(
+        vm,
+        systemd_boot(vm, "reboot-install") + f" srcs.upper={ROOT_DEVICE}",
+        "reboot-install",
+        outcomes,
+        disk=disk,
+    )
+    if not before.results or not all(r["ok"] for r in before.results):
+        return [before]  # nothing was left to boot again
+    after = scenario_boot(
+        vm,
+        systemd_boot(vm, "reboot-check", unit="multi-user.target") + f" srcs.upper={ROOT_DEVICE}",
+        "reboot-check",
+        outcomes,
+        disk=disk,
+    )
+    return [before, after]
+
+
+def report(boot: Boot, outcomes: dict[str, bool]) -> list[str]:
+    """Print a boot's results, each with the time the host held the guest back, and its planned
+    scenarios that gave none; returns the failed ones during which the guest was starved."""
     starved_failures = []
-    for result in main_boot.results:
+    for result in boot.results:
         print(f"{'PASS' if result['ok'] else 'FAIL'} {result['name']}: {result['detail']}")
         for key, value in result.get("measured", {}).items():
             print(f"    {key}: {value}")
-        held = main_boot.held_back(result["name"])
+        held = boot.held_back(result["name"])
         print(f"    the host held the guest back: {starvation_text(held)}")
         if not result["ok"] and starved(held):
             starved_failures.append(result["name"])
             print(f"    {HOST_TOO_SLOW}")
-    for name, ok in outcomes.items():
-        if not ok and not any(r["name"] == name for r in main_boot.results):
+    for name in boot.plan:
+        if not outcomes.get(name) and not any(r["name"] == name for r in boot.results):
             print(f"FAIL {name}: no result from the guest")
-            held = main_boot.held_back(name)
+            held = boot.held_back(name)
             if held is not None:
                 print(f"    the host held the guest back: {starvation_text(held)}")
                 if starved(held):
@@ -369,7 +414,7 @@ def power_cut(vm: Vm) -> bool:
     out = Path(vm.args.out)
     burst = vm.boot(
         systemd_boot(vm, "powercut"),
-        disk=True,
+        disk=vm.args.disk,
         timeout=600,
         kill_when=lambda boot: len(boot.acks) >= vm.args.acks,
     )
@@ -386,7 +431,7 @@ def power_cut(vm: Vm) -> bool:
         f"srcs.mode=run -- env PYTHONPATH={vm.args.repo} {vm.args.python} "
         f"{vm.args.repo}/tests/system/guest/scenarios.py "
         f"powercut-check /srcs-out/{ACKED_FILE}",
-        disk=True,
+        disk=vm.args.disk,
         timeout=300,
     )
     verdicts = [r for r in check.results if r["name"] == "powercut"]

@@ -17,7 +17,7 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
-from supervisord.record.jsonl import read_records
+from supervisord.record.jsonl import StoredRecord, read_records
 from tests.system.guest.scenarios import (
     BRAKE,
     DRIVE,
@@ -146,11 +146,21 @@ def robot_up(bench: Bench) -> None:
         to_run(bench)
 
 
+def records() -> list[StoredRecord]:
+    """The robot's record as read back (lines that are not records left out)."""
+    if not RECORD.exists():
+        return []
+    return [item for item in read_records(RECORD) if isinstance(item, StoredRecord)]
+
+
 def proof_passed_ns() -> list[int]:
-    """mono_ns of every passed proof test in the robot's record."""
-    found = []
-    for item in read_records(RECORD) if RECORD.exists() else []:
-        data: dict[str, Any] = dict(getattr(item, "data", {}))
+    """mono_ns of every passed proof test in the robot's record since srcsd's last start (its
+    startup record carries ``version``): the monotonic clock starts again at each boot."""
+    found: list[int] = []
+    for item in records():
+        data: dict[str, Any] = dict(item.data)
+        if data.get("version"):
+            found = []
         if (data.get("prooftest") or {}).get("result") == "passed":
             found.append(int(data["mono_ns"]))
     return found
@@ -166,24 +176,20 @@ def stays_stopped(bench: Bench, seconds: float) -> None:
         time.sleep(0.2)
 
 
-def scenario_robot_boot(bench: Bench) -> tuple[str, Measured]:
-    """SR-8.10, SR-8.15, SR-1.3: srcsd@robot, the motion service and the exporter, enabled and
-    started together: all active; srcsd READY and its proof test passed before the motion
-    service's main process started (behind wait-ready, though it is a required client); the
-    robot STOPPED, the wheel standing, until a takeover gives RUN and the wheel turns."""
-    install_robot(bench)
-    enabled = {unit: prop(unit, "UnitFileState") for unit in UNITS}
-    check(all(v == "enabled" for v in enabled.values()), f"unit files: {enabled}")
-    started = start_robot()
+def came_up() -> Measured:
+    """SR-8.10, SR-8.15: the three units active; srcsd READY before the motion service's gate
+    began and its proof test passed before the motion service's main process started (behind
+    wait-ready, though it is a required client); the exporter after READY; the motion service
+    as its own user. The figures, from systemd's own timestamps."""
     active = {unit: prop(unit, "ActiveState") for unit in UNITS}
-    check(all(v == "active" for v in active.values()), f"after start: {active}")
+    check(all(v == "active" for v in active.values()), f"units: {active}")
     srcsd_ready = monotonic_s(SRCSD, "ActiveEnterTimestampMonotonic")
     gate_began = monotonic_s(MOTION, "InactiveExitTimestampMonotonic")
     motion_main = monotonic_s(MOTION, "ExecMainStartTimestampMonotonic")
     exporter_main = monotonic_s(EXPORTER, "ExecMainStartTimestampMonotonic")
     proofs = proof_passed_ns()
-    check(bool(proofs), "no passed proof test in the robot's record")
-    proof = proofs[-1] / 1e9
+    check(bool(proofs), "no passed proof test in the robot's record since srcsd started")
+    proof = proofs[0] / 1e9
     check(srcsd_ready <= gate_began, f"the gate began {srcsd_ready - gate_began:.3f} s early")
     check(proof < motion_main, f"motion started {proof - motion_main:.3f} s before the proof")
     check(srcsd_ready <= exporter_main, "the exporter started before srcsd was READY")
@@ -194,15 +200,89 @@ def scenario_robot_boot(bench: Bench) -> tuple[str, Measured]:
     wait_for("the motion client beating", client_there, 120, 0.2)
     check(state(ROBOT) == "STOPPED", "not STOPPED before a takeover")
     check(wheel() == 0.0, f"the wheel at {wheel()} before a takeover")
+    return {
+        "srcsd READY to the gate's start s": round(gate_began - srcsd_ready, 2),
+        "srcsd READY to proof test passed s": round(proof - srcsd_ready, 2),
+        "proof test passed to motion's main process s": round(motion_main - proof, 2),
+    }
+
+
+def scenario_robot_boot(bench: Bench) -> tuple[str, Measured]:
+    """SR-8.10, SR-8.15, SR-1.3: srcsd@robot, the motion service and the exporter, enabled and
+    started together: all active in their order (came_up); the robot STOPPED, the wheel
+    standing, until a takeover gives RUN and the wheel turns."""
+    install_robot(bench)
+    enabled = {unit: prop(unit, "UnitFileState") for unit in UNITS}
+    check(all(v == "enabled" for v in enabled.values()), f"unit files: {enabled}")
+    started = start_robot()
+    order = came_up()
     took = to_run(bench)
     run_series = 'srcs_state{state="RUN"}'
     wait_for("the exporter says RUN", lambda: metric(run_series) == 1, 30, 0.5)
     check(metric("srcs_up") == 1, f"the exporter says srcs_up {metric('srcs_up')}")
     return "all active; srcsd READY and proven before motion started; RUN by takeover", {
         "systemctl start of the three s": round(started, 2),
-        "srcsd READY to the gate's start s": round(gate_began - srcsd_ready, 2),
-        "srcsd READY to proof test passed s": round(proof - srcsd_ready, 2),
-        "proof test passed to motion's main process s": round(motion_main - proof, 2),
+        **order,
+        "takeover to RUN s": round(took, 2),
+    }
+
+
+BEFORE_REBOOT = Path("/var/lib/srcs-tier/before-reboot")
+"""The robot's last record number before the reboot, on the reboot boots' shared disk."""
+
+
+def scenario_robot_before_reboot(bench: Bench) -> tuple[str, Measured]:
+    """SR-8.10, SR-1.3: the robot installed and enabled as in robot_boot, started, brought to
+    RUN; its last record's number kept for the boot after the reboot, which follows."""
+    install_robot(bench)
+    start_robot()
+    order = came_up()
+    took = to_run(bench)
+    last = max(item.seq for item in records())
+    BEFORE_REBOOT.parent.mkdir(parents=True, exist_ok=True)
+    BEFORE_REBOOT.write_text(f"{last}\n")
+    measured: Measured = {**order, "takeover to RUN s": round(took, 2)}
+    return f"RUN before the reboot, last record {last}", measured
+
+
+def scenario_robot_after_reboot(bench: Bench) -> tuple[str, Measured]:
+    """SR-8.10, SR-8.15, SR-7.14, SR-1.3: after a clean reboot, the units enabled the boot
+    before come up by themselves in their order (came_up) while the VSC and the output lines
+    appear during the boot; the reboot's exit of srcsd is a record (shutdown:SIGTERM) and the
+    new start continues its numbers; STOPPED until a takeover gives RUN."""
+    enabled = {unit: prop(unit, "UnitFileState") for unit in UNITS}
+    check(all(v == "enabled" for v in enabled.values()), f"unit files: {enabled}")
+
+    def all_active() -> bool:
+        return all(prop(unit, "ActiveState") == "active" for unit in UNITS)
+
+    waited = wait_for("the enabled units active after the boot", all_active, 300, 0.5)
+    userspace = int(run("systemctl", "show", "-P", "UserspaceTimestampMonotonic")) / 1e6
+    order = came_up()
+    before = int(BEFORE_REBOOT.read_text())
+    after = [item for item in records() if item.seq > before]
+    names = [item.cause_names for item in after]
+    exits = [i for i, causes in enumerate(names) if "shutdown:SIGTERM" in causes]
+    check(bool(exits), f"no shutdown:SIGTERM record after {before}: {names}")
+    exit_record = after[exits[0]]
+    started = [item for item in after[exits[0] + 1 :] if item.data.get("version")]
+    check(bool(started), "no startup record after the reboot's exit record")
+    check(
+        [item.seq for item in after] == list(range(before + 1, before + 1 + len(after))),
+        f"record numbers after {before}: {[item.seq for item in after]}",
+    )
+    took = to_run(bench)
+    detail = "enabled units up by themselves after a reboot, in order; exit recorded; RUN"
+    return detail, {
+        "userspace start to srcsd READY s": round(
+            monotonic_s(SRCSD, "ActiveEnterTimestampMonotonic") - userspace, 1
+        ),
+        "userspace start to the motion service active s": round(
+            monotonic_s(MOTION, "ActiveEnterTimestampMonotonic") - userspace, 1
+        ),
+        "scenario start to all three active s": round(waited, 1),
+        **order,
+        "the reboot's exit record": f"{exit_record.seq} from {exit_record.data.get('from')}",
         "takeover to RUN s": round(took, 2),
     }
 
@@ -308,4 +388,6 @@ BRINGUP = [
     ("robot_motion_killed", scenario_robot_motion_killed),
     ("robot_restart", scenario_robot_restart),
     ("robot_stop", scenario_robot_stop),
+    ("robot_before_reboot", scenario_robot_before_reboot),
+    ("robot_after_reboot", scenario_robot_after_reboot),
 ]

@@ -4,7 +4,8 @@ Each scenario prints one ``SRCS-RESULT {json}`` line: its name, whether it passe
 line and what it measured. Timing checks are coarse on purpose: Python runs 15-35 times
 slower under software emulation than on the host, and the numbers are printed, not hidden.
 
-usage: scenarios.py                         the suite named by srcs.suite= (main, powercut)
+usage: scenarios.py                         the suite named by srcs.suite= (main, powercut,
+                                            reboot-install, reboot-check)
        scenarios.py powercut-check ACKED    after the cut: check the disk against ACKED
 """
 
@@ -2004,6 +2005,14 @@ MAIN: list[tuple[str, Scenario]] = [
     ("usb_latency", scenario_usb_latency),
     ("usb_hid", scenario_usb_hid),
 ]
+# The reboot boots (vm.py): one disk, the robot installed and brought to RUN, a clean reboot,
+# then the same machine's cold boot to its default target.
+REBOOT_INSTALL: list[tuple[str, Scenario]] = [
+    ("robot_before_reboot", bringup("robot_before_reboot")),
+]
+REBOOT_CHECK: list[tuple[str, Scenario]] = [
+    ("robot_after_reboot", bringup("robot_after_reboot")),
+]
 
 
 def describe(error: BaseException) -> str:
@@ -2022,10 +2031,13 @@ def selected() -> list[tuple[str, Scenario]]:
     return MAIN
 
 
-def run_main() -> int:
-    scenarios = selected()
+def run_suite(scenarios: list[tuple[str, Scenario]], *, install_package: bool) -> int:
+    """Plan ``scenarios``, install the package first (unless an earlier boot of the same disk
+    did), run each against one bench and report each. The reboot-install suite ends in a clean
+    reboot with its bench still running, as a robot's hardware stays on (``reboot_when_done``)."""
     print("SRCS-PLAN " + " ".join(name for name, _ in scenarios), flush=True)
-    install()
+    if install_package:
+        install()
     bench = Bench()
     failed = 0
     try:
@@ -2048,9 +2060,21 @@ def run_main() -> int:
                 # ones after it for that.
                 with contextlib.suppress(Exception):
                     bench.sim.control.release()
+        if not failed and suite() == "reboot-install":
+            reboot_when_done()
     finally:
         bench.close()
     return 1 if failed else 0
+
+
+def reboot_when_done() -> None:
+    """A clean reboot (reboot.target: every unit stopped in its order, the file systems
+    unmounted), asked for while the robot runs; this process waits to be stopped with the
+    rest (its unit's SuccessAction is none in this boot: guest/prep). qemu exits at the reset
+    and vm.py boots the same disk again."""
+    log("rebooting")
+    run("systemctl", "reboot", "--no-block")
+    time.sleep(3600)
 
 
 def suite() -> str:
@@ -2075,7 +2099,11 @@ def main(argv: list[str]) -> int:
         if suite() == "powercut":
             powercut_burst()
             return 0
-        return run_main()
+        if suite() == "reboot-install":
+            return run_suite(REBOOT_INSTALL, install_package=True)
+        if suite() == "reboot-check":  # the package is on the disk since the boot before
+            return run_suite(REBOOT_CHECK, install_package=False)
+        return run_suite(selected(), install_package=True)
 
 
 if __name__ == "__main__":
