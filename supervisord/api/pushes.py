@@ -1,6 +1,7 @@
 """The pushes of the client API (docs/api.md "Pushes"), typed and frozen: what a subscriber
-receives between replies. Each has one encoder (``json``: the object on the wire, ``event``
-first) and :func:`read_push` is their one decoder (tolerant: unknown fields are ignored, and a
+receives between replies. Each declares its fields once (:class:`~supervisord.wire.Wire`),
+its encoder (``json``: the object on the wire, ``event`` first) follows from it, and
+:func:`read_push` is their one decoder (tolerant: unknown fields are ignored, and a
 push of an event this side does not know is an :class:`OtherPush`, since a client may talk
 to a newer daemon).
 
@@ -19,64 +20,54 @@ from supervisord.api.messages import (
     RemoteStatusReport,
     check_type,
 )
-from supervisord.api.records import StopRecord
 from supervisord.api.status import StateReport
-from supervisord.api.wire import Fields, JsonDict
+from supervisord.record.stop import StopRecord
+from supervisord.wire import Fields, JsonDict, Wire, wire
 
 
 @dataclass(frozen=True, slots=True)
-class StatePush:
+class StatePush(Wire):
     """The state changed (the state, a cause or an output), or the first after subscribing."""
 
     event: ClassVar[str] = "state"
-    report: StateReport
-
-    def json(self) -> JsonDict:
-        return {"event": self.event, **self.report.json()}
+    WIRE_HEAD: ClassVar[JsonDict] = {"event": event}
+    report: StateReport = wire(flat=True)
 
 
 @dataclass(frozen=True, slots=True)
-class RecordPush:
+class RecordPush(Wire):
     """A stop record, as written to the record file (docs/record.md)."""
 
     event: ClassVar[str] = "record"
-    record: StopRecord
-
-    def json(self) -> JsonDict:
-        return {"event": self.event, **self.record.json()}
+    WIRE_HEAD: ClassVar[JsonDict] = {"event": event}
+    record: StopRecord = wire(flat=True)
 
 
 @dataclass(frozen=True, slots=True)
-class JoystickPush:
+class JoystickPush(Wire):
     """A joystick message from the VSC (meaningful only in RUN: the VSC zeroes it otherwise)."""
 
     event: ClassVar[str] = "joystick"
-    message: JoystickReport
-
-    def json(self) -> JsonDict:
-        return {"event": self.event, **self.message.json()}
+    WIRE_HEAD: ClassVar[JsonDict] = {"event": event}
+    message: JoystickReport = wire(flat=True)
 
 
 @dataclass(frozen=True, slots=True)
-class GpsPush:
+class GpsPush(Wire):
     """A GPS message from the VSC."""
 
     event: ClassVar[str] = "gps"
-    message: GpsReport
-
-    def json(self) -> JsonDict:
-        return {"event": self.event, **self.message.json()}
+    WIRE_HEAD: ClassVar[JsonDict] = {"event": event}
+    message: GpsReport = wire(flat=True)
 
 
 @dataclass(frozen=True, slots=True)
-class RemoteStatusPush:
+class RemoteStatusPush(Wire):
     """A remote-status message from the VSC (1 Hz once commissioned)."""
 
     event: ClassVar[str] = "remote_status"
-    message: RemoteStatusReport
-
-    def json(self) -> JsonDict:
-        return {"event": self.event, **self.message.json()}
+    WIRE_HEAD: ClassVar[JsonDict] = {"event": event}
+    message: RemoteStatusReport = wire(flat=True)
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +81,16 @@ class OtherPush:
         return {"event": self.event, **{k: v for k, v in self.data.items() if k != "event"}}
 
 
+_PUSHES: dict[str, type[StatePush | RecordPush | JoystickPush | GpsPush | RemoteStatusPush]] = {
+    kind.event: kind for kind in (StatePush, RecordPush, JoystickPush, GpsPush, RemoteStatusPush)
+}
+_MESSAGE_TYPES: dict[type, str] = {
+    JoystickPush: JoystickReport.TYPE,
+    GpsPush: GpsReport.TYPE,
+    RemoteStatusPush: RemoteStatusReport.TYPE,
+}
+"""A message push names its message's ``type``: it must be the push's own."""
+
 Push = StatePush | RecordPush | JoystickPush | GpsPush | RemoteStatusPush | OtherPush
 
 
@@ -99,18 +100,10 @@ def read_push(obj: object) -> Push:
     f = Fields(obj, "push")
     event = f.text("event")
     f = Fields(obj, event)
-    if event == StatePush.event:
-        return StatePush(StateReport.read(f))
-    if event == RecordPush.event:
-        return RecordPush(StopRecord.read(f))
-    if event == JoystickPush.event:
-        check_type(f, JoystickReport.TYPE)
-        return JoystickPush(JoystickReport.read(f))
-    if event == GpsPush.event:
-        check_type(f, GpsReport.TYPE)
-        return GpsPush(GpsReport.read(f))
-    if event == RemoteStatusPush.event:
-        check_type(f, RemoteStatusReport.TYPE)
-        return RemoteStatusPush(RemoteStatusReport.read(f))
+    kind = _PUSHES.get(event)
+    if kind is not None:
+        if kind in _MESSAGE_TYPES:
+            check_type(f, _MESSAGE_TYPES[kind])
+        return kind.read(f)
     assert isinstance(obj, Mapping)  # Fields checked it
     return OtherPush(event, {str(k): v for k, v in obj.items() if k != "event"})

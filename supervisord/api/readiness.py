@@ -23,23 +23,21 @@ from collections.abc import Mapping
 from typing import Final
 
 from supervisord.api.replies import StatusReply
-
-BLOCKING_CAUSES: Final[Mapping[str, str]] = {
-    "vsc_link_lost": "the VSC is not heard",
-    "transport_fault": "the link to the VSC has failed",
-    "vsc_watchdog_off": "the VSC's key-85 watchdog is off",
-    "output_fault": "an output does not read back what it was told",
-    "internal": "the supervisor has an internal fault",
-}
-"""Active causes that mean the stop path does not work, and how each is said."""
-
-OURS_IN_THE_WAY: Final = frozenset(
-    {"transport_fault", "vsc_link_lost", "client_estop", "local_estop", "output_fault"}
-    | {"vsc_watchdog_off", "internal", "estop_unavailable", "shutdown"}
+from supervisord.vocabulary import (
+    PROOFTEST_BLOCKERS,
+    STOP_PATH_CAUSES,
+    CauseKind,
+    Phase,
+    Severity,
+    State,
 )
+
+BLOCKING_CAUSES: Final[Mapping[CauseKind, str]] = STOP_PATH_CAUSES
+"""Active causes that mean the stop path does not work, and how each is said."""
+OURS_IN_THE_WAY: Final = PROOFTEST_BLOCKERS
 """The stop causes that keep a proof test from starting: those that set the user heartbeat's
-byte, ``client_lost`` aside (SR-8.15). Written out here, since the ROS 2 bridge imports this
-module without the safety core; ``tests/api/test_readiness.py`` holds it to the core's rule."""
+byte, ``client_lost`` aside (SR-8.15), as the shared vocabulary derives them from the cause
+kinds (the bridge imports this module without the safety core)."""
 USER_BITS: Final = 0xC0
 """Bits 6-7 of the VSC's e-stop word: the user e-stop, which must clear before the test."""
 
@@ -60,13 +58,12 @@ def missing(status: StatusReply) -> list[str]:
     link = status.daemon.loop.link
     if not link.open:
         gaps.append(f"the link to the VSC is not open ({link.description})")
-    # A cause is named KIND or KIND:WHICH (``output_fault:drive``, docs/safety.md).
-    active = {name.split(":")[0] for name in status.report.active()}
-    gaps += [text for name, text in BLOCKING_CAUSES.items() if name in active]
+    active = status.report.active_kinds()
+    gaps += [text for kind, text in BLOCKING_CAUSES.items() if kind in active]
     proof = status.report.prooftest
-    if proof is not None and proof.policy != "off" and proof.phase != "passed":
-        waits = _proof_waits_for(status) if proof.phase == "waiting" else []
-        why = f"waiting for {' and '.join(waits)}" if waits else proof.phase
+    if proof is not None and not proof.proven:
+        waits = _proof_waits_for(status) if proof.phase is Phase.WAITING else []
+        why = f"waiting for {' and '.join(waits)}" if waits else proof.phase.value
         gaps.append(f"the proof test of the VSC's watchdog has not passed ({why})")
     not_held = status.daemon.loop.outputs_not_acquired
     if not_held:
@@ -79,10 +76,9 @@ def for_run(status: StatusReply) -> list[str]:
     words: each required client not there, by its name (SR-8.15)."""
     said = []
     for cause in status.report.causes:
-        kind, _, name = cause.name.partition(":")
-        if cause.active and kind == "client_lost":
+        if cause.active and cause.kind is CauseKind.CLIENT_LOST:
             how = _CLIENT_REASONS.get(cause.details.get("reason", ""), "lost")
-            said.append(f"required client `{name}` {how}")
+            said.append(f"required client `{cause.name.subject}` {how}")
     return said
 
 
@@ -91,10 +87,12 @@ def for_takeover(status: StatusReply) -> list[str]:
     operator's act on the remote aside, SR-4.5). Read from ``status``'s ``rearm`` (the re-arm
     hold) and its causes: every stop condition clear, clear for ``rearm.hold_ms``, and no
     client declaring a non-zero command (SR-4.6)."""
-    if status.report.state != "STOPPED":
+    if status.report.state is not State.STOPPED:
         return []  # nothing to re-arm: a takeover only leaves the remote's pause (SR-3)
     waits: list[str] = []
-    stops = sorted(c.name for c in status.report.causes if c.active and c.severity == "stop")
+    stops = sorted(
+        c.name.name for c in status.report.causes if c.active and c.severity is Severity.STOP
+    )
     rearm = status.rearm
     hold = "" if rearm is None else f" and stay clear for {rearm.hold_ms} ms"
     if stops:
@@ -114,13 +112,13 @@ def for_takeover(status: StatusReply) -> list[str]:
 
 def takeover_said(status: StatusReply) -> str:
     """When a takeover will be accepted, in words, as a tail of ``wait-ready``'s line."""
-    if status.report.state != "STOPPED":
-        return f"; {status.report.state}: no takeover needed"
+    if status.report.state is not State.STOPPED:
+        return f"; {status.report.state.name}: no takeover needed"
     waits = for_takeover(status)
     if not waits:
         return "; a takeover is accepted now"
     rearm = status.rearm
-    stops = any(c.active and c.severity == "stop" for c in status.report.causes)
+    stops = any(c.active and c.severity is Severity.STOP for c in status.report.causes)
     if len(waits) == 1 and rearm is not None and rearm.accepted_in_s and not stops:
         return f"; a takeover is accepted in {rearm.accepted_in_s:g} s (the re-arm hold)"
     return f"; a takeover is accepted once: {'; '.join(waits)}"
@@ -129,25 +127,26 @@ def takeover_said(status: StatusReply) -> str:
 def _proof_waits_for(status: StatusReply) -> list[str]:
     """Why a proof test that has not started waits, in words (docs/safety.md "The proof
     test", 2): nothing of ours asking the VSC to stop, its user bits clear, STOPPED."""
-    active = {c.name: c for c in status.report.causes if c.active}
-    kinds = {name.split(":")[0] for name in active}
+    active = [c for c in status.report.causes if c.active]
+    kinds = {c.kind for c in active}
     waits = []
-    if not status.daemon.loop.link.open or kinds & {"vsc_link_lost", "transport_fault"}:
+    if not status.daemon.loop.link.open or kinds & _NOT_HEARD:
         waits.append("the VSC to be heard")
-    if "vsc_watchdog_off" in kinds:
+    if CauseKind.VSC_WATCHDOG_OFF in kinds:
         waits.append("key 85 to read 1")
-    ours = sorted(n for n in active if n.split(":")[0] in OURS_IN_THE_WAY - _SAID_APART)
+    ours = sorted(c.name.name for c in active if c.kind in OURS_IN_THE_WAY - _SAID_APART)
     if ours:
         waits.append(f"{', '.join(ours)} to clear")
-    estop = active.get("vsc_estop")
+    estop = next((c for c in active if c.kind is CauseKind.VSC_ESTOP), None)
     if estop is not None and _word(estop.details.get("word", "")) & USER_BITS:
         waits.append("the VSC's user e-stop bits to clear")
-    if status.report.state != "STOPPED":
+    if status.report.state is not State.STOPPED:
         waits.append("the supervisor to be STOPPED")
     return waits
 
 
-_SAID_APART: Final = frozenset({"vsc_link_lost", "transport_fault", "vsc_watchdog_off"})
+_NOT_HEARD: Final = frozenset({CauseKind.VSC_LINK_LOST, CauseKind.TRANSPORT_FAULT})
+_SAID_APART: Final = _NOT_HEARD | {CauseKind.VSC_WATCHDOG_OFF}
 
 
 def _word(text: str) -> int:

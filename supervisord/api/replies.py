@@ -2,8 +2,9 @@
 
 Every request gets one reply: :class:`OkReply` for most, :class:`StatusReply`,
 :class:`CommissionReply` and :class:`StopTestReply` with their fields, or an error
-(:class:`~supervisord.api.framing.ApiError`, whose encoder is ``ApiError.reply``). Each has
-one encoder (``json``) and :func:`read_reply` is their one decoder: tolerant of fields it
+(:class:`~supervisord.api.framing.ApiError`, whose encoder is ``ApiError.reply``). Each declares
+each field once (:class:`~supervisord.wire.Wire`); its encoder (``json``) follows from it, and
+:func:`read_reply` is their one decoder: tolerant of fields it
 does not know (a client may talk to a newer daemon), an error reply read back as the
 ``ApiError`` it was.
 
@@ -14,109 +15,73 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from supervisord.api.framing import ApiError
 from supervisord.api.ops import RequestId
-from supervisord.api.records import StopTestReport
 from supervisord.api.status import DaemonStatus, EstopAvailable, RearmStatus, StateReport
-from supervisord.api.wire import Fields, JsonDict, WireError
+from supervisord.record.stop import StopTestReport
+from supervisord.wire import Fields, JsonDict, Wire, WireError, wire
 
 _ERROR_FIELDS = ("ok", "code", "error", "op", "id")
 
 
-def _head(op: str, request_id: RequestId) -> JsonDict:
-    head: JsonDict = {"ok": True, "op": op}
-    if request_id is not None:
-        head["id"] = request_id
-    return head
-
-
-def _id(f: Fields) -> RequestId:
+def _id(f: Fields, key: str = "id") -> RequestId:
     """The request's ``id`` echoed: an integer or text, absent when the request had none."""
-    value = f.raw_value("id") if f.has("id") else None
+    value = f.get(key)
     if value is None or isinstance(value, str):
         return value
-    return f.integer("id")
+    return f.integer(key)
+
+
+def _request_id() -> Any:
+    """A reply's ``id``: the request's echoed, absent when it had none."""
+    return wire(omit_none=True, decode=_id, default=None)
 
 
 @dataclass(frozen=True, slots=True)
-class OkReply:
+class OkReply(Wire):
     """Success, with nothing more to say (``hello``, ``heartbeat``, ``estop`` ...)."""
 
+    WIRE_HEAD: ClassVar[JsonDict] = {"ok": True}
     op: str
-    id: RequestId = None
-
-    def json(self) -> JsonDict:
-        return _head(self.op, self.id)
+    id: RequestId = _request_id()
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class StatusReply:
+class StatusReply(Wire):
     """``status``: the state (as in a ``state`` push), whether the remote e-stop is
     available (``None``: a daemon older than SR-8.11 does not say), and the daemon's own view
     (docs/api.md "status")."""
 
     OP: ClassVar[str] = "status"
-    id: RequestId = None
-    report: StateReport
-    estop_available: EstopAvailable | None
+    WIRE_HEAD: ClassVar[JsonDict] = {"ok": True, "op": OP}
+    id: RequestId = _request_id()
+    report: StateReport = wire(flat=True)
+    estop_available: EstopAvailable | None = wire(omit_none=True)
+    rearm: RearmStatus | None = wire(omit_none=True, default=None)  # None: an older daemon
     daemon: DaemonStatus
-    rearm: RearmStatus | None = None  # None: a daemon older than this field does not say
-
-    def json(self) -> JsonDict:
-        out = {**_head(self.OP, self.id), **self.report.json()}
-        if self.estop_available is not None:
-            out["estop_available"] = self.estop_available.json()
-        if self.rearm is not None:
-            out["rearm"] = self.rearm.json()
-        out["daemon"] = self.daemon.json()
-        return out
-
-    @classmethod
-    def read(cls, f: Fields) -> StatusReply:
-        available = f.maybe_obj("estop_available")
-        rearm = f.maybe_obj("rearm")
-        return cls(
-            id=_id(f),
-            report=StateReport.read(f),
-            estop_available=None if available is None else EstopAvailable.read(available),
-            daemon=DaemonStatus.read(f.obj("daemon")),
-            rearm=None if rearm is None else RearmStatus.read(rearm),
-        )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CommissionReply:
+class CommissionReply(Wire):
     """``commission`` succeeded: key 85 read back (1), and whether a remote status came."""
 
     OP: ClassVar[str] = "commission"
-    id: RequestId = None
+    WIRE_HEAD: ClassVar[JsonDict] = {"ok": True, "op": OP}
+    id: RequestId = _request_id()
     key85: int | None
     remote_status: bool
 
-    def json(self) -> JsonDict:
-        return {**_head(self.OP, self.id), "key85": self.key85, "remote_status": self.remote_status}
-
-    @classmethod
-    def read(cls, f: Fields) -> CommissionReply:
-        return cls(id=_id(f), key85=f.maybe_integer("key85"), remote_status=f.flag("remote_status"))
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class StopTestReply:
+class StopTestReply(Wire):
     """``stoptest`` was judged and recorded (SR-12.1): the result, as its record holds it."""
 
     OP: ClassVar[str] = "stoptest"
-    id: RequestId = None
+    WIRE_HEAD: ClassVar[JsonDict] = {"ok": True, "op": OP}
+    id: RequestId = _request_id()
     stoptest: StopTestReport
-
-    def json(self) -> JsonDict:
-        return {**_head(self.OP, self.id), "stoptest": self.stoptest.json()}
-
-    @classmethod
-    def read(cls, f: Fields) -> StopTestReply:
-        return cls(id=_id(f), stoptest=StopTestReport.read(f.obj("stoptest")))
 
 
 Reply = OkReply | StatusReply | CommissionReply | StopTestReply
@@ -130,13 +95,15 @@ def read_reply(obj: object) -> Reply | ApiError:
         return read_error(f)
     op = f.text("op")
     f = Fields(obj, op)
-    if op == StatusReply.OP:
-        return StatusReply.read(f)
-    if op == CommissionReply.OP:
-        return CommissionReply.read(f)
-    if op == StopTestReply.OP:
-        return StopTestReply.read(f)
+    kind = _REPLIES.get(op)
+    if kind is not None:
+        return kind.read(f)
     return OkReply(op, _id(f))
+
+
+_REPLIES: dict[str, type[StatusReply | CommissionReply | StopTestReply]] = {
+    kind.OP: kind for kind in (StatusReply, CommissionReply, StopTestReply)
+}
 
 
 def read_error(f: Fields) -> ApiError:

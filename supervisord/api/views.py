@@ -4,7 +4,8 @@ typed replies and pushes of :mod:`.replies`, :mod:`.pushes` and :mod:`.status`; 
 Replies answer a request (:func:`ok_reply`, :func:`refusal_error`); pushes carry safety
 decisions, stop records and VSC messages to subscribers. The causes in ``status`` and ``state``
 are the stop record's own cause objects (:func:`supervisord.record.format.cause_report`), so a
-client reads both the same way. The wire's JSON is each type's one encoder (``json``).
+client reads both the same way; a stop record is pushed as the typed record the daemon made
+(:class:`~supervisord.api.pushes.RecordPush`). The wire's JSON is each type's one encoder.
 
 Nothing here touches a socket or a clock.
 """
@@ -26,16 +27,12 @@ from supervisord.api.messages import (
 from supervisord.api.pushes import (
     GpsPush,
     JoystickPush,
-    OtherPush,
-    RecordPush,
     RemoteStatusPush,
     StatePush,
 )
-from supervisord.api.records import StopRecord
 from supervisord.api.replies import OkReply
 from supervisord.api.requests import ApiRequest, Topic
 from supervisord.api.status import HistogramStatus, RearmStatus, RemoteReport, StateReport
-from supervisord.api.wire import Fields, WireError
 from supervisord.histogram import Histogram
 from supervisord.protocol.messages import (
     Axis,
@@ -109,7 +106,7 @@ def rearm_status(decision: Decision, now: int, hold_ms: int) -> RearmStatus:
 def state_report(decision: Decision) -> StateReport:
     """The state of the supervisor after one decision, for ``status`` and ``state`` pushes."""
     return StateReport(
-        state=decision.state.name,
+        state=decision.state,
         mono_ns=decision.now,
         causes=tuple(cause_report(c) for c in decision.causes),
         outputs=dict(sorted(decision.outputs.items())),
@@ -150,16 +147,6 @@ def remote_report(message: RemoteStatus, age_s: float | None) -> RemoteReport:
 def state_push(decision: Decision) -> StatePush:
     """The ``state`` push for a decision."""
     return StatePush(state_report(decision))
-
-
-def record_push(record: Mapping[str, object]) -> RecordPush | OtherPush:
-    """The ``record`` push for a record as written to the store
-    (:func:`supervisord.record.format.record_json`, the encoder of the same typed record, so
-    it always reads back). Were it ever not to, it goes out as it is: a push is never lost."""
-    try:
-        return RecordPush(StopRecord.read(Fields(record, "record")))
-    except WireError:
-        return OtherPush(Topic.RECORDS.event, record)
 
 
 _MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {

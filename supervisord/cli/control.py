@@ -41,6 +41,7 @@ from supervisord.client import (
 from supervisord.errors import ConfigError
 from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode
 from supervisord.protocol.messages import I32
+from supervisord.vocabulary import Phase
 
 EXIT_REFUSED: Final = 1
 EXIT_USAGE: Final = 2
@@ -375,10 +376,10 @@ def _prooftest(client: SupervisorClient, out: TextIO) -> int:
     while time.monotonic() < deadline:
         proof = client.status().report.prooftest
         phase = None if proof is None else proof.phase
-        if proof is not None and phase in ("passed", "failed"):
+        if proof is not None and phase in (Phase.PASSED, Phase.FAILED):
             last = {} if proof.last is None else proof.last.json()  # as its record says it
             print(f"prooftest: {verdict(last)}", file=out)
-            return 0 if phase == "passed" else EXIT_REFUSED
+            return 0 if phase is Phase.PASSED else EXIT_REFUSED
         time.sleep(0.1)
     print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({phase})", file=out)
     return EXIT_REFUSED

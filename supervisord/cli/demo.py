@@ -39,6 +39,7 @@ from supervisord.record.jsonl import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
 from supervisord.tooling.children import terminate
+from supervisord.vocabulary import Severity
 
 # Package data next to this module, so that an installed wheel or the Debian package runs the
 # demo without the repository.
@@ -170,7 +171,7 @@ class Demo:
 
     @property
     def state(self) -> str:
-        return self.status.state if self.status else "?"
+        return self.status.state.name if self.status else "?"
 
     # -- the remote's controls -----------------------------------------------------------
 
@@ -354,7 +355,7 @@ class StoryDemo(Demo):
 
         def stop_active() -> bool:
             causes = self.status.causes if self.status else ()
-            return any(c.active and c.severity == "stop" for c in causes)
+            return any(c.active and c.severity is Severity.STOP for c in causes)
 
         while stop_active():
             if time.monotonic() > end:

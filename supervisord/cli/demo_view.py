@@ -18,6 +18,7 @@ from typing import Any, Final
 from supervisord.api.status import StateReport
 from supervisord.cli.record_text import MARK_MEANS, mark, record_line
 from supervisord.cli.times import clock_of
+from supervisord.vocabulary import Severity, State
 
 KEYS: Final = (
     "keys: [t] take over  [e] remote e-stop on/off  [p] pause  [l] cut/restore the link  "
@@ -54,12 +55,12 @@ def next_step(
     if sim.get("remote_estop"):
         return "the remote's e-stop is pressed: press [e] to release it"
     state = status.state
-    if state == "RUN":
+    if state is State.RUN:
         return "RUN, the outputs are on: try [e] e-stop, [p] pause or [l] cut the link"
-    if state == "HOLD":
+    if state is State.HOLD:
         return "HOLD (motion off, power on): press [t] to take over and resume"
     causes = status.causes
-    active = [c.name for c in causes if c.active and c.severity == "stop"]
+    active = [c.name.name for c in causes if c.active and c.severity is Severity.STOP]
     if active:
         why = next((WAITING[name] for name in active if name in WAITING), None)
         return f"wait: {why or ', '.join(active) + ' still active'}"

@@ -17,9 +17,10 @@ from collections.abc import Callable, Mapping
 from typing import Final, TextIO
 
 from supervisord.api.pushes import RecordPush
-from supervisord.api.records import StopTestReport
 from supervisord.cli.numbers import duration
 from supervisord.client import SupervisorClient
+from supervisord.record.stop import StopTestReport
+from supervisord.vocabulary import CauseKind, State
 
 REQUIREMENTS: Final = "/usr/share/doc/srcs-supervisord/docs/requirements.md"
 """Where a robot has the requirements: the package's copy of docs/ (docs/install.md); the
@@ -126,13 +127,13 @@ def _wait_run(
     first: bool,
 ) -> None:
     """The test starts in RUN: every output on, so that each one's way to off is measured."""
-    if client.status().report.state == "RUN":
+    if client.status().report.state is State.RUN:
         return
     what = "take over on the remote" if first else "release the remote's e-stop and take over"
     print(f"stoptest: {what} (the supervisor must be in RUN; waiting)", file=out, flush=True)
     deadline = clock() + timeout_s
     while clock() < deadline:
-        if client.status().report.state == "RUN":
+        if client.status().report.state is State.RUN:
             return
         time.sleep(0.1)
     raise NotDone(f"the supervisor did not reach RUN within {timeout_s:g} s")
@@ -149,12 +150,12 @@ def _wait_press(
         if not isinstance(push, RecordPush):
             continue
         record = push.record
-        if record.to_state != "STOPPED" or record.from_state == "STOPPED":
+        if not record.is_stop:
             continue
-        estop = next((c for c in record.causes if c.name == "vsc_estop"), None)
+        estop = record.cause(CauseKind.VSC_ESTOP)
         sources = (estop.details.get("sources", "") if estop else "").split(",")
         if estop is None or source not in sources:
-            names = ", ".join(c.name for c in record.causes)
+            names = ", ".join(c.name.name for c in record.causes)
             raise NotDone(f"the robot stopped for something else (#{record.seq}: {names})")
         return record.seq
     raise NotDone(f"no stop within {timeout_s:g} s")

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.pushes import RecordPush
 from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
 from supervisord.api.requests import (
     Command,
@@ -32,7 +33,6 @@ from supervisord.api.views import (
     message_push,
     message_topic,
     rearm_status,
-    record_push,
     refusal_error,
     remote_report,
     state_push,
@@ -44,6 +44,7 @@ from supervisord.daemon.loop import Listener, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
+from supervisord.record.stop import StopRecord
 from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.config import DEFAULT_REARM_HOLD_MS
@@ -199,7 +200,7 @@ class ApiListener(Listener):
         remote, seen = self._remote if self._remote is not None else (None, None)
         return estop_available(
             now,
-            active=self.last.active_names,
+            active=(c.cause for c in self.last.causes if c.active),
             heartbeat=self._heartbeat,
             remote=remote,
             remote_seen=seen,
@@ -296,11 +297,11 @@ class ApiListener(Listener):
         if changed and self.server.subscribed(Topic.STATE):
             self.server.broadcast(Topic.STATE, state_push(decision))
 
-    def recorded(self, entry: dict[str, object]) -> None:
+    def recorded(self, record: StopRecord) -> None:
         # Pushed once the sink has it on disk (or counted it as not written): a record a
         # subscriber sees is an acknowledged one (SR-7, docs/record.md).
         if self.server.subscribed(Topic.RECORDS):
-            self.server.broadcast(Topic.RECORDS, record_push(entry))
+            self.server.broadcast(Topic.RECORDS, RecordPush(record))
 
     def received(self, message: Message | HidInput, now: int) -> None:
         # By type, not isinstance: the message classes are final, and this runs per input;

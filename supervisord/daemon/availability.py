@@ -17,21 +17,25 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Final
 
-from supervisord.api.readiness import BLOCKING_CAUSES
 from supervisord.api.status import EstopAvailable
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import RemoteStatus, VscHeartbeat
 from supervisord.safety.availability import battery_missing
 from supervisord.safety.core import LINKED_MODES
 from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
+from supervisord.vocabulary import STOP_PATH_CAUSES, Cause, CauseKind
 
-_WATCHDOG_CAUSES: Final = ("transport_fault", "vsc_link_lost", "vsc_watchdog_off")
+_WATCHDOG_CAUSES: Final = (
+    CauseKind.TRANSPORT_FAULT,
+    CauseKind.VSC_LINK_LOST,
+    CauseKind.VSC_WATCHDOG_OFF,
+)
 
 
 def estop_available(
     now: int,
     *,
-    active: Iterable[str],
+    active: Iterable[Cause],
     heartbeat: VscHeartbeat | None,
     remote: RemoteStatus | None,
     remote_seen: int | None,
@@ -40,15 +44,15 @@ def estop_available(
 ) -> EstopAvailable:
     """Whether the remote e-stop is available at ``now`` (ns, the loop's clock).
 
-    ``active``: the names of the active causes (``KIND`` or ``KIND:WHICH``); ``heartbeat``: the
+    ``active``: the active causes; ``heartbeat``: the
     VSC's last heartbeat; ``remote`` and ``remote_seen``: the last remote status and when it
     came; ``prooftest``: the core's proof-test status (``None`` or policy ``off``: the config
     has no proof test, nothing to prove); ``min_battery``: ``vsc.min_remote_battery``, 0 for
     no battery check.
     """
-    kinds = {name.split(":")[0] for name in active}
-    missing = [BLOCKING_CAUSES[kind] for kind in _WATCHDOG_CAUSES if kind in kinds]
-    heard = not kinds & {"transport_fault", "vsc_link_lost"}
+    kinds = {cause.kind for cause in active}
+    missing = [STOP_PATH_CAUSES[kind] for kind in _WATCHDOG_CAUSES if kind in kinds]
+    heard = not kinds & {CauseKind.TRANSPORT_FAULT, CauseKind.VSC_LINK_LOST}
     if heartbeat is None:
         missing.append("no heartbeat from the VSC yet")
     elif heard:

@@ -21,6 +21,7 @@ heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime as dt
 import logging
 import os
@@ -47,8 +48,9 @@ from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message, UserHeartbeat, VscHeartbeat
 from supervisord.record.flight import FlightWriter
-from supervisord.record.format import record_json
+from supervisord.record.format import stop_record
 from supervisord.record.jsonl import RecordWriter
+from supervisord.record.stop import StopRecord
 from supervisord.safety.causes import CauseState
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -176,9 +178,9 @@ class Listener:
     def decided(self, decision: Decision) -> None:
         """A decision was applied (outputs set, frames sent)."""
 
-    def recorded(self, entry: dict[str, object]) -> None:
-        """A stop-record entry is finished: on disk, or counted as not written. Called in
-        record order, after the decision that made it."""
+    def recorded(self, record: StopRecord) -> None:
+        """A stop record is finished: on disk, or counted as not written. Called in record
+        order, after the decision that made it."""
 
     def received(self, message: Message | HidInput, now: int) -> None:
         """A valid message arrived from the VSC, read at ``now``."""
@@ -250,6 +252,9 @@ class Supervisor:
         self._next_limit_log = 0
         self._started_ns: int | None = None  # for ``status``: uptime
         self._version_due = True  # the first record of this start names the version
+        # The typed records the sink has as JSON, by ``seq``, until it says what became of
+        # each: the API pushes the typed record itself, never one read back from its JSON.
+        self._in_sink: dict[int, StopRecord] = {}
         self._link_since_ns: int | None = None  # when the link last opened or broke
         self._link_error: str | None = None  # why it last broke or failed to open
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
@@ -818,12 +823,14 @@ class Supervisor:
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
         (outputs first, SR-6); the record follows on the sink's record lane."""
-        entry = record_json(record, self.wall_clock(), self.sequence_offset)
+        typed = stop_record(record, self.wall_clock(), self.sequence_offset)
         if self._version_due:
             # The first record of a start (the startup stop) names the build that made it, so
             # a stop record says which version was running (docs/record.md).
-            entry["version"] = __version__
+            typed = dataclasses.replace(typed, version=__version__)
             self._version_due = False
+        entry = typed.json()
+        self._in_sink[typed.seq] = typed
         if self.sink is None:  # not started: nothing can be written yet
             self._recorded(Written(entry, "the record sink is not running", dropped=True))
             return
@@ -849,7 +856,10 @@ class Supervisor:
             self.counters.records_dropped += written.dropped
             log.error("stop record not written: %s", written.error)
         self.schedule.recorded(written.entry)  # a pass resets its test's age (SR-12.2)
-        self.listener.recorded(dict(written.entry))
+        seq = written.entry.get("seq")
+        typed = self._in_sink.pop(seq, None) if isinstance(seq, int) else None
+        if typed is not None:
+            self.listener.recorded(typed)
 
     def _rate_limited(self, now: int) -> None:
         """Count a release or reset refused under the record budget; log the count at most

@@ -28,12 +28,13 @@ from typing import Final, Protocol
 
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import Push, RecordPush, RemoteStatusPush, StatePush
-from supervisord.api.records import StopRecord
 from supervisord.api.replies import StatusReply
 from supervisord.api.status import DaemonStatus, HistogramStatus, Maintenance, StateReport
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.timebase import NS_PER_S
+from supervisord.vocabulary import ChangeKind, Severity, State
 
-STATES: Final = ("STOPPED", "HOLD", "RUN")
+STATES: Final = tuple(state.name for state in State)
 """The supervisor's states (SR-1), one ``srcs_state`` series each."""
 MAX_LABEL_VALUES: Final = 64
 """Distinct values one label may take (cause, reason, output); past it, ``other``. Cause
@@ -381,19 +382,17 @@ class ExporterModel:
         # else: a topic this exporter did not ask for, or a newer one
 
     def _state(self, report: StateReport) -> None:
-        if report.state not in STATES:
-            return
         # A push read after a newer status reply (the client keeps pushes that arrive while
         # it waits for a reply) must not turn the state back.
         if self.state_ns is not None and report.mono_ns < self.state_ns:
             return
-        self.state, self.state_ns = report.state, report.mono_ns
+        self.state, self.state_ns = report.state.name, report.mono_ns
         causes: dict[str, CauseFlags] = {}
         for cause in report.causes:
-            name = self._cause_label(cause.name, cause.severity)
+            name = self._cause_label(cause.name.name, cause.severity.value)
             flags = causes.get(name)
             causes[name] = CauseFlags(
-                cause.severity,
+                cause.severity.value,
                 cause.active or (flags is not None and flags.active),
                 cause.latched or (flags is not None and flags.latched),
             )
@@ -447,33 +446,33 @@ class ExporterModel:
         # record file); it is no repeat, since a push is sent once, to live subscribers.
         self.last_seq = seq
         self.records_seen += 1
-        severities: dict[str, str] = {}
+        severities: dict[str, Severity] = {}
         for cause in record.causes:
-            severities[cause.name] = cause.severity
-            self._cause_label(cause.name, cause.severity)
+            severities[cause.name.name] = cause.severity
+            self._cause_label(cause.name.name, cause.severity.value)
         changes = record.changes or ()
-        raised = [c.name for c in changes if c.change == "raised"]
-        released = [c.name for c in changes if c.change == "released"]
+        raised = [c.name.name for c in changes if c.change is ChangeKind.RAISED]
+        released = [c.name.name for c in changes if c.change is ChangeKind.RELEASED]
         for name in raised:
             label = self._cause_label(name)
             self.raised[label] = self.raised.get(label, 0) + 1
         before, after = record.from_state, record.to_state
-        if before in STATES and after in STATES and before != after:
-            key = (before, after)
+        if before is not after:
+            key = (before.name, after.name)
             self.transitions[key] = self.transitions.get(key, 0) + 1
-            if after == "STOPPED":
-                stop_causes = [n for n in raised if severities.get(n) == "stop"]
+            if after is State.STOPPED:
+                stop_causes = [n for n in raised if severities.get(n) is Severity.STOP]
                 # Every stop has a stop cause raised with it (SR-2); if a record
                 # ever lacked one, the stop still counts.
                 for name in stop_causes or ["unknown"]:
                     label = self._cause_label(name)
                     self.stops[label] = self.stops.get(label, 0) + 1
-            elif before == "STOPPED":
-                kind = record.rearm.kind if record.rearm is not None else "unknown"
+            elif before is State.STOPPED:
+                kind = record.rearm.kind.value if record.rearm is not None else "unknown"
                 for name in released or ["unknown"]:
                     key = (self._cause_label(name), kind)
                     self.rearms[key] = self.rearms.get(key, 0) + 1
-        if record.kind == "rearm_refused":
+        if record.kind is RecordKind.REARM_REFUSED:
             self.rearm_refusals += 1
 
     def _remote(self, message: RemoteStatusReport, now_ns: int) -> None:

@@ -1,10 +1,13 @@
-"""The stop record's format (SR-7, ``docs/record.md`` "Fields"): one JSON object per record.
+"""The stop record's making (SR-7, ``docs/record.md`` "Fields"): one JSON object per record.
 
+:func:`stop_record` turns the safety core's record into the typed record
+(:class:`~supervisord.record.stop.StopRecord`, whose one encoder writes it), and
 :func:`record_json` turns the safety core's :class:`~supervisord.safety.decision.Record` into
 the object that the JSON Lines store, the journal and the API's ``record`` push all carry;
 :class:`RecordKind` names what a record reports, :func:`record_kind` derives it from the
 core's record and :func:`written_kind` reads it back from a written one. The cause and caller
 objects are shared with the API's ``status`` (``docs/api.md``), so both read the same.
+:class:`RecordKind` is the typed record's (re-exported here).
 
 Pure: no clock (the daemon passes the wall-clock time it stamps), no I/O.
 """
@@ -18,21 +21,23 @@ import re
 from collections.abc import Mapping
 from typing import Any, Final, get_args
 
-from supervisord.api.records import Caller as CallerReport
-from supervisord.api.records import (
-    Change,
-    OutputOffReport,
-    Rearm,
-    StopRecord,
-    StopStepReport,
-    StopTestReport,
-)
-from supervisord.api.status import Cause, ProofTestResult, ProofTestStatus
-from supervisord.compat import StrEnum
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Message
 from supervisord.protocol.text import clean
 from supervisord.record.jsonl import RecordUsageError
+from supervisord.record.stop import Caller as CallerReport
+from supervisord.record.stop import (
+    Cause,
+    Change,
+    OutputOffReport,
+    ProofTestResult,
+    ProofTestStatus,
+    Rearm,
+    RecordKind,
+    StopRecord,
+    StopStepReport,
+    StopTestReport,
+)
 from supervisord.safety.causes import CauseState
 from supervisord.safety.decision import ChangeKind, Record
 from supervisord.safety.events import (
@@ -65,27 +70,6 @@ from supervisord.safety.prooftest import Outcome, ProofStatus
 from supervisord.safety.stoptest import StopTestResult
 
 JsonDict = dict[str, Any]
-
-
-class RecordKind(StrEnum):
-    """What a record reports, as its optional ``kind`` field says (absent: a state change)."""
-
-    STATE_CHANGE = "state_change"
-    """The state changed (a stop is a change into STOPPED)."""
-    CAUSE_RAISED = "cause_raised"
-    """A stop or hold cause became active."""
-    CAUSE_CLEARED = "cause_cleared"
-    """A cause's condition cleared."""
-    REARM_REFUSED = "rearm_refused"
-    """A re-arm was asked for and refused."""
-    COMMISSIONED = "commissioned"
-    """Key 85 was written to the VSC (``srcsctl commission``)."""
-    PROOFTEST = "prooftest"
-    """A proof test of the VSC's watchdog finished (SR-5.3, docs/safety.md "The proof test")."""
-    HELLO_REFUSED = "hello_refused"
-    """A hello as a client bound to another user was refused (SR-8)."""
-    STOPTEST = "stoptest"
-    """A field stop test finished (SR-12.1, ``srcsctl stoptest``)."""
 
 
 def record_kind(record: Record) -> RecordKind:
@@ -127,8 +111,8 @@ def cause_report(cause: CauseState) -> Cause:
     """One cause: ``name``, ``severity`` (``stop``/``hold``), ``active``, ``latched``, the
     monotonic times, and ``details`` (text values, e.g. ``{"sources": "remote"}``)."""
     return Cause(
-        name=cause.name,
-        severity=cause.severity.value,
+        name=cause.cause,
+        severity=cause.severity,
         active=cause.active,
         latched=cause.latched,
         raised_ns=cause.raised_ns,
@@ -157,8 +141,8 @@ def proof_result(outcome: Outcome) -> ProofTestResult:
 def proof_status(status: ProofStatus) -> ProofTestStatus:
     """Where the proof test is, as ``status`` and ``state`` pushes show it."""
     return ProofTestStatus(
-        policy=status.policy.value,
-        phase=status.phase.value,
+        policy=status.policy,
+        phase=status.phase,
         last=None if status.last is None else proof_result(status.last),
     )
 
@@ -273,18 +257,18 @@ def stop_record(record: Record, utc: dt.datetime, sequence_offset: int = 0) -> S
     if record.rearm is not None:
         caller = record.rearm.caller
         rearm = Rearm(
-            kind=record.rearm.kind.value,
+            kind=record.rearm.kind,
             caller=None if caller is None else caller_report(caller),
         )
     return StopRecord(
         seq=sequence_offset + record.sequence,
         mono_ns=record.monotonic_ns,
         utc=utc.astimezone(dt.timezone.utc).isoformat(timespec="microseconds"),
-        kind=record_kind(record).value,
-        from_state=record.previous.name,
-        to_state=record.state.name,
+        kind=record_kind(record),
+        from_state=record.previous,
+        to_state=record.state,
         causes=tuple(cause_report(c) for c in record.causes),
-        changes=tuple(Change(name=c.cause.name, change=c.kind.value) for c in record.changes),
+        changes=tuple(Change(name=c.cause, change=c.kind) for c in record.changes),
         trigger=trigger_json(record.trigger),
         reason=clean(record.reason) if record.reason else None,
         prooftest=None if record.prooftest is None else proof_result(record.prooftest),

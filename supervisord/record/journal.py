@@ -32,8 +32,9 @@ from typing import Final
 from supervisord.compat import IntEnum
 from supervisord.errors import SrcsError
 from supervisord.journal_ids import MESSAGE_IDS_BY_KIND
-from supervisord.record.format import RecordKind, written_kind
+from supervisord.record.format import written_kind
 from supervisord.record.jsonl import RecordUsageError, cause_names
+from supervisord.record.stop import RecordKind
 
 JOURNAL_SOCKET: Final = "/run/systemd/journal/socket"
 SYSLOG_IDENTIFIER: Final = "srcsd"

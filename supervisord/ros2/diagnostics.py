@@ -13,7 +13,8 @@ from typing import Final
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.status import Cause, DaemonStatus, Maintenance, StateReport
 from supervisord.compat import IntEnum
-from supervisord.ros2.mapping import State, state_of
+from supervisord.ros2.mapping import state_of
+from supervisord.vocabulary import State
 
 SUPERVISOR_NAME: Final = "srcs: supervisor"
 REMOTE_NAME: Final = "srcs: remote"
@@ -76,9 +77,9 @@ def supervisor_status(
         message = f"supervisor unreachable: {unreachable}" if unreachable else "unreachable"
         return Status(Level.ERROR, SUPERVISOR_NAME, message, robot, tuple(values))
     state = state_of(status)
-    names = [c.name for c in status.causes]
-    values += [("connected", "true"), ("state", state.value)]
-    values += [(c.name, _cause_text(c)) for c in status.causes]
+    names = [c.name.name for c in status.causes]
+    values += [("connected", "true"), ("state", state.name)]
+    values += [(c.name.name, _cause_text(c)) for c in status.causes]
     values += [(f"output {name}", _flag(on)) for name, on in sorted(status.outputs.items())]
     values += [("heartbeat e-stop", _text(status.heartbeat_estop))]
     level = _STATE_LEVEL[state]
@@ -96,7 +97,7 @@ def supervisor_status(
         if overdue and level is Level.OK:
             level = Level.WARN  # the evidence is old: said, the robot is not stopped (SR-12.2)
     values += _gate_values(gate)
-    message = state.value + (": " + ", ".join(names) if names else "")
+    message = state.name + (": " + ", ".join(names) if names else "")
     if estop_available is not None and not estop_available[0]:
         message += "; remote e-stop not available"
     if overdue:
@@ -151,7 +152,7 @@ def remote_status(remote: RemoteStatusReport | None, robot: str) -> Status:
 
 def _cause_text(cause: Cause) -> str:
     """``stop, active, latched; sources=remote`` for one cause of a ``status``."""
-    words = [cause.severity]
+    words = [cause.severity.value]
     words += ["active"] if cause.active else []
     words += ["latched"] if cause.latched else []
     text = ", ".join(words)

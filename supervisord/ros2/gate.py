@@ -12,7 +12,7 @@ from __future__ import annotations
 import enum
 
 from supervisord.ros2.diagnostics import GateCounts
-from supervisord.ros2.mapping import State
+from supervisord.vocabulary import State
 
 
 class Verdict(enum.Enum):

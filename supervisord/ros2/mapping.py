@@ -9,7 +9,6 @@ value (an axis 0, the state STOPPED, no GPS fix).
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass
 from typing import Final
@@ -18,6 +17,7 @@ from supervisord.api.messages import AxisReport, GpsReport, JoystickReport
 from supervisord.api.replies import StatusReply
 from supervisord.api.status import StateReport
 from supervisord.compat import IntEnum
+from supervisord.vocabulary import State
 
 AXES: Final = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
 """``sensor_msgs/Joy`` axes 0-5, the order of the public drivers (docs/ros2.md "joy")."""
@@ -37,24 +37,14 @@ TEXT_ROWS: Final = 4  # the remote's text page has four rows (docs/api.md "displ
 ROW_LENGTH: Final = 20  # of 20 single-byte characters each
 
 
-class State(enum.Enum):
-    """The supervisor's state (SR-1) as the ``state`` topic names it."""
-
-    STOPPED = "STOPPED"
-    HOLD = "HOLD"
-    RUN = "RUN"
-
-
 def state_of(report: StateReport | None) -> State:
     """The state of a ``state`` push or ``status`` reply; ``None`` (the supervisor cannot be
-    reached) and a state this bridge does not know are STOPPED: the bridge never vouches for
-    motion it cannot see (docs/ros2.md "state")."""
+    reached) is STOPPED: the bridge never vouches for motion it cannot see (docs/ros2.md
+    "state"); a state this bridge does not know never reads (the shared vocabulary's, strict).
+    The ``state`` topic names it as the API does (``STOPPED``: :attr:`State.name`)."""
     if report is None:
         return State.STOPPED
-    try:
-        return State(report.state)
-    except ValueError:
-        return State.STOPPED
+    return report.state
 
 
 def estop_of(state: State) -> bool:

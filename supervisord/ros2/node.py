@@ -37,16 +37,16 @@ from supervisord.ros2.command import Declaration, nonzero
 from supervisord.ros2.diagnostics import Status, remote_status, supervisor_status
 from supervisord.ros2.gate import VelocityGate, Verdict
 from supervisord.ros2.link import Connected, LinkEvent, Lost, SupervisorLink
+from supervisord.ros2.mapping import display_rows as rows_of
 from supervisord.ros2.mapping import (
-    State,
     estop_available_of,
     estop_of,
     gps_fix,
     joy_values,
     state_of,
 )
-from supervisord.ros2.mapping import display_rows as rows_of
 from supervisord.ros2.parameters import PARAMETERS
+from supervisord.vocabulary import State
 
 NODE_NAME = "srcs_bridge"
 LATCHED = QoSProfile(
@@ -191,7 +191,7 @@ class BridgeNode(Node):
         if state is self._state:
             return
         old, self._state = self._state, state
-        self.state_pub.publish(String(data=state.value))
+        self.state_pub.publish(String(data=state.name))
         if old is None or estop_of(old) != estop_of(state):
             self.estop_pub.publish(Bool(data=estop_of(state)))
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from typing import Final
 
-from supervisord.compat import StrEnum
 from supervisord.timebase import NS_PER_MS, NS_PER_S
+from supervisord.vocabulary import Reaction
 
 DEFAULT_MIN_REMOTE_BATTERY: Final = 20
 """``vsc.min_remote_battery``: below this battery percent the e-stop counts as not available.
@@ -35,15 +35,6 @@ good in an unbroken run of reports whose first and last are at least this far ap
 reports at the VSC's 1 Hz), and while it lasts its reason changes at most once per this but
 for a report going stale. So the condition ends at most once a second however fast a VSC
 reports (20 ms at the fastest)."""
-
-
-class Reaction(StrEnum):
-    """``vsc.on_estop_unavailable``: what the supervisor does while the remote's battery is low
-    or not reported (SR-8.12)."""
-
-    WARN = "warn"  # say so in status, the exporter and the bridge; nothing else
-    HOLD = "hold"  # the cause estop_unavailable_hold: HOLD, RUN again once it is back
-    STOP = "stop"  # the cause estop_unavailable: STOPPED, latched, a takeover after it is back
 
 
 def report_stale(now: int, seen_ns: int, *, arriving: bool = False) -> bool:
@@ -82,3 +73,15 @@ def battery_missing(
     if level < min_battery:
         return f"the remote's battery is {level} %, below {min_battery} %"
     return None
+
+
+__all__ = [
+    "BATTERY_SETTLE_NS",
+    "DEFAULT_MIN_REMOTE_BATTERY",
+    "MIN_REMOTE_BATTERY_RANGE",
+    "REMOTE_STATUS_FRESH_NS",
+    "Reaction",
+    "battery_missing",
+    "report_stale",
+    "stale_words",
+]

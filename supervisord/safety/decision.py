@@ -14,29 +14,13 @@ from supervisord.protocol.messages import Message
 from supervisord.safety.causes import Cause, CauseState, Severity
 from supervisord.safety.events import Caller, Event
 from supervisord.safety.prooftest import Outcome, ProofStatus
-from supervisord.safety.transitions import State
-
-
-class ChangeKind(enum.Enum):
-    """How a cause changed in one step (SR-7: every raise and clear is recorded)."""
-
-    RAISED = "raised"  # its condition became active (a momentary cause fired)
-    CLEARED = "cleared"  # its condition became clear; a stop cause stays latched
-    RELEASED = "released"  # a re-arm released the latch of a clear stop cause (SR-4)
-    UPDATED = "updated"  # an active cause's details changed (e.g. more e-stop sources)
+from supervisord.vocabulary import ChangeKind, RearmKind, State
 
 
 @dataclass(frozen=True, slots=True)
 class CauseChange:
     cause: Cause
     kind: ChangeKind
-
-
-class RearmKind(enum.Enum):
-    """The two re-arm paths of SR-4."""
-
-    TAKEOVER = "takeover"  # the operator's takeover on the remote: not Operational -> Operational
-    LOCAL_RESET = "local_reset"  # ``srcsctl reset`` by an admin, when the config allows it
 
 
 class RecordNote(enum.Enum):
@@ -176,3 +160,17 @@ class Decision:
     @property
     def stop_active(self) -> bool:
         return any(c.active and c.severity is Severity.STOP for c in self.causes)
+
+
+__all__ = [
+    "CauseChange",
+    "ChangeKind",
+    "Decision",
+    "Rearm",
+    "RearmKind",
+    "Record",
+    "RecordNote",
+    "Refusal",
+    "RefusalReason",
+    "State",
+]

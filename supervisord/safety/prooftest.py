@@ -21,6 +21,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.causes import CauseKind
 from supervisord.timebase import NS_PER_MS
+from supervisord.vocabulary import Phase, ProofTestPolicy
 
 USER_BITS: Final = 0xC0
 """Bits 6-7 of the VSC's e-stop word: the user computer's e-stop, from its heartbeat's byte
@@ -69,25 +70,6 @@ waits for the proof test; the test needs the byte at 0 (PR-2.6). It cannot move 
 the outputs are off (STOPPED) and ``client_lost`` stays active, latched and blocking every
 re-arm; the withholding itself opens the VSC's relays, and once the test is over the byte is
 1 again until the client is there."""
-
-
-class ProofTestPolicy(enum.Enum):
-    """What a failed or impossible proof test does (config ``vsc.prooftest``)."""
-
-    BLOCK = "block"  # vsc_watchdog_untested stays active until a proof test passes
-    RECORD = "record"  # the failure is a momentary stop: recorded, latched, re-armed as usual
-    OFF = "off"  # no proof test (the only choice on CAN and HID: nothing to prove)
-
-
-class Phase(enum.Enum):
-    """Where the proof test is."""
-
-    WAITING = "waiting"  # not proven; waiting for the conditions to start
-    WITHHOLDING = "withholding"  # the user heartbeat is withheld; waiting for the trip
-    RESUMED = "resumed"  # the heartbeat goes out again; waiting for the bits to clear
-    PASSED = "passed"
-    FAILED = "failed"
-    OFF = "off"
 
 
 class Failure(enum.Enum):
@@ -388,3 +370,24 @@ class ProofTest:
         if failure is Failure.NOT_CLEARED:
             return  # keep watching: a held bit that clears later still passes
         self._resumed_ns = None
+
+
+__all__ = [
+    "CLEARS_ITSELF_NS",
+    "EARLY_NS",
+    "KEY85_WAIT_NS",
+    "LATE_TRIES",
+    "NOT_IN_THE_WAY",
+    "READING_MARGIN_NS",
+    "TRIP_LATE_NS",
+    "USER_BITS",
+    "WATCHDOG_NS",
+    "WITHHOLD_LIMIT_NS",
+    "Cleared",
+    "Failure",
+    "Outcome",
+    "Phase",
+    "ProofStatus",
+    "ProofTest",
+    "ProofTestPolicy",
+]

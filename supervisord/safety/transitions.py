@@ -13,14 +13,7 @@ import enum
 from dataclasses import dataclass
 
 from supervisord.errors import SrcsError
-
-
-class State(enum.Enum):
-    """The three states of SR-1."""
-
-    STOPPED = "stopped"  # a stop cause is active, or latched and not yet re-armed
-    HOLD = "hold"  # no stop, but motion is not intended
-    RUN = "run"  # motion is allowed
+from supervisord.vocabulary import State
 
 
 class Situation(enum.Enum):
@@ -96,3 +89,6 @@ def next_state(state: State, situation: Situation) -> State:
         return _INDEX[state, situation]
     except KeyError:
         raise IllegalTransition(state, situation) from None
+
+
+__all__ = ["TABLE", "IllegalTransition", "Situation", "State", "Transition", "next_state"]

@@ -57,6 +57,7 @@ from supervisord.testkit.namespaces import NetNamespace, in_private_mount
 from supervisord.testkit.wait import WAIT_S, FaultHarnessError, wait_until
 from supervisord.testkit.watcher import OutputWatcher
 from supervisord.tooling.children import kill, log_tail, terminate
+from supervisord.vocabulary import CauseKind, ChangeKind, Severity, State
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.
@@ -341,7 +342,9 @@ class Robot:
 
     def active_stops(self, status: StatusReply | None = None) -> set[str]:
         status = status or self.status()
-        return {c.name for c in status.report.causes if c.active and c.severity == "stop"}
+        return {
+            c.name.name for c in status.report.causes if c.active and c.severity is Severity.STOP
+        }
 
     def output_file(self, name: str) -> bool | None:
         try:
@@ -565,7 +568,7 @@ class Robot:
             if output.stuck_at is None:
                 self.watcher.wait(output.name, True, after)
         status = self.status()
-        assert status.report.state == "RUN", status
+        assert status.report.state is State.RUN, status
         assert all(status.report.outputs.values()), status
         return status
 
@@ -590,7 +593,7 @@ class Robot:
         for name in self.healthy_outputs():
             off = self.watcher.first(name, False, t)
             assert off is None, f"{name} went off at +{(off.t - t) * 1000:.0f} ms"
-        assert self.status().report.state == "RUN"
+        assert self.status().report.state is State.RUN
 
     def remote_estop_unrecorded(self, subscriber: SupervisorClient) -> Stop:
         """``remote_estop`` when the record file may not take the record (a full disk): the
@@ -604,8 +607,12 @@ class Robot:
             if not isinstance(push, RecordPush) or push.record.mono_ns < t * 1e9:
                 continue
             record = push.record
-            if any(c.name == "vsc_estop" and c.change == "raised" for c in record.changes or ()):
-                assert record.to_state == "STOPPED", record
+            changes = record.changes or ()
+            if any(
+                c.name.kind is CauseKind.VSC_ESTOP and c.change is ChangeKind.RAISED
+                for c in changes
+            ):
+                assert record.to_state is State.STOPPED, record
                 return Stop("vsc_estop", t, t_off, record.json())  # as the record file has it
         raise FaultHarnessError("no stop record raising vsc_estop was pushed")
 
@@ -618,7 +625,7 @@ class Robot:
 
     def wait_state(self, state: str, timeout: float = WAIT_S) -> StatusReply:
         found = wait_until(
-            lambda: (s := self.status()).report.state == state and s,
+            lambda: (s := self.status()).report.state.name == state and s,
             timeout,
             what=f"state {state}",
         )

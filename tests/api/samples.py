@@ -12,6 +12,7 @@ from supervisord.api.status import (
     LoopStatus,
     StateReport,
 )
+from supervisord.vocabulary import State
 
 LOOP = LoopStatus(
     pid=1234,
@@ -39,7 +40,7 @@ LOOP = LoopStatus(
 )
 
 
-STOPPED = StateReport(state="STOPPED", mono_ns=1, causes=(), outputs={}, heartbeat_estop=1)
+STOPPED = StateReport(state=State.STOPPED, mono_ns=1, causes=(), outputs={}, heartbeat_estop=1)
 """A state with nothing to say but STOPPED."""
 
 

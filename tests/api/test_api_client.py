@@ -45,6 +45,7 @@ from supervisord.client import (
 )
 from supervisord.protocol.codes import DisplayMode
 from supervisord.safety.events import Request
+from supervisord.vocabulary import CauseKind, State
 from tests.api.test_api_server import Loop
 
 
@@ -106,8 +107,8 @@ def test_connect_with_name_says_hello_and_heartbeats(sock_path: Path) -> None:
             for _ in range(3):
                 client.heartbeat()
             status = client.status()
-            assert status.report.state == "STOPPED"
-            assert "startup" in {c.name for c in status.report.causes}
+            assert status.report.state is State.STOPPED
+            assert CauseKind.STARTUP in {c.kind for c in status.report.causes}
         assert client.fileno() < 0
         served.until(lambda loop: bool(loop.of_type(Closed)))
     assert served.requests() == [Hello("planner"), Heartbeat(), Heartbeat(), Heartbeat(), Status()]

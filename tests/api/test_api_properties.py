@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from supervisord.api.pushes import RecordPush
-from supervisord.api.views import message_push, message_topic, record_push, state_push
+from supervisord.api.views import message_push, message_topic, state_push
 from supervisord.config import load_config
 from supervisord.daemon.assemble import build_api, build_supervisor
 from supervisord.daemon.loop import Supervisor
@@ -27,8 +27,9 @@ from supervisord.protocol.framing import encode_frame
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import Gps, Joystick, Message, RemoteStatus
 from supervisord.protocol.payload import FIXED_LENGTH, decode_payload
-from supervisord.record.format import record_json
+from supervisord.record.format import record_json, stop_record
 from supervisord.record.jsonl import encode as encode_record
+from supervisord.record.stop import read_record
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.events import (
@@ -325,10 +326,11 @@ def test_every_push_of_arbitrary_vsc_payloads_encodes(
     for decision in decisions:
         strict(state_push(decision).json())
         for record in decision.records:
+            typed = stop_record(record, utc)
             entry = record_json(record, utc)
             encode_record(entry)
-            pushed = record_push(entry)
-            assert isinstance(pushed, RecordPush)  # it read back as the typed record
+            assert read_record(entry) == typed  # the record file's object reads back as it
+            pushed = RecordPush(typed)
             assert pushed.json() == {"event": "record", **entry}
             strict(pushed.json())
 

@@ -9,6 +9,7 @@ import json
 import pytest
 
 from supervisord.api.framing import ApiError, ErrorCode, LineReader, encode
+from supervisord.api.pushes import RecordPush
 from supervisord.api.requests import (
     OPS,
     ApiRequest,
@@ -39,7 +40,6 @@ from supervisord.api.views import (
     message_push,
     message_topic,
     ok_reply,
-    record_push,
     refusal_error,
     state_push,
     state_report,
@@ -63,7 +63,7 @@ from supervisord.protocol.messages import (
     RemoteStatus,
     VscHeartbeat,
 )
-from supervisord.record.format import record_json
+from supervisord.record.format import record_json, stop_record
 from supervisord.record.jsonl import encode as encode_record
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -563,6 +563,8 @@ def test_a_record_and_a_status_naming_an_odd_user_encode_strictly() -> None:
     strict_utf8(obj)
     assert obj["trigger"]["caller"]["name"] == "r\\xe9mi"
     strict_utf8(state_push(decision).json())
-    strict_utf8(record_push(obj).json())
+    strict_utf8(
+        RecordPush(stop_record(record, dt.datetime(2026, 3, 1, tzinfo=dt.timezone.utc))).json()
+    )
     local = next(c for c in state_report(decision).json()["causes"] if c["name"] == "local_estop")
     strict_utf8(local)

@@ -21,6 +21,8 @@ from supervisord.api.status import Cause, ClientStatus, ProofTestStatus, RearmSt
 from supervisord.api.views import rearm_status
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.prooftest import NOT_IN_THE_WAY
+from supervisord.vocabulary import Cause as CauseName
+from supervisord.vocabulary import Phase, ProofTestPolicy, Severity, State
 from tests.api.samples import LOOP, status_reply
 from tests.safety.rig import Rig
 
@@ -32,16 +34,23 @@ def status(
 ) -> StatusReply:
     """A ``status`` reply of a supervisor whose stop path works, but for ``active``."""
     causes = tuple(
-        Cause(name=name, severity="stop", active=True, latched=True, raised_ns=1, cleared_ns=None)
+        Cause(
+            name=CauseName.from_text(name),
+            severity=Severity.STOP,
+            active=True,
+            latched=True,
+            raised_ns=1,
+            cleared_ns=None,
+        )
         for name in active
     )
     report = StateReport(
-        state=state,
+        state=State[state],
         mono_ns=1,
         causes=causes,
         outputs={},
         heartbeat_estop=1,
-        prooftest=ProofTestStatus(policy=policy, phase=phase, last=None),
+        prooftest=ProofTestStatus(policy=ProofTestPolicy(policy), phase=Phase(phase), last=None),
     )
     reply = status_reply(report)
     loop = dataclasses.replace(reply.daemon.loop, link=WORKING_LINK)
@@ -61,10 +70,16 @@ def test_a_working_stop_path_is_ready_whatever_the_state_and_the_stops() -> None
     assert missing(status("vsc_estop", "client_hold:planner", "startup")) == []
 
 
-@pytest.mark.parametrize("cause", [*sorted(BLOCKING_CAUSES), "output_fault:drive"])
-def test_each_cause_that_breaks_the_stop_path_is_named(cause: str) -> None:
-    assert missing(status(cause)) == [BLOCKING_CAUSES[cause.split(":", maxsplit=1)[0]]]
-    assert missing(latched_only(status(cause))) == []
+@pytest.mark.parametrize(
+    "cause",
+    [CauseName(k, "drive" if k.has_subject else None) for k in BLOCKING_CAUSES],
+    ids=str,
+)
+def test_each_cause_that_breaks_the_stop_path_is_named(cause: CauseName) -> None:
+    """SR-8.10: an active cause that breaks the stop path is named in its words; latched only,
+    it is not missing."""
+    assert missing(status(cause.name)) == [BLOCKING_CAUSES[cause.kind]]
+    assert missing(latched_only(status(cause.name))) == []
 
 
 @pytest.mark.parametrize("phase", ["waiting", "withholding", "resumed", "failed"])
@@ -95,7 +110,7 @@ def test_a_closed_link_and_outputs_not_held_are_named() -> None:
 def with_details(reply: StatusReply, name: str, **details: str) -> StatusReply:
     """``reply`` with ``details`` on its cause ``name``."""
     causes = tuple(
-        dataclasses.replace(c, details=details) if c.name == name else c
+        dataclasses.replace(c, details=details) if c.name.name == name else c
         for c in reply.report.causes
     )
     return dataclasses.replace(reply, report=dataclasses.replace(reply.report, causes=causes))
@@ -131,7 +146,7 @@ def test_a_waiting_proof_test_says_what_it_waits_for() -> None:
 def test_the_stops_named_in_the_way_are_the_core_s() -> None:
     """SR-8.15: the stops readiness names as keeping the proof test from starting are exactly
     those that set the user heartbeat's byte, less the ones the proof test lets pass."""
-    core = {k.value for k in CauseKind if k.sets_user_estop and k not in NOT_IN_THE_WAY}
+    core = {k for k in CauseKind if k.sets_user_estop and k not in NOT_IN_THE_WAY}
     assert core == OURS_IN_THE_WAY
 
 

@@ -15,6 +15,7 @@ from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import LONGEST_CLIENT_TIMEOUT_MS, SrcsdProcess
+from supervisord.vocabulary import State
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsd import CONFIG, SERVED_CONFIG, wait
 
@@ -67,7 +68,7 @@ def test_client_keeps_the_robot_running_and_local_commands_stop_it(tmp_path: Pat
             with SupervisorClient.connect(tmp_path / "api.sock") as operator:
                 operator.estop()  # no hello: the operator's local e-stop
                 status = operator.status()
-                assert status.report.state == "STOPPED"
+                assert status.report.state is State.STOPPED
                 assert "local_estop" in status.report.active()
                 assert (tmp_path / "drive").read_text() == "0\n"
                 operator.release("estop")

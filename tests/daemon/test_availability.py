@@ -15,6 +15,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import RemoteStatus, VscHeartbeat
 from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS
 from supervisord.safety.prooftest import Phase, ProofStatus, ProofTestPolicy
+from supervisord.vocabulary import Cause
 
 NOW = 1_000 * 1_000_000_000
 LINKED = VscHeartbeat(VscMode.OPERATIONAL)
@@ -33,7 +34,7 @@ def _check(
     remote = RemoteStatus(battery) if battery is not None else None
     return estop_available(
         NOW,
-        active=active,
+        active=[Cause.from_text(name) for name in active],
         heartbeat=heartbeat,
         remote=remote,
         remote_seen=NOW - age_ns if remote is not None else None,

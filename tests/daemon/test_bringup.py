@@ -11,6 +11,7 @@ from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsctl import SRCSCTL
 
@@ -47,13 +48,13 @@ def test_a_required_client_started_behind_the_gate_comes_up_and_the_robot_runs(
             gate.stdout
         )
         status = robot.status()
-        assert status.report.state == "STOPPED"
+        assert status.report.state is State.STOPPED
         assert LOST in robot.active_stops(status)
         assert status.report.prooftest is not None
         assert status.report.prooftest.last is not None
         assert status.report.prooftest.last.result == "passed", status.report.prooftest
         robot.arm()  # the service behind the gate starts; the operator takes over
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 def test_a_required_client_started_before_the_gate_comes_up_and_the_robot_runs(
@@ -68,7 +69,7 @@ def test_a_required_client_started_before_the_gate_comes_up_and_the_robot_runs(
         assert gate.returncode == 0, gate.stderr
         assert "also missing" not in gate.stdout, gate.stdout
         robot.arm()
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 def test_a_takeover_right_after_wait_ready_rearmable_is_accepted(tmp_path: Path) -> None:

@@ -24,6 +24,8 @@ from supervisord.protocol.messages import FeedbackName, FeedbackSet
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import SrcsdProcess
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import Cause as Named
+from supervisord.vocabulary import CauseKind, Severity
 from tests.api.samples import STOPPED
 from tests.daemon.peer import VscPeer
 from tests.daemon.test_srcsd import CONFIG
@@ -439,10 +441,31 @@ def test_log_marks_and_time_zone_agree_with_watch(tmp_path: Path) -> None:
     from supervisord.cli.control import format_push  # noqa: PLC0415
 
     cleared = Cause(
-        name="vsc_estop", severity="stop", active=False, latched=True, raised_ns=1, cleared_ns=2
+        name=Named(CauseKind.VSC_ESTOP),
+        severity=Severity.STOP,
+        active=False,
+        latched=True,
+        raised_ns=1,
+        cleared_ns=2,
     )
     line = format_push(StatePush(dataclasses.replace(STOPPED, causes=(cleared,))))
     assert "vsc_estop*" in line
+
+
+def test_log_prints_a_cause_kind_it_does_not_know_as_written(tmp_path: Path) -> None:
+    """SR-7.1, SR-8.7: a record line naming a cause kind this version does not know (a newer
+    daemon's, or an old record's) is printed by ``log`` as written, never refused: raised, in
+    the cause set, and selected by its name (docs/api.md "Cause kinds a client does not
+    know")."""
+    from tests.record.test_unknown_cause import LINE  # noqa: PLC0415
+
+    path = tmp_path / "stops.jsonl"
+    path.write_text(json.dumps(LINE) + "\n")
+    done = _log("--file", str(path), "--causes")
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+    assert "raised lidar_blind:front (dazzled)" in done.stdout, done.stdout
+    assert "[causes: lidar_blind:front, vsc_estop:odd*; trigger tick]" in done.stdout
 
 
 def test_log_since_today_yesterday_an_age_and_n(tmp_path: Path) -> None:

@@ -21,6 +21,7 @@ from supervisord.api.status import Maintenance, PeriodicDue
 from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 from tests.daemon.test_srcsctl import _Output
 
 ROOT = Path(__file__).parents[2]
@@ -163,7 +164,7 @@ def _scenario(robot: Robot) -> None:
     assert any(cited in line for line in lines), lines
     assert tests[0]["reason"].startswith("passed" if passed else "FAILED")
     # The verdict is the record's alone: the robot stays stopped until a re-arm.
-    assert robot.status().report.state == "STOPPED"
+    assert robot.status().report.state is State.STOPPED
 
 
 def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path) -> None:
@@ -180,7 +181,7 @@ def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path
         assert "not done: no stop within 1 s" in out, out
         assert time.monotonic() - t >= 1.0
         assert not [r for r in robot.records() if r.get("kind") == "stoptest"]
-        wait_until(lambda: robot.status().report.state == "RUN", what="still RUN")
+        wait_until(lambda: robot.status().report.state is State.RUN, what="still RUN")
 
 
 def _stoptest_line(seq: int, when: dt.datetime, result: str = "passed") -> str:
@@ -261,7 +262,7 @@ def test_an_unreadable_record_means_never_passed_and_the_daemon_runs(tmp_path: P
         )
         assert "stop test OVERDUE: never passed (every 30 d)" in _status_text(robot)
         robot.arm()
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 def _status_text(robot: Robot) -> str:

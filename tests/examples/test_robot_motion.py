@@ -15,6 +15,7 @@ import pytest
 
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 REPO = Path(__file__).resolve().parents[2]
 PROGRAM = REPO / "examples/motion/robot_motion.py"
@@ -81,12 +82,12 @@ def test_the_motion_example_drives_only_in_run_and_stops_its_wheel(tmp_path: Pat
         with subprocess.Popen(command, env=env) as program:
             try:
                 wait_until(lambda: LOST not in robot.active(), what="the motion client beating")
-                assert robot.status().report.state == "STOPPED"
+                assert robot.status().report.state is State.STOPPED
                 assert wheel(wheel_file) == 0.0
                 robot.rearm()
                 wait_until(lambda: wheel(wheel_file) == 0.4, what="the wheel turning in RUN")
                 robot.sim.control.estop()
-                wait_until(lambda: robot.status().report.state == "STOPPED", what="STOPPED")
+                wait_until(lambda: robot.status().report.state is State.STOPPED, what="STOPPED")
                 wait_until(lambda: wheel(wheel_file) == 0.0, what="the wheel standing")
                 robot.sim.control.release()
                 robot.rearm()  # the command is zero again: the takeover re-arms (SR-4.6)

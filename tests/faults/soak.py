@@ -34,6 +34,7 @@ from supervisord.client import SupervisorClient
 from supervisord.errors import SrcsError
 from supervisord.testkit.robot import Robot, Stop
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 HEARTBEAT = 0x20
 
@@ -266,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{counters.messages} messages, rounds {sum(soak.rounds.values())}",
                     flush=True,
                 )
-        wait_until(lambda: robot.status().report.state == "RUN", what="RUN at the end")
+        wait_until(lambda: robot.status().report.state is State.RUN, what="RUN at the end")
         time.sleep(2.0)
         last = (rss_kib(pid), fd_count(pid))
         counters = robot.counters()

@@ -12,6 +12,7 @@ import pytest
 
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 # Every scenario multicasts: only inside the session's private network (docs/testing.md).
 pytestmark = pytest.mark.usefixtures("private_network")
@@ -31,7 +32,7 @@ def test_can_silence_is_a_lost_link(tmp_path: Path) -> None:
         robot.vsc.silence(False)
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         time.sleep(0.4)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         robot.recover(stop)
 
 
@@ -73,7 +74,7 @@ def test_can_bus_off_is_a_transport_fault(tmp_path: Path) -> None:
         robot.vsc.bus_off(False)
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         time.sleep(0.4)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         robot.recover(stop)
 
 
@@ -142,5 +143,5 @@ def test_can_vsc_unplugged_and_back(tmp_path: Path) -> None:
         wait_until(lambda: not robot.active_stops(), what="heartbeats again")
         assert robot.vsc.state()["mode_name"] == "operational"
         time.sleep(0.4)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         robot.recover(stop)

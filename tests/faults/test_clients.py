@@ -12,6 +12,7 @@ from pathlib import Path
 from supervisord.client import SupervisorClient
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 CLIENT_TIMEOUT_S = 0.5  # the required client's heartbeat deadline (SR-8 default)
 MAX_CLIENTS = 16  # api.max_clients default (docs/configuration.md)
@@ -29,7 +30,7 @@ def test_required_client_killed_is_lost_at_once(tmp_path: Path) -> None:
         robot.start_clients()
         wait_until(lambda: not robot.active_stops(), what="nav back")
         time.sleep(0.3)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         robot.recover(stop)
 
 
@@ -48,7 +49,7 @@ def test_required_client_stopped_is_lost_after_its_timeout(tmp_path: Path) -> No
             nav.signal(signal.SIGCONT)
         wait_until(lambda: not robot.active_stops(), what="nav beating again")
         time.sleep(0.3)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         robot.recover(stop)
 
 
@@ -85,7 +86,7 @@ def test_required_client_that_stops_reading_is_dropped_and_lost(tmp_path: Path) 
         nav.signal(signal.SIGUSR1)
         stop = robot.expect_stop("client_lost:nav", t0, CLIENT_TIMEOUT_S)
         nav.wait_log("stalled")
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         nav.kill()
         robot.start_clients()
         robot.recover(stop)

@@ -15,6 +15,8 @@ from supervisord.client import SupervisorClient
 from supervisord.testkit.faketime import SEEN_WITHIN_S, FakeWallClock
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import Cause as Named
+from supervisord.vocabulary import CauseKind, State
 
 LINK_TIMEOUT_MS = 1000  # vsc.timeout_ms at its largest (docs/configuration.md)
 
@@ -103,7 +105,9 @@ def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
             off = robot.watcher.wait("power", False, on.t)
             assert off.t - rearm["mono_ns"] / 1e9 <= ALLOWANCE_S
             status = robot.wait_state("STOPPED")
-            fault = next(c for c in status.report.causes if c.name == "output_fault:drive")
+            fault = next(
+                c for c in status.report.causes if c.name == Named(CauseKind.OUTPUT_FAULT, "drive")
+            )
             assert fault.latched, fault
             assert status.report.outputs == {"drive": False, "power": False}
             assert robot.watcher.first("drive", True, 0.0) is None
@@ -138,6 +142,6 @@ def test_output_stuck_on_never_lets_the_robot_run(tmp_path: Path) -> None:
         assert "user_request" in robot.vsc.state()["estop_bits"]
         assert "output_fault:drive" in robot.refused_takeover()["reason"]
         time.sleep(0.3)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         assert robot.watcher.first("power", True, 0.0) is None
         assert robot.output_file("drive") is True  # stuck: what the line really does

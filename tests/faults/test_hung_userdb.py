@@ -17,6 +17,7 @@ import pytest
 
 from supervisord.testkit.namespaces import in_private_mount
 from supervisord.testkit.robot import OutputDef, Robot
+from supervisord.vocabulary import State
 from tests.faults.test_odd_input import _free_uid, open_socket_dir
 
 # The userdb socket in the daemon's namespace: it listens (so a connect succeeds and the
@@ -95,7 +96,7 @@ def test_a_hung_user_lookup_freezes_nothing(tmp_path: Path) -> None:
             try:
                 # While the lookup hangs, the daemon answers and the robot runs.
                 asked = time.monotonic()
-                assert robot.status().report.state == "RUN"
+                assert robot.status().report.state is State.RUN
                 assert time.monotonic() - asked < HELLO_WITHIN_S
                 out, err = client.communicate(timeout=60)
             finally:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from supervisord.testkit.robot import OutputDef, Robot
+from supervisord.vocabulary import State
 from tests.faults.test_odd_input import REPLY_S, raw_exchange
 
 DEEP = b'{"a":' * 17 + b"1" + b"}" * 17  # nested one deeper than the limit: bad_json
@@ -30,7 +31,7 @@ def test_an_estop_with_a_field_too_many_stops_the_running_robot(tmp_path: Path) 
         )
         # Off by the time the reply came (outputs are set before it, SR-6.1).
         robot.expect_stop("local_estop", t0, robot.now() - t0)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
 
 
 def test_a_hold_with_a_wrong_id_holds_until_its_connection_ends(tmp_path: Path) -> None:

@@ -25,6 +25,7 @@ import pytest
 from supervisord.testkit.namespaces import in_private_mount
 from supervisord.testkit.robot import OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import CauseKind, State
 
 ODD_NAME = b"r\xe9mi"  # Latin-1, not UTF-8: how a name from an old system arrives
 SHOWN_NAME = "r\\xe9mi"  # the name as records and replies show it: the byte escaped
@@ -196,7 +197,7 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
             # reply, SR-6.1), whatever its interpreter's start took on a busy machine.
             robot.expect_stop("local_estop", t0, robot.now() - t0)
             status = robot.status()
-            local = next(c for c in status.report.causes if c.name == "local_estop")
+            local = next(c for c in status.report.causes if c.kind is CauseKind.LOCAL_ESTOP)
             assert local.active
             assert local.details["caller"] == SHOWN_NAME
             [record] = [
@@ -250,7 +251,7 @@ def test_a_gga_with_a_superscript_digit_is_pushed_and_stops_nothing(tmp_path: Pa
         assert pushes[0]["fix_quality"] is None
         assert pushes[0]["latitude"] == pytest.approx(48.1173)
         status = robot.status()
-        assert status.report.state == "RUN"
+        assert status.report.state is State.RUN
         assert robot.watcher is not None
         assert robot.watcher.ons_between(t0, robot.now()) == []
         assert internal_records(robot) == []

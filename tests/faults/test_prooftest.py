@@ -18,6 +18,7 @@ import pytest
 from supervisord.api.status import ProofTestResult, ProofTestStatus
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.vocabulary import CauseKind, Phase, State
 
 UNTESTED = "vsc_watchdog_untested"
 CLEAR_MS = 2000  # vsc.prooftest_clear_ms for these robots: a held bit's wait, kept short
@@ -34,7 +35,7 @@ def _last(proof: ProofTestStatus) -> ProofTestResult:
     return proof.last
 
 
-def _wait_phase(robot: Robot, *phases: str, timeout: float = WAIT_S) -> ProofTestStatus:
+def _wait_phase(robot: Robot, *phases: Phase, timeout: float = WAIT_S) -> ProofTestStatus:
     wait_until(lambda: _proof(robot).phase in phases, timeout=timeout, what=f"{phases}")
     return _proof(robot)
 
@@ -60,8 +61,8 @@ def test_a_healthy_vsc_passes_at_start_and_the_robot_then_runs(tmp_path: Path) -
     bit within the manual's 500 ms (plus one VSC heartbeat and slack), sees it clear by
     itself, records it with the trip time; the operator's takeover then reaches RUN."""
     with _robot(tmp_path) as robot:
-        proof = _wait_phase(robot, "passed", "failed")
-        assert proof.phase == "passed", proof
+        proof = _wait_phase(robot, Phase.PASSED, Phase.FAILED)
+        assert proof.phase is Phase.PASSED, proof
         last = _last(proof)
         assert last.trip_ms is not None
         assert 450 <= last.trip_ms <= 700, last
@@ -69,7 +70,7 @@ def test_a_healthy_vsc_passes_at_start_and_the_robot_then_runs(tmp_path: Path) -
         records = _written(robot, 1)
         assert [r["prooftest"]["result"] for r in records] == ["passed"], records
         robot.arm()
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 @pytest.mark.parametrize(
@@ -93,14 +94,14 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
     robot.sim.start = lambda: robot.sim  # type: ignore[method-assign]  # started above
     with robot:
         if failure == "not_cleared":
-            _wait_phase(robot, "resumed")
+            _wait_phase(robot, Phase.RESUMED)
             time.sleep(0.3)
             with pytest.raises(Exception, match="e-stop active"):
                 robot.vsc.takeover()
-        proof = _wait_phase(robot, "failed", "passed", timeout=WAIT_S + CLEAR_MS / 1000)
-        assert proof.phase == "failed", proof
+        proof = _wait_phase(robot, Phase.FAILED, Phase.PASSED, timeout=WAIT_S + CLEAR_MS / 1000)
+        assert proof.phase is Phase.FAILED, proof
         assert _last(proof).failure == failure, proof
-        cause = next(c for c in robot.status().report.causes if c.name == UNTESTED)
+        cause = next(c for c in robot.status().report.causes if c.kind is CauseKind(UNTESTED))
         assert cause.active, cause
         assert "failed" in cause.details["observed"], cause
         assert [r["prooftest"]["result"] for r in _written(robot, 1)] == ["failed"]
@@ -109,7 +110,7 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
             time.sleep(0.5)
             robot.vsc.takeover()
             time.sleep(0.5)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         assert UNTESTED in robot.active_stops()
 
 
@@ -124,15 +125,15 @@ def test_a_late_watchdog_fails_with_the_longest_vsc_timeout(tmp_path: Path) -> N
     robot.sim.control.fault(watchdog="late", watchdog_late_s=1.2)
     robot.sim.start = lambda: robot.sim  # type: ignore[method-assign]  # started above
     with robot:
-        proof = _wait_phase(robot, "failed", "passed")
-        assert proof.phase == "failed", proof
+        proof = _wait_phase(robot, Phase.FAILED, Phase.PASSED)
+        assert proof.phase is Phase.FAILED, proof
         assert _last(proof).failure == "late", proof
         assert (_last(proof).trip_ms or 0) >= 1200, proof
         robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
         time.sleep(0.5)
         robot.vsc.takeover()
         time.sleep(0.5)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         assert UNTESTED in robot.active_stops()
 
 
@@ -144,14 +145,14 @@ def test_a_vsc_that_holds_the_bit_until_a_takeover_passes(tmp_path: Path) -> Non
     robot.sim.control.fault(watchdog="held")
     robot.sim.start = lambda: robot.sim  # type: ignore[method-assign]  # started above
     with robot:
-        _wait_phase(robot, "resumed")
+        _wait_phase(robot, Phase.RESUMED)
         time.sleep(0.7)  # past the 500 ms in which a bit that clears by itself clears
         robot.vsc.takeover()  # acknowledges the held bit; the remote stays in Local
-        proof = _wait_phase(robot, "passed", "failed")
-        assert proof.phase == "passed", proof
+        proof = _wait_phase(robot, Phase.PASSED, Phase.FAILED)
+        assert proof.phase is Phase.PASSED, proof
         assert _last(proof).cleared == "held", proof
         robot.arm()
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 def test_a_vsc_reboot_repeats_the_proof_test(tmp_path: Path) -> None:
@@ -160,11 +161,11 @@ def test_a_vsc_reboot_repeats_the_proof_test(tmp_path: Path) -> None:
     with _robot(tmp_path) as robot:
         robot.arm()
         robot.vsc.call("reboot", delay=0.5, unplug=False)
-        wait_until(lambda: robot.status().report.state == "STOPPED", what="the reboot stops")
+        wait_until(lambda: robot.status().report.state is State.STOPPED, what="the reboot stops")
         wait_until(lambda: len(_proof_records(robot)) == 2, what="a second proof test")
         assert _proof_records(robot)[-1]["prooftest"]["result"] == "passed"
         robot.rearm()
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN
 
 
 def _srcsctl(robot: Robot, *, admin: bool) -> subprocess.CompletedProcess[str]:
@@ -192,7 +193,7 @@ def test_srcsctl_prooftest_for_an_admin_refused_otherwise_and_in_run(tmp_path: P
 
 def _srcsctl_scenario(robot: Robot) -> None:
     with robot:
-        _wait_phase(robot, "passed")
+        _wait_phase(robot, Phase.PASSED)
         os.chmod(robot.socket_path, 0o777)  # noqa: S103 -- a non-admin may connect
         refused = _srcsctl(robot, admin=False)
         assert refused.returncode == 1, refused
@@ -205,4 +206,4 @@ def _srcsctl_scenario(robot: Robot) -> None:
         in_run = _srcsctl(robot, admin=True)
         assert in_run.returncode == 1, in_run
         assert "only while STOPPED" in in_run.stderr, in_run
-        assert robot.status().report.state == "RUN"
+        assert robot.status().report.state is State.RUN

@@ -32,6 +32,7 @@ from supervisord.testkit.daemon import MINIMAL_CONFIG
 from supervisord.testkit.namespaces import in_private_mount
 from supervisord.testkit.robot import Robot, Stop
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.vocabulary import State
 
 ROOT = Path(__file__).resolve().parents[2]
 ROOT_ONLY = pytest.mark.skipif(os.geteuid() != 0, reason="a private mount namespace needs root")
@@ -287,7 +288,7 @@ def test_a_slow_disk_delays_records_never_the_stop_and_loses_none(tmp_path: Path
                 robot.vsc.estop()
                 robot.expect_off(t, robot.beat_s)
                 status = robot.status()
-                assert status.report.state == "STOPPED", status
+                assert status.report.state is State.STOPPED, status
                 assert status.daemon.loop.sink["records_pending"] >= 1, status
                 _pushed_records(watch, pushed)
                 early = [r for r in pushed if r["mono_ns"] >= t * 1e9]

@@ -9,6 +9,7 @@ import pytest
 
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 from tests.faults.test_flight import _window_of, srcsctl
 
 REPORT_S = 1.0  # the VSC's remote status comes once a second once commissioned
@@ -59,6 +60,6 @@ def test_a_low_remote_battery_in_run_holds_or_stops_and_a_good_one_is_needed_aga
             robot.watcher.wait("drive", True, off.t)
         else:
             wait_until(lambda: cause not in robot.active(), what="the battery back")
-            assert robot.status().report.state == "STOPPED"
+            assert robot.status().report.state is State.STOPPED
             assert robot.watcher.ons_between(t0, robot.now()) == []
             robot.rearm()

@@ -14,6 +14,7 @@ import pytest
 
 from supervisord.testkit.robot import ALLOWANCE_S, Robot, Stop
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog trips after 500 ms without our heartbeat (SR-5)
 
@@ -38,7 +39,7 @@ def test_unplug_is_a_transport_fault_and_replug_is_a_new_start(
         wait_until(lambda: robot.counters().link.opens > opens, what="the reopen")
         wait_until(lambda: not robot.active_stops(), what="the link back")
         time.sleep(0.5)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         assert not [r for r in robot.records_since(t0) if r.get("rearm")]
         wait_until(lambda: robot.record_raising("vsc_watchdog_off", t0), what="key 85 read again")
         robot.recover(stop)

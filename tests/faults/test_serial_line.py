@@ -13,6 +13,7 @@ import pytest
 
 from supervisord.testkit.robot import ALLOWANCE_S, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import CauseKind, State
 
 HEARTBEAT = 0x20  # the VSC heartbeat's message type (manual §8.3.3)
 
@@ -59,8 +60,8 @@ def test_heartbeats_delayed_past_the_timeout_are_a_lost_link_that_stays_latched(
         wait_until(lambda: "vsc_link_lost" not in robot.active(), what="late heartbeats")
         time.sleep(0.3)
         status = robot.status()
-        assert status.report.state == "STOPPED"
-        assert next(c for c in status.report.causes if c.name == "vsc_link_lost").latched
+        assert status.report.state is State.STOPPED
+        assert next(c for c in status.report.causes if c.kind is CauseKind.VSC_LINK_LOST).latched
         robot.vsc.fault()
         time.sleep(0.5)  # the frames still held back drain before the takeover
         robot.recover(stop)
@@ -114,7 +115,7 @@ def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
         time.sleep(0.3)
         robot.vsc.takeover()  # the model moves; the frozen heartbeat does not
         time.sleep(0.5)
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         assert not [r for r in robot.records_since(t0) if r.get("rearm")]
         robot.vsc.fault()
         robot.recover(stop)
@@ -172,7 +173,7 @@ def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
     assert first.t - t0 <= robot.beat_s + ALLOWANCE_S
     # RUN again by itself, or a stop (a stall after the flap, before the dwell ended, too).
     wait_until(
-        lambda: robot.status().report.state == "RUN" or _stops(robot.records_since(t0)),
+        lambda: robot.status().report.state is State.RUN or _stops(robot.records_since(t0)),
         what="RUN again, or a stop",
     )
     records = robot.records_since(t0)

@@ -15,6 +15,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 FLAP_S = 2.0  # twenty times the 100 ms re-arm hold the harness configures
 
@@ -60,7 +61,7 @@ def test_a_flapping_vsc_never_rearms_after_an_estop(tmp_path: Path, flap: dict[s
         assert not [r for r in records if r.get("rearm")], records
         assert all(r["to"] == "STOPPED" for r in records), records
         assert robot.watcher.ons_between(t0, t1) == []
-        assert robot.status().report.state == "STOPPED"
+        assert robot.status().report.state is State.STOPPED
         refused = _refused(records, t1)
         assert 1 <= len(refused) <= FLAP_S + 1, refused
         too_short = RefusalReason.TAKEOVER_TOO_SHORT.value
@@ -94,7 +95,7 @@ def test_a_takeover_while_a_client_commands_motion_is_refused_and_shown_on_the_r
             assert not [r for r in robot.records_since(stop.t_fault) if r.get("rearm")]
             assert robot.watcher.ons_between(stop.t_fault, robot.now()) == []
             status = robot.status()
-            assert status.report.state == "STOPPED"
+            assert status.report.state is State.STOPPED
             (entry,) = [c for c in status.daemon.clients if c.name == "planner"]
             assert entry.command_nonzero is True
             shown = robot.vsc.wait_for(

@@ -11,7 +11,6 @@ import pytest
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.record.format import (
     TRIGGER_EVENTS,
-    RecordKind,
     record_json,
     trigger_json,
     written_kind,
@@ -19,6 +18,7 @@ from supervisord.record.format import (
 from supervisord.record.journal import MESSAGE_IDS, journal_fields
 from supervisord.record.jsonl import REQUIRED_FIELDS, RecordUsageError
 from supervisord.record.jsonl import encode as encode_record
+from supervisord.record.stop import RecordKind
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Record, RecordNote

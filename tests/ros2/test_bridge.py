@@ -28,6 +28,7 @@ from supervisord.client import SupervisorClient
 from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 pytestmark = pytest.mark.usefixtures("private_network")
 
@@ -181,7 +182,7 @@ def test_ready_says_when_the_stop_path_works(
     reaches only a subscriber discovered before the true replaced it: not asserted.)"""
     running, _ = robot
     ros.spin_until(lambda: ros.ready[-1:] == [True], what="ready true")
-    assert running.status().report.state == "STOPPED"
+    assert running.status().report.state is State.STOPPED
     assert running.stop_daemon() == 0
     ros.spin_until(lambda: ros.ready[-1:] == [False], what="ready false without srcsd")
     running.start_daemon()
@@ -215,7 +216,7 @@ def test_an_overdue_stop_test_is_a_warning_in_the_diagnostics(
     assert float(seen["proof test last pass age s"]) >= 0
     assert seen["level"] == "1", seen  # WARN
     assert seen["message"].endswith("; overdue: stop test"), seen
-    assert running.status().report.state == "RUN"
+    assert running.status().report.state is State.RUN
 
 
 def test_estop_available_says_when_the_remote_estop_works(
@@ -247,7 +248,7 @@ def test_estop_available_says_when_the_remote_estop_works(
 
     ros.spin_until(low, what="the low battery in the diagnostics")
     ros.spin_until(lambda: ros.available[-1:] == [False], what="e-stop not available")
-    assert running.status().report.state == "RUN"
+    assert running.status().report.state is State.RUN
 
 
 def test_killed_bridge_stops_the_robot(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
@@ -333,7 +334,7 @@ def test_a_nonzero_cmd_vel_in_blocks_the_takeover_and_zero_lets_it(
     refused = running.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
     assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
     assert not [r for r in running.records_since(stop.t_fault) if r.get("rearm")]
-    assert running.status().report.state == "STOPPED"
+    assert running.status().report.state is State.STOPPED
     ros.cmd_in.publish(go)  # still refused: the gate stays closed
 
     def stopped() -> bool:

@@ -7,15 +7,17 @@ import dataclasses
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.status import Cause, DaemonStatus, Maintenance, PeriodicDue, StateReport
 from supervisord.ros2.diagnostics import GateCounts, Level, remote_status, supervisor_status
+from supervisord.vocabulary import Cause as Named
+from supervisord.vocabulary import CauseKind, Severity, State
 from tests.api.samples import LOOP
 
 STATUS = StateReport(
-    state="STOPPED",
+    state=State.STOPPED,
     mono_ns=1,
     causes=(
         Cause(
-            name="vsc_estop",
-            severity="stop",
+            name=Named(CauseKind.VSC_ESTOP),
+            severity=Severity.STOP,
             active=True,
             latched=True,
             raised_ns=1,
@@ -23,8 +25,8 @@ STATUS = StateReport(
             details={"sources": "remote"},
         ),
         Cause(
-            name="client_lost:ros",
-            severity="stop",
+            name=Named(CauseKind.CLIENT_LOST, "ros"),
+            severity=Severity.STOP,
             active=False,
             latched=True,
             raised_ns=1,
@@ -52,7 +54,7 @@ DAEMON = DaemonStatus(
 )
 
 
-def _state(state: str) -> StateReport:
+def _state(state: State) -> StateReport:
     return dataclasses.replace(STATUS, state=state, causes=())
 
 
@@ -89,7 +91,7 @@ def test_estop_available_is_a_value_and_its_loss_in_run_a_warning() -> None:
     """SR-8.11: ``e-stop available`` and, when it is not, ``e-stop missing`` with each part;
     in RUN its loss makes the status WARN and says so in the message (a warning: the
     supervisor does not stop for it); in STOPPED the level stays ERROR."""
-    run = _state("RUN")
+    run = _state(State.RUN)
     fine = _status(status=run, available=(True, ()))
     assert (fine["level"], fine["e-stop available"], fine["message"]) == ("0", "true", "RUN")
     assert "e-stop missing" not in fine
@@ -104,8 +106,8 @@ def test_estop_available_is_a_value_and_its_loss_in_run_a_warning() -> None:
 
 def test_levels_follow_the_state_and_unreachable_is_error() -> None:
     """RUN is OK, HOLD WARN; an unreachable supervisor is ERROR saying why."""
-    assert _status(status=_state("RUN"))["level"] == "0"
-    assert _status(status=_state("HOLD"))["level"] == "1"
+    assert _status(status=_state(State.RUN))["level"] == "0"
+    assert _status(status=_state(State.HOLD))["level"] == "1"
     values = _status(status=None, unreachable="cannot connect")
     assert values["level"] == "2"
     assert values["connected"] == "false"
@@ -141,7 +143,7 @@ def test_an_overdue_periodic_test_is_a_warning_in_run() -> None:
         stoptest=never,
         prooftest=PeriodicDue(interval_days=30, last_pass_age_s=12.5, overdue=False),
     )
-    run = _state("RUN")
+    run = _state(State.RUN)
 
     def diagnosed(status: StateReport, maintenance: Maintenance | None) -> dict[str, str]:
         loop = dataclasses.replace(DAEMON.loop, maintenance=maintenance)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from supervisord.ros2.gate import VelocityGate, Verdict
-from supervisord.ros2.mapping import State
+from supervisord.vocabulary import State
 
 MS = 1_000_000
 

@@ -5,14 +5,16 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import pytest
+
 from supervisord.api.messages import AxisReport, GpsReport
+from supervisord.api.pushes import read_push
 from supervisord.api.status import EstopAvailable, StateReport
 from supervisord.api.views import gps_report, joystick_report
 from supervisord.protocol.codes import FieldStatus
 from supervisord.protocol.messages import Axis, DPad, Gps, Joystick, NumberedButtons
 from supervisord.ros2.mapping import (
     FixStatus,
-    State,
     axis_value,
     display_rows,
     estop_available_of,
@@ -21,6 +23,8 @@ from supervisord.ros2.mapping import (
     joy_values,
     state_of,
 )
+from supervisord.vocabulary import State
+from supervisord.wire import WireError
 from tests.api.samples import status_reply
 
 SET = FieldStatus.SET
@@ -44,7 +48,7 @@ def _quality(quality: int, *, valid: bool) -> GpsReport:
     return dataclasses.replace(report, fix=fix)
 
 
-def _state(state: str) -> StateReport:
+def _state(state: State) -> StateReport:
     return StateReport(state=state, mono_ns=0, causes=(), outputs={}, heartbeat_estop=1)
 
 
@@ -72,10 +76,13 @@ def test_buttons_left_pad_then_numbered() -> None:
 
 
 def test_state_and_estop_rule() -> None:
-    """estop is true unless the supervisor is reached and in RUN or HOLD; a state the bridge
-    does not know or no supervisor counts as STOPPED."""
-    assert state_of(_state("RUN")) is State.RUN
-    assert state_of(_state("run")) is State.STOPPED
+    """estop is true unless the supervisor is reached and in RUN or HOLD; no supervisor
+    counts as STOPPED, and a state outside SR-1's three (``run``) is refused by the client's
+    reader (the shared vocabulary is strict), never read as RUN."""
+    assert state_of(_state(State.RUN)) is State.RUN
+    odd = {"event": "state", "state": "run", "mono_ns": 0, "causes": [], "outputs": {}}
+    with pytest.raises(WireError, match="not a State"):
+        read_push({**odd, "heartbeat_estop": 1})
     assert state_of(None) is State.STOPPED
     assert [estop_of(s) for s in (State.RUN, State.HOLD, State.STOPPED)] == [False, False, True]
 
@@ -85,7 +92,7 @@ def test_estop_available_only_when_the_status_reply_says_so() -> None:
     ``available: true``; no supervisor or a reply without the field (an older daemon) is
     false, with the reason."""
     low = "the remote's battery is 10 %, below 20 %"
-    reply = status_reply(_state("RUN"))
+    reply = status_reply(_state(State.RUN))
     available = EstopAvailable(available=True, missing=())
     not_available = EstopAvailable(available=False, missing=(low,))
     yes = dataclasses.replace(reply, estop_available=available)

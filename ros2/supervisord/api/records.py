@@ -1,1 +1,0 @@
-../../../supervisord/api/records.py

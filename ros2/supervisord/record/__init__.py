@@ -1,0 +1,1 @@
+../../../supervisord/record/__init__.py
