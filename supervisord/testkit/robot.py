@@ -48,7 +48,7 @@ from typing import Any, Literal
 from supervisord.api.pushes import RecordPush
 from supervisord.api.status import LoopStatus
 from supervisord.client import ClientError, StatusReply, SupervisorClient
-from supervisord.record import StoredRecord, read_records
+from supervisord.record.jsonl import StoredRecord, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimControl, SimError, SimProcess
 from supervisord.testkit.clients import ClientProcess

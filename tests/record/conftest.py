@@ -8,7 +8,7 @@ import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
-from supervisord.record import BadLine, StoredRecord, format_utc, read_records
+from supervisord.record.jsonl import BadLine, StoredRecord, format_utc, read_records
 from tests.descriptors import no_descriptor_left_open  # noqa: F401 -- an autouse fixture
 
 EPOCH = dt.datetime(2026, 3, 1, 12, 0, tzinfo=dt.timezone.utc)

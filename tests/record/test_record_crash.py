@@ -17,10 +17,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from supervisord.record import (
+from supervisord.record import jsonl
+from supervisord.record.jsonl import (
     RecordWriter,
     StoredRecord,
-    jsonl,
     last_record,
     read_records,
     record_files,
@@ -123,7 +123,7 @@ def test_a_rotation_has_the_expected_steps(tmp_path: Path, monkeypatch: pytest.M
 CHILD = textwrap.dedent(
     """
     import sys
-    from supervisord.record import RecordWriter, last_record
+    from supervisord.record.jsonl import RecordWriter, last_record
     from tests.record.conftest import make_record
 
     path = sys.argv[1]

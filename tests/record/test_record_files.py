@@ -12,13 +12,14 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.record import StoredRecord, read_records
 from supervisord.record.jsonl import (
     BadLine,
     BadLineReason,
     RecordError,
     RecordWriter,
+    StoredRecord,
     last_record,
+    read_records,
     transitions_path,
 )
 from tests.record.conftest import make_record, seqs_in

@@ -18,17 +18,18 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.record import (
+from supervisord.record.journal import (
     MESSAGE_IDS,
+    SEND_TIMEOUT_S,
     JournalError,
     JournalSink,
     Priority,
-    RecordKind,
-    RecordUsageError,
+    encode_native,
     journal_fields,
     priority,
 )
-from supervisord.record.journal import SEND_TIMEOUT_S, encode_native
+from supervisord.record.jsonl import RecordUsageError
+from supervisord.record.stop import RecordKind
 from tests.journald import journal_entries
 from tests.record.conftest import make_record
 

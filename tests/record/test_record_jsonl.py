@@ -11,14 +11,14 @@ from pathlib import Path
 
 import pytest
 
-from supervisord.record import (
+from supervisord.record import jsonl
+from supervisord.record.jsonl import (
     BadLine,
     BadLineReason,
     RecordError,
     RecordUsageError,
     RecordWriter,
     StoredRecord,
-    jsonl,
     last_record,
     read_records,
     record_files,
