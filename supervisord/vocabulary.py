@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Final
 
 from supervisord.compat import StrEnum
+from supervisord.timebase import NS_PER_MS
 
 
 class _Word(enum.Enum):
@@ -266,6 +267,35 @@ class Phase(_Word):
     PASSED = "passed"
     FAILED = "failed"
     OFF = "off"
+
+
+class ProofTestFailure(enum.Enum):
+    """Why a proof test failed: written by its name in lower case in the record's
+    ``prooftest.failure`` (``late``); the value is the text in the record's words and the
+    cause's details."""
+
+    KEY85_OFF = "key 85 does not read 1: the VSC's watchdog is off, nothing to prove"
+    NO_TRIP = "the VSC did not report the user-timeout e-stop while the heartbeat was withheld"
+    LATE = "the VSC reported the user-timeout e-stop late"
+    STAYED_OPERATIONAL = "the VSC reported the user-timeout e-stop but stayed Operational"
+    NOT_CLEARED = "the VSC did not clear the user-timeout e-stop after the heartbeat resumed"
+
+
+WATCHDOG_NS: Final = 500 * NS_PER_MS
+"""The VSC's user watchdog: an e-stop after 500 ms without a user heartbeat (manual §8.3.5)."""
+READING_MARGIN_NS: Final = 200 * NS_PER_MS
+"""What the proof test allows beyond the watchdog's 500 ms for seeing the trip: one VSC
+heartbeat interval at the manual's 20 Hz (50 ms, table 5), the heartbeat that carries the bits,
+and 150 ms for reading it on a busy vehicle computer."""
+TRIP_LATE_NS: Final = WATCHDOG_NS + READING_MARGIN_NS
+"""A trip seen later than this (700 ms) after the last heartbeat sent is late (SR-5.7). Absolute:
+it judges the VSC's watchdog, whose promise is the manual's 500 ms, so it does not grow with
+``vsc.timeout_ms`` (how long the supervisor tolerates the VSC's silence is another question; a
+timeout of 1000 ms once let a watchdog tripping at 1.2 s pass). A VSC set to send its heartbeat
+less often than every 50 ms (manual §8.3.6) can show a healthy trip late: it fails, the safe
+side, and ``vsc.prooftest = "record"`` is the integrator's choice there (docs/safety.md).
+Here, with the failures' words, so that a client prints a proof test's verdict without the
+safety core (SR-8.8)."""
 
 
 class ReadinessPart(_Word):

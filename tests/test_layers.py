@@ -15,6 +15,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Final
 
 import pytest
 
@@ -183,6 +184,65 @@ def test_the_clients_entry_points_load_no_module_of_the_safety_core(module: str)
     )
     loaded = json.loads(result.stdout)
     assert module in loaded
+    assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
+
+
+PROOFTEST_RECORD: Final = {
+    "seq": 7,
+    "mono_ns": 7_000_000_000,
+    "utc": "2026-03-01T12:00:07.000000+00:00",
+    "kind": "prooftest",
+    "from": "STOPPED",
+    "to": "STOPPED",
+    "causes": [
+        {
+            "name": "vsc_watchdog_untested",
+            "severity": "stop",
+            "active": True,
+            "latched": True,
+            "raised_ns": 1,
+            "cleared_ns": None,
+            "details": {"reason": "late"},
+        }
+    ],
+    "changes": [{"name": "vsc_watchdog_untested", "change": "updated"}],
+    "trigger": {"event": "tick"},
+    "prooftest": {
+        "result": "failed",
+        "failure": "late",
+        "trip_ms": 910,
+        "cleared": None,
+        "cleared_ns": None,
+        "cleared_ms": None,
+    },
+}
+"""A failed proof test's record, as the daemon writes it: its line names the failure in words."""
+PRINTED = (
+    "import json, sys; from supervisord.cli.srcsctl import main\n"
+    "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+    "print(json.dumps(sorted(sys.modules)), file=sys.stderr)"
+)
+
+
+@pytest.mark.parametrize("cause", ["vsc_watchdog_untested", "client_lost:planner"])
+def test_printing_the_record_loads_no_module_of_the_safety_core(tmp_path: Path, cause: str) -> None:
+    """SR-8.8: ``srcsctl log`` printing a proof test's record (its verdict in words) and
+    filtering by ``--cause`` loads no module of ``supervisord/safety``: the words and the
+    limits it prints are the shared vocabulary's and the record's, not the core's."""
+    path = tmp_path / "stops.jsonl"
+    path.write_text(json.dumps(PROOFTEST_RECORD) + "\n")
+    result = subprocess.run(
+        [sys.executable, "-c", PRINTED, "log", "--file", str(path), "--cause", cause, "--causes"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+        cwd=PACKAGE.parent,
+    )
+    if cause == "vsc_watchdog_untested":  # the line was printed: the verdict was read
+        assert "proof test FAILED: the VSC reported the user-timeout e-stop late" in result.stdout
+    loaded = json.loads(result.stderr.splitlines()[-1])
+    assert "supervisord.cli.log" in loaded
     assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
 
 

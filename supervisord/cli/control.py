@@ -377,8 +377,7 @@ def _prooftest(client: SupervisorClient, out: TextIO) -> int:
         proof = client.status().report.prooftest
         phase = None if proof is None else proof.phase
         if proof is not None and phase in (Phase.PASSED, Phase.FAILED):
-            last = {} if proof.last is None else proof.last.json()  # as its record says it
-            print(f"prooftest: {verdict(last)}", file=out)
+            print(f"prooftest: {verdict(proof.last)}", file=out)  # as its record says it
             return 0 if phase is Phase.PASSED else EXIT_REFUSED
         time.sleep(0.1)
     print(f"prooftest: no result in {PROOFTEST_WAIT_S:.0f} s ({phase})", file=out)
@@ -446,7 +445,7 @@ def format_status(status: StatusReply) -> str:
     lines.append(f"  outputs  {levels or 'none'}")
     lines.append(f"  to VSC   heartbeat e-stop byte {report.heartbeat_estop}")
     if proof := report.prooftest:
-        result = "none yet" if proof.last is None else verdict(proof.last.json())
+        result = "none yet" if proof.last is None else verdict(proof.last)
         lines.append(f"  proof    {proof.phase}; last: {result}")
     if loop.maintenance is not None:
         lines.append(f"  tests    {tests_text(loop.maintenance)}")
@@ -651,7 +650,7 @@ def format_push(
         return f"{stamp} {report.state:8} {names} | {outputs}"
     if isinstance(push, RecordPush):
         record = push.record  # read as the record file holds it (docs/record.md)
-        return record_line(record.json(), clock_of(record.utc, utc=utc), causes=causes)
+        return record_line(record, clock_of(record.utc, utc=utc), causes=causes)
     if isinstance(push, RemoteStatusPush):
         return f"{stamp} remote {remote_text(push.message)}"
     if isinstance(push, JoystickPush):

@@ -24,7 +24,7 @@ import time
 import tty
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Final, TextIO
+from typing import Final, TextIO
 
 from supervisord.api.framing import ApiError
 from supervisord.api.pushes import RecordPush
@@ -36,10 +36,11 @@ from supervisord.client import ClientError, SupervisorClient
 from supervisord.config import load_config
 from supervisord.errors import ConfigError, SrcsError
 from supervisord.record.jsonl import StoredRecord, read_records
+from supervisord.record.stop import RecordKind, StopRecord, read_written
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
 from supervisord.tooling.children import terminate
-from supervisord.vocabulary import Severity
+from supervisord.vocabulary import Severity, State
 
 # Package data next to this module, so that an installed wheel or the Debian package runs the
 # demo without the repository.
@@ -61,8 +62,8 @@ class Demo:
         self.out = out
         self.speed = speed
         self.notes: list[str] = []
-        self.records: list[dict[str, Any]] = []
-        self._seqs: set[object] = set()
+        self.records: list[StopRecord] = []
+        self._seqs: set[int] = set()
         self.status: StateReport | None = None
         (run_dir / RUN).mkdir(parents=True, exist_ok=True)
         self.config = run_dir / CONFIG  # where srcsctl --demo finds it (demo_find)
@@ -100,8 +101,9 @@ class Demo:
         # The records of the start came before the subscription: read them from the file
         # (each is there before its push, docs/record.md), so the numbers start at #1.
         for item in read_records(self.record_path):
-            if isinstance(item, StoredRecord):
-                self._add_record(dict(item.data))
+            record = read_written(item.data) if isinstance(item, StoredRecord) else None
+            if record is not None:  # its own daemon's: every line is a typed record
+                self._add_record(record)
         self.note(f"srcsctl finds this demo: srcsctl --demo status (socket {self.socket})")
         self.refresh()
 
@@ -130,7 +132,7 @@ class Demo:
         self.status = self.client.status().report
         while (push := self.client.next_event(timeout=0)) is not None:
             if isinstance(push, RecordPush):
-                self._add_record(push.record.json())  # as the record file has it
+                self._add_record(push.record)  # the typed record the file's line is
         if self._sticks_at is not None:  # a slow circle on the left stick, while asked
             phase = time.monotonic() - self._sticks_at
             x, y = int(600 * math.cos(phase)), int(600 * math.sin(phase))
@@ -140,19 +142,18 @@ class Demo:
         assert self.client is not None
         return set(self.client.status().report.active())
 
-    def _add_record(self, record: dict[str, Any]) -> None:
-        if record.get("seq") in self._seqs:
+    def _add_record(self, record: StopRecord) -> None:
+        if record.seq in self._seqs:
             return  # read from the file and pushed as well
-        self._seqs.add(record.get("seq"))
+        self._seqs.add(record.seq)
         self.records.append(record)
         self.on_record(record)
 
-    def on_record(self, record: dict[str, Any]) -> None:
+    def on_record(self, record: StopRecord) -> None:
         """A re-arm and a refused one are said where the operator looks: in the notes."""
-        kind = record.get("kind")
-        if kind == "rearm_refused":
+        if record.kind is RecordKind.REARM_REFUSED:
             self.note(happening(record))
-        elif record.get("rearm") and record.get("to") == "RUN":
+        elif record.rearm is not None and record.to_state is State.RUN:
             self.note(f"{happening(record)}: RUN, the outputs are on")
 
     def view(self, width: int = 0) -> list[str]:
@@ -170,8 +171,8 @@ class Demo:
         )
 
     @property
-    def state(self) -> str:
-        return self.status.state.name if self.status else "?"
+    def state(self) -> State | None:
+        return self.status.state if self.status else None
 
     # -- the remote's controls -----------------------------------------------------------
 
@@ -321,7 +322,7 @@ class StoryDemo(Demo):
         assert self.client is not None
         return set(self.client.status().report.active())
 
-    def on_record(self, record: dict[str, Any]) -> None:
+    def on_record(self, record: StopRecord) -> None:
         print(f"  record {demo_record_line(record)}", file=self.out, flush=True)
         super().on_record(record)
 
@@ -335,9 +336,9 @@ class StoryDemo(Demo):
             while time.monotonic() < end:
                 self.refresh()
                 fresh = self.records[seen:]
-                if any(r.get("kind") == "rearm_refused" for r in fresh):
+                if any(r.kind is RecordKind.REARM_REFUSED for r in fresh):
                     break
-                if self._recorded("RUN"):
+                if self._recorded(State.RUN):
                     return
                 time.sleep(0.02)
             self.settle()
@@ -366,13 +367,14 @@ class StoryDemo(Demo):
             self.refresh()
             time.sleep(0.02)
 
-    def _recorded(self, state: str) -> bool:
+    def _recorded(self, state: State) -> bool:
         """Whether the supervisor is in ``state`` and the record of the change into it is in:
         the status can show a change before its record's push arrives, and the story is told
         in the order it happened (the record, then the next act)."""
-        return self.state == state and bool(self.records) and self.records[-1].get("to") == state
+        recorded = bool(self.records) and self.records[-1].to_state is state
+        return self.state is state and recorded
 
-    def expect(self, state: str, limit: float = 10.0) -> None:
+    def expect(self, state: State, limit: float = 10.0) -> None:
         end = time.monotonic() + limit
         while True:
             self.refresh()
@@ -382,36 +384,36 @@ class StoryDemo(Demo):
                 print(f"  supervisor: {state}; outputs {levels}", file=self.out, flush=True)
                 return
             if time.monotonic() > end:
-                raise DemoError(f"the supervisor stayed {self.state}, expected {state}")
+                raise DemoError(f"the supervisor stayed {self.state or '?'}, expected {state}")
             time.sleep(0.02)
 
 
 def _story(demo: StoryDemo) -> int:
-    demo.expect("STOPPED")
+    demo.expect(State.STOPPED)
     demo.settle()
     demo.takeover()
-    demo.expect("RUN")
+    demo.expect(State.RUN)
     demo.toggle_sticks()
     demo.wait(1.5)
     demo.toggle_estop()
-    demo.expect("STOPPED")
+    demo.expect(State.STOPPED)
     demo.toggle_sticks()  # a takeover needs the sticks neutral (the manual's rule)
     demo.wait(0.5)
     demo.toggle_estop()
     demo.settle()
     demo.takeover()
-    demo.expect("RUN")
+    demo.expect(State.RUN)
     demo.toggle_link()
-    demo.expect("STOPPED")
+    demo.expect(State.STOPPED)
     demo.wait(0.5)
     demo.toggle_link()
     demo.settle()
     demo.takeover()
-    demo.expect("RUN")
+    demo.expect(State.RUN)
     demo.pause()
     demo.wait(1.0)
     demo.settle()
     demo.takeover()
-    demo.expect("RUN")
+    demo.expect(State.RUN)
     demo.note("done: `srcsctl demo` in a terminal lets you press the keys yourself")
     return 0

@@ -18,7 +18,8 @@ from typing import Any, Final
 from supervisord.api.status import StateReport
 from supervisord.cli.record_text import MARK_MEANS, mark, record_line
 from supervisord.cli.times import clock_of
-from supervisord.vocabulary import Severity, State
+from supervisord.record.stop import StopRecord
+from supervisord.vocabulary import CauseKind, Severity, State
 
 KEYS: Final = (
     "keys: [t] take over  [e] remote e-stop on/off  [p] pause  [l] cut/restore the link  "
@@ -27,12 +28,12 @@ KEYS: Final = (
 AXES: Final = ("left_x", "left_y", "left_z", "right_x", "right_y", "right_z")
 RECORDS_SHOWN: Final = 6
 NOTES_SHOWN: Final = 4
-WAITING: Final[Mapping[str, str]] = {
-    "vsc_watchdog_untested": "the supervisor is proving the VSC's watchdog (about 1 s)",
-    "vsc_watchdog_off": "the supervisor is reading the VSC's watchdog setting (key 85)",
-    "vsc_link_lost": "the VSC's heartbeats are not coming in yet",
-    "transport_fault": "the link to the VSC is not open yet",
-    "startup": "the supervisor is starting",
+WAITING: Final[Mapping[CauseKind, str]] = {
+    CauseKind.VSC_WATCHDOG_UNTESTED: "the supervisor is proving the VSC's watchdog (about 1 s)",
+    CauseKind.VSC_WATCHDOG_OFF: "the supervisor is reading the VSC's watchdog setting (key 85)",
+    CauseKind.VSC_LINK_LOST: "the VSC's heartbeats are not coming in yet",
+    CauseKind.TRANSPORT_FAULT: "the link to the VSC is not open yet",
+    CauseKind.STARTUP: "the supervisor is starting",
 }
 """Stop conditions that clear by themselves, and what the operator is waiting for."""
 
@@ -60,10 +61,11 @@ def next_step(
     if state is State.HOLD:
         return "HOLD (motion off, power on): press [t] to take over and resume"
     causes = status.causes
-    active = [c.name.name for c in causes if c.active and c.severity is Severity.STOP]
+    active = [c for c in causes if c.active and c.severity is Severity.STOP]
     if active:
-        why = next((WAITING[name] for name in active if name in WAITING), None)
-        return f"wait: {why or ', '.join(active) + ' still active'}"
+        waited = [c.kind for c in active if isinstance(c.kind, CauseKind) and c.kind in WAITING]
+        why = WAITING[waited[0]] if waited else None
+        return f"wait: {why or ', '.join(str(c.name) for c in active) + ' still active'}"
     cleared = [c.cleared_ns for c in causes if c.latched and c.cleared_ns is not None]
     if now_ns is not None and cleared and now_ns < max(cleared) + hold_ms * 1_000_000:
         return f"wait: the stop conditions must stay clear for {hold_ms} ms (the re-arm hold)"
@@ -73,7 +75,7 @@ def next_step(
 def screen(
     sim: Mapping[str, Any],
     status: StateReport | None,
-    records: Sequence[Mapping[str, Any]],
+    records: Sequence[StopRecord],
     lcd: str,
     notes: Sequence[str],
     *,
@@ -153,6 +155,6 @@ def supervisor_lines(status: StateReport | None) -> list[str]:
     ]
 
 
-def demo_record_line(record: Mapping[str, Any]) -> str:
+def demo_record_line(record: StopRecord) -> str:
     """A record as ``watch`` shows it: the local time of day, then what happened."""
-    return record_line(record, clock_of(record.get("utc")))
+    return record_line(record, clock_of(record.utc))

@@ -9,8 +9,8 @@ statuses. ``--summary``: one line per robot instead.
 
 Order: journalctl's, which keeps each robot's records in the order its journal wrote them
 (the order of its ``seq``) and interleaves robots by their own clocks; nothing here sorts by a
-wall clock (SR-13.5). Nothing here imports the safety core (SR-13.6): ``--cause``'s names
-are checked against it only when given.
+wall clock (SR-13.5). Nothing here imports the safety core (SR-13.6): each entry is read as
+the typed stop record, and ``--cause``'s names are the shared vocabulary's.
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ import os
 import select
 import subprocess
 import sys
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any, Final
 
 from supervisord.cli.access import advice
+from supervisord.cli.cause_names import CauseFilter, cause_name
 from supervisord.cli.fleet_journal import (
     DEFAULT_DIRECTORY,
     Entry,
@@ -41,10 +42,11 @@ from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
 from supervisord.cli.record_text import changes
 from supervisord.cli.times import BadTime, parse_time, show_time
+from supervisord.record.stop import StopRecord
+from supervisord.vocabulary import ChangeKind, Severity, State
 
 EXIT_FAILED: Final = 1
 EXIT_BAD_INPUT: Final = 2
-STOPPED: Final = "STOPPED"
 
 
 def _robot(text: str) -> str:
@@ -54,10 +56,8 @@ def _robot(text: str) -> str:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
-def _cause(text: str) -> str:
-    """``log``'s cause names; the safety core's vocabulary is loaded only when one is given."""
-    from supervisord.cli.cause_names import cause_name  # noqa: PLC0415
-
+def _cause(text: str) -> CauseFilter:
+    """``log``'s cause names, the shared vocabulary's."""
     return cause_name(text)
 
 
@@ -167,8 +167,8 @@ def run_fleet(
     robot: str | None = None,
     since: str | None = None,
     until: str | None = None,
-    cause: str | None = None,
-    cause_present: str | None = None,
+    cause: CauseFilter | None = None,
+    cause_present: CauseFilter | None = None,
     output: str = "short",
     utc: bool = False,
     last: int | None = None,
@@ -374,11 +374,6 @@ def _show(printer: RecordPrinter, shown: list[Entry], *, reverse: bool = False) 
     printer.show([e.data for e in shown], reverse=reverse, sources=sources, width=width)
 
 
-def _under(name: str, cause: str) -> bool:
-    """``client_lost`` names ``client_lost`` and ``client_lost:autonomy``, as in ``log``."""
-    return name == cause or name.startswith(cause + ":")
-
-
 class _Filter:
     """``--cause`` and ``--cause-present``, as ``log`` judges them; each robot's records are
     compared with the one before of the same robot (:attr:`last`) when they carry no
@@ -386,67 +381,59 @@ class _Filter:
 
     def __init__(
         self,
-        cause: str | None,
-        present: str | None,
+        cause: CauseFilter | None,
+        present: CauseFilter | None,
         start: dt.datetime | None = None,
         end: dt.datetime | None = None,
     ) -> None:
         self.cause, self.present, self.start, self.end = cause, present, start, end
-        self.last: dict[str, Mapping[str, Any]] = {}
-        self.before: dict[str, Mapping[str, Any] | None] = {}  # by cursor
+        self.last: dict[str, StopRecord | None] = {}
+        self.before: dict[str, StopRecord | None] = {}  # by cursor
 
     def select(self, entries: list[Entry]) -> list[Entry]:
         chosen = []
         for item in entries:
             previous = self.last.get(item.robot)
-            self.last[item.robot] = item.data
+            self.last[item.robot] = item.record
             self.before[item.cursor] = previous
-            if item.within(self.start, self.end) and self._wanted(item.data, previous):
+            if item.within(self.start, self.end) and self._wanted(item.record, previous):
                 chosen.append(item)
         return chosen
 
-    def first_before(self, shown: list[Entry]) -> dict[str | None, Mapping[str, Any] | None]:
+    def first_before(self, shown: list[Entry]) -> dict[str | None, StopRecord | None]:
         """For each robot, the record before its first one shown."""
-        firsts: dict[str | None, Mapping[str, Any] | None] = {}
+        firsts: dict[str | None, StopRecord | None] = {}
         for item in shown:
             if item.robot not in firsts:
                 firsts[item.robot] = self.before.get(item.cursor)
         return firsts
 
-    def _wanted(self, data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> bool:
-        if self.present is not None and not any(
-            _under(str(c.get("name")), self.present)
-            for c in data.get("causes", [])
-            if isinstance(c, Mapping)
-        ):
+    def _wanted(self, record: StopRecord | None, previous: StopRecord | None) -> bool:
+        if self.present is None and self.cause is None:
+            return True
+        if record is None:  # no typed record: names no cause a filter takes, as in ``log``
+            return False
+        present = self.present
+        if present is not None and not any(present.takes(c.name) for c in record.causes):
             return False
         if self.cause is None:
             return True
-        return any(_under(name, self.cause) for _, name in changes(data, previous))
+        return any(self.cause.takes(name) for _, name in changes(record, previous))
 
 
-def stop_causes(data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> list[str] | None:
+def stop_causes(record: StopRecord | None, previous: StopRecord | None) -> list[str] | None:
     """Why a record is a stop: the stop causes it raised while the robot is STOPPED (a change
     into STOPPED, or a new stop while stopped), or the stop causes active at a change into
     STOPPED; ``None`` when it is no stop."""
-    if str(data.get("to")).upper() != STOPPED:
+    if record is None or record.to_state is not State.STOPPED:
         return None
-    severity = {
-        str(c.get("name")): c.get("severity")
-        for c in data.get("causes", [])
-        if isinstance(c, Mapping)
-    }
-    raised = [n for change, n in changes(data, previous) if change == "raised"]
-    raised = [n for n in raised if severity.get(n) == "stop"]
-    if raised:
-        return raised
-    if str(data.get("from")).upper() == STOPPED:
+    stops = {c.name for c in record.causes if c.severity is Severity.STOP}
+    raised = [n for change, n in changes(record, previous) if change is ChangeKind.RAISED]
+    if any(n in stops for n in raised):
+        return [str(n) for n in raised if n in stops]
+    if record.from_state is State.STOPPED:
         return None
-    return [
-        str(c.get("name"))
-        for c in data.get("causes", [])
-        if isinstance(c, Mapping) and c.get("active") and c.get("severity") == "stop"
-    ]
+    return [str(c.name) for c in record.causes if c.active and c.severity is Severity.STOP]
 
 
 def _summarize(
@@ -457,14 +444,10 @@ def _summarize(
     for item in shown:
         about = robots.setdefault(item.robot, {"records": 0, "stops": 0, "last_stop": None})
         about["records"] += 1
-        why = stop_causes(item.data, wanted.before.get(item.cursor))
-        if why is not None:
+        why = stop_causes(item.record, wanted.before.get(item.cursor))
+        if why is not None and item.record is not None:
             about["stops"] += 1
-            about["last_stop"] = {
-                "seq": item.data.get("seq"),
-                "utc": item.data.get("utc"),
-                "causes": why,
-            }
+            about["last_stop"] = {"seq": item.record.seq, "utc": item.record.utc, "causes": why}
     width = max((len(name) for name in robots), default=0)
     for name in sorted(robots):
         about = robots[name]

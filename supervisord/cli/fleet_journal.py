@@ -14,12 +14,13 @@ import datetime as dt
 import json
 import re
 import shutil
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 from supervisord.journal_ids import MESSAGE_IDS_BY_KIND
+from supervisord.record.stop import StopRecord, read_written
 
 DEFAULT_DIRECTORY: Final = Path("/var/log/journal/remote")
 """Where systemd-journal-remote writes by default (``remote-HOST.journal``)."""
@@ -45,6 +46,9 @@ class Entry:
     data: Mapping[str, Any]
     stamp_us: int | None = None
     """``__REALTIME_TIMESTAMP``: the robot's clock when its journald took the entry."""
+    record: StopRecord | None = None
+    """The record typed (:func:`~supervisord.record.stop.read_written`); ``None`` for one
+    that is no typed record, shown from its fields as written."""
 
     def within(self, start: dt.datetime | None, end: dt.datetime | None) -> bool:
         """Whether the robot's stamp is at or after ``start`` and before ``end``. journalctl's
@@ -154,7 +158,8 @@ def entry(line: str) -> Entry | str:
         data["reason"] = reason
     stamp = _one(fields, "__REALTIME_TIMESTAMP")
     stamp_us = int(stamp) if stamp is not None and stamp.isdigit() else None
-    return Entry(printable(robot), str(fields.get("__CURSOR", "")), data, stamp_us)
+    cursor = str(fields.get("__CURSOR", ""))
+    return Entry(printable(robot), cursor, data, stamp_us, read_written(data))
 
 
 def printable(name: str) -> str:
@@ -162,11 +167,3 @@ def printable(name: str) -> str:
     (a control character would rewrite the operator's terminal), so anything but a host
     name's characters is shown escaped."""
     return name if ROBOT_NAME.fullmatch(name) else name.encode("unicode_escape").decode("ascii")
-
-
-def cause_names(data: Mapping[str, Any]) -> Iterable[str]:
-    """The names of a record's causes."""
-    causes = data.get("causes")
-    for cause in causes if isinstance(causes, list) else []:
-        if isinstance(cause, Mapping):
-            yield str(cause.get("name"))

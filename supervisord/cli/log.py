@@ -20,13 +20,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any, Final
 
+from supervisord.cli.cause_names import CauseFilter
 from supervisord.cli.follow import Follower
 from supervisord.cli.interrupt import interruptible
 from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
-from supervisord.cli.record_text import changes, record_line
+from supervisord.cli.record_text import changes, record_line, written_line
 from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
+from supervisord.record.stop import StopRecord, read_written
 
 EXIT_BAD_INPUT: Final = 2
 PROC_STAT: Final = Path("/proc/stat")
@@ -53,12 +55,16 @@ def format_record(
     data: Mapping[str, Any],
     *,
     utc: bool = False,
-    previous: Mapping[str, Any] | None = None,
+    previous: StopRecord | None = None,
     causes: bool = False,
 ) -> str:
     """One line: the time (local with its offset, or UTC), then what happened
-    (:func:`~supervisord.cli.record_text.record_line`)."""
-    return record_line(data, show_time(data.get("utc"), utc=utc), previous=previous, causes=causes)
+    (:func:`~supervisord.cli.record_text.record_line`; a line that is no typed record, as
+    written)."""
+    record = read_written(data)
+    if record is None:
+        return written_line(data, show_time(data.get("utc"), utc=utc))
+    return record_line(record, show_time(record.utc, utc=utc), previous=previous, causes=causes)
 
 
 def run_log(
@@ -68,8 +74,8 @@ def run_log(
     *,
     since: str | None = None,
     until: str | None = None,
-    cause: str | None = None,
-    cause_present: str | None = None,
+    cause: CauseFilter | None = None,
+    cause_present: CauseFilter | None = None,
     output: str = "short",
     utc: bool = False,
     last: int | None = None,
@@ -186,14 +192,16 @@ class _Filter:
     """Which records ``log`` shows: within the times, and, with ``--cause``, those whose
     changes name the cause (a record without ``changes``, written by another tool, by its
     difference from the record before it); with ``--cause-present``, those that hold it.
-    Keeps the record before each one chosen (:attr:`before`), for what its line says changed."""
+    Keeps the record before each one chosen (:attr:`before`), for what its line says changed.
+    A line that is no typed record (:func:`~supervisord.record.stop.read_written`) names no
+    cause a filter takes."""
 
     def __init__(
         self,
         start: dt.datetime | None,
         end: dt.datetime | None,
-        cause: str | None,
-        present: str | None,
+        cause: CauseFilter | None,
+        present: CauseFilter | None,
     ) -> None:
         self.start, self.end, self.cause, self.present = start, end, cause, present
         self.last: Mapping[str, Any] | None = None  # the record read before, chosen or not
@@ -209,21 +217,23 @@ class _Filter:
                 chosen.append(record)
         return chosen
 
-    def _wanted(self, record: StoredRecord, previous: Mapping[str, Any] | None) -> bool:
-        if self.start is not None and record.utc < self.start:
+    def _wanted(self, stored: StoredRecord, previous: Mapping[str, Any] | None) -> bool:
+        if self.start is not None and stored.utc < self.start:
             return False
-        if self.end is not None and record.utc >= self.end:
+        if self.end is not None and stored.utc >= self.end:
             return False
-        if self.present is not None and not record.matches_cause(self.present):
+        if self.present is None and self.cause is None:
+            return True
+        record = read_written(stored.data)
+        if record is None:
+            return False
+        present = self.present
+        if present is not None and not any(present.takes(c.name) for c in record.causes):
             return False
         if self.cause is None:
             return True
-        return any(_under(name, self.cause) for _, name in changes(record.data, previous))
-
-
-def _under(name: str, cause: str) -> bool:
-    """``client_lost`` names ``client_lost`` and ``client_lost:autonomy``, not ``client_lostx``."""
-    return name == cause or name.startswith(cause + ":")
+        before = None if previous is None else read_written(previous)
+        return any(self.cause.takes(name) for _, name in changes(record, before))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,8 +9,9 @@ import json
 from collections.abc import Mapping
 from typing import IO, Any, Final
 
-from supervisord.cli.record_text import record_line
+from supervisord.cli.record_text import record_line, written_line
 from supervisord.cli.times import show_time
+from supervisord.record.stop import StopRecord, read_written
 
 NO_ENTRIES: Final = "-- No entries --"
 """What journalctl prints on stdout when nothing matched (not in a JSON mode, not following)."""
@@ -26,16 +27,17 @@ class RecordPrinter:
     def __init__(self, out: IO[str], *, output: str, utc: bool, causes: bool) -> None:
         self.out, self.output, self.utc = out, output, utc
         self.causes = causes or output == "verbose"
-        self.before: dict[str | None, Mapping[str, Any] | None] = {}
+        self.before: dict[str | None, StopRecord | None] = {}
 
     @property
-    def previous(self) -> Mapping[str, Any] | None:
+    def previous(self) -> StopRecord | None:
         """The record before the next one of ``log``'s single source."""
         return self.before.get(None)
 
     @previous.setter
     def previous(self, data: Mapping[str, Any] | None) -> None:
-        self.before[None] = data
+        """The record before, as the file holds it (read here as the printed ones are)."""
+        self.before[None] = None if data is None else read_written(data)
 
     def show(
         self,
@@ -55,11 +57,17 @@ class RecordPrinter:
                 shown = data if source is None else {"robot": source, **data}
                 lines.append(json.dumps(shown, indent=indent))
                 continue
-            when = "" if self.output == "cat" else show_time(data.get("utc"), utc=self.utc)
-            line = record_line(data, when, previous=self.before.get(source), causes=self.causes)
+            record = read_written(data)  # typed; a line no typed record is shown as written
+            utc = data.get("utc") if record is None else record.utc
+            when = "" if self.output == "cat" else show_time(utc, utc=self.utc)
+            if record is None:
+                line = written_line(data, when)
+            else:
+                previous = self.before.get(source)
+                line = record_line(record, when, previous=previous, causes=self.causes)
             line = line.lstrip() if self.output == "cat" else line
             lines.append(line if source is None else f"{source:{width}}  {line}")
-            self.before[source] = data
+            self.before[source] = record
         for line in reversed(lines) if reverse else lines:
             self.out.write(line + "\n")
         self.out.flush()  # a pipe sees each record as it comes (line by line, not at exit)

@@ -17,7 +17,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Final
 
+from supervisord.record.stop import Cause, ProofTestResult, RecordKind, StopRecord
 from supervisord.timebase import NS_PER_MS
+from supervisord.vocabulary import TRIP_LATE_NS, CauseName, ChangeKind, ProofTestFailure
 
 MARK: Final = "*"
 """After a cause's name: cleared, held only by its latch until a re-arm."""
@@ -27,6 +29,13 @@ RELEASED_LISTED: Final = 3
 """A re-arm releasing more latches than this says how many, not which (``--causes`` lists
 them)."""
 _DETAIL_CHARS: Final = 80
+_CHANGES_SHOWN: Final = (
+    ChangeKind.RAISED,
+    ChangeKind.UPDATED,
+    ChangeKind.CLEARED,
+    ChangeKind.RELEASED,
+)
+"""The order a line names a record's changes in."""
 
 
 def mark(name: object, *, held: bool) -> str:
@@ -34,42 +43,33 @@ def mark(name: object, *, held: bool) -> str:
     return f"{name}{MARK if held else ''}"
 
 
-def marked(cause: Mapping[str, Any]) -> str:
+def marked(cause: Cause) -> str:
     """:func:`mark` for a cause of a written record."""
-    return mark(cause.get("name"), held=bool(cause.get("latched") and not cause.get("active")))
+    return mark(cause.name, held=cause.held)
 
 
-def cause_set(causes: object) -> str:
+def cause_set(causes: Sequence[Cause]) -> str:
     """Every cause of a record or state, marked: ``vsc_estop*, vsc_mode:local``."""
-    if not isinstance(causes, list) or not causes:
-        return "none"
-    return ", ".join(marked(c) for c in causes if isinstance(c, Mapping))
+    return ", ".join(marked(c) for c in causes) if causes else "none"
 
 
-def verdict(prooftest: Mapping[str, Any]) -> str:
+def verdict(prooftest: ProofTestResult | None) -> str:
     """A proof test's result as a verdict: ``proof test passed: tripped after 532 ms, limit
     700 ms; cleared by itself 49 ms after the heartbeat resumed``, or ``proof test FAILED:``
-    and why. The limit and the failures' words are the safety core's, read here only: the
-    lines of every other record, ``srcsctl fleet``'s on a collector included, need no module
-    of the safety core."""
-    from supervisord.safety.prooftest import TRIP_LATE_NS, Failure  # noqa: PLC0415
-
+    and why (none known: ``None``). The limit and the failures' words are the vocabulary's,
+    the safety core's own (SR-8.8: printing a record loads no module of the core)."""
     limit_ms = TRIP_LATE_NS // NS_PER_MS  # docs/safety.md "The proof test"
-    trip = prooftest.get("trip_ms")
+    trip = None if prooftest is None else prooftest.trip_ms
     tripped = (
         f"tripped after {trip} ms, limit {limit_ms} ms" if trip is not None else "no trip seen"
     )
-    if prooftest.get("result") == "passed":
-        how = "cleared by itself" if prooftest.get("cleared") == "by_itself" else "held, cleared"
-        after = prooftest.get("cleared_ms")
+    if prooftest is not None and prooftest.passed:
+        how = "cleared by itself" if prooftest.cleared_by_itself else "held, cleared"
+        after = prooftest.cleared_ms
         cleared = f"; {how} {after} ms after the heartbeat resumed" if after is not None else ""
         return f"proof test passed: {tripped}{cleared}"
-    failure = prooftest.get("failure")
-    why = (
-        Failure[failure.upper()].value
-        if failure and failure.upper() in Failure.__members__
-        else failure
-    )
+    failure = None if prooftest is None else prooftest.failed_for
+    why = failure.value if isinstance(failure, ProofTestFailure) else failure
     return f"proof test FAILED: {why or 'no reason given'}; {tripped}"
 
 
@@ -78,14 +78,12 @@ RAW_DETAILS: Final = frozenset({"word", "mode"})
 ``--causes`` only; ``sources`` and ``mode``'s cause name say them in words."""
 
 
-def _details(cause: Mapping[str, Any] | None, every: bool) -> str:
+def _details(cause: Cause | None, every: bool) -> str:
     """A cause's details in brackets: its ``reason`` in its own words, the rest as
     ``key=value`` (without the raw bits unless ``every``)."""
-    details = (cause or {}).get("details")
-    if not isinstance(details, Mapping) or not details:
-        return ""
+    details = {} if cause is None else cause.details
     words = [
-        str(value) if key == "reason" else f"{key}={value}"
+        value if key == "reason" else f"{key}={value}"
         for key, value in details.items()
         if every or key not in RAW_DETAILS
     ]
@@ -97,127 +95,130 @@ def _details(cause: Mapping[str, Any] | None, every: bool) -> str:
     return f" ({text[: _DETAIL_CHARS - 3]}...)"
 
 
-def changes(data: Mapping[str, Any], previous: Mapping[str, Any] | None) -> list[tuple[str, str]]:
+def changes(record: StopRecord, previous: StopRecord | None) -> list[tuple[ChangeKind, CauseName]]:
     """``(change, cause name)`` pairs: the record's ``changes``, or for a record without them
     the difference from ``previous`` (raised: new and active; cleared: active before, not
     now)."""
-    changes = data.get("changes")
-    if isinstance(changes, list) and changes:
-        return [
-            (str(c.get("change")), str(c.get("name"))) for c in changes if isinstance(c, Mapping)
-        ]
-    if previous is None or isinstance(changes, list):
+    if record.changes:
+        return [(c.change, c.name) for c in record.changes]
+    if previous is None or record.changes is not None:
         return []
-    before = _by_name(previous.get("causes"))
-    now = _by_name(data.get("causes"))
-    found = [("raised", n) for n, c in now.items() if c.get("active") and n not in before]
+    before = _by_name(previous.causes)
+    now = _by_name(record.causes)
+    found = [(ChangeKind.RAISED, n) for n, c in now.items() if c.active and n not in before]
     found += [
-        ("cleared", n)
+        (ChangeKind.CLEARED, n)
         for n, c in before.items()
-        if c.get("active") and not (now.get(n) or {}).get("active")
+        if c.active and not (n in now and now[n].active)
     ]
     return found
 
 
-def _by_name(causes: object) -> dict[str, Mapping[str, Any]]:
-    if not isinstance(causes, list):
-        return {}
-    return {str(c.get("name")): c for c in causes if isinstance(c, Mapping)}
+def _by_name(causes: Iterable[Cause]) -> dict[CauseName, Cause]:
+    return {c.name: c for c in causes}
 
 
 def _names(
-    names: Iterable[str], causes: Mapping[str, Mapping[str, Any]], details: bool, every: bool
+    names: Iterable[CauseName], causes: Mapping[CauseName, Cause], details: bool, every: bool
 ) -> str:
     shown = []
     for name in names:
         cause = causes.get(name)
-        text = marked(cause) if cause else name
+        text = marked(cause) if cause else str(name)
         shown.append(text + (_details(cause, every) if details else ""))
     return ", ".join(shown)
 
 
 def what_changed(
-    data: Mapping[str, Any], previous: Mapping[str, Any] | None = None, *, every: bool = False
+    record: StopRecord, previous: StopRecord | None = None, *, every: bool = False
 ) -> str:
     """The causes raised, updated, cleared and released by a record, in words:
     ``raised vsc_estop (sources=remote); cleared vsc_mode:local``. A cleared cause that its
     latch still holds is marked. ``every``: every released latch by name, not their number,
     and every detail of a raised cause in full."""
-    pairs = changes(data, previous)
-    causes = _by_name(data.get("causes"))
+    pairs = changes(record, previous)
+    causes = _by_name(record.causes)
     parts = []
-    prooftest = data.get("kind") == "prooftest"  # its verdict says what the update was
-    for change in ("raised", "updated", "cleared", "released"):
-        names = [name for kind, name in pairs if kind == change]
-        if not names or (change == "updated" and prooftest):
+    prooftest = record.kind is RecordKind.PROOFTEST  # its verdict says what the update was
+    for change in _CHANGES_SHOWN:
+        names = [name for kind, name in pairs if kind is change]
+        if not names or (change is ChangeKind.UPDATED and prooftest):
             continue
-        if change == "released" and len(names) > RELEASED_LISTED and not every:
+        if change is ChangeKind.RELEASED and len(names) > RELEASED_LISTED and not every:
             parts.append(f"released {len(names)} latches")
             continue
-        details = change in ("raised", "updated")
+        details = change in (ChangeKind.RAISED, ChangeKind.UPDATED)
         parts.append(f"{change} {_names(names, causes, details, every)}")
     return "; ".join(parts)
 
 
-def happening(data: Mapping[str, Any]) -> str:
+def happening(record: StopRecord) -> str:
     """What the record is about besides its causes, in words: a re-arm, a refusal and its
     reason, a proof test's verdict, a commissioning. (Why a link broke is the raised cause's
     own detail.)"""
-    kind = data.get("kind") or "state_change"
-    reason = data.get("reason") or ""
-    trigger = data.get("trigger")
-    event = trigger.get("event") if isinstance(trigger, Mapping) else trigger
-    if kind == "prooftest" and isinstance(data.get("prooftest"), Mapping):
-        return verdict(data["prooftest"])
-    if kind == "rearm_refused":
-        what = "reset" if event == "reset_request" else "takeover"
+    kind = record.record_kind
+    reason = record.reason or ""
+    if kind is RecordKind.PROOFTEST and record.prooftest is not None:
+        return verdict(record.prooftest)
+    if kind is RecordKind.REARM_REFUSED:
+        what = "reset" if record.event == "reset_request" else "takeover"
         return f"{what} refused: {reason or 'no reason given'}"
-    if kind == "commissioned":
+    if kind is RecordKind.COMMISSIONED:
         return f"commissioned: {reason}" if reason else "commissioned"
-    if kind == "hello_refused":
+    if kind is RecordKind.HELLO_REFUSED:
         return f"hello refused: {reason}" if reason else "hello refused"
-    if kind == "stoptest":
+    if kind is RecordKind.STOPTEST:
         return f"stop test {reason}" if reason else "stop test"
-    rearm = data.get("rearm")
-    if isinstance(rearm, Mapping):
-        caller = rearm.get("caller")
-        by = (
-            f" ({caller.get('name')}, uid {caller.get('uid')})"
-            if isinstance(caller, Mapping)
-            else ""
-        )
-        return f"re-armed by {rearm.get('kind')}{by}"
+    rearm = record.rearm
+    if rearm is not None:
+        caller = rearm.caller
+        by = f" ({caller.name}, uid {caller.uid})" if caller is not None else ""
+        return f"re-armed by {rearm.kind}{by}"
     return ""
 
 
-def move(data: Mapping[str, Any]) -> str:
+def move(record: StopRecord) -> str:
     """``RUN -> STOPPED`` for a change of state, else the state the record was made in."""
-    before, after = str(data.get("from")), str(data.get("to"))
-    return after if before == after else f"{before} -> {after}"
+    before, after = record.from_state, record.to_state
+    return str(after) if before is after else f"{before} -> {after}"
 
 
 def record_line(
-    data: Mapping[str, Any],
+    record: StopRecord,
     when: str,
     *,
-    previous: Mapping[str, Any] | None = None,
+    previous: StopRecord | None = None,
     causes: bool = False,
 ) -> str:
     """One record in one line, after ``when`` (the time as the caller shows it):
     ``WHEN  #SEQ  MOVE  KIND  what happened``. ``causes``: the whole cause set and the
     trigger too, and every released latch by name."""
-    kind = str(data.get("kind") or "state_change")
-    words = [w for w in (happening(data), what_changed(data, previous, every=causes)) if w]
-    text = "; ".join(words) or ("causes " + cause_set(data.get("causes")))
-    seq = f"#{data.get('seq')}"
-    line = f"{when}  {seq:6} {move(data):16} {kind:14} {text}"
+    words = [w for w in (happening(record), what_changed(record, previous, every=causes)) if w]
+    text = "; ".join(words) or ("causes " + cause_set(record.causes))
+    line = _line(when, record.seq, move(record), record.record_kind.value, text)
     if causes:
-        trigger = data.get("trigger")
-        event = trigger.get("event") if isinstance(trigger, Mapping) else trigger
-        line += f"  [causes: {cause_set(data.get('causes'))}; trigger {event}]"
+        line += f"  [causes: {cause_set(record.causes)}; trigger {record.event}]"
     return line
 
 
-def legend(records: Sequence[Mapping[str, Any]]) -> list[str]:
+def written_line(data: Mapping[str, Any], when: str) -> str:
+    """A line the store took that is no typed record (:func:`~supervisord.record.stop.
+    read_written`: a state, record kind or change this client does not know), from the
+    fields the store holds, as written: ``WHEN  #SEQ  FROM -> TO  KIND  causes NAMES``."""
+    before, after = str(data.get("from")), str(data.get("to"))
+    moved = after if before == after else f"{before} -> {after}"
+    causes = data.get("causes")
+    listed = causes if isinstance(causes, list) else []  # the store's: objects with a name
+    names = [str(c.get("name")) for c in listed if isinstance(c, Mapping)]
+    text = "causes " + (", ".join(names) or "none")
+    return _line(when, data.get("seq"), moved, str(data.get("kind") or "state_change"), text)
+
+
+def _line(when: str, seq: object, moved: str, kind: str, text: str) -> str:
+    number = f"#{seq}"
+    return f"{when}  {number:6} {moved:16} {kind:14} {text}"
+
+
+def legend(records: Sequence[StopRecord]) -> list[str]:
     """:data:`MARK_MEANS`, once, if any of the records' lines used the marker."""
     return [MARK_MEANS] if any(MARK in record_line(r, "") for r in records) else []

@@ -6,6 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from supervisord import __version__
 from supervisord.cli import control, decode_options, fleet
@@ -14,12 +15,15 @@ from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST
 from supervisord.cli.numbers import count, positive
 from supervisord.errors import ConfigError
 
+if TYPE_CHECKING:
+    from supervisord.cli.cause_names import CauseFilter
+
 # What reads the record or the config (and with them the safety core's values) is imported by
 # the command that needs it: the operator's commands load the client library only (SR-8.8,
 # tests/test_layers.py).
 
 
-def cause_name(text: str) -> str:
+def cause_name(text: str) -> CauseFilter:
     """``--cause``'s type: :func:`supervisord.cli.cause_names.cause_name`, loaded when used."""
     from supervisord.cli.cause_names import cause_name as known  # noqa: PLC0415
 

@@ -23,6 +23,7 @@ from supervisord.vocabulary import (
     CauseName,
     ChangeKind,
     Phase,
+    ProofTestFailure,
     ProofTestPolicy,
     RearmKind,
     Severity,
@@ -30,7 +31,7 @@ from supervisord.vocabulary import (
     UnknownCauseKind,
     read_cause,
 )
-from supervisord.wire import Fields, Wire, wire
+from supervisord.wire import Fields, Wire, WireError, wire
 
 __all__ = [
     "Caller",
@@ -46,6 +47,7 @@ __all__ = [
     "StopStepReport",
     "StopTestReport",
     "read_record",
+    "read_written",
 ]
 
 
@@ -119,6 +121,19 @@ class ProofTestResult(Wire):
     @property
     def passed(self) -> bool:
         return self.result == "passed"
+
+    @property
+    def failed_for(self) -> ProofTestFailure | str | None:
+        """Why it failed: the vocabulary's failure its ``failure`` names (``late``), or the
+        text as written where this client knows no such failure."""
+        if self.failure is None:
+            return None
+        return ProofTestFailure.__members__.get(self.failure.upper(), self.failure)
+
+    @property
+    def cleared_by_itself(self) -> bool:
+        """The VSC cleared the user bits by itself once the heartbeat resumed (not held)."""
+        return self.cleared == "by_itself"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -247,3 +262,52 @@ def read_record(obj: object, where: str = "record") -> StopRecord:
     """The stop record in one JSON object, as a file, the journal or a push holds it; raises
     :class:`~supervisord.wire.WireError` for one that is not (docs/record.md)."""
     return StopRecord.read(Fields(obj, where))
+
+
+def read_written(obj: Mapping[str, Any]) -> StopRecord | None:
+    """A line the record store took (docs/record.md "What a record holds"), typed, for showing
+    it: :func:`read_record`'s value where the line is a typed record. A line another tool wrote
+    with fewer fields is read leniently, what it lacks or holds otherwise kept as written: a
+    ``trigger`` as text is the trigger's ``event``; a cause without ``active`` or ``latched``
+    is neither, without ``severity`` its kind's (one this client does not know: a hold),
+    without its times or ``details`` has none, and a detail that is not text is its text.
+    ``None`` for a line that still is no typed record (a state, kind or change this client
+    does not know): it is shown from the store's own fields."""
+    try:
+        return read_record(obj)
+    except WireError:
+        pass
+    trigger = obj.get("trigger")
+    causes = obj.get("causes")
+    loose = {
+        **obj,
+        "trigger": trigger if isinstance(trigger, dict) else {"event": str(trigger)},
+        "causes": [_loose_cause(c) for c in causes] if isinstance(causes, list) else causes,
+    }
+    try:
+        return read_record(loose)
+    except WireError:
+        return None
+
+
+def _loose_cause(cause: object) -> object:
+    """One cause of a line :func:`read_written` reads leniently, what it lacks filled in."""
+    if not isinstance(cause, Mapping) or not isinstance(cause.get("name"), str):
+        return cause
+    try:
+        kind = read_cause(cause["name"]).kind
+    except ValueError:
+        return cause
+    details = cause.get("details")
+    severity = kind.severity if isinstance(kind, CauseKind) else Severity.HOLD
+    return {
+        "severity": severity.value,
+        "raised_ns": None,
+        "cleared_ns": None,
+        **cause,
+        "active": bool(cause.get("active")),
+        "latched": bool(cause.get("latched")),
+        "details": (
+            {str(k): str(v) for k, v in details.items()} if isinstance(details, Mapping) else {}
+        ),
+    }

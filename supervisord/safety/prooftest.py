@@ -21,24 +21,18 @@ from supervisord.protocol.codes import VscMode
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.causes import CauseKind
 from supervisord.timebase import NS_PER_MS
-from supervisord.vocabulary import Phase, ProofTestPolicy
+from supervisord.vocabulary import (
+    READING_MARGIN_NS,
+    TRIP_LATE_NS,
+    WATCHDOG_NS,
+    Phase,
+    ProofTestPolicy,
+)
+from supervisord.vocabulary import ProofTestFailure as Failure
 
 USER_BITS: Final = 0xC0
 """Bits 6-7 of the VSC's e-stop word: the user computer's e-stop, from its heartbeat's byte
 or from the key-85 watchdog (PR-2.6)."""
-WATCHDOG_NS: Final = 500 * NS_PER_MS
-"""The VSC's user watchdog: an e-stop after 500 ms without a user heartbeat (manual §8.3.5)."""
-READING_MARGIN_NS: Final = 200 * NS_PER_MS
-"""What the proof test allows beyond the watchdog's 500 ms for seeing the trip: one VSC
-heartbeat interval at the manual's 20 Hz (50 ms, table 5), the heartbeat that carries the bits,
-and 150 ms for reading it on a busy vehicle computer."""
-TRIP_LATE_NS: Final = WATCHDOG_NS + READING_MARGIN_NS
-"""A trip seen later than this (700 ms) after the last heartbeat sent is late (SR-5.7). Absolute:
-it judges the VSC's watchdog, whose promise is the manual's 500 ms, so it does not grow with
-``vsc.timeout_ms`` (how long the supervisor tolerates the VSC's silence is another question; a
-timeout of 1000 ms once let a watchdog tripping at 1.2 s pass). A VSC set to send its heartbeat
-less often than every 50 ms (manual §8.3.6) can show a healthy trip late: it fails, the safe
-side, and ``vsc.prooftest = "record"`` is the integrator's choice there (docs/safety.md)."""
 LATE_TRIES: Final = 3
 """How many times a trip seen late is measured before the test fails (SR-5.7). A trip can be
 seen later than it happened (a late VSC heartbeat, a stalled vehicle computer), never sooner:
@@ -70,16 +64,6 @@ waits for the proof test; the test needs the byte at 0 (PR-2.6). It cannot move 
 the outputs are off (STOPPED) and ``client_lost`` stays active, latched and blocking every
 re-arm; the withholding itself opens the VSC's relays, and once the test is over the byte is
 1 again until the client is there."""
-
-
-class Failure(enum.Enum):
-    """Why a proof test failed; the value is the text in the record and the cause's details."""
-
-    KEY85_OFF = "key 85 does not read 1: the VSC's watchdog is off, nothing to prove"
-    NO_TRIP = "the VSC did not report the user-timeout e-stop while the heartbeat was withheld"
-    LATE = "the VSC reported the user-timeout e-stop late"
-    STAYED_OPERATIONAL = "the VSC reported the user-timeout e-stop but stayed Operational"
-    NOT_CLEARED = "the VSC did not clear the user-timeout e-stop after the heartbeat resumed"
 
 
 class Cleared(enum.Enum):
