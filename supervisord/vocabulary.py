@@ -116,8 +116,35 @@ _NOT_USER_ESTOP_KINDS = frozenset(
 )
 
 
+class _Named:
+    """What a cause name of either kind shares: its text, written ``KIND`` or
+    ``KIND:SUBJECT``, by which it prints and sorts."""
+
+    __slots__ = ()
+    kind: CauseKind | UnknownCauseKind
+    subject: str | None
+
+    @property
+    def name(self) -> str:
+        """The name used in records and by ``srcsctl``, as in SR-2/SR-3."""
+        if self.subject is None:
+            return self.kind.value
+        return f"{self.kind.value}:{self.subject}"
+
+    def to_text(self) -> str:
+        return self.name
+
+    def __lt__(self, other: object) -> bool:
+        if not isinstance(other, _Named):
+            return NotImplemented
+        return self.name < other.name
+
+    def __str__(self) -> str:
+        return self.name
+
+
 @dataclass(frozen=True, slots=True)
-class Cause:
+class Cause(_Named):
     """One named cause, e.g. ``client_lost:planner`` or ``vsc_estop``.
 
     Raises ``ValueError`` when a kind that needs a subject has none, or the reverse.
@@ -141,27 +168,9 @@ class Cause:
         kind, colon, subject = text.partition(":")
         return cls(CauseKind(kind), subject if colon else None)
 
-    def to_text(self) -> str:
-        return self.name
-
-    def __lt__(self, other: object) -> bool:
-        if not isinstance(other, Cause | UnknownCause):
-            return NotImplemented
-        return self.name < other.name
-
-    @property
-    def name(self) -> str:
-        """The name used in records and by ``srcsctl``, as in SR-2/SR-3."""
-        if self.subject is None:
-            return self.kind.value
-        return f"{self.kind.value}:{self.subject}"
-
     @property
     def severity(self) -> Severity:
         return self.kind.severity
-
-    def __str__(self) -> str:
-        return self.name
 
 
 @dataclass(frozen=True, slots=True)
@@ -178,7 +187,7 @@ class UnknownCauseKind:
 
 
 @dataclass(frozen=True, slots=True)
-class UnknownCause:
+class UnknownCause(_Named):
     """A cause name whose kind this client does not know (:class:`UnknownCauseKind`), or a
     known kind written with a subject where this client knows none (or none where it knows
     one): kept as written, so that it is shown and counted under the text it came as, never
@@ -186,24 +195,6 @@ class UnknownCause:
 
     kind: UnknownCauseKind
     subject: str | None = None
-
-    @property
-    def name(self) -> str:
-        """The name as it was written."""
-        if self.subject is None:
-            return self.kind.value
-        return f"{self.kind.value}:{self.subject}"
-
-    def to_text(self) -> str:
-        return self.name
-
-    def __lt__(self, other: object) -> bool:
-        if not isinstance(other, Cause | UnknownCause):
-            return NotImplemented
-        return self.name < other.name
-
-    def __str__(self) -> str:
-        return self.name
 
 
 CauseName = Cause | UnknownCause

@@ -42,7 +42,9 @@ from supervisord.record.replay import (
     differing,
     replay,
 )
+from supervisord.record.stop import StopRecord, read_written
 from supervisord.safety.events import Event, VscReceived
+from supervisord.vocabulary import State
 
 EXIT_MISMATCH: Final = 1
 EXIT_BAD_INPUT: Final = 2
@@ -77,15 +79,16 @@ def no_window(record: Path, seq: int) -> str:
     """Why record ``seq`` has no window, in words: what the record is (windows are written for
     stops only, SR-7.12), and the stops nearest to it that have one."""
     data = _record_numbered(record, seq)
+    typed = None if data is None else read_written(data)
     if data is None:
         what = f"there is no record {seq} in {record}"
-    elif data.get("to") == "STOPPED" and data.get("from") != "STOPPED":
+    elif typed is not None and typed.is_stop:
         what = (
             f"record {seq} is a stop, but its window is not kept: only the newest windows are "
             "(the record's keep + 1), and one that could not be written is counted in status"
         )
     else:
-        what = f"record {seq} is {_what_record(data)}: windows are kept for stops only"
+        what = f"record {seq} is {_what_record(typed, data)}: windows are kept for stops only"
     kept = [number for number, _ in windows(record)]
     below = [number for number in kept if number < seq][-1:]
     above = [number for number in kept if number > seq][:1]
@@ -106,14 +109,17 @@ def _record_numbered(record: Path, seq: int) -> Mapping[str, Json] | None:
     return found
 
 
-def _what_record(data: Mapping[str, Json]) -> str:
-    """``a re-arm (STOPPED -> RUN)``, ``a cause_cleared record (STOPPED)``."""
-    before, after = data.get("from"), data.get("to")
-    if before == "STOPPED" and after != "STOPPED":
+def _what_record(record: StopRecord | None, data: Mapping[str, Json]) -> str:
+    """``a re-arm (STOPPED -> RUN)``, ``a cause_cleared record (STOPPED)``; a line that is
+    no typed record by its fields as written."""
+    if record is None:
+        return f"a {data.get('kind') or 'state_change'} record ({data.get('to')})"
+    before, after = record.from_state, record.to_state
+    if before is State.STOPPED and after is not State.STOPPED:
         return f"a re-arm ({before} -> {after})"
-    if before != after:
+    if before is not after:
         return f"a change of state ({before} -> {after})"
-    return f"a {data.get('kind') or 'state_change'} record ({after})"
+    return f"a {record.record_kind} record ({after})"
 
 
 def recorded_records(
