@@ -16,8 +16,8 @@ Where the IDs come from:
 What counts (``docs/requirements.md`` "Traceability"): a test that cites a requirement proves
 it; a test that cites only the requirement's section is listed beside it, but does not count as
 its proof, because a section names many promises and a test asserts a few. A requirement that
-no pytest test can prove carries ``*Proven by:* bench `FILE``` or ``*Proven by:* system tier
-`FILE``` in its text; the file must exist.
+no pytest test can prove carries ``*Proven by:* bench `FILE```, ``*Proven by:* system tier
+`FILE``` or ``*Proven by:* fleet tier `FILE``` in its text; the file must exist.
 
 The module is pure apart from :func:`main`: :func:`build` returns the page and the problems, and
 ``tests/test_traceability.py`` runs it.
@@ -42,7 +42,7 @@ ID = r"(?:SR|PR)-\d+(?:\.\d+)?"
 CITATION = re.compile(rf"\b({ID})(?:\s+to\s+({ID}))?\b")
 ITEM = re.compile(rf"^- \*\*({ID})\*\*\s*(.*)$")
 SECTION = re.compile(r"^## ((?:SR|PR)-\d+) (.*)$")
-PROVEN_BY = re.compile(r"\*Proven by:\* (bench|system tier) `([^`]+)`")
+PROVEN_BY = re.compile(r"\*Proven by:\* (bench|system tier|fleet tier) `([^`]+)`")
 HAZARD_HEADER = "| hazard | rule | test |"
 TEST_REF = re.compile(r"`(tests/[^`:]+\.py)::([A-Za-z_][A-Za-z0-9_]*)(?:\[[^`]*\])?`")
 

@@ -9,7 +9,8 @@ statuses. ``--summary``: one line per robot instead.
 
 Order: journalctl's, which keeps each robot's records in the order its journal wrote them
 (the order of its ``seq``) and interleaves robots by their own clocks; nothing here sorts by a
-wall clock (SR-13.5). Nothing here imports the safety core (SR-13.6): each entry is read as
+wall clock (SR-13.5). A record the collector holds twice (sent again after an outage) is
+shown once (SR-13.1). Nothing here imports the safety core (SR-13.6): each entry is read as
 the typed stop record, and ``--cause``'s names are the shared vocabulary's.
 """
 
@@ -201,9 +202,11 @@ def run_fleet(
         last = FOLLOW_LAST
     wanted = _Filter(cause, cause_present, start, end)
     try:
-        entries = _scan(scan, errors)
+        scanned = _scan(scan, errors)
     except _JournalctlFailed as error:
         return _say(errors, str(error), EXIT_FAILED)
+    known: set[tuple[str, ...]] = set()
+    entries = _once(scanned, known)
     chosen = wanted.select(entries)
     shown = [] if last == 0 else chosen[-last:] if last is not None else chosen
     printer = RecordPrinter(out, output=output, utc=utc, causes=causes)
@@ -216,8 +219,10 @@ def run_fleet(
         if not shown and not quiet and output not in JSON_OUTPUTS:
             print(NO_ENTRIES, file=out)
         return 0
-    seen = {e.cursor for e in entries}
-    return _follow(tail, seen=seen, wanted=wanted, printer=printer, errors=errors, source=source)
+    seen = {e.cursor for e in scanned}
+    return _follow(
+        tail, seen=seen, known=known, wanted=wanted, printer=printer, errors=errors, source=source
+    )
 
 
 class _JournalctlFailed(Exception):
@@ -263,6 +268,21 @@ def _entries(lines: Iterable[str], errors: IO[str]) -> Iterator[Entry]:
             yield found
 
 
+def _once(entries: Iterable[Entry], known: set[tuple[str, ...]]) -> list[Entry]:
+    """Each record once (SR-13.1): an entry whose robot, ``seq`` and robot's stamps are those
+    of one already read (``known``, which this adds to) is a second copy of it, which
+    systemd-journal-upload sent again after the collector went away before answering; it is
+    dropped. An entry without the robot's stamps is always kept."""
+    kept = []
+    for item in entries:
+        if item.identity is not None:
+            if item.identity in known:
+                continue
+            known.add(item.identity)
+        kept.append(item)
+    return kept
+
+
 def _scan(line: list[str], errors: IO[str]) -> list[Entry]:
     """Every entry journalctl gives now, in its order."""
     try:
@@ -295,6 +315,7 @@ def _follow(
     line: list[str],
     *,
     seen: set[str],
+    known: set[tuple[str, ...]],
     wanted: _Filter,
     printer: RecordPrinter,
     errors: IO[str],
@@ -322,6 +343,7 @@ def _follow(
                     tail,
                     files=files,
                     seen=seen,
+                    known=known,
                     wanted=wanted,
                     printer=printer,
                     errors=errors,
@@ -343,6 +365,7 @@ def _read_tail(
     *,
     files: frozenset[str],
     seen: set[str],
+    known: set[tuple[str, ...]],
     wanted: _Filter,
     printer: RecordPrinter,
     errors: IO[str],
@@ -365,7 +388,7 @@ def _read_tail(
         text = [raw.decode(errors="replace") for raw in complete]
         fresh = [e for e in _entries(text, errors) if e.cursor not in seen]
         seen.update(e.cursor for e in fresh)
-        _show(printer, wanted.select(fresh))
+        _show(printer, wanted.select(_once(fresh, known)))
 
 
 def _show(printer: RecordPrinter, shown: list[Entry], *, reverse: bool = False) -> None:

@@ -49,6 +49,9 @@ class Entry:
     record: StopRecord | None = None
     """The record typed (:func:`~supervisord.record.stop.read_written`); ``None`` for one
     that is no typed record, shown from its fields as written."""
+    identity: tuple[str, ...] | None = None
+    """What names this entry as the robot wrote it (:func:`identity`), the same in a copy
+    the collector was sent twice; ``None`` without the robot's stamps."""
 
     def within(self, start: dt.datetime | None, end: dt.datetime | None) -> bool:
         """Whether the robot's stamp is at or after ``start`` and before ``end``. journalctl's
@@ -159,7 +162,32 @@ def entry(line: str) -> Entry | str:
     stamp = _one(fields, "__REALTIME_TIMESTAMP")
     stamp_us = int(stamp) if stamp is not None and stamp.isdigit() else None
     cursor = str(fields.get("__CURSOR", ""))
-    return Entry(printable(robot), cursor, data, stamp_us, read_written(data))
+    return Entry(printable(robot), cursor, data, stamp_us, read_written(data), identity(fields))
+
+
+_ROBOTS_STAMPS: Final = (
+    "_HOSTNAME",
+    "_MACHINE_ID",
+    "_BOOT_ID",
+    "__MONOTONIC_TIMESTAMP",
+    "__REALTIME_TIMESTAMP",
+    "SRCS_SEQ",
+)
+"""The robot, the record's ``seq`` and the stamps the robot's journald gave the entry: its
+boot, its monotonic and its wall clock. systemd-journal-remote keeps all of them as sent;
+only the collector's own place (``__CURSOR``, ``__SEQNUM``) differs in a second copy."""
+
+
+def identity(fields: Mapping[str, Any]) -> tuple[str, ...] | None:
+    """The entry's :data:`_ROBOTS_STAMPS`, or ``None`` when the robot's boot or monotonic
+    stamp is missing (then no entry is taken for a copy of it). systemd-journal-upload sends
+    an entry again when the collector went away before it answered (its cursor is saved after
+    the answer), and the collector then holds it twice; two records of one robot with the same
+    ``seq`` (a new record file) differ in their stamps (SR-13.1)."""
+    values = tuple(_one(fields, name) for name in _ROBOTS_STAMPS)
+    if values[2] is None or values[3] is None:
+        return None
+    return tuple(value or "" for value in values)
 
 
 def printable(name: str) -> str:

@@ -263,3 +263,43 @@ def test_the_collector_tools_are_there() -> None:
     assert Path("/lib/systemd/systemd-journal-remote").exists() or shutil.which(
         "systemd-journal-remote"
     )
+
+
+def test_a_record_sent_twice_is_shown_once(collector: Path) -> None:
+    """SR-13.1: an entry systemd-journal-remote took in twice (robot-a's e-stop record sent
+    again, as systemd-journal-upload resends the entry in flight when the collector went away)
+    is one record in ``fleet``'s lines, JSON and summary; a record with the same ``seq`` but
+    other stamps of the robot (a new record file) is still shown."""
+    journal = collector / "remote-robot-a.journal"
+    again = subprocess.run(
+        ["journalctl", f"--directory={collector}", "-o", "export", "_HOSTNAME=robot-a",
+         "SRCS_SEQ=3"],
+        capture_output=True,
+        check=True,
+        timeout=60,
+    ).stdout  # fmt: skip
+    assert again.count(b"\nSRCS_SEQ=3\n") == 1
+    collect(again, journal)
+    held = subprocess.run(
+        ["journalctl", f"--directory={collector}", "-o", "json", "_HOSTNAME=robot-a",
+         "SRCS_SEQ=3"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    ).stdout.splitlines()  # fmt: skip
+    assert len(held) == 2  # the collector's journal holds it twice
+
+    lines = fleet("-D", str(collector), "--robot", "robot-a").stdout.splitlines()
+    assert seqs(lines, "robot-a") == [1, 2, 3, 4]
+    as_json = fleet("-D", str(collector), "-o", "json", "--robot", "robot-a").stdout
+    assert [json.loads(line)["seq"] for line in as_json.splitlines()] == [1, 2, 3, 4]
+    summary = fleet("-D", str(collector), "--summary", "--robot", "robot-a").stdout
+    assert summary.startswith("robot-a  ")
+    assert ", 4 records; last " in summary
+
+    other = again.replace(b"\n__MONOTONIC_TIMESTAMP=", b"\n__MONOTONIC_TIMESTAMP=1")
+    assert other != again
+    collect(other, journal)
+    lines = fleet("-D", str(collector), "--robot", "robot-a").stdout.splitlines()
+    assert seqs(lines, "robot-a") == [1, 2, 3, 4, 3]
