@@ -27,6 +27,7 @@ from types import FrameType
 from supervisord.api.pushes import StatePush
 from supervisord.client import DEFAULT_SOCKET_PATH, SupervisorClient
 from supervisord.errors import SrcsError
+from supervisord.vocabulary import State
 
 HEARTBEAT_S = 0.1  # 10 Hz: well inside the [[clients]] entry's timeout_ms (docs/api.md)
 REPLY_TIMEOUT_S = 5.0
@@ -53,7 +54,7 @@ class Motion:
 
     def __init__(self, client: SupervisorClient, wheel: Wheel, speed: float) -> None:
         self.client, self.wheel, self.speed = client, wheel, speed
-        self.state = "STOPPED"  # every input starts as "not OK"
+        self.state = State.STOPPED  # every input starts as "not OK"
         self.stopping = False
 
     def run(self) -> None:
@@ -74,10 +75,10 @@ class Motion:
         """Drive only in RUN. Into RUN: the command declared non-zero before the wheel turns;
         out of it: the wheel at 0 before the command is declared zero (SR-4.6)."""
         moving = bool(self.wheel.speed)
-        if self.state == "RUN" and not self.stopping and not moving:
+        if self.state is State.RUN and not self.stopping and not moving:
             self.client.command(True)
             self.wheel.set(self.speed)
-        elif (self.state != "RUN" or self.stopping) and moving:
+        elif (self.state is not State.RUN or self.stopping) and moving:
             self.wheel.set(0.0)
             self.client.command(False)
 
