@@ -33,6 +33,7 @@ setup(
         "supervisord.api",
         "supervisord.cli",
         "supervisord.protocol",
+        "supervisord.record",
         "supervisord.ros2",
     ],
     package_data={"supervisord": ["py.typed"]},
