@@ -1,14 +1,16 @@
 """Deliberately broken cores the exploration must reject (docs/verification.md "Faults the
 checker must catch"; ``tests/safety/test_exploration.py`` runs them).
 
-Each is one small patch of ``supervisord/safety/core.py``'s source, applied at test time to a
-copy of the module loaded under another name: the product is never changed. A patch whose
-text is no longer found in the source fails loudly, so a refactored core cannot silently
-retire a fault.
+Each is one small patch of the source of one module of the core (``core.py`` or one of the
+machines it composes), applied at test time to a copy of the module loaded under another name,
+with a copy of ``core.py`` that composes the patched machine: the product is never changed. A
+patch whose text is no longer found in the source fails loudly, so a refactored core cannot
+silently retire a fault.
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import sys
 from dataclasses import dataclass
@@ -21,30 +23,33 @@ from supervisord.safety import core as real_core
 
 @dataclass(frozen=True)
 class Fault:
-    """A broken core: ``old`` replaced by ``new`` in core.py; the exploration of ``model``
-    must find a violation of ``expected``."""
+    """A broken core: ``old`` replaced by ``new`` in ``module`` (of ``supervisord.safety``);
+    the exploration of ``model`` must find a violation of ``expected``."""
 
     name: str
     old: str
     new: str
     model: str
     expected: str
+    module: str = "core"
 
 
 FAULTS = (
     Fault(
         "a dropped cause: a client's e-stop is forgotten",
-        "{Cause(CauseKind.CLIENT_ESTOP, n): () for n in self._client_estops}",
-        "{}",
+        "return {Cause(CauseKind.CLIENT_ESTOP, n): () for n in self._estops}",
+        "return {}",
         "clients",
         "P12",
+        module="clients",
     ),
     Fault(
         "a boundary off by one: the VSC's timeout expires 1 ns late",
-        'lost = last is None or now - last >= self._vsc_timeout_ns  # ">=": 200 ms is lost',
-        "lost = last is None or now - last > self._vsc_timeout_ns",
+        'return last is None or now - last >= self._timeout_ns  # ">=": 200 ms is lost',
+        "return last is None or now - last > self._timeout_ns",
         "takeover",
         "P4",
+        module="vsc",
     ),
     Fault(
         "a takeover without the dwell",
@@ -52,6 +57,7 @@ FAULTS = (
         "if False:",
         "takeover",
         "P2",
+        module="vsc",
     ),
     Fault(
         "a missing record: a cause that clears is not recorded",
@@ -62,8 +68,8 @@ FAULTS = (
     ),
     Fault(
         "a new stop waits for the next user heartbeat",
-        "self._emit_link_frames(now, estop, urgent=raised_user_estop)",
-        "self._emit_link_frames(now, estop, urgent=False)",
+        "self._emit_link_frames(step, estop, urgent=raised_user_estop)",
+        "self._emit_link_frames(step, estop, urgent=False)",
         "takeover",
         "P5",
     ),
@@ -90,10 +96,11 @@ FAULTS = (
     ),
     Fault(
         "the deadline forgets the VSC's timeout",
-        "if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:",
-        "if False:",
+        "candidates = [None if last is None else last + self._timeout_ns]  # SR-2.2",
+        "candidates: list[int | None] = [None]",
         "can",
         "P8",
+        module="vsc",
     ),
     Fault(
         "a mode's hold is ignored",
@@ -101,10 +108,11 @@ FAULTS = (
         "mode = None\n",
         "takeover",
         "P9",
+        module="vsc",
     ),
     Fault(
         "a re-arm while a client commands motion",
-        "        if self._nonzero:\n            # SR-4.6",
+        "        if commanding:\n            # SR-4.6",
         "        if False:\n            # SR-4.6",
         "clients",
         "P18",
@@ -122,6 +130,7 @@ FAULTS = (
         "            now,\n            100,\n            seen,\n",
         "battery_stop",
         "P19",
+        module="battery",
     ),
     Fault(
         "the battery's hold ends at the first good report",
@@ -129,13 +138,15 @@ FAULTS = (
         "            elif now - first >= 0:",
         "battery_hold",
         "P19",
+        module="battery",
     ),
     Fault(
         "the battery's cause follows every report's reason",
-        "                    and now - self._battery_words_since >= BATTERY_SETTLE_NS",
-        "                    and now - self._battery_words_since >= 0",
+        "and taken_in and now - self._words_since >= BATTERY_SETTLE_NS)",
+        "and taken_in and now - self._words_since >= 0)",
         "battery_stop",
         "P21",
+        module="battery",
     ),
     Fault(
         "the re-arm hold is not waited for",
@@ -150,26 +161,47 @@ FAULTS = (
         "stale = None",
         "progress",
         "P22",
+        module="clients",
     ),
     Fault(
         "a refused heartbeat still extends the deadline",
-        "        if stale is None:\n            self._client_beat_ns[name] = now\n        else:",
-        "        self._client_beat_ns[name] = now\n        if stale is not None:",
+        "        if stale is None:\n"
+        "            self._beat_ns[name] = now\n"
+        "            return None\n",
+        "        self._beat_ns[name] = now\n        if stale is None:\n            return None\n",
         "progress",
         "P8",
+        module="clients",
     ),
 )
 
 
 def broken_core(fault: Fault) -> type[SafetyCore]:
-    """The ``SafetyCore`` of a copy of core.py with ``fault`` applied."""
-    source = Path(real_core.__file__).read_text(encoding="utf-8")
+    """The ``SafetyCore`` of a copy of core.py with ``fault`` applied (to core.py or to the
+    machine it composes, whose patched copy the copy of core.py imports)."""
+    real = importlib.import_module(f"supervisord.safety.{fault.module}")
+    assert real.__file__ is not None
+    source = Path(real.__file__).read_text(encoding="utf-8")
     if source.count(fault.old) != 1:
-        raise ValueError(f"{fault.name}: the patched text is not in core.py exactly once")
+        raise ValueError(f"{fault.name}: the patched text is not in {fault.module}.py exactly once")
     name = f"verify._broken_{FAULTS.index(fault)}"
-    module = _load(name, source.replace(fault.old, fault.new), real_core.__file__)
-    core_class: type[SafetyCore] = module.SafetyCore
-    return core_class
+    patched = _load(name, source.replace(fault.old, fault.new), real.__file__)
+    if real is real_core:
+        core_class: type[SafetyCore] = patched.SafetyCore
+        return core_class
+    # core.py again, its ``from supervisord.safety.MODULE import ...`` reading the patched copy
+    real_name = real.__name__
+    try:
+        sys.modules[real_name] = patched
+        module = _load(f"{name}_core", _core_source(), real_core.__file__)
+    finally:
+        sys.modules[real_name] = real
+    composed: type[SafetyCore] = module.SafetyCore
+    return composed
+
+
+def _core_source() -> str:
+    return Path(real_core.__file__).read_text(encoding="utf-8")
 
 
 def _load(name: str, source: str, path: str) -> ModuleType:

@@ -48,9 +48,10 @@ _PROOF_SETTLED = (
     "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
 )
 
-_ONE_UID = "_charged is a tuple of one (the step's user): its first item is its last"
+_ONE_UID = "step.charged is a tuple of one (the step's user): its first item is its last"
 
-_DOWN = "SafetyCore._on_link_down"
+_DOWN = "VscLink.down"
+_VSC_INIT = "VscLink.__init__"
 _CLOSED = (
     "read only while the link is open (by the handling of a VSC message, refused while it is "
     "closed, and by the link's frames and deadlines, which a closed link skips), and "
@@ -92,29 +93,26 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 3", _KEPT),
     Equivalent("budget.py", "", "KEPT: Final = 4", "KEPT: Final = 5", _KEPT),
     Equivalent(
-        "core.py",
+        "vsc.py",
         "",
         "VSC_SLOWEST_RATE_INTERVAL_NS = 100 * NS_PER_MS",
         "VSC_SLOWEST_RATE_INTERVAL_NS = 99 * NS_PER_MS",
         "its one use is TAKEOVER_MIN_HEARTBEATS = 200 ms // it + 1, which is 3 for 99 ms as for "
         "100 ms (101 ms makes it 2, and is killed)",
     ),
-    Equivalent("core.py", _INIT, "self._held_since = 0", "self._held_since = -1", _INIT_HELD_SINCE),
-    Equivalent("core.py", _INIT, "self._held_since = 0", "self._held_since = 1", _INIT_HELD_SINCE),
     Equivalent(
-        "core.py",
-        _INIT,
+        "vsc.py", _VSC_INIT, "self._held_since = 0", "self._held_since = -1", _INIT_HELD_SINCE
+    ),
+    Equivalent(
+        "vsc.py", _VSC_INIT, "self._held_since = 0", "self._held_since = 1", _INIT_HELD_SINCE
+    ),
+    Equivalent(
+        "vsc.py",
+        _VSC_INIT,
         "self._remote_linked = False",
         "self._remote_linked = True",
         "the start value (in __init__) is read only by a VSC heartbeat, which is refused until "
-        "LinkOpened, and LinkOpened sets it False",
-    ),
-    Equivalent(
-        "core.py",
-        _INIT,
-        "self._limited = False  # the input's user is past its record budget (SR-8.5)",
-        "self._limited = True  # the input's user is past its record budget (SR-8.5)",
-        "per-step scratch: every step sets it (_step) before anything reads it",
+        "LinkOpened, and LinkOpened sets it False (VscLink.opened)",
     ),
     Equivalent(
         "core.py",
@@ -144,13 +142,13 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "core.py",
-        "SafetyCore._cheap",
-        'raise AssertionError("a heartbeat of an unchanged mode asked for a re-arm")',
+        "SafetyCore._cheap_vsc",
+        'raise AssertionError("a heartbeat of an unchanged mode changed the link")',
         "pass",
-        "unreachable: _on_vsc returns a request only for an Operational heartbeat after one of "
-        "another mode (_on_mode), the cheap path takes a heartbeat only of the last one's mode "
-        "(message.mode == self._vsc_mode, checked above), and for any other message _on_vsc "
-        "returns None",
+        "unreachable: VscLink.unchanged_by, checked just before, passes only a heartbeat of the "
+        "last one's mode (no takeover: that needs another mode before Operational), in time "
+        "(not silent before) and after a heartbeat since the link opened (which set "
+        "remote_linked from that same mode: no relink)",
     ),
     Equivalent(
         "core.py",
@@ -178,39 +176,30 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "core.py",
         "SafetyCore._step",
-        "self._charged, self._limited = None, False",
-        "self._charged, self._limited = None, True",
-        "_limited is read only in step 2 (the test after its assignment, and the handlers of a "
-        "local e-stop and of a disconnection), each time after _step has assigned it from the "
-        "event; an input that is no event applies nothing: this value is never read",
-    ),
-    Equivalent(
-        "core.py",
-        "SafetyCore._step",
-        "self._charged[0], now",
-        "self._charged[-1], now",
+        "step.limited = step.charged is not None and self._budget.exhausted(step.charged[0], now)",
+        "step.limited = step.charged is not None and self._budget.exhausted(step.charged[-1], now)",
         _ONE_UID,
     ),
     Equivalent(
         "core.py",
         "SafetyCore._finish",
-        "self._budget.charge(self._charged[0], now)",
-        "self._budget.charge(self._charged[-1], now)",
+        "self._budget.charge(step.charged[0], now)",
+        "self._budget.charge(step.charged[-1], now)",
         _ONE_UID,
     ),
     Equivalent(
         "core.py",
         "SafetyCore._step",
-        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-1].message)",
-        "self._note = (RecordNote.REARM_REFUSED, self._refusals[-0].message)",
+        "step.note = (RecordNote.REARM_REFUSED, refusals[-1].message)",
+        "step.note = (RecordNote.REARM_REFUSED, refusals[-0].message)",
         "a step that checks a re-arm has no refusal before the check: the events that ask one (a "
         "reset, a VSC heartbeat on an open link) are applied without a refusal, and a refused or "
         "limited event asks none; the check adds at most one. So the refusal is the first and "
         "the last alike",
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._on_link_opened",
+        "vsc.py",
+        "VscLink.opened",
         "self._run = None",
         "pass",
         "the same handler forgets the last heartbeat's time, its mode and the mode's hold, so "
@@ -219,57 +208,49 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "the run only while a mode is held: the run kept is never read",
     ),
     Equivalent(
-        "core.py",
+        "vsc.py",
         _DOWN,
-        "self._vsc_mode = None",
+        "self.mode = None",
         "pass",
         _CLOSED
         + " (the proof test reads the mode only when it starts, which needs the VSC heard on "
         "an open link)",
     ),
-    Equivalent("core.py", _DOWN, "self._run = None", "pass", _CLOSED),
-    Equivalent("core.py", _DOWN, "self._remote_linked = False", "pass", _CLOSED),
+    Equivalent("vsc.py", _DOWN, "self._run = None", "pass", _CLOSED),
+    Equivalent("vsc.py", _DOWN, "self._remote_linked = False", "pass", _CLOSED),
     Equivalent(
-        "core.py", _DOWN, "self._remote_linked = False", "self._remote_linked = True", _CLOSED
+        "vsc.py", _DOWN, "self._remote_linked = False", "self._remote_linked = True", _CLOSED
     ),
-    Equivalent("core.py", _DOWN, "self._next_key85_ns = None", "pass", _CLOSED),
-    Equivalent("core.py", _DOWN, "self._next_heartbeat_ns = None", "pass", _CLOSED),
+    Equivalent("vsc.py", _DOWN, "self._next_key85_ns = None", "pass", _CLOSED),
+    Equivalent("vsc.py", _DOWN, "self.next_heartbeat_ns = None", "pass", _CLOSED),
     Equivalent(
-        "core.py",
-        "SafetyCore._on_hello",
-        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-1].message)",
-        "self._note = (RecordNote.HELLO_REFUSED, self._refusals[-0].message)",
-        "the refusal just made is the step's only one: a hello is applied only when no refusal "
-        "came before it (past the budget it is refused instead, and not applied)",
-    ),
-    Equivalent(
-        "core.py",
-        _DEADLINE,
-        "if free is not None and now < free < earliest:",
-        "if free is not None and now <= free < earliest:",
+        "clients.py",
+        "Clients.next_deadline",
+        "if free is not None and now < free and (earliest is None or free < earliest):",
+        "if free is not None and now <= free and (earliest is None or free < earliest):",
         "free_at is None unless the user is past its budget at now, and then it is the time the "
         "oldest record that counts is a window old, which is after now (a record exactly a "
         "window old no longer counts): free is never now",
     ),
     Equivalent(
-        "core.py",
-        _DEADLINE,
-        "if free is not None and now < free < earliest:",
-        "if free is not None and now < free <= earliest:",
+        "clients.py",
+        "Clients.next_deadline",
+        "if free is not None and now < free and (earliest is None or free < earliest):",
+        "if free is not None and now < free and (earliest is None or free <= earliest):",
         _LATER_EQUAL,
     ),
     Equivalent(
-        "core.py",
-        _DEADLINE,
-        "if last is not None and now < (due := last + self._vsc_timeout_ns) < earliest:",
-        "if last is not None and now < (due := last + self._vsc_timeout_ns) <= earliest:",
+        "clients.py",
+        "Clients.next_deadline",
+        "if now < due and (earliest is None or due < earliest):",
+        "if now < due and (earliest is None or due <= earliest):",
         _LATER_EQUAL,
     ),
     Equivalent(
-        "core.py",
-        _DEADLINE,
-        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) < earliest:",
-        "if beat is not None and now < (due := beat + self._client_timeout_ns[name]) <= earliest:",
+        "vsc.py",
+        "VscLink.next_deadline",
+        "if due is not None and now < due and (earliest is None or due < earliest):",
+        "if due is not None and now < due and (earliest is None or due <= earliest):",
         _LATER_EQUAL,
     ),
     Equivalent(
@@ -280,10 +261,10 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         _LATER_EQUAL,
     ),
     Equivalent(
-        "core.py",
-        _DEADLINE,
-        "if now < (due := since + delay) < earliest:",
-        "if now < (due := since + delay) <= earliest:",
+        "outputs.py",
+        "Outputs.next_deadline",
+        "if now < due and (earliest is None or due < earliest):",
+        "if now < due and (earliest is None or due <= earliest):",
         _LATER_EQUAL,
     ),
     Equivalent(
@@ -292,6 +273,15 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "if later is not None and now < later < earliest:",
         "if later is not None and now < later <= earliest:",
         _LATER_EQUAL,
+    ),
+    Equivalent(
+        "clients.py",
+        "Clients.disconnected",
+        "self._progress.restart(name)",
+        "pass",
+        "a client's progress is read only while it is named (lost() reads it for a name in "
+        "_by_name, a heartbeat needs a named connection), and the hello that names it again "
+        "restarts it first: what a disconnection leaves there is never read",
     ),
     Equivalent(
         "prooftest.py",

@@ -16,9 +16,12 @@ change).
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import enum
+import hashlib
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -60,6 +63,56 @@ class Result:
     seconds: float = 0.0
     started: float = field(default_factory=time.perf_counter)
     counterexamples: list[Counterexample] = field(default_factory=list)
+    steps_seen: set[bytes] | None = None  # with ``digest``: each step's hash (``step_hash``)
+
+    def digest(self) -> str:
+        """One hash of the set of every step seen (state, input, decision): two explorations
+        that found the same states and decided alike in every step have the same digest."""
+        assert self.steps_seen is not None, "explore(..., digest=True)"
+        whole = hashlib.sha256()
+        for item in sorted(self.steps_seen):
+            whole.update(item)
+        return whole.hexdigest()[:16]
+
+
+def normal(value: object) -> object:
+    """``value`` in a form that does not depend on how it is laid out: the canonical form's
+    facts and clocks in the order of their names, sets and mappings sorted, dataclasses and
+    enums by their names and fields (never by ``id`` or the hash seed). So a canonical form
+    whose pairs are listed in another order, and a decision built by other code, normalise
+    alike when they say the same."""
+    if isinstance(value, enum.Enum):
+        return (type(value).__name__, value.name)
+    if isinstance(value, (str, int, float, bytes, type(None))):
+        return value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (
+            type(value).__name__,
+            tuple((f.name, normal(getattr(value, f.name))) for f in dataclasses.fields(value)),
+        )
+    if isinstance(value, Mapping):
+        return (
+            "map",
+            tuple(sorted(((repr(normal(k)), normal(v)) for k, v in value.items()), key=repr)),
+        )
+    if isinstance(value, (set, frozenset)):
+        return ("set", tuple(sorted((normal(v) for v in value), key=repr)))
+    if isinstance(value, (tuple, list)):
+        items = tuple(normal(v) for v in value)
+        if items and all(_is_pair(i) for i in items):  # (name, value) pairs: by their names
+            return tuple(sorted(items, key=repr))
+        return items
+    return (type(value).__name__, repr(value))
+
+
+def _is_pair(item: object) -> bool:
+    return isinstance(item, tuple) and len(item) >= 2 and isinstance(item[0], str)
+
+
+def step_hash(key: object, name: str, delta: int, decision: object) -> bytes:
+    """The hash of one step: the state it starts from (its key), the input and when, the
+    decision (``normal``: independent of how either is laid out)."""
+    return hashlib.sha256(repr(normal((key, name, delta, decision))).encode()).digest()
 
 
 UNIT_NS = 10_000_000
@@ -120,6 +173,7 @@ class _Node:
     ghost: Ghost
     index: int
     clocks: tuple[Clock, ...]
+    key: object = None
 
 
 def _boundaries(
@@ -168,6 +222,7 @@ class _Search:
         core_class: type[SafetyCore],
         max_states: int | None,
         all_violations: bool,
+        digest: bool = False,
     ) -> None:
         self.target = target
         self.config = target.config
@@ -177,7 +232,7 @@ class _Search:
         for item in target.inputs:
             self.by_kind.setdefault(item.kind, []).append(item)
         self.timed = [i for i in target.inputs if i.kind in model.TIMED]
-        self.result = Result()
+        self.result = Result(steps_seen=set() if digest else None)
         self.violated: set[str] = set()
         root = target.start(core_class)
         first = root.decision
@@ -186,7 +241,7 @@ class _Search:
         self.seen: dict[object, int] = {key: 0}
         # For each state, the state it was reached from and the input that reached it.
         self.parents: list[tuple[int, Event, str]] = [(0, first.records[0].trigger, "start")]
-        self.frontier = [_Node(root, ghost, 0, clocks)]
+        self.frontier = [_Node(root, ghost, 0, clocks, key)]
 
     def state(self, core: SafetyCore, ghost: Ghost) -> tuple[object, tuple[Clock, ...]]:
         """The key a state is compared by, and its clocks (the boundaries come from them)."""
@@ -250,6 +305,8 @@ class _Search:
         ghost = advance(node.ghost, self.config, event, after)
         found = check(Step(self.config, successor, before, after, event, node.ghost, ghost, full))
         self.result.steps += 1
+        if self.result.steps_seen is not None:
+            self.result.steps_seen.add(step_hash(node.key, item.name, delta, after))
         if found:
             self.report(found, node.index, event, item.name)
         if not go_on:
@@ -261,7 +318,7 @@ class _Search:
         self.parents.append((node.index, event, item.name))
         if self.max_states is not None and len(self.seen) >= self.max_states:
             raise _Stop
-        return _Node(successor, ghost, index, clocks)
+        return _Node(successor, ghost, index, clocks, key)
 
     def report(self, found: list[Violation], index: int, event: Event, name: str) -> None:
         """Keep the first counterexample of each property, with its input sequence."""
@@ -288,11 +345,12 @@ def explore(
     max_states: int | None = None,
     all_violations: bool = False,
     progress: Callable[[Result, int], None] | None = None,
+    digest: bool = False,
 ) -> Result:
     """Explore ``target`` breadth first from the start; stop at the first violation (unless
     ``all_violations``: then the first of each property), after ``max_depth`` levels or once
-    ``max_states`` states are known."""
-    search = _Search(target, core_class, max_states, all_violations)
+    ``max_states`` states are known. With ``digest``, ``Result.digest()`` hashes every step."""
+    search = _Search(target, core_class, max_states, all_violations, digest)
     result = search.result
     try:
         while search.frontier and (max_depth is None or result.depth < max_depth):
@@ -349,14 +407,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("models", nargs="*", help=f"models (default: {' '.join(model.MODELS)})")
     parser.add_argument("--depth", type=int, default=None, help="stop after this many levels")
     parser.add_argument("--states", type=int, default=None, help="stop at this many states")
+    parser.add_argument(
+        "--bounded",
+        action="store_true",
+        help="each model to its depth of the bounded run (model.BOUNDED, the tests' bound)",
+    )
+    parser.add_argument(
+        "--digest",
+        action="store_true",
+        help="print a digest of every step (state, input, decision): a refactoring of the core "
+        "that changes no behaviour keeps every model's states, steps and digest",
+    )
     args = parser.parse_args(argv)
     failed = False
     for name in args.models or model.MODELS:
         target = model.MODELS[name]
         print(f"== {name}: {target.what}", flush=True)
         depth = target.depth if args.depth is None else args.depth
+        if args.bounded:
+            depth = model.BOUNDED[name]
         result = explore(
-            target, max_depth=depth, max_states=args.states, all_violations=True, progress=_show
+            target,
+            max_depth=depth,
+            max_states=args.states,
+            all_violations=True,
+            progress=None if args.digest else _show,
+            digest=args.digest,
         )
         print(
             f"{name}: {result.states} states, {result.steps} steps, {result.depth} levels "
@@ -364,6 +440,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"checked at every step, {result.seconds:.0f} s",
             flush=True,
         )
+        if args.digest:
+            print(f"{name}: digest {result.digest()}", flush=True)
         for example in result.counterexamples:
             failed = True
             print(f"\n# {example.pid} violated: {example.what}\n")

@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Final
 
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackSet, RemoteStatus, VscHeartbeat
@@ -466,3 +468,22 @@ MODELS = {
         ),
     )
 }
+
+
+BOUNDED: Final[Mapping[str, int]] = MappingProxyType(
+    {
+        "takeover": 7,
+        "can": 6,
+        "vsc": 5,
+        "clients": 6,
+        "progress": 8,
+        "budget": 6,
+        "proof": 6,
+        "proof_clients": 6,
+        "battery_hold": 14,
+        "battery_stop": 19,
+        "all": 3,
+    }
+)
+"""Breadth-first levels explored per model in the bounded run (``tests/safety/
+test_exploration.py``, ``verify.explore --bounded``; ``./dev verify``: no bound)."""

@@ -52,6 +52,11 @@ TARGETS = (
     "decision.py",
     "events.py",
     "availability.py",
+    "vsc.py",
+    "clients.py",
+    "battery.py",
+    "outputs.py",
+    "step.py",
 )
 SUITE = "tests/safety"
 SKIPPED_FUNCTIONS = frozenset({"canonical"})

@@ -912,19 +912,20 @@ def _pending(config: SafetyConfig, core: SafetyCore, ghost: Ghost) -> list[tuple
     pending = _ghost_timers(config, ghost)
     proof = core._proof
     if ghost.link_open:
-        if core._next_heartbeat_ns is not None and not proof.withholding:
-            pending.append(("user heartbeat", core._next_heartbeat_ns))
-        if core._next_key85_ns is not None:
-            pending.append(("key 85 query", core._next_key85_ns))
+        vsc = core._vsc
+        if vsc.next_heartbeat_ns is not None and not proof.withholding:
+            pending.append(("user heartbeat", vsc.next_heartbeat_ns))
+        if vsc._next_key85_ns is not None:
+            pending.append(("key 85 query", vsc._next_key85_ns))
         if (display := core._display.next_due()) is not None:
             pending.append(("display", display))
     if proof.phase is Phase.WITHHOLDING and proof._withheld_from is not None:
         pending.append(("withholding limit", proof._withheld_from + WITHHOLD_LIMIT_NS))
     if proof.phase is Phase.RESUMED and proof._resumed_ns is not None:
         pending.append(("clear limit", proof._resumed_ns + proof.clear_limit_ns))
-    if proof.phase is Phase.WAITING and proof._heard_ns is not None and core._key85 is None:
+    if proof.phase is Phase.WAITING and proof._heard_ns is not None and core._vsc.key85 is None:
         pending.append(("key 85 wait", proof._heard_ns + KEY85_WAIT_NS))
-    for entry in core._unnamed.values():
+    for entry in core._clients._unnamed.values():
         if not entry.holders:
             free = core._budget.free_at(entry.uid, core._now)
             if free is not None:

@@ -75,6 +75,13 @@ class ProgressBook:
         client.last, client.bound, client.stale = progress, True, None
         return None
 
+    def unbound(self, name: str) -> bool:
+        """Whether ``name``'s heartbeats count without a progress value: not bound to one by
+        its config nor by a value it sent on this connection (a heartbeat without one then
+        changes nothing here)."""
+        client = self._clients.get(name)
+        return client is not None and not client.bound
+
     def stale(self, name: str) -> str | None:
         """Why ``name``'s heartbeats since its last accepted one did not count, if any did not."""
         client = self._clients.get(name)

@@ -45,33 +45,41 @@ from typing import Any, Final
 
 from supervisord.protocol import codes, messages
 from supervisord.safety import (
+    battery,
     book,
     budget,
     causes,
+    clients,
     config,
     core,
     decision,
     display,
     events,
+    outputs,
     progress,
     prooftest,
     transitions,
+    vsc,
 )
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 
 MODULES: Final[tuple[ModuleType, ...]] = (
+    battery,
     book,
     budget,
     causes,
+    clients,
     config,
     core,
     decision,
     display,
     events,
+    outputs,
     progress,
     prooftest,
     transitions,
+    vsc,
     codes,
     messages,
 )

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from bench import heartbeat_jitter, idle_cost, link_loss, rt_budget, stop_latency
+from bench import core_input_cost, heartbeat_jitter, idle_cost, link_loss, rt_budget, stop_latency
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
 from supervisord.testkit.wait import wait_until
@@ -147,6 +147,18 @@ def test_steal_share_and_the_units_scheduling(tmp_path: Path) -> None:
     assert stop_latency.unit_scheduling(unit) == (-5, 0)
     unit.write_text("[Service]\nNice=-5\nCPUSchedulingPolicy=fifo\nCPUSchedulingPriority=10\n")
     assert stop_latency.unit_scheduling(unit) == (-5, 10)
+
+
+def test_core_input_cost_times_a_steady_vsc_and_client_heartbeat(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """SR-9.4: the per-input bench of the pure core brings a core to RUN in a fresh
+    interpreter of this tree, feeds both heartbeats without a record and prints both medians."""
+    core_input_cost.main(["--rounds", "1", "--inputs", "50"])
+    out = capsys.readouterr().out
+    assert "round 1 after" in out
+    assert "after  median of rounds: VSC heartbeat" in out
+    assert out.count("load average") == 2
 
 
 def test_link_loss_never_stops_before_the_timeout(tmp_path: Path) -> None:

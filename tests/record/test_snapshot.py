@@ -83,7 +83,7 @@ def test_shared_values_stay_shared() -> None:
     cache) is one value after a restore too, as a mutation through one would show in both."""
     core = SafetyCore(ROBOT, 0)
     restored = _through_text(core)
-    assert restored.decision.outputs is restored._levels_by_state[restored.state]
+    assert restored.decision.outputs is restored._outputs._levels_by_state[restored.state]
 
 
 def _live(core: SafetyCore) -> SafetyCore:
@@ -108,13 +108,13 @@ def _damaged(change: str) -> Any:
     elif change == "an unknown tag":
         fields["_book"] = {"t": "pickle", "i": 1}
     elif change == "a number used twice":
-        fields["_run"] = copy.deepcopy(fields["_book"])
+        fields["_vsc"] = copy.deepcopy(fields["_book"])
     elif change == "an enum value that does not exist":
         fields["_state"]["v"] = "flying"
     elif change == "not a core":
         data["c"] = "supervisord.safety.book:CauseBook"
     elif change == "an unhashable key":
-        fields["_connections"]["v"] = [[{"t": "list", "i": 10_000, "v": []}, None]]
+        fields["_clients"]["f"]["_connections"]["v"] = [[{"t": "list", "i": 10_000, "v": []}, None]]
     elif change == "a configuration inside":
         fields["_config"] = None
     return data
@@ -146,6 +146,6 @@ def test_a_value_no_snapshot_can_hold_is_refused() -> None:
     """SR-7.11: a core that holds something other than its own values (here an object of the
     record's) cannot be written; the daemon then counts the failure and keeps no base."""
     core = SafetyCore(ROBOT, 0)
-    core._proof_outcome = object()  # type: ignore[assignment]
+    core._local_estop = object()  # type: ignore[assignment]
     with pytest.raises(SnapshotError):
         snapshot(core)

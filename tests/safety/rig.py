@@ -7,6 +7,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackSet, Message, UserHeartbeat, VscHeartbeat
 from supervisord.safety import (
     Caller,
+    ClientCommand,
     ClientConnected,
     ClientDisconnected,
     ClientEstop,
@@ -28,6 +29,7 @@ from supervisord.safety import (
     Tick,
     VscReceived,
 )
+from supervisord.safety.step import Step
 
 MS = 1_000_000
 START_NS = 5_000 * MS  # an arbitrary monotonic origin, far from zero
@@ -100,6 +102,11 @@ class Rig:
     def beat(self, connection: int = 1) -> Decision:
         return self.feed(ClientHeartbeat(self.now, connection))
 
+    def command(self, nonzero: bool = False, connection: int = 1) -> Decision:
+        """The client's declaration of its commanded motion (SR-4.6): zero changes nothing in
+        RUN, and still takes the full step (a client's heartbeat in time is cheap)."""
+        return self.feed(ClientCommand(self.now, connection, nonzero))
+
     def estop(self, connection: int = 1) -> Decision:
         return self.feed(ClientEstop(self.now, connection))
 
@@ -156,9 +163,9 @@ class Rig:
         refreshes: list[int] = []
         real = SafetyCore._refresh
 
-        def counting(core: SafetyCore, now: int) -> None:
-            refreshes.append(now)
-            real(core, now)
+        def counting(core: SafetyCore, step: Step) -> None:
+            refreshes.append(step.now)
+            real(core, step)
 
         self.core._refresh = counting.__get__(self.core)  # type: ignore[method-assign]
         return refreshes

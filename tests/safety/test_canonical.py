@@ -11,10 +11,14 @@ import textwrap
 import pytest
 
 from supervisord.safety import SafetyCore
+from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
+from supervisord.safety.clients import Clients
 from supervisord.safety.display import DisplayStore
+from supervisord.safety.outputs import Outputs
 from supervisord.safety.prooftest import ProofTest
+from supervisord.safety.vsc import VscLink
 from tests.safety.rig import MS, ROBOT, START_NS, Rig
 
 LEFT_OUT: dict[type, frozenset[str]] = {
@@ -25,6 +29,10 @@ LEFT_OUT: dict[type, frozenset[str]] = {
     RecordBudget: frozenset({"limit", "total"}),  # constants (the window is each clock's limit)
     ProofTest: frozenset({"late_tries"}),  # a constant
     DisplayStore: frozenset(),
+    Clients: Clients.NOT_CANONICAL,
+    VscLink: VscLink.NOT_CANONICAL,
+    RemoteBattery: RemoteBattery.NOT_CANONICAL,
+    Outputs: Outputs.NOT_CANONICAL,
 }
 
 
@@ -50,6 +58,10 @@ def _instances() -> dict[type, object]:
         RecordBudget: core._budget,
         ProofTest: core._proof,
         DisplayStore: core._display,
+        Clients: core._clients,
+        VscLink: core._vsc,
+        RemoteBattery: core._battery,
+        Outputs: core._outputs,
     }
 
 

@@ -1,7 +1,8 @@
 """The cheap path (docs/performance.md "The cheap path", SR-9.4) is the full path, faster.
 
 A core answers an input that cannot change a decision (a tick, a joystick frame, a GPS
-sentence, a heartbeat identical to the last, before the next deadline) without the full step.
+sentence, a heartbeat identical to the last, a client's heartbeat in time, before the next
+deadline) without the full step.
 These tests run two cores side by side, one with the cheap path and one without, over random
 input sequences, and require the same decision for every input: state, causes, outputs, the
 user heartbeat's byte, the next deadline, frames, records and refusals.
@@ -18,10 +19,12 @@ from hypothesis import strategies as st
 
 from supervisord.protocol.messages import Axis, Gps, Joystick, RemoteStatus, VscHeartbeat
 from supervisord.safety import (
+    ClientHeartbeat,
     Decision,
     Event,
     OutputRole,
     OutputSpec,
+    RefusalReason,
     SafetyConfig,
     SafetyCore,
     State,
@@ -48,6 +51,23 @@ def _steady_inputs() -> st.SearchStrategy[Maker]:
         st.just(lambda now: [Tick(now)]),
         st.builds(lambda m: lambda now: [VscReceived(now, VscHeartbeat(m))], modes),
         st.just(lambda now: [VscReceived(now, VscHeartbeat(OPERATIONAL))]),
+        # a client's heartbeat: connection 1 is the required client of _bring_up, 2 unknown;
+        # a progress value takes the full path, and binds the client to progress (SR-8.16)
+        st.builds(
+            lambda c, p: lambda now: [ClientHeartbeat(now, c, p)],
+            st.sampled_from([1, 1, 1, 2]),
+            st.sampled_from([None, None, None, 1, 2]),
+        ),
+        st.just(
+            lambda now: [
+                e
+                for i in range(12)
+                for e in (
+                    VscReceived(now + i * 20 * MS, VscHeartbeat(OPERATIONAL)),
+                    ClientHeartbeat(now + i * 20 * MS + 10 * MS, 1),
+                )
+            ]
+        ),
         st.just(
             lambda now: [
                 VscReceived(now + i * 20 * MS, m)
@@ -132,6 +152,87 @@ def test_a_joystick_frame_in_run_skips_the_recomputation() -> None:
     assert not decision.frames
     assert not decision.records
     assert not decision.refusals
+
+
+def test_a_client_heartbeat_in_time_skips_the_recomputation_and_moves_its_deadline() -> None:
+    """SR-8.1, SR-9.4: in RUN, the required client's heartbeat within its timeout is answered
+    without recomputing a cause and still restarts the client's timeout: heartbeats every
+    400 ms (timeout 500 ms) keep RUN for 4 s without one recomputation; silence still stops."""
+    rig = Rig(dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False))
+    rig.bring_up()
+    refreshes = rig.count_refreshes()
+    for _ in range(10):
+        for _ in range(2):
+            rig.advance(200)
+            rig.vsc()
+        decision = rig.beat()
+        assert decision.state is State.RUN
+        assert not decision.records
+    assert refreshes == []
+    for _ in range(3):
+        rig.advance(200)
+        rig.vsc()
+    assert rig.last.state is State.STOPPED  # 600 ms without a client heartbeat: client_lost
+    assert "client_lost:planner" in rig.last.active_names
+
+
+def test_the_heartbeat_of_a_client_no_rule_waits_for_skips_the_recomputation() -> None:
+    """SR-9.4: a named client that is not required changes nothing with its heartbeat, which
+    is answered in RUN without recomputing a cause; an unnamed connection's is refused by the
+    full step (SR-8: ``no_hello``)."""
+    rig = Rig()
+    rig.bring_up()
+    rig.connect(2, "viewer")
+    refreshes = rig.count_refreshes()
+    rig.advance(1)
+    decision = rig.beat(2)
+    assert refreshes == []
+    assert decision.state is State.RUN
+    assert not decision.refusals
+    rig.connect(3, None)
+    rig.advance(1)
+    before = len(refreshes)
+    refused = rig.beat(3)
+    assert len(refreshes) > before
+    assert [r.reason for r in refused.refusals] == [RefusalReason.NO_HELLO]
+
+
+def test_a_client_heartbeat_at_the_instant_of_its_loss_takes_the_full_path() -> None:
+    """SR-8.1, SR-2.4: a client's heartbeat that comes at the very instant its timeout was
+    declared (a tick there raised ``client_lost``) is counted by the full step: the loss
+    clears in that step's decision and record, as it does without the cheap path."""
+    rig = Rig(dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False))
+    rig.bring_up()
+    rig.advance(1)
+    rig.beat()
+    beat = rig.now
+    rig.advance(200)
+    rig.vsc()
+    rig.advance(200)
+    rig.vsc()
+    rig.now = beat + 500 * MS  # the client's timeout, exactly
+    lost = rig.tick()
+    assert "client_lost:planner" in lost.active_names
+    back = rig.beat()  # the same instant
+    assert "client_lost:planner" not in back.active_names
+    assert back.records
+    assert back.state is State.STOPPED  # a stop stays latched until a re-arm (SR-4)
+
+
+def test_a_vsc_heartbeat_at_the_instant_of_its_loss_takes_the_full_path() -> None:
+    """SR-2.2: a VSC heartbeat identical to the last that comes at the very instant the VSC's
+    timeout was declared (a tick there raised ``vsc_link_lost``) is counted by the full step:
+    the loss clears in that step's decision, as it does without the cheap path."""
+    config = dataclasses.replace(ROBOT, transport=Transport.CAN, require_watchdog=False, clients=())
+    rig = Rig(config)
+    rig.bring_up()
+    last = rig.now
+    rig.now = last + config.vsc_timeout_ns  # the VSC's timeout, exactly
+    assert "vsc_link_lost" in rig.tick().active_names
+    back = rig.vsc()  # the same mode and word, the same instant
+    assert "vsc_link_lost" not in back.active_names
+    assert back.records
+    assert back.state is State.STOPPED  # a stop stays latched until a re-arm (SR-4)
 
 
 def test_a_changed_heartbeat_takes_the_full_path() -> None:

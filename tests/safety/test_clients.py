@@ -6,6 +6,8 @@ from dataclasses import replace
 
 from supervisord.safety import (
     Caller,
+    ClientConnected,
+    ClientHeartbeat,
     ClientHello,
     ClientSpec,
     RecordNote,
@@ -14,6 +16,8 @@ from supervisord.safety import (
     State,
     Transport,
 )
+from supervisord.safety.budget import RecordBudget
+from supervisord.safety.clients import Clients
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
 
@@ -196,3 +200,17 @@ def test_a_client_that_said_goodbye_sets_no_deadline() -> None:
     decision = rig.disconnect()
     assert "client_lost:planner" in decision.active_names
     assert decision.next_deadline == rig.now + 300 * MS  # the VSC's timeout on CAN
+
+
+def test_the_clients_next_deadline_is_the_timeout_of_the_one_heard_longest_ago() -> None:
+    """SR-8.1, SR-2.4: with two required clients, the clients' next deadline is the timeout of
+    the one heard longest ago, whichever said hello first, so that its loss is raised at its
+    timeout and not at the other's."""
+    clients = Clients((ClientSpec("arm", timeout_ms=500), ClientSpec("planner", timeout_ms=500)))
+    for connection, name in ((1, "arm"), (2, "planner")):
+        assert clients.connected(ClientConnected(0, connection, 1000)) is None
+        assert clients.hello(ClientHello(0, connection, name)) is None
+    assert clients.heartbeat(ClientHeartbeat(100 * MS, 2), 100 * MS) is None  # planner
+    assert clients.heartbeat(ClientHeartbeat(300 * MS, 1), 300 * MS) is None  # arm
+    assert clients.next_deadline(300 * MS, RecordBudget()) == 600 * MS  # the planner's
+    assert clients.next_deadline(600 * MS, RecordBudget()) == 800 * MS  # then the arm's

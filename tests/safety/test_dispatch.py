@@ -20,12 +20,13 @@ def test_every_event_type_has_a_handler_and_the_table_has_no_other_key() -> None
     assert extra == []
 
 
-def test_every_handler_is_a_method_of_the_core_taking_the_event_and_now() -> None:
+def test_every_handler_is_a_method_of_the_core_taking_the_event_and_the_step() -> None:
     """SR-2.9: each handler in the table is the core's own method with the uniform signature
-    ``(self, event, now)`` the dispatch calls it with."""
+    ``(self, event, step)`` the dispatch calls it with (``step``: the step's own values, its
+    ``now`` among them)."""
     for event_type, handler in _HANDLERS.items():
         assert getattr(SafetyCore, handler.__name__) is handler, event_type.__name__
-        assert list(inspect.signature(handler).parameters) == ["self", "event", "now"], (
+        assert list(inspect.signature(handler).parameters) == ["self", "event", "step"], (
             handler.__name__
         )
 

@@ -17,20 +17,7 @@ from verify.broken import FAULTS, Fault, broken_core
 from verify.clone import clone
 from verify.explore import explore, regression_test
 
-BOUNDS = {
-    "takeover": 7,
-    "can": 6,
-    "vsc": 5,
-    "clients": 6,
-    "progress": 8,
-    "budget": 6,
-    "proof": 6,
-    "proof_clients": 6,
-    "battery_hold": 14,
-    "battery_stop": 19,
-    "all": 3,
-}
-"""Breadth-first levels explored per model in the bounded run (``./dev verify``: no bound)."""
+BOUNDS = model.BOUNDED
 
 COMPUTE_TIMEOUT_S = 600
 """The bounded runs are pure computation whose time grows with the machine's load (``can``

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from supervisord.safety import State
-from supervisord.safety.core import SETTLE_DWELL_NS, TAKEOVER_DWELL_NS, TAKEOVER_MIN_HEARTBEATS
 from supervisord.safety.decision import Decision
+from supervisord.safety.vsc import SETTLE_DWELL_NS, TAKEOVER_DWELL_NS, TAKEOVER_MIN_HEARTBEATS
 
 from .rig import LOCAL, MS, OPERATIONAL, PAUSE, ROBOT, Rig
 

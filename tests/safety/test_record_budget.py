@@ -15,7 +15,6 @@ from supervisord.safety import (
     Event,
     LocalEstop,
     Request,
-    SafetyCore,
     State,
     Transport,
 )
@@ -26,6 +25,7 @@ from supervisord.safety.budget import (
     RecordBudget,
     Uid,
 )
+from supervisord.safety.clients import Clients
 from supervisord.safety.decision import RefusalReason
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
@@ -127,16 +127,16 @@ def test_a_step_charges_only_its_own_user(monkeypatch: pytest.MonkeyPatch) -> No
     rig.advance(0.05)
     rig.hold(2)
     assert _records(rig, start) == RECORDS_PER_UID - 1
-    real = SafetyCore._uid
+    real = Clients.uid
     calls: list[int] = []
 
-    def fails_once(core: SafetyCore, event: Event) -> Uid:
+    def fails_once(clients: Clients, event: Event) -> Uid:
         calls.append(1)
         if len(calls) == 1:
             raise RuntimeError("boom")
-        return real(core, event)
+        return real(clients, event)
 
-    monkeypatch.setattr(SafetyCore, "_uid", fails_once)
+    monkeypatch.setattr(Clients, "uid", fails_once)
     rig.advance(0.05)
     failed = rig.release(2, Request.HOLD)
     assert "internal" in failed.latched_names
@@ -261,6 +261,31 @@ def test_a_deferred_end_comes_exactly_when_the_budget_allows() -> None:
     ended = rig.tick()
     assert ended.state is State.RUN
     assert "client_hold:#uid1000" not in ended.active_names
+
+
+def test_a_deferred_end_due_with_the_user_heartbeat_is_not_left_to_the_cheap_path() -> None:
+    """SR-8.5, SR-9.4: a VSC heartbeat that comes late, after both the moment the budget has
+    room again and the user heartbeat's time, ends the deferred hold (the full step): the
+    cheap path, which answers an unchanged heartbeat when the user heartbeat is the only thing
+    due, declines while an end waits."""
+    rig = Rig()
+    rig.bring_up()
+    rig.advance(1)
+    first = rig.now
+    for i in range(RECORDS_PER_UID // 2):
+        _cycle(rig, 10 + i)
+    rig.advance(1)
+    _cycle(rig, 99)  # the hold is raised; its end waits for the budget
+    free = first + BUDGET_WINDOW_NS
+    while rig.now + 50 * MS < free:
+        rig.advance(50)
+        _alive(rig, 0)
+    assert rig.last.state is State.HOLD
+    rig.now = free + 60 * MS  # the VSC heard 110 ms ago at most: not lost; a beat is due
+    late = rig.vsc(OPERATIONAL)
+    assert late.frames  # the user heartbeat was due
+    assert late.state is State.RUN
+    assert "client_hold:#uid1000" not in late.active_names
 
 
 def test_deferred_ends_of_two_users_each_come_at_their_own_time() -> None:

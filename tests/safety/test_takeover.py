@@ -19,7 +19,7 @@ from supervisord.safety import (
     State,
     Transport,
 )
-from supervisord.safety.core import TAKEOVER_DWELL_NS, VSC_MIN_INTERVAL_NS
+from supervisord.safety.vsc import TAKEOVER_DWELL_NS, VSC_MIN_INTERVAL_NS
 from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, ROBOT, Rig
 
 DWELL_MS = TAKEOVER_DWELL_NS // MS
@@ -343,3 +343,28 @@ def test_a_stop_raised_by_the_runs_last_heartbeat_is_no_new_cause_during_it() ->
     rig.advance(50)
     refused = rig.vsc(OPERATIONAL)
     assert [r.reason for r in refused.refusals] == [RefusalReason.HOLD_TIME_NOT_ELAPSED]
+
+
+@pytest.mark.parametrize(("beats", "rearmed"), [(22, True), (23, False)])
+def test_the_rate_is_the_manuals_fastest_heartbeat_of_20_ms(beats: int, rearmed: bool) -> None:
+    """SR-4.5, docs/safety.md rule 4, the numbers pinned (manual §8.3.6: a VSC sends at most
+    one heartbeat per 20 ms): over 380 ms from the run's first heartbeat, 380 // 20 + 1 = 20
+    heartbeats plus 2 read together may come, the Operational one among them: 22 re-arm, 23
+    are refused as too fast (at 19 ms, 23 would pass)."""
+    rig = Rig()
+    rig.stopped_and_cleared()
+    rig.run_for(1000, OPERATIONAL)
+    rig.advance(50)
+    first = rig.now
+    _beat(rig, LOCAL)
+    for _ in range(beats - 2):  # 10 ms apart, the run spans the 200 ms dwell
+        rig.advance(10)
+        _beat(rig, LOCAL)
+    assert rig.now - first >= 200 * MS
+    rig.now = first + 380 * MS
+    decision = rig.vsc(OPERATIONAL)
+    if rearmed:
+        assert decision.state is State.RUN, decision.refusals
+    else:
+        assert decision.state is State.STOPPED
+        assert [r.reason for r in decision.refusals] == [RefusalReason.VSC_TOO_FAST]

@@ -11,6 +11,7 @@ import pytest
 from supervisord.protocol.messages import UserHeartbeat
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
 from supervisord.safety.book import CauseBook
+from supervisord.safety.clients import Clients
 from supervisord.safety.transitions import Transition, _index, next_state
 from tests.safety.rig import ROBOT, Rig
 
@@ -87,12 +88,12 @@ def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPat
     rig = Rig()
     rig.bring_up()
 
-    def broken(self: SafetyCore, event: object, now: int) -> None:
+    def broken(self: SafetyCore, event: object, step: object) -> None:
         raise RuntimeError("boom")
 
     monkeypatch.setattr(SafetyCore, "_apply", broken)
     rig.advance(10)
-    decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
+    decision = rig.command()  # a zero command takes the full step (a heartbeat is cheap)
     assert decision.state is State.STOPPED
     assert not any(decision.outputs.values())
     assert decision.refusals[0].reason is RefusalReason.INTERNAL_ERROR
@@ -114,7 +115,7 @@ def test_core_survives_even_when_the_fail_safe_fails(
     monkeypatch.setattr(SafetyCore, "_apply", broken)
     monkeypatch.setattr(owner, name, broken)
     rig.advance(10)
-    decision = rig.beat()  # a client's heartbeat takes the full step (a tick here is cheap)
+    decision = rig.command()  # a zero command takes the full step (a heartbeat is cheap)
     assert decision.state is State.STOPPED
     assert rig.core.state is State.STOPPED  # the core's own state says so too
     assert not any(decision.outputs.values())
@@ -141,19 +142,19 @@ def test_the_last_line_of_defence_sends_no_heartbeat_on_a_closed_link(
     assert decision.frames == ()
 
 
-def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str) -> None:
-    """Make ``SafetyCore.<name>`` raise the first time it is called, as a bug of the core
-    would, and work from then on."""
-    real = getattr(SafetyCore, name)
+def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str, owner: type = SafetyCore) -> None:
+    """Make ``owner.<name>`` (the core's or one of its machines') raise the first time it is
+    called, as a bug of the core would, and work from then on."""
+    real = getattr(owner, name)
     calls = []
 
-    def once(self: SafetyCore, *args: object) -> object:
+    def once(self: object, *args: object) -> object:
         calls.append(name)
         if len(calls) == 1:
             raise RuntimeError("boom")
         return real(self, *args)
 
-    monkeypatch.setattr(SafetyCore, name, once)
+    monkeypatch.setattr(owner, name, once)
 
 
 def test_after_a_failure_in_a_step_the_next_input_sees_every_condition(
@@ -165,7 +166,7 @@ def test_after_a_failure_in_a_step_the_next_input_sees_every_condition(
     sets the user heartbeat's e-stop byte at once."""
     rig = Rig()
     rig.bring_up()
-    _fails_once(monkeypatch, "_end_unnamed_due")  # step 2 is done, step 3 not yet
+    _fails_once(monkeypatch, "end_due", Clients)  # step 2 is done, step 3 not yet
     rig.advance(10)
     failed = rig.estop()
     assert "internal" in failed.latched_names
@@ -216,7 +217,7 @@ def test_a_rearm_after_a_failed_fail_safe_is_refused(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(CauseBook, "pulse", pulse_fails_once)
     _fails_once(monkeypatch, "_apply")
     rig.advance(10)
-    bare = rig.beat()
+    bare = rig.command()
     assert bare.state is State.STOPPED
     assert bare.latched_names == set()
     rig.advance(10)
