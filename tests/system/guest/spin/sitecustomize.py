@@ -3,12 +3,13 @@
 Nothing in the product knows of this file. The ``rttime`` scenario
 (tests/system/guest/scenarios.py) adds a drop-in to srcsd@gpio-a with
 ``Environment=PYTHONPATH=`` this directory, so that Python imports this module at start-up
-(``site`` imports ``sitecustomize``), before the daemon's own code. It wraps
-``selectors.EpollSelector.select``, which the loop calls once per turn to wait for its next
-input or deadline. When the file :data:`TRIGGER` holds this process's PID, every wait from
-then on has a timeout of 0: the loop still serves the VSC, its outputs and systemd's
-watchdog, but it never blocks again, as a loop whose next deadline is always in the past
-would. Only RLIMIT_RTTIME can stop that (SR-9).
+(``site`` imports ``sitecustomize``), before the daemon's own code. It replaces
+``select.epoll`` with a wrapper whose ``poll`` the loop calls once per turn to wait for its
+next input or deadline (the loop waits on epoll itself, SR-9.4; ``select.epoll`` cannot be
+subclassed, so the wrapper holds the real one). When the file :data:`TRIGGER` holds this
+process's PID, every wait from then on has a timeout of 0: the loop still serves the VSC, its
+outputs and systemd's watchdog, but it never blocks again, as a loop whose next deadline is
+always in the past would. Only RLIMIT_RTTIME can stop that (SR-9).
 
 At start it also asks for a higher SCHED_FIFO priority, once, and prints the answer to
 stderr (the journal): the unit's RestrictRealtime=yes must refuse it.
@@ -17,11 +18,12 @@ stderr (the journal): the unit's RestrictRealtime=yes must refuse it.
 from __future__ import annotations
 
 import os
-import selectors
+import select
 import sys
+from typing import Any
 
 TRIGGER = "/run/srcs-spin"
-_select = selectors.EpollSelector.select
+_epoll = select.epoll
 _spinning = False
 
 
@@ -33,18 +35,25 @@ def _told() -> bool:
         return False
 
 
-def _spin_select(
-    self: selectors.EpollSelector, timeout: float | None = None
-) -> list[tuple[selectors.SelectorKey, int]]:
-    global _spinning  # noqa: PLW0603 -- one flag for the process
-    if not _spinning and _told():
-        _spinning = True
-        print("srcs-spin: spinning from now on (every wait has timeout 0)", file=sys.stderr)
-        sys.stderr.flush()
-    return _select(self, 0 if _spinning else timeout)
+class _SpinningEpoll:
+    """An epoll whose every wait has timeout 0 once :data:`TRIGGER` names this process."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._real = _epoll(*args, **kwargs)
+
+    def poll(self, timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
+        global _spinning  # noqa: PLW0603 -- one flag for the process
+        if not _spinning and _told():
+            _spinning = True
+            print("srcs-spin: spinning from now on (every wait has timeout 0)", file=sys.stderr)
+            sys.stderr.flush()
+        return self._real.poll(0 if _spinning else timeout, maxevents)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._real, name)
 
 
-selectors.EpollSelector.select = _spin_select  # type: ignore[assignment,method-assign]
+select.epoll = _SpinningEpoll  # type: ignore[assignment,misc]
 
 try:
     policy = os.sched_getscheduler(0)
