@@ -25,7 +25,9 @@ class Outputs:
     """The configured outputs, a stop's category-1 delays and the read-backs that disagree."""
 
     def __init__(self, config: SafetyConfig) -> None:
-        self._specs = config.outputs
+        # Names and roles only, not the outputs' specifications: those are the edge's (a GPIO
+        # chip, a file) and no snapshot of the core holds them (SR-7.13).
+        self._roles = tuple((o.name, o.role) for o in config.outputs)
         self.names = frozenset(o.name for o in config.outputs)
         # Each category-1 output's delay (SR-1.4); the config is frozen: computed once.
         self._delays_ns = {o.name: o.off_delay_ns for o in config.outputs if o.off_delay_ms}
@@ -58,7 +60,7 @@ class Outputs:
             self._braking_since = None  # every delay is over: off for the rest of this stop
             return self.of(state)
         return MappingProxyType(
-            {o.name: o.name in delays and now - since < delays[o.name] for o in self._specs}
+            {name: name in delays and now - since < delays[name] for name, _ in self._roles}
         )
 
     def of(self, state: State) -> Levels:
@@ -68,10 +70,10 @@ class Outputs:
         if levels is None:
             levels = self._levels_by_state[state] = MappingProxyType(
                 {
-                    o.name: state is State.RUN
-                    if o.role is OutputRole.MOTION
+                    name: state is State.RUN
+                    if role is OutputRole.MOTION
                     else state is not State.STOPPED
-                    for o in self._specs
+                    for name, role in self._roles
                 }
             )
         return levels
@@ -134,5 +136,5 @@ class Outputs:
                     clocks.append(clock(name, at, now, *delays))
         return (("output_faults", tuple(sorted(self._faults.items()))),), tuple(clocks)
 
-    NOT_CANONICAL = frozenset({"_specs", "names", "_levels_by_state"})
+    NOT_CANONICAL = frozenset({"_roles", "names", "_levels_by_state"})
     """Attributes ``canonical`` leaves out: the config, and what is computed from it once."""

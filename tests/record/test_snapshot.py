@@ -15,8 +15,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import event as note
 from hypothesis import strategies as st
 
+from supervisord.outputs.gpio import GpioSpec
 from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
 from supervisord.safety import SafetyConfig, SafetyCore
+from supervisord.safety.config import OutputRole
 from supervisord.safety.events import ClientConnected, LinkOpened, VscReceived
 from supervisord.safety.prooftest import ProofTestPolicy
 from supervisord.safety.snapshot import SnapshotError, restore, snapshot
@@ -76,6 +78,18 @@ def test_a_snapshot_leaves_the_configuration_out_and_restore_puts_it_back() -> N
     core = SafetyCore(ROBOT, 0)
     assert "_config" not in snapshot(core)["f"]
     assert _through_text(core).config is ROBOT
+
+
+def test_a_core_with_gpio_outputs_snapshots_without_their_specifications() -> None:
+    """SR-7.11, SR-7.13: the daemon gives the core the output kinds' own specifications (a GPIO
+    chip and line); no machine of the core keeps them, so a core driving GPIO lines can be
+    snapshot for the flight recorder and restored to decide as the original."""
+    gpio = GpioSpec(name="drive", chip="gpiochip0", line=0, role=OutputRole.MOTION)
+    config = dataclasses.replace(ROBOT, outputs=(gpio,))
+    core = SafetyCore(config, 0)
+    restored = restore(json.loads(json.dumps(snapshot(core))), config)
+    assert restored.decision == core.decision
+    assert "gpiochip0" not in json.dumps(snapshot(core))
 
 
 def test_shared_values_stay_shared() -> None:
