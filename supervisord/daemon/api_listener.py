@@ -304,19 +304,17 @@ class ApiListener(Listener):
             self.server.broadcast(Topic.RECORDS, RecordPush(record))
 
     def received(self, message: Message | HidInput, now: int) -> None:
-        # By type, not isinstance: the message classes are final, and this runs per input;
-        # a push is built only when someone subscribed to its topic (SR-9.4).
-        kind = type(message)
-        if kind is VscHeartbeat:
-            self._heartbeat = message  # type: ignore[assignment]
-        elif kind is HidInput:
+        # A push is built only when someone subscribed to its topic (SR-9.4).
+        if isinstance(message, VscHeartbeat):
+            self._heartbeat = message
+        elif isinstance(message, HidInput):
             return
-        elif kind is RemoteStatus:
+        elif isinstance(message, RemoteStatus):
             # Its values stay as the VSC last sent them (PR-2.10): the age says how old.
-            self._remote = (message, now)  # type: ignore[assignment]
+            self._remote = (message, now)
         if self._commissioning is not None:
-            self._commissioning[0].received(message)  # type: ignore[arg-type]
-        topic = message_topic(message)  # type: ignore[arg-type]
+            self._commissioning[0].received(message)
+        topic = message_topic(message)
         if topic is not None and self.server.subscribed(topic):
             self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]
 
