@@ -50,6 +50,7 @@ from supervisord.safety.events import (
     VscReceived,
 )
 from tests.record.browser import Image, render_svg
+from tests.record.example_picture import DOCUMENTED, example_picture
 from tests.record.stop_kinds import CAUSES, KINDS, RECORD, Story
 
 EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
@@ -393,3 +394,12 @@ def test_the_daemon_never_loads_the_export(tmp_path: Path) -> None:
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.strip() == "[]", done.stdout
+
+
+def test_the_documented_picture_is_the_one_the_replay_draws() -> None:
+    """SR-7.16: the picture docs/record.md shows is what ``srcsctl replay --plot`` draws today of
+    the tests' remote e-stop, so the manual never shows a picture the tool no longer makes
+    (``python -m tests.record.example_picture`` draws it again)."""
+    assert example_picture() == DOCUMENTED.read_text(), (
+        "the picture is stale: run `.venv/bin/python -m tests.record.example_picture`"
+    )
