@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ast
 import json
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -244,6 +245,86 @@ def test_printing_the_record_loads_no_module_of_the_safety_core(tmp_path: Path, 
     loaded = json.loads(result.stderr.splitlines()[-1])
     assert "supervisord.cli.log" in loaded
     assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
+
+
+EXAMPLE_CONFIG: Final = PACKAGE.parent / "config" / "example-serial-gpio.toml"
+"""A robot's real config, as the package ships it: its socket and record moved by the tests."""
+RAN: Final = (
+    "import json, sys; from {module} import main\n"
+    "try:\n    code = main(sys.argv[1:])\nexcept SystemExit as stop:\n    code = stop.code\n"
+    "print(json.dumps([code, sorted(sys.modules)]), file=sys.stderr)"
+)
+
+
+def _robot_config(tmp_path: Path) -> Path:
+    """The shipped example with its socket (where no daemon listens) and its record (one
+    proof test's record) in ``tmp_path``."""
+    text = EXAMPLE_CONFIG.read_text()
+    assert '"/run/srcsd/api.sock"' in text
+    assert '"/var/lib/srcsd/stops.jsonl"' in text
+    config = tmp_path / "robot.toml"
+    config.write_text(
+        text.replace('"/run/srcsd/api.sock"', f'"{tmp_path / "api.sock"}"').replace(
+            '"/var/lib/srcsd/stops.jsonl"', f'"{tmp_path / "stops.jsonl"}"'
+        )
+    )
+    (tmp_path / "stops.jsonl").write_text(json.dumps(PROOFTEST_RECORD) + "\n")
+    return config
+
+
+def _run(module: str, *argv: str) -> tuple[int, str, list[str]]:
+    """``module``'s ``main(argv)`` in a fresh interpreter: its exit status, what it printed
+    on stderr and the modules it had loaded when it returned."""
+    result = subprocess.run(
+        [sys.executable, "-c", RAN.format(module=module), *argv],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+        cwd=PACKAGE.parent,
+    )
+    *said, last = result.stderr.splitlines()
+    code, loaded = json.loads(last)
+    return code, "\n".join([result.stdout, *said]), loaded
+
+
+@pytest.mark.parametrize(
+    ("command", "status", "said"),
+    [
+        ("status", 3, "cannot connect to {tmp}/api.sock"),  # the config's: no daemon there
+        ("log", 0, "proof test FAILED"),  # the config's record, read and printed
+    ],
+)
+def test_srcsctl_reading_a_robots_config_loads_no_module_of_the_safety_core(
+    tmp_path: Path, command: str, status: int, said: str
+) -> None:
+    """SR-8.8: ``srcsctl --config FILE status`` (the socket) and ``log`` (the record) read a
+    robot's real config with the clients' reader and load no module of ``supervisord/safety``
+    while they run: the daemon, not the client, validates the safety sections."""
+    config = _robot_config(tmp_path)
+    code, printed, loaded = _run("supervisord.cli.srcsctl", "--config", str(config), command)
+    assert (code, said.format(tmp=tmp_path) in printed) == (status, True), printed
+    assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
+    assert "supervisord.config.client" in loaded
+
+
+def test_the_exporter_reading_a_robots_config_loads_no_module_of_the_safety_core(
+    tmp_path: Path,
+) -> None:
+    """SR-8.8: ``srcs-exporter --config FILE`` reads a robot's real config with the clients'
+    reader and loads no module of ``supervisord/safety``; it is stopped after reading it by
+    a port already taken on loopback (exit 1, its failure to listen)."""
+    config = _robot_config(tmp_path)
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        code, printed, loaded = _run(
+            "supervisord.cli.exporter", "--config", str(config), "--listen", f"127.0.0.1:{port}"
+        )
+    assert (code, f"cannot listen on 127.0.0.1:{port}" in printed) == (1, True), printed
+    assert [n for n in loaded if n == SAFETY or n.startswith(SAFETY + ".")] == []
+    assert "supervisord.config.client" in loaded
 
 
 def test_the_configuration_imports_nothing_of_the_daemon() -> None:

@@ -284,13 +284,14 @@ def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | N
     """The client socket (as :func:`socket_path`) and the operator socket to try first:
     the config's ``[api] operator_socket``, else the one beside the client socket; none with
     ``--socket``, which names exactly the socket to use. Raises :class:`ConfigError`."""
-    from supervisord.config import load_config  # noqa: PLC0415 -- when used (SR-8.8)
-
     if socket:
         return Path(socket), None
     if config:
-        api = load_config(config).api
-        return api.socket, api.operator_path
+        # Where the daemon is, and nothing of the safety core (SR-8.8).
+        from supervisord.config.client import load_client_config  # noqa: PLC0415
+
+        where = load_client_config(config)
+        return where.socket, where.operator_socket
     path = socket_path(None, None)
     return path, operator_socket_path(path)
 
@@ -298,12 +299,12 @@ def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | N
 def socket_path(config: str | None, socket: str | None) -> Path:
     """``--socket``, else the config's ``[api] socket``, else ``$SRCS_SOCKET``, else the
     default. Raises :class:`ConfigError` for a bad config."""
-    from supervisord.config import load_config  # noqa: PLC0415 -- when used (SR-8.8)
-
     if socket:
         return Path(socket)
     if config:
-        return load_config(config).api.socket
+        from supervisord.config.client import load_client_config  # noqa: PLC0415 (SR-8.8)
+
+        return load_client_config(config).socket
     return Path(os.environ.get("SRCS_SOCKET") or DEFAULT_SOCKET_PATH)
 
 

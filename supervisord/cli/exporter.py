@@ -78,10 +78,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_CONFIG
     socket_path: Path = args.socket or DEFAULT_SOCKET_PATH
     if args.config:
-        from supervisord.config import load_config  # noqa: PLC0415 -- only with --config
+        # Where the daemon is, and nothing of the safety core (SR-8.8).
+        from supervisord.config.client import load_client_config  # noqa: PLC0415
 
         try:
-            socket_path = load_config(args.config).api.socket
+            socket_path = load_client_config(args.config).socket
         except ConfigError as error:
             print(f"srcs-exporter: {error}", file=sys.stderr)
             return EXIT_CONFIG

@@ -313,10 +313,10 @@ def _record_path(args: argparse.Namespace, command: str) -> Path | None:
     /etc/srcs; ``None`` after printing why there is none."""
     if args.file:
         return Path(args.file)
-    from supervisord.config import load_config  # noqa: PLC0415
+    from supervisord.config.client import load_client_config  # noqa: PLC0415 (SR-8.8)
 
     try:
-        return load_config(getattr(args, "config", None) or default_config()).record.path
+        return load_client_config(getattr(args, "config", None) or default_config()).record_path
     except (ConfigError, LookupError) as error:
         print(f"srcsctl {command}: {error}", file=sys.stderr)
         return None

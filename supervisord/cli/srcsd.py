@@ -18,7 +18,7 @@ from supervisord.cli.access import advice
 from supervisord.config import check_config_main
 from supervisord.config.check import report_lines
 from supervisord.config.collect import collect
-from supervisord.config.loader import MAX_CONFIG_BYTES
+from supervisord.config.toml_file import MAX_CONFIG_BYTES
 from supervisord.daemon import signals
 from supervisord.errors import SrcsError
 from supervisord.record.jsonl import RecordError

@@ -39,15 +39,10 @@ from typing import Final
 
 from supervisord import strict
 from supervisord.config.lines import KeyPath, Position, key_path, key_positions, position
-from supervisord.config.loader import (
-    NotOnMachine,
-    RulesBroken,
-    build_config,
-    read_at_most,
-    read_toml_text,
-)
+from supervisord.config.loader import NotOnMachine, RulesBroken, build_config
 from supervisord.config.model import DaemonConfig
 from supervisord.config.schema import OUTPUT_COMMON, SECTION, VSC_COMMON
+from supervisord.config.toml_file import read_at_most, read_toml_text
 from supervisord.errors import ConfigError
 
 ROUNDS: Final = 500

@@ -27,14 +27,11 @@ import dataclasses
 import grp
 import os
 import pwd
-import re
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from pathlib import Path
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.framing import operator_socket_path
-from supervisord.config import toml
 from supervisord.config.model import (
     ApiConfig,
     CanBus,
@@ -48,7 +45,16 @@ from supervisord.config.model import (
     SerialPort,
     VscConfig,
 )
-from supervisord.config.nesting import MAX_DEPTH, too_deep
+from supervisord.config.paths import (
+    RECORD_JOURNAL,
+    RECORD_KEEP,
+    RECORD_MAX_BYTES,
+    RECORD_PATH,
+    RENAMED,
+    api_sockets,
+    check_record_files,
+    file_path,
+)
 from supervisord.config.schema import (
     API,
     BAUD,
@@ -68,8 +74,6 @@ from supervisord.config.schema import (
     PORT,
     PROOFTEST,
     PROOFTEST_CLEAR,
-    RECORD,
-    RENAMED,
     REOPEN_MAX,
     REOPEN_MIN,
     REQUIRE_WATCHDOG,
@@ -77,16 +81,16 @@ from supervisord.config.schema import (
     SECTION,
     SECTIONS,
     SERIAL_BAUD,
-    SOCKET_PATH_MAX_BYTES,
     TRANSPORT,
     VSC_BY_TRANSPORT,
     VSC_COMMON,
     Section,
 )
+from supervisord.config.toml_file import read_toml
 from supervisord.errors import ConfigError
 from supervisord.outputs.base import DeviceSpec, OutputKind
 from supervisord.outputs.registry import KIND, option_names, read_spec
-from supervisord.record.jsonl import not_a_regular_file, record_paths
+from supervisord.record.jsonl import record_paths
 from supervisord.safety.availability import Reaction
 from supervisord.safety.config import (
     VSC_TIMEOUT_MS,
@@ -105,16 +109,10 @@ CLIENT_UID: Final = strict.named(CLIENTS, "uid", strict.Whole)
 CLIENT_PROGRESS: Final = strict.named(CLIENTS, "progress", strict.Flag)
 STOPTEST_INTERVAL: Final = strict.named(MAINTENANCE, "stoptest_interval_days", strict.Whole)
 PROOFTEST_INTERVAL: Final = strict.named(MAINTENANCE, "prooftest_interval_days", strict.Whole)
-RECORD_PATH: Final = strict.named(RECORD, "path", strict.Text)
-RECORD_MAX_BYTES: Final = strict.named(RECORD, "max_bytes", strict.Whole)
-RECORD_KEEP: Final = strict.named(RECORD, "keep", strict.Whole)
-RECORD_JOURNAL: Final = strict.named(RECORD, "journal", strict.Flag)
-API_SOCKET: Final = strict.named(API, "socket", strict.Text)
 API_GROUP: Final = strict.named(API, "group", strict.Text)
 API_ADMIN_GROUP: Final = strict.named(API, "admin_group", strict.Text)
 API_MAX_CLIENTS: Final = strict.named(API, "max_clients", strict.Whole)
 API_MAX_MESSAGE: Final = strict.named(API, "max_message_bytes", strict.Whole)
-API_OPERATOR_SOCKET: Final = strict.named(API, "operator_socket", strict.Text)
 API_OPERATOR_GROUP: Final = strict.named(API, "operator_group", strict.Text)
 
 
@@ -207,82 +205,6 @@ def _group_exists(name: str) -> bool:
     return True
 
 
-_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)$")
-MAX_CONFIG_BYTES: Final = 1 << 20
-"""A robot's config is a few kB (the shipped examples: under 4 kB); a file larger than 1 MiB
-is not one (``/dev/zero``, a log, an image) and is refused before it is parsed, so that the
-daemon's start never waits on a parse of it or runs out of memory reading it (SR-11.2)."""
-
-
-def read_at_most(source: Path) -> bytes:
-    """The file's bytes, but never more than one beyond :data:`MAX_CONFIG_BYTES`: enough to
-    see it is too large (``/dev/zero`` never ends)."""
-    with source.open("rb") as file:
-        return file.read(MAX_CONFIG_BYTES + 1)
-
-
-def read_toml(source: Path) -> dict[str, object]:
-    """The parsed file; a syntax error names its line and column (key ``line L, column C``)
-    and carries the text of that line as the value."""
-    return read_toml_text(source)[1]
-
-
-def read_toml_text(
-    source: Path, read: Callable[[Path], bytes] = read_at_most
-) -> tuple[str, dict[str, object]]:
-    """The file's text and what it parses to (:func:`read_toml`); ``read`` gives the file's
-    bytes (``srcsd`` reads so that a stopping signal ends the wait), at most one beyond
-    :data:`MAX_CONFIG_BYTES`. Any file, however hostile (too large, not UTF-8, not TOML,
-    nested too deep), raises :class:`ConfigError`, with its line where it has one (SR-11.2)."""
-    try:
-        raw = read(source)
-    except OSError as error:
-        raise ConfigError(
-            "file", str(source), f"give the path of a readable TOML file ({error.strerror})"
-        ) from None
-    if len(raw) > MAX_CONFIG_BYTES:
-        raise ConfigError(
-            "file",
-            str(source),
-            f"give the robot's config: this file is larger than {MAX_CONFIG_BYTES} bytes "
-            "(1 MiB), and a config is a few kB",
-        )
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as error:
-        line = raw.count(b"\n", 0, error.start) + 1
-        column = error.start - (raw.rfind(b"\n", 0, error.start) + 1) + 1
-        raise ConfigError(
-            f"line {line}, column {column}", raw[error.start : error.end], "save the file as UTF-8"
-        ) from None
-    deep = too_deep(text)
-    if deep is not None:  # the parser would recurse past Python's limit (SR-11.2)
-        start = text.rfind("\n", 0, deep) + 1
-        end = text.find("\n", deep)
-        raise ConfigError(
-            f"line {text.count(chr(10), 0, deep) + 1}, column {deep - start + 1}",
-            text[start : len(text) if end < 0 else end],
-            f"nest arrays and tables at most {MAX_DEPTH} deep (a robot's config needs 3)",
-        )
-    try:
-        return text, toml.loads(text)
-    except toml.TOMLDecodeError as error:
-        message = str(error)
-        lines = text.splitlines() or [""]
-        found = _POSITION.search(message)
-        if found:
-            line, column = int(found[1]), int(found[2])
-        else:  # "(at end of document)"
-            line, column = len(lines), len(lines[-1]) + 1
-        reason = re.sub(r"\s*\(at [^)]*\)$", "", message)
-        shown = lines[line - 1] if line <= len(lines) else ""
-        raise ConfigError(
-            f"line {line}, column {column}",
-            shown,
-            f"correct the TOML syntax there ({reason[:1].lower()}{reason[1:]})",
-        ) from None
-
-
 def _section(root: strict.Fields, section: Section) -> strict.Fields:
     fields = root.table_at(section.name)
     fields.check_keys(key.name for key in section.keys)
@@ -332,8 +254,7 @@ class _Loader:
 
     def path(self, fields: strict.Fields, key: strict.Text) -> Path:
         """A file path; a relative one is resolved against the config file's directory."""
-        path = Path(fields.text(key))
-        return path if path.is_absolute() else self.base / path
+        return file_path(fields, key, self.base)
 
     # [vsc] --------------------------------------------------------------------------------
 
@@ -542,18 +463,7 @@ class _Loader:
             keep=fields.whole(RECORD_KEEP),
             journal=fields.flag(RECORD_JOURNAL),
         )
-        # The record and its rotated files are regular files or nothing yet (SR-7.9): a FIFO
-        # there would hang the start (its last record is read), a symlink would be rotated
-        # away, a device written to. Looked at, never opened.
-        for file, part in record_paths(config.path, config.keep):
-            kind = not_a_regular_file(file)
-            if kind is not None:
-                name = f"its {part} {file}" if part else "it"
-                raise fields.refuse(
-                    RECORD_PATH.name,
-                    str(config.path),
-                    f"{name} is {kind}, not a regular file: remove it, or name another path",
-                )
+        check_record_files(fields, config.path, config.keep)  # SR-7.9
         return config
 
     def group(self, fields: strict.Fields, key: strict.Key) -> str | None:
@@ -571,27 +481,7 @@ class _Loader:
         return group
 
     def api(self, fields: strict.Fields, required_clients: int) -> ApiConfig:
-        socket = self.path(fields, API_SOCKET)
-        if len(str(socket).encode()) > SOCKET_PATH_MAX_BYTES:
-            raise fields.refuse(
-                "socket",
-                str(socket),
-                f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
-                f'socket address), e.g. "{API_SOCKET.default}"',
-            )
-        operator = (
-            self.path(fields, API_OPERATOR_SOCKET)
-            if fields.read(API_OPERATOR_SOCKET) is not None
-            else operator_socket_path(socket)
-        )
-        if len(str(operator).encode()) > SOCKET_PATH_MAX_BYTES:
-            raise fields.refuse(
-                "operator_socket",
-                str(operator),
-                f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
-                "socket address); without the key it is the socket's path with -operator "
-                "before its suffix",
-            )
+        socket, operator = api_sockets(fields, self.base)
         group = self.group(fields, API_GROUP)
         admin_group = self.group(fields, API_ADMIN_GROUP)
         operator_group = self.group(fields, API_OPERATOR_GROUP)

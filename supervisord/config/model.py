@@ -9,6 +9,7 @@ from pathlib import Path
 
 from supervisord.api.framing import operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS
+from supervisord.config.paths import DEFAULT_RECORD_PATH, DEFAULT_SOCKET
 from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS
 from supervisord.config.schema import (
     DEFAULT_CAN_BITRATE,
@@ -18,11 +19,9 @@ from supervisord.config.schema import (
     DEFAULT_CAN_ERROR_WINDOW_MS,
     DEFAULT_CAN_INTERFACE,
     DEFAULT_MAX_MESSAGE_BYTES,
-    DEFAULT_RECORD_PATH,
     DEFAULT_REOPEN_MAX_MS,
     DEFAULT_REOPEN_MIN_MS,
     DEFAULT_SERIAL_PORT,
-    DEFAULT_SOCKET,
     SERIAL_BAUD,
 )
 from supervisord.outputs.base import DeviceSpec, OutputKind

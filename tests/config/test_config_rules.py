@@ -28,7 +28,7 @@ from supervisord.config import (
     SerialPort,
     load_config,
 )
-from supervisord.config.schema import RECORD
+from supervisord.config.paths import RECORD
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputKind, OutputRole
 from supervisord.safety.availability import Reaction

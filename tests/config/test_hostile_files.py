@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from supervisord.config.loader import MAX_CONFIG_BYTES, read_toml_text
 from supervisord.config.nesting import MAX_DEPTH, too_deep
+from supervisord.config.toml_file import MAX_CONFIG_BYTES, read_toml_text
 from supervisord.errors import ConfigError
 from tests.daemon.test_srcsd import SRCSD
 

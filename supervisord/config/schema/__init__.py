@@ -10,7 +10,9 @@ say (cross-checks: path owners, unique names, existing users and groups...) are 
 
 Each output kind declares its own options (``supervisord.outputs``), so the schema of
 ``[[outputs]]`` is built from the plugins (importing every plugin, which only
-:func:`json_schema` does, never the loader).
+:func:`json_schema` does, never the loader). ``[record]`` and ``[api]``'s two sockets are
+declared in :mod:`supervisord.config.paths`, below this module, which the clients read them
+with without the safety core this module imports (SR-8.8).
 """
 
 from __future__ import annotations
@@ -22,11 +24,15 @@ from collections.abc import Mapping
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.framing import DEFAULT_SOCKET_PATH, operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
+from supervisord.config.paths import (
+    API_OPERATOR_SOCKET,
+    API_SOCKET,
+    RECORD,
+    SOCKET_PATH_MAX_BYTES,
+)
 from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
-from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES, KEEP_RANGE, MAX_BYTES_RANGE
 from supervisord.safety.availability import (
     DEFAULT_MIN_REMOTE_BATTERY,
     MIN_REMOTE_BATTERY_RANGE,
@@ -76,10 +82,6 @@ DEFAULT_CAN_ERROR_PASSIVE_MS: Final = 1_000
 CAN_ERROR_LIMIT_RANGE: Final = (0, 1_000)  # 0: every error frame is a fault (the strictest)
 CAN_ERROR_WINDOW_RANGE_MS: Final = (100, 10_000)
 CAN_ERROR_PASSIVE_RANGE_MS: Final = (0, 10_000)
-DEFAULT_RECORD_PATH: Final = "/var/lib/srcsd/stops.jsonl"
-DEFAULT_SOCKET: Final = str(DEFAULT_SOCKET_PATH)
-DEFAULT_OPERATOR_SOCKET: Final = str(operator_socket_path(DEFAULT_SOCKET_PATH))
-SOCKET_PATH_MAX_BYTES: Final = 107  # sun_path holds 108 bytes, the last one the NUL
 DEFAULT_MAX_MESSAGE_BYTES: Final = 65_536
 ROBOT_NAME_MAX: Final = 64
 
@@ -88,9 +90,6 @@ OUTPUT_NAME: Final = re.compile(r"[A-Za-z0-9_-]{1,32}")
 CLIENT_NAME: Final = re.compile(r"[A-Za-z0-9_.-]{1,32}")
 GROUP_NAME: Final = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,31}")
 USER_NAME: Final = GROUP_NAME
-
-RENAMED: Final[Mapping[str, str]] = {"log": "record", "class": "role", "rearm_hold_ms": "hold_ms"}
-"""Names an integrator may try from older sketches, and the name this file uses instead."""
 
 
 def _can_interfaces() -> dict[str, str]:
@@ -367,37 +366,6 @@ OUTPUT_NAME_KEY: Final = strict.Text(
     example="drive",
 )
 OUTPUT_COMMON: Final = (OUTPUT_NAME_KEY, KIND, ROLE, OFF_DELAY)
-RECORD: Final = (
-    strict.Text(
-        name="path",
-        doc="The record of stops (docs/record.md); its directory must exist.",
-        default=DEFAULT_RECORD_PATH,
-        not_dir=True,
-        example=DEFAULT_RECORD_PATH,
-    ),
-    strict.Whole(
-        name="max_bytes",
-        doc="Rotate the record at this size.",
-        default=DEFAULT_MAX_BYTES,
-        example=DEFAULT_MAX_BYTES,
-        low=MAX_BYTES_RANGE[0],
-        high=MAX_BYTES_RANGE[1],
-    ),
-    strict.Whole(
-        name="keep",
-        doc="Rotated files kept besides the current one.",
-        default=DEFAULT_KEEP,
-        example=DEFAULT_KEEP,
-        low=KEEP_RANGE[0],
-        high=KEEP_RANGE[1],
-    ),
-    strict.Flag(
-        name="journal",
-        doc="Also send every record to the systemd journal.",
-        default=True,
-        example=True,
-    ),
-)
 
 
 def _group(name: str, doc: str, example: str) -> strict.Text:
@@ -412,14 +380,7 @@ def _group(name: str, doc: str, example: str) -> strict.Text:
 
 
 API: Final = (
-    strict.Text(
-        name="socket",
-        doc=f"The Unix socket for clients and srcsctl; at most {SOCKET_PATH_MAX_BYTES} bytes "
-        "once resolved against the config file's directory.",
-        default=DEFAULT_SOCKET,
-        not_dir=True,
-        example=DEFAULT_SOCKET,
-    ),
+    API_SOCKET,
     _group("group", "Owns the socket (mode 0660); it must exist. Default: the daemon's.", "srcs"),
     _group(
         "admin_group",
@@ -427,16 +388,7 @@ API: Final = (
         "Default: none (root and the daemon's user only).",
         "srcs-admin",
     ),
-    strict.Text(
-        name="operator_socket",
-        doc="The operators' own socket (SR-8.14: srcsctl tries it first; no robot program can "
-        "reach it); at most "
-        f"{SOCKET_PATH_MAX_BYTES} bytes once resolved. Default: the socket's path with "
-        "-operator before its suffix.",
-        default=None,
-        not_dir=True,
-        example=DEFAULT_OPERATOR_SOCKET,
-    ),
+    API_OPERATOR_SOCKET,
     _group(
         "operator_group",
         "May connect to the operator socket (mode 0660); it must exist, and robot programs "
