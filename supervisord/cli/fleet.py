@@ -28,8 +28,9 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any, Final
 
+from supervisord.cli import log_options
 from supervisord.cli.access import advice
-from supervisord.cli.cause_names import CauseFilter, cause_name
+from supervisord.cli.cause_names import CauseFilter
 from supervisord.cli.fleet_journal import (
     DEFAULT_DIRECTORY,
     Entry,
@@ -39,7 +40,7 @@ from supervisord.cli.fleet_journal import (
     robot_name,
 )
 from supervisord.cli.interrupt import interruptible
-from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS
+from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
 from supervisord.cli.record_text import changes
 from supervisord.cli.times import BadTime, parse_time, show_time
@@ -55,17 +56,6 @@ def _robot(text: str) -> str:
         return robot_name(text)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
-
-
-def _cause(text: str) -> CauseFilter:
-    """``log``'s cause names, the shared vocabulary's."""
-    return cause_name(text)
-
-
-def _count(text: str) -> int:
-    from supervisord.cli.numbers import count  # noqa: PLC0415
-
-    return count(text)
 
 
 def add_arguments(fleet: argparse.ArgumentParser) -> None:
@@ -86,53 +76,15 @@ def add_arguments(fleet: argparse.ArgumentParser) -> None:
     fleet.add_argument(
         "--robot", dest="host", metavar="NAME", type=_robot, help="only this robot (its host name)"
     )
-    fleet.add_argument("-S", "--since", metavar="TIME", help="records at or after TIME")
-    fleet.add_argument("-U", "--until", metavar="TIME", help="records before TIME")
-    fleet.add_argument(
-        "--cause",
-        metavar="NAME",
-        type=_cause,
-        help="records that raised, updated, cleared or released this cause",
-    )
-    fleet.add_argument(
-        "--cause-present",
-        metavar="NAME",
-        type=_cause,
-        help="records made while this cause was present, active or latched",
-    )
+    log_options.add_time_range(fleet)
+    log_options.add_cause_filters(fleet)
     fleet.add_argument(
         "--summary",
         action="store_true",
         help="one line per robot: its stops, the last one's time and causes",
     )
-    fleet.add_argument("--json", action="store_true", help="the records as JSON lines")
-    fleet.add_argument("-o", "--output", choices=OUTPUTS, help="as for log")
-    fleet.add_argument(
-        "-n",
-        "--lines",
-        type=_count,
-        nargs="?",
-        const=FOLLOW_LAST,
-        metavar="N",
-        help=f"only the last N records (alone: {FOLLOW_LAST})",
-    )
-    fleet.add_argument(
-        "-f",
-        "--follow",
-        action="store_true",
-        help=f"the last {FOLLOW_LAST} (or -n N), then each new record as the collector gets it",
-    )
-    fleet.add_argument("-r", "--reverse", action="store_true", help="newest first")
-    fleet.add_argument(
-        "--causes", action="store_true", help="also every cause of each record, and its trigger"
-    )
-    fleet.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
-    fleet.add_argument(
-        "-q", "--quiet", action="store_true", help="no '-- No entries --' when nothing matched"
-    )
-    fleet.add_argument(
-        "--no-pager", action="store_true", help="accepted and ignored: there is no pager"
-    )
+    log_options.add_output(fleet)
+    log_options.add_follow_and_display(fleet, follows="as the collector gets it")
 
 
 def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:

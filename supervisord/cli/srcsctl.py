@@ -6,28 +6,17 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from supervisord import __version__
-from supervisord.cli import control, decode_options, fleet
+from supervisord.cli import control, decode_options, fleet, log_options
 from supervisord.cli.access import advice
-from supervisord.cli.log_options import FOLLOW_LAST, OUTPUTS, PAGER_END_LAST
-from supervisord.cli.numbers import count, positive
+from supervisord.cli.log_options import PAGER_END_LAST
+from supervisord.cli.numbers import positive
 from supervisord.errors import ConfigError
-
-if TYPE_CHECKING:
-    from supervisord.cli.cause_names import CauseFilter
 
 # What reads the record or the config (and with them the safety core's values) is imported by
 # the command that needs it: the operator's commands load the client library only (SR-8.8,
 # tests/test_layers.py).
-
-
-def cause_name(text: str) -> CauseFilter:
-    """``--cause``'s type: :func:`supervisord.cli.cause_names.cause_name`, loaded when used."""
-    from supervisord.cli.cause_names import cause_name as known  # noqa: PLC0415
-
-    return known(text)
 
 
 CONFIG_DIR = Path("/etc/srcs")
@@ -78,8 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         parents=[control.socket_options(record=True)],
     )
     log.add_argument("--file", metavar="PATH", help="the record file itself")
-    log.add_argument("-S", "--since", metavar="TIME", help="records at or after TIME")
-    log.add_argument("-U", "--until", metavar="TIME", help="records before TIME")
+    log_options.add_time_range(log)
     log.add_argument(
         "-b",
         "--boot",
@@ -88,59 +76,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="0",
         help="records since the machine booted (its boot time in /proc/stat); only this boot",
     )
-    log.add_argument(
-        "--cause",
-        metavar="NAME",
-        type=cause_name,
-        help="records that raised, updated, cleared or released this cause (client_lost "
-        "matches client_lost:autonomy)",
-    )
-    log.add_argument(
-        "--cause-present",
-        metavar="NAME",
-        type=cause_name,
-        help="records made while this cause was present, active or latched",
-    )
-    log.add_argument("--json", action="store_true", help="the records as JSON lines")
-    log.add_argument(
-        "-o",
-        "--output",
-        choices=OUTPUTS,
-        help="short (the default; short-iso the same), cat (no time), verbose (as --causes), "
-        "json (as --json), json-pretty (indented)",
-    )
-    log.add_argument(
-        "-n",
-        "--lines",
-        type=count,
-        nargs="?",
-        const=FOLLOW_LAST,
-        metavar="N",
-        help=f"only the last N records (alone: {FOLLOW_LAST})",
-    )
+    log_options.add_cause_filters(log)
+    log_options.add_output(log)
     log.add_argument(
         "-e",
         "--pager-end",
         action="store_true",
         help=f"the last {PAGER_END_LAST} records, unless -n says how many (as journalctl -e)",
     )
-    log.add_argument(
-        "-f",
-        "--follow",
-        action="store_true",
-        help=f"the last {FOLLOW_LAST} (or -n N), then each new record as it is written",
-    )
-    log.add_argument("-r", "--reverse", action="store_true", help="newest first")
-    log.add_argument(
-        "--causes", action="store_true", help="also every cause of each record, and its trigger"
-    )
-    log.add_argument("--utc", action="store_true", help="times in UTC (default: local time)")
-    log.add_argument(
-        "-q", "--quiet", action="store_true", help="no '-- No entries --' when nothing matched"
-    )
-    log.add_argument(
-        "--no-pager", action="store_true", help="accepted and ignored: there is no pager"
-    )
+    log_options.add_follow_and_display(log, follows="as it is written")
     log.add_argument(
         "-x",
         "--catalog",
