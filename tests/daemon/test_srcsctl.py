@@ -182,7 +182,9 @@ def test_watch_follows_a_stop_live(robot: Robot) -> None:
 
 
 def test_no_daemon_and_bad_config_have_their_own_exit_status(tmp_path: Path) -> None:
-    """3: nobody listens at the socket; 2: the config is invalid (the message names the key)."""
+    """SR-8.8: 3: nobody listens at the socket; 2: what the client reads of the config is
+    invalid (the message names the key); a wrong safety value is the daemon's to refuse, and
+    the client finds no daemon at that config's socket (3)."""
     missing = subprocess.run(
         [SRCSCTL, "status", "--socket", str(tmp_path / "none.sock")],
         capture_output=True,
@@ -191,7 +193,7 @@ def test_no_daemon_and_bad_config_have_their_own_exit_status(tmp_path: Path) -> 
     )
     assert missing.returncode == 3
     assert "is srcsd running?" in missing.stderr
-    (tmp_path / "bad.toml").write_text(CONFIG.replace('transport = "serial"', 'transport = "x"'))
+    (tmp_path / "bad.toml").write_text(CONFIG.replace('socket = "api.sock"', "socket = 5"))
     bad = subprocess.run(
         [SRCSCTL, "status", "--config", str(tmp_path / "bad.toml")],
         capture_output=True,
@@ -200,7 +202,17 @@ def test_no_daemon_and_bad_config_have_their_own_exit_status(tmp_path: Path) -> 
         env={**os.environ, "SRCS_SOCKET": ""},
     )
     assert bad.returncode == 2
-    assert "vsc.transport" in bad.stderr
+    assert "api.socket = 5" in bad.stderr
+    (tmp_path / "unsafe.toml").write_text(CONFIG.replace('"serial"', '"x"'))
+    unsafe = subprocess.run(
+        [SRCSCTL, "status", "--config", str(tmp_path / "unsafe.toml")],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "SRCS_SOCKET": ""},
+    )
+    assert unsafe.returncode == 3
+    assert f"cannot connect to {tmp_path / 'api.sock'}" in unsafe.stderr
 
 
 # -- status in full, and srcsctl without sharp edges ----------------------------------------
