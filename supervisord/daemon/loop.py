@@ -38,6 +38,7 @@ from supervisord.daemon import signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.reflex import EarlyOff
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
@@ -223,6 +224,7 @@ class Supervisor:
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
+        self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
         self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
@@ -663,6 +665,8 @@ class Supervisor:
                 )
                 continue
             counters.messages += 1
+            if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
+                self._early.heard(item, now, self.core, self.decision)  # type: ignore[arg-type]
             received_by(item, now)  # type: ignore[arg-type]
             if kind is not HidInput:
                 self._apply(self._feed(VscReceived(now, item)))  # type: ignore[arg-type]
@@ -755,6 +759,8 @@ class Supervisor:
             elif self.decision is not None and self.decision.state is not State.STOPPED:
                 self._stop_began(decision)
             readbacks: list[ReadBack] = []
+            early_ns = self._early.take(readbacks, times) if self._early.written else None
+            early_writes = len(readbacks)
             for name, on in decision.outputs.items():
                 output = outputs.get(name)
                 if output is None or output.requested == on or not output.is_open:
@@ -774,7 +780,9 @@ class Supervisor:
             ):
                 # A change into STOPPED that switched outputs off: the clock when the writes
                 # returned, observed only after the frames are sent (SR-6, SR-10).
-                off_ns = self.clock()
+                # SR-9.5: when the last off write returned, the reflex's if it wrote them all
+                late = early_ns is None or len(readbacks) > early_writes
+                off_ns = self.clock() if late or early_ns is None else early_ns
                 self._finish(decision)
                 start = decision.now if since is None else min(since, decision.now)
                 self.timings.stop_to_off.observe(off_ns - start)
@@ -793,7 +801,8 @@ class Supervisor:
         """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
         for record in decision.records:
             if record.state is State.STOPPED and record.previous is not State.STOPPED:
-                on = [n for n, o in self.outputs.items() if o.is_open and o.requested]
+                early = self._early.wrote  # SR-9.5: off already, ahead of this decision
+                on = [n for n, o in self.outputs.items() if o.is_open and (o.requested or early(n))]
                 self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
                 return
 

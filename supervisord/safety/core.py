@@ -96,6 +96,7 @@ from supervisord.safety.prooftest import (
     ProofTest,
     ProofTestPolicy,
 )
+from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, Run, VscLink
@@ -158,6 +159,12 @@ class SafetyCore:
     @property
     def config(self) -> SafetyConfig:
         return self._config
+
+    def reflex(self) -> Reflex:
+        """What a stopping VSC heartbeat switches off at once from this state, for the daemon
+        to write before the full step (SR-9.5, :mod:`~supervisord.safety.reflex`). Derived
+        from the state, no part of it: a pure function, kept for the last states seen."""
+        return prepare(self._state, *self._outputs.reflex_facts())
 
     def tick(self, now: int) -> Decision:
         """No input arrived by the deadline: let time pass to ``now``."""

@@ -31,6 +31,7 @@ class Outputs:
         self.names = frozenset(o.name for o in config.outputs)
         # Each category-1 output's delay (SR-1.4); the config is frozen: computed once.
         self._delays_ns = {o.name: o.off_delay_ns for o in config.outputs if o.off_delay_ms}
+        self._delay_pairs = tuple(self._delays_ns.items())  # the same, hashable: the reflex's
         self._levels_by_state: dict[State, Levels] = {}
         # SR-1.4: when the motion outputs last went off (RUN left), and, in a stop begun with
         # power on while a category-1 output may still be on, that time again.
@@ -62,6 +63,14 @@ class Outputs:
         return MappingProxyType(
             {name: name in delays and now - since < delays[name] for name, _ in self._roles}
         )
+
+    def reflex_facts(
+        self,
+    ) -> tuple[tuple[tuple[str, OutputRole], ...], tuple[tuple[str, int], ...], int | None]:
+        """What the reflex is prepared from (SR-9.5, :mod:`~supervisord.safety.reflex`): the
+        outputs' names and roles, the category-1 delays and when the motion outputs last went
+        off, as hashable values."""
+        return self._roles, self._delay_pairs, self._motion_off_ns
 
     def of(self, state: State) -> Levels:
         """SR-1: motion outputs on only in RUN; power outputs on in HOLD and RUN. Read-only
@@ -136,5 +145,5 @@ class Outputs:
                     clocks.append(clock(name, at, now, *delays))
         return (("output_faults", tuple(sorted(self._faults.items()))),), tuple(clocks)
 
-    NOT_CANONICAL = frozenset({"_roles", "names", "_levels_by_state"})
+    NOT_CANONICAL = frozenset({"_roles", "names", "_levels_by_state", "_delay_pairs"})
     """Attributes ``canonical`` leaves out: the config, and what is computed from it once."""
