@@ -156,6 +156,22 @@ FAULTS = (
         "P2",
     ),
     Fault(
+        "the reflex omits an output: an e-stop in RUN leaves the power output to the full step",
+        "stopped = tuple((name, ALWAYS) for name, _ in roles if name not in delays)",
+        "stopped = tuple((name, ALWAYS) for name, r in roles if r is OutputRole.MOTION)",
+        "can",
+        "P23",
+        module="reflex",
+    ),
+    Fault(
+        "the reflex cuts a category-1 output early: a stop from HOLD ignores the delay",
+        "    if delay_ns is None or motion_off_ns is None:\n        return ALWAYS",
+        "    if True:\n        return ALWAYS",
+        "category1",
+        "P23",
+        module="reflex",
+    ),
+    Fault(
         "a heartbeat counts whatever its progress",
         "stale = self._progress.beat(name, event.progress)",
         "stale = None",

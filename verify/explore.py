@@ -301,9 +301,11 @@ class _Search:
         before = node.core.decision
         event = item.build(before.now + delta)
         full = full_step(node.core, event)
+        reflex = node.core.reflex()  # P23: what the loop would write off before the full step
         after = successor.handle(event)
         ghost = advance(node.ghost, self.config, event, after)
-        found = check(Step(self.config, successor, before, after, event, node.ghost, ghost, full))
+        step = Step(self.config, successor, before, after, event, node.ghost, ghost, full, reflex)
+        found = check(step)
         self.result.steps += 1
         if self.result.steps_seen is not None:
             self.result.steps_seen.add(step_hash(node.key, item.name, delta, after))

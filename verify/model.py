@@ -71,6 +71,13 @@ ADMIN = Caller(uid=0, pid=1, name="root", admin=True)
 
 _OUTPUTS = (OutputSpec("drive", OutputRole.MOTION), OutputSpec("lights", OutputRole.POWER))
 _REQUIRED_SPEC = ClientSpec(REQUIRED, timeout_ms=500)
+BRAKE_DELAY_MS = 150
+"""The category-1 output's delay in the ``category1`` model (SR-1.4): three grid steps, so
+that a stop from HOLD comes within it and after it, and no other constant of the model."""
+_CATEGORY_1_OUTPUTS = (
+    *_OUTPUTS,
+    OutputSpec("brake", OutputRole.POWER, off_delay_ms=BRAKE_DELAY_MS),
+)
 BASE = SafetyConfig(
     transport=Transport.SERIAL,
     vsc_timeout_ms=200,
@@ -151,6 +158,10 @@ SEEN_BY: dict[str, frozenset[str]] = {
     "battery": frozenset({TICK, BATTERY}) | _STATE_READERS,
     # the record budget: the inputs it limits or charges, and a deferred end
     "budget": frozenset({TICK, BEAT, CLIENT, REARM, PROOF}),
+    # SR-1.4: a stop from HOLD reads when the motion outputs went off; a category-1 output
+    # goes off with time (every step computes the levels at its ``now``)
+    "motion_off": frozenset({TICK, VSC, REARM}),
+    "braking": frozenset({TICK, VSC}),
 }
 """For each clock (by the start of its name), the kinds of input offered at its boundaries."""
 
@@ -459,6 +470,19 @@ MODELS = {
             grid_ns=BATTERY_GRID_NS,
         ),
         Model(
+            "category1",
+            dataclasses.replace(
+                BASE,
+                transport=Transport.CAN,
+                require_watchdog=False,
+                outputs=_CATEGORY_1_OUTPUTS,
+            ),
+            (*vsc((OPERATIONAL, PAUSE), (0, REMOTE_ESTOP)), LINK[0], LOCAL_COMMANDS[2], *TICKS),
+            what="a category-1 power output beside the motion and the category-0 power output "
+            "(SR-1.4), on CAN: the VSC's holds and e-stops from RUN and HOLD, within the brake's "
+            "delay and after it; the reflex of each (SR-9.5)",
+        ),
+        Model(
             "all",
             SMALL,
             alphabet(),
@@ -482,6 +506,7 @@ BOUNDED: Final[Mapping[str, int]] = MappingProxyType(
         "proof_clients": 6,
         "battery_hold": 14,
         "battery_stop": 19,
+        "category1": 9,
         "all": 3,
     }
 )

@@ -58,6 +58,7 @@ from supervisord.safety.prooftest import (
     Phase,
     ProofTestPolicy,
 )
+from supervisord.safety.reflex import Reflex
 from verify.clone import clone
 from verify.model import MODELS
 
@@ -120,6 +121,11 @@ class Ghost:
     battery_good: int | None = None
     battery_reason: str | None = None
     battery_renamed: int | None = None
+    # SR-1.4, only with a category-1 output: the state after the last step, when the motion
+    # outputs last went off (RUN left), and when the current stop's brake time began
+    state: State = State.STOPPED
+    motion_off: int | None = None
+    braking: int | None = None
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
 
     def key(self, now: int, config: SafetyConfig) -> tuple[object, ...]:
@@ -146,6 +152,11 @@ class Ghost:
             clocks.append(clock("battery:good", self.battery_good, now, BATTERY_SETTLE_NS))
         if self.battery_renamed is not None:
             clocks.append(clock("battery:renamed", self.battery_renamed, now, BATTERY_SETTLE_NS))
+        delays = _delays(config)
+        if delays:  # SR-1.4 (no clock without a category-1 output: the other models' keys)
+            for name, at in (("motion_off", self.motion_off), ("braking", self.braking)):
+                if at is not None:
+                    clocks.append(clock(name, at, now, *sorted(set(delays.values()))))
         return (
             self.link_open,
             self.mode,
@@ -438,7 +449,27 @@ def advance(ghost: Ghost, config: SafetyConfig, event: Event, after: Decision) -
         ghost = replace(ghost, stop_after_run=True)
     if after.records:
         ghost = replace(ghost, sequence=after.records[-1].sequence)
+    if _delays(config):
+        ghost = _braked(ghost, after)
     return ghost
+
+
+def _delays(config: SafetyConfig) -> dict[str, int]:
+    """Each category-1 output's delay (SR-1.4)."""
+    return {o.name: o.off_delay_ns for o in config.outputs if o.off_delay_ms}
+
+
+def _braked(ghost: Ghost, after: Decision) -> Ghost:
+    """SR-1.4: the motion outputs go off when RUN is left; a stop begun in HOLD or RUN (the
+    power outputs on) keeps a category-1 output on until its delay after that."""
+    motion_off, braking = ghost.motion_off, ghost.braking
+    if ghost.state is State.RUN and after.state is not State.RUN:
+        motion_off = after.now
+    if after.state is not State.STOPPED:
+        braking = None
+    elif ghost.state is not State.STOPPED:
+        braking = motion_off
+    return replace(ghost, state=after.state, motion_off=motion_off, braking=braking)
 
 
 # -- the properties
@@ -447,8 +478,9 @@ def advance(ghost: Ghost, config: SafetyConfig, event: Event, after: Decision) -
 @dataclass(frozen=True)
 class Step:
     """One step to check: the decision before and after ``event``, the core after it (P8 reads
-    its timers), the ghost before (``was``) and after (``seen``), and ``full``: a copy of the
-    core before the step fed the same input with its cheap path off (P17)."""
+    its timers), the ghost before (``was``) and after (``seen``), ``full``: a copy of the
+    core before the step fed the same input with its cheap path off (P17), and ``reflex``:
+    the core's reflex before the step (P23)."""
 
     config: SafetyConfig
     core: SafetyCore
@@ -458,6 +490,7 @@ class Step:
     was: Ghost
     seen: Ghost
     full: SafetyCore
+    reflex: Reflex
 
     def __post_init__(self) -> None:
         causes = [(c.name, c.active, c.latched) for c in self.after.causes]
@@ -487,8 +520,11 @@ class Step:
 
 
 def _p1(step: Step) -> Iterator[str]:
+    braking = step.seen.braking
     for spec in step.config.outputs:
         on = step.state is State.RUN if spec.role is OutputRole.MOTION else not step.stopped
+        if spec.off_delay_ms and step.stopped and braking is not None:
+            on = step.now - braking < spec.off_delay_ns  # SR-1.4: braking under power
         if step.after.outputs.get(spec.name) is not on:
             yield f"{spec.name} is {dict(step.after.outputs)} in {step.state.name}"
 
@@ -714,6 +750,20 @@ def _p17(step: Step) -> Iterator[str]:
         yield "the cheap path left another state than the full step"
 
 
+def _p23(step: Step) -> Iterator[str]:
+    event = step.event
+    if type(event) is not VscReceived or type(event.message) is not VscHeartbeat:
+        return
+    if event.now >= step.before.next_deadline:
+        return  # time decides too: the loop leaves such a heartbeat to the full step (SR-9.5)
+    message = event.message
+    early = step.reflex.off(message.mode, message.estop, event.now)
+    before, after = step.before.outputs, step.after.outputs
+    at_once = [name for name, on in before.items() if on and not after.get(name, False)]
+    if len(set(early)) != len(early) or sorted(early) != sorted(at_once):
+        yield f"the reflex switches off {sorted(early)}, the full step {sorted(at_once)}"
+
+
 @dataclass(frozen=True)
 class Property:
     """A property: what it says (with the requirements it proves) and its check."""
@@ -728,7 +778,9 @@ class Property:
 
 PROPERTIES = {
     "P1": Property(
-        "SR-1.1, SR-1.2: a motion output is on exactly in RUN, a power output in HOLD and RUN",
+        "SR-1.1, SR-1.2, SR-1.4: a motion output is on exactly in RUN, a power output in HOLD "
+        "and RUN, and a category-1 power output also in a stop begun in HOLD or RUN until its "
+        "delay after the motion outputs went off",
         _p1,
     ),
     "P2": Property(
@@ -827,6 +879,12 @@ PROPERTIES = {
         "it has none once one was given or the config demands it; a refused one extends no "
         "deadline (P11 against the ghost's own rule)",
         _p22,
+    ),
+    "P23": Property(
+        "SR-9.5: for a VSC heartbeat before the deadline, the reflex prepared from the state "
+        "before it switches off exactly the outputs the full step switches off at once: no "
+        "more (a category-1 output within its delay stays on), no fewer",
+        _p23,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""
@@ -946,9 +1004,10 @@ def check_trace(
     found: list[Violation] = []
     for event in events:
         full = full_step(core, event)
+        reflex = core.reflex()
         after = core.handle(event)
         seen = advance(ghost, config, event, after)
-        found += check(Step(config, core, before, after, event, ghost, seen, full))
+        found += check(Step(config, core, before, after, event, ghost, seen, full, reflex))
         before, ghost = after, seen
     return found
 
