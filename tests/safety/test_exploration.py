@@ -1,10 +1,10 @@
 """The exhaustive exploration of the real safety core, bounded to run with every test run, and
 the faults it must catch (docs/verification.md; ``./dev verify`` runs it without the bound).
 
-Every step of the exploration is checked against the properties P1-P22 of
-``verify/properties.py``, which prove SR-1.1 to SR-1.3, SR-2, SR-3.1, SR-4, SR-5.1 to SR-5.3,
-SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16 and SR-10.1 over every input sequence
-the bound allows (the battery models completely).
+Every step of the exploration is checked against the properties P1-P23 of
+``verify/properties.py``, which prove SR-1.1 to SR-1.4, SR-2, SR-3.1, SR-4, SR-5.1 to SR-5.3,
+SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-9.5 and SR-10.1 over every input
+sequence the bound allows (the battery models completely).
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ took 86 s on a two-core machine at load 9); the suite's 120 s guard against a ha
 @pytest.mark.timeout(COMPUTE_TIMEOUT_S)
 @pytest.mark.parametrize("name", sorted(BOUNDS))
 def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
-    """SR-1.1, SR-1.2, SR-1.3, SR-2.1, SR-2.2, SR-2.3, SR-2.4, SR-2.5, SR-2.6, SR-2.9,
+    """SR-1.1, SR-1.2, SR-1.3, SR-1.4, SR-2.1, SR-2.2, SR-2.3, SR-2.4, SR-2.5, SR-2.6, SR-2.9,
     SR-2.11, SR-3.1, SR-4.1, SR-4.2, SR-4.3, SR-4.5, SR-4.6, SR-5.1, SR-5.2, SR-5.3, SR-5.6,
-    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-10.1: every input sequence of the
-    model, each input now and at every boundary a clock can see, up to the bound, keeps every
-    property in every step."""
+    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-9.5, SR-10.1: every input
+    sequence of the model, each input now and at every boundary a clock can see, up to the
+    bound, keeps every property in every step."""
     result = explore(model.MODELS[name], max_depth=BOUNDS[name])
     shown = [f"{c.pid}: {c.what}\n{regression_test(c, name)}" for c in result.counterexamples]
     assert shown == []
@@ -44,13 +44,14 @@ def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
 @pytest.mark.timeout(COMPUTE_TIMEOUT_S)
 @pytest.mark.parametrize("fault", FAULTS, ids=[f.name for f in FAULTS])
 def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
-    """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-4.6, SR-5.2, SR-5.6, SR-7.1, SR-8.12,
-    SR-8.15, SR-8.16, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off
+    """SR-2.2, SR-2.5, SR-3.1, SR-4.1, SR-4.5, SR-4.6, SR-5.2, SR-5.6, SR-7.1, SR-8.12, SR-8.15,
+    SR-8.16, SR-9.5, SR-10.1: a core with one deliberate fault (a dropped cause, a boundary off
     by one, a takeover without the dwell, a missing record, a late e-stop byte, the proof test
     skipped, a forgotten deadline, an ignored hold, a re-arm while a client commands motion, a
     battery report that never goes stale, a low battery read as a good one, no re-arm hold, a
-    heartbeat that counts whatever its progress, a refused one that extends the deadline) breaks
-    the property that guards against it, so the checker cannot silently stop checking."""
+    heartbeat that counts whatever its progress, a refused one that extends the deadline, a
+    reflex that omits an output or cuts a category-1 output before its delay) breaks the
+    property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
 
