@@ -57,6 +57,7 @@ TARGETS = (
     "battery.py",
     "outputs.py",
     "step.py",
+    "reflex.py",
 )
 SUITE = "tests/safety"
 SKIPPED_FUNCTIONS = frozenset({"canonical"})

@@ -1,0 +1,85 @@
+"""The reflex (SR-9.5): what a stopping VSC heartbeat switches off at once, given by the core
+from its state before the full step, equals what the full step switches off at once."""
+
+from __future__ import annotations
+
+import pytest
+
+from supervisord.safety import Decision, State
+from supervisord.safety.reflex import NOTHING
+from tests.safety.rig import LOCAL, OPERATIONAL, PAUSE, Rig
+from tests.safety.test_stop_category import BRAKES_MS, CATEGORY_1, FANS_MS
+
+REMOTE_ESTOP = 0x01
+
+
+def _switched_off(before: Decision, after: Decision) -> list[str]:
+    return sorted(n for n, on in before.outputs.items() if on and not after.outputs[n])
+
+
+def _early_and_full(rig: Rig, mode: int, estop: int) -> tuple[list[str], list[str]]:
+    """The reflex's outputs for the heartbeat, and the full step's, fed it."""
+    early = rig.core.reflex().off(mode, estop, rig.now)
+    before = rig.last
+    return sorted(early), _switched_off(before, rig.vsc(mode, estop))
+
+
+@pytest.mark.parametrize(
+    ("mode", "estop", "off"),
+    [
+        (PAUSE, 0, ["drive"]),
+        (LOCAL, 0, ["drive"]),
+        (OPERATIONAL, REMOTE_ESTOP, ["drive", "lights"]),
+        (PAUSE, REMOTE_ESTOP, ["drive", "lights"]),
+        (OPERATIONAL, 0, []),
+    ],
+)
+def test_in_run_the_reflex_is_the_full_steps_first_switching(
+    mode: int, estop: int, off: list[str]
+) -> None:
+    """SR-9.5, SR-1.4: in RUN a mode that leaves Operational switches the motion output off, an
+    e-stop word every output but the category-1 ones, an Operational heartbeat nothing; the
+    reflex says so before the step, and the full step does exactly that."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    assert _early_and_full(rig, mode, estop) == (off, off)
+
+
+@pytest.mark.parametrize(
+    ("after_ms", "off"),
+    [
+        (BRAKES_MS - 1, ["lights"]),
+        (BRAKES_MS, ["brakes", "lights"]),
+        (FANS_MS - 1, ["brakes", "lights"]),
+        (FANS_MS, ["brakes", "fans", "lights"]),
+    ],
+)
+def test_in_hold_a_stop_keeps_a_category_1_output_on_through_its_delay(
+    after_ms: int, off: list[str]
+) -> None:
+    """SR-9.5, SR-1.4: in HOLD, an e-stop word switches off at once each power output whose
+    delay since RUN was left has passed (a nanosecond before it, not yet), as the full step
+    does, no more and no fewer."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    assert rig.vsc(PAUSE).state is State.HOLD
+    for _ in range(after_ms // 40):  # the link and the client kept alive meanwhile
+        rig.advance(40)
+        rig.vsc(PAUSE)
+        rig.beat()
+    rig.advance(after_ms - 40 * (after_ms // 40))
+    assert _early_and_full(rig, PAUSE, REMOTE_ESTOP) == (off, off)
+
+
+def test_in_stopped_the_reflex_switches_nothing_off() -> None:
+    """SR-9.5: STOPPED has no reflex: every output is off, or a category-1 output goes off with
+    time, never with a heartbeat; asking for it changes nothing the core keeps."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    rig.vsc(OPERATIONAL, REMOTE_ESTOP)
+    before = rig.core.canonical()
+    assert rig.core.reflex() is NOTHING
+    assert rig.core.canonical() == before
