@@ -66,6 +66,14 @@ _WAITING_CLEARS = (
     "alone"
 )
 
+_WORDS_SINCE = (
+    "read only while _words is set (judge's rename test comes after `words is None or`, "
+    "canonical reads it under `if self._words is not None`), and judge sets _words and "
+    "_words_since together whenever _words leaves None (`words is None` is the first test of "
+    "the rename): the start value is never read (a snapshot carries it; a restored core reads "
+    "it no more)"
+)
+
 _KEPT = (
     "a bound on memory only: exhausted and free_at read the limit newest times of a window, "
     "which every bound of at least one limit keeps (KEPT * limit >= limit)"
@@ -282,6 +290,30 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "a client's progress is read only while it is named (lost() reads it for a name in "
         "_by_name, a heartbeat needs a named connection), and the hello that names it again "
         "restarts it first: what a disconnection leaves there is never read",
+    ),
+    Equivalent(
+        "battery.py",
+        "RemoteBattery.__init__",
+        "self._words_since = 0",
+        "self._words_since = -1",
+        _WORDS_SINCE,
+    ),
+    Equivalent(
+        "battery.py",
+        "RemoteBattery.__init__",
+        "self._words_since = 0",
+        "self._words_since = 1",
+        _WORDS_SINCE,
+    ),
+    Equivalent(
+        "step.py",
+        "Step",
+        "limited: bool = False  # the input's user is past its record budget (SR-8.5)",
+        "limited: bool = True  # the input's user is past its record budget (SR-8.5)",
+        "read only by the handlers of a local release and of a disconnection, which run only "
+        "from SafetyCore._apply, and the full step sets step.limited for every event just "
+        "before it decides whether to apply it; a step that applies no event (an input that is "
+        "no event, the fail-safe's) never reads it: the default is never read",
     ),
     Equivalent(
         "prooftest.py",

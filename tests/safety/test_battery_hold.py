@@ -18,15 +18,17 @@ from supervisord.safety.availability import (
     REMOTE_STATUS_FRESH_NS,
     Reaction,
 )
-from supervisord.safety.decision import Decision
+from supervisord.safety.decision import Decision, RefusalReason
+from supervisord.safety.events import LinkClosed
 from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
-from tests.safety.test_estop_unavailable import running
+from tests.safety.test_estop_unavailable import active, running
 
 HOLD = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.HOLD)
 STOP = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.STOP)
 FREE_HOLD = dataclasses.replace(HOLD, clients=())
 """No required client: a sequence of seconds needs no client heartbeats to stay out of STOPPED."""
 S = 1000 * MS
+_CAUSE = {Reaction.HOLD: "estop_unavailable_hold", Reaction.STOP: "estop_unavailable"}
 MAX_DRIVE_ON_PER_S = S // BATTERY_SETTLE_NS
 """SR-3.4: the battery's condition ends at least 1 s after it last ended: one entry a second."""
 MAX_RECORDS_PER_S = 2 * MAX_DRIVE_ON_PER_S
@@ -107,6 +109,29 @@ def test_the_hold_ends_after_exactly_a_second_of_good_reports() -> None:
     assert resumed.outputs == {"drive": True, "lights": True}
 
 
+@pytest.mark.parametrize("config", [HOLD, STOP], ids=["hold", "stop"])
+def test_a_second_without_a_second_good_report_ends_nothing(config: SafetyConfig) -> None:
+    """SR-3.4: one good report after a low one, then a second and more without a report, the
+    VSC and the client beating, the core ticked and full steps taken (the client declaring its
+    command at the second and after it): the condition stays, as it ends only at a report that
+    completes a second of good ones; the next good report ends it."""
+    rig = running(config)
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(10))
+    rig.advance(10)
+    first = rig.from_vsc(RemoteStatus(80)).now
+    rig.run_for(BATTERY_SETTLE_NS // MS, OPERATIONAL)
+    rig.now = first + BATTERY_SETTLE_NS
+    for _ in range(2):
+        rig.tick()
+        rig.command(nonzero=False)  # a full step, no report in it
+        assert active(rig) == {_CAUSE[config.on_estop_unavailable]}
+        rig.run_for(500, OPERATIONAL)
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(80))
+    assert active(rig) == set()
+
+
 def test_the_reason_follows_a_report_at_most_once_a_second() -> None:
     """SR-3.4: while held, a report's new reason renames the cause only 1 s after it last
     changed (the report after that renames it); the reason of a report gone stale at once."""
@@ -181,6 +206,27 @@ def test_a_report_at_the_limit_is_taken_in_and_a_tick_there_is_too_late(
         else:
             assert decision.state is State.RUN
             assert decision.records == ()
+
+
+@pytest.mark.parametrize("config", [HOLD, STOP], ids=["hold", "stop"])
+def test_an_input_that_brings_no_report_at_the_limit_finds_the_battery_stale(
+    config: SafetyConfig,
+) -> None:
+    """SR-8.12: only a report taken in keeps the battery reported at the 3.5 s limit: after a
+    report refused there (the link closed), an input that is no event at that instant brings
+    no report either, and finds the last one stale."""
+    rig = running(config)
+    seen = _reported(rig)
+    rig.advance(100)
+    rig.feed(LinkClosed(rig.now, "reopening"))
+    rig.now = seen + REMOTE_STATUS_FRESH_NS
+    refused = rig.from_vsc(RemoteStatus(80))
+    assert [r.reason for r in refused.refusals] == [RefusalReason.LINK_NOT_OPEN]
+    decision = rig.core.handle("remote status")  # type: ignore[arg-type]
+    assert [r.reason for r in decision.refusals] == [RefusalReason.NOT_AN_EVENT]
+    (cause,) = [c for c in decision.causes if c.name == _CAUSE[config.on_estop_unavailable]]
+    assert cause.active
+    assert cause.detail("reason") == "the remote's battery has not been reported for 3.5 s"
 
 
 @pytest.mark.parametrize("config", [HOLD, STOP], ids=["hold", "stop"])

@@ -5,12 +5,15 @@ depend on when the core started, and it tells apart exactly what its guards tell
 from __future__ import annotations
 
 import ast
+import dataclasses
 import inspect
 import textwrap
 
 import pytest
 
+from supervisord.protocol.messages import RemoteStatus
 from supervisord.safety import SafetyCore
+from supervisord.safety.availability import REMOTE_STATUS_FRESH_NS, Reaction
 from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
@@ -20,6 +23,7 @@ from supervisord.safety.outputs import Outputs
 from supervisord.safety.prooftest import ProofTest
 from supervisord.safety.vsc import VscLink
 from tests.safety.rig import MS, ROBOT, START_NS, Rig
+from verify.explore import UNIT_NS, region
 
 LEFT_OUT: dict[type, frozenset[str]] = {
     SafetyCore: SafetyCore._NOT_CANONICAL,
@@ -105,3 +109,23 @@ def test_ages_are_exact_below_their_limit_and_alike_above_it() -> None:
 
     assert age(last + 200 * MS - 2) != age(last + 200 * MS - 1)
     assert age(last + 200 * MS) == age(last + 200 * MS + 1) == age(last + 900 * MS)
+
+
+def test_the_battery_clocks_limits_are_whole_units_of_the_exploration() -> None:
+    """SR-8.12, SR-3.4: the clocks of a watched battery (the report's age, the reason's and the
+    good run's) have every limit a whole number of the exploration's 10 ms units, so that its
+    regions keep the report's age exact at the 3.5 s limit and one past it (a report arriving
+    then refreshes it, a step after it finds it stale) and the battery models can run at all
+    (``region`` refuses any other limit)."""
+    rig = Rig(dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.HOLD))
+    rig.open_link()
+    rig.from_vsc(RemoteStatus(10))
+    rig.advance(10)
+    rig.from_vsc(RemoteStatus(80))  # held, a good run begun
+    clocks = {name: limits for name, _, limits in rig.core.canonical(rig.now + 10 * MS)[1]}
+    battery = {n: limits for n, limits in clocks.items() if n.startswith("battery:")}
+    assert set(battery) == {"battery:seen", "battery:words_since", "battery:good_since"}
+    assert max(battery["battery:seen"]) > REMOTE_STATUS_FRESH_NS
+    for name, limits in battery.items():
+        assert all(limit % UNIT_NS == 0 for limit in limits), (name, limits)
+    region(list(rig.core.canonical(rig.now + 10 * MS)[1]))  # raises for a limit not whole
