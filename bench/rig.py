@@ -43,6 +43,7 @@ from pathlib import Path
 from types import FrameType, TracebackType
 
 from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.clock import Clock
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -211,6 +212,43 @@ def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
     supervisor.shutdown = fast_shutdown  # type: ignore[method-assign]
 
 
+class BareLoop:
+    """The work of the bare loops (``--model event`` and ``poll50``) for one wake-up: read
+    what has arrived, decode it, switch the output on the last heartbeat's mode and e-stop
+    word, send a user heartbeat when one is due (every wake-up for the polling model, as the
+    drivers do; every 50 ms for the event-driven one). ``clock`` is the loop's clock
+    (``bench.input_instructions`` drives it by hand)."""
+
+    def __init__(self, fd: int, output: SimOutput, event_driven: bool, clock: Clock) -> None:
+        self.fd, self.output, self.event_driven, self.clock = fd, output, event_driven, clock
+        self.decoder = FrameDecoder()
+        self.on = False
+        self.next_beat = clock()
+
+    def turn(self) -> None:
+        try:
+            data = os.read(self.fd, 4096)
+        except BlockingIOError:
+            data = b""
+        for event in self.decoder.feed(data):
+            if isinstance(event, VscHeartbeat):
+                allowed = event.mode == VscMode.OPERATIONAL and event.estop == 0
+                if allowed != self.on:
+                    self.on = allowed
+                    self.output.set(allowed, self.clock())
+        now = self.clock()
+        if not self.event_driven or now >= self.next_beat:  # polling: one per tick
+            os.write(self.fd, encode_frame(UserHeartbeat(0)))
+            self.next_beat = now + HEARTBEAT_NS
+
+
+def open_port(path: str) -> int:
+    """The supervisor side of the pty, raw and non-blocking, as the bare loops open it."""
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    tty.setraw(fd)
+    return fd
+
+
 def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
     """A minimal model of the public drivers' loop: wake every 20 ms, read what has arrived,
     decode it, act on each heartbeat, send a user heartbeat. Written for this bench; it is
@@ -228,12 +266,10 @@ def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
         stop = True
 
     signal.signal(signal.SIGTERM, request_stop)
-    fd = os.open(args.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    tty.setraw(fd)
-    decoder = FrameDecoder()
+    fd = open_port(args.port)
     output.open(time.monotonic_ns())
-    on = False
-    tick = next_beat = time.monotonic_ns()
+    loop = BareLoop(fd, output, event_driven, time.monotonic_ns)
+    tick = time.monotonic_ns()
     try:
         while not stop:
             if event_driven:
@@ -242,20 +278,7 @@ def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
             else:
                 tick += POLL_PERIOD_NS
                 time.sleep(max(0, tick - time.monotonic_ns()) / 1e9)
-            try:
-                data = os.read(fd, 4096)
-            except BlockingIOError:
-                data = b""
-            for event in decoder.feed(data):
-                if isinstance(event, VscHeartbeat):
-                    allowed = event.mode == VscMode.OPERATIONAL and event.estop == 0
-                    if allowed != on:
-                        on = allowed
-                        output.set(on, time.monotonic_ns())
-            now = time.monotonic_ns()
-            if not event_driven or now >= next_beat:  # polling: one per tick, as drivers do
-                os.write(fd, encode_frame(UserHeartbeat(0)))
-                next_beat = now + HEARTBEAT_NS
+            loop.turn()
     finally:
         output.close()
         os.close(fd)

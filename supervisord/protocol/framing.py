@@ -16,6 +16,7 @@ from supervisord.protocol.codes import MessageType
 from supervisord.protocol.messages import Message, MessageControl
 from supervisord.protocol.payload import (
     FIXED_LENGTH,
+    decode_joystick,
     decode_payload,
     encode_payload,
     payload_length_ok,
@@ -174,6 +175,12 @@ class FrameDecoder:
             repeat = last[kind]
             if repeat is not None and buf.startswith(repeat[0], pos):
                 event = repeat[1]  # the last frame of its type again: compared, not copied
+            elif kind == _JOYSTICK_TYPE:
+                # A moving stick: a new frame 50 times a second, checked and decoded by
+                # the joystick's own path (no dispatch, no recent frames' churn).
+                frame = bytes(buf[pos:frame_end])
+                event = _decode_joystick_frame(frame)
+                last[kind] = (frame, event)
             else:
                 frame = bytes(buf[pos:frame_end])
                 event = self._decode(frame)  # the recent frames' dictionary, or the decode
@@ -214,6 +221,20 @@ _FRAME_LENGTHS: tuple[int, ...] = tuple(
 )
 """The whole frame's length for each type byte of a fixed-length type (0 for GPS, whose
 length varies, and for the types without a name): the fast path's header check."""
+
+
+_JOYSTICK_TYPE = int(MessageType.JOYSTICK)
+_JOYSTICK_END = HEADER_SIZE + FIXED_LENGTH[MessageType.JOYSTICK]  # where its checksum starts
+
+
+def _decode_joystick_frame(frame: bytes) -> Decoded:
+    """A whole joystick frame whose header, type and length byte the caller has checked
+    (``_FRAME_LENGTHS``): its checksum here, then the payload. A checksum that does not match
+    takes :func:`_decode_frame`, so a bad frame gets exactly the general path's rejection
+    ("only a checked frame counts", PR-1)."""
+    if frame[_JOYSTICK_END] | frame[_JOYSTICK_END + 1] << 8 != fletcher16(frame[:_JOYSTICK_END]):
+        return _decode_frame(frame)
+    return decode_joystick(frame, HEADER_SIZE)
 
 
 def _header_rejection(message_type: int, length: int) -> Rejection | None:

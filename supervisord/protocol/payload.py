@@ -10,6 +10,7 @@ import struct
 
 from supervisord.protocol.codes import MessageType
 from supervisord.protocol.messages import (
+    _AXES_BY_WORD,
     NAME_TEXT_LENGTH,
     Axis,
     DPad,
@@ -44,6 +45,46 @@ _VSC_HEARTBEAT = struct.Struct("<BBI")
 _REMOTE_STATUS = struct.Struct("<6B")
 _MESSAGE_CONTROL = struct.Struct("<BBH")
 _FEEDBACK = struct.Struct("<Bi")
+
+
+_SETTERS = tuple(
+    Joystick.__dict__[name].__set__ for name in (*Joystick.AXES, "left_buttons", "right_buttons")
+)
+"""The slots of a joystick value, set directly by :func:`decode_joystick`."""
+_DPADS: dict[int, DPad] = {}  # by wire byte: at most 256 each
+_NUMBERED: dict[int, NumberedButtons] = {}
+
+
+def decode_joystick(data: bytes, offset: int = 0) -> Joystick:
+    """The joystick message whose 14-byte payload starts at ``offset`` of ``data``.
+
+    Every moving-stick frame is new (50 a second, SR-9.4), so this is the decoder's one
+    decode per input: its parts are the wire's immutable values (``Axis.from_word``,
+    ``from_byte``: each a value the validating constructors made once), so the value is
+    put together without running ``Joystick``'s checks again; it equals the one the
+    constructor makes (``tests/protocol/test_decode_reuse.py``)."""
+    lx, ly, lz, rx, ry, rz, left, right = _JOYSTICK.unpack_from(data, offset)
+    axis, word = _AXES_BY_WORD.get, Axis.from_word
+    joystick = _NEW(Joystick)
+    set_lx, set_ly, set_lz, set_rx, set_ry, set_rz, set_left, set_right = _SETTERS
+    set_lx(joystick, axis(lx) or word(lx))
+    set_ly(joystick, axis(ly) or word(ly))
+    set_lz(joystick, axis(lz) or word(lz))
+    set_rx(joystick, axis(rx) or word(rx))
+    set_ry(joystick, axis(ry) or word(ry))
+    set_rz(joystick, axis(rz) or word(rz))
+    dpad = _DPADS.get(left)
+    if dpad is None:
+        dpad = _DPADS[left] = DPad.from_byte(left)
+    numbered = _NUMBERED.get(right)
+    if numbered is None:
+        numbered = _NUMBERED[right] = NumberedButtons.from_byte(right)
+    set_left(joystick, dpad)
+    set_right(joystick, numbered)
+    return joystick
+
+
+_NEW = object.__new__
 
 
 def payload_length_ok(message_type: MessageType, length: int) -> bool:
@@ -89,18 +130,7 @@ def decode_payload(message_type: MessageType, payload: bytes) -> Message:
     """The message in ``payload``, whose length ``payload_length_ok`` has accepted."""
     match message_type:
         case MessageType.JOYSTICK:
-            lx, ly, lz, rx, ry, rz, left, right = _JOYSTICK.unpack(payload)
-            word = Axis.from_word
-            return Joystick(
-                word(lx),
-                word(ly),
-                word(lz),
-                word(rx),
-                word(ry),
-                word(rz),
-                DPad.from_byte(left),
-                NumberedButtons.from_byte(right),
-            )
+            return decode_joystick(payload)
         case MessageType.GPS:
             return Gps(payload[0], payload[1:].decode("latin-1"))
         case MessageType.VSC_HEARTBEAT:

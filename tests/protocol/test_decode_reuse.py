@@ -7,11 +7,21 @@ down that reuse changes no result, keeps no unbounded state and skips no check.
 
 from __future__ import annotations
 
+import random
+import struct
+
 import pytest
 
 from supervisord.protocol import framing, messages
 from supervisord.protocol.codes import FieldStatus
-from supervisord.protocol.framing import FRAMES_KEPT, FrameDecoder, Rejection, encode_frame
+from supervisord.protocol.framing import (
+    FRAMES_KEPT,
+    FrameDecoder,
+    Rejection,
+    RejectReason,
+    build_frame,
+    encode_frame,
+)
 from supervisord.protocol.messages import (
     DECODED_KEPT,
     Axis,
@@ -104,3 +114,36 @@ def test_a_steady_heartbeat_is_decoded_once_between_moving_sticks(
     events = decoder.feed(bytes(corrupt))
     assert isinstance(events[0], Rejection)
     assert events[0].reason.value == "bad_checksum"
+
+
+def test_the_joystick_path_decodes_as_the_validating_constructor() -> None:
+    """PR-1.1, PR-2.1, SR-9.4: every moving-stick frame takes the joystick's own checked path;
+    for random words and button bytes it gives the value ``Joystick``'s validating constructor
+    gives, of the same types, and a frame with any one byte corrupted gets exactly the general
+    path's rejection."""
+    rng = random.Random(7)
+    decoder = FrameDecoder()
+    for _ in range(2000):
+        words = [rng.randrange(0x1_0000) for _ in range(6)]
+        left, right = rng.randrange(256), rng.randrange(256)
+        frame = build_frame(0x10, struct.pack("<6HBB", *words, left, right))
+        expected = Joystick(
+            *(Axis.from_word(word) for word in words),
+            DPad.from_byte(left),
+            NumberedButtons.from_byte(right),
+        )
+        (event,) = decoder.feed(frame)
+        assert type(event) is Joystick
+        assert event == expected
+        assert [type(axis) for axis in event.axes] == [Axis] * 6
+        assert type(event.left_buttons) is DPad
+        assert type(event.right_buttons) is NumberedButtons
+        corrupt = bytearray(frame)
+        corrupt[rng.randrange(4, len(frame))] ^= 1 << rng.randrange(8)
+        primed = FrameDecoder()  # its last joystick frame is the good one
+        assert primed.feed(frame) == [expected]
+        got = primed.feed(bytes(corrupt))
+        assert got == FrameDecoder().feed(bytes(corrupt))
+        assert got[0] == framing._decode_frame(bytes(corrupt))
+        assert isinstance(got[0], Rejection)
+        assert got[0].reason is RejectReason.BAD_CHECKSUM
