@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import random
 import re
@@ -43,9 +44,8 @@ import select
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
 from bench.rig import (
@@ -58,7 +58,6 @@ from bench.rig import (
     open_port,
     table,
 )
-from supervisord.clock import Clock
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import (
@@ -67,6 +66,7 @@ from supervisord.protocol.messages import (
     FeedbackSet,
     Gps,
     Joystick,
+    UserHeartbeat,
     VscHeartbeat,
 )
 from supervisord.sim.pty import PtyPort
@@ -104,19 +104,48 @@ def traffic(seed: int) -> Iterator[tuple[int, bytes, bool]]:
 
 
 class Driver:
-    """The VSC's side in the child: writes frames into the pty, reads what the loop sent and
-    answers key 85 (the answer goes out with the next frame)."""
+    """The VSC's side in the child: writes each frame into the pty at its virtual time
+    (setting the clock to it), reads what the loop sent, answers key 85 (with the next
+    frame), counts turns and frames, and marks where the measured stretch starts."""
 
-    def __init__(self, port: PtyPort) -> None:
+    def __init__(self, port: PtyPort, schedule: list[tuple[int, bytes]], measured_from: int):
         self.port = port
+        self.schedule = schedule
+        self.measured_from = measured_from
+        self.next = 0  # the index of the next frame
+        self.now = schedule[0][0]  # the virtual clock
         self.decoder = FrameDecoder()
         self.answer = b""
-        self.user_heartbeats = 0
+        self.user_heartbeats = self.turns = self.frames = 0
+        self.counting = False
 
-    def write(self, frame: bytes, reader_fd: int) -> None:
+    def clock(self) -> int:
+        return self.now
+
+    def next_due(self) -> int | None:
+        return self.schedule[self.next][0] if self.next < len(self.schedule) else None
+
+    def deliver(self, reader_fd: int) -> None:
+        """The next frame, at its time: written, and readable on the loop's side."""
+        self.hear()
+        due, frame = self.schedule[self.next]
+        self.next += 1
+        if not self.counting and due >= self.measured_from:
+            self.counting = True
+            self.turns = self.frames = self.user_heartbeats = 0
+            mark()
+        self.now = due
         self.port.write(self.answer + frame)
         self.answer = b""
-        select.select([reader_fd], [], [], 1.0)  # in the loop's side before its turn
+        select.select([reader_fd], [], [], 1.0)
+        self.turns += 1
+        self.frames += 1
+
+    def idle_turn(self, until: int) -> None:
+        """A turn of the loop's own, at its deadline ``until``: no frame."""
+        self.hear()
+        self.now = until
+        self.turns += 1
 
     def hear(self) -> None:
         data = self.port.read()
@@ -125,7 +154,7 @@ class Driver:
         for event in self.decoder.feed(data):
             if type(event) is FeedbackGet and event.key == 85:
                 self.answer = encode_frame(FeedbackSet(85, 1))
-            elif type(event).__name__ == "UserHeartbeat":
+            elif type(event) is UserHeartbeat:
                 self.user_heartbeats += 1
 
 
@@ -135,20 +164,12 @@ def mark() -> None:
     os.getppid()
 
 
-@dataclass
-class Model:
-    """A loop to drive: one turn (``step``), its own next deadline, the descriptor it reads
-    the VSC from, what state it is in, and how to end it."""
-
-    step: Callable[[], None]
-    deadline: Callable[[], int]
-    reader: int
-    state: Callable[[], str]
-    close: Callable[[], None]
-
-
-def srcsd_model(directory: Path, clock: Clock) -> Model:
-    """The daemon as ``srcsd --config`` builds it, on ``clock``."""
+def run_srcsd(directory: Path, driver: Driver) -> str:
+    """The daemon as ``srcsd --config`` builds it, on the driver's clock, until the last
+    frame; its state at the end. Its wait is wrapped (as ``bench.rig.TurnStats`` does: one
+    call per turn): the driver delivers the next frame there when it comes before the loop's
+    own deadline, else moves the clock to that deadline (the timeout rounded up to the
+    millisecond, as epoll takes it) and the real wait returns at once."""
     from supervisord.config.loader import load_config  # noqa: PLC0415
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
     from supervisord.testkit.daemon import LASTING_CONFIG  # noqa: PLC0415
@@ -157,93 +178,78 @@ def srcsd_model(directory: Path, clock: Clock) -> Model:
     text = LASTING_CONFIG.replace('port = "vsc"\n', 'port = "vsc"\nprooftest = "off"\n')
     (directory / "robot.toml").write_text(text)
     config = load_config(directory / "robot.toml")
-    supervisor = build_supervisor(config, build_api(config), clock=clock)
+    supervisor = build_supervisor(config, build_api(config), clock=driver.clock)
     supervisor.start()
-    fd = supervisor.link.fileno()
-    assert fd is not None
+    reader = supervisor.link.fileno()
+    assert reader is not None
+    wait = supervisor._wait
 
-    def state() -> str:
-        assert supervisor.decision is not None
-        return supervisor.decision.state.value
+    def virtual_wait(timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
+        own = driver.now + math.ceil((timeout or 0.0) * 1000) * NS_PER_MS
+        due = driver.next_due()
+        if due is not None and due <= own:
+            driver.deliver(reader)
+            return wait(timeout, maxevents)
+        driver.idle_turn(own)
+        return wait(0, maxevents)
 
-    # The loop's own deadline, as its wait computes it.
-    return Model(supervisor.step, supervisor._next_deadline, fd, state, supervisor.shutdown)
+    supervisor._wait = virtual_wait
+    while driver.next_due() is not None:
+        supervisor.step()
+    mark()
+    assert supervisor.decision is not None
+    state = supervisor.decision.state.value
+    supervisor.shutdown()
+    return state
 
 
-def bare_model(directory: Path, clock: Clock, *, loop: bool) -> Model:
-    """The bare event-driven loop (``loop``), or only reading the port (the driver's share)."""
+def run_bare(directory: Path, driver: Driver, *, loop: bool) -> str:
+    """The bare event-driven loop (``loop``), or only reading the port (the driver's own
+    share), one turn per frame; whether its output is on at the end."""
     from supervisord.outputs.sim import SimOutput, SimSpec  # noqa: PLC0415
 
     reader = open_port(str(directory / "vsc"))
     output = SimOutput(SimSpec(name="drive", path=None))
-    output.open(clock())
-    bare = BareLoop(reader, output, True, clock)
-
-    def turn() -> None:
-        select.select([reader], [], [], 0.05)
-        bare.turn()
-
-    def drain() -> None:
-        with contextlib.suppress(BlockingIOError):
-            os.read(reader, 4096)
-
-    return Model(
-        turn if loop else drain,
-        lambda: 2**62,  # no deadline of its own
-        reader,
-        lambda: "on" if bare.on else "off",
-        lambda: os.close(reader),
-    )
+    output.open(driver.clock())
+    bare = BareLoop(reader, output, True, driver.clock)
+    try:
+        while driver.next_due() is not None:
+            driver.deliver(reader)
+            if loop:
+                select.select([reader], [], [], 0.05)
+                bare.turn()
+            else:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(reader, 4096)
+        mark()
+    finally:
+        os.close(reader)
+    return "on" if bare.on else "off"
 
 
 def child(model: str, warm_up: float, seconds: float, seed: int) -> int:
     """Drive ``model`` over ``warm_up`` and then ``seconds`` of virtual traffic, the latter
     between two :func:`mark` calls; print the measured stretch's turns and frames and the
     state at its end."""
+    start = 1_000 * NS_PER_S  # the virtual clock's origin: any positive time
+    measured_from = start + int(warm_up * NS_PER_S)
+    end = measured_from + int(seconds * NS_PER_S)
+    schedule = []  # encoded before the count starts: the VSC's own work is not the loop's
+    for offset, frame, _ in traffic(seed):
+        if start + offset >= end:
+            break
+        schedule.append((start + offset, frame))
     with tempfile.TemporaryDirectory(prefix="srcs-instr-") as name:
         directory = Path(name)
         port = PtyPort(directory / "vsc")
-        driver = Driver(port)
-        start = 1_000 * NS_PER_S  # the virtual clock's origin: any positive time
-        now = [start]
-
-        def clock() -> int:
-            return now[0]
-
-        measured_from = start + int(warm_up * NS_PER_S)
-        end = measured_from + int(seconds * NS_PER_S)
-        schedule = []  # encoded before the count starts: the VSC's own work is not the loop's
-        for offset, frame, _ in traffic(seed):
-            if start + offset >= end:
-                break
-            schedule.append((start + offset, frame))
+        driver = Driver(port, schedule, measured_from)
         if model == "srcsd":
-            loop = srcsd_model(directory, clock)
+            state = run_srcsd(directory, driver)
         else:
-            loop = bare_model(directory, clock, loop=model == "bare")
-        turns = frames = 0
-        counting = False
-        for due, frame in schedule:
-            if not counting and due >= measured_from:
-                counting = True
-                turns = frames = driver.user_heartbeats = 0
-                mark()
-            while (own := loop.deadline()) < due:  # the loop's own deadlines before this frame
-                now[0] = own
-                loop.step()
-                turns += 1
-                driver.hear()
-            now[0] = due
-            driver.write(frame, loop.reader)
-            loop.step()
-            turns += 1
-            frames += 1
-            driver.hear()
-        mark()
-        beats = driver.user_heartbeats
-        print(f"turns={turns} frames={frames} heartbeats={beats} state={loop.state()}")
-        loop.close()
+            state = run_bare(directory, driver, loop=model == "bare")
         port.close()
+    beats = driver.user_heartbeats
+    print(f"turns={driver.turns} frames={driver.frames} heartbeats={beats} state={state}")
     return 0
 
 

@@ -378,6 +378,7 @@ class ApiServer:
         # now, so their connections never wait. Made once the socket is ours: nothing to undo.
         self._names = names if names is not None else UserNames(user_name)
         self._names_fd = self._names.fileno()
+        self._idle_watched = self._sockets_watched()  # what a turn without connections watches
         for uid in (0, self._own_uid, *config.known_uids):
             self._names.ask(uid)
 
@@ -388,14 +389,27 @@ class ApiServer:
         name lookups' wake-up and each connection (always for reading). Releases the
         descriptors of ended connections, so call it once per turn, before the wait, and watch
         exactly what it returns. ``now``: the loop's clock, as for every method here."""
+        if not self._connections and not self._ended and not self._by_fd and not self._closed:
+            # Nobody connected, the usual turn (SR-9.4): the budget a turn of no connection
+            # gets and the same list as the last such turn (the loop compares it and leaves
+            # its watches alone); the caller must not change it.
+            config = self.config
+            self._share = max(1, min(config.requests_per_call, config.requests_per_turn))
+            self._turn_left = config.requests_per_turn
+            return self._idle_watched
         self._release_ended()
         if self._closed:
             return []
         self._new_turn(now)
+        watched = self._sockets_watched()
+        watched += [(fd, bool(conn.protocol.outgoing)) for fd, conn in self._by_fd.items()]
+        return watched
+
+    def _sockets_watched(self) -> list[tuple[int, bool]]:
+        """The listening sockets' and the name lookups' descriptors, for reading."""
         watched = [(self._listen_fd, False), (self._names_fd, False)]
         if self._operator is not None:
             watched.insert(0, (self._operator_fd, False))
-        watched += [(fd, bool(conn.protocol.outgoing)) for fd, conn in self._by_fd.items()]
         return watched
 
     def next_deadline(self) -> int | None:

@@ -193,6 +193,12 @@ class Listener:
 class Supervisor:
     """The daemon's state and loop. ``run`` returns the process exit status."""
 
+    steady_path = True
+    """Apply a decision that changes nothing the full path would act on without it (the
+    decisions of the core's cheap path, 90 a second in RUN): :meth:`_apply`. The full path is
+    the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
+    fed the same inputs and checks that both do the same (SR-9.4)."""
+
     def __init__(
         self,
         safety: SafetyConfig,
@@ -212,6 +218,10 @@ class Supervisor:
         self.safety = safety
         self.link = link
         self.outputs = {output.name: output for output in outputs}
+        # The outputs with a periodic duty (their kind has a ``next_deadline`` of its own: a CAN
+        # enable frame, a GPIO pulse): the only ones the loop asks for a deadline every turn
+        # (SR-9.4); the others' is always ``None``.
+        self._ticking = [o for o in outputs if type(o).next_deadline is not Output.next_deadline]
         self.writer = writer
         self.journal = journal
         self.listener = listener or Listener()
@@ -238,6 +248,10 @@ class Supervisor:
         self._status_state: State | None = None
         self._next_watchdog: int | None = None
         self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
+        # The outputs' levels the last decision set, every one of them (each output named is
+        # open and was left at its level): the mapping object itself, for the steady path.
+        # ``None`` once anything else drives or opens an output.
+        self._applied_outputs: Mapping[str, bool] | None = None
         # The loop's wait: epoll itself, not the ``selectors`` wrapper, which builds a key per
         # ready descriptor on every turn (SR-9.4). ``_tags`` says what each watched fd is.
         self._epoll = select.epoll()
@@ -369,6 +383,7 @@ class Supervisor:
         written and fsynced, and pushed to subscribers, within the sink's deadline), then the
         socket (SIGTERM path)."""
         self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
+        self._applied_outputs = None  # every output driven off and closed here
         now = self.clock()
         for output in self.outputs.values():
             with contextlib.suppress(Exception):
@@ -447,10 +462,13 @@ class Supervisor:
         :data:`MAX_CLIENTS_PER_TURN` client descriptors (SR-10.1; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
         before = self.clock()
-        if self.flight is not None and self.flight.due(before):
+        flight = self.flight
+        if flight is not None and flight.due(before):
             self._rebase_flight(before)  # before the wait: never between an input and its outputs
-        timeout = max(0.0, (self._next_deadline() - before) / 1e9)
-        self._sync_watches(before)
+        link = self.link
+        link_fd = link.fileno() if link.is_open else None  # once, for the deadline and the watch
+        timeout = max(0.0, (self._next_deadline(before, link_fd) - before) / 1e9)
+        self._sync_watches(before, link_fd)
         ready = self._wait(timeout)
         now = self.clock()
         try:
@@ -458,7 +476,6 @@ class Supervisor:
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
-            link = self.link
             link_fd = self._watched_link  # the link's fd as watched for this wait (or None)
             clients: list[tuple[int, int]] = []
             sink_ready = received = False
@@ -546,15 +563,18 @@ class Supervisor:
         readable, _, _ = select.select([fd], [], [], 0)
         return bool(readable)
 
-    def _next_deadline(self) -> int:
-        deadline = self.decision.next_deadline if self.decision else self.clock()
-        for output in self.outputs.values():
+    def _next_deadline(self, now: int, link_fd: int | None) -> int:
+        """The earliest deadline of the loop's, at ``now`` (the clock read before the wait),
+        with the link's descriptor as read then (``None``: closed, or polled)."""
+        deadline = self.decision.next_deadline if self.decision else now
+        for output in self._ticking:
             if output.is_open and (due := output.next_deadline()) is not None and due < deadline:
                 deadline = due
-        if not self.link.is_open:
-            deadline = min(deadline, self.backoff.next_attempt)
-        elif self.link.fileno() is None:
-            deadline = min(deadline, self.clock() + POLL_NS)
+        if link_fd is None:
+            if not self.link.is_open:
+                deadline = min(deadline, self.backoff.next_attempt)
+            else:
+                deadline = min(deadline, now + POLL_NS)
         if self._next_watchdog is not None and self._next_watchdog < deadline:
             deadline = self._next_watchdog
         for backoff in self._acquiring.values():
@@ -564,8 +584,8 @@ class Supervisor:
             deadline = listener_deadline
         return deadline
 
-    def _sync_watches(self, now: int) -> None:
-        fd = self.link.fileno() if self.link.is_open else None
+    def _sync_watches(self, now: int, fd: int | None) -> None:
+        """Watch the link's ``fd`` (``None``: none) and the listener's descriptors."""
         api = self.listener.descriptors(now)
         if fd == self._watched_link and api == self._watched_api:
             return  # the usual turn: the same list as the last, nothing to register (SR-9.4)
@@ -592,7 +612,7 @@ class Supervisor:
             # A stop at a deadline (a link or client timeout) started at the deadline, not
             # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
             self._apply(self._feed(Tick(now)), since=self.decision.next_deadline)
-        for output in self.outputs.values():
+        for output in self._ticking:
             deadline = output.next_deadline() if output.is_open else None
             if deadline is not None and now >= deadline:
                 readback = output.tick(now)
@@ -607,7 +627,12 @@ class Supervisor:
             self._send(
                 tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
             )
-        if not self.link.is_open and now >= self.backoff.next_attempt:
+        if (
+            self._watched_link is None
+            and not self.link.is_open
+            and now >= self.backoff.next_attempt
+        ):
+            # (A link watched this turn was open: one that broke in it has just set its backoff.)
             self._try_open_link(now)
         interval = self._watchdog_interval
         if self._next_watchdog is not None and interval and now >= self._next_watchdog:
@@ -623,6 +648,7 @@ class Supervisor:
             log.debug("output %s still cannot be acquired: %s", name, error)
             return
         del self._acquiring[name]
+        self._applied_outputs = None  # an output opened (off): the next decision sets all
         log.info("output %s acquired (off)", name)
         self._apply(self._feed(self._readback_event(readback, now)))
 
@@ -657,6 +683,8 @@ class Supervisor:
         now = self.clock()  # what was read counts as received now: right after the read (SR-2)
         heartbeat = False
         counters, received_by = self.counters, self.listener.received
+        flight, core = self.flight, self.core
+        assert core is not None
         for item in received:
             kind = type(item)
             if kind in _REJECTIONS:
@@ -669,7 +697,13 @@ class Supervisor:
                 self._early.heard(item, now, self.core, self.decision)  # type: ignore[arg-type]
             received_by(item, now)  # type: ignore[arg-type]
             if kind is not HidInput:
-                self._apply(self._feed(VscReceived(now, item)))  # type: ignore[arg-type]
+                # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per
+                # input, SR-9.4).
+                event = VscReceived(now, item)  # type: ignore[arg-type]
+                if flight is not None:
+                    flight.inputs.append(event)
+                    flight.count += 1
+                self._apply(core.handle(event))
                 if kind is VscHeartbeat:
                     heartbeat = True
         if heartbeat:
@@ -749,6 +783,33 @@ class Supervisor:
         comes of them is applied in turn, so none of their records is lost (a read-back fault
         is a stop of its own, SR-7). ``since`` is when the input (or deadline) that led to
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
+        previous = self.decision
+        if (
+            decision.outputs is self._applied_outputs
+            and previous is not None
+            and decision.state is previous.state
+            and not decision.records
+            and not decision.refusals
+            and not self._early.written  # SR-9.5: the reflex's writes are the full path's to hand on
+            and self.steady_path
+        ):
+            # The steady path (SR-9.4): the same levels as the last decision set, every output
+            # already at them (nothing else has driven one since), the same state (the stop
+            # times were told already) and nothing to record or refuse: what the full path
+            # below does for it is only this. The frames (the user heartbeat) still go out.
+            if decision is not previous:
+                self.decision = decision
+                if decision.frames:
+                    self._send(decision.frames, decision.now)
+                self.listener.decided(decision)
+                if decision.causes is not self._status_causes:
+                    self._update_status(decision)
+            return
+        self._apply_full(decision, since)
+
+    def _apply_full(self, decision: Decision, since: int | None) -> None:
+        """:meth:`_apply` for a decision that may switch outputs, change the state, record or
+        refuse: the reference the steady path is checked against."""
         # The usual decision switches nothing and has no read-backs: no list is made for it
         # (SR-9.4); ``pending`` holds the decisions of read-backs, in order, when there are.
         pending: list[Decision] | None = None
@@ -761,9 +822,13 @@ class Supervisor:
             readbacks: list[ReadBack] = []
             early_ns = self._early.take(readbacks, times) if self._early.written else None
             early_writes = len(readbacks)
+            complete = True  # every output named is open and left at its level
             for name, on in decision.outputs.items():
                 output = outputs.get(name)
-                if output is None or output.requested == on or not output.is_open:
+                if output is None or not output.is_open:
+                    complete = False
+                    continue
+                if output.requested == on:
                     continue
                 readback = output.set(on, decision.now)
                 readbacks.append(readback)
@@ -771,6 +836,7 @@ class Supervisor:
                     # When this off write returned (SR-12.1): one clock read per output, on
                     # a stop only, after the write (outputs first, SR-6.1).
                     times.off(readback, self.clock())
+            self._applied_outputs = decision.outputs if complete else None
             previous = self.decision
             if (
                 readbacks
@@ -823,11 +889,15 @@ class Supervisor:
         if decision.causes is not self._status_causes or decision.state is not self._status_state:
             # The status line depends on these two alone; a decision of the cheap path keeps
             # the previous one's (SR-9.4).
-            self._status_causes, self._status_state = decision.causes, decision.state
-            status = self._status_text(decision)
-            if status != self._status:
-                self._status = status
-                self.notifier.send(STATUS=status)
+            self._update_status(decision)
+
+    def _update_status(self, decision: Decision) -> None:
+        """systemd's status line, sent when its text changes."""
+        self._status_causes, self._status_state = decision.causes, decision.state
+        status = self._status_text(decision)
+        if status != self._status:
+            self._status = status
+            self.notifier.send(STATUS=status)
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
@@ -893,6 +963,7 @@ class Supervisor:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
         self.counters.internal_faults += 1
         log.exception("internal fault in the main loop")
+        self._applied_outputs = None  # every output driven off here, outside a decision
         for output in self.outputs.values():
             with contextlib.suppress(Exception):
                 output.set(False, now)
