@@ -44,7 +44,7 @@ import select
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -58,6 +58,7 @@ from bench.rig import (
     open_port,
     table,
 )
+from supervisord.daemon.loop import Supervisor
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import (
@@ -118,6 +119,8 @@ class Driver:
         self.answer = b""
         self.user_heartbeats = self.turns = self.frames = 0
         self.counting = False
+        self.inputs_so_far: Callable[[], int] = lambda: 0  # the loop's core inputs, if known
+        self.first_measured_input = 0
 
     def clock(self) -> int:
         return self.now
@@ -133,6 +136,7 @@ class Driver:
         if not self.counting and due >= self.measured_from:
             self.counting = True
             self.turns = self.frames = self.user_heartbeats = 0
+            self.first_measured_input = self.inputs_so_far()
             mark()
         self.now = due
         self.port.write(self.answer + frame)
@@ -178,6 +182,7 @@ def run_srcsd(directory: Path, driver: Driver) -> str:
     text = LASTING_CONFIG.replace('port = "vsc"\n', 'port = "vsc"\nprooftest = "off"\n')
     (directory / "robot.toml").write_text(text)
     config = load_config(directory / "robot.toml")
+    start = driver.now
     supervisor = build_supervisor(config, build_api(config), clock=driver.clock)
     supervisor.start()
     reader = supervisor.link.fileno()
@@ -194,13 +199,37 @@ def run_srcsd(directory: Path, driver: Driver) -> str:
         return wait(0, maxevents)
 
     supervisor._wait = virtual_wait
+    flight = supervisor.flight
+    assert flight is not None
+    driver.inputs_so_far = lambda: flight.count
     while driver.next_due() is not None:
         supervisor.step()
     mark()
     assert supervisor.decision is not None
     state = supervisor.decision.state.value
+    replay_core(supervisor, start, driver.first_measured_input)
     supervisor.shutdown()
     return state
+
+
+def replay_core(supervisor: Supervisor, start: int, first: int) -> None:
+    """The safety core's own share: a fresh core fed the loop's inputs again (the flight
+    recorder's ring holds every one since the start), the measured stretch's between two more
+    marks. The core is pure, so it decides the same (checked)."""
+    from supervisord.safety.core import SafetyCore  # noqa: PLC0415
+
+    assert supervisor.flight is not None
+    inputs = list(supervisor.flight.inputs)
+    assert len(inputs) == supervisor.flight.count, "raise FlightSettings.max_inputs"
+    core = SafetyCore(supervisor.safety, start)
+    for event in inputs[:first]:
+        core.handle(event)
+    mark()
+    for event in inputs[first:]:
+        core.handle(event)
+    mark()
+    assert core.decision == supervisor.decision
+    print(f"core_inputs={len(inputs) - first}")
 
 
 def run_bare(directory: Path, driver: Driver, *, loop: bool) -> str:
@@ -285,13 +314,21 @@ def count(
         )
         if done.returncode != 0:
             raise RuntimeError(f"{model}: the child failed:\n{done.stderr[-2000:]}")
-        stretch = out.with_name(out.name + ".2")  # .1: up to the first mark; .2: to the second
-        totals = re.search(r"^totals: (\d+)", stretch.read_text(), re.MULTILINE)
-        assert totals is not None
+        # .1: up to the first mark; .2: the measured stretch; for srcsd, .4: the core's replay
+        stretch = out.with_name(out.name + ".2")
         if keep is not None:
             keep.write_bytes(stretch.read_bytes())
-        said = dict(re.findall(r"(\w+)=(\S+)", done.stdout.strip().splitlines()[-1]))
-        return int(totals.group(1)), said
+        said = dict(re.findall(r"(\w+)=(\S+)", done.stdout))
+        if model == "srcsd":
+            said["core"] = str(totals(out.with_name(out.name + ".4")))
+        return totals(stretch), said
+
+
+def totals(path: Path) -> int:
+    """The instructions a callgrind file counted."""
+    found = re.search(r"^totals: (\d+)", path.read_text(), re.MULTILINE)
+    assert found is not None, path
+    return int(found.group(1))
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -329,6 +366,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         turns, frames = int(said["turns"]), int(said["frames"])
         measured[model] = (instructions / frames, instructions / turns, said["state"])
         print(f"{model}: {instructions} instructions over {turns} turns, {frames} frames")
+        if "core" in said:
+            core, inputs = int(said["core"]), int(said["core_inputs"])
+            print(
+                f"  of which the safety core, replayed: {core} over {inputs} inputs "
+                f"({core / inputs:,.0f} per input, {core / turns:,.0f} per turn, "
+                f"{100 * core / instructions:.0f} % of srcsd's)"
+            )
     rows = []
     driver = measured.get("driver", (0.0, 0.0, ""))[0]
     for model, (per_frame, per_turn, state) in measured.items():

@@ -149,7 +149,7 @@ def state_push(decision: Decision) -> StatePush:
     return StatePush(state_report(decision))
 
 
-_MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {
+MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {
     Joystick: Topic.JOYSTICK,
     Gps: Topic.GPS,
     RemoteStatus: Topic.REMOTE_STATUS,
@@ -158,7 +158,7 @@ _MESSAGE_TOPICS: Final[Mapping[type, Topic]] = {
 
 def message_topic(message: Message) -> Topic | None:
     """The topic a VSC message is pushed under, or ``None`` for messages that are not pushed."""
-    return _MESSAGE_TOPICS.get(type(message))
+    return MESSAGE_TOPICS.get(type(message))
 
 
 def message_push(

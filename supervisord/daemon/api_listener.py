@@ -30,8 +30,8 @@ from supervisord.api.requests import (
 from supervisord.api.server import ApiServer, Closed, Received, Result, core_event
 from supervisord.api.status import ClientStatus, DaemonStatus, EstopAvailable
 from supervisord.api.views import (
+    MESSAGE_TOPICS,
     message_push,
-    message_topic,
     rearm_status,
     refusal_error,
     remote_report,
@@ -316,7 +316,7 @@ class ApiListener(Listener):
             self._remote = (message, now)
         if self._commissioning is not None:
             self._commissioning[0].received(message)
-        topic = message_topic(message)
+        topic = MESSAGE_TOPICS.get(type(message))  # ``message_topic``, a call fewer per input
         if topic is not None and self.server.subscribed(topic):
             self.server.broadcast(topic, message_push(message))  # type: ignore[arg-type]
 

@@ -110,21 +110,27 @@ class FrameDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Decoded]:
         """Take ``data`` and return the events it completes, in stream order."""
-        self._buffer += data
-        return self._parse(final=False)
+        buf = self._buffer
+        buf += data
+        events: list[Decoded] = []
+        # Whole frames first, then the general loop from where they stopped (SR-9.4).
+        pos = self._whole_frames(buf, events)
+        if pos == len(buf) and not self._noise:
+            del buf[:pos]  # the usual read: whole frames only, a call fewer
+            return events
+        return self._parse(events, pos, final=False)
 
     def end(self) -> list[Decoded]:
         """Close the stream. Each header whose frame never completed is one TRUNCATED event
         (one byte), and the bytes behind it are scanned again, so a frame hidden behind a
         bogus length byte still comes out."""
-        return self._parse(final=True)
-
-    def _parse(self, *, final: bool) -> list[Decoded]:
-        buf = self._buffer
         events: list[Decoded] = []
+        return self._parse(events, self._whole_frames(self._buffer, events), final=True)
+
+    def _parse(self, events: list[Decoded], pos: int, *, final: bool) -> list[Decoded]:
+        """The general loop, from ``pos`` (where the whole frames in ``events`` ended)."""
+        buf = self._buffer
         end = len(buf)
-        # Whole frames first, then the general loop from where they stopped (SR-9.4).
-        pos = self._whole_frames(buf, events)
         if pos == end and not self._noise:
             del buf[:pos]
             return events

@@ -722,3 +722,34 @@ def test_hello_named_connection_keeps_its_name_in_results(
     assert estop.request == Estop()
     assert estop.client.name == "arm"
     assert [c.name for c in loop.server.clients()] == ["arm"]
+
+
+def test_a_turn_without_connections_watches_and_budgets_as_a_full_turn(
+    loop: Loop, peers: Callable[[], Peer]
+) -> None:
+    """SR-9.4, SR-10.1: a turn with nobody connected takes the server's idle path; it watches
+    the same descriptors and renews the same read budget as the full turn would, also after
+    a client that used up a turn's budget has gone, and a client that comes next is served."""
+    server = loop.server
+
+    def full_turn() -> tuple[list[tuple[int, bool]], int, int]:
+        # What descriptors() computes with its idle path set aside, on the same server.
+        server._release_ended()
+        server._new_turn(loop.clock())
+        return server._sockets_watched(), server._share, server._turn_left
+
+    idle = server.descriptors(loop.clock())
+    assert (idle, server._share, server._turn_left) == full_turn()
+    peer = peers()
+    for i in range(3 * server.config.requests_per_turn):  # more than a turn's budget
+        peer.send({"op": "heartbeat", "id": i})
+    loop.until(lambda: peer.has(10))
+    peer.close()
+    loop.until(lambda: bool(loop.of_type(Closed)))
+    loop.turn()  # the ended connection's descriptor is released
+    idle = server.descriptors(loop.clock())
+    assert server._connections == {}
+    assert (idle, server._share, server._turn_left) == full_turn()
+    assert server.descriptors(loop.clock()) is idle  # the same list: the loop compares it
+    late = peers()
+    assert late.ask(loop, {"op": "status", "id": 1})["id"] == 1
