@@ -12,7 +12,15 @@ from pathlib import Path
 
 import pytest
 
-from bench import core_input_cost, heartbeat_jitter, idle_cost, link_loss, rt_budget, stop_latency
+from bench import (
+    core_input_cost,
+    heartbeat_jitter,
+    idle_cost,
+    input_instructions,
+    link_loss,
+    rt_budget,
+    stop_latency,
+)
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
 from supervisord.testkit.wait import wait_until
@@ -159,6 +167,28 @@ def test_core_input_cost_times_a_steady_vsc_and_client_heartbeat(
     assert "round 1 after" in out
     assert "after  median of rounds: VSC heartbeat" in out
     assert out.count("load average") == 2
+
+
+@pytest.mark.parametrize("model", input_instructions.MODELS)
+def test_input_instructions_drives_each_loop_on_its_virtual_clock(
+    model: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SR-9.4: the instruction bench's child (here without valgrind) drives srcsd into RUN and
+    through the VSC's full traffic turn by turn, a turn per frame and one per user heartbeat
+    due between two frames (10 a second: the others fall on a joystick frame's time), sends
+    every user heartbeat, and its replayed core decides as the loop's did; the bare loop
+    switches its output on and sends its user heartbeats."""
+    assert input_instructions.child(model, warm_up=1.0, seconds=2.0, seed=1) == 0
+    said = dict(part.split("=") for part in capsys.readouterr().out.split())
+    assert int(said["frames"]) == 142  # 50 + 20 + 1 frames a second, for 2 s
+    if model == "srcsd":
+        assert said["state"] == "run"
+        assert int(said["turns"]) == 142 + 20  # and the user heartbeats' own turns
+        assert int(said["heartbeats"]) == 40
+        assert int(said["core_inputs"]) >= 142
+    elif model == "bare":
+        assert said["state"] == "on"
+        assert int(said["heartbeats"]) == 40
 
 
 def test_link_loss_never_stops_before_the_timeout(tmp_path: Path) -> None:

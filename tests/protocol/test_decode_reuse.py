@@ -127,10 +127,9 @@ def test_the_joystick_path_decodes_as_the_validating_constructor() -> None:
         words = [rng.randrange(0x1_0000) for _ in range(6)]
         left, right = rng.randrange(256), rng.randrange(256)
         frame = build_frame(0x10, struct.pack("<6HBB", *words, left, right))
+        lx, ly, lz, rx, ry, rz = (Axis.from_word(word) for word in words)
         expected = Joystick(
-            *(Axis.from_word(word) for word in words),
-            DPad.from_byte(left),
-            NumberedButtons.from_byte(right),
+            lx, ly, lz, rx, ry, rz, DPad.from_byte(left), NumberedButtons.from_byte(right)
         )
         (event,) = decoder.feed(frame)
         assert type(event) is Joystick
