@@ -264,8 +264,7 @@ class Supervisor:
         self._wake_r, self._wake_w = socket.socketpair()
         self.sink: Sink | None = None
         self._client_cursor = -1  # the last client descriptor served: the next turn starts after
-        self._limited_unlogged = 0
-        self._next_limit_log = 0
+        self._limited_unlogged = self._next_limit_log = 0  # refusals not logged yet, and when
         self._started_ns: int | None = None  # for ``status``: uptime
         self._version_due = True  # the first record of this start names the version
         # The typed records the sink has as JSON, by ``seq``, until it says what became of
@@ -790,7 +789,7 @@ class Supervisor:
             and decision.state is previous.state
             and not decision.records
             and not decision.refusals
-            and not self._early.written  # SR-9.5: the reflex's writes are the full path's to hand on
+            and not self._early.written  # SR-9.5: the full path hands on the reflex's writes
             and self.steady_path
         ):
             # The steady path (SR-9.4): the same levels as the last decision set, every output
