@@ -112,10 +112,11 @@ FAULTS = (
     ),
     Fault(
         "a re-arm while a client commands motion",
-        "        if commanding:\n            # SR-4.6",
-        "        if False:\n            # SR-4.6",
+        "    if commanding:\n        # SR-4.6",
+        "    if False:\n        # SR-4.6",
         "clients",
         "P18",
+        module="rearm",
     ),
     Fault(
         "the remote's battery report never goes stale before another input",
@@ -154,6 +155,7 @@ FAULTS = (
         "if clear_since is None:",
         "takeover",
         "P2",
+        module="rearm",
     ),
     Fault(
         "the reflex omits an output: an e-stop in RUN leaves the power output to the full step",

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Final
 
@@ -60,7 +59,7 @@ from supervisord.safety.decision import (
     Refusal,
     RefusalReason,
 )
-from supervisord.safety.display import DisplayStore, Notice
+from supervisord.safety.display import DisplayStore
 from supervisord.safety.events import (
     Caller,
     ClientCommand,
@@ -96,26 +95,19 @@ from supervisord.safety.prooftest import (
     ProofTest,
     ProofTestPolicy,
 )
+from supervisord.safety.rearm import RearmRequest, check_rearm
 from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
-from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, Run, VscLink
+from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, VscLink
 from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 IDLE_NS = NS_PER_S  # the longest the core sleeps when nothing else is due
-NOTICE_WIDTH = 20  # characters in a row of the remote's text page (manual table 18)
 INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
 """VSC messages that change no fact the core keeps (``_on_vsc`` ignores them): in a steady
 state they take the cheap path (docs/performance.md "The cheap path"). A whitelist, so that a
 message type added later takes the full path until someone decides otherwise. Remote status
 is inert only while the core does not react to the remote's battery (SR-8.12)."""
-
-
-@dataclass(frozen=True, slots=True)
-class _RearmRequest:
-    kind: RearmKind
-    caller: Caller | None
-    run: Run | None = None  # a takeover's evidence: the run before the Operational heartbeat
 
 
 class SafetyCore:
@@ -371,7 +363,7 @@ class SafetyCore:
 
     def _step(self, event: object, step: Step) -> Decision:
         steady, self._steady = self._steady and self.cheap_path, False
-        request: _RearmRequest | None = None
+        request: RearmRequest | None = None
         if not is_event(event):
             step.refuse(RefusalReason.NOT_AN_EVENT, type(event).__name__, event)
             now = self._now
@@ -406,11 +398,22 @@ class SafetyCore:
         self._clients.end_due(now, self._budget)
         self._refresh(step)  # 3. conditions
         if request is not None:  # 4. re-arm (SR-4)
-            refusals = step.refusals
-            refused = len(refusals)
-            self._check_rearm(request, event, step)
-            if len(refusals) > refused:  # every refused re-arm is recorded (docs/record.md)
-                step.note = (RecordNote.REARM_REFUSED, refusals[-1].message)
+            rearm = check_rearm(
+                request,
+                event,
+                now,
+                state=self._state,
+                config=self._config,
+                book=self._book,
+                vsc=self._vsc,
+                clients=self._clients,
+                display=self._display,
+            )
+            if isinstance(rearm, Rearm):
+                step.rearm = rearm
+            elif rearm is not None:  # every refused re-arm is recorded (docs/record.md)
+                step.refusals.append(rearm)
+                step.note = (RecordNote.REARM_REFUSED, rearm.message)
         if not self._clients.commanding():
             self._display.end_notice()  # nothing commands motion any more (SR-4.6)
         previous = self._state
@@ -545,7 +548,7 @@ class SafetyCore:
 
     # ----------------------------------------------------------------- events
 
-    def _apply(self, event: Event, step: Step) -> _RearmRequest | None:
+    def _apply(self, event: Event, step: Step) -> RearmRequest | None:
         """Step 2: the event updates the facts, through its handler in :data:`_HANDLERS`
         (one per event type; ``tests/safety/test_dispatch.py`` checks that none is missing)."""
         handler = _HANDLERS.get(type(event))
@@ -573,8 +576,8 @@ class SafetyCore:
             step.refuse(RefusalReason.NOTHING_TO_RELEASE, "local_estop", event)
         self._local_estop = None
 
-    def _on_reset(self, event: ResetRequest, step: Step) -> _RearmRequest:
-        return _RearmRequest(RearmKind.LOCAL_RESET, event.caller)
+    def _on_reset(self, event: ResetRequest, step: Step) -> RearmRequest:
+        return RearmRequest(RearmKind.LOCAL_RESET, event.caller)
 
     def _on_internal_fault(self, event: InternalFault, step: Step) -> None:
         self._book.pulse(
@@ -604,7 +607,7 @@ class SafetyCore:
         if reason is not None:
             step.refuse(reason, f"key {event.message.key}", event)
 
-    def _on_vsc(self, event: VscReceived, step: Step) -> _RearmRequest | None:
+    def _on_vsc(self, event: VscReceived, step: Step) -> RearmRequest | None:
         message = event.message
         vsc = self._vsc
         if not vsc.open:
@@ -620,7 +623,7 @@ class SafetyCore:
             if heard.relinked:
                 self._display.relink()
             if heard.takeover:
-                return _RearmRequest(RearmKind.TAKEOVER, None, heard.run)
+                return RearmRequest(RearmKind.TAKEOVER, None, heard.run)
         elif isinstance(message, RemoteStatus):
             if self._battery.cause is not None:
                 self._battery.report(message.battery_level, step.now)
@@ -743,73 +746,6 @@ class SafetyCore:
                     make_details([("observed", outcome.text)]),
                 )
 
-    # ----------------------------------------------------------------- re-arm (SR-4)
-
-    def _check_rearm(self, request: _RearmRequest, event: Event, step: Step) -> None:
-        now = step.now
-        takeover = request.kind is RearmKind.TAKEOVER
-        if takeover and self._state is not State.STOPPED:
-            return  # a takeover outside STOPPED is just the remote leaving pause (SR-3)
-        refusal = self._rearm_refusal(request, now)
-        if refusal is None:
-            self._vsc.rearmed()
-            self._book.release_latches()
-            step.rearm = Rearm(request.kind, request.caller)
-            return
-        reason, detail = refusal
-        if reason is RefusalReason.COMMAND_NONZERO:
-            self._display.notice(self._notice_rows())  # tell the operator (SR-4.6)
-        # The same takeover refusal again within a second is not reported (a flapping VSC,
-        # docs/safety.md "Re-arming"); a new reason always is. A local reset always gets its
-        # answer: a person asked.
-        if takeover and self._vsc.refusal_quiet(reason, now):
-            return
-        step.refuse(reason, detail, event)
-
-    def _rearm_refusal(self, request: _RearmRequest, now: int) -> tuple[RefusalReason, str] | None:
-        """Why the re-arm is refused, or ``None`` when every rule of SR-4 holds."""
-        takeover = request.kind is RearmKind.TAKEOVER
-        if not takeover:
-            caller = request.caller
-            if not self._config.local_reset:
-                return RefusalReason.LOCAL_RESET_DISABLED, ""
-            if caller is None or not caller.admin:
-                return RefusalReason.NOT_ADMIN, caller.name if caller else ""
-            if self._state is not State.STOPPED:
-                return RefusalReason.NOT_STOPPED, self._state.name
-        active = self._book.active_stops()
-        if active:
-            # Safe choice: a re-arm while a stop condition is active does not count, even
-            # later; it must be given after the conditions clear.
-            return RefusalReason.CONDITIONS_ACTIVE, ", ".join(c.name for c in active)
-        if takeover:
-            last_stop = self._book.last_stop_raised_ns
-            refusal = self._vsc.takeover_refusal(request.run, last_stop, now)
-            if refusal is not None:
-                return refusal
-        clear_since = self._book.stops_clear_since()
-        hold = self._config.rearm_hold_ns
-        if clear_since is None or now - clear_since < hold:
-            clear_ms = 0 if clear_since is None else (now - clear_since) // NS_PER_MS
-            return (
-                RefusalReason.HOLD_TIME_NOT_ELAPSED,
-                f"clear for {clear_ms} ms of {hold // NS_PER_MS} ms",
-            )
-        commanding = self._clients.commanding()
-        if commanding:
-            # SR-4.6, checked last: the re-arm breaks no other rule, and the operator is told
-            # the one thing left to do.
-            return RefusalReason.COMMAND_NONZERO, ", ".join(commanding)
-        return None
-
-    def _notice_rows(self) -> Notice:
-        """The remote's text page while a re-arm is refused for a non-zero command (SR-4.6):
-        what happened, who commands motion, what to do (20 characters a row)."""
-        names = self._clients.commanding()
-        more = f" +{len(names) - 1}" if len(names) > 1 else ""
-        who = names[0][: NOTICE_WIDTH - len(more)] + more
-        return ("NOT RE-ARMED", "COMMAND NOT ZERO:", who, "ZERO IT, TAKE OVER")
-
     # ----------------------------------------------------------------- outputs and frames
 
     def _emit_link_frames(self, step: Step, estop: int, *, urgent: bool) -> None:
@@ -852,7 +788,7 @@ class SafetyCore:
         return earliest
 
 
-_Handler = Callable[[SafetyCore, Any, Step], "_RearmRequest | None"]
+_Handler = Callable[[SafetyCore, Any, Step], "RearmRequest | None"]
 _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
     {
         Tick: SafetyCore._on_tick,
