@@ -18,6 +18,7 @@ from pathlib import Path
 from types import ModuleType
 
 from supervisord.safety import SafetyCore
+from supervisord.safety import cheap as real_cheap
 from supervisord.safety import core as real_core
 
 
@@ -124,6 +125,7 @@ FAULTS = (
         "if False:  # SR-8.12: the report is too old",
         "battery_stop",
         "P8",
+        module="deadline",
     ),
     Fault(
         "a low battery is read as a good one",
@@ -207,19 +209,27 @@ def broken_core(fault: Fault) -> type[SafetyCore]:
     if real is real_core:
         core_class: type[SafetyCore] = patched.SafetyCore
         return core_class
-    # core.py again, its ``from supervisord.safety.MODULE import ...`` reading the patched copy
-    real_name = real.__name__
+    # The modules that compose the patched one again, each ``from supervisord.safety.MODULE
+    # import ...`` reading the patched copy: the cheap path (it ends with the next deadline)
+    # unless it is the one patched, then core.py.
+    names = [real.__name__, real_cheap.__name__]
+    originals = {n: sys.modules[n] for n in names}
     try:
-        sys.modules[real_name] = patched
-        module = _load(f"{name}_core", _core_source(), real_core.__file__)
+        sys.modules[real.__name__] = patched
+        if real is not real_cheap:
+            sys.modules[real_cheap.__name__] = _load(
+                f"{name}_cheap", _source(real_cheap), str(real_cheap.__file__)
+            )
+        module = _load(f"{name}_core", _source(real_core), str(real_core.__file__))
     finally:
-        sys.modules[real_name] = real
+        sys.modules.update(originals)
     composed: type[SafetyCore] = module.SafetyCore
     return composed
 
 
-def _core_source() -> str:
-    return Path(real_core.__file__).read_text(encoding="utf-8")
+def _source(module: ModuleType) -> str:
+    assert module.__file__ is not None
+    return Path(module.__file__).read_text(encoding="utf-8")
 
 
 def _load(name: str, source: str, path: str) -> ModuleType:

@@ -35,9 +35,6 @@ from typing import Any, Final
 from supervisord.protocol.codes import FeedbackKey
 from supervisord.protocol.messages import (
     FeedbackSet,
-    Gps,
-    Joystick,
-    Message,
     RemoteStatus,
     UserHeartbeat,
     VscHeartbeat,
@@ -47,8 +44,10 @@ from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
+from supervisord.safety.cheap import SETTLED_PROOF, cheap
 from supervisord.safety.clients import Clients
 from supervisord.safety.config import SafetyConfig, Transport
+from supervisord.safety.deadline import next_deadline
 from supervisord.safety.decision import (
     ChangeKind,
     Decision,
@@ -91,7 +90,6 @@ from supervisord.safety.events import (
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.prooftest import (
     USER_BITS,
-    Phase,
     ProofTest,
     ProofTestPolicy,
 )
@@ -100,14 +98,7 @@ from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, VscLink
-from supervisord.timebase import NS_PER_MS, NS_PER_S
-
-IDLE_NS = NS_PER_S  # the longest the core sleeps when nothing else is due
-INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
-"""VSC messages that change no fact the core keeps (``_on_vsc`` ignores them): in a steady
-state they take the cheap path (docs/performance.md "The cheap path"). A whitelist, so that a
-message type added later takes the full path until someone decides otherwise. Remote status
-is inert only while the core does not react to the remote's battery (SR-8.12)."""
+from supervisord.timebase import NS_PER_MS
 
 
 class SafetyCore:
@@ -227,7 +218,7 @@ class SafetyCore:
     """Attributes ``canonical`` leaves out, and why (``decision`` is read for its deadline)."""
 
     cheap_path = True
-    """Answer inputs that cannot change a decision without the full step (``_cheap``). The
+    """Answer inputs that cannot change a decision without the full step (``cheap.py``). The
     full path is the reference: ``tests/safety/test_cheap_path.py`` switches this off on one
     of two cores and checks that both give the same decisions for random inputs (SR-9.4)."""
     _steady = False  # the last step ended normally: its decision is the state's fixed point
@@ -237,9 +228,28 @@ class SafetyCore:
         """Feed one input; never raises (a failure of the core stops with ``internal``)."""
         step: Step | None = None  # made only for the full step: the cheap path needs none
         try:
-            cheap = self._cheap(event) if self._steady and self.cheap_path else None
-            if cheap is not None:
-                self.decision = cheap
+            decision = (
+                cheap(
+                    event,
+                    self.decision,
+                    self._now,
+                    self._steady_estop,
+                    self._state,
+                    self._book,
+                    self._vsc,
+                    self._proof,
+                    self._clients,
+                    self._outputs,
+                    self._display,
+                    self._battery,
+                    self._budget,
+                )
+                if self._steady and self.cheap_path
+                else None
+            )
+            if decision is not None:
+                self._now = decision.now
+                self.decision = decision
             else:
                 step = Step(self._now)
                 self.decision = self._step(event, step)
@@ -248,118 +258,7 @@ class SafetyCore:
             self.decision = self._fail_safe(event, error, step or Step(self._now))
         return self.decision
 
-    def _cheap(self, event: Event) -> Decision | None:
-        """The decision for an input that cannot change one, or ``None`` for the full step.
-
-        Cheap are a :class:`Tick`, an inert VSC message (:data:`INERT_VSC_MESSAGES`), a VSC
-        heartbeat with the same mode and e-stop word as the last and a client's heartbeat that
-        changes no condition (``Clients.beat_unchanged``: named, in time, no progress value),
-        while the last step ended normally on a fixed point of the table and, either before the
-        previous decision's ``next_deadline`` or when the user heartbeat is the only thing due
-        (:meth:`_only_heartbeat_due`). Then no timeout expires and no other frame is due
-        (``_next_deadline`` lists every one of them), so step 1 of the full path changes
-        nothing; such an input changes no condition (a heartbeat after an expired timeout
-        clears ``vsc_link_lost`` and is not cheap, and so is one while the mode's hold names
-        another mode, which it renames after the dwell) (step 3), asks no re-arm (the mode did not
-        change, step 4), so the state is the previous step's fixed point (step 5) and no
-        record follows (step 6); the one frame is the user heartbeat at its cadence, with the
-        byte of the conditions (SR-5.1, SR-5.2). What can differ is ``now``, the facts the
-        heartbeat moves (its time, the takeover run; a client's time) and so ``next_deadline``,
-        which are computed as the full path does (SR-2.2, SR-2.11: the heartbeat still restarts
-        the link deadline). docs/performance.md "The cheap path".
-        """
-        if type(event) not in _CHEAP_EVENTS or self._proof.phase not in _SETTLED_PROOF:
-            return None  # a proof test pending or running moves with time and heartbeats
-        if self._clients.pending():
-            return None  # a deferred end moves with time (SR-8.5)
-        if self._outputs.braking:
-            return None  # a category-1 output goes off with time (SR-1.4)
-        previous = self.decision
-        now = event.now if event.now > self._now else self._now
-        beat_due = now >= previous.next_deadline
-        if (beat_due and not self._only_heartbeat_due(now)) or not self._fixed_point():
-            return None
-        if type(event) is VscReceived:
-            if not self._cheap_vsc(event.message, now):
-                return None
-        elif type(event) is ClientHeartbeat and not self._clients.beat_unchanged(event, now):
-            return None
-        self._now = now
-        frames: tuple[Message, ...] = ()
-        estop = self._steady_estop
-        if beat_due:
-            # What ``_emit_link_frames`` does for a heartbeat that is not urgent (SR-5.1).
-            frames = (UserHeartbeat(estop),)
-            self._proof.sent(now)
-            self._vsc.beat_sent(now)
-        # Every other field as the previous decision has it, as the full step would compute it
-        # again; ``tests/safety/test_cheap_heartbeat.py`` checks that this lists every field.
-        return Decision(
-            now=now,
-            state=previous.state,
-            causes=previous.causes,
-            outputs=previous.outputs,
-            heartbeat_estop=estop,
-            next_deadline=self._next_deadline(now),
-            frames=frames,
-            records=(),
-            refusals=(),
-            rearm=None,
-            prooftest=previous.prooftest,
-        )
-
-    def _cheap_vsc(self, message: Message, now: int) -> bool:
-        """Whether a VSC message at ``now`` changes nothing the full step would see; a
-        heartbeat that does not is applied to the link (its time, the takeover's run)."""
-        vsc = self._vsc
-        if not vsc.open:
-            return False  # the full path refuses it (LINK_NOT_OPEN)
-        if type(message) is VscHeartbeat:
-            if not vsc.unchanged_by(message, now):
-                return False
-            self._now = now
-            self._proof.heartbeat(message.mode, message.estop, now)
-            heard = vsc.heartbeat(message, now)
-            if heard.takeover or heard.silent_before or heard.relinked:
-                raise AssertionError("a heartbeat of an unchanged mode changed the link")
-            return True
-        # SR-8.12: a remote status is inert only while the battery is not watched
-        return type(message) in _INERT_TYPES and (
-            self._battery.cause is None or type(message) is not RemoteStatus
-        )
-
-    def _only_heartbeat_due(self, now: int) -> bool:
-        """Whether, of everything ``_next_deadline`` lists, the user heartbeat is due at
-        ``now`` and nothing else is (and the proof test does not withhold it): the time at
-        which the full step's only work is to send it."""
-        if self._proof.withholding or not self._vsc.only_beat_due(now):
-            return False
-        if self._clients.expired(now):
-            return False  # a client's timeout expires: the full path raises client_lost
-        display = self._display.next_due()
-        proof = self._proof.next_deadline(self._vsc.key85)
-        stale = self._battery.stale_at()
-        return (
-            (stale is None or stale > now)
-            and (display is None or display > now)
-            and (proof is None or proof > now)
-        )
-
     # ----------------------------------------------------------------- the step
-
-    def _fixed_point(self) -> bool:
-        """Whether the table keeps the state where it is when nothing changes (SR-1): true for
-        every legal row a step can end on; checked anyway, so that a table that ever says
-        otherwise is met by the full step, which turns its refusal into ``internal``."""
-        book = self._book
-        if book.any_latched():
-            situation = Situation.STOP
-        else:
-            situation = Situation.HOLD if book.any_hold() else Situation.CLEAR
-        try:
-            return next_state(self._state, situation) is self._state
-        except IllegalTransition:
-            return False
 
     def _step(self, event: object, step: Step) -> Decision:
         steady, self._steady = self._steady and self.cheap_path, False
@@ -379,8 +278,8 @@ class SafetyCore:
             if not (
                 # Before the previous decision's deadline, after a normal step, with the proof
                 # test settled, time passing changes no condition (the cheap path's argument,
-                # ``_cheap``): step 1 would recompute them to the same (SR-9.4).
-                steady and now < self.decision.next_deadline and self._proof.phase in _SETTLED_PROOF
+                # ``cheap.py``): step 1 would recompute them to the same (SR-9.4).
+                steady and now < self.decision.next_deadline and self._proof.phase in SETTLED_PROOF
             ):
                 self._refresh(step)  # 1. time passes
             # 2. the event, unless its user is past its record budget and it would take a
@@ -505,7 +404,16 @@ class SafetyCore:
             causes=causes,
             outputs=self._outputs.levels(previous, self._state, now),
             heartbeat_estop=estop,
-            next_deadline=self._next_deadline(now),
+            next_deadline=next_deadline(
+                now,
+                self._vsc,
+                self._clients,
+                self._budget,
+                self._battery,
+                self._outputs,
+                self._display,
+                self._proof,
+            ),
             frames=tuple(step.frames),
             records=records,
             refusals=tuple(step.refusals),
@@ -761,32 +669,6 @@ class SafetyCore:
         step.frames += frames
         step.frames.extend(self._display.due(now))
 
-    def _next_deadline(self, now: int) -> int:
-        """The earliest future time at which something falls due; never ``now`` or earlier."""
-        # A deadline already passed has been acted on in this step (an expired timeout stays
-        # expired until a new heartbeat), so only future times count.
-        earliest = now + IDLE_NS
-        clients = self._clients.next_deadline(now, self._budget)
-        if clients is not None and clients < earliest:
-            earliest = clients
-        vsc = self._vsc.next_deadline(now)
-        if vsc is not None and vsc < earliest:
-            earliest = vsc
-        stale = self._battery.stale_at()
-        if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old
-            earliest = stale
-        off = self._outputs.next_deadline(now)  # SR-1.4: a category-1 output goes off
-        if off is not None and off < earliest:
-            earliest = off
-        if self._vsc.open:
-            for later in (
-                self._display.next_due(),
-                self._proof.next_deadline(self._vsc.key85),
-            ):
-                if later is not None and now < later < earliest:
-                    earliest = later
-        return earliest
-
 
 _Handler = Callable[[SafetyCore, Any, Step], "RearmRequest | None"]
 _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
@@ -823,7 +705,6 @@ new event cannot be ignored by omission. Keyed by the exact type: events are fin
 
 _VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
 _LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
-_CHEAP_EVENTS = frozenset({Tick, VscReceived, ClientHeartbeat})
 _CLIENT_EVENTS = (
     ClientConnected,
     ClientHello,
@@ -845,13 +726,6 @@ _LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
 """Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
 away (a release, a re-arm, a hello that ends a required client's loss or names a new
 requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""
-_INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
-"""The only event types ``SafetyCore._cheap`` considers; every other takes the full step."""
-_SETTLED_PROOF = frozenset({Phase.OFF, Phase.PASSED})
-"""Proof-test phases in which neither time nor an unchanged heartbeat moves the proof test
-(docs/safety.md "The proof test"); in any other the cheap path declines."""
-
-
 __all__ = ["LINKED_MODES", "TAKEOVER_DWELL_NS", "SafetyCore"]
 """``LINKED_MODES`` and ``TAKEOVER_DWELL_NS`` are the link's (``vsc.py``), read from here by the
 daemon and the test kit too."""

@@ -18,7 +18,7 @@ from supervisord.safety.availability import (
     Reaction,
     battery_missing,
 )
-from supervisord.safety.core import IDLE_NS
+from supervisord.safety.deadline import IDLE_NS
 from tests.safety.rig import MS, OPERATIONAL, ROBOT, Rig
 
 HOLD = dataclasses.replace(ROBOT, on_estop_unavailable=Reaction.HOLD)

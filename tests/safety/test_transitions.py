@@ -10,6 +10,7 @@ import pytest
 
 from supervisord.protocol.messages import UserHeartbeat
 from supervisord.safety import TABLE, IllegalTransition, RefusalReason, SafetyCore, Situation, State
+from supervisord.safety import cheap as cheap_module
 from supervisord.safety.book import CauseBook
 from supervisord.safety.clients import Clients
 from supervisord.safety.transitions import Transition, _index, next_state
@@ -74,6 +75,7 @@ def test_core_turns_an_illegal_transition_into_internal(monkeypatch: pytest.Monk
         return real(state, situation)
 
     monkeypatch.setattr("supervisord.safety.core.next_state", refusing)
+    monkeypatch.setattr("supervisord.safety.cheap.next_state", refusing)  # its fixed point
     rig.advance(10)
     decision = rig.tick()
     assert decision.state is State.STOPPED
@@ -157,6 +159,21 @@ def _fails_once(monkeypatch: pytest.MonkeyPatch, name: str, owner: type = Safety
     monkeypatch.setattr(owner, name, once)
 
 
+def _fails_once_in_module(monkeypatch: pytest.MonkeyPatch, module: object, name: str) -> None:
+    """Make the function ``module.<name>`` raise the first time it is called, as a bug of the
+    core would, and work from then on."""
+    real = getattr(module, name)
+    calls = []
+
+    def once(*args: object) -> object:
+        calls.append(name)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return real(*args)
+
+    monkeypatch.setattr(module, name, once)
+
+
 def test_after_a_failure_in_a_step_the_next_input_sees_every_condition(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -186,7 +203,7 @@ def test_after_a_failure_in_the_cheap_path_the_next_input_takes_the_full_step(
     the next input is decided by the full step, every condition recomputed."""
     rig = Rig()
     rig.bring_up()
-    _fails_once(monkeypatch, "_fixed_point")  # only the cheap path asks it
+    _fails_once_in_module(monkeypatch, cheap_module, "_fixed_point")  # only the cheap path asks it
     rig.advance(10)
     failed = rig.tick()
     assert failed.state is State.STOPPED

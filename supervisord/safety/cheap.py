@@ -1,0 +1,184 @@
+"""The cheap path of the safety core (docs/performance.md "The cheap path"; SR-9.4).
+
+An input that cannot change a decision is answered without the full step: :func:`cheap`
+decides it from the core's parts and the previous decision, or returns ``None`` for the full
+step. :class:`~supervisord.safety.core.SafetyCore` calls it once per input, before anything
+else, while its last step ended normally; the full step is the reference
+(``tests/safety/test_cheap_path.py`` checks that both give the same decisions, property P17 of
+docs/verification.md that both leave the same state).
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+from supervisord.protocol.messages import (
+    Gps,
+    Joystick,
+    Message,
+    RemoteStatus,
+    UserHeartbeat,
+    VscHeartbeat,
+)
+from supervisord.safety.battery import RemoteBattery
+from supervisord.safety.book import CauseBook
+from supervisord.safety.budget import RecordBudget
+from supervisord.safety.clients import Clients
+from supervisord.safety.deadline import next_deadline
+from supervisord.safety.decision import Decision
+from supervisord.safety.display import DisplayStore
+from supervisord.safety.events import ClientHeartbeat, Event, Tick, VscReceived
+from supervisord.safety.outputs import Outputs
+from supervisord.safety.prooftest import Phase, ProofTest
+from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
+from supervisord.safety.vsc import VscLink
+
+INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
+"""VSC messages that change no fact the core keeps (``SafetyCore._on_vsc`` ignores them): in a
+steady state they take the cheap path. A whitelist, so that a message type added later takes
+the full path until someone decides otherwise. Remote status is inert only while the core does
+not react to the remote's battery (SR-8.12)."""
+SETTLED_PROOF: Final = frozenset({Phase.OFF, Phase.PASSED})
+"""Proof-test phases in which neither time nor an unchanged heartbeat moves the proof test
+(docs/safety.md "The proof test"); in any other the cheap path declines, and the full step
+recomputes the conditions before its event."""
+_CHEAP_EVENTS = frozenset({Tick, VscReceived, ClientHeartbeat})
+_INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
+"""The only VSC message types :func:`cheap` considers; every other takes the full step."""
+
+
+def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
+    event: Event,
+    previous: Decision,
+    last: int,
+    estop: int,
+    state: State,
+    book: CauseBook,
+    vsc: VscLink,
+    proof: ProofTest,
+    clients: Clients,
+    outputs: Outputs,
+    display: DisplayStore,
+    battery: RemoteBattery,
+    budget: RecordBudget,
+) -> Decision | None:
+    """The decision for an input that cannot change one, or ``None`` for the full step.
+
+    ``previous`` is the core's last decision, ``last`` the time of its last input, ``estop``
+    the user heartbeat's byte from the conditions alone (no urgent raise) and ``state`` its
+    state; the machines are the core's. Cheap are a :class:`Tick`, an inert VSC message
+    (:data:`INERT_VSC_MESSAGES`), a VSC heartbeat with the same mode and e-stop word as the
+    last and a client's heartbeat that changes no condition (``Clients.beat_unchanged``: named,
+    in time, no progress value), while the last step ended normally on a fixed point of the
+    table and, either before the previous decision's ``next_deadline`` or when the user
+    heartbeat is the only thing due (:func:`_only_heartbeat_due`). Then no timeout expires and
+    no other frame is due (:func:`~supervisord.safety.deadline.next_deadline` lists every one
+    of them), so step 1 of the full path changes nothing; such an input changes no condition
+    (a heartbeat after an expired timeout clears ``vsc_link_lost`` and is not cheap, and so is
+    one while the mode's hold names another mode, which it renames after the dwell) (step 3),
+    asks no re-arm (the mode did not change, step 4), so the state is the previous step's
+    fixed point (step 5) and no record follows (step 6); the one frame is the user heartbeat
+    at its cadence, with the byte of the conditions (SR-5.1, SR-5.2). What can differ is
+    ``now``, the facts the heartbeat moves (its time, the takeover run; a client's time) and
+    so ``next_deadline``, which are computed as the full path does (SR-2.2, SR-2.11: the
+    heartbeat still restarts the link deadline). The decision's ``now`` is the core's new
+    time of its last input.
+    """
+    if type(event) not in _CHEAP_EVENTS or proof.phase not in SETTLED_PROOF:
+        return None  # a proof test pending or running moves with time and heartbeats
+    if clients.pending():
+        return None  # a deferred end moves with time (SR-8.5)
+    if outputs.braking:
+        return None  # a category-1 output goes off with time (SR-1.4)
+    now = event.now if event.now > last else last
+    beat_due = now >= previous.next_deadline
+    if (
+        beat_due and not _only_heartbeat_due(now, vsc, proof, clients, display, battery)
+    ) or not _fixed_point(state, book):
+        return None
+    if type(event) is VscReceived:
+        if not _cheap_vsc(event.message, now, vsc, proof, battery):
+            return None
+    elif type(event) is ClientHeartbeat and not clients.beat_unchanged(event, now):
+        return None
+    frames: tuple[Message, ...] = ()
+    if beat_due:
+        # What the full step's link frames are for a heartbeat that is not urgent (SR-5.1).
+        frames = (UserHeartbeat(estop),)
+        proof.sent(now)
+        vsc.beat_sent(now)
+    # Every other field as the previous decision has it, as the full step would compute it
+    # again; ``tests/safety/test_cheap_heartbeat.py`` checks that this lists every field.
+    return Decision(
+        now=now,
+        state=previous.state,
+        causes=previous.causes,
+        outputs=previous.outputs,
+        heartbeat_estop=estop,
+        next_deadline=next_deadline(now, vsc, clients, budget, battery, outputs, display, proof),
+        frames=frames,
+        records=(),
+        refusals=(),
+        rearm=None,
+        prooftest=previous.prooftest,
+    )
+
+
+def _cheap_vsc(
+    message: Message, now: int, vsc: VscLink, proof: ProofTest, battery: RemoteBattery
+) -> bool:
+    """Whether a VSC message at ``now`` changes nothing the full step would see; a heartbeat
+    that does not is applied to the link (its time, the takeover's run)."""
+    if not vsc.open:
+        return False  # the full path refuses it (LINK_NOT_OPEN)
+    if type(message) is VscHeartbeat:
+        if not vsc.unchanged_by(message, now):
+            return False
+        proof.heartbeat(message.mode, message.estop, now)
+        heard = vsc.heartbeat(message, now)
+        if heard.takeover or heard.silent_before or heard.relinked:
+            raise AssertionError("a heartbeat of an unchanged mode changed the link")
+        return True
+    # SR-8.12: a remote status is inert only while the battery is not watched
+    return type(message) in _INERT_TYPES and (
+        battery.cause is None or type(message) is not RemoteStatus
+    )
+
+
+def _only_heartbeat_due(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
+    now: int,
+    vsc: VscLink,
+    proof: ProofTest,
+    clients: Clients,
+    display: DisplayStore,
+    battery: RemoteBattery,
+) -> bool:
+    """Whether, of everything the next deadline lists, the user heartbeat is due at ``now``
+    and nothing else is (and the proof test does not withhold it): the time at which the full
+    step's only work is to send it."""
+    if proof.withholding or not vsc.only_beat_due(now):
+        return False
+    if clients.expired(now):
+        return False  # a client's timeout expires: the full path raises client_lost
+    display_due = display.next_due()
+    proof_due = proof.next_deadline(vsc.key85)
+    stale = battery.stale_at()
+    return (
+        (stale is None or stale > now)
+        and (display_due is None or display_due > now)
+        and (proof_due is None or proof_due > now)
+    )
+
+
+def _fixed_point(state: State, book: CauseBook) -> bool:
+    """Whether the table keeps the state where it is when nothing changes (SR-1): true for
+    every legal row a step can end on; checked anyway, so that a table that ever says
+    otherwise is met by the full step, which turns its refusal into ``internal``."""
+    if book.any_latched():
+        situation = Situation.STOP
+    else:
+        situation = Situation.HOLD if book.any_hold() else Situation.CLEAR
+    try:
+        return next_state(state, situation) is state
+    except IllegalTransition:
+        return False
