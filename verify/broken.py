@@ -69,8 +69,8 @@ FAULTS = (
     ),
     Fault(
         "a new stop waits for the next user heartbeat",
-        "self._emit_link_frames(step, estop, urgent=raised_user_estop)",
-        "self._emit_link_frames(step, estop, urgent=False)",
+        "            urgent=raised_user_estop,\n",
+        "            urgent=False,\n",
         "takeover",
         "P5",
     ),

@@ -12,8 +12,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from supervisord.vocabulary import Cause, CauseKind, Severity
+
+if TYPE_CHECKING:
+    from supervisord.safety.events import Caller
 
 Details = tuple[tuple[str, str], ...]
 """What the record says about a cause: sorted ``(key, value)`` text pairs."""
@@ -57,3 +61,12 @@ class CauseState:
 
 
 __all__ = ["Cause", "CauseKind", "CauseState", "Details", "Severity", "make_details"]
+
+
+def caller_details(caller: Caller | None) -> Details:
+    """The details naming who asked for a cause (a local e-stop's caller), or none."""
+    if caller is None:
+        return ()
+    return make_details(
+        [("caller", caller.name[:60]), ("uid", str(caller.uid)), ("pid", str(caller.pid))]
+    )

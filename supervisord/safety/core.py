@@ -43,7 +43,7 @@ from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
-from supervisord.safety.causes import Cause, CauseKind, Details, make_details
+from supervisord.safety.causes import Cause, CauseKind, caller_details, make_details
 from supervisord.safety.cheap import SETTLED_PROOF, cheap
 from supervisord.safety.clients import Clients
 from supervisord.safety.config import SafetyConfig, Transport
@@ -53,7 +53,6 @@ from supervisord.safety.decision import (
     Decision,
     Rearm,
     RearmKind,
-    Record,
     RecordNote,
     Refusal,
     RefusalReason,
@@ -87,6 +86,7 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
+from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.prooftest import (
     USER_BITS,
@@ -351,53 +351,28 @@ class SafetyCore:
         )
         if raised_user_estop:
             estop = 1  # a momentary cause (``internal``) still reaches the VSC once (SR-5)
-        self._emit_link_frames(step, estop, urgent=raised_user_estop)
+        link_frames(
+            step,
+            estop,
+            urgent=raised_user_estop,
+            vsc=self._vsc,
+            proof=self._proof,
+            display=self._display,
+        )
         causes = self._book.snapshot()
-        proof, step.proof_outcome = step.proof_outcome, None
-        # A note of the event's own (a commissioning) and a proof test's outcome in one step are
-        # two records: each kind is what its record is about (SR-7.1).
-        proof_apart = proof if proof is not None and step.note is not None else None
-        if proof is not None and step.note is None:
-            step.note = (RecordNote.PROOFTEST, proof.text)  # a record even if nothing changed
-        records: tuple[Record, ...] = ()
-        if changes or previous is not self._state or step.note is not None:
-            note, reason = step.note or (None, "")
-            self._sequence += 1
+        records = step_records(
+            step,
+            event,
+            sequence=self._sequence,
+            previous=previous,
+            state=self._state,
+            causes=causes,
+            changes=changes,
+        )
+        if records:
+            self._sequence = records[-1].sequence
             if step.charged is not None:
                 self._budget.charge(step.charged[0], now)
-            carried = None if proof_apart is not None else proof
-            records = (
-                Record(
-                    sequence=self._sequence,
-                    monotonic_ns=now,
-                    previous=previous,
-                    state=self._state,
-                    causes=causes,
-                    changes=changes,
-                    trigger=event,
-                    rearm=step.rearm,
-                    note=note,
-                    reason=reason,
-                    prooftest=carried,
-                ),
-            )
-        if proof_apart is not None:
-            self._sequence += 1
-            records += (
-                Record(
-                    sequence=self._sequence,
-                    monotonic_ns=now,
-                    previous=self._state,
-                    state=self._state,
-                    causes=causes,
-                    changes=(),
-                    trigger=event,
-                    rearm=None,
-                    note=RecordNote.PROOFTEST,
-                    reason=proof_apart.text,
-                    prooftest=proof_apart,
-                ),
-            )
         return Decision(
             now=now,
             state=self._state,
@@ -615,7 +590,7 @@ class SafetyCore:
             _LOCAL_ESTOP,
             self._local_estop is not None,
             now,
-            _caller_details(self._local_estop),
+            caller_details(self._local_estop),
         )
         book.sync(CauseKind.OUTPUT_FAULT, self._outputs.faults(), now)
         book.sync(CauseKind.VSC_MODE, vsc.mode_hold(), now)
@@ -655,19 +630,6 @@ class SafetyCore:
                 )
 
     # ----------------------------------------------------------------- outputs and frames
-
-    def _emit_link_frames(self, step: Step, estop: int, *, urgent: bool) -> None:
-        now = step.now
-        if not self._vsc.open:
-            return
-        if urgent:
-            self._proof.abort()  # a new stop reaches the VSC at once, proof test or not
-        # The proof test withholds the user heartbeat (SR-5.3).
-        frames = self._vsc.frames(now, estop, urgent=urgent, withheld=self._proof.withholding)
-        if frames and type(frames[0]) is UserHeartbeat:
-            self._proof.sent(now)
-        step.frames += frames
-        step.frames.extend(self._display.due(now))
 
 
 _Handler = Callable[[SafetyCore, Any, Step], "RearmRequest | None"]
@@ -726,14 +688,8 @@ _LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
 """Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
 away (a release, a re-arm, a hello that ends a required client's loss or names a new
 requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""
+
+
 __all__ = ["LINKED_MODES", "TAKEOVER_DWELL_NS", "SafetyCore"]
 """``LINKED_MODES`` and ``TAKEOVER_DWELL_NS`` are the link's (``vsc.py``), read from here by the
 daemon and the test kit too."""
-
-
-def _caller_details(caller: Caller | None) -> Details:
-    if caller is None:
-        return ()
-    return make_details(
-        [("caller", caller.name[:60]), ("uid", str(caller.uid)), ("pid", str(caller.pid))]
-    )
