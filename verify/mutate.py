@@ -57,6 +57,10 @@ TARGETS = (
     "battery.py",
     "outputs.py",
     "step.py",
+    "rearm.py",
+    "cheap.py",
+    "deadline.py",
+    "finish.py",
     "reflex.py",
 )
 SUITE = "tests/safety"
