@@ -37,14 +37,14 @@ _STEADY_ESTOP = (
     "makes _steady true sets _steady_estop first (_finish): the start value is never read"
 )
 
-_DEADLINE = "SafetyCore._next_deadline"
+_DEADLINE = "next_deadline"
 _LATER_EQUAL = (
     "when the candidate equals earliest, the original keeps earliest and the mutant sets earliest "
     "to the candidate: the same value, and earliest is all the function returns"
 )
 
 _PROOF_SETTLED = (
-    "_only_heartbeat_due runs only from _cheap, after it has declined unless the proof test is "
+    "_only_heartbeat_due runs only from cheap, after it has declined unless the proof test is "
     "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
 )
 
@@ -141,16 +141,15 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         _STEADY_ESTOP,
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._cheap",
-        "now = event.now if event.now > self._now else self._now",
-        "now = event.now if event.now >= self._now else self._now",
-        "the two differ only when event.now equals self._now, where both choices are the same "
-        "number",
+        "cheap.py",
+        "cheap",
+        "now = event.now if event.now > last else last",
+        "now = event.now if event.now >= last else last",
+        "the two differ only when event.now equals last, where both choices are the same number",
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._cheap_vsc",
+        "cheap.py",
+        "_cheap_vsc",
         'raise AssertionError("a heartbeat of an unchanged mode changed the link")',
         "pass",
         "unreachable: VscLink.unchanged_by, checked just before, passes only a heartbeat of the "
@@ -159,17 +158,17 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "remote_linked from that same mode: no relink)",
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._only_heartbeat_due",
-        "and (proof is None or proof > now)",
-        "and (proof is None or proof <= now)",
+        "cheap.py",
+        "_only_heartbeat_due",
+        "and (proof_due is None or proof_due > now)",
+        "and (proof_due is None or proof_due <= now)",
         _PROOF_SETTLED,
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._only_heartbeat_due",
-        "and (proof is None or proof > now)",
-        "and (proof is None or proof >= now)",
+        "cheap.py",
+        "_only_heartbeat_due",
+        "and (proof_due is None or proof_due > now)",
+        "and (proof_due is None or proof_due >= now)",
         _PROOF_SETTLED,
     ),
     Equivalent(
@@ -194,16 +193,6 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "self._budget.charge(step.charged[0], now)",
         "self._budget.charge(step.charged[-1], now)",
         _ONE_UID,
-    ),
-    Equivalent(
-        "core.py",
-        "SafetyCore._step",
-        "step.note = (RecordNote.REARM_REFUSED, refusals[-1].message)",
-        "step.note = (RecordNote.REARM_REFUSED, refusals[-0].message)",
-        "a step that checks a re-arm has no refusal before the check: the events that ask one (a "
-        "reset, a VSC heartbeat on an open link) are applied without a refusal, and a refused or "
-        "limited event asks none; the check adds at most one. So the refusal is the first and "
-        "the last alike",
     ),
     Equivalent(
         "vsc.py",
@@ -262,7 +251,14 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         _LATER_EQUAL,
     ),
     Equivalent(
-        "core.py",
+        "deadline.py",
+        _DEADLINE,
+        "if later is not None and later < earliest:",
+        "if later is not None and later <= earliest:",
+        _LATER_EQUAL + " (the same line for the clients', the link's and the outputs' deadlines)",
+    ),
+    Equivalent(
+        "deadline.py",
         _DEADLINE,
         "if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old",
         "if stale is not None and now < stale <= earliest:  # SR-8.12: the report is too old",
@@ -276,7 +272,7 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         _LATER_EQUAL,
     ),
     Equivalent(
-        "core.py",
+        "deadline.py",
         _DEADLINE,
         "if later is not None and now < later < earliest:",
         "if later is not None and now < later <= earliest:",

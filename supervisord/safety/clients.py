@@ -111,7 +111,7 @@ class Clients:
         """Whether ``event`` at ``now`` changes no condition and is refused nothing: from a
         named client, not required, or required and heard within its timeout, without a
         progress value and not bound to one (SR-8.16). A heartbeat that does not is counted
-        (its time; the cheap path's test, ``SafetyCore._cheap``)."""
+        (its time; the cheap path's test, ``cheap.cheap``)."""
         name = self._connections.get(event.connection)
         if name is None:
             return False  # unknown or before hello: refused (the full path)

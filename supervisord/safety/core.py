@@ -18,11 +18,16 @@ Each step runs in a fixed order:
 
 The core composes machines of its own: the link to the VSC (:mod:`~supervisord.safety.vsc`),
 the clients (:mod:`~supervisord.safety.clients`), the causes (``book``), the record budget,
-the remote's display and the proof test. Each gives the core its handlers, its conditions at
-``now``, its next deadline and its canonical form; the core keeps the order above, the
-transition table and the decision. What one step decides as it goes (its refusals, frames,
-re-arm, note) is a :class:`~supervisord.safety.step.Step`, made at the start of the full step
-and handed to what needs it, never kept on the core.
+the remote's display and battery, the outputs and the proof test. Each gives the core its
+handlers, its conditions at ``now``, its next deadline (the earliest of them is
+:func:`~supervisord.safety.deadline.next_deadline`) and its canonical form. The parts of the
+step are modules of their own: the re-arm check of step 4 (:mod:`~supervisord.safety.rearm`,
+its refusal a value), the frames and records of step 6 (:mod:`~supervisord.safety.finish`),
+and the cheap path (:mod:`~supervisord.safety.cheap`), which answers an input that cannot
+change a decision before the step begins. The core keeps the order above, the transition
+table and the decision. What one step decides as it goes (its refusals, frames, re-arm, note)
+is a :class:`~supervisord.safety.step.Step`, made at the start of the full step and handed to
+what needs it, never kept on the core. docs/safety.md "The core".
 """
 
 from __future__ import annotations

@@ -278,7 +278,7 @@ class VscLink:
     def unchanged_by(self, message: VscHeartbeat, now: int) -> bool:
         """Whether ``message`` at ``now`` changes no condition and asks no re-arm: the same
         mode and word as the last, in time, while no hold may settle or take its name (the
-        cheap path's test, ``SafetyCore._cheap``)."""
+        cheap path's test, ``cheap.cheap``)."""
         last = self.last_ns
         return not (
             last is None  # the first heartbeat clears "never seen" (SR-2.2)
