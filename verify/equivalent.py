@@ -149,7 +149,7 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "cheap.py",
-        "_cheap_vsc",
+        "cheap",
         'raise AssertionError("a heartbeat of an unchanged mode changed the link")',
         "pass",
         "unreachable: VscLink.unchanged_by, checked just before, passes only a heartbeat of the "
