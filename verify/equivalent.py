@@ -159,6 +159,14 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "cheap.py",
+        "cheap",
+        "if heard.takeover or heard.silent_before or heard.relinked:",
+        "if heard.takeover and heard.silent_before and heard.relinked:",
+        "the three are false for every heartbeat that reaches this line (the argument of the "
+        "raise below it, unreachable): the condition is false with and as with or",
+    ),
+    Equivalent(
+        "cheap.py",
         "_only_heartbeat_due",
         "and (proof_due is None or proof_due > now)",
         "and (proof_due is None or proof_due <= now)",
