@@ -301,7 +301,7 @@ class _Search:
         before = node.core.decision
         event = item.build(before.now + delta)
         full = full_step(node.core, event)
-        reflex = node.core.reflex()  # P23: what the loop would write off before the full step
+        reflex = node.core.reflex(event.now)  # P23: what the loop writes off before the step
         after = successor.handle(event)
         ghost = advance(node.ghost, self.config, event, after)
         step = Step(self.config, successor, before, after, event, node.ghost, ghost, full, reflex)

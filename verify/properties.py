@@ -490,7 +490,7 @@ class Step:
     was: Ghost
     seen: Ghost
     full: SafetyCore
-    reflex: Reflex
+    reflex: Reflex | None  # None: time decides too at the heartbeat (SR-9.5)
 
     def __post_init__(self) -> None:
         causes = [(c.name, c.active, c.latched) for c in self.after.causes]
@@ -754,7 +754,7 @@ def _p23(step: Step) -> Iterator[str]:
     event = step.event
     if type(event) is not VscReceived or type(event.message) is not VscHeartbeat:
         return
-    if event.now >= step.before.next_deadline:
+    if step.reflex is None:
         return  # time decides too: the loop leaves such a heartbeat to the full step (SR-9.5)
     message = event.message
     early = step.reflex.off(message.mode, message.estop, event.now)
@@ -881,9 +881,10 @@ PROPERTIES = {
         _p22,
     ),
     "P23": Property(
-        "SR-9.5: for a VSC heartbeat before the deadline, the reflex prepared from the state "
-        "before it switches off exactly the outputs the full step switches off at once: no "
-        "more (a category-1 output within its delay stays on), no fewer",
+        "SR-9.5: for a VSC heartbeat before the deadline, or at a time when only the user "
+        "heartbeat is due, the reflex prepared from the state before it switches off exactly "
+        "the outputs the full step switches off at once: no more (a category-1 output within "
+        "its delay stays on), no fewer",
         _p23,
     ),
 }
@@ -1004,7 +1005,7 @@ def check_trace(
     found: list[Violation] = []
     for event in events:
         full = full_step(core, event)
-        reflex = core.reflex()
+        reflex = core.reflex(event.now)
         after = core.handle(event)
         seen = advance(ghost, config, event, after)
         found += check(Step(config, core, before, after, event, ghost, seen, full, reflex))

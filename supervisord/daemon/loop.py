@@ -693,7 +693,7 @@ class Supervisor:
                 continue
             counters.messages += 1
             if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
-                self._early.heard(item, now, self.core, self.decision)  # type: ignore[arg-type]
+                self._early.heard(item, now, core)  # type: ignore[arg-type]
             received_by(item, now)  # type: ignore[arg-type]
             if kind is not HidInput:
                 # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per

@@ -4,12 +4,13 @@ decision that follows.
 
 The safety core gives, from the state it is in, the outputs a VSC heartbeat switches off at
 once (:mod:`supervisord.safety.reflex`). For a heartbeat whose mode or e-stop word differ from
-the last one's, read before the core's ``next_deadline``, :meth:`EarlyOff.heard` writes those
-outputs off; the loop then feeds the heartbeat to the core as always, and applies the decision
-with :meth:`EarlyOff.take`: the early writes count as that decision's writes (their
-read-backs go back to the core after it, as every write's do; the stop's times to off are
-theirs), and the decision's own write of an output already off is skipped, as for any output
-already at its level. Records, frames, pushes follow the decision, as before.
+the last one's, read when time decides nothing else (``SafetyCore.reflex``),
+:meth:`EarlyOff.heard` writes those outputs off; the loop then feeds the heartbeat to the core
+as always, and applies the decision with :meth:`EarlyOff.take`: the early writes count as that
+decision's writes (their read-backs go back to the core after it, as every write's do; the
+stop's times to off are theirs), and the decision's own write of an output already off is
+skipped, as for any output already at its level. Records, frames, pushes follow the decision,
+as before.
 
 Only ever off, never on. A failure here is logged and changes nothing else: the full step
 follows and decides the stop, as it would without the reflex.
@@ -24,7 +25,6 @@ from supervisord.daemon.stoptimes import StopTimes
 from supervisord.outputs.base import Output, ReadBack
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.safety.core import SafetyCore
-from supervisord.safety.decision import Decision
 
 log = logging.getLogger("srcsd")
 
@@ -38,19 +38,18 @@ class EarlyOff:
         self._word: tuple[int, int] | None = None  # the last heartbeat's mode and e-stop word
         self.written: list[tuple[ReadBack, int]] = []  # each write, and when it returned
 
-    def heard(
-        self, message: VscHeartbeat, now: int, core: SafetyCore | None, decision: Decision | None
-    ) -> None:
+    def heard(self, message: VscHeartbeat, now: int, core: SafetyCore) -> None:
         """A VSC heartbeat read at ``now``, before the core is fed it: switch off at once what
-        the core's reflex names for it (SR-9.5). ``decision``: the core's latest."""
+        the core's reflex names for it (SR-9.5)."""
         word = (message.mode, message.estop)
         if word == self._word:
             return  # the state already answers this word: nothing goes off (the usual case)
         self._word = word
-        if core is None or decision is None or now >= decision.next_deadline:
-            return  # a deadline is due too: time decides as well, so the full step alone
         try:
-            for name in core.reflex().off(message.mode, message.estop, now):
+            reflex = core.reflex(now)
+            if reflex is None:
+                return  # time decides too (a timeout is due): the full step alone
+            for name in reflex.off(message.mode, message.estop, now):
                 output = self._outputs.get(name)
                 if output is not None and output.is_open and output.requested:
                     readback = output.set(False, now)

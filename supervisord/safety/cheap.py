@@ -140,6 +140,26 @@ def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
     )
 
 
+def only_the_beat_moves(  # noqa: PLR0917 -- positional, as the cheap path's
+    now: int,
+    vsc: VscLink,
+    proof: ProofTest,
+    clients: Clients,
+    outputs: Outputs,
+    display: DisplayStore,
+    battery: RemoteBattery,
+) -> bool:
+    """Whether at ``now`` time moves nothing but the user heartbeat: the proof test settled, no
+    client's end deferred, no category-1 output braking, and of everything due only the beat.
+    The cheap path's own test of time; the reflex holds at such a time too (SR-9.5)."""
+    return (
+        proof.phase in SETTLED_PROOF
+        and not clients.pending()
+        and not outputs.braking
+        and _only_heartbeat_due(now, vsc, proof, clients, display, battery)
+    )
+
+
 def _only_heartbeat_due(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
     now: int,
     vsc: VscLink,

@@ -49,7 +49,7 @@ from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, caller_details, make_details
-from supervisord.safety.cheap import SETTLED_PROOF, cheap
+from supervisord.safety.cheap import SETTLED_PROOF, cheap, only_the_beat_moves
 from supervisord.safety.clients import Clients
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.deadline import next_deadline
@@ -148,10 +148,24 @@ class SafetyCore:
     def config(self) -> SafetyConfig:
         return self._config
 
-    def reflex(self) -> Reflex:
-        """What a stopping VSC heartbeat switches off at once from this state, for the daemon
-        to write before the full step (SR-9.5, :mod:`~supervisord.safety.reflex`). Derived
+    def reflex(self, now: int) -> Reflex | None:
+        """What a stopping VSC heartbeat read at ``now`` switches off at once from this state,
+        for the daemon to write before the full step (SR-9.5, :mod:`~supervisord.safety.reflex`);
+        ``None`` when time decides too at ``now`` (a deadline other than the user heartbeat's
+        is due: a timeout, a braking output, the proof test), the full step's alone. The user
+        heartbeat's deadline alone does not count: the VSC's heartbeats and the user
+        heartbeat keep one cadence, so a stop often arrives just as the beat is due. Derived
         from the state, no part of it: a pure function, kept for the last states seen."""
+        if now >= self.decision.next_deadline and not only_the_beat_moves(
+            now,
+            self._vsc,
+            self._proof,
+            self._clients,
+            self._outputs,
+            self._display,
+            self._battery,
+        ):
+            return None
         return prepare(self._state, *self._outputs.reflex_facts())
 
     def tick(self, now: int) -> Decision:

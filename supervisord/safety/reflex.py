@@ -22,8 +22,9 @@ exploration's P23 checks it in every state and for every heartbeat it explores):
   with a heartbeat).
 
 The reflex only ever switches outputs off. It holds for a heartbeat that arrives before the
-core's ``next_deadline``: later, time passing (a timeout) decides too, and the loop leaves
-that heartbeat to the full step. It is derived from the state and no part of it: not in the
+core's ``next_deadline``, or when only the user heartbeat is due then: at any other time, time
+passing (a timeout) decides too, the core gives no reflex and the loop leaves that heartbeat
+to the full step. It is derived from the state and no part of it: not in the
 canonical form, not in the snapshot.
 """
 
@@ -60,8 +61,8 @@ class Reflex:
     table: Mapping[Key, Entry]
 
     def off(self, mode: int, estop: int, now: int) -> tuple[str, ...]:
-        """The outputs a VSC heartbeat with ``mode`` and ``estop``, read at ``now`` (before
-        the core's ``next_deadline``), switches off at once."""
+        """The outputs a VSC heartbeat with ``mode`` and ``estop``, read at ``now`` (when time
+        decides nothing else, ``SafetyCore.reflex``), switches off at once."""
         entry = self.table.get((mode != OPERATIONAL, estop != 0))
         if entry is None:
             return ()

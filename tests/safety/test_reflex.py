@@ -19,7 +19,9 @@ def _switched_off(before: Decision, after: Decision) -> list[str]:
 
 def _early_and_full(rig: Rig, mode: int, estop: int) -> tuple[list[str], list[str]]:
     """The reflex's outputs for the heartbeat, and the full step's, fed it."""
-    early = rig.core.reflex().off(mode, estop, rig.now)
+    reflex = rig.core.reflex(rig.now)
+    assert reflex is not None, "time decides nothing else here: the reflex holds"
+    early = reflex.off(mode, estop, rig.now)
     before = rig.last
     return sorted(early), _switched_off(before, rig.vsc(mode, estop))
 
@@ -81,5 +83,30 @@ def test_in_stopped_the_reflex_switches_nothing_off() -> None:
     rig.advance(20)
     rig.vsc(OPERATIONAL, REMOTE_ESTOP)
     before = rig.core.canonical()
-    assert rig.core.reflex() is NOTHING
+    assert rig.core.reflex(rig.now) is NOTHING
     assert rig.core.canonical() == before
+
+
+def test_the_reflex_holds_when_the_user_heartbeat_alone_is_due() -> None:
+    """SR-9.5: a stopping heartbeat read just as the user heartbeat falls due (the VSC's
+    heartbeats and the user heartbeat keep one cadence, so a stop often comes then) still has
+    its outputs switched off by the reflex, exactly as the full step does; the beat's deadline
+    is not a time at which anything else moves."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    rig.vsc(OPERATIONAL, 0)
+    rig.now = rig.last.next_deadline  # the user heartbeat's, nothing else due (RUN, in time)
+    assert _early_and_full(rig, OPERATIONAL, REMOTE_ESTOP) == (["drive", "lights"],) * 2
+    assert any(type(frame).__name__ == "UserHeartbeat" for frame in rig.last.frames)
+
+
+def test_the_reflex_steps_aside_when_a_timeout_is_due() -> None:
+    """SR-9.5, SR-2.2: at a time when the VSC's timeout has expired too, the core gives no
+    reflex (``None``): time decides as well, and the full step alone switches the outputs."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    rig.vsc(OPERATIONAL, 0)
+    rig.advance(10_000)  # far past the VSC's timeout, no heartbeat meanwhile
+    assert rig.core.reflex(rig.now) is None
