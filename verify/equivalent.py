@@ -312,6 +312,17 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "step.py",
         "Step",
+        "arriving: bool = False",
+        "arriving: bool = True",
+        "the default is read only by the battery's judgement in a step whose input is no event "
+        "(the full step sets step.arriving for every event); such a step comes at an instant "
+        "the core has already judged at the same rule (a report refused on a closed link counts "
+        "as no report, SR-8.12), so a report 'arriving' in it finds the battery as the step before "
+        "did: no condition differs",
+    ),
+    Equivalent(
+        "step.py",
+        "Step",
         "limited: bool = False  # the input's user is past its record budget (SR-8.5)",
         "limited: bool = True  # the input's user is past its record budget (SR-8.5)",
         "read only by the handlers of a local release and of a disconnection, which run only "

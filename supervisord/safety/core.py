@@ -289,10 +289,11 @@ class SafetyCore:
         else:
             # A clock that goes back is treated as not moving: no deadline is ever un-expired.
             now = step.now = self._now = max(self._now, event.now)
-            step.arriving = (
+            step.arriving = (  # a report taken in: one refused (link not open) is none (SR-8.12)
                 self._battery.cause is not None
                 and type(event) is VscReceived
                 and type(event.message) is RemoteStatus
+                and self._vsc.open
             )
             if not (
                 # Before the previous decision's deadline, after a normal step, with the proof

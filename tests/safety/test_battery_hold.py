@@ -230,6 +230,25 @@ def test_an_input_that_brings_no_report_at_the_limit_finds_the_battery_stale(
 
 
 @pytest.mark.parametrize("config", [HOLD, STOP], ids=["hold", "stop"])
+def test_a_report_refused_on_a_closed_link_at_the_limit_finds_the_battery_stale(
+    config: SafetyConfig,
+) -> None:
+    """SR-8.12: a remote status refused because the link is not open, arriving exactly 3.5 s
+    after the last report taken in, is no report: its own step finds the battery stale (only a
+    report taken in keeps the battery reported at the limit)."""
+    rig = running(config)
+    seen = _reported(rig)
+    rig.advance(100)
+    rig.feed(LinkClosed(rig.now, "reopening"))
+    rig.now = seen + REMOTE_STATUS_FRESH_NS
+    refused = rig.from_vsc(RemoteStatus(80))
+    assert [r.reason for r in refused.refusals] == [RefusalReason.LINK_NOT_OPEN]
+    (cause,) = [c for c in refused.causes if c.name == _CAUSE[config.on_estop_unavailable]]
+    assert cause.active
+    assert cause.detail("reason") == "the remote's battery has not been reported for 3.5 s"
+
+
+@pytest.mark.parametrize("config", [HOLD, STOP], ids=["hold", "stop"])
 def test_three_reports_lost_in_a_row_hold_or_stop_at_the_deadline(
     config: SafetyConfig,
 ) -> None:
