@@ -795,14 +795,8 @@ class Supervisor:
             # The steady path (SR-9.4): the same levels as the last decision set, every output
             # already at them (nothing else has driven one since), the same state (the stop
             # times were told already) and nothing to record or refuse: what the full path
-            # below does for it is only this. The frames (the user heartbeat) still go out.
-            if decision is not previous:
-                self.decision = decision
-                if decision.frames:
-                    self._send(decision.frames, decision.now)
-                self.listener.decided(decision)
-                if decision.causes is not self._status_causes:
-                    self._update_status(decision)
+            # below does for it is only its finish. The frames (the user heartbeat) still go out.
+            self._finish(decision)
             return
         self._apply_full(decision, since)
 
@@ -846,8 +840,8 @@ class Supervisor:
                 # A change into STOPPED that switched outputs off: the clock when the writes
                 # returned, observed only after the frames are sent (SR-6, SR-10).
                 # SR-9.5: when the last off write returned, the reflex's if it wrote them all
-                late = early_ns is None or len(readbacks) > early_writes
-                off_ns = self.clock() if late or early_ns is None else early_ns
+                only_early = len(readbacks) == early_writes  # nothing written here after it
+                off_ns = early_ns if early_ns is not None and only_early else self.clock()
                 self._finish(decision)
                 start = decision.now if since is None else min(since, decision.now)
                 self.timings.stop_to_off.observe(off_ns - start)
