@@ -80,13 +80,15 @@ FAULTS = (
         "untested = False",
         "proof",
         "P6",
+        module="conditions",
     ),
     Fault(
         "a required client not there keeps the proof test waiting",
-        "calm = not self._book.user_estop(proof.quiet(stopped)) and",
-        "calm = not self._book.user_estop() and",
+        "calm = not book.user_estop(proof.quiet(stopped)) and",
+        "calm = not book.user_estop() and",
         "proof_clients",
         "P20",
+        module="conditions",
     ),
     Fault(
         "a missing required client's byte stays 0 after the proof test",

@@ -57,6 +57,7 @@ TARGETS = (
     "battery.py",
     "outputs.py",
     "step.py",
+    "conditions.py",
     "rearm.py",
     "cheap.py",
     "deadline.py",

@@ -48,9 +48,10 @@ from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
-from supervisord.safety.causes import Cause, CauseKind, caller_details, make_details
+from supervisord.safety.causes import Cause, CauseKind, make_details
 from supervisord.safety.cheap import SETTLED_PROOF, cheap, only_the_beat_moves
 from supervisord.safety.clients import Clients
+from supervisord.safety.conditions import refresh
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.deadline import next_deadline
 from supervisord.safety.decision import (
@@ -93,11 +94,7 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
-from supervisord.safety.prooftest import (
-    USER_BITS,
-    ProofTest,
-    ProofTestPolicy,
-)
+from supervisord.safety.prooftest import ProofTest, ProofTestPolicy
 from supervisord.safety.rearm import RearmRequest, check_rearm
 from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
@@ -593,63 +590,19 @@ class SafetyCore:
     # ----------------------------------------------------------------- conditions
 
     def _refresh(self, step: Step) -> None:
-        """Recompute every lasting condition from the facts (SR-2, SR-3). A condition's
-        details are built only when it holds: the book reads them only then."""
-        now = step.now
-        self._advance_proof(step)
-        book, vsc = self._book, self._vsc
-        for cause, details in vsc.link_conditions(now):
-            book.set(cause, details is not None, now, details or ())
-        proof = self._proof
-        untested = proof.untested
-        book.set(_VSC_WATCHDOG_UNTESTED, untested, now, proof.details() if untested else ())
-        clients = self._clients
-        book.sync(CauseKind.CLIENT_LOST, clients.lost(now), now)
-        book.sync(CauseKind.CLIENT_ESTOP, clients.estops(), now)
-        book.set(
-            _LOCAL_ESTOP,
-            self._local_estop is not None,
-            now,
-            caller_details(self._local_estop),
+        """Steps 1 and 3: every lasting condition recomputed (:mod:`~supervisord.safety.
+        conditions`); a method of the core, so that a test can count the full path's."""
+        refresh(
+            step,
+            state=self._state,
+            local_estop=self._local_estop,
+            book=self._book,
+            vsc=self._vsc,
+            proof=self._proof,
+            clients=self._clients,
+            outputs=self._outputs,
+            battery=self._battery,
         )
-        book.sync(CauseKind.OUTPUT_FAULT, self._outputs.faults(), now)
-        book.sync(CauseKind.VSC_MODE, vsc.mode_hold(), now)
-        book.sync(CauseKind.CLIENT_HOLD, clients.holds(), now)
-        battery = self._battery
-        if battery.cause is not None:  # SR-8.12: when watched
-            words = battery.judge(now, arriving=step.arriving, taken_in=step.taken_in)
-            details = make_details([("reason", words)]) if words is not None else ()
-            book.set(battery.cause, words is not None, now, details)
-
-    def _advance_proof(self, step: Step) -> None:
-        """Start, abort or time out the proof test (docs/safety.md "The proof test"). It runs
-        only while STOPPED, with the VSC heard and nothing of ours asking it to stop (the
-        heartbeat's byte at 0, so bits 6-7 are the watchdog's alone, PR-2.6)."""
-        proof = self._proof
-        if proof.policy is ProofTestPolicy.OFF:
-            return
-        now, vsc = step.now, self._vsc
-        heard = vsc.heard(now)
-        stopped = self._state is State.STOPPED
-        # SR-8.15: a required client not there yet is no reason to wait (its service may
-        # start behind ``srcsctl wait-ready``, which waits for this test).
-        calm = not self._book.user_estop(proof.quiet(stopped)) and self._local_estop is None
-        if proof.running and not (heard and calm and stopped):
-            proof.abort()  # our own stop must reach the VSC at once (SR-5.2)
-        ready = heard and calm and stopped and vsc.estop_word & USER_BITS == 0
-        proof.advance(now, ready, vsc.key85, vsc.mode)
-        outcome = proof.take_outcome()
-        if outcome is not None:
-            step.proof_outcome = outcome
-            if not outcome.passed and proof.policy is ProofTestPolicy.RECORD:
-                # The record policy: a failure is a momentary stop, latched until a re-arm.
-                self._book.pulse(
-                    Cause(CauseKind.VSC_WATCHDOG_UNTESTED),
-                    now,
-                    make_details([("observed", outcome.text)]),
-                )
-
-    # ----------------------------------------------------------------- outputs and frames
 
 
 _Handler = Callable[[SafetyCore, Any, Step], "RearmRequest | None"]
@@ -685,8 +638,6 @@ of :data:`~supervisord.safety.events.Event` has one (``tests/safety/test_dispatc
 new event cannot be ignored by omission. Keyed by the exact type: events are final."""
 
 
-_VSC_WATCHDOG_UNTESTED = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
-_LOCAL_ESTOP = Cause(CauseKind.LOCAL_ESTOP)
 _CLIENT_EVENTS = (
     ClientConnected,
     ClientHello,
