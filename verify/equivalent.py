@@ -189,10 +189,10 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "value written at a step's start is never read",
     ),
     Equivalent(
-        "core.py",
-        "SafetyCore._step",
-        "step.limited = step.charged is not None and self._budget.exhausted(step.charged[0], now)",
-        "step.limited = step.charged is not None and self._budget.exhausted(step.charged[-1], now)",
+        "charging.py",
+        "charge_step",
+        "step.limited = step.charged is not None and budget.exhausted(step.charged[0], step.now)",
+        "step.limited = step.charged is not None and budget.exhausted(step.charged[-1], step.now)",
         _ONE_UID,
     ),
     Equivalent(

@@ -58,6 +58,7 @@ TARGETS = (
     "outputs.py",
     "step.py",
     "conditions.py",
+    "charging.py",
     "rearm.py",
     "cheap.py",
     "deadline.py",

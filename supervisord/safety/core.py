@@ -49,6 +49,7 @@ from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, make_details
+from supervisord.safety.charging import charge_step
 from supervisord.safety.cheap import SETTLED_PROOF, cheap, only_the_beat_moves
 from supervisord.safety.clients import Clients
 from supervisord.safety.conditions import refresh
@@ -300,14 +301,8 @@ class SafetyCore:
             ):
                 self._refresh(step)  # 1. time passes
             # 2. the event, unless its user is past its record budget and it would take a
-            # reason to stop away (SR-8.5)
-            # Whom to charge is read before the event is applied (a disconnection forgets
-            # its connection's uid).
-            step.charged = (
-                (self._clients.uid(event),) if isinstance(event, _CLIENT_EVENTS) else None
-            )
-            step.limited = step.charged is not None and self._budget.exhausted(step.charged[0], now)
-            if step.limited and isinstance(event, _LIMITED_EVENTS):
+            # reason to stop away (SR-8.5, ``charging.py``)
+            if charge_step(step, event, self._clients, self._budget):
                 step.refuse(RefusalReason.RATE_LIMITED, type(event).__name__, event)
             else:
                 request = self._apply(event, step)
@@ -636,29 +631,6 @@ _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
 """Step 2's dispatch: each event type to the handler that applies it to the facts. Every type
 of :data:`~supervisord.safety.events.Event` has one (``tests/safety/test_dispatch.py``), so a
 new event cannot be ignored by omission. Keyed by the exact type: events are final."""
-
-
-_CLIENT_EVENTS = (
-    ClientConnected,
-    ClientHello,
-    ClientHeartbeat,
-    ClientEstop,
-    ClientHold,
-    ClientCommand,
-    ClientRelease,
-    ClientDisconnected,
-    LocalEstop,
-    LocalRelease,
-    ResetRequest,
-    ProofTestRequest,
-    Commissioned,
-    StopTested,
-)
-"""Inputs from the client socket: the records they cause are charged to their user (SR-8.5)."""
-_LIMITED_EVENTS = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
-"""Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
-away (a release, a re-arm, a hello that ends a required client's loss or names a new
-requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""
 
 
 __all__ = ["LINKED_MODES", "TAKEOVER_DWELL_NS", "SafetyCore"]
