@@ -59,6 +59,7 @@ TARGETS = (
     "step.py",
     "conditions.py",
     "charging.py",
+    "proofrequest.py",
     "rearm.py",
     "cheap.py",
     "deadline.py",

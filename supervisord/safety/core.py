@@ -95,6 +95,7 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
+from supervisord.safety.proofrequest import request_prooftest
 from supervisord.safety.prooftest import ProofTest, ProofTestPolicy
 from supervisord.safety.rearm import RearmRequest, check_rearm
 from supervisord.safety.reflex import Reflex, prepare
@@ -540,17 +541,9 @@ class SafetyCore:
         self._proof.restart()
 
     def _on_prooftest(self, event: ProofTestRequest, step: Step) -> None:
-        """``srcsctl prooftest``: admins only, only while STOPPED, one at a time."""
-        if self._proof.policy is ProofTestPolicy.OFF:
-            step.refuse(RefusalReason.PROOFTEST_NOT_POSSIBLE, self._config.transport.value, event)
-        elif not event.caller.admin:
-            step.refuse(RefusalReason.NOT_ADMIN, event.caller.name[:60], event)
-        elif self._state is not State.STOPPED:
-            step.refuse(RefusalReason.PROOFTEST_NOT_STOPPED, self._state.name, event)
-        elif self._proof.running:
-            step.refuse(RefusalReason.PROOFTEST_RUNNING, self._proof.phase.value, event)
-        else:
-            self._proof.restart()
+        """``srcsctl prooftest``: begun, or refused (``proofrequest.py``)."""
+        transport = self._config.transport
+        step.refuse_if(request_prooftest(event, self._proof, self._state, transport))
 
     def _on_connected(self, event: ClientConnected, step: Step) -> None:
         step.refuse_if(self._clients.connected(event))
