@@ -60,6 +60,7 @@ TARGETS = (
     "conditions.py",
     "charging.py",
     "proofrequest.py",
+    "vscmessage.py",
     "rearm.py",
     "cheap.py",
     "deadline.py",

@@ -37,13 +37,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any, Final
 
-from supervisord.protocol.codes import FeedbackKey
-from supervisord.protocol.messages import (
-    FeedbackSet,
-    RemoteStatus,
-    UserHeartbeat,
-    VscHeartbeat,
-)
+from supervisord.protocol.messages import RemoteStatus, UserHeartbeat
 from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
@@ -102,6 +96,7 @@ from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
 from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, VscLink
+from supervisord.safety.vscmessage import take_vsc_message
 from supervisord.timebase import NS_PER_MS
 
 
@@ -504,32 +499,9 @@ class SafetyCore:
             step.refuse(reason, f"key {event.message.key}", event)
 
     def _on_vsc(self, event: VscReceived, step: Step) -> RearmRequest | None:
-        message = event.message
-        vsc = self._vsc
-        if not vsc.open:
-            step.refuse(RefusalReason.LINK_NOT_OPEN, type(message).__name__, event)
-            return None
-        if isinstance(message, VscHeartbeat):
-            heard = vsc.heartbeat(message, step.now)
-            if heard.silent_before:
-                # The VSC was silent: it may have rebooted (a firmware update can reset key
-                # 85), so its watchdog is proven again (docs/safety.md "The proof test").
-                self._proof.restart()
-            self._proof.heartbeat(message.mode, message.estop, step.now)
-            if heard.relinked:
-                self._display.relink()
-            if heard.takeover:
-                return RearmRequest(RearmKind.TAKEOVER, None, heard.run)
-        elif isinstance(message, RemoteStatus):
-            if self._battery.cause is not None:
-                self._battery.report(message.battery_level, step.now)
-                step.taken_in = True
-        elif isinstance(message, FeedbackSet):
-            if message.key == FeedbackKey.USER_ESTOP_TIMEOUT:
-                vsc.key85_read(message.value)
-            else:
-                self._display.edited_on_remote(message)
-        return None
+        """A message of the VSC tells the machines what it says (``vscmessage.py``)."""
+        vsc, proof, display, battery = self._vsc, self._proof, self._display, self._battery
+        return take_vsc_message(event, step, vsc=vsc, proof=proof, display=display, battery=battery)
 
     def _on_link_opened(self, event: LinkOpened, step: Step) -> None:
         self._vsc.opened(step.now)
