@@ -16,18 +16,18 @@ Each step runs in a fixed order:
 5. the transition table gives the new state (SR-1);
 6. outputs, frames, the next deadline and the record follow.
 
-The core composes machines of its own: the link to the VSC (:mod:`~supervisord.safety.vsc`),
-the clients (:mod:`~supervisord.safety.clients`), the causes (``book``), the record budget,
-the remote's display and battery, the outputs and the proof test. Each gives the core its
-handlers, its conditions at ``now``, its next deadline (the earliest of them is
-:func:`~supervisord.safety.deadline.next_deadline`) and its canonical form. The parts of the
-step are modules of their own: the re-arm check of step 4 (:mod:`~supervisord.safety.rearm`,
-its refusal a value), the frames and records of step 6 (:mod:`~supervisord.safety.finish`),
-and the cheap path (:mod:`~supervisord.safety.cheap`), which answers an input that cannot
-change a decision before the step begins. The core keeps the order above, the transition
-table and the decision. What one step decides as it goes (its refusals, frames, re-arm, note)
-is a :class:`~supervisord.safety.step.Step`, made at the start of the full step and handed to
-what needs it, never kept on the core. docs/safety.md "The core".
+The core composes machines of its own: the link to the VSC (``vsc``), the clients, the causes
+(``book``), the record budget, the remote's display and battery, the outputs and the proof
+test. Each gives the core its handlers, its conditions at ``now``, its next deadline (the
+earliest of them is ``deadline.next_deadline``) and its canonical form. The parts of the step
+are modules of their own, each handed the machines it reads: steps 1 and 3 (``conditions``),
+step 2's charge to the record budget (``charging``), a message of the VSC (``vscmessage``)
+and the proof test's request (``proofrequest``), the re-arm check of step 4 (``rearm``), the
+frames and records of step 6 (``finish``), and the cheap path (``cheap``), which answers an
+input that cannot change a decision before the step begins. The core keeps the order above,
+the transition table and the decision. What one step decides as it goes (its refusals,
+frames, re-arm, note) is a :class:`~supervisord.safety.step.Step`, made at the start of the
+full step and handed to what needs it, never kept on the core. docs/safety.md "The core".
 """
 
 from __future__ import annotations
@@ -329,6 +329,21 @@ class SafetyCore:
         self._steady = True  # a normal end: the next input may take the cheap path
         return decision
 
+    def _refresh(self, step: Step) -> None:
+        """Steps 1 and 3: every lasting condition recomputed (``conditions.py``); a method of
+        the core, so that a test can count the full path's recomputations."""
+        refresh(
+            step,
+            state=self._state,
+            local_estop=self._local_estop,
+            book=self._book,
+            vsc=self._vsc,
+            proof=self._proof,
+            clients=self._clients,
+            outputs=self._outputs,
+            battery=self._battery,
+        )
+
     def _transition(self, step: Step) -> State:
         try:
             return next_state(self._state, self._situation(step.rearm))
@@ -514,8 +529,7 @@ class SafetyCore:
 
     def _on_prooftest(self, event: ProofTestRequest, step: Step) -> None:
         """``srcsctl prooftest``: begun, or refused (``proofrequest.py``)."""
-        transport = self._config.transport
-        step.refuse_if(request_prooftest(event, self._proof, self._state, transport))
+        step.refuse_if(request_prooftest(event, self._proof, self._state, self._config.transport))
 
     def _on_connected(self, event: ClientConnected, step: Step) -> None:
         step.refuse_if(self._clients.connected(event))
@@ -546,23 +560,6 @@ class SafetyCore:
                 step.now,
                 make_details([("reason", f"read-back of unknown output {event.output[:60]!r}")]),
             )
-
-    # ----------------------------------------------------------------- conditions
-
-    def _refresh(self, step: Step) -> None:
-        """Steps 1 and 3: every lasting condition recomputed (:mod:`~supervisord.safety.
-        conditions`); a method of the core, so that a test can count the full path's."""
-        refresh(
-            step,
-            state=self._state,
-            local_estop=self._local_estop,
-            book=self._book,
-            vsc=self._vsc,
-            proof=self._proof,
-            clients=self._clients,
-            outputs=self._outputs,
-            battery=self._battery,
-        )
 
 
 _Handler = Callable[[SafetyCore, Any, Step], "RearmRequest | None"]
