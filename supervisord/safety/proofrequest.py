@@ -21,7 +21,8 @@ def request_prooftest(
     event: ProofTestRequest, proof: ProofTest, state: State, transport: Transport
 ) -> Refusal | None:
     """Begin a new proof test (``proof.restart``), or the refusal: admins only, only while
-    STOPPED, one at a time, and none where the transport has no user heartbeat to withhold."""
+    STOPPED, one at a time, and none under the policy ``off`` (the refusal names the
+    transport: CAN and HID have no user heartbeat to withhold)."""
     if proof.policy is ProofTestPolicy.OFF:
         return Refusal(RefusalReason.PROOFTEST_NOT_POSSIBLE, transport.value, event)
     if not event.caller.admin:
