@@ -403,6 +403,21 @@ def _forked(body: Callable[[], int], timeout: float) -> int | None:
         time.sleep(0.02)
 
 
+def _clear_caches() -> None:
+    """Empty the memo of every cached function of the targets (``reflex.prepare``). A call the
+    memo answers runs none of the function's lines, so without this the trace would give them
+    to the first test that made the call alone, and a mutant of them would run against that
+    test only, not against the tests that read its result later."""
+    for file in TARGETS:
+        module = sys.modules.get(f"supervisord.safety.{file.removesuffix('.py')}")
+        if module is None:
+            continue  # not imported yet: nothing cached
+        for value in vars(module).values():
+            clear = getattr(value, "cache_clear", None)
+            if callable(clear) and getattr(value, "__module__", None) == module.__name__:
+                clear()
+
+
 class _Tracer:
     """A pytest plugin recording which lines of the targets each test executes, and its time."""
 
@@ -425,6 +440,7 @@ class _Tracer:
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_call(self, item: pytest.Item) -> Iterator[None]:
+        _clear_caches()
         self.lines = set()
         started = time.perf_counter()
         sys.settrace(self._trace)
