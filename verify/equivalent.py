@@ -48,6 +48,14 @@ _PROOF_SETTLED = (
     "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
 )
 
+_ALWAYS = (
+    "ALWAYS is read only by Reflex.off (now >= since), and every now the core is given is a "
+    "reading of the daemon's clock, time.monotonic_ns(): Linux's CLOCK_MONOTONIC, which is "
+    "never negative (a time namespace may not offset it below zero, time_namespaces(7)). "
+    "Each mutated ALWAYS (0, -2**61, -2**63) is at most 0, as the original's -2**62 is: "
+    "now >= since holds for every such now with each, and the entries are the same outputs"
+)
+
 _ONE_UID = "step.charged is a tuple of one (the step's user): its first item is its last"
 
 _DOWN = "VscLink.down"
@@ -164,6 +172,25 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "if heard.takeover and heard.silent_before and heard.relinked:",
         "the three are false for every heartbeat that reaches this line (the argument of the "
         "raise below it, unreachable): the condition is false with and as with or",
+    ),
+    Equivalent(
+        "cheap.py",
+        "cheap",
+        "proof.heartbeat(message.mode, message.estop, now)",
+        "pass",
+        "a no-op where it stands. cheap reaches it only when proof.phase is OFF or PASSED "
+        "(SETTLED_PROOF, its first test). ProofTest.heartbeat's three branches need WITHHOLDING, "
+        "RESUMED or FAILED, so in OFF and PASSED all it can do is its first statement, which "
+        "sets _heard_ns only while it is None. It is not None in either phase. PASSED: set "
+        "only by _cleared, which only heartbeat calls, after that first statement; _heard_ns "
+        "goes back to None only in restart (and __init__), which set WAITING. OFF: the phase of "
+        "policy off and no other (restart returns at once under off; advance, never called "
+        "under off, and abort move nothing from OFF); restart never clears _heard_ns there, and "
+        "the first VSC heartbeat a core applies takes the full step (cheap needs "
+        "VscLink.unchanged_by, false while VscLink.last_ns is None, as at the start), whose "
+        "_on_vsc calls heartbeat and sets it. (Under off nothing but a snapshot reads it "
+        "anyway: canonical returns the phase alone, next_deadline and advance read it only "
+        "while WAITING.)",
     ),
     Equivalent(
         "cheap.py",
@@ -359,5 +386,17 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "pass",
         "every failure but not_cleared is finished while WAITING (key85_off) or WITHHOLDING "
         "(no_trip, late, stayed_operational), where _resumed_ns is None: " + _WAITING_CLEARS,
+    ),
+    Equivalent(
+        "reflex.py", "", "ALWAYS: Final = -(1 << 62)", "ALWAYS: Final = -(0 << 62)", _ALWAYS
+    ),
+    Equivalent(
+        "reflex.py", "", "ALWAYS: Final = -(1 << 62)", "ALWAYS: Final = -(2 << 62)", _ALWAYS
+    ),
+    Equivalent(
+        "reflex.py", "", "ALWAYS: Final = -(1 << 62)", "ALWAYS: Final = -(1 << 61)", _ALWAYS
+    ),
+    Equivalent(
+        "reflex.py", "", "ALWAYS: Final = -(1 << 62)", "ALWAYS: Final = -(1 << 63)", _ALWAYS
     ),
 )

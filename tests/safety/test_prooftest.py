@@ -888,6 +888,28 @@ def test_every_deadline_is_ahead_of_now_through_a_proof_test() -> None:
     assert all(d.next_deadline > d.now for d in vsc.decisions)
 
 
+def test_a_proof_test_asked_for_as_the_last_withholding_ends_asks_for_a_later_deadline() -> None:
+    """SR-2.11, SR-10.1 (P8): an admin's proof test asked for at the very nanosecond the last
+    one's withholding reaches 1.5 s fails that one (``no_trip``) and withholds again from the
+    last heartbeat sent, so the new withholding's limit is now; the decision still asks to be
+    woken later than now, never at it."""
+    vsc = Vsc(trip_ms=None)  # a watchdog that never trips
+    while vsc.status().phase is not Phase.WITHHOLDING:
+        vsc.beat()
+    end = vsc.last_user + WITHHOLD_LIMIT_NS  # the withholding counts from the last beat sent
+    while vsc.now + 50 * MS < end:
+        vsc.beat()
+    vsc.now = end
+    decision = vsc.feed(ProofTestRequest(end, ADMIN))
+    assert not decision.refusals
+    status = decision.prooftest
+    assert status is not None
+    assert status.last is not None
+    assert status.last.failure is Failure.NO_TRIP
+    assert status.phase is Phase.WITHHOLDING  # the new test's limit: the last beat + 1.5 s, now
+    assert decision.next_deadline > decision.now
+
+
 def test_a_passed_proof_test_asks_for_no_more_deadlines() -> None:
     """SR-9.4, SR-10.1: once the proof test has passed it falls due at no time: no decision
     asks to be woken at the end of the withholding it no longer does (a 30 Hz heartbeat, so
