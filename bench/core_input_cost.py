@@ -2,12 +2,13 @@
 
     .venv/bin/python -m bench.core_input_cost [--before TREE] [--rounds N] [--inputs N]
 
-A core on the robot of the tests (serial, one required client, a motion and a power output)
-is brought to RUN, then fed a steady VSC heartbeat (Operational, word 0) every 10 ms on the
-core's own clock with a client heartbeat every 50 ms between them, then the other way round,
-so that the user heartbeat falls due every 50 ms as on the robot; each input of the steady
-kind is timed alone (``perf_counter_ns`` around ``handle``) and the median of each kind is
-printed. Neither input changes a condition. With
+A core on the robot of the tests (serial, one required client, a motion and a power output) is
+brought to RUN, then fed a steady VSC heartbeat (Operational, word 0) every 10 ms on the core's own
+clock with a client heartbeat every 50 ms between them, then the other way round, then joystick
+frames every 10 ms with a VSC and a client heartbeat every 50 ms between them (the inert input: most
+of the VSC's traffic, SR-9.4), so that the user heartbeat falls due every 50 ms as on the robot;
+each input of the steady kind is timed alone (``perf_counter_ns`` around ``handle``) and the median
+of each kind is printed. No input changes a condition. With
 ``--before TREE`` (another copy of the tree, e.g. the commit before a change), the rounds
 alternate between that tree and this one, each in a fresh interpreter, so that both see the
 same machine; the load (as ``uptime`` prints it) before and after.
@@ -28,7 +29,7 @@ HERE = Path(__file__).resolve().parent.parent
 _CHILD = """
 import json, statistics, sys, time
 from supervisord.protocol.codes import VscMode
-from supervisord.protocol.messages import FeedbackSet, VscHeartbeat
+from supervisord.protocol.messages import Axis, FeedbackSet, Joystick, VscHeartbeat
 from supervisord.safety import (
     ClientConnected, ClientHeartbeat, ClientHello, ClientSpec, LinkOpened, OutputRole,
     OutputSpec, SafetyConfig, SafetyCore, State, VscReceived,
@@ -53,13 +54,14 @@ now += 50 * MS
 assert core.handle(VscReceived(now, VscHeartbeat(operational, 0, 0))).state is State.RUN
 clock = time.perf_counter_ns
 def timed(make, other, inputs):
-    # make(now) every 10 ms, timed; other(now) every 50 ms between them, not timed
+    # make(now) every 10 ms, timed; the inputs of other(now) every 50 ms between them, not timed
     global now
     times = []
     for number in range(inputs):
         now += 10 * MS
         if number % 5 == 0:
-            core.handle(other(now))
+            for extra in other(now):
+                core.handle(extra)
             now += 1
         event = make(now)
         start = clock()
@@ -69,12 +71,19 @@ def timed(make, other, inputs):
     return statistics.median(times)
 beat = lambda now: VscReceived(now, VscHeartbeat(operational, 0, 0))
 client = lambda now: ClientHeartbeat(now, 1)
+stick = Joystick(left_y=Axis.from_value(300))
+joystick = lambda now: VscReceived(now, stick)
 inputs = int(sys.argv[1])
-print(json.dumps([timed(beat, client, inputs), timed(client, beat, inputs)]))
+kinds = (
+    (beat, lambda now: [client(now)]),
+    (client, lambda now: [beat(now)]),
+    (joystick, lambda now: [beat(now), client(now)]),
+)
+print(json.dumps([timed(make, other, inputs) for make, other in kinds]))
 """
 
 
-def _round(tree: Path, inputs: int) -> tuple[float, float]:
+def _round(tree: Path, inputs: int) -> tuple[float, float, float]:
     env = dict(os.environ, PYTHONPATH=str(tree))
     out = subprocess.run(  # noqa: S603 -- our own interpreter and script
         [sys.executable, "-c", _CHILD, str(inputs)],
@@ -84,8 +93,8 @@ def _round(tree: Path, inputs: int) -> tuple[float, float]:
         text=True,
         check=True,
     ).stdout
-    vsc, client = json.loads(out)
-    return vsc / 1000, client / 1000
+    vsc, client, joystick = json.loads(out)
+    return vsc / 1000, client / 1000, joystick / 1000
 
 
 def _uptime() -> None:
@@ -102,19 +111,21 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     trees = [("after", HERE)] if args.before is None else [("before", args.before), ("after", HERE)]
     _uptime()
-    results: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in trees}
+    results: dict[str, list[tuple[float, float, float]]] = {name: [] for name, _ in trees}
     for number in range(args.rounds):
         for name, tree in trees if number % 2 == 0 else reversed(trees):
-            vsc, client = _round(tree, args.inputs)
-            results[name].append((vsc, client))
-            print(
-                f"round {number + 1} {name:6}: VSC heartbeat {vsc:6.1f} µs, client {client:6.1f} µs"
-            )
+            row = _round(tree, args.inputs)
+            results[name].append(row)
+            print(f"round {number + 1} {name:6}: {_kinds(row)}")
     _uptime()
     for name, rows in results.items():
-        vsc = statistics.median(r[0] for r in rows)
-        client = statistics.median(r[1] for r in rows)
-        print(f"{name:6} median of rounds: VSC heartbeat {vsc:.1f} µs, client {client:.1f} µs")
+        medians = tuple(statistics.median(r[kind] for r in rows) for kind in range(3))
+        print(f"{name:6} median of rounds: {_kinds(medians)}")
+
+
+def _kinds(times: tuple[float, ...]) -> str:
+    vsc, client, joystick = times
+    return f"VSC heartbeat {vsc:6.1f} µs, client {client:6.1f} µs, joystick {joystick:6.1f} µs"
 
 
 if __name__ == "__main__":

@@ -24,8 +24,8 @@ from supervisord.safety.battery import RemoteBattery
 from supervisord.safety.book import CauseBook
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.clients import Clients
-from supervisord.safety.deadline import next_deadline
-from supervisord.safety.decision import Decision
+from supervisord.safety.deadline import IDLE_NS, next_deadline
+from supervisord.safety.decision import Decision, again
 from supervisord.safety.display import DisplayStore
 from supervisord.safety.events import ClientHeartbeat, Event, Tick, VscReceived
 from supervisord.safety.outputs import Outputs
@@ -47,13 +47,11 @@ _INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
 """The only VSC message types :func:`cheap` considers; every other takes the full step."""
 
 
-def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
+def cheap(  # noqa: PLR0912, PLR0917 -- inline and positional: called for every input (SR-9.4)
     event: Event,
     previous: Decision,
     last: int,
     estop: int,
-    state: State,
-    book: CauseBook,
     vsc: VscLink,
     proof: ProofTest,
     clients: Clients,
@@ -64,25 +62,25 @@ def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
 ) -> Decision | None:
     """The decision for an input that cannot change one, or ``None`` for the full step.
 
-    ``previous`` is the core's last decision, ``last`` the time of its last input, ``estop``
-    the user heartbeat's byte from the conditions alone (no urgent raise) and ``state`` its
-    state; the machines are the core's. Cheap are a :class:`Tick`, an inert VSC message
-    (:data:`INERT_VSC_MESSAGES`), a VSC heartbeat with the same mode and e-stop word as the
-    last and a client's heartbeat that changes no condition (``Clients.beat_unchanged``: named,
-    in time, no progress value), while the last step ended normally on a fixed point of the
-    table and, either before the previous decision's ``next_deadline`` or when the user
-    heartbeat is the only thing due (:func:`_only_heartbeat_due`). Then no timeout expires and
-    no other frame is due (:func:`~supervisord.safety.deadline.next_deadline` lists every one
-    of them), so step 1 of the full path changes nothing; such an input changes no condition
-    (a heartbeat after an expired timeout clears ``vsc_link_lost`` and is not cheap, and so is
-    one while the mode's hold names another mode, which it renames after the dwell) (step 3),
-    asks no re-arm (the mode did not change, step 4), so the state is the previous step's
-    fixed point (step 5) and no record follows (step 6); the one frame is the user heartbeat
-    at its cadence, with the byte of the conditions (SR-5.1, SR-5.2). What can differ is
-    ``now``, the facts the heartbeat moves (its time, the takeover run; a client's time) and
-    so ``next_deadline``, which are computed as the full path does (SR-2.2, SR-2.11: the
-    heartbeat still restarts the link deadline). The decision's ``now`` is the core's new
-    time of its last input.
+    ``previous`` is the core's last decision, ``last`` the time of its last input and ``estop`` the
+    user heartbeat's byte from the conditions alone (no urgent raise); the machines are the core's.
+    The core asks only after a step that ended normally on a fixed point of the table
+    (:func:`fixed_point`). Cheap are a :class:`Tick`, an inert VSC message
+    (:data:`INERT_VSC_MESSAGES`), a VSC heartbeat with the same mode and e-stop word as the last and
+    a client's heartbeat that changes no condition (``Clients.beat_unchanged``: named, in time, no
+    progress value), either before the previous decision's ``next_deadline`` or when the user
+    heartbeat is the only thing due (:func:`_only_heartbeat_due`). Then no timeout expires and no
+    other frame is due (:func:`~supervisord.safety.deadline.next_deadline` lists every one of them),
+    so step 1 of the full path changes nothing; such an input changes no condition (a heartbeat
+    after an expired timeout clears ``vsc_link_lost`` and is not cheap, and so is one while the
+    mode's hold names another mode, which it renames after the dwell) (step 3), asks no re-arm (the
+    mode did not change, step 4), so the state is the previous step's fixed point (step 5) and no
+    record follows (step 6); the one frame is the user heartbeat at its cadence, with the byte of
+    the conditions (SR-5.1, SR-5.2). What can differ is ``now``, the facts the heartbeat moves (its
+    time, the takeover run; a client's time) and so ``next_deadline``, which are computed as the
+    full path does (SR-2.2, SR-2.11: the heartbeat still restarts the link deadline). An input that
+    moves no fact and sends nothing keeps the previous ``next_deadline`` (:func:`_kept_deadline`).
+    The decision's ``now`` is the core's new time of its last input.
     """
     if type(event) not in _CHEAP_EVENTS or proof.phase not in SETTLED_PROOF:
         return None  # a proof test pending or running moves with time and heartbeats
@@ -92,10 +90,9 @@ def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
         return None  # a category-1 output goes off with time (SR-1.4)
     now = event.now if event.now > last else last
     beat_due = now >= previous.next_deadline
-    if (
-        beat_due and not _only_heartbeat_due(now, vsc, proof, clients, display, battery)
-    ) or not _fixed_point(state, book):
+    if beat_due and not _only_heartbeat_due(now, vsc, proof, clients, display, battery):
         return None
+    moved = False  # whether the input moved a fact that a deadline is counted from
     if type(event) is VscReceived:
         # Whether a VSC message changes nothing the full step would see; a heartbeat that
         # does not is applied to the link (its time, the takeover's run). Inline: a call
@@ -110,34 +107,41 @@ def cheap(  # noqa: PLR0917 -- positional: called for every cheap input (SR-9.4)
             heard = vsc.heartbeat(message, now)
             if heard.takeover or heard.silent_before or heard.relinked:
                 raise AssertionError("a heartbeat of an unchanged mode changed the link")
+            moved = True  # the link's timeout restarts (SR-2.2)
         # SR-8.12: a remote status is inert only while the battery is not watched
         elif type(message) not in _INERT_TYPES or (
             battery.cause is not None and type(message) is RemoteStatus
         ):
             return None
-    elif type(event) is ClientHeartbeat and not clients.beat_unchanged(event, now):
-        return None
+    elif type(event) is ClientHeartbeat:
+        if not clients.beat_unchanged(event, now):
+            return None
+        moved = True  # the client's timeout restarts (SR-8.2)
     frames: tuple[Message, ...] = ()
     if beat_due:
         # What the full step's link frames are for a heartbeat that is not urgent (SR-5.1).
         frames = (UserHeartbeat(estop),)
         proof.sent(now)
         vsc.beat_sent(now)
-    # Every other field as the previous decision has it, as the full step would compute it
-    # again; ``tests/safety/test_cheap_heartbeat.py`` checks that this lists every field.
-    return Decision(
-        now=now,
-        state=previous.state,
-        causes=previous.causes,
-        outputs=previous.outputs,
-        heartbeat_estop=estop,
-        next_deadline=next_deadline(now, vsc, clients, budget, battery, outputs, display, proof),
-        frames=frames,
-        records=(),
-        refusals=(),
-        rearm=None,
-        prooftest=previous.prooftest,
+    deadline = (
+        previous.next_deadline
+        if not (beat_due or moved) and _kept_deadline(previous)
+        else next_deadline(now, vsc, clients, budget, battery, outputs, display, proof)
     )
+    # Every other field as the previous decision has it, as the full step would compute it
+    # again (``again``).
+    return again(previous, now, estop, deadline, frames)
+
+
+def _kept_deadline(previous: Decision) -> bool:
+    """Whether an input that moved no fact and sent nothing, before ``previous``'s deadline,
+    may keep that deadline: :func:`~supervisord.safety.deadline.next_deadline` would give
+    it again (SR-9.4). Every deadline it weighs is a time kept by a machine, not reckoned
+    from ``now`` (the clients' deferred ends, which are, decline the cheap path), and no
+    such time lies between the previous input and this one (this one comes before the
+    earliest); so the earliest is the same, unless it was the idle bound ``now + IDLE_NS``,
+    which moves with ``now``: kept only when the earliest fell before that bound."""
+    return previous.next_deadline - previous.now < IDLE_NS
 
 
 def only_the_beat_moves(  # noqa: PLR0917 -- positional, as the cheap path's
@@ -185,10 +189,12 @@ def _only_heartbeat_due(  # noqa: PLR0917 -- positional: called for every cheap 
     )
 
 
-def _fixed_point(state: State, book: CauseBook) -> bool:
+def fixed_point(state: State, book: CauseBook) -> bool:
     """Whether the table keeps the state where it is when nothing changes (SR-1): true for
     every legal row a step can end on; checked anyway, so that a table that ever says
-    otherwise is met by the full step, which turns its refusal into ``internal``."""
+    otherwise is met by the full step, which turns its refusal into ``internal``. Asked
+    once at the end of each full step (only a full step changes the state or the book), not
+    for each cheap input (SR-9.4)."""
     if book.any_latched():
         situation = Situation.STOP
     else:

@@ -44,7 +44,7 @@ from supervisord.safety.budget import RecordBudget
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, make_details
 from supervisord.safety.charging import charge_step
-from supervisord.safety.cheap import SETTLED_PROOF, cheap, only_the_beat_moves
+from supervisord.safety.cheap import SETTLED_PROOF, cheap, fixed_point, only_the_beat_moves
 from supervisord.safety.clients import Clients
 from supervisord.safety.conditions import refresh
 from supervisord.safety.config import SafetyConfig, Transport
@@ -247,8 +247,6 @@ class SafetyCore:
                     self.decision,
                     self._now,
                     self._steady_estop,
-                    self._state,
-                    self._book,
                     self._vsc,
                     self._proof,
                     self._clients,
@@ -326,7 +324,8 @@ class SafetyCore:
         previous = self._state
         self._state = self._transition(step)  # 5. the table
         decision = self._finish(event, previous, step)  # 6.
-        self._steady = True  # a normal end: the next input may take the cheap path
+        # A normal end on a fixed point of the table: the next input may take the cheap path.
+        self._steady = fixed_point(self._state, self._book)
         return decision
 
     def _refresh(self, step: Step) -> None:

@@ -77,12 +77,36 @@ def test_core_turns_an_illegal_transition_into_internal(monkeypatch: pytest.Monk
     monkeypatch.setattr("supervisord.safety.core.next_state", refusing)
     monkeypatch.setattr("supervisord.safety.cheap.next_state", refusing)  # its fixed point
     rig.advance(10)
-    decision = rig.tick()
+    # A client's command takes the full step (the table is asked at each full step's end,
+    # so a tick of the cheap path still answers from the state the real table left).
+    decision = rig.command()
     assert decision.state is State.STOPPED
     internal = decision.cause("internal")
     assert internal is not None
     assert internal.latched
     assert "no transition from RUN" in (internal.detail("reason") or "")
+
+
+def test_a_step_that_ends_off_the_tables_fixed_point_leaves_the_next_input_to_the_full_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-1, SR-9.4: the cheap path answers only after a step that ended where the table keeps
+    the state with nothing changing; were the table ever to say otherwise at a step's end,
+    the next input is decided by the full step, every condition recomputed."""
+    rig = Rig()
+    rig.bring_up()
+    real = next_state
+
+    def moving(state: State, situation: Situation) -> State:
+        return State.HOLD if state is State.RUN else real(state, situation)
+
+    monkeypatch.setattr("supervisord.safety.cheap.next_state", moving)  # only its fixed point
+    rig.advance(10)
+    assert rig.command().state is State.RUN  # a full step, ending off the patched fixed point
+    refreshes = rig.count_refreshes()
+    rig.advance(10)
+    assert rig.tick().state is State.RUN
+    assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
 
 
 def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -203,7 +227,7 @@ def test_after_a_failure_in_the_cheap_path_the_next_input_takes_the_full_step(
     the next input is decided by the full step, every condition recomputed."""
     rig = Rig()
     rig.bring_up()
-    _fails_once_in_module(monkeypatch, cheap_module, "_fixed_point")  # only the cheap path asks it
+    _fails_once_in_module(monkeypatch, cheap_module, "again")  # only the cheap path asks it
     rig.advance(10)
     failed = rig.tick()
     assert failed.state is State.STOPPED
