@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import math
 import os
 import random
@@ -44,6 +45,7 @@ import select
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -168,13 +170,17 @@ def mark() -> None:
     os.getppid()
 
 
-def run_srcsd(directory: Path, driver: Driver) -> str:
+def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
     """The daemon as ``srcsd --config`` builds it, on the driver's clock, until the last
     frame; its state at the end. Its wait is wrapped (as ``bench.rig.TurnStats`` does: one
     call per turn): the driver delivers the next frame there when it comes before the loop's
     own deadline, else moves the clock to that deadline (the timeout rounded up to the
-    millisecond, as epoll takes it) and the real wait returns at once."""
+    millisecond, as epoll takes it) and the real wait returns at once. ``settle``: the heap
+    settled after the start, as ``Supervisor.run`` does (``supervisord/daemon/heap.py``); at
+    the end, what a full collection of the garbage collector costs (without valgrind, the
+    child alone: ``... child --model srcsd --warm-up 3 --seconds 20 [--unsettled]``)."""
     from supervisord.config.loader import load_config  # noqa: PLC0415
+    from supervisord.daemon import heap  # noqa: PLC0415
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
     from supervisord.testkit.daemon import LASTING_CONFIG  # noqa: PLC0415
 
@@ -185,6 +191,8 @@ def run_srcsd(directory: Path, driver: Driver) -> str:
     start = driver.now
     supervisor = build_supervisor(config, build_api(config), clock=driver.clock)
     supervisor.start()
+    if settle:
+        heap.settle()  # as ``Supervisor.run`` does between the start and the first turn
     reader = supervisor.link.fileno()
     assert reader is not None
     wait = supervisor._wait
@@ -207,6 +215,9 @@ def run_srcsd(directory: Path, driver: Driver) -> str:
     mark()
     assert supervisor.decision is not None
     state = supervisor.decision.state.value
+    started = time.perf_counter_ns()
+    gc.collect()  # what a full collection costs the loop now (docs/performance.md "The heap")
+    print(f"full_collection_ms={(time.perf_counter_ns() - started) / 1e6:.2f}")
     replay_core(supervisor, start, driver.first_measured_input)
     supervisor.shutdown()
     return state
@@ -256,7 +267,7 @@ def run_bare(directory: Path, driver: Driver, *, loop: bool) -> str:
     return "on" if bare.on else "off"
 
 
-def child(model: str, warm_up: float, seconds: float, seed: int) -> int:
+def child(model: str, warm_up: float, seconds: float, seed: int, *, settle: bool = True) -> int:
     """Drive ``model`` over ``warm_up`` and then ``seconds`` of virtual traffic, the latter
     between two :func:`mark` calls; print the measured stretch's turns and frames and the
     state at its end."""
@@ -273,7 +284,7 @@ def child(model: str, warm_up: float, seconds: float, seed: int) -> int:
         port = PtyPort(directory / "vsc")
         driver = Driver(port, schedule, measured_from)
         if model == "srcsd":
-            state = run_srcsd(directory, driver)
+            state = run_srcsd(directory, driver, settle=settle)
         else:
             state = run_bare(directory, driver, loop=model == "bare")
         port.close()
@@ -339,6 +350,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     run_child.add_argument("--warm-up", type=float, required=True)
     run_child.add_argument("--seconds", type=float, required=True)
     run_child.add_argument("--seed", type=int, default=1)
+    run_child.add_argument("--unsettled", action="store_true", help="the heap as start-up left it")
     parser.add_argument("--seconds", type=float, default=20.0, help="virtual seconds measured")
     parser.add_argument("--warm-up", type=float, default=3.0, help="virtual seconds before")
     parser.add_argument("--models", default="srcsd,bare,driver")
@@ -346,7 +358,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--keep", type=Path, default=None, help="keep srcsd's callgrind file here")
     args = parser.parse_args(argv)
     if args.command == "child":
-        sys.exit(child(args.model, args.warm_up, args.seconds, args.seed))
+        sys.exit(
+            child(args.model, args.warm_up, args.seconds, args.seed, settle=not args.unsettled)
+        )
     models = args.models.split(",")
     with ThreadPoolExecutor(max_workers=2) as pool:
         results = list(

@@ -34,7 +34,7 @@ from supervisord import __version__
 from supervisord.api.status import LinkStatus, LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
-from supervisord.daemon import signals
+from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
@@ -438,6 +438,7 @@ class Supervisor:
                 # Log lines leave the loop through the sink too: a slow stderr or journald
                 # must not hold the loop (SR-7.5).
                 self.sink.capture_logging(logging.getLogger())
+            heap.settle()  # no full scan of start-up's objects in the loop (SR-9.1, SR-9.4)
             while not self._stop_requested:
                 self.step()
             if self._stop_signal is not None:
