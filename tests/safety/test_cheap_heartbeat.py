@@ -11,7 +11,7 @@ import dataclasses
 import itertools
 
 from supervisord.protocol.messages import FeedbackSet, UserHeartbeat
-from supervisord.safety import Decision, DisplayUpdate, State
+from supervisord.safety import DisplayUpdate, State
 from supervisord.safety.decision import again
 from tests.safety.rig import MS, Rig
 
