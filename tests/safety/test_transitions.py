@@ -109,6 +109,27 @@ def test_a_step_that_ends_off_the_tables_fixed_point_leaves_the_next_input_to_th
     assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
 
 
+def test_a_step_that_ends_where_the_table_refuses_to_stay_leaves_the_next_input_to_the_full_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SR-1, SR-9.4: were the table ever to refuse the row of staying where a step ended (no
+    fixed point at all), the next input is decided by the full step, every condition
+    recomputed, not by the cheap path."""
+    rig = Rig()
+    rig.bring_up()
+
+    def refusing(state: State, situation: Situation) -> State:
+        raise IllegalTransition(state, situation)
+
+    monkeypatch.setattr("supervisord.safety.cheap.next_state", refusing)  # only its fixed point
+    rig.advance(10)
+    assert rig.command().state is State.RUN  # a full step, ending where the table refuses
+    refreshes = rig.count_refreshes()
+    rig.advance(10)
+    assert rig.tick().state is State.RUN
+    assert refreshes == [rig.now, rig.now]  # step 1 and step 3 of the full step
+
+
 def test_core_never_raises_when_its_own_code_fails(monkeypatch: pytest.MonkeyPatch) -> None:
     """A bug inside the core becomes the ``internal`` cause and a refusal, never an exception."""
     rig = Rig()
