@@ -7,7 +7,7 @@ import pytest
 
 from supervisord.safety import Decision, State
 from supervisord.safety.reflex import NOTHING
-from tests.safety.rig import LOCAL, OPERATIONAL, PAUSE, Rig
+from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, Rig
 from tests.safety.test_stop_category import BRAKES_MS, CATEGORY_1, FANS_MS
 
 REMOTE_ESTOP = 0x01
@@ -109,4 +109,21 @@ def test_the_reflex_steps_aside_when_a_timeout_is_due() -> None:
     rig.advance(20)
     rig.vsc(OPERATIONAL, 0)
     rig.advance(10_000)  # far past the VSC's timeout, no heartbeat meanwhile
+    assert rig.core.reflex(rig.now) is None
+
+
+def test_the_reflex_steps_aside_at_the_nanosecond_the_vscs_timeout_falls_due() -> None:
+    """SR-9.5, SR-2.2: at the very nanosecond the VSC's 200 ms timeout falls due, the core's
+    next deadline, the core gives no reflex (``None``): the timeout decides too, and the full
+    step alone switches the outputs."""
+    rig = Rig(CATEGORY_1)
+    rig.bring_up()
+    rig.advance(20)
+    rig.vsc(OPERATIONAL, 0)
+    timeout = rig.now + 200 * MS  # the VSC's last heartbeat, none after it
+    while rig.last.next_deadline < timeout:  # the user heartbeat's ticks meanwhile
+        rig.now = rig.last.next_deadline
+        rig.tick()
+    assert rig.last.next_deadline == timeout
+    rig.now = timeout
     assert rig.core.reflex(rig.now) is None
