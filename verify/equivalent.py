@@ -194,6 +194,26 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "cheap.py",
+        "cheap",
+        "moved = False  # whether the input moved a fact that a deadline is counted from",
+        "moved = True  # whether the input moved a fact that a deadline is counted from",
+        "moved True never keeps the previous deadline: the mutant always asks next_deadline "
+        "of the machines as the input left them, the computation the full step ends with. The "
+        "original keeps previous.next_deadline only for an input that sent nothing and moved "
+        "nothing (a Tick, a Joystick, a Gps, a RemoteStatus while the battery is not watched: "
+        "no machine changes) and when that deadline fell before previous.now + IDLE_NS. Then "
+        "every candidate next_deadline weighs but the idle bound is a time a machine keeps, "
+        "the same as at previous.now (the link's timeout, heartbeat and key-85 times, the "
+        "clients' timeouts, the battery's stale time, the outputs' off times, the display's "
+        "slots, the proof test's limits; the clients' deferred ends, counted from now, decline "
+        "the cheap path with clients.pending()), each counted only when later than now, and "
+        "none lies in (previous.now, now], since now < previous.next_deadline, the earliest of "
+        "them: so the earliest is the same machine time, now + IDLE_NS being later still, and "
+        "both give one number (the bounded exploration of takeover, clients and can gives the "
+        "digests of the tree on the mutant, decisions included)",
+    ),
+    Equivalent(
+        "cheap.py",
         "_only_heartbeat_due",
         "and (proof_due is None or proof_due > now)",
         "and (proof_due is None or proof_due <= now)",
