@@ -1033,3 +1033,25 @@ def test_a_proof_test_is_refused_when_there_is_none_or_one_runs() -> None:
     running = vsc.feed(ProofTestRequest(vsc.now, ADMIN))
     assert [r.reason for r in running.refusals] == [RefusalReason.PROOFTEST_RUNNING]
     assert vsc.status().phase is Phase.WITHHOLDING
+
+
+@pytest.mark.parametrize("cheap_path", [True, False])
+def test_a_proof_test_asked_for_as_the_withholding_begins_is_refused_as_running(
+    cheap_path: bool,
+) -> None:
+    """SR-5.3, SR-9.4: the first input after the VSC is heard and key 85 answered begins the
+    withholding before it is applied (step 1, also before the next deadline and with the
+    cheap path on), so an admin's ``srcsctl prooftest`` then is refused as running."""
+    core = SafetyCore(BLOCK, START_NS)
+    core.cheap_path = cheap_path
+    core.handle(LinkOpened(START_NS))
+    core.handle(VscReceived(START_NS, VscHeartbeat(OPERATIONAL, 0, 0)))
+    ready = core.handle(VscReceived(START_NS, FeedbackSet(85, 1)))
+    assert ready.prooftest is not None
+    assert ready.prooftest.phase is Phase.WAITING
+    now = START_NS + 10 * MS
+    assert now < ready.next_deadline
+    decision = core.handle(ProofTestRequest(now, ADMIN))
+    assert [r.reason for r in decision.refusals] == [RefusalReason.PROOFTEST_RUNNING]
+    assert decision.prooftest is not None
+    assert decision.prooftest.phase is Phase.WITHHOLDING
