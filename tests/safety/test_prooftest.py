@@ -842,6 +842,26 @@ def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> No
     assert decision.records[1].sequence == decision.records[0].sequence + 1
 
 
+def test_the_record_after_a_step_of_two_records_numbers_on_from_the_second() -> None:
+    """SR-7.1: after a step that gives two records (a commissioning and a proof test's outcome),
+    the next record's sequence number follows the second's: no number is given twice."""
+    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
+    vsc.never_clears = True
+    proof = vsc.core._proof  # the one deadline this test needs exactly
+    while proof.phase is not Phase.RESUMED:
+        vsc.beat()
+    due = proof.next_deadline(1)  # key 85 read as 1
+    assert due is not None
+    while vsc.now + 50 * MS < due:
+        vsc.beat()
+    vsc.now = due
+    two = vsc.feed(Commissioned(due, ADMIN, None, remote_status=False)).records
+    assert len(two) == 2
+    vsc.now += 10 * MS
+    after = vsc.feed(LocalEstop(vsc.now, ADMIN)).records  # a cause raised: one record
+    assert [r.sequence for r in after] == [two[1].sequence + 1]
+
+
 THIRTY_HZ = replace(BLOCK, heartbeat_hz=30)  # 3 s is no whole number of its periods
 
 
