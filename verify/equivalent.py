@@ -209,8 +209,8 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "the cheap path with clients.pending()), each counted only when later than now, and "
         "none lies in (previous.now, now], since now < previous.next_deadline, the earliest of "
         "them: so the earliest is the same machine time, now + IDLE_NS being later still, and "
-        "both give one number (the bounded exploration of takeover, clients, can and battery_hold gives the "
-        "digests of the tree on the mutant, decisions included)",
+        "both give one number (the bounded exploration of takeover, clients, can and "
+        "battery_hold gives the digests of the tree on the mutant, decisions included)",
     ),
     Equivalent(
         "cheap.py",
