@@ -324,7 +324,8 @@ def _read_tail(
     source: list[str],
 ) -> bool:
     """Show the new records journalctl prints; ``False`` when a new file appeared (start
-    again), ``True`` when journalctl ended."""
+    again: looked for before each batch is shown, and after a second of silence), ``True``
+    when journalctl ended."""
     assert tail.stdout is not None
     fd, pending = tail.stdout.fileno(), b""
     while True:
@@ -336,6 +337,11 @@ def _read_tail(
         chunk = os.read(fd, 1 << 20)
         if not chunk:
             return True
+        if _journal_files(source) - files:
+            # A new file before anything of it is shown: journalctl may print first what of
+            # it falls after its position, and the rest only when started again, out of the
+            # robot's order (SR-13.5). Started again, it shows the file from its start.
+            return False
         *complete, pending = (pending + chunk).split(b"\n")
         text = [raw.decode(errors="replace") for raw in complete]
         fresh = [e for e in _entries(text, errors) if e.cursor not in seen]

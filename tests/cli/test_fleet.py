@@ -196,6 +196,50 @@ def test_follow_shows_a_robot_that_reports_after_it_started(
     assert follow.returncode == 0
 
 
+def _stamped_around(export: bytes, first_late: int, early_us: int, late_us: int) -> bytes:
+    """``export`` with every entry before the record ``first_late`` stamped ``early_us`` and
+    every entry from it on ``late_us`` (journal export format: entries apart by a blank line,
+    ``__REALTIME_TIMESTAMP`` in microseconds)."""
+    entries, late = [], False
+    for entry in export.split(b"\n\n"):
+        late = late or f"\nSRCS_SEQ={first_late}\n".encode() in b"\n" + entry + b"\n"
+        lines = [
+            f"__REALTIME_TIMESTAMP={late_us if late else early_us}".encode()
+            if line.startswith(b"__REALTIME_TIMESTAMP=")
+            else line
+            for line in entry.split(b"\n")
+        ]
+        entries.append(b"\n".join(lines))
+    return b"\n\n".join(entries)
+
+
+def test_follow_keeps_a_new_files_records_in_order_when_they_straddle_the_shown_ones(
+    collector: Path, exports: dict[str, bytes]
+) -> None:
+    """SR-13.5: a robot's first upload whose records 1-2 are stamped before the newest shown
+    and 3-4 after it is shown as 1, 2, 3, 4: the follower starts over on the new file before
+    it shows any of it, rather than showing what journalctl placed after its position first."""
+    follow = subprocess.Popen(
+        [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+    )
+    lines = _Lines(follow)
+    try:
+        lines.take(2, FOLLOW_SEEN_S)
+        year_2001_us, year_2100_us = 978_307_200_000_000, 4_102_444_800_000_000
+        late = _stamped_around(exports["robot-c"], 3, year_2001_us, year_2100_us)
+        collect(late, collector / "remote-robot-c.journal")
+        later = lines.take(4, FOLLOW_SEEN_S)
+        assert seqs(later, "robot-c") == [1, 2, 3, 4]
+    finally:
+        follow.terminate()
+        follow.wait(timeout=30)
+        assert follow.stdout is not None
+        follow.stdout.close()
+    assert follow.returncode == 0
+
+
 @pytest.mark.parametrize(
     ("args", "status", "said"),
     [
