@@ -5,6 +5,7 @@ systemd-journal-remote, read back by the real journalctl (SR-13.4 to SR-13.6).""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -12,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -171,29 +173,36 @@ class _Lines:
         return [line.decode() for line in lines]
 
 
-def test_follow_shows_a_robot_that_reports_after_it_started(
-    collector: Path, exports: dict[str, bytes]
-) -> None:
-    """SR-13.4: ``fleet -f`` prints the last records, then robot-c's records, which the
-    collector takes in after it started."""
+@contextlib.contextmanager
+def _following(collector: Path) -> Iterator[_Lines]:
+    """``srcsctl fleet -f -n 2`` on ``collector``, its lines as they come; at the end it is
+    stopped with SIGTERM and must exit 0 (SR-13.4)."""
     follow = subprocess.Popen(
         [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", "2"],
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
     )
-    lines = _Lines(follow)
     try:
-        first = lines.take(2, FOLLOW_SEEN_S)
-        assert [line.split()[0] for line in first] == ["robot-b", "robot-b"]
-        collect(exports["robot-c"], collector / "remote-robot-c.journal")
-        later = lines.take(4, FOLLOW_SEEN_S)
-        assert seqs(later, "robot-c") == [1, 2, 3, 4]
+        yield _Lines(follow)
     finally:
         follow.terminate()
         follow.wait(timeout=30)
         assert follow.stdout is not None
         follow.stdout.close()
     assert follow.returncode == 0
+
+
+def test_follow_shows_a_robot_that_reports_after_it_started(
+    collector: Path, exports: dict[str, bytes]
+) -> None:
+    """SR-13.4: ``fleet -f`` prints the last records, then robot-c's records, which the
+    collector takes in after it started."""
+    with _following(collector) as lines:
+        first = lines.take(2, FOLLOW_SEEN_S)
+        assert [line.split()[0] for line in first] == ["robot-b", "robot-b"]
+        collect(exports["robot-c"], collector / "remote-robot-c.journal")
+        later = lines.take(4, FOLLOW_SEEN_S)
+        assert seqs(later, "robot-c") == [1, 2, 3, 4]
 
 
 def _stamped_around(export: bytes, first_late: int, early_us: int, late_us: int) -> bytes:
@@ -219,25 +228,13 @@ def test_follow_keeps_a_new_files_records_in_order_when_they_straddle_the_shown_
     """SR-13.5: a robot's first upload whose records 1-2 are stamped before the newest shown
     and 3-4 after it is shown as 1, 2, 3, 4: the follower starts over on the new file before
     it shows any of it, rather than showing what journalctl placed after its position first."""
-    follow = subprocess.Popen(
-        [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", "2"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-    )
-    lines = _Lines(follow)
-    try:
+    with _following(collector) as lines:
         lines.take(2, FOLLOW_SEEN_S)
         year_2001_us, year_2100_us = 978_307_200_000_000, 4_102_444_800_000_000
         late = _stamped_around(exports["robot-c"], 3, year_2001_us, year_2100_us)
         collect(late, collector / "remote-robot-c.journal")
         later = lines.take(4, FOLLOW_SEEN_S)
         assert seqs(later, "robot-c") == [1, 2, 3, 4]
-    finally:
-        follow.terminate()
-        follow.wait(timeout=30)
-        assert follow.stdout is not None
-        follow.stdout.close()
-    assert follow.returncode == 0
 
 
 @pytest.mark.parametrize(

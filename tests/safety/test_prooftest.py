@@ -819,13 +819,12 @@ def test_can_and_hid_cannot_have_a_proof_test() -> None:
     assert UNTESTED not in core.handle(Tick(START_NS + 1)).active_names
 
 
-def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> None:
-    """SR-7.1: a commissioning that ends in the very step in which the proof test fails (its
-    clear limit falls due then) gives two records, each of its own kind, the outcome only in
-    the proof test's (seen in the daemon: the commissioning was filed as a prooftest record)."""
+def _at_a_failing_clear_limit() -> tuple[Vsc, int]:
+    """A proof test whose VSC never clears, at the nanosecond its clear limit falls due (it
+    fails with the next input); that time."""
     vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
     vsc.never_clears = True
-    proof = vsc.core._proof  # the one deadline this test needs exactly
+    proof = vsc.core._proof  # the one deadline these tests need exactly
     while proof.phase is not Phase.RESUMED:
         vsc.beat()
     due = proof.next_deadline(1)  # key 85 read as 1
@@ -833,6 +832,14 @@ def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> No
     while vsc.now + 50 * MS < due:
         vsc.beat()
     vsc.now = due
+    return vsc, due
+
+
+def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> None:
+    """SR-7.1: a commissioning that ends in the very step in which the proof test fails (its
+    clear limit falls due then) gives two records, each of its own kind, the outcome only in
+    the proof test's (seen in the daemon: the commissioning was filed as a prooftest record)."""
+    vsc, due = _at_a_failing_clear_limit()
     decision = vsc.feed(Commissioned(due, ADMIN, None, remote_status=False))
     assert vsc.status().phase is Phase.FAILED
     notes = [r.note for r in decision.records]
@@ -845,16 +852,7 @@ def test_a_commissioning_and_a_proof_outcome_in_one_step_are_two_records() -> No
 def test_the_record_after_a_step_of_two_records_numbers_on_from_the_second() -> None:
     """SR-7.1: after a step that gives two records (a commissioning and a proof test's outcome),
     the next record's sequence number follows the second's: no number is given twice."""
-    vsc = Vsc(replace(BLOCK, prooftest_clear_ms=1000))
-    vsc.never_clears = True
-    proof = vsc.core._proof  # the one deadline this test needs exactly
-    while proof.phase is not Phase.RESUMED:
-        vsc.beat()
-    due = proof.next_deadline(1)  # key 85 read as 1
-    assert due is not None
-    while vsc.now + 50 * MS < due:
-        vsc.beat()
-    vsc.now = due
+    vsc, due = _at_a_failing_clear_limit()
     two = vsc.feed(Commissioned(due, ADMIN, None, remote_status=False)).records
     assert len(two) == 2
     vsc.now += 10 * MS
