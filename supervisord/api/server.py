@@ -52,7 +52,12 @@ Two rules keep the stop path open whatever the other programs do (SR-8.4,
   ``operator_max_clients`` connections, outside ``max_clients`` and the e-stop slots, accepted
   first whenever the server is handed a listening socket (:meth:`ApiServer.urgent` tells the
   loop to hand it first). The same protocol, every op but a robot program's (``heartbeat``,
-  ``command``).
+  ``command``). Past its connections it has e-stop slots of its own, ``reserved_slots`` more,
+  with the client socket's rules (SR-8.17): whatever its members hold, root's e-stop gets in;
+- **accepting never spins** (SR-10.4): an ``accept`` that fails for lack of a resource
+  (descriptors, memory) leaves the connection in the backlog, so the listening socket stays
+  readable; the server then stops watching its listening sockets until a descriptor of its
+  own is released or ``ACCEPT_PAUSE_NS`` has passed, and says so once a minute at most.
 """
 
 from __future__ import annotations
@@ -61,6 +66,7 @@ import collections
 import contextlib
 import enum
 import errno
+import logging
 import os
 import socket
 import stat
@@ -129,6 +135,12 @@ DEFAULT_SLOT_IDLE_MS: Final = 1000
 DEFAULT_REQUESTS_PER_CALL: Final = 8
 DEFAULT_REQUESTS_PER_TURN: Final = 64
 DEFAULT_OPERATOR_MAX_CLIENTS: Final = 8
+ACCEPT_PAUSE_NS: Final = 100 * NS_PER_MS
+"""How long the listening sockets go unwatched after ``accept`` failed for lack of a resource
+(SR-10.4), unless a descriptor is released sooner: the connection waits in the backlog, and
+a retry costs two system calls a tenth of a second, not a loop turn each."""
+ACCEPT_SAY_NS: Final = 60_000 * NS_PER_MS
+"""At most one log line about failed accepts per minute (SR-10.4), with the count since."""
 OPERATOR_MODE_GROUP: Final = 0o660  # root, the daemon's user and operator_group (SR-8.14)
 OPERATOR_MODE_OWNER: Final = 0o600  # no operator_group: root and the daemon's user only
 ROBOT_REQUESTS: Final = (Heartbeat, Command)
@@ -142,6 +154,9 @@ needs no name. Its other requests wait, in order, until the name is known."""
 MAX_DEFERRED: Final = 64
 """Requests read and kept waiting for a name, per connection; past it the rest stay in the
 socket (read once the name is known)."""
+
+
+log = logging.getLogger("srcsd")
 
 
 class ServerError(SrcsError):
@@ -360,6 +375,11 @@ class ApiServer:
         self._closed = False
         self._share = config.requests_per_call  # requests per connection in this turn
         self._turn_left = config.requests_per_turn
+        # accept failed for lack of a resource: the listening sockets unwatched until then
+        # (SR-10.4); the failures not yet said, and when the last line said them
+        self._accept_paused_until: int | None = None
+        self._accept_failures = 0
+        self._accept_said: int | None = None
         self._listener, self._identity = _listen(config.path, config.mode, socket_gid)
         self._listen_fd = self._listener.fileno()
         self._operator: socket.socket | None = None
@@ -389,7 +409,13 @@ class ApiServer:
         name lookups' wake-up and each connection (always for reading). Releases the
         descriptors of ended connections, so call it once per turn, before the wait, and watch
         exactly what it returns. ``now``: the loop's clock, as for every method here."""
-        if not self._connections and not self._ended and not self._by_fd and not self._closed:
+        if (
+            not self._connections
+            and not self._ended
+            and not self._by_fd
+            and not self._closed
+            and self._accept_paused_until is None
+        ):
             # Nobody connected, the usual turn (SR-9.4): the budget a turn of no connection
             # gets and the same list as the last such turn (the loop compares it and leaves
             # its watches alone); the caller must not change it.
@@ -401,7 +427,12 @@ class ApiServer:
         if self._closed:
             return []
         self._new_turn(now)
-        watched = self._sockets_watched()
+        paused = self._accept_paused_until
+        if paused is not None and now >= paused:
+            self._accept_paused_until = paused = None  # the short deadline passed: try again
+        # While paused the listening sockets are not watched: their backlog keeps them
+        # readable, and a watched readable socket that cannot be accepted is a spin (SR-10.4).
+        watched = self._sockets_watched() if paused is None else [(self._names_fd, False)]
         watched += [(fd, bool(conn.protocol.outgoing)) for fd, conn in self._by_fd.items()]
         return watched
 
@@ -413,16 +444,18 @@ class ApiServer:
         return watched
 
     def next_deadline(self) -> int | None:
-        """When :meth:`due` has work: an idle e-stop slot to close (checked in
-        :meth:`descriptors`) or a name waited for long enough, if any."""
+        """When :meth:`due` has work: an idle e-stop slot to close or paused accepts to try
+        again (both in :meth:`descriptors`) or a name waited for long enough, if any."""
         if not self._connections:
-            return None  # asked twice a turn (SR-9.4)
+            return self._accept_paused_until  # None, the usual case, asked twice a turn (SR-9.4)
         idle = self.config.slot_idle_ms * NS_PER_MS
         ends = [
             end
             for c in self._connections.values()
             if (end := c.last_ns + idle if c.slot else c.naming_until) is not None
         ]
+        if self._accept_paused_until is not None:
+            ends.append(self._accept_paused_until)
         return min(ends) if ends else None
 
     def due(self, now: int) -> None:
@@ -482,27 +515,45 @@ class ApiServer:
 
     def accept(self, now: int) -> None:
         """Accept the waiting connections (a bounded number per call)."""
-        for _ in range(ACCEPTS_PER_CALL):
-            try:
-                sock, _address = self._listener.accept()
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:  # e.g. out of descriptors: try again on the next turn
-                break
-            self._adopt(sock, now)
+        self._accept_from(self._listener, now, operator=False)
 
     def accept_operators(self, now: int) -> None:
         """Accept the operator socket's waiting connections (SR-8.14), a bounded number."""
-        if self._operator is None:
-            return
+        if self._operator is not None:
+            self._accept_from(self._operator, now, operator=True)
+
+    def _accept_from(self, listener: socket.socket, now: int, *, operator: bool) -> None:
+        if self._accept_paused_until is not None:
+            return  # handed a socket made ready before the pause: its turn comes after it
         for _ in range(ACCEPTS_PER_CALL):
             try:
-                sock, _address = self._operator.accept()
+                sock, _address = listener.accept()
             except (BlockingIOError, InterruptedError):
-                break
-            except OSError:
-                break
-            self._adopt(sock, now, operator=True)
+                return
+            except ConnectionAbortedError:
+                continue  # that peer gave up in the backlog; the next one is there
+            except OSError as error:  # out of descriptors or memory, or worse (SR-10.4)
+                self._pause_accepts(now, error)
+                return
+            self._adopt(sock, now, operator=operator)
+
+    def _pause_accepts(self, now: int, error: OSError) -> None:
+        """``accept`` failed and the connection stays in the backlog, its socket readable:
+        stop watching the listening sockets until a descriptor of ours is released or
+        :data:`ACCEPT_PAUSE_NS` has passed, so the loop does not spin on it (SR-10.4), and
+        say so at most once per :data:`ACCEPT_SAY_NS`, with how often it failed since."""
+        self._accept_paused_until = now + ACCEPT_PAUSE_NS
+        self._accept_failures += 1
+        said = self._accept_said
+        if said is None or now - said >= ACCEPT_SAY_NS:
+            log.warning(
+                "cannot accept API connections: %s (%d time(s) since the last such line); "
+                "they wait in the backlog until a descriptor is free, tried again every %d ms",
+                error.strerror or error,
+                self._accept_failures,
+                ACCEPT_PAUSE_NS // NS_PER_MS,
+            )
+            self._accept_said, self._accept_failures = now, 0
 
     def on_readable(self, fd: int, now: int) -> None:
         """Read what one connection sent and queue its requests (and its end, if it ended).
@@ -646,9 +697,12 @@ class ApiServer:
         return sock.recv(end)
 
     def _release_ended(self) -> None:
+        if not self._ended:
+            return
         for sock in self._ended:
             sock.close()
         self._ended.clear()
+        self._accept_paused_until = None  # a descriptor is free: accept again (SR-10.4)
 
     def _new_turn(self, now: int) -> None:
         """A turn begins: the read budget is shared anew and idle e-stop slots are closed."""
@@ -682,32 +736,23 @@ class ApiServer:
         if name is None:
             conn.naming_until = now + NAME_WAIT_NS
         conn.operator = operator
-        ordinary = sum(not c.slot and not c.operator for c in self._connections.values())
-        operators = sum(c.operator for c in self._connections.values())
+        # Each socket's own count: the operator socket's is outside max_clients and the
+        # client socket's e-stop slots (SR-8.14), so no robot program can fill it.
+        held = sum(not c.slot and c.operator is operator for c in self._connections.values())
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
-        if operator:
-            # Its own count, outside max_clients and the e-stop slots (SR-8.14): only root
-            # and the operators' group reach this socket, so no robot program can fill it.
-            if operators < self.config.operator_max_clients:
-                self._results.append(Accepted(conn.info))
-            else:  # never reported to the core, as an e-stop slot refused
-                conn.accepted = False
-                error = ApiError(
-                    ErrorCode.TOO_MANY_CLIENTS,
-                    f"the operator socket takes at most {self.config.operator_max_clients} "
-                    "connections",
-                )
-                self._queue(conn, server_line(error))
-                self._end(conn, CloseReason.EVICTED)
-            return
-        if ordinary < self.config.max_clients:
+        if held < (self.config.operator_max_clients if operator else self.config.max_clients):
             self._results.append(Accepted(conn.info))
             return
-        # Every ordinary slot is taken: an e-stop slot, so the operator's stop gets through
-        # (docs/safety.md "The client socket cannot shut out a stop").
+        # Every ordinary slot of its socket is taken: an e-stop slot of that socket's own
+        # reserve, so the operator's stop gets through (docs/safety.md "The client socket
+        # cannot shut out a stop"; on the operator socket, SR-8.17).
         conn.accepted, conn.slot = False, True
-        slots = [c for c in self._connections.values() if c.slot and c is not conn]
+        slots = [
+            c
+            for c in self._connections.values()
+            if c.slot and c.operator is operator and c is not conn
+        ]
         if len(slots) >= self.config.reserved_slots:
             others = [c for c in slots if not c.info.caller.admin]
             if who.admin and others:
@@ -715,12 +760,17 @@ class ApiServer:
             else:
                 self._refuse_slot(conn, "and every e-stop slot is taken")
 
+    def _full(self, conn: _Connection) -> str:
+        """What a refusal on ``conn``'s socket says first: that socket's limit."""
+        if conn.operator:
+            return (
+                f"the operator socket takes at most {self.config.operator_max_clients} connections"
+            )
+        return f"the server takes at most {self.config.max_clients} clients"
+
     def _refuse_slot(self, conn: _Connection, why: str) -> None:
         """Close an e-stop slot with one ``too_many_clients`` line (a fresh socket has room)."""
-        error = ApiError(
-            ErrorCode.TOO_MANY_CLIENTS,
-            f"the server takes at most {self.config.max_clients} clients; {why}",
-        )
+        error = ApiError(ErrorCode.TOO_MANY_CLIENTS, f"{self._full(conn)}; {why}")
         self._queue(conn, server_line(error))
         self._end(conn, CloseReason.EVICTED)
 
@@ -782,8 +832,7 @@ class ApiServer:
         if conn.slot and not isinstance(request, SLOT_REQUESTS):
             return error(
                 ErrorCode.TOO_MANY_CLIENTS,
-                f"the server takes at most {self.config.max_clients} clients; this e-stop "
-                "slot serves estop and status only",
+                f"{self._full(conn)}; this e-stop slot serves estop and status only",
             )
         if conn.operator and isinstance(request, ROBOT_REQUESTS):
             # Not Denied: the core never sees it (a heartbeat is no reset to record).

@@ -2,7 +2,8 @@
 
 Each command is one connection and a few requests through :class:`SupervisorClient`
 (``docs/api.md``), on the operator socket when this user can open it, else on the client
-socket (SR-8.14; ``wait-ready``, a robot service's gate, always on the client socket).
+socket (SR-8.14; ``wait-ready``, a robot service's gate, always on the client socket), and on
+the client socket again when the operator socket refuses it as full (SR-8.17).
 Exit status: 0 done, 1 refused or failed (the daemon's reason is printed),
 2 a usage or configuration error, 3 no daemon to talk to.
 """
@@ -16,7 +17,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Final, TextIO
 
@@ -235,10 +236,16 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         if args.command == "wait-ready":
             return wait_ready(path, args.timeout, out, err, rearmable=args.rearmable)
         if args.command == "stoptest":
-            with connect(path, operator) as client:
-                return run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout)
-        with connect(path, operator) as client:
-            return _one_shot(client, args, out)
+            return on_either(
+                path,
+                operator,
+                lambda client: run_stoptest(client, out, wired=args.wired, timeout_s=args.timeout),
+                err=err,
+                prog=prog,
+            )
+        return on_either(
+            path, operator, lambda client: _one_shot(client, args, out), err=err, prog=prog
+        )
     except ConnectError as error:
         if isinstance(error.__cause__, PermissionError):
             print(f"{prog}: {denied(path, error)}", file=err)
@@ -278,6 +285,47 @@ def connect(path: Path, operator: Path | None, timeout: float = 10.0) -> Supervi
         except ConnectError:
             pass  # not there, or not for this user: the client socket, as before
     return SupervisorClient.connect(path, timeout=timeout)
+
+
+def on_either(
+    path: Path,
+    operator: Path | None,
+    work: Callable[[SupervisorClient], int],
+    timeout: float = 10.0,
+    *,
+    err: TextIO | None = None,
+    prog: str = "srcsctl",
+) -> int:
+    """``work`` on a connection to the ``operator`` socket when this user can open it and it
+    takes the connection, else on the client socket at ``path`` (SR-8.14, SR-8.17).
+
+    A full operator socket accepts the connection, then answers ``too_many_clients`` and
+    closes it (docs/api.md "Error codes"): that refusal is read only at the first request, so
+    the fallback is made there, not at the connect. ``too_many_clients`` is never the answer
+    to a request that was acted on (a full socket, or an e-stop slot refusing all but
+    ``estop`` and ``status``), and every command prints nothing before its first answer, so
+    the whole command runs again on the client socket, where its e-stop slots and an admin's
+    eviction take the operator's ``estop`` (docs/srcsctl.md "Which socket"); ``err`` is told."""
+    if operator is not None:
+        try:
+            client = SupervisorClient.connect(operator, timeout=timeout)
+        except ConnectError:
+            client = None  # not there, or not for this user: the client socket, as before
+        if client is not None:
+            with client:
+                try:
+                    return work(client)
+                except ApiError as error:
+                    if error.code != ErrorCode.TOO_MANY_CLIENTS:
+                        raise
+                    if err is not None:
+                        print(
+                            f"{prog}: the operator socket is full ({error.message}); "
+                            f"using the client socket {path}",
+                            file=err,
+                        )
+    with SupervisorClient.connect(path, timeout=timeout) as client:
+        return work(client)
 
 
 def socket_paths(config: str | None, socket: str | None) -> tuple[Path, Path | None]:
