@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import errno
 import grp
+import io
 import os
 import socket
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,7 +26,8 @@ from supervisord.api.server import (
     ServerError,
     core_event,
 )
-from supervisord.cli.control import connect, socket_paths
+from supervisord.cli.control import connect, on_either, socket_paths
+from supervisord.client import SupervisorClient
 from tests.api.test_api_server import NOBODY, Loop, Peer, shared_dir  # noqa: F401 -- a fixture
 
 
@@ -135,23 +138,41 @@ def test_the_operator_socket_refuses_a_robot_programs_requests(tmp_path: Path, b
         operator.close()
 
 
-def test_the_operator_socket_takes_its_own_bounded_number(tmp_path: Path) -> None:
-    """SR-8.14: past operator_max_clients an operator connection gets too_many_clients and is
-    closed, never reported to the core; the client socket's slots are not touched."""
+def test_the_operator_socket_has_e_stop_slots_of_its_own(tmp_path: Path) -> None:
+    """SR-8.14, SR-8.17: past operator_max_clients an operator connection takes one of the
+    operator socket's own reserved_slots e-stop slots: never reported to the core, served
+    ``estop`` (the core's local e-stop) and ``status``, anything else ``too_many_clients``
+    and closed; past its slots a connection is refused. The client socket's ordinary slot and
+    e-stop slot are not touched."""
     loop = Loop(
         ServerConfig(
-            tmp_path / "api.sock", operator_path=tmp_path / "op.sock", operator_max_clients=2
+            tmp_path / "api.sock",
+            operator_path=tmp_path / "op.sock",
+            operator_max_clients=2,
+            reserved_slots=1,
+            max_clients=1,
         )
     )
     try:
-        operators = [Peer(tmp_path / "op.sock") for _ in range(3)]
-        (reply,) = operators[2].read(loop)
+        operators = [Peer(tmp_path / "op.sock") for _ in range(2)]
+        loop.until(lambda: len(loop.of_type(Accepted)) == 2)
+        slot = Peer(tmp_path / "op.sock")
+        assert slot.ask(loop, {"op": "status"})["ok"] is True
+        assert slot.ask(loop, {"op": "estop"})["ok"] is True
+        (estop,) = [r for r in loop.of_type(Received) if isinstance(r.request, Estop)]
+        assert type(core_event(estop, 1)).__name__ == "LocalEstop"
+        assert len(loop.of_type(Accepted)) == 2  # the slot is no client of the core's
+        refused = Peer(tmp_path / "op.sock")  # every slot is taken, by root: no eviction
+        (reply,) = refused.read(loop)
         assert reply["code"] == "too_many_clients"
-        operators[2].wait_eof(loop)
-        assert len(loop.of_type(Accepted)) == 2
-        client = Peer(tmp_path / "api.sock")
+        assert "the operator socket takes at most 2 connections" in reply["error"]
+        refused.wait_eof(loop)
+        assert slot.ask(loop, {"op": "hello", "name": "nav"})["code"] == "too_many_clients"
+        slot.wait_eof(loop)
+        client, client_slot = Peer(tmp_path / "api.sock"), Peer(tmp_path / "api.sock")
         assert client.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
-        for peer in [*operators, client]:
+        assert client_slot.ask(loop, {"op": "estop"})["ok"] is True
+        for peer in [*operators, slot, refused, client, client_slot]:
             peer.close()
     finally:
         loop.close()
@@ -256,3 +277,43 @@ def test_srcsctl_falls_back_when_the_operator_socket_is_not_for_this_user(
                 os._exit(code)
         _, status = os.waitpid(pid, 0)
         assert os.waitstatus_to_exitcode(status) == 0
+
+
+def test_srcsctl_falls_back_to_the_client_socket_after_the_operator_socket_refuses(
+    tmp_path: Path,
+) -> None:
+    """SR-8.17: an operator socket whose connection and e-stop slot are held by admins (the
+    test, root: no admin evicts another) takes srcsctl's connection, then refuses it with
+    ``too_many_clients``; srcsctl runs its command again on the client socket, where the
+    estop is served as the core's local e-stop, and says on stderr that it fell back."""
+    client, operator = tmp_path / "api.sock", tmp_path / "api-operator.sock"
+    loop = Loop(
+        ServerConfig(client, operator_path=operator, operator_max_clients=1, reserved_slots=1)
+    )
+    held = [Peer(operator) for _ in range(2)]
+    try:
+        loop.until(lambda: len(loop.of_type(Accepted)) == 1)
+        assert held[1].ask(loop, {"op": "status"})["ok"] is True  # the e-stop slot is taken
+        err = io.StringIO()
+        done: list[int] = []
+
+        def estop(session: SupervisorClient) -> int:
+            session.estop()
+            return 0
+
+        thread = threading.Thread(
+            target=lambda: done.append(on_either(client, operator, estop, timeout=30.0, err=err))
+        )
+        thread.start()
+        try:
+            loop.until(lambda: not thread.is_alive(), turns=100_000)
+        finally:
+            thread.join()
+        assert done == [0]
+        assert "the operator socket is full" in err.getvalue()
+        (estop_received,) = [r for r in loop.of_type(Received) if isinstance(r.request, Estop)]
+        assert type(core_event(estop_received, 1)).__name__ == "LocalEstop"
+    finally:
+        for peer in held:
+            peer.close()
+        loop.close()
