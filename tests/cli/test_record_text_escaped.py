@@ -4,6 +4,7 @@ line as ``fleet`` (supervisord/cli/record_text.py), escaped."""
 
 from __future__ import annotations
 
+import io
 import json
 import subprocess
 import sys
@@ -55,3 +56,28 @@ def test_log_shows_a_record_files_text_escaped(tmp_path: Path, mode: list[str]) 
     assert "evil\\x1b]0;owned\\x07" in done.stdout
     assert "RUN\\x1b]0;owned" in done.stdout
     assert "\\u202e" in done.stdout
+
+
+def test_replay_shows_a_record_files_text_escaped(tmp_path: Path) -> None:
+    """SR-13.7: a record file whose stop record says otherwise with :data:`HOSTILE` text (a
+    detail, and a field of its own named so) is a mismatch that ``srcsctl replay`` prints with
+    every control, bidi and separator character escaped."""
+    from supervisord.cli.replay import EXIT_MISMATCH, run_replay  # noqa: PLC0415
+    from supervisord.record.flight import FlightWriter  # noqa: PLC0415
+    from supervisord.record.jsonl import RecordWriter  # noqa: PLC0415
+    from tests.record.flight_rig import run, story  # noqa: PLC0415
+
+    story_run = run(story())
+    story_run.stop["causes"][0]["details"]["sources"] = HOSTILE
+    story_run.stop["extra" + HOSTILE] = HOSTILE
+    with RecordWriter(tmp_path / "stops.jsonl") as records:
+        for record in story_run.records:
+            records.append(record)
+    path = FlightWriter(tmp_path / "stops.jsonl", 1 << 20, 4).write(story_run.window())
+    out, errors = io.StringIO(), io.StringIO()
+    code = run_replay(str(path), tmp_path / "stops.jsonl", out, errors)
+    said = out.getvalue() + errors.getvalue()
+    assert code == EXIT_MISMATCH, said
+    assert raw_controls(said) == []
+    assert "differing fields: " in said
+    assert "\\u202e" in said
