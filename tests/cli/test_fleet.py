@@ -522,3 +522,25 @@ def test_one_host_name_from_two_senders_is_two_robots_and_said(
 
     alone = fleet("-D", str(directory), "--robot", "robot-b", "-n", "1")
     assert "127.0.1.66" in alone.stderr  # said whichever records are shown
+
+
+@pytest.mark.parametrize(
+    ("name", "sender"),
+    [
+        ("remote-192.0.2.17.journal", "192.0.2.17"),
+        ("remote-192.0.2.17@" + "a" * 32 + "-" + "1" * 16 + "-" + "2" * 16 + ".journal",
+         "192.0.2.17"),
+        ("remote-192.0.2.17@" + "1" * 16 + "-" + "2" * 16 + ".journal~", "192.0.2.17"),
+        ("remote-fe80::1.journal", "fe80::1"),
+        ("remote-CN=robot-a.journal", "CN=robot-a"),
+        ("system.journal", None),
+        ("remote.journal", None),
+    ],
+)  # fmt: skip
+def test_a_collectors_file_names_its_sender(name: str, sender: str | None) -> None:
+    """SR-13.8: the sender as systemd-journal-remote names its files (systemd-journal-remote(8):
+    ``remote-HOST.journal``, set aside on rotation with ``@ID-SEQNUM-TIME`` or as
+    ``@SEQNUM-TIME.journal~``); a file no collector named has none."""
+    from supervisord.cli.fleet_senders import sender_of_file  # noqa: PLC0415
+
+    assert sender_of_file(f"/var/log/journal/remote/{name}") == sender
