@@ -7,6 +7,11 @@ record (:mod:`record_print`), after the robot's name. ``log``'s habits: ``--sinc
 ``--until`` in the same forms, ``--cause``, ``-o``, ``-n``, ``-r``, ``-f``, ``-q``, the exit
 statuses. ``--summary``: one line per robot instead.
 
+A robot is its host name and its sender's address together (SR-13.8): the host name is the
+uploader's word, the address the collector's (:mod:`fleet_senders`); one host name from two
+senders is two robots, and a warning says so. Every text of an entry is another machine's and
+is escaped before it is printed (SR-13.7, :mod:`terminal_text`); JSON escapes it itself.
+
 Order: journalctl's, which keeps each robot's records in the order its journal wrote them
 (the order of its ``seq``) and interleaves robots by their own clocks; nothing here sorts by a
 wall clock (SR-13.5). A record the collector holds twice (sent again after an outage) is
@@ -37,12 +42,16 @@ from supervisord.cli.fleet_journal import (
     NoJournalctl,
     command,
     entry,
+    journalctl,
+    label,
     robot_name,
 )
+from supervisord.cli.fleet_senders import Senders
 from supervisord.cli.interrupt import interruptible
 from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
 from supervisord.cli.record_text import changes
+from supervisord.cli.terminal_text import printable
 from supervisord.cli.times import BadTime, parse_time, show_time
 from supervisord.record.stop import StopRecord
 from supervisord.vocabulary import ChangeKind, Severity, State
@@ -148,17 +157,20 @@ def run_fleet(
     try:
         scan = command(source, robot=robot, since=start, until=end)
         tail = command(source, robot=robot, since=start, until=end, follow=True)
+        senders = Senders([journalctl(), *source])
     except NoJournalctl as error:
         return _say(errors, str(error), EXIT_FAILED)
     if follow and last is None and start is None and end is None:
         last = FOLLOW_LAST
     wanted = _Filter(cause, cause_present, start, end)
     try:
-        scanned = _scan(scan, errors)
+        scanned = _scan(scan, errors, senders)
     except _JournalctlFailed as error:
         return _say(errors, str(error), EXIT_FAILED)
     known: set[tuple[str, ...]] = set()
     entries = _once(scanned, known)
+    heard = _Heard(errors)
+    heard.add(entries)
     chosen = wanted.select(entries)
     shown = [] if last == 0 else chosen[-last:] if last is not None else chosen
     printer = RecordPrinter(out, output=output, utc=utc, causes=causes)
@@ -173,7 +185,15 @@ def run_fleet(
         return 0
     seen = {e.cursor for e in scanned}
     return _follow(
-        tail, seen=seen, known=known, wanted=wanted, printer=printer, errors=errors, source=source
+        tail,
+        seen=seen,
+        known=known,
+        wanted=wanted,
+        printer=printer,
+        errors=errors,
+        source=source,
+        senders=senders,
+        heard=heard,
     )
 
 
@@ -182,8 +202,34 @@ class _JournalctlFailed(Exception):
 
 
 def _say(errors: IO[str], text: str, status: int) -> int:
-    print(f"srcsctl fleet: {text}", file=errors)
+    """``text`` on ``errors``, escaped: it may hold a sender's words (SR-13.7)."""
+    print(f"srcsctl fleet: {printable(text)}", file=errors)
     return status
+
+
+class _Heard:
+    """Every sender each host name came from; a host name heard from a second sender is said
+    on ``errors``, once for each new sender (SR-13.8): an uploader chooses its ``_HOSTNAME``,
+    so one of them may not be the robot the name says, and each is shown apart."""
+
+    def __init__(self, errors: IO[str]) -> None:
+        self.errors = errors
+        self.senders: dict[str, list[str | None]] = {}
+
+    def add(self, entries: Iterable[Entry]) -> None:
+        for item in entries:
+            known = self.senders.setdefault(item.robot, [])
+            if item.sender in known:
+                continue
+            known.append(item.sender)
+            if len(known) > 1:
+                named = ", ".join("a file no collector named" if s is None else s for s in known)
+                _say(
+                    self.errors,
+                    f"warning: host name {item.robot} came from {len(known)} senders: {named}; "
+                    "a host name is the sender's word: each sender is shown as a robot of its own",
+                    0,
+                )
 
 
 def _source(directory: Path | None, files: list[Path], errors: IO[str]) -> tuple[list[str], int]:
@@ -211,11 +257,11 @@ def _source(directory: Path | None, files: list[Path], errors: IO[str]) -> tuple
     return [f"--directory={folder}"], 0
 
 
-def _entries(lines: Iterable[str], errors: IO[str]) -> Iterator[Entry]:
+def _entries(lines: Iterable[str], errors: IO[str], senders: Senders) -> Iterator[Entry]:
     for line in lines:
-        found = entry(line)
+        found = entry(line, senders)
         if isinstance(found, str):
-            print(f"srcsctl fleet: {found}", file=errors)
+            _say(errors, found, 0)
         else:
             yield found
 
@@ -235,7 +281,7 @@ def _once(entries: Iterable[Entry], known: set[tuple[str, ...]]) -> list[Entry]:
     return kept
 
 
-def _scan(line: list[str], errors: IO[str]) -> list[Entry]:
+def _scan(line: list[str], errors: IO[str], senders: Senders) -> list[Entry]:
     """Every entry journalctl gives now, in its order."""
     try:
         done = subprocess.run(line, capture_output=True, text=True, check=False)  # noqa: S603
@@ -244,7 +290,7 @@ def _scan(line: list[str], errors: IO[str]) -> list[Entry]:
     if done.returncode != 0:
         said = done.stderr.strip().splitlines()
         raise _JournalctlFailed(f"journalctl: {said[-1] if said else f'exit {done.returncode}'}")
-    return list(_entries(done.stdout.splitlines(), errors))
+    return list(_entries(done.stdout.splitlines(), errors, senders))
 
 
 WAKE_S: Final = 1.0
@@ -272,6 +318,8 @@ def _follow(
     printer: RecordPrinter,
     errors: IO[str],
     source: list[str],
+    senders: Senders,
+    heard: _Heard,
 ) -> int:
     """Each record the collector takes in from now on, until Ctrl-C or SIGTERM (exit 0).
     journalctl follows every entry of the window from each file's start (``--lines=all``);
@@ -284,6 +332,7 @@ def _follow(
     try:
         while True:
             files = _journal_files(source)
+            senders.read()  # the files' senders, the new one's too
             try:
                 tail = subprocess.Popen(  # noqa: S603
                     line, stdout=subprocess.PIPE, stderr=subprocess.PIPE
@@ -300,6 +349,8 @@ def _follow(
                     printer=printer,
                     errors=errors,
                     source=source,
+                    senders=senders,
+                    heard=heard,
                 )
             finally:
                 tail.terminate()
@@ -322,6 +373,8 @@ def _read_tail(
     printer: RecordPrinter,
     errors: IO[str],
     source: list[str],
+    senders: Senders,
+    heard: _Heard,
 ) -> bool:
     """Show the new records journalctl prints; ``False`` when a new file appeared (start
     again: looked for before each batch is shown, and after a second of silence), ``True``
@@ -344,15 +397,22 @@ def _read_tail(
             return False
         *complete, pending = (pending + chunk).split(b"\n")
         text = [raw.decode(errors="replace") for raw in complete]
-        fresh = [e for e in _entries(text, errors) if e.cursor not in seen]
+        fresh = [e for e in _entries(text, errors, senders) if e.cursor not in seen]
         seen.update(e.cursor for e in fresh)
-        _show(printer, wanted.select(_once(fresh, known)))
+        once = _once(fresh, known)
+        heard.add(once)
+        _show(printer, wanted.select(once))
 
 
 def _show(printer: RecordPrinter, shown: list[Entry], *, reverse: bool = False) -> None:
-    width = max((len(e.robot) for e in shown), default=0)
-    sources = [e.robot for e in shown]
-    printer.show([e.data for e in shown], reverse=reverse, sources=sources, width=width)
+    """The entries' lines, each after its robot's label (escaped, as the line is: SR-13.7);
+    in JSON, ``robot`` (the host name) and ``sender`` first (SR-13.8)."""
+    sources = [e.label for e in shown]
+    width = max((len(label) for label in sources), default=0)
+    heads = [{"robot": e.robot, "sender": e.sender} for e in shown]
+    printer.show(
+        [e.data for e in shown], reverse=reverse, sources=sources, width=width, heads=heads
+    )
 
 
 class _Filter:
@@ -368,25 +428,26 @@ class _Filter:
         end: dt.datetime | None = None,
     ) -> None:
         self.cause, self.present, self.start, self.end = cause, present, start, end
-        self.last: dict[str, StopRecord | None] = {}
+        self.last: dict[tuple[str, str | None], StopRecord | None] = {}  # by robot
         self.before: dict[str, StopRecord | None] = {}  # by cursor
 
     def select(self, entries: list[Entry]) -> list[Entry]:
         chosen = []
         for item in entries:
-            previous = self.last.get(item.robot)
-            self.last[item.robot] = item.record
+            previous = self.last.get(item.who)
+            self.last[item.who] = item.record
             self.before[item.cursor] = previous
             if item.within(self.start, self.end) and self._wanted(item.record, previous):
                 chosen.append(item)
         return chosen
 
     def first_before(self, shown: list[Entry]) -> dict[str | None, StopRecord | None]:
-        """For each robot, the record before its first one shown."""
+        """For each robot (by its label, as the printer knows it), the record before its first
+        one shown."""
         firsts: dict[str | None, StopRecord | None] = {}
         for item in shown:
-            if item.robot not in firsts:
-                firsts[item.robot] = self.before.get(item.cursor)
+            if item.label not in firsts:
+                firsts[item.label] = self.before.get(item.cursor)
         return firsts
 
     def _wanted(self, record: StopRecord | None, previous: StopRecord | None) -> bool:
@@ -420,28 +481,30 @@ def stop_causes(record: StopRecord | None, previous: StopRecord | None) -> list[
 def _summarize(
     shown: list[Entry], wanted: _Filter, out: IO[str], *, json_lines: bool, utc: bool
 ) -> None:
-    """One line per robot, by name: its records, its stops, the last stop's time and causes."""
-    robots: dict[str, dict[str, Any]] = {}
+    """One line per robot (host name and sender), by label: its records, its stops, the last
+    stop's time and causes; escaped (SR-13.7)."""
+    robots: dict[tuple[str, str | None], dict[str, Any]] = {}
     for item in shown:
-        about = robots.setdefault(item.robot, {"records": 0, "stops": 0, "last_stop": None})
+        about = robots.setdefault(item.who, {"records": 0, "stops": 0, "last_stop": None})
         about["records"] += 1
         why = stop_causes(item.record, wanted.before.get(item.cursor))
         if why is not None and item.record is not None:
             about["stops"] += 1
             about["last_stop"] = {"seq": item.record.seq, "utc": item.record.utc, "causes": why}
-    width = max((len(name) for name in robots), default=0)
-    for name in sorted(robots):
-        about = robots[name]
+    labels = {who: label(*who) for who in robots}
+    width = max((len(name) for name in labels.values()), default=0)
+    for who in sorted(robots, key=labels.__getitem__):
+        about = robots[who]
         if json_lines:
-            out.write(json.dumps({"robot": name, **about}) + "\n")
+            out.write(json.dumps({"robot": who[0], "sender": who[1], **about}) + "\n")
             continue
         stops = f"{about['stops']} stop{'' if about['stops'] == 1 else 's'}"
-        line = f"{name:{width}}  {stops}, {about['records']} records"
+        line = f"{stops}, {about['records']} records"
         last = about["last_stop"]
         if last is not None:
             when = show_time(last["utc"], utc=utc)
             line += f"; last {when} #{last['seq']} {', '.join(last['causes']) or 'none'}"
-        out.write(line + "\n")
+        out.write(f"{labels[who]:{width}}  {printable(line)}\n")
     out.flush()
 
 

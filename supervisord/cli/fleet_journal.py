@@ -3,7 +3,9 @@ journal files of our own (docs/fleet.md "srcsctl fleet"), and each entry back as
 ``srcsctl log`` prints (SR-13.4).
 
 An entry names its robot by ``_HOSTNAME``, which journald adds on the robot and
-systemd-journal-remote keeps; its time is the robot's own (``__REALTIME_TIMESTAMP`` as
+systemd-journal-remote keeps, and by its sender, the address the collector's file names
+(:mod:`fleet_senders`): a host name is what an uploader says, the address is where its upload
+came from (SR-13.8); its time is the robot's own (``__REALTIME_TIMESTAMP`` as
 forwarded: the collector adds no time of its own). The record is rebuilt from the ``SRCS_*``
 fields ``supervisord/record/journal.py`` writes; an entry without them is named and skipped.
 """
@@ -17,8 +19,10 @@ import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, TypeGuard
 
+from supervisord.cli.fleet_senders import Senders
+from supervisord.cli.terminal_text import printable
 from supervisord.journal_ids import MESSAGE_IDS_BY_KIND
 from supervisord.record.stop import StopRecord, read_written
 
@@ -38,8 +42,9 @@ class NoJournalctl(Exception):
 
 @dataclass(frozen=True)
 class Entry:
-    """One record as a collector holds it: the robot that sent it, the journal's cursor (its
-    place in the collector's files) and the record rebuilt from its fields."""
+    """One record as a collector holds it: the robot that sent it (its ``_HOSTNAME`` as sent,
+    raw: escaped only where printed), the journal's cursor (its place in the collector's
+    files) and the record rebuilt from its fields."""
 
     robot: str
     cursor: str
@@ -52,6 +57,18 @@ class Entry:
     identity: tuple[str, ...] | None = None
     """What names this entry as the robot wrote it (:func:`identity`), the same in a copy
     the collector was sent twice; ``None`` without the robot's stamps."""
+    sender: str | None = None
+    """Where the upload came from (:meth:`~supervisord.cli.fleet_senders.Senders.of`)."""
+
+    @property
+    def who(self) -> tuple[str, str | None]:
+        """The robot: its host name and its sender, together (SR-13.8)."""
+        return self.robot, self.sender
+
+    @property
+    def label(self) -> str:
+        """:func:`label` of the robot."""
+        return label(self.robot, self.sender)
 
     def within(self, start: dt.datetime | None, end: dt.datetime | None) -> bool:
         """Whether the robot's stamp is at or after ``start`` and before ``end``. journalctl's
@@ -115,12 +132,27 @@ def command(
 
 
 def _one(entry: Mapping[str, Any], field: str) -> str | None:
-    """A field's text: journalctl writes a repeated field as a list (the last is taken), a
-    value that is not UTF-8 as a list of bytes (no text: ``None``)."""
+    """A field's text: journalctl writes a repeated field as a list (the last is taken), and a
+    value with a control character or not UTF-8 as a list of its bytes, read here as UTF-8
+    with U+FFFD for what is not (its controls are escaped where it is shown, SR-13.7: a
+    record's reason or state is shown, not dropped, whatever it holds)."""
     value = entry.get(field)
-    if isinstance(value, list) and value and isinstance(value[-1], str):
-        return value[-1]
+    if _is_bytes(value):
+        return bytes(value).decode(errors="replace")
+    if isinstance(value, list) and value:
+        value = value[-1]
+    if _is_bytes(value):
+        return bytes(value).decode(errors="replace")
     return value if isinstance(value, str) else None
+
+
+def _is_bytes(value: object) -> TypeGuard[list[int]]:
+    """Whether ``value`` is journalctl's list of a value's bytes (an empty list is not)."""
+    return (
+        isinstance(value, list)
+        and bool(value)
+        and all(isinstance(b, int) and 0 <= b <= 255 for b in value)
+    )
 
 
 def _json(text: str | None) -> object:
@@ -130,8 +162,20 @@ def _json(text: str | None) -> object:
         return None
 
 
-def entry(line: str) -> Entry | str:
-    """One line of ``journalctl -o json`` as an :class:`Entry`, or why it is not a record."""
+def label(robot: str, sender: str | None) -> str:
+    """A robot as a line shows it: ``HOST@ADDRESS`` (``HOST`` alone for a file no collector
+    named), escaped (SR-13.7). A host name that is no host name (:data:`ROBOT_NAME`) is in
+    quotes, so that no ``_HOSTNAME`` can pass for another robot's label (``robot-b@10.0.0.5``
+    sent from elsewhere is ``"robot-b@10.0.0.5"@ELSEWHERE``, SR-13.8)."""
+    name = (
+        robot if ROBOT_NAME.fullmatch(robot) else '"' + printable(robot).replace('"', '\\"') + '"'
+    )
+    return name if sender is None else f"{name}@{printable(sender)}"
+
+
+def entry(line: str, senders: Senders | None = None) -> Entry | str:
+    """One line of ``journalctl -o json`` as an :class:`Entry` (its sender from ``senders``),
+    or why it is not a record (raw: the caller escapes it)."""
     try:
         fields = json.loads(line)
     except (ValueError, RecursionError):
@@ -142,10 +186,10 @@ def entry(line: str) -> Entry | str:
     seq, mono = _one(fields, "SRCS_SEQ"), _one(fields, "SRCS_MONO_NS")
     utc = _one(fields, "SRCS_UTC")
     if seq is None or not seq.isdigit() or mono is None or not mono.isdigit() or utc is None:
-        return f"{printable(robot)}: an entry without SRCS_SEQ, SRCS_MONO_NS or SRCS_UTC"
+        return f"{robot}: an entry without SRCS_SEQ, SRCS_MONO_NS or SRCS_UTC"
     causes = _json(_one(fields, "SRCS_CAUSES"))
     if not isinstance(causes, list):
-        return f"{printable(robot)}: #{seq}: SRCS_CAUSES is not a list"
+        return f"{robot}: #{seq}: SRCS_CAUSES is not a list"
     data: dict[str, Any] = {"seq": int(seq), "mono_ns": int(mono), "utc": utc}
     for name, field in _TEXT_FIELDS:
         data[name] = _one(fields, field) or ""
@@ -162,7 +206,10 @@ def entry(line: str) -> Entry | str:
     stamp = _one(fields, "__REALTIME_TIMESTAMP")
     stamp_us = int(stamp) if stamp is not None and stamp.isdigit() else None
     cursor = str(fields.get("__CURSOR", ""))
-    return Entry(printable(robot), cursor, data, stamp_us, read_written(data), identity(fields))
+    sender = senders.of(cursor) if senders is not None else None
+    known = identity(fields)
+    known = None if known is None else (*known, sender or "")  # another sender's is not a copy
+    return Entry(robot, cursor, data, stamp_us, read_written(data), known, sender)
 
 
 _ROBOTS_STAMPS: Final = (
@@ -188,10 +235,3 @@ def identity(fields: Mapping[str, Any]) -> tuple[str, ...] | None:
     if values[2] is None or values[3] is None:
         return None
     return tuple(value or "" for value in values)
-
-
-def printable(name: str) -> str:
-    """A name from an entry as it may be printed: a sender may put anything in ``_HOSTNAME``
-    (a control character would rewrite the operator's terminal), so anything but a host
-    name's characters is shown escaped."""
-    return name if ROBOT_NAME.fullmatch(name) else name.encode("unicode_escape").decode("ascii")

@@ -6,7 +6,7 @@ keeps "the one before" per robot (docs/srcsctl.md "fleet")."""
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import IO, Any, Final
 
 from supervisord.cli.record_text import record_line, written_line
@@ -46,15 +46,19 @@ class RecordPrinter:
         reverse: bool = False,
         sources: list[str] | None = None,
         width: int = 0,
+        heads: Sequence[Mapping[str, Any]] | None = None,
     ) -> None:
         """Print ``records`` (each source's in its own order); ``sources``: each one's robot,
-        written in a column ``width`` wide."""
+        written in a column ``width`` wide (as the caller made it printable); ``heads``: the
+        fields each JSON object starts with (``robot``: the source, without them). A line's
+        record text is escaped by :func:`record_line` (SR-13.7); JSON escapes its own."""
         lines = []
         for index, data in enumerate(records):
             source = sources[index] if sources is not None else None
             if self.output in JSON_OUTPUTS:
                 indent = 2 if self.output == "json-pretty" else None
-                shown = data if source is None else {"robot": source, **data}
+                head = heads[index] if heads is not None else {"robot": source}
+                shown = data if source is None else {**head, **data}
                 lines.append(json.dumps(shown, indent=indent))
                 continue
             record = read_written(data)  # typed; a line no typed record is shown as written

@@ -8,6 +8,12 @@ difference from the previous record's causes), and the reason in words: a refuse
 a proof test's verdict, what a commissioning read back, why a link broke. The whole cause
 set is one option away (``--causes``).
 
+Every text of a record is another party's (a record file, a robot's upload at a fleet's
+collector, SR-13.7): a line is escaped whole (:func:`~supervisord.cli.terminal_text.
+printable`) before it is handed out, so no field's control or bidi character reaches a
+terminal raw. Our own words hold none of the characters escaped, so the line escaped whole
+is each field escaped.
+
 One marker everywhere (:data:`MARK`): a cause whose condition has cleared and that only its
 latch still holds, waiting for a re-arm (SR-4), is written ``NAME*``, in ``status`` as here.
 """
@@ -17,6 +23,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Final
 
+from supervisord.cli.terminal_text import printable
 from supervisord.record.stop import Cause, ProofTestResult, RecordKind, StopRecord
 from supervisord.timebase import NS_PER_MS
 from supervisord.vocabulary import TRIP_LATE_NS, CauseName, ChangeKind, ProofTestFailure
@@ -192,26 +199,28 @@ def record_line(
 ) -> str:
     """One record in one line, after ``when`` (the time as the caller shows it):
     ``WHEN  #SEQ  MOVE  KIND  what happened``. ``causes``: the whole cause set and the
-    trigger too, and every released latch by name."""
+    trigger too, and every released latch by name. Escaped (:func:`printable`)."""
     words = [w for w in (happening(record), what_changed(record, previous, every=causes)) if w]
     text = "; ".join(words) or ("causes " + cause_set(record.causes))
     line = _line(when, record.seq, move(record), record.record_kind.value, text)
     if causes:
         line += f"  [causes: {cause_set(record.causes)}; trigger {record.event}]"
-    return line
+    return printable(line)  # the record's texts are another party's (SR-13.7)
 
 
 def written_line(data: Mapping[str, Any], when: str) -> str:
     """A line the store took that is no typed record (:func:`~supervisord.record.stop.
     read_written`: a state, record kind or change this client does not know), from the
-    fields the store holds, as written: ``WHEN  #SEQ  FROM -> TO  KIND  causes NAMES``."""
+    fields the store holds, as written: ``WHEN  #SEQ  FROM -> TO  KIND  causes NAMES``,
+    escaped (:func:`printable`)."""
     before, after = str(data.get("from")), str(data.get("to"))
     moved = after if before == after else f"{before} -> {after}"
     causes = data.get("causes")
     listed = causes if isinstance(causes, list) else []  # the store's: objects with a name
     names = [str(c.get("name")) for c in listed if isinstance(c, Mapping)]
     text = "causes " + (", ".join(names) or "none")
-    return _line(when, data.get("seq"), moved, str(data.get("kind") or "state_change"), text)
+    kind = str(data.get("kind") or "state_change")
+    return printable(_line(when, data.get("seq"), moved, kind, text))  # (SR-13.7)
 
 
 def _line(when: str, seq: object, moved: str, kind: str, text: str) -> str:

@@ -27,6 +27,7 @@ from typing import IO, Any, Final
 
 from supervisord import __version__
 from supervisord.cli import replay_export as export
+from supervisord.cli.terminal_text import printable
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.record.flight import LoadedWindow, read_window, record_of, window_path, windows
@@ -162,7 +163,8 @@ def describe(event: Event | None) -> str:
 
 
 def _compact(value: Json) -> str:
-    return json.dumps(value, separators=(",", ":"), ensure_ascii=False)
+    # ASCII: JSON escapes every control, bidi and separator character itself (SR-13.7).
+    return json.dumps(value, separators=(",", ":"))
 
 
 def _cut(text: str, width: int = INPUT_WIDTH) -> str:
@@ -176,7 +178,7 @@ def _causes(record: Mapping[str, Json]) -> str:
 
 
 def _record_line(record: Mapping[str, Json]) -> str:
-    return (
+    return printable(  # a record file's text (SR-13.7)
         f"#{record.get('seq')} {record.get('from')} -> {record.get('to')} "
         f"{record.get('kind', 'state_change')} [{_causes(record)}]"
     )
@@ -233,16 +235,17 @@ def _header(window: LoadedWindow, out: IO[str]) -> int:
     start = base.get("now_ns")
     start = start if isinstance(start, int) else first
     kind = {"start": "a fresh core at the daemon's start", "snapshot": "a snapshot of the core"}
-    out.write(
+    said = (
         f"window of record #{window.seq} ({window.path}), written by srcsd {header.get('srcsd')}: "
         f"{len(window.inputs)} inputs over {(stop_ns - start) / 1e9:.3f} s before the stop, "
-        f"from {kind.get(str(base.get('kind')), str(base.get('kind')))}\n"
+        f"from {kind.get(str(base.get('kind')), str(base.get('kind')))}"
     )
+    out.write(printable(said) + "\n")  # the window file's text (SR-13.7)
     out.write(f"the stop: {_record_line(window.stop)}\n")
     if header.get("srcsd") != __version__:
         out.write(
-            f"note: recorded by srcsd {header.get('srcsd')}, replayed by {__version__}: "
-            "a core that changed since may decide otherwise\n"
+            f"note: recorded by srcsd {printable(str(header.get('srcsd')))}, replayed by "
+            f"{__version__}: a core that changed since may decide otherwise\n"
         )
     return stop_ns
 
@@ -259,11 +262,12 @@ def _mismatch(mismatch: Mismatch, result: Replay, printer: _Printer, out: IO[str
         ended = result.steps[-1].decision.state.name if result.steps else "?"
         out.write(f"  replayed: no such record (the replay is in {ended} there)\n")
         return
-    out.write(f"  differing fields: {', '.join(mismatch.fields)}\n")
+    out.write(f"  differing fields: {printable(', '.join(mismatch.fields))}\n")
     for field in mismatch.fields:
         was = (recorded or {}).get(field)
-        out.write(f"  {field}: recorded {_compact(was)}\n")
-        out.write(f"  {' ' * len(field)}  replayed {_compact(replayed.get(field))}\n")
+        name = printable(field)  # a record file's key (SR-13.7)
+        out.write(f"  {name}: recorded {_compact(was)}\n")
+        out.write(f"  {' ' * len(name)}  replayed {_compact(replayed.get(field))}\n")
 
 
 def _copy_differs(
@@ -271,8 +275,8 @@ def _copy_differs(
 ) -> None:
     out.write(
         f"NOT THE RECORD: the window's copy of stop record #{window.seq} differs from the "
-        f"record file ({record}): differing fields: {', '.join(fields)}; the replay is compared "
-        "with the record file\n"
+        f"record file ({record}): differing fields: {printable(', '.join(fields))}; the replay "
+        "is compared with the record file\n"
     )
 
 

@@ -13,7 +13,8 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+import unicodedata
+from collections.abc import Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -25,6 +26,8 @@ from tests.journald import clock_behind, collect, robot_export
 SRCSCTL = str(Path(sys.executable).with_name("srcsctl"))
 BEHIND_S = 3600
 """robot-b's second run: its clock an hour behind the collector's."""
+ADDRESSES = {"robot-a": "127.0.1.1", "robot-b": "127.0.1.2", "robot-c": "127.0.1.3"}
+"""Where each robot uploads from: the collector names its file by it (SR-13.8)."""
 FOLLOW_SEEN_S = 15.0
 """How long ``-f`` may take to show an entry the collector wrote: journalctl wakes on the
 file's inotify event at once; the margin is the loaded two-core machine's start of a Python
@@ -79,8 +82,19 @@ def collector(exports: dict[str, bytes], tmp_path: Path) -> Path:
     directory = tmp_path / "remote"
     directory.mkdir()
     for name in ("robot-a", "robot-b"):
-        collect(exports[name], directory / f"remote-{name}.journal")
+        collect(exports[name], directory / remote(name))
     return directory
+
+
+def remote(robot: str) -> str:
+    """The robot's file at the collector, named as systemd-journal-remote names it: by the
+    sender's address."""
+    return f"remote-{ADDRESSES[robot]}.journal"
+
+
+def shown(robot: str) -> str:
+    """How a line names the robot: its host name and its address (SR-13.8)."""
+    return f"{robot}@{ADDRESSES[robot]}"
 
 
 def fleet(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
@@ -95,7 +109,10 @@ def fleet(*args: str, env: dict[str, str] | None = None) -> subprocess.Completed
 
 
 def seqs(lines: list[str], robot: str) -> list[int]:
-    return [int(line.split()[2].lstrip("#")) for line in lines if line.split()[0] == robot]
+    """The ``seq`` of each line of ``robot`` (a label, ``HOST@ADDRESS``, or a host name of
+    :data:`ADDRESSES`)."""
+    label = robot if "@" in robot else shown(robot)
+    return [int(line.split()[2].lstrip("#")) for line in lines if line.split()[0] == label]
 
 
 def test_every_robot_named_filtered_as_log_filters(collector: Path) -> None:
@@ -110,13 +127,13 @@ def test_every_robot_named_filtered_as_log_filters(collector: Path) -> None:
     assert all("raised" in line or "updated" in line for line in lines)
 
     only_a = fleet("-D", str(collector), "--robot", "robot-a").stdout.splitlines()
-    assert [line.split()[0] for line in only_a] == ["robot-a"] * 4
+    assert [line.split()[0] for line in only_a] == ["robot-a@127.0.1.1"] * 4
 
     estops = fleet("-D", str(collector), "--cause", "local_estop").stdout.splitlines()
     assert sorted((line.split()[0], line.split()[2]) for line in estops) == [
-        ("robot-a", "#3"),
-        ("robot-b", "#3"),
-        ("robot-b", "#7"),
+        ("robot-a@127.0.1.1", "#3"),
+        ("robot-b@127.0.1.2", "#3"),
+        ("robot-b@127.0.1.2", "#7"),
     ]
     assert all("raised local_estop" in line for line in estops)
 
@@ -130,9 +147,9 @@ def test_every_robot_named_filtered_as_log_filters(collector: Path) -> None:
 
     summary = fleet("-D", str(collector), "--summary", "--cause", "local_estop").stdout
     a_line, b_line = summary.splitlines()
-    assert a_line.startswith("robot-a  1 stop, 1 records; last ")
+    assert a_line.startswith("robot-a@127.0.1.1  1 stop, 1 records; last ")
     assert a_line.endswith(" #3 local_estop")
-    assert b_line.startswith("robot-b  2 stops, 2 records; last ")
+    assert b_line.startswith("robot-b@127.0.1.2  2 stops, 2 records; last ")
     assert b_line.endswith(" #7 local_estop")
     nothing = fleet("-D", str(collector), "--robot", "robot-z")
     assert (nothing.returncode, nothing.stdout) == (0, "-- No entries --\n")
@@ -174,11 +191,11 @@ class _Lines:
 
 
 @contextlib.contextmanager
-def _following(collector: Path) -> Iterator[_Lines]:
-    """``srcsctl fleet -f -n 2`` on ``collector``, its lines as they come; at the end it is
+def _following(collector: Path, last: int = 2) -> Iterator[_Lines]:
+    """``srcsctl fleet -f -n LAST`` on ``collector``, its lines as they come; at the end it is
     stopped with SIGTERM and must exit 0 (SR-13.4)."""
     follow = subprocess.Popen(
-        [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", "2"],
+        [SRCSCTL, "fleet", "-D", str(collector), "-f", "-n", str(last)],
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
     )
@@ -199,8 +216,8 @@ def test_follow_shows_a_robot_that_reports_after_it_started(
     collector takes in after it started."""
     with _following(collector) as lines:
         first = lines.take(2, FOLLOW_SEEN_S)
-        assert [line.split()[0] for line in first] == ["robot-b", "robot-b"]
-        collect(exports["robot-c"], collector / "remote-robot-c.journal")
+        assert [line.split()[0] for line in first] == [shown("robot-b")] * 2
+        collect(exports["robot-c"], collector / remote("robot-c"))
         later = lines.take(4, FOLLOW_SEEN_S)
         assert seqs(later, "robot-c") == [1, 2, 3, 4]
 
@@ -232,7 +249,7 @@ def test_follow_keeps_a_new_files_records_in_order_when_they_straddle_the_shown_
         lines.take(2, FOLLOW_SEEN_S)
         year_2001_us, year_2100_us = 978_307_200_000_000, 4_102_444_800_000_000
         late = _stamped_around(exports["robot-c"], 3, year_2001_us, year_2100_us)
-        collect(late, collector / "remote-robot-c.journal")
+        collect(late, collector / remote("robot-c"))
         later = lines.take(4, FOLLOW_SEEN_S)
         assert seqs(later, "robot-c") == [1, 2, 3, 4]
 
@@ -311,7 +328,7 @@ def test_a_record_sent_twice_is_shown_once(collector: Path) -> None:
     again, as systemd-journal-upload resends the entry in flight when the collector went away)
     is one record in ``fleet``'s lines, JSON and summary; a record with the same ``seq`` but
     other stamps of the robot (a new record file) is still shown."""
-    journal = collector / "remote-robot-a.journal"
+    journal = collector / remote("robot-a")
     again = subprocess.run(
         ["journalctl", f"--directory={collector}", "-o", "export", "_HOSTNAME=robot-a",
          "SRCS_SEQ=3"],
@@ -336,7 +353,7 @@ def test_a_record_sent_twice_is_shown_once(collector: Path) -> None:
     as_json = fleet("-D", str(collector), "-o", "json", "--robot", "robot-a").stdout
     assert [json.loads(line)["seq"] for line in as_json.splitlines()] == [1, 2, 3, 4]
     summary = fleet("-D", str(collector), "--summary", "--robot", "robot-a").stdout
-    assert summary.startswith("robot-a  ")
+    assert summary.startswith("robot-a@127.0.1.1  ")
     assert ", 4 records; last " in summary
 
     other = again.replace(b"\n__MONOTONIC_TIMESTAMP=", b"\n__MONOTONIC_TIMESTAMP=1")
@@ -344,3 +361,186 @@ def test_a_record_sent_twice_is_shown_once(collector: Path) -> None:
     collect(other, journal)
     lines = fleet("-D", str(collector), "--robot", "robot-a").stdout.splitlines()
     assert seqs(lines, "robot-a") == [1, 2, 3, 4, 3]
+
+
+HOSTILE = (
+    "\x1b]0;owned\x07\x1b[2J\x1b[H\x1b[31m\rrobot-a@127.0.1.1  forged\n\x9b2J\x7f"
+    "\u202e\u2066\u2069\u2028\u2029\u200b\ufeff\x00\\"
+)
+"""What a hostile or broken uploader puts in a record's text: an OSC that retitles the
+terminal, CSIs that clear it and recolour it, a CR and a newline that would forge another
+robot's line, the C1 CSI, DEL, the bidi overrides and isolates, the line and paragraph
+separators, zero-width and byte-order marks, NUL and a backslash (SR-13.4)."""
+_RAW = frozenset({"Cc", "Cf", "Zl", "Zp", "Cs", "Co", "Cn"})
+
+
+def raw_controls(text: str) -> list[str]:
+    """Every character of ``text`` a terminal would act on or hide, but the lines' ends."""
+    return [c for c in text if c != "\n" and unicodedata.category(c) in _RAW]
+
+
+def _binary(name: str, value: str) -> bytes:
+    """A field in journal export format's binary form, which carries any bytes."""
+    data = value.encode()
+    return name.encode() + b"\n" + len(data).to_bytes(8, "little") + data
+
+
+def _rewritten(export: bytes, seq: int, change: Mapping[str, object]) -> bytes:
+    """``export`` with the fields of record ``seq``'s entry set as ``change`` says: a text as
+    it is, anything else as JSON."""
+    entries = []
+    for entry in export.split(b"\n\n"):
+        lines = entry.split(b"\n")
+        if f"SRCS_SEQ={seq}".encode() in lines:
+            names = {name.encode() for name in change}
+            lines = [line for line in lines if line.partition(b"=")[0] not in names]
+            lines += [
+                _binary(name, value if isinstance(value, str) else json.dumps(value))
+                for name, value in change.items()
+            ]
+        entries.append(b"\n".join(lines))
+    return b"\n\n".join(entries)
+
+
+def _fields(export: bytes, seq: int) -> dict[str, str]:
+    for entry in export.split(b"\n\n"):
+        lines = entry.split(b"\n")
+        if f"SRCS_SEQ={seq}".encode() in lines:
+            return dict(line.decode().partition("=")[::2] for line in lines if b"=" in line)
+    raise AssertionError(f"no record {seq}")
+
+
+def _hostile(export: bytes) -> bytes:
+    """robot-a's upload as robot-x whose record #3 raises a stop cause named with
+    :data:`HOSTILE`, its details, reason and trigger :data:`HOSTILE` too, and whose record #4
+    comes from a state so named (a line that is no typed record)."""
+    renamed = export.replace(b"\n_HOSTNAME=robot-a\n", b"\n_HOSTNAME=robot-x\n")
+    fields = _fields(renamed, 3)
+    evil = {
+        "name": "evil" + HOSTILE,
+        "severity": "stop",
+        "active": True,
+        "latched": True,
+        "details": {"reason": HOSTILE, "where": HOSTILE},
+    }
+    causes = [*json.loads(fields["SRCS_CAUSES"]), evil]
+    changes = [*json.loads(fields["SRCS_CHANGES"]), {"name": evil["name"], "change": "raised"}]
+    third = {
+        "SRCS_CAUSES": causes,
+        "SRCS_CHANGES": changes,
+        "SRCS_REASON": HOSTILE,
+        "SRCS_TRIGGER": HOSTILE,
+    }
+    return _rewritten(_rewritten(renamed, 3, third), 4, {"SRCS_FROM": "RUN" + HOSTILE})
+
+
+@pytest.mark.parametrize(
+    "mode",
+    [
+        [],
+        ["--causes"],
+        ["-o", "cat"],
+        ["-o", "verbose"],
+        ["-r"],
+        ["--summary"],
+        ["-o", "json"],
+        ["-o", "json-pretty"],
+        ["--summary", "-o", "json"],
+    ],
+)
+def test_a_robots_text_reaches_no_terminal_raw(
+    exports: dict[str, bytes], tmp_path: Path, mode: list[str]
+) -> None:
+    """SR-13.7: a record whose cause names, details, reason, trigger and from-state hold
+    escape sequences, CR and newline, C1 controls, bidi overrides and separators is shown with
+    each of them escaped (``\\x1b``, ``\\u202e``), in every output mode and on stderr: no
+    raw control reaches the terminal, and no line is forged."""
+    directory = tmp_path / "remote"
+    directory.mkdir()
+    collect(_hostile(exports["robot-a"]), directory / "remote-127.0.1.9.journal")
+    shown = fleet("-D", str(directory), *mode)
+    assert shown.returncode == 0, shown.stderr
+    assert raw_controls(shown.stdout) == []
+    assert raw_controls(shown.stderr) == []
+    lines = shown.stdout.splitlines()
+    if "-o" in mode and mode[mode.index("-o") + 1].startswith("json"):
+        assert "--summary" in mode or "evil" in shown.stdout
+        return
+    assert all(line.startswith("robot-x") for line in lines), lines
+    assert len(lines) == (1 if "--summary" in mode else 4)
+    assert "\\x1b]0;owned\\x07" in shown.stdout  # shown, escaped, not dropped
+    if "--summary" not in mode:
+        assert "\\u202e" in shown.stdout
+        assert "RUN\\x1b" in shown.stdout  # the from-state of #4
+
+
+def test_a_robots_text_followed_reaches_no_terminal_raw(
+    exports: dict[str, bytes], tmp_path: Path
+) -> None:
+    """SR-13.7: ``-f`` shows a hostile record escaped, as the other modes do."""
+    directory = tmp_path / "remote"
+    directory.mkdir()
+    collect(exports["robot-b"], directory / remote("robot-b"))
+    with _following(directory, last=1) as lines:
+        lines.take(1, FOLLOW_SEEN_S)
+        collect(_hostile(exports["robot-a"]), directory / "remote-127.0.1.9.journal")
+        later = lines.take(4, FOLLOW_SEEN_S)
+    text = "\n".join(later)
+    assert raw_controls(text) == []
+    assert all(line.startswith("robot-x") for line in later), later
+    assert "\\x1b[2J" in text
+
+
+def test_one_host_name_from_two_senders_is_two_robots_and_said(
+    exports: dict[str, bytes], tmp_path: Path
+) -> None:
+    """SR-13.1, SR-13.8: records uploaded from another address under robot-b's host name
+    (robot-a's run, renamed) are not shown as robot-b's own: each robot is its host name and
+    the sender's address (the collector's file, ``remote-ADDRESS.journal``), in lines, JSON and
+    the summary, and a warning says that robot-b came from two addresses."""
+    directory = tmp_path / "remote"
+    directory.mkdir()
+    collect(exports["robot-b"], directory / remote("robot-b"))
+    forged = exports["robot-a"].replace(b"\n_HOSTNAME=robot-a\n", b"\n_HOSTNAME=robot-b\n")
+    collect(forged, directory / "remote-127.0.1.66.journal")
+
+    every = fleet("-D", str(directory))
+    assert every.returncode == 0, every.stderr
+    lines = every.stdout.splitlines()
+    assert seqs(lines, "robot-b@127.0.1.2") == list(range(1, 9))
+    assert sorted(seqs(lines, "robot-b@127.0.1.66")) == [1, 2, 3, 4]
+    warning = [line for line in every.stderr.splitlines() if "robot-b" in line]
+    assert len(warning) == 1, every.stderr
+    assert "127.0.1.2" in warning[0]
+    assert "127.0.1.66" in warning[0]
+
+    summary = fleet("-D", str(directory), "--summary").stdout.splitlines()
+    assert [line.split()[0] for line in summary] == ["robot-b@127.0.1.2", "robot-b@127.0.1.66"]
+    as_json = fleet("-D", str(directory), "-o", "json").stdout.splitlines()
+    senders = {(r["robot"], r["sender"]) for r in map(json.loads, as_json)}
+    assert senders == {("robot-b", "127.0.1.2"), ("robot-b", "127.0.1.66")}
+
+    alone = fleet("-D", str(directory), "--robot", "robot-b", "-n", "1")
+    assert "127.0.1.66" in alone.stderr  # said whichever records are shown
+
+
+@pytest.mark.parametrize(
+    ("name", "sender"),
+    [
+        ("remote-192.0.2.17.journal", "192.0.2.17"),
+        ("remote-192.0.2.17@" + "a" * 32 + "-" + "1" * 16 + "-" + "2" * 16 + ".journal",
+         "192.0.2.17"),
+        ("remote-192.0.2.17@" + "1" * 16 + "-" + "2" * 16 + ".journal~", "192.0.2.17"),
+        ("remote-fe80::1.journal", "fe80::1"),
+        ("remote-CN=robot-a.journal", "CN=robot-a"),
+        ("system.journal", None),
+        ("remote.journal", None),
+    ],
+)  # fmt: skip
+def test_a_collectors_file_names_its_sender(name: str, sender: str | None) -> None:
+    """SR-13.8: the sender as systemd-journal-remote names its files (systemd-journal-remote(8):
+    ``remote-HOST.journal``, set aside on rotation with ``@ID-SEQNUM-TIME`` or as
+    ``@SEQNUM-TIME.journal~``); a file no collector named has none."""
+    from supervisord.cli.fleet_senders import sender_of_file  # noqa: PLC0415
+
+    assert sender_of_file(f"/var/log/journal/remote/{name}") == sender
