@@ -189,8 +189,11 @@ RTTIME_HARD_US = 2_000_000
 """The unit's hard limit (units/srcsd@.service ``LimitRTTIME=1s:2s``)."""
 FLOODERS = 4
 FLOOD_BYTES = 1 << 20
-"""Per connection: ``status`` requests pipelined, about 60 000 of them, far more work than the
-soft limit's CPU time; the daemon's stop ends it long before."""
+FLOOD_LINE = b'{"op": "none"}\n'
+"""Per connection: requests pipelined, about 70 000 of them, far more work than the soft
+limit's CPU time (the daemon's stop ends it long before). An op that does not exist: each is
+parsed and refused with a short reply, so a test reader held back by a busy machine cannot
+overflow the daemon's output buffer (256 KiB) and be disconnected before the limit."""
 
 
 def _fifo_allowed() -> bool:
@@ -206,9 +209,9 @@ def _fifo_allowed() -> bool:
 
 
 def _flood(path: Path, stop: threading.Event) -> None:
-    """One connection that pipelines ``status`` requests and reads every reply, until the
-    daemon closes it (its exit) or ``stop``."""
-    requests = b'{"op": "status"}\n' * (FLOOD_BYTES // 17)
+    """One connection that pipelines refused requests and reads every reply, until the daemon
+    closes it (its exit) or ``stop``."""
+    requests = FLOOD_LINE * (FLOOD_BYTES // len(FLOOD_LINE))
     with contextlib.suppress(OSError), socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
         sock.connect(str(path))
         sock.settimeout(WAIT_S)
@@ -228,7 +231,8 @@ def _flood(path: Path, stop: threading.Event) -> None:
 def test_the_soft_rttime_limit_is_a_stop_the_daemon_makes(tmp_path: Path) -> None:
     """SR-6.7, SR-7.14: the running srcsd in RUN, its loop put in SCHED_FIFO 10 under a soft
     RLIMIT_RTTIME of 50 ms (the unit's policy, its limit lowered), then ordinary busy work:
-    four clients pipeline ``status`` requests faster than the loop answers, so it never blocks.
+    four clients pipeline requests (each refused: no such op) faster than the loop answers,
+    so it never blocks.
     At the soft limit the kernel sends SIGXCPU; the loop's handler runs at the end of its turn
     and the daemon stops itself as on SIGTERM: every output off, the log names SIGXCPU, the
     last record is ``shutdown:SIGXCPU``, exit 128 + 24 (systemd restarts it, STOPPED). The
