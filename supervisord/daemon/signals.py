@@ -8,12 +8,15 @@ and that can be caught has one of three meanings, and no other:
   SIGUSR1, SIGUSR2, SIGALRM, the real-time signals, ...) stops the same way and exits
   128 + its number, the shell's "ended by a signal", so that systemd's ``Restart=on-failure``
   starts the supervisor again, STOPPED until the operator's takeover (SR-4). srcsd has no
-  reload: a changed configuration takes effect at that start.
+  reload: a changed configuration takes effect at that start. SIGXCPU is one of these
+  (SR-6.7): the soft ``LimitRTTIME=`` says the loop has run a second without blocking; where
+  the loop still gets to run, the stop is the daemon's own, with its record
+  ``shutdown:SIGXCPU`` and exit 152.
 - **ignored** (:data:`IGNORED`): the failure they announce is met where it happens.
 - **left at the default** (:data:`DEFAULT`): the process ends at once, and the wiring and the
   VSC's watchdog make that safe (SR-6.5). A Python handler would only run later, at the next
   bytecode of the main thread: for the faults it is never (the faulting instruction runs
-  again), for SIGABRT and SIGXCPU it is the hung or spinning loop that must not get a say.
+  again), for SIGABRT it is the hung loop that must not get a say.
 
 Signals whose default does not end the process (SIGCHLD, SIGCONT, SIGURG, SIGWINCH, the stop
 signals) and the two that cannot be caught (SIGKILL, SIGSTOP) keep their default.
@@ -41,9 +44,13 @@ IGNORED: Final[Mapping[int, str]] = {
 }
 """Ignored, with why."""
 
+# SIGXCPU is not left at the default (SR-6.7): the soft LimitRTTIME= (1 s of CPU without
+# blocking) is a stop the daemon makes, outputs off and a record, whenever the loop still gets
+# to run the handler (a slow turn that ends). A loop that cannot (stuck in one call of C code,
+# or spinning inside a turn) is killed by the hard limit (SIGKILL at 2 s): the outputs' release
+# on the process's death and the VSC's watchdog stop the robot then (SR-6.5).
 DEFAULT: Final[Mapping[int, str]] = {
     signal.SIGABRT: "systemd's watchdog kill of a hung loop (WatchdogSec=)",
-    signal.SIGXCPU: "the kernel's kill of a loop that spins (LimitRTTIME=)",
     signal.SIGSYS: "the kernel's kill of a forbidden system call (SystemCallFilter=)",
     signal.SIGSEGV: "a fault of the process itself",
     signal.SIGBUS: "a fault of the process itself",

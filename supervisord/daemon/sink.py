@@ -37,6 +37,7 @@ import contextlib
 import logging
 import os
 import socket
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Final
@@ -135,6 +136,12 @@ class Sink:
         self._logger: logging.Logger | None = None
         self._closed = False
         self._records_drained = False
+        # Every record given to the record lane and not finished yet, in record order (keyed by
+        # the entry's identity): at the exit's deadline these are the ones not written, the one
+        # in the disk's hands included (SR-7.14). Each is finished exactly once, under the lock:
+        # by the lane, or by the deadline, never both.
+        self._unfinished: dict[int, Mapping[str, object]] = {}
+        self._unfinished_lock = threading.Lock()
 
     # -- the loop's side -------------------------------------------------------------------
 
@@ -153,8 +160,12 @@ class Sink:
         :class:`Written` (``dropped``) is ready at once (its journal copy is still sent)."""
         if self.journal is not None:
             self._journal.put(entry)  # a full journal lane counts the copy, nothing more
+        with self._unfinished_lock:  # before the lane may serve it
+            self._unfinished[id(entry)] = entry
         if self._records.put(entry):
             return True
+        with self._unfinished_lock:
+            del self._unfinished[id(entry)]
         self._finished(Written(entry, "the record queue is full", dropped=True))
         return False
 
@@ -213,12 +224,20 @@ class Sink:
 
     def drain_records(self, timeout_s: float = RECORD_DRAIN_S) -> bool:
         """At exit, first: wait until the record file has taken every queued record, at most
-        ``timeout_s``. Records still queued then come back as not written (``dropped``);
-        ``True`` when every record was finished. Idempotent: the records get their time once
-        (a second call, from :meth:`close`, does not wait again for a disk that hangs)."""
+        ``timeout_s``. Every record not finished then, the queued ones and the ones whose write
+        the disk still holds, comes back as not written (``dropped``), and one error line says
+        how many and which (SR-7.14: the exit's own ``shutdown`` record is usually among them);
+        a write the disk finishes later changes nothing. ``True`` when every record was
+        finished. Idempotent: the records get their time once (a second call, from
+        :meth:`close`, does not wait again for a disk that hangs)."""
         if not self._records_drained:
             self._records_drained = True
-            left = self._records.finish(deadline_after(timeout_s))
+            self._records.finish(deadline_after(timeout_s))
+            with self._unfinished_lock:
+                left = list(self._unfinished.values())
+                self._unfinished.clear()
+            if left:
+                _say_not_written(left, timeout_s)
             for entry in left:
                 reason = f"the record file did not take it within {timeout_s:g} s of the exit"
                 self._finished(Written(entry, reason, dropped=True))
@@ -235,7 +254,13 @@ class Sink:
         self._closed = True
         self.drain_records()
         deadline = deadline_after(timeout_s)
-        self._flight.finish(deadline)  # its failure's log line still goes out below
+        flight_left = len(self._flight.finish(deadline)) + self._flight.pending
+        if flight_left:  # said before the log lane's own deadline, so it goes out below
+            log.error(
+                "%d flight recorder window(s) not written: the disk took none of them within "
+                "the exit's deadline",
+                flight_left,
+            )
         self._journal.finish(deadline)
         self._logs.finish(deadline)
         if self._logger is not None and self._logs.idle:
@@ -270,7 +295,7 @@ class Sink:
                     done, outcomes = 1, [self._write_one(entries[0])]
                 self._said_reopened(reopens, entries[0])
             for written in outcomes:
-                self._finished(written)
+                self._served(written)
             entries = entries[done:]
 
     def _write_one(self, entry: Mapping[str, object]) -> Written:
@@ -300,6 +325,14 @@ class Sink:
                 self.writer.last_reopen,
                 entry.get("seq"),
             )
+
+    def _served(self, written: Written) -> None:
+        """The record lane's outcome of one record, unless the exit's deadline has already
+        said it was not written (:meth:`drain_records`)."""
+        with self._unfinished_lock:
+            if self._unfinished.pop(id(written.entry), None) is None:
+                return
+        self._finished(written)
 
     def _finished(self, written: Written) -> None:
         self._written.append(written)
@@ -334,6 +367,28 @@ class Sink:
             for handler in self._handlers:
                 with contextlib.suppress(Exception):
                     _emit_unlocked(handler, line)
+
+
+def _say_not_written(entries: list[Mapping[str, object]], timeout_s: float) -> None:
+    """One error line for the records the exit's deadline left unwritten: how many, their
+    ``seq`` range, and the exit's own ``shutdown:REASON`` when it is among them (SR-7.14; it
+    goes out on the log lane, to stderr and the journal, not to the disk that hangs)."""
+    seqs = [seq for entry in entries if isinstance(seq := entry.get("seq"), int)]
+    span = f"seq {min(seqs)} to {max(seqs)}" if seqs else "no seq"
+    exits = [
+        f"the exit's own shutdown:{trigger.get('reason')}"
+        for entry in entries
+        if isinstance(trigger := entry.get("trigger"), Mapping)
+        and trigger.get("event") == "shutdown"
+    ]
+    log.error(
+        "%d stop record(s) not written: the record file took none of them within %g s of the "
+        "exit (%s%s); every output is off",
+        len(entries),
+        timeout_s,
+        span,
+        "".join(f", {name}" for name in exits),
+    )
 
 
 def _emit_unlocked(handler: logging.Handler, record: logging.LogRecord) -> None:

@@ -16,6 +16,7 @@ import pytest
 from supervisord.daemon.loop import OVERRUN_NS
 from supervisord.daemon.sink import RECORD_DRAIN_S, Sink, Written
 from supervisord.record.jsonl import RecordWriter
+from supervisord.testkit.wait import wait_until
 from tests.record.conftest import make_record, seqs_in
 
 
@@ -201,11 +202,14 @@ def test_a_stuck_log_handler_holds_no_record(tmp_path: Path) -> None:
             logger.removeHandler(extra)
 
 
-def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(tmp_path: Path) -> None:
-    """SR-7.7: at exit the disk does not answer. drain_records() returns at its deadline
-    (False: not everything was written); the records queued behind the hung write come back
-    as not written (dropped, with the reason), in order; the one in the hung write is
-    neither (the disk may still take it)."""
+def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """SR-7.7, SR-7.14: at exit the disk does not answer. drain_records() returns at its
+    deadline (False: not everything was written); every record not finished comes back as not
+    written (dropped, with the reason), in order: the one in the hung write as well as those
+    queued behind it (a hung write is not a written record), and one error line says how many
+    and which. When the disk answers later, that record gets no second outcome."""
     writer = _GatedWriter(tmp_path / "stops.jsonl")
     sink = Sink(writer)
     sink.start()
@@ -214,16 +218,25 @@ def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(tmp_path:
         assert writer.entered.wait(10)  # record 1 is in the hung write
         for seq in range(2, 6):
             assert sink.record(make_record(seq))
-        assert not sink.drain_records(timeout_s=0.0)
+        with caplog.at_level(logging.ERROR, logger="srcsd"):
+            assert not sink.drain_records(timeout_s=0.0)
         lost = sink.take_written()
-        assert [w.entry["seq"] for w in lost] == [2, 3, 4, 5]
+        assert [w.entry["seq"] for w in lost] == [1, 2, 3, 4, 5]
         assert all(w.dropped and "exit" in (w.error or "") for w in lost)
+        said = [r.getMessage() for r in caplog.records if "not written" in r.getMessage()]
+        assert len(said) == 1, said
+        assert said[0].startswith("5 stop record(s) not written"), said
+        assert "seq 1 to 5" in said[0], said
         assert not sink.record(make_record(6))  # nothing is taken after the drain
+        assert [w.entry["seq"] for w in sink.take_written()] == [6]
         # close() after the drain does not give the hung disk its time again: it returns
         # well before RECORD_DRAIN_S (the rule: the records get that time once).
         started = time.monotonic()
         sink.close(timeout_s=0.0)
         assert time.monotonic() - started < RECORD_DRAIN_S
+        writer.gate.set()  # the disk answers: record 1 is written, but it was said lost
+        wait_until(lambda: sink.pending == 0, what="the hung write to return")
+        assert sink.take_written() == []  # the lane gives its outcomes before it is idle
     finally:
         writer.gate.set()
         sink.close()

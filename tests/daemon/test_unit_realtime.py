@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import re
+import resource
 import shutil
 import signal
 import subprocess
@@ -148,3 +149,43 @@ def test_rlimit_rttime_spares_a_fifo_process_that_blocks_between_bursts() -> Non
     )
     assert worker.returncode == 0, worker.returncode
     assert float(worker.stdout) > realtime.hard_us / 1e6  # more CPU than the hard limit
+
+
+STUCK_IN_C = """
+import hashlib, os, signal
+signal.signal(signal.SIGXCPU, lambda *_: os._exit(7))  # as srcsd: a handler in Python
+hashlib.pbkdf2_hmac("sha256", b"x", b"y", 10**9)  # one call into C code, for many seconds
+"""
+
+STUCK_SOFT_US, STUCK_HARD_US = 100_000, 400_000
+"""The unit's ``1s:2s`` scaled down: the real-time spin the test makes is short."""
+
+
+def _stuck_limits() -> None:
+    resource.setrlimit(resource.RLIMIT_RTTIME, (STUCK_SOFT_US, STUCK_HARD_US))
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+
+
+@needs_fifo
+def test_a_loop_stuck_in_c_past_the_soft_limit_is_killed_by_the_hard_one() -> None:
+    """SR-6.7, SR-9: the case srcsd's SIGXCPU handler cannot meet. A Python handler runs only
+    when the main thread comes back to the interpreter; a FIFO process stuck in one long call
+    into C code (a key derivation here; a regular expression or any C loop that checks no
+    signals) never does, so its handler does not run at the soft limit. The hard limit ends it:
+    SIGKILL, not the handler's exit, and no earlier than the hard limit's CPU time. What makes
+    that death safe, the outputs released and the VSC's watchdog, is tested with the real srcsd
+    killed in RUN: tests/faults/test_serial_device.py
+    ``test_killed_daemon_restarts_stopped_and_needs_a_takeover`` (docs/safety-manual.md)."""
+    started = time.monotonic()
+    stuck = subprocess.Popen(
+        [sys.executable, "-c", STUCK_IN_C],
+        preexec_fn=_stuck_limits,  # noqa: PLW1509 -- no threads here
+    )
+    try:
+        status = stuck.wait(timeout=STUCK_HARD_US / 1e6 * 10 + 10)
+    finally:
+        stuck.kill()
+        stuck.wait()
+    took = time.monotonic() - started
+    assert status == -signal.SIGKILL, status  # 7: the handler ran; -SIGXCPU: not caught
+    assert took >= STUCK_HARD_US / 1e6 * 0.9  # not before the hard limit's CPU time

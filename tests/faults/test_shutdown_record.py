@@ -5,14 +5,25 @@ sequence number."""
 
 from __future__ import annotations
 
+import re
 import signal
+import time
 from pathlib import Path
 from typing import Any
 
 from supervisord.daemon import signals
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
-from tests.faults.test_record_faults import ROOT_ONLY, Journald, RecordRobot, unit_stop_timeout_s
+from tests.faults.test_record_faults import (
+    ROOT_ONLY,
+    Journald,
+    RecordRobot,
+    _disk,
+    _frozen,
+    _record_image,
+    _running,
+    unit_stop_timeout_s,
+)
 
 # SIGTERM is systemd's stop (``systemctl stop``, KillSignal's default), SIGINT a terminal's
 # Ctrl-C, SIGHUP one of the others that stop as SIGTERM does (SR-6.6).
@@ -103,3 +114,59 @@ def test_the_shutdown_record_reaches_the_journal(tmp_path: Path) -> None:
         assert b"\nSRCS_TO=STOPPED\n" in mine[-1]
     finally:
         journal.close()
+
+
+NOT_WRITTEN = re.compile(r"(\d+) stop record\(s\) not written: .*(shutdown:SIGTERM)")
+"""The line the exit's deadline says when the disk took none of its last records (SR-7.14)."""
+
+
+def _main_thread_ended(pid: int) -> bool:
+    """The process's first thread has ended (its ``/proc`` state is Z while a thread of the
+    process still sleeps in the kernel), or the whole process has."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return True
+    return stat[stat.rindex(")") + 2] in "ZX"
+
+
+@ROOT_ONLY
+def test_a_record_disk_that_hangs_past_the_deadline_costs_the_exit_record_said(
+    tmp_path: Path,
+) -> None:
+    """SR-7.14, SR-7.7: the record's file system (ext4 on a loop device) is frozen and SIGTERM
+    comes in RUN. Every output goes off; the exit's own record ``shutdown:SIGTERM`` cannot be
+    written, and at the record lane's deadline an error line on stderr says so, with the count
+    of records lost; the daemon's own part of the exit is done within the unit's
+    ``TimeoutStopSec`` (its main thread has ended: what holds the process then is its write
+    asleep in the kernel until the disk answers, docs/record.md). Thawed, it exits 0."""
+    image = _record_image(tmp_path)
+    robot = RecordRobot(tmp_path / "robot")
+    with _disk(image, robot.record_dir), _running(robot):
+        robot.arm()
+        daemon = robot.daemon
+        assert daemon is not None
+        limit = unit_stop_timeout_s()
+        with _frozen(robot.record_dir):
+            sent = robot.sigterm()
+            wait_until(
+                lambda: all(robot.output_file(name) is False for name in robot.output_paths),
+                what="every output off after SIGTERM",
+            )
+
+            def said() -> re.Match[str] | None:
+                return NOT_WRITTEN.search(robot.log())
+
+            wait_until(
+                lambda: said() is not None and _main_thread_ended(daemon.pid),
+                limit,
+                what=f"the lost exit record said and the main thread ended: {robot.log()}",
+            )
+            took = time.monotonic() - sent
+            line = said()
+            assert line is not None
+            assert int(line.group(1)) >= 1, line.group(0)
+            print(f"SIGTERM to the line and the main thread's end: {took:.2f} s")
+        code = daemon.wait(WAIT_S)  # the disk answers: the kernel lets the process go
+        assert code == 0, robot.log()
+        assert "Traceback" not in robot.log(), robot.log()

@@ -4,12 +4,18 @@ output on, so that "off" is something each signal has to do."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
+import resource
 import signal
+import socket
 import subprocess
 import sys
+import threading
 from pathlib import Path
+
+import pytest
 
 from supervisord.client import SupervisorClient
 from supervisord.daemon import signals
@@ -32,6 +38,7 @@ STOPPING = (
     signal.SIGPROF,
     signal.SIGIO,
     signal.SIGPWR,
+    signal.SIGXCPU,  # the soft LimitRTTIME= (SR-6.7)
     signal.SIGRTMIN,
     signal.SIGRTMAX,
 )
@@ -95,8 +102,8 @@ def test_every_signal_that_would_end_srcsd_is_caught_ignored_or_documented(
     """SR-6.6: the running daemon's own dispositions (``/proc/PID/status``, as the kernel
     holds them): every signal of this system whose default ends the process is caught, or
     ignored (SIGPIPE, SIGXFSZ), or is one of the few left at the default on purpose (the
-    watchdog's SIGABRT, SIGXCPU, the faults); none of those is caught, and docs/install.md
-    "Signals" names each of them."""
+    watchdog's SIGABRT, SIGSYS, the faults; SIGXCPU is caught, SR-6.7); none of those is
+    caught, and docs/install.md "Signals" names each of them."""
     with Robot(tmp_path) as robot:
         assert robot.daemon is not None
         masks = _signal_masks(robot.daemon.pid)
@@ -171,3 +178,93 @@ def _open_writer(fifo: Path) -> int | None:
         if error.errno != errno.ENXIO:  # ENXIO: no reader yet
             raise
         return None
+
+
+# ----------------------------------------------------------------------------- SIGXCPU
+
+RTTIME_SOFT_US = 50_000
+"""The soft RLIMIT_RTTIME the test gives the running daemon: 50 ms of CPU without blocking,
+a twentieth of the unit's 1 s, so that ordinary work (a burst of requests) reaches it."""
+RTTIME_HARD_US = 2_000_000
+"""The unit's hard limit (units/srcsd@.service ``LimitRTTIME=1s:2s``)."""
+FLOODERS = 4
+FLOOD_BYTES = 1 << 20
+FLOOD_LINE = b'{"op": "none"}\n'
+"""Per connection: requests pipelined, about 70 000 of them, far more work than the soft
+limit's CPU time (the daemon's stop ends it long before). An op that does not exist: each is
+parsed and refused with a short reply, so a test reader held back by a busy machine cannot
+overflow the daemon's output buffer (256 KiB) and be disconnected before the limit."""
+
+
+def _fifo_allowed() -> bool:
+    """Root on a kernel that gives a process SCHED_FIFO (CONFIG_RT_GROUP_SCHED may not)."""
+    if os.geteuid() != 0:
+        return False
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+    except OSError:
+        return False
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    return True
+
+
+def _flood(path: Path, stop: threading.Event) -> None:
+    """One connection that pipelines refused requests and reads every reply, until the daemon
+    closes it (its exit) or ``stop``."""
+    requests = FLOOD_LINE * (FLOOD_BYTES // len(FLOOD_LINE))
+    with contextlib.suppress(OSError), socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.connect(str(path))
+        sock.settimeout(WAIT_S)
+
+        def drain() -> None:
+            with contextlib.suppress(OSError):
+                while not stop.is_set() and sock.recv(1 << 16):
+                    pass
+
+        reader = threading.Thread(target=drain, daemon=True)
+        reader.start()
+        sock.sendall(requests)
+        reader.join(WAIT_S)
+
+
+@pytest.mark.skipif(not _fifo_allowed(), reason="needs root and SCHED_FIFO")
+def test_the_soft_rttime_limit_is_a_stop_the_daemon_makes(tmp_path: Path) -> None:
+    """SR-6.7, SR-7.14: the running srcsd in RUN, its loop put in SCHED_FIFO 10 under a soft
+    RLIMIT_RTTIME of 50 ms (the unit's policy, its limit lowered), then ordinary busy work:
+    four clients pipeline requests (each refused: no such op) faster than the loop answers,
+    so it never blocks.
+    At the soft limit the kernel sends SIGXCPU; the loop's handler runs at the end of its turn
+    and the daemon stops itself as on SIGTERM: every output off, the log names SIGXCPU, the
+    last record is ``shutdown:SIGXCPU``, exit 128 + 24 (systemd restarts it, STOPPED). The
+    bound of the real-time spin is the limit itself (and the hard limit, 2 s, behind it)."""
+    with Robot(tmp_path) as robot:
+        robot.arm()
+        daemon = robot.daemon
+        assert daemon is not None
+        assert all(robot.output_file(name) for name in robot.output_paths)
+        resource.prlimit(daemon.pid, resource.RLIMIT_RTTIME, (RTTIME_SOFT_US, RTTIME_HARD_US))
+        stop = threading.Event()
+        floods = [
+            threading.Thread(target=_flood, args=(robot.socket_path, stop), daemon=True)
+            for _ in range(FLOODERS)
+        ]
+        # The loop thread only (its thread id is the process id): the lanes stay as they are.
+        os.sched_setscheduler(daemon.pid, os.SCHED_FIFO, os.sched_param(10))
+        try:
+            for flood in floods:
+                flood.start()
+            code = daemon.wait(WAIT_S * 2)
+        finally:
+            stop.set()
+            for flood in floods:
+                flood.join(WAIT_S)
+        what = robot.log()
+        assert code == signals.exit_status(signal.SIGXCPU) == 128 + signal.SIGXCPU, what
+        for name in robot.output_paths:
+            assert robot.output_file(name) is False, f"{name} left on after SIGXCPU: {what}"
+        assert "SIGXCPU: stopping, every output off" in what, what
+        last = robot.records()[-1]
+        assert last["trigger"] == {"event": "shutdown", "reason": "SIGXCPU"}, (last, what)
+        assert (last["from"], last["to"]) == ("RUN", "STOPPED"), last
+        assert "Traceback" not in what, what
+        robot.start_daemon()  # for the harness's own end: status, SIGTERM, exit 0
