@@ -231,6 +231,21 @@ class RearmKind(_Word):
     LOCAL_RESET = "local_reset"  # ``srcsctl reset`` by an admin, when the config allows it
 
 
+class Counted(_Word):
+    """What a record counts as for a fleet (SR-13.9, docs/record.md "What counts as a
+    stop"): one meaning for ``srcsctl fleet --summary``, ``srcsctl log --summary``, the
+    exporter's counters and the alert rules, decided by
+    :func:`supervisord.record.counted.counted`. A record that is none of these (a cause
+    raised or cleared while STOPPED, a follow-up the supervisor raised itself) counts as
+    nothing."""
+
+    STOP = "stop"  # RUN or HOLD -> STOPPED by a stop cause; its trigger: the causes raised
+    STARTUP = "startup"  # the daemon started (the record that raised ``startup``)
+    PROOFTEST_PASSED = "prooftest_passed"  # the VSC's watchdog proven (SR-5.3)
+    PROOFTEST_FAILED = "prooftest_failed"  # not proven: the robot has one stop path left
+    REARM = "rearm"  # STOPPED -> RUN or HOLD, by a takeover or a local reset (SR-4)
+
+
 class Reaction(StrEnum):
     """``vsc.on_estop_unavailable``: what the supervisor does while the remote's battery is low
     or not reported (SR-8.12)."""

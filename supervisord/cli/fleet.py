@@ -31,7 +31,7 @@ import subprocess
 import sys
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import IO, Any, Final
+from typing import IO, Final
 
 from supervisord.cli import log_options
 from supervisord.cli.access import advice
@@ -50,11 +50,11 @@ from supervisord.cli.fleet_senders import Senders
 from supervisord.cli.interrupt import interruptible
 from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
-from supervisord.cli.record_text import changes
+from supervisord.cli.tally_text import tally_json, tally_line
 from supervisord.cli.terminal_text import printable
-from supervisord.cli.times import BadTime, parse_time, show_time
+from supervisord.cli.times import BadTime, parse_time
+from supervisord.record.counted import Tally, changes
 from supervisord.record.stop import StopRecord
-from supervisord.vocabulary import ChangeKind, Severity, State
 
 EXIT_FAILED: Final = 1
 EXIT_BAD_INPUT: Final = 2
@@ -90,7 +90,8 @@ def add_arguments(fleet: argparse.ArgumentParser) -> None:
     fleet.add_argument(
         "--summary",
         action="store_true",
-        help="one line per robot: its stops, the last one's time and causes",
+        help="one line per robot: its stops (the last one's time and trigger), start-ups, "
+        'proof tests and re-arms, apart (docs/record.md "What counts as a stop")',
     )
     log_options.add_output(fleet)
     log_options.add_follow_and_display(fleet, follows="as the collector gets it")
@@ -463,47 +464,23 @@ class _Filter:
         return any(self.cause.takes(name) for _, name in changes(record, previous))
 
 
-def stop_causes(record: StopRecord | None, previous: StopRecord | None) -> list[str] | None:
-    """Why a record is a stop: the stop causes it raised while the robot is STOPPED (a change
-    into STOPPED, or a new stop while stopped), or the stop causes active at a change into
-    STOPPED; ``None`` when it is no stop."""
-    if record is None or record.to_state is not State.STOPPED:
-        return None
-    stops = {c.name for c in record.causes if c.severity is Severity.STOP}
-    raised = [n for change, n in changes(record, previous) if change is ChangeKind.RAISED]
-    if any(n in stops for n in raised):
-        return [str(n) for n in raised if n in stops]
-    if record.from_state is State.STOPPED:
-        return None
-    return [str(c.name) for c in record.causes if c.active and c.severity is Severity.STOP]
-
-
 def _summarize(
     shown: list[Entry], wanted: _Filter, out: IO[str], *, json_lines: bool, utc: bool
 ) -> None:
-    """One line per robot (host name and sender), by label: its records, its stops, the last
-    stop's time and causes; escaped (SR-13.7)."""
-    robots: dict[tuple[str, str | None], dict[str, Any]] = {}
+    """One line per robot (host name and sender), by label: its records counted as
+    ``srcsctl log --summary`` counts a record file's (:mod:`tally_text`, SR-13.9): its stops
+    and the last one's trigger, its start-ups, proof tests and re-arms; escaped (SR-13.7)."""
+    robots: dict[tuple[str, str | None], Tally] = {}
     for item in shown:
-        about = robots.setdefault(item.who, {"records": 0, "stops": 0, "last_stop": None})
-        about["records"] += 1
-        why = stop_causes(item.record, wanted.before.get(item.cursor))
-        if why is not None and item.record is not None:
-            about["stops"] += 1
-            about["last_stop"] = {"seq": item.record.seq, "utc": item.record.utc, "causes": why}
+        robots.setdefault(item.who, Tally()).add(item.record, wanted.before.get(item.cursor))
     labels = {who: label(*who) for who in robots}
     width = max((len(name) for name in labels.values()), default=0)
     for who in sorted(robots, key=labels.__getitem__):
-        about = robots[who]
         if json_lines:
-            out.write(json.dumps({"robot": who[0], "sender": who[1], **about}) + "\n")
+            head = {"robot": who[0], "sender": who[1]}
+            out.write(json.dumps({**head, **tally_json(robots[who])}) + "\n")
             continue
-        stops = f"{about['stops']} stop{'' if about['stops'] == 1 else 's'}"
-        line = f"{stops}, {about['records']} records"
-        last = about["last_stop"]
-        if last is not None:
-            when = show_time(last["utc"], utc=utc)
-            line += f"; last {when} #{last['seq']} {', '.join(last['causes']) or 'none'}"
+        line = tally_line(robots[who], utc=utc)
         out.write(f"{labels[who]:{width}}  {printable(line)}\n")
     out.flush()
 

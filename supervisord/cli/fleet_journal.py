@@ -33,7 +33,16 @@ ROBOT_NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}", re.ASCII)
 digits, ``.``, ``-`` and ``_``. Anything else is refused before it reaches journalctl, where
 ``=`` or a lone ``+`` would change what the match means."""
 _TEXT_FIELDS: Final = (("kind", "SRCS_KIND"), ("from", "SRCS_FROM"), ("to", "SRCS_TO"))
-_JSON_FIELDS: Final = (("causes", "SRCS_CAUSES"), ("changes", "SRCS_CHANGES"))
+_JSON_FIELDS: Final = (
+    ("causes", "SRCS_CAUSES"),
+    ("changes", "SRCS_CHANGES"),
+    ("prooftest", "SRCS_PROOFTEST"),
+    ("stoptest", "SRCS_STOPTEST"),
+    ("rearm", "SRCS_REARM"),
+)
+"""The record's objects, as supervisord/record/journal.py writes them (JSON); with the text
+fields and ``version`` they rebuild the record the robot wrote, so that its line here is the
+robot's own (SR-13.4)."""
 
 
 class NoJournalctl(Exception):
@@ -203,6 +212,9 @@ def entry(line: str, senders: Senders | None = None) -> Entry | str:
     reason = _one(fields, "SRCS_REASON")
     if reason:
         data["reason"] = reason
+    version = _one(fields, "SRCS_VERSION")
+    if version is not None:
+        data["version"] = version
     stamp = _one(fields, "__REALTIME_TIMESTAMP")
     stamp_us = int(stamp) if stamp is not None and stamp.isdigit() else None
     cursor = str(fields.get("__CURSOR", ""))

@@ -14,6 +14,7 @@ released it (the record's ``changes``), as ``journalctl`` selects the entries a 
 from __future__ import annotations
 
 import datetime as dt
+import json
 import os
 import sys
 from collections.abc import Mapping
@@ -25,8 +26,11 @@ from supervisord.cli.follow import Follower
 from supervisord.cli.interrupt import interruptible
 from supervisord.cli.log_options import FOLLOW_LAST
 from supervisord.cli.record_print import JSON_OUTPUTS, NO_ENTRIES, RecordPrinter
-from supervisord.cli.record_text import changes, record_line, written_line
+from supervisord.cli.record_text import record_line, written_line
+from supervisord.cli.tally_text import tally_json, tally_line
+from supervisord.cli.terminal_text import printable
 from supervisord.cli.times import BadTime, parse_time, show_time
+from supervisord.record.counted import Tally, changes
 from supervisord.record.jsonl import BadLine, RecordUnreadable, StoredRecord, read_records
 from supervisord.record.stop import StopRecord, read_written
 
@@ -84,6 +88,7 @@ def run_log(
     causes: bool = False,
     this_boot: bool = False,
     quiet: bool = False,
+    summary: bool = False,
 ) -> int:
     """Print the records (the ``last`` N of them when given; newest first with ``reverse``);
     with ``follow``, then every record appended after, until Ctrl-C or SIGTERM (exit 0). A
@@ -95,7 +100,7 @@ def run_log(
         print(f"srcsctl log: {error}", file=errors)
         return EXIT_BAD_INPUT
     wanted = _Filter(start, end, cause, cause_present)
-    refused = _refusal(path, follow=follow, reverse=reverse)
+    refused = _refusal(path, follow=follow, reverse=reverse, summary=summary)
     if refused:
         print(f"srcsctl log: {refused}", file=errors)
         return EXIT_BAD_INPUT
@@ -110,8 +115,11 @@ def run_log(
         every = _scan(path, start, end, errors)
         records = wanted.select(every)
         shown = [] if last == 0 else records[-last:] if last is not None else records
-        if shown:  # the one before: what the first changed
-            printer.previous = wanted.before.get(_identity(shown[0]))
+        if summary:
+            _summarize(shown, wanted, out, json_lines=output in JSON_OUTPUTS, utc=utc)
+            return 0
+        # the one before: what the first changed
+        printer.previous = wanted.before.get(_identity(shown[0])) if shown else None
         printer.show([r.data for r in shown], reverse=reverse)
         if follower is None:
             if not shown and not quiet and output not in JSON_OUTPUTS:
@@ -132,6 +140,22 @@ def run_log(
     return 0  # pragma: no cover - the follower never ends by itself
 
 
+def _summarize(
+    shown: list[StoredRecord], wanted: _Filter, out: IO[str], *, json_lines: bool, utc: bool
+) -> None:
+    """The records shown, counted as ``fleet --summary`` counts a robot's (SR-13.9): one line,
+    or one JSON object; escaped (SR-13.7)."""
+    tally = Tally()
+    for stored in shown:
+        before = wanted.before.get(_identity(stored))
+        tally.add(read_written(stored.data), None if before is None else read_written(before))
+    if json_lines:
+        out.write(json.dumps(tally_json(tally)) + "\n")
+    else:
+        out.write(printable(tally_line(tally, utc=utc)) + "\n")
+    out.flush()
+
+
 def _times(
     since: str | None, until: str | None, *, utc: bool, this_boot: bool
 ) -> tuple[dt.datetime | None, dt.datetime | None]:
@@ -146,10 +170,12 @@ def _times(
     return start, end
 
 
-def _refusal(path: Path, *, follow: bool, reverse: bool) -> str | None:
+def _refusal(path: Path, *, follow: bool, reverse: bool, summary: bool = False) -> str | None:
     """Why these options cannot be served, or ``None``."""
     if follow and reverse:
         return "-r and -f do not go together (as in journalctl)"
+    if follow and summary:
+        return "--summary and -f do not go together"
     if not _there(path) and not follow:
         return f"{path}: no record yet"
     if follow and not _there(path.parent):

@@ -24,6 +24,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Final
 
 from supervisord.cli.terminal_text import printable
+from supervisord.record.counted import changes
 from supervisord.record.stop import Cause, ProofTestResult, RecordKind, StopRecord
 from supervisord.timebase import NS_PER_MS
 from supervisord.vocabulary import TRIP_LATE_NS, CauseName, ChangeKind, ProofTestFailure
@@ -100,25 +101,6 @@ def _details(cause: Cause | None, every: bool) -> str:
     if every or len(text) <= _DETAIL_CHARS:
         return f" ({text})"
     return f" ({text[: _DETAIL_CHARS - 3]}...)"
-
-
-def changes(record: StopRecord, previous: StopRecord | None) -> list[tuple[ChangeKind, CauseName]]:
-    """``(change, cause name)`` pairs: the record's ``changes``, or for a record without them
-    the difference from ``previous`` (raised: new and active; cleared: active before, not
-    now)."""
-    if record.changes:
-        return [(c.change, c.name) for c in record.changes]
-    if previous is None or record.changes is not None:
-        return []
-    before = _by_name(previous.causes)
-    now = _by_name(record.causes)
-    found = [(ChangeKind.RAISED, n) for n, c in now.items() if c.active and n not in before]
-    found += [
-        (ChangeKind.CLEARED, n)
-        for n, c in before.items()
-        if c.active and not (n in now and now[n].active)
-    ]
-    return found
 
 
 def _by_name(causes: Iterable[Cause]) -> dict[CauseName, Cause]:

@@ -86,6 +86,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     log_options.add_follow_and_display(log, follows="as it is written")
     log.add_argument(
+        "--summary",
+        action="store_true",
+        help="one line instead: the stops (the last one's time and trigger), start-ups, "
+        "proof tests and re-arms, counted as 'fleet --summary' counts them",
+    )
+    log.add_argument(
         "-x",
         "--catalog",
         action="store_true",
@@ -320,6 +326,7 @@ def _log(args: argparse.Namespace) -> int:
             causes=args.causes,
             this_boot=args.boot is not None,
             quiet=args.quiet,
+            summary=args.summary,
         )
     except RecordUnreadable as error:  # never an empty answer with exit 0 (SR-7.9)
         print(f"srcsctl log: {error}{advice(error.path, error.errno)}", file=sys.stderr)

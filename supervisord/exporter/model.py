@@ -30,9 +30,10 @@ from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.replies import StatusReply
 from supervisord.api.status import DaemonStatus, HistogramStatus, Maintenance, StateReport
+from supervisord.record.counted import counted, trigger
 from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.timebase import NS_PER_S
-from supervisord.vocabulary import ChangeKind, Severity, State
+from supervisord.vocabulary import ChangeKind, Counted, State
 
 STATES: Final = tuple(state.name for state in State)
 """The supervisor's states (SR-1), one ``srcs_state`` series each."""
@@ -121,6 +122,9 @@ HISTOGRAMS: Final = {
     "stop_to_off_seconds": "srcs_stop_to_off_seconds",
 }
 """The daemon's histograms (``status``'s ``daemon.histograms``) and their metric names."""
+PROOFTEST_RESULTS: Final = {Counted.PROOFTEST_PASSED: "passed", Counted.PROOFTEST_FAILED: "failed"}
+"""``srcs_prooftests_total``'s ``result`` label: both always served, from 0, so that an alert
+on its increase sees the first failure (a series that appears at 1 has no increase)."""
 SPECS: Final = _specs(
     Spec("srcs_up", G, "1 while the exporter is connected to srcsd's API socket, else 0"),
     Spec("srcs_daemon", INFO, "the daemon this exporter reads (from its status reply)", ("robot",)),
@@ -204,8 +208,16 @@ SPECS: Final = _specs(
     Spec(
         "srcs_stops",
         C,
-        "changes into STOPPED, by each stop cause raised with them (seen by this exporter)",
+        "stops (RUN or HOLD to STOPPED), by each cause of their trigger: the stop causes "
+        "raised in that change, never a follow-up raised while STOPPED (seen by this exporter)",
         ("cause",),
+    ),
+    Spec("srcs_startups", C, "daemon start-ups (records that raised startup; seen here)"),
+    Spec(
+        "srcs_prooftests",
+        C,
+        "proof tests of the VSC's watchdog by result, passed or failed (seen here; SR-5.3)",
+        ("result",),
     ),
     Spec(
         "srcs_rearms",
@@ -335,6 +347,9 @@ class ExporterModel:
         self.rearms: dict[tuple[str, str], int] = {}
         self.raised: dict[str, int] = {}
         self.transitions: dict[tuple[str, str], int] = {}
+        self.startups = 0
+        self.prooftests = dict.fromkeys(PROOFTEST_RESULTS.values(), 0)
+        self._previous: StopRecord | None = None  # for a record without ``changes``
         self.rearm_refusals = 0
         self.records_seen = 0
         self.records_missed = 0
@@ -446,9 +461,7 @@ class ExporterModel:
         # record file); it is no repeat, since a push is sent once, to live subscribers.
         self.last_seq = seq
         self.records_seen += 1
-        severities: dict[str, Severity] = {}
         for cause in record.causes:
-            severities[cause.name.name] = cause.severity
             self._cause_label(cause.name.name, cause.severity.value)
         changes = record.changes or ()
         raised = [c.name.name for c in changes if c.change is ChangeKind.RAISED]
@@ -460,18 +473,23 @@ class ExporterModel:
         if before is not after:
             key = (before.name, after.name)
             self.transitions[key] = self.transitions.get(key, 0) + 1
-            if after is State.STOPPED:
-                stop_causes = [n for n in raised if severities.get(n) is Severity.STOP]
-                # Every stop has a stop cause raised with it (SR-2); if a record
-                # ever lacked one, the stop still counts.
-                for name in stop_causes or ["unknown"]:
-                    label = self._cause_label(name)
-                    self.stops[label] = self.stops.get(label, 0) + 1
-            elif before is State.STOPPED:
-                kind = record.rearm.kind.value if record.rearm is not None else "unknown"
-                for name in released or ["unknown"]:
-                    key = (self._cause_label(name), kind)
-                    self.rearms[key] = self.rearms.get(key, 0) + 1
+        # What the record counts as, by the fleet's one meaning (SR-13.9): a stop by its
+        # trigger only, never by a follow-up the supervisor raised while STOPPED.
+        previous, self._previous = self._previous, record
+        what = counted(record, previous)
+        if what is Counted.STOP:
+            for name in trigger(record, previous):
+                label = self._cause_label(name)
+                self.stops[label] = self.stops.get(label, 0) + 1
+        elif what is Counted.REARM:
+            kind = record.rearm.kind.value if record.rearm is not None else "unknown"
+            for name in released or ["unknown"]:
+                pair = (self._cause_label(name), kind)
+                self.rearms[pair] = self.rearms.get(pair, 0) + 1
+        elif what is Counted.STARTUP:
+            self.startups += 1
+        elif what in PROOFTEST_RESULTS:
+            self.prooftests[PROOFTEST_RESULTS[what]] += 1
         if record.kind is RecordKind.REARM_REFUSED:
             self.rearm_refusals += 1
 
@@ -518,6 +536,9 @@ class ExporterModel:
             put("srcs_causes_raised", count, cause=cause)
         for (before, after), count in sorted(self.transitions.items()):
             put("srcs_state_transitions", count, from_state=before, to_state=after)
+        put("srcs_startups", self.startups)
+        for result, count in self.prooftests.items():
+            put("srcs_prooftests", count, result=result)
         put("srcs_rearm_refusals", self.rearm_refusals)
         put("srcs_records_seen", self.records_seen)
         put("srcs_records_missed", self.records_missed)

@@ -97,6 +97,16 @@ def priority(record: Mapping[str, object]) -> Priority:
     return Priority.NOTICE
 
 
+CARRIED: Final = (
+    ("prooftest", "SRCS_PROOFTEST"),
+    ("stoptest", "SRCS_STOPTEST"),
+    ("rearm", "SRCS_REARM"),
+    ("version", "SRCS_VERSION"),
+)
+"""The record's optional fields each entry carries when the record has them: as JSON, but
+``version``, a text (docs/record.md "In the journal")."""
+
+
 def _text(value: object) -> str:
     if isinstance(value, str):
         return value
@@ -147,6 +157,13 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         # What the record raised, cleared or released: a collector's `srcsctl fleet --cause`
         # and its lines say it as `srcsctl log` does, without the record before (SR-13.4).
         fields.append(("SRCS_CHANGES", _text(record.get("changes"))))
+    for key, field in CARRIED:
+        # The rest of the record: the proof test's verdict and reason, the stop test's, the
+        # re-arm's kind and caller, the daemon's version, so that the collector rebuilds the
+        # record the robot wrote and prints the robot's own line for it (SR-13.4).
+        value = record.get(key)
+        if value is not None:
+            fields.append((field, _text(value)))
     return fields
 
 

@@ -145,12 +145,19 @@ def test_every_robot_named_filtered_as_log_filters(collector: Path) -> None:
     ]
     assert records[0]["changes"] == [{"name": "local_estop", "change": "raised"}]
 
-    summary = fleet("-D", str(collector), "--summary", "--cause", "local_estop").stdout
+    # An e-stop while STOPPED (the daemon never left it: no VSC) is no stop (SR-13.9); each
+    # run's first record is a start-up.
+    summary = fleet("-D", str(collector), "--summary").stdout
     a_line, b_line = summary.splitlines()
-    assert a_line.startswith("robot-a@127.0.1.1  1 stop, 1 records; last ")
-    assert a_line.endswith(" #3 local_estop")
-    assert b_line.startswith("robot-b@127.0.1.2  2 stops, 2 records; last ")
-    assert b_line.endswith(" #7 local_estop")
+    assert a_line == (
+        "robot-a@127.0.1.1  0 stops, 1 start-up, proof tests 0 passed, 0 re-arms, 4 records"
+    )
+    assert b_line == (
+        "robot-b@127.0.1.2  0 stops, 2 start-ups, proof tests 0 passed, 0 re-arms, 8 records"
+    )
+    b_estops = fleet("-D", str(collector), "--summary", "--cause", "local_estop").stdout
+    assert b_estops.splitlines()[1].startswith("robot-b@127.0.1.2  0 stops, 0 start-ups, ")
+    assert b_estops.splitlines()[1].endswith(", 2 records")
     nothing = fleet("-D", str(collector), "--robot", "robot-z")
     assert (nothing.returncode, nothing.stdout) == (0, "-- No entries --\n")
 
@@ -301,7 +308,7 @@ def test_fleet_loads_no_module_of_the_safety_core(collector: Path) -> None:
         f"for args in (['-D', {str(collector)!r}], ['-D', {str(collector)!r}, '-o', 'json'],"
         f" ['-D', {str(collector)!r}, '--summary', '--since=-1d', '--robot', 'robot-b']):\n"
         "    assert main(args) == 0\n"
-        "typed = {'supervisord.record', 'supervisord.record.stop'}\n"
+        "typed = {'supervisord.record', 'supervisord.record.stop', 'supervisord.record.counted'}\n"
         "loaded = sorted(m for m in sys.modules if m.startswith(('supervisord.safety',"
         " 'supervisord.record')) and m not in typed)\n"
         "print('LOADED', loaded, file=sys.stderr)\n"
@@ -354,7 +361,7 @@ def test_a_record_sent_twice_is_shown_once(collector: Path) -> None:
     assert [json.loads(line)["seq"] for line in as_json.splitlines()] == [1, 2, 3, 4]
     summary = fleet("-D", str(collector), "--summary", "--robot", "robot-a").stdout
     assert summary.startswith("robot-a@127.0.1.1  ")
-    assert ", 4 records; last " in summary
+    assert summary.rstrip().endswith(", 4 records")
 
     other = again.replace(b"\n__MONOTONIC_TIMESTAMP=", b"\n__MONOTONIC_TIMESTAMP=1")
     assert other != again
@@ -411,7 +418,7 @@ def _fields(export: bytes, seq: int) -> dict[str, str]:
 
 
 def _hostile(export: bytes) -> bytes:
-    """robot-a's upload as robot-x whose record #3 raises a stop cause named with
+    """robot-a's upload as robot-x whose record #3, a stop, raises a stop cause named with
     :data:`HOSTILE`, its details, reason and trigger :data:`HOSTILE` too, and whose record #4
     comes from a state so named (a line that is no typed record)."""
     renamed = export.replace(b"\n_HOSTNAME=robot-a\n", b"\n_HOSTNAME=robot-x\n")
@@ -430,6 +437,7 @@ def _hostile(export: bytes) -> bytes:
         "SRCS_CHANGES": changes,
         "SRCS_REASON": HOSTILE,
         "SRCS_TRIGGER": HOSTILE,
+        "SRCS_FROM": "RUN",  # a stop (SR-13.9): the summary names its trigger
     }
     return _rewritten(_rewritten(renamed, 3, third), 4, {"SRCS_FROM": "RUN" + HOSTILE})
 

@@ -30,7 +30,7 @@ def test_alert_rules_pass_promtool_check() -> None:
         [PROMTOOL, "check", "rules", str(RULES)], check=False, capture_output=True, text=True
     )
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "10 rules found" in result.stdout
+    assert "11 rules found" in result.stdout
 
 
 @needs_promtool
