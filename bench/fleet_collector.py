@@ -3,7 +3,8 @@ HTTPS from N robots, and how long until ``srcsctl fleet`` answers with one (SR-1
 docs/fleet.md "Scale").
 
 Run: ``.venv/bin/python -m bench.fleet_collector [--robots 5,100,1000] [--records 10]``
-(root: it runs in a network namespace of its own, loopback only).
+(root: it runs in a network namespace of its own, loopback only); ``--robots 100,1000,10000``
+for the fleet sizes of docs/fleet.md "Scale" (10,000 robots: about 2 minutes here).
 
 - **The receiver**: ``systemd-journal-remote --listen-https=127.0.0.1:19532`` with a key and
   certificate the bench makes with openssl, ``--split-mode=host`` (a file per robot, as
@@ -25,7 +26,8 @@ Run: ``.venv/bin/python -m bench.fleet_collector [--robots 5,100,1000] [--record
 - **Measured**: records per second taken in (from the first connection to the last 202
   answer), the receiver's CPU time (``/proc/PID/stat``) per robot and per record, its disk
   (allocated blocks) per robot and per record, the number of journal files, and the delay
-  from one more record's send to its line in ``srcsctl fleet --robot``.
+  from one more record's send to its line in ``srcsctl fleet --robot``, and the time of
+  ``srcsctl fleet --summary --since "1 hour ago"`` over every robot's records.
 """
 
 from __future__ import annotations
@@ -233,6 +235,7 @@ def run_one(
         cpu = cpu_s(receiver.pid) - cpu_before
         total = robots * records
         delay = answered(fleet[0], context, out)
+        summary = summarized(out, robots)
         used, files = disk(out)
     finally:
         receiver.terminate()
@@ -250,7 +253,21 @@ def run_one(
         files,
         f"{delay[0] * 1000:.0f}",
         f"{delay[1] * 1000:.0f}",
+        f"{summary:.1f}",
     ]
+
+
+def summarized(out: Path, robots: int) -> float:
+    """Seconds ``srcsctl fleet --summary --since "1 hour ago"`` takes over the collector's
+    directory, every robot's records in the window (SR-13.9: the fleet's stop counts)."""
+    srcsctl = str(Path(sys.executable).with_name("srcsctl"))
+    line = [srcsctl, "fleet", "-D", str(out), "--summary", "--since", "1 hour ago"]
+    started = time.monotonic()
+    done = subprocess.run(line, capture_output=True, text=True, check=False)
+    took = time.monotonic() - started
+    if done.returncode != 0 or len(done.stdout.splitlines()) != robots:
+        raise SystemExit(f"fleet --summary: exit {done.returncode}: {done.stderr[-500:]}")
+    return took
 
 
 def answered(robot: Robot, context: ssl.SSLContext, out: Path) -> tuple[float, float]:
@@ -334,7 +351,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             [
                 "robots", "split", "records", "records/s in", "CPU ms/robot", "CPU µs/record",
                 "disk KiB/robot", "disk B/record", "files", "to journalctl ms",
-                "to srcsctl fleet ms",
+                "to srcsctl fleet ms", "--summary 1 h s",
             ],
             rows,
         )
