@@ -79,6 +79,7 @@ __all__ = [
     "Vibrate",
     "honoured_error",
     "parse_request",
+    "read_request",
     "readable_stop",
     "request_json",
 ]
@@ -370,7 +371,25 @@ def parse_request(line: bytes) -> ApiRequest:
     Raises :class:`ApiError` (``bad_json``, ``bad_request`` or ``unknown_op``) for anything
     else; it carries the ``op`` and ``id`` when they could be read, for the error reply.
     """
-    obj = _load(line)
+    return _request(_load(line))
+
+
+def read_request(line: bytes) -> tuple[ApiRequest | None, ApiError | None]:
+    """What the server reads from one request line: ``(request, None)``, or, for a line
+    :func:`parse_request` refuses, ``(stop, error)``: the e-stop or hold it still asks for
+    (SR-8.13, :func:`readable_stop`; ``None`` when none) and the refusal. The line is parsed
+    once (SR-10.4: a refused line's JSON is not read again to look for its op)."""
+    try:
+        obj = _load(line)
+    except ApiError as error:
+        return _broken_stop(line), error
+    try:
+        return _request(obj), None
+    except ApiError as error:
+        return _stop_in(obj), error
+
+
+def _request(obj: object) -> ApiRequest:
     if not isinstance(obj, dict):
         raise ApiError(ErrorCode.BAD_REQUEST, "a request must be a JSON object")
     request_id = _request_id(obj)
@@ -408,8 +427,18 @@ def readable_stop(line: bytes) -> Estop | Hold | None:
     try:
         obj = _load(line)
     except ApiError:
-        op = op_in_broken(line)
-        return None if op is None else STOP_OPS[op]()
+        return _broken_stop(line)
+    return _stop_in(obj)
+
+
+def _broken_stop(line: bytes) -> Estop | Hold | None:
+    """The e-stop or hold of a line that is no JSON (SR-8.13)."""
+    op = op_in_broken(line)
+    return None if op is None else STOP_OPS[op]()
+
+
+def _stop_in(obj: object) -> Estop | Hold | None:
+    """The e-stop or hold of a line that is JSON, ``obj`` (SR-8.13)."""
     op = obj.get("op") if isinstance(obj, dict) else None
     if not isinstance(op, str) or op not in STOP_OPS:
         return None

@@ -15,8 +15,7 @@ from collections.abc import Callable
 from typing import Final
 
 from supervisord.api.connection import server_line
-from supervisord.api.framing import ApiError
-from supervisord.api.requests import honoured_error, parse_request, readable_stop
+from supervisord.api.requests import honoured_error, read_request
 from supervisord.api.views import ok_reply
 
 
@@ -59,9 +58,8 @@ LINES: Final[dict[str, Callable[[int], bytes]]] = {
 def serve_line(line: bytes) -> bytes:
     """The reply line the server gives ``line`` when the daemon answers ok: the parser, the
     SR-8.13 reader for a refused line, the reply encoded (``ApiServer._dispatch``)."""
-    try:
-        request = parse_request(line)
-    except ApiError as error:
-        stop = readable_stop(line)
-        return server_line(error if stop is None else honoured_error(error, stop))
-    return server_line(ok_reply(request))
+    request, error = read_request(line)
+    if error is None:
+        assert request is not None
+        return server_line(ok_reply(request))
+    return server_line(error if request is None else honoured_error(error, request))

@@ -30,8 +30,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from supervisord.api.connection import ServerConnection
-from supervisord.api.framing import LineReader
-from supervisord.api.requests import readable_stop
+from supervisord.api.framing import ApiError, LineReader
+from supervisord.api.requests import parse_request, read_request, readable_stop
 from supervisord.api.server import RECV_SIZE, ServerConfig
 from supervisord.config.schema import DEFAULT_MAX_MESSAGE_BYTES
 from supervisord.testkit.worst_input import LINES, serve_line
@@ -106,6 +106,29 @@ def test_a_long_name_in_a_hello_is_refused_at_once() -> None:
     assert_linear(
         "hello", lambda n: lambda: serve_line(b'{"op":"hello","name":"' + b"a" * n + b'"}')
     )
+
+
+_SAMPLES = [
+    b'{"op":"estop"}',
+    b'{"op":"estop","id":1.5}',
+    b'{"op":"hold","x":1}',
+    b'{"op":"status","id":7}',
+    b'{"op":"estop",',
+    b"[1]",
+    b"",
+]
+
+
+@pytest.mark.parametrize("line", [*_SAMPLES, *(make(300) for make in LINES.values())])
+def test_the_server_reads_a_line_once_as_parse_request_and_readable_stop_do(line: bytes) -> None:
+    """SR-10.4, SR-8.13: ``read_request``, which parses a line once, gives what the parser
+    and the SR-8.13 reader give: the request, or the refusal and the stop it still asks for."""
+    try:
+        expected: tuple[object, object] = (parse_request(line), None)
+    except ApiError as refused:
+        expected = (readable_stop(line), refused.reply())
+    request, error = read_request(line)
+    assert (request, None if error is None else error.reply()) == expected
 
 
 # -- the SR-8.13 reader is the one it replaced, only linear --------------------------------
