@@ -1,5 +1,5 @@
 """Client input at its worst: what each line built to be slow costs the loop per KiB, and the
-user heartbeat while every client slot floods the worst of them (SR-10.4, SR-10.1).
+user heartbeat while every client slot floods the worst of them (SR-10.5, SR-10.1).
 
 Run: ``.venv/bin/python -m bench.client_input [--seconds S] [--sizes 1,4,16,64]``.
 

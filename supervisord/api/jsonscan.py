@@ -1,5 +1,5 @@
 """Scans of a request line's JSON text that run before or instead of the parser (SR-8.13,
-SR-10.4): each costs time linear in the line, whatever its bytes, and mostly at C speed;
+SR-10.5): each costs time linear in the line, whatever its bytes, and mostly at C speed;
 sans-IO.
 
 A JSON string is ``"`` then any character but ``"`` and ``\\`` or a ``\\`` and the character

@@ -114,7 +114,7 @@ def _too_deep(line: bytes) -> bool:
     Decided before parsing, so the answer never depends on how deep the caller's stack is
     (Python's parser raises ``RecursionError`` near its limit, wherever that is). Brackets
     inside strings do not count. Cost: a count, and only for lines with many brackets, the
-    brackets outside strings taken (linear at C speed, SR-10.4: :mod:`supervisord.api.jsonscan`)
+    brackets outside strings taken (linear at C speed, SR-10.5: :mod:`supervisord.api.jsonscan`)
     and at most ``MAX_NESTING`` passes over them of a regular expression (C speed, linear)."""
     if line.count(b"[") + line.count(b"{") <= MAX_NESTING:
         return False
@@ -172,7 +172,7 @@ class _Fields:
 
     def error(self, message: str) -> ApiError:
         # clean: a field name from a peer may hold lone surrogates; 200: a bounded reply, cut
-        # first, as clean goes character by character (SR-10.4); it only ever lengthens them.
+        # first, as clean goes character by character (SR-10.5); it only ever lengthens them.
         return ApiError(
             ErrorCode.BAD_REQUEST, clean(message[:200])[:200], op=self.op, request_id=self.id
         )
@@ -378,7 +378,7 @@ def read_request(line: bytes) -> tuple[ApiRequest | None, ApiError | None]:
     """What the server reads from one request line: ``(request, None)``, or, for a line
     :func:`parse_request` refuses, ``(stop, error)``: the e-stop or hold it still asks for
     (SR-8.13, :func:`readable_stop`; ``None`` when none) and the refusal. The line is parsed
-    once (SR-10.4: a refused line's JSON is not read again to look for its op)."""
+    once (SR-10.5: a refused line's JSON is not read again to look for its op)."""
     try:
         obj = _load(line)
     except ApiError as error:
@@ -423,7 +423,7 @@ def readable_stop(line: bytes) -> Estop | Hold | None:
     of the outermost object is followed by ``:`` and that text as a whole JSON string
     (:func:`~supervisord.api.jsonscan.op_in_broken`). An e-stop wins over a hold when a
     broken line names both. The ``id`` is kept when it is valid, in a JSON object only.
-    Never raises; linear in the line (SR-10.4)."""
+    Never raises; linear in the line (SR-10.5)."""
     try:
         obj = _load(line)
     except ApiError:

@@ -792,7 +792,7 @@ class ApiServer:
     def _dispatch(self, conn: _Connection, event: RequestLine, now: int) -> None:
         # Blank lines never get here: allowed, answered by nothing (handy when typing).
         line, place = event.line, event.place
-        read, error = read_request(line)  # parsed once, in time linear in it (SR-10.4)
+        read, error = read_request(line)  # parsed once, in time linear in it (SR-10.5)
         if read is None:
             assert error is not None
             self._answer(conn, place, server_line(error))

@@ -1,5 +1,5 @@
 """Request lines built to be slow for the code that reads a client's bytes in the loop
-(SR-10.4), and that code's path for one line; for ``tests/api/test_worst_case_input.py`` and
+(SR-10.5), and that code's path for one line; for ``tests/api/test_worst_case_input.py`` and
 ``bench/client_input.py``.
 
 Each family makes a line of exactly ``size`` bytes (no newline) from one pattern repeated: a

@@ -1,5 +1,5 @@
 """Every piece of code that runs in the loop on a client's bytes costs time linear in them
-(SR-10.4, docs/api.md "Limits"): lines built to be slow for it, at the line limit, against
+(SR-10.5, docs/api.md "Limits"): lines built to be slow for it, at the line limit, against
 the same at 1/16 of it.
 
 The cost is the CPU time of this thread (``time.thread_time_ns``: what the loop would spend,
@@ -70,7 +70,7 @@ def assert_linear(name: str, action: Callable[[int], Callable[[], object]]) -> N
 
 
 def test_the_op_of_a_line_of_escaped_quotes_is_looked_for_in_linear_time() -> None:
-    """SR-10.4, SR-8.13: ``"\\"\\"\\"...`` (a quote, then escaped quotes, never closed) cost
+    """SR-10.5, SR-8.13: ``"\\"\\"\\"...`` (a quote, then escaped quotes, never closed) cost
     O(n^2) to look for a readable ``estop`` in: every quote began a scan of the rest of the
     line (4 KiB 36 ms, 64 KiB about 10 s, in the loop, for every refused line); now each byte
     is looked at a bounded number of times."""
@@ -82,7 +82,7 @@ def test_the_op_of_a_line_of_escaped_quotes_is_looked_for_in_linear_time() -> No
 
 @pytest.mark.parametrize("family", list(LINES))
 def test_a_worst_case_line_costs_time_linear_in_its_bytes(family: str) -> None:
-    """SR-10.4: what the server does with one line it read (the parser, the SR-8.13 reader of
+    """SR-10.5: what the server does with one line it read (the parser, the SR-8.13 reader of
     a refused line, the reply built and encoded) costs time linear in the line, for every
     family of lines built to be slow: strings that never close, nesting, long runs of one
     bracket, comma or quote pair, many keys in an op's place, escapes, unknown keys, long
@@ -93,7 +93,7 @@ def test_a_worst_case_line_costs_time_linear_in_its_bytes(family: str) -> None:
 
 @pytest.mark.parametrize("family", list(LINES))
 def test_the_reply_to_a_worst_case_line_is_short(family: str) -> None:
-    """SR-10.4, SR-8.7: the reply quotes at most a bounded part of what the client sent, so
+    """SR-10.5, SR-8.7: the reply quotes at most a bounded part of what the client sent, so
     the output a line costs does not grow with it (one reply per line: docs/api.md)."""
     reply = serve_line(LINES[family](LONG))
     assert reply.endswith(b"\n")
@@ -101,7 +101,7 @@ def test_the_reply_to_a_worst_case_line_is_short(family: str) -> None:
 
 
 def test_a_long_name_in_a_hello_is_refused_at_once() -> None:
-    """SR-10.4: a client's name is checked against a bounded pattern (at most 32 characters),
+    """SR-10.5: a client's name is checked against a bounded pattern (at most 32 characters),
     whatever its length."""
     assert_linear(
         "hello", lambda n: lambda: serve_line(b'{"op":"hello","name":"' + b"a" * n + b'"}')
@@ -121,7 +121,7 @@ _SAMPLES = [
 
 @pytest.mark.parametrize("line", [*_SAMPLES, *(make(300) for make in LINES.values())])
 def test_the_server_reads_a_line_once_as_parse_request_and_readable_stop_do(line: bytes) -> None:
-    """SR-10.4, SR-8.13: ``read_request``, which parses a line once, gives what the parser
+    """SR-10.5, SR-8.13: ``read_request``, which parses a line once, gives what the parser
     and the SR-8.13 reader give: the request, or the refusal and the stop it still asks for."""
     try:
         expected: tuple[object, object] = (parse_request(line), None)
@@ -221,14 +221,14 @@ def _one_byte_at_a_time(size: int) -> Callable[[], object]:
 
 
 def test_a_line_sent_one_byte_at_a_time_is_assembled_in_linear_time() -> None:
-    """SR-10.4: the reader appends each chunk and looks for the newline in the chunk alone,
+    """SR-10.5: the reader appends each chunk and looks for the newline in the chunk alone,
     never in what it holds: a 64 KiB line sent a byte per ``send`` costs 16 times a 4 KiB one,
     not 256."""
     assert_linear("LineReader", _one_byte_at_a_time)
 
 
 def test_a_connection_cuts_many_lines_in_linear_time() -> None:
-    """SR-10.4: many short lines (blank ones and broken ones) in one chunk become their events
+    """SR-10.5: many short lines (blank ones and broken ones) in one chunk become their events
     in time linear in the chunk."""
 
     def cut(size: int) -> Callable[[], object]:
@@ -239,7 +239,7 @@ def test_a_connection_cuts_many_lines_in_linear_time() -> None:
 
 
 def test_an_endless_line_is_discarded_in_linear_time() -> None:
-    """SR-10.4: the bytes of a line past the limit are counted and dropped, a chunk at a time,
+    """SR-10.5: the bytes of a line past the limit are counted and dropped, a chunk at a time,
     until the flood limit: never held, never searched again."""
 
     def discard(size: int) -> Callable[[], object]:
@@ -266,7 +266,7 @@ def loop(tmp_path: Path) -> Iterator[Loop]:
 
 
 def test_one_call_reads_a_bounded_number_of_lines_and_bytes(loop: Loop, tmp_path: Path) -> None:
-    """SR-10.4, SR-10.1: a client that pipelines 64 broken lines has at most
+    """SR-10.5, SR-10.1: a client that pipelines 64 broken lines has at most
     ``requests_per_call`` of them read in one ``handle`` call (8), and what one call parses
     is at most one line at the limit and ``RECV_SIZE`` bytes besides (here 16 KiB of 2 KiB
     lines); the rest waits in the socket for the next turns, and every line is answered."""
@@ -294,7 +294,7 @@ def test_one_call_reads_a_bounded_number_of_lines_and_bytes(loop: Loop, tmp_path
 
 
 def test_a_line_sent_one_byte_at_a_time_to_the_server_costs_linear_time(tmp_path: Path) -> None:
-    """SR-10.4: on real sockets, a line sent one byte per ``send``, the server reading after
+    """SR-10.5: on real sockets, a line sent one byte per ``send``, the server reading after
     each: the server's work (its ``handle`` calls, timed on this thread) grows with the bytes,
     not with their square (each read peeks at what the socket holds, never at what the
     connection holds)."""

@@ -320,7 +320,7 @@ def test_slow_disk_runs_srcsd_with_and_without_it_side_by_side(
 def test_client_input_measures_every_family_and_the_heartbeat_under_its_flood(
     tmp_path: Path,
 ) -> None:
-    """SR-10.4: the bench gives a cost for every worst-case family and the framing at each
+    """SR-10.5: the bench gives a cost for every worst-case family and the framing at each
     size, and the real loop keeps sending the user heartbeat while every client slot floods
     one of them (the flood never dropped); no time asserted."""
     rows = client_input.costs([1, 2])

@@ -74,7 +74,7 @@ def test_pipelined_replies_come_back_in_request_order(tmp_path: Path) -> None:
 def test_a_broken_line_at_the_limit_delays_neither_a_remote_estop_nor_the_heartbeat(
     tmp_path: Path,
 ) -> None:
-    """SR-10.4, SR-8.13, SR-5.1: one line of a quote and escaped quotes, never closed, at the
+    """SR-10.5, SR-8.13, SR-5.1: one line of a quote and escaped quotes, never closed, at the
     line limit (``"\\"\\"\\"...``, 64 KiB) held the loop for seconds while its op was looked
     for (quadratic; a 24 KB line: a remote e-stop 150 ms later switched the drive off after
     1.0-1.2 s, recorded as ``vsc_link_lost``, and the user heartbeat stopped for 1.26 s). Now
