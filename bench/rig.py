@@ -118,7 +118,10 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
     )
     listener = None
     if args.api_socket:
-        listener = ApiListener(ApiServer(ServerConfig(path=Path(args.api_socket))))
+        config = ServerConfig(path=Path(args.api_socket))
+        if args.api_max_line:  # api.max_message_bytes (bench/client_input.py: the default)
+            config = ServerConfig(path=config.path, max_line=args.api_max_line)
+        listener = ApiListener(ApiServer(config))
     supervisor = Supervisor(
         safety,
         SerialLink(args.port),
@@ -295,6 +298,7 @@ def child_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--timeout-ms", type=int, default=200)
     parser.add_argument("--hold-ms", type=int, default=100)
     parser.add_argument("--api-socket", default=None, help="serve the client API here")
+    parser.add_argument("--api-max-line", type=int, default=0, help="its line limit (0: 4096)")
     parser.add_argument("--role", choices=("motion", "power"), default="motion")
     parser.add_argument("--fsync-delay-ms", type=float, default=0, help="a slow disk")
     args = parser.parse_args(argv)
@@ -533,6 +537,7 @@ class Rig:
         mirror: bool = False,
         nice: int = 0,
         api_socket: Path | None = None,
+        api_max_line: int = 0,
         role: str = "motion",
         fsync_delay_ms: float = 0,
     ) -> None:
@@ -555,6 +560,8 @@ class Rig:
             command.append(f"--level-file={directory / 'drive'}")
         if api_socket is not None:
             command.append(f"--api-socket={api_socket}")
+        if api_max_line:
+            command.append(f"--api-max-line={api_max_line}")
         command.append(f"--role={role}")
         if fsync_delay_ms:
             command.append(f"--fsync-delay-ms={fsync_delay_ms}")

@@ -13,7 +13,6 @@ Nothing here touches a socket or a clock.
 from __future__ import annotations
 
 import enum
-import itertools
 import json
 import re
 from collections.abc import Mapping
@@ -21,6 +20,7 @@ from typing import Final
 
 from supervisord import strict
 from supervisord.api.framing import MAX_ID_LENGTH, MAX_NESTING, ApiError, ErrorCode
+from supervisord.api.jsonscan import STOP_OP_NAMES, brackets_outside_strings, op_in_broken
 from supervisord.api.ops import (
     ApiRequest,
     Command,
@@ -79,6 +79,7 @@ __all__ = [
     "Vibrate",
     "honoured_error",
     "parse_request",
+    "read_request",
     "readable_stop",
     "request_json",
 ]
@@ -104,8 +105,7 @@ def _unique_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
     return result
 
 
-_JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
-_INNERMOST = re.compile(rb"\[[^\[\]{}]*\]|\{[^\[\]{}]*\}")
+_INNERMOST = re.compile(rb"\[\]|\{\}")  # among brackets alone
 
 
 def _too_deep(line: bytes) -> bool:
@@ -113,11 +113,12 @@ def _too_deep(line: bytes) -> bool:
 
     Decided before parsing, so the answer never depends on how deep the caller's stack is
     (Python's parser raises ``RecursionError`` near its limit, wherever that is). Brackets
-    inside strings do not count. Cost: a count, and only for lines with many brackets, at
-    most ``MAX_NESTING`` passes of two regular expressions (C speed, linear)."""
+    inside strings do not count. Cost: a count, and only for lines with many brackets, the
+    brackets outside strings taken (linear at C speed, SR-10.5: :mod:`supervisord.api.jsonscan`)
+    and at most ``MAX_NESTING`` passes over them of a regular expression (C speed, linear)."""
     if line.count(b"[") + line.count(b"{") <= MAX_NESTING:
         return False
-    rest = _JSON_STRING.sub(b"", line)
+    rest = brackets_outside_strings(line)
     for _ in range(MAX_NESTING):
         rest, removed = _INNERMOST.subn(b"", rest)
         if not removed:
@@ -170,8 +171,11 @@ class _Fields:
             self.fields.used.update({"op": None, "id": None})
 
     def error(self, message: str) -> ApiError:
-        # clean: a field name from a peer may hold lone surrogates; 200: a bounded reply.
-        return ApiError(ErrorCode.BAD_REQUEST, clean(message)[:200], op=self.op, request_id=self.id)
+        # clean: a field name from a peer may hold lone surrogates; 200: a bounded reply, cut
+        # first, as clean goes character by character (SR-10.5); it only ever lengthens them.
+        return ApiError(
+            ErrorCode.BAD_REQUEST, clean(message[:200])[:200], op=self.op, request_id=self.id
+        )
 
     def _read(self, key: strict.Key) -> object:
         try:
@@ -367,7 +371,25 @@ def parse_request(line: bytes) -> ApiRequest:
     Raises :class:`ApiError` (``bad_json``, ``bad_request`` or ``unknown_op``) for anything
     else; it carries the ``op`` and ``id`` when they could be read, for the error reply.
     """
-    obj = _load(line)
+    return _request(_load(line))
+
+
+def read_request(line: bytes) -> tuple[ApiRequest | None, ApiError | None]:
+    """What the server reads from one request line: ``(request, None)``, or, for a line
+    :func:`parse_request` refuses, ``(stop, error)``: the e-stop or hold it still asks for
+    (SR-8.13, :func:`readable_stop`; ``None`` when none) and the refusal. The line is parsed
+    once (SR-10.5: a refused line's JSON is not read again to look for its op)."""
+    try:
+        obj = _load(line)
+    except ApiError as error:
+        return _broken_stop(line), error
+    try:
+        return _request(obj), None
+    except ApiError as error:
+        return _stop_in(obj), error
+
+
+def _request(obj: object) -> ApiRequest:
     if not isinstance(obj, dict):
         raise ApiError(ErrorCode.BAD_REQUEST, "a request must be a JSON object")
     request_id = _request_id(obj)
@@ -388,8 +410,7 @@ def parse_request(line: bytes) -> ApiRequest:
 
 STOP_OPS: Final[dict[str, type[Estop] | type[Hold]]] = {"estop": Estop, "hold": Hold}
 """The ops honoured even in a malformed request: the ones that only add a reason to stop."""
-_TOKEN = re.compile(rb'"(?:[^"\\]|\\.)*"|[{}\[\]:,]')
-_GAP = re.compile(rb"[ \t\r\n]*")
+assert tuple(STOP_OPS) == STOP_OP_NAMES  # the e-stop first: it wins in a broken line
 
 
 def readable_stop(line: bytes) -> Estop | Hold | None:
@@ -399,14 +420,25 @@ def readable_stop(line: bytes) -> Estop | Hold | None:
     ``hold`` when the line is a JSON object whose ``"op"`` is that text (whatever its other
     fields, its ``id``, or a missing one), or, when the line is no JSON (a syntax error, a
     duplicate key, ``NaN``, nesting too deep, bytes that are not UTF-8), when a key ``"op"``
-    of the outermost object is followed by ``:`` and that text as a whole JSON string. An
-    e-stop wins over a hold when a broken line names both. The ``id`` is kept when it is
-    valid, in a JSON object only. Never raises; linear in the line."""
+    of the outermost object is followed by ``:`` and that text as a whole JSON string
+    (:func:`~supervisord.api.jsonscan.op_in_broken`). An e-stop wins over a hold when a
+    broken line names both. The ``id`` is kept when it is valid, in a JSON object only.
+    Never raises; linear in the line (SR-10.5)."""
     try:
         obj = _load(line)
     except ApiError:
-        op = _op_in_broken(line)
-        return None if op is None else STOP_OPS[op]()
+        return _broken_stop(line)
+    return _stop_in(obj)
+
+
+def _broken_stop(line: bytes) -> Estop | Hold | None:
+    """The e-stop or hold of a line that is no JSON (SR-8.13)."""
+    op = op_in_broken(line)
+    return None if op is None else STOP_OPS[op]()
+
+
+def _stop_in(obj: object) -> Estop | Hold | None:
+    """The e-stop or hold of a line that is JSON, ``obj`` (SR-8.13)."""
     op = obj.get("op") if isinstance(obj, dict) else None
     if not isinstance(op, str) or op not in STOP_OPS:
         return None
@@ -415,52 +447,6 @@ def readable_stop(line: bytes) -> Estop | Hold | None:
     except ApiError:
         request_id = None  # a wrong id is answered without one, as every refused request
     return STOP_OPS[op](id=request_id)
-
-
-def _op_in_broken(line: bytes) -> str | None:
-    """``estop`` or ``hold`` when a key of the outermost object of a broken line says so."""
-    tokens = list(_TOKEN.finditer(line))
-    found: set[str] = set()
-    depth: list[bytes] = []  # the open brackets, outside strings
-    for i, token in enumerate(tokens):
-        text = token.group()
-        if text in (b"{", b"["):
-            depth.append(text)
-        elif text in (b"}", b"]"):
-            if depth:
-                depth.pop()
-        elif (
-            text.startswith(b'"')
-            and depth == [b"{"]
-            and i >= 1
-            and tokens[i - 1].group() in (b"{", b",")
-            and i + 2 < len(tokens)
-            and tokens[i + 1].group() == b":"
-            and tokens[i + 2].group().startswith(b'"')
-            and _adjacent(line, tokens[i - 1], token, tokens[i + 1], tokens[i + 2])
-            and _string(text) == "op"
-        ):
-            op = _string(tokens[i + 2].group())
-            if op in STOP_OPS:
-                found.add(op)
-    return "estop" if "estop" in found else ("hold" if found else None)
-
-
-def _adjacent(line: bytes, *tokens: re.Match[bytes]) -> bool:
-    """Whether only JSON whitespace stands between each token and the next."""
-    return all(
-        _GAP.fullmatch(line, before.end(), after.start()) is not None
-        for before, after in itertools.pairwise(tokens)
-    )
-
-
-def _string(token: bytes) -> str | None:
-    """One JSON string token as text, or ``None`` when it is not valid JSON or UTF-8."""
-    try:
-        value = json.loads(token)
-    except ValueError:  # UnicodeDecodeError is one
-        return None
-    return value if isinstance(value, str) else None
 
 
 def honoured_error(error: ApiError, request: ApiRequest) -> ApiError:

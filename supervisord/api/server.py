@@ -25,7 +25,7 @@ waits until every reply before it has left. A client that pipelines without ids 
 reply as its own request's. Pushes are no replies: they leave at once.
 
 **A malformed e-stop or hold still stops** (SR-8.13): a line refused as malformed whose op
-can still be read as ``estop`` or ``hold`` (:func:`~supervisord.api.requests.readable_stop`)
+can still be read as ``estop`` or ``hold`` (:func:`~supervisord.api.requests.read_request`)
 is acted on as that request, and its reply is the error that says what was wrong, with
 ``"honoured": true``.
 
@@ -106,8 +106,7 @@ from supervisord.api.requests import (
     Subscribe,
     Topic,
     honoured_error,
-    parse_request,
-    readable_stop,
+    read_request,
 )
 from supervisord.api.translate import ClientInfo, to_core_event
 from supervisord.api.views import ok_reply
@@ -793,16 +792,15 @@ class ApiServer:
     def _dispatch(self, conn: _Connection, event: RequestLine, now: int) -> None:
         # Blank lines never get here: allowed, answered by nothing (handy when typing).
         line, place = event.line, event.place
-        try:
-            request: ApiRequest = parse_request(line)
-        except ApiError as e:
-            stop = readable_stop(line)
-            if stop is None:
-                self._answer(conn, place, server_line(e))
-                return
-            # A malformed e-stop or hold still stops (SR-8.13): acted on as the request it
-            # names, on every connection and e-stop slot; its reply says what was wrong.
-            request, place.malformed = stop, e
+        read, error = read_request(line)  # parsed once, in time linear in it (SR-10.5)
+        if read is None:
+            assert error is not None
+            self._answer(conn, place, server_line(error))
+            return
+        request: ApiRequest = read
+        # A malformed e-stop or hold still stops (SR-8.13): acted on as the request it names,
+        # on every connection and e-stop slot; its reply says what was wrong.
+        place.malformed = error
         conn.last_ns = now
         waiting = _Waiting(conn, request, place)
         if conn.naming and not conn.slot and not isinstance(request, NAMELESS_REQUESTS):

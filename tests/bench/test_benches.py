@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from bench import (
+    client_input,
     core_input_cost,
     heartbeat_jitter,
     idle_cost,
@@ -24,6 +25,7 @@ from bench import (
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
 from supervisord.testkit.wait import wait_until
+from supervisord.testkit.worst_input import LINES
 from supervisord.timebase import NS_PER_MS
 
 
@@ -313,3 +315,18 @@ def test_slow_disk_runs_srcsd_with_and_without_it_side_by_side(
     assert "srcsd-slow: the srcsd loop, every record fsync 50 ms slower" in out
     assert "| srcsd slow disk / srcsd |" in out
     assert out.count("slow disk (50 ms more per fsync):") == 2
+
+
+def test_client_input_measures_every_family_and_the_heartbeat_under_its_flood(
+    tmp_path: Path,
+) -> None:
+    """SR-10.5: the bench gives a cost for every worst-case family and the framing at each
+    size, and the real loop keeps sending the user heartbeat while every client slot floods
+    one of them (the flood never dropped); no time asserted."""
+    rows = client_input.costs([1, 2])
+    assert set(rows) == {*LINES, client_input.FRAMING}
+    assert all(len(values) == 2 and min(values) > 0 for values in rows.values())
+    periods, turns, status = client_input.heartbeat_under_flood(tmp_path, 1.0, "commas")
+    assert len(periods) >= 5
+    assert turns["turns"] > 0
+    assert status is None

@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import json
 import socket
+import time
 from pathlib import Path
 from typing import Any
 
+from supervisord.config.schema import DEFAULT_MAX_MESSAGE_BYTES
 from supervisord.testkit.robot import OutputDef, Robot
+from supervisord.testkit.worst_input import LINES
 from supervisord.vocabulary import State
+from tests.faults.test_flood import WATCHDOG_S, HeartbeatWatch
 from tests.faults.test_odd_input import REPLY_S, raw_exchange
 
 DEEP = b'{"a":' * 17 + b"1" + b"}" * 17  # nested one deeper than the limit: bad_json
@@ -65,6 +69,44 @@ def test_pipelined_replies_come_back_in_request_order(tmp_path: Path) -> None:
             (True, "estop", None),
             (False, None, "bad_json"),
         ]
+
+
+def test_a_broken_line_at_the_limit_delays_neither_a_remote_estop_nor_the_heartbeat(
+    tmp_path: Path,
+) -> None:
+    """SR-10.5, SR-8.13, SR-5.1: one line of a quote and escaped quotes, never closed, at the
+    line limit (``"\\"\\"\\"...``, 64 KiB) held the loop for seconds while its op was looked
+    for (quadratic; a 24 KB line: a remote e-stop 150 ms later switched the drive off after
+    1.0-1.2 s, recorded as ``vsc_link_lost``, and the user heartbeat stopped for 1.26 s). Now
+    the line is refused ``bad_json`` and, sent 150 ms before the remote's e-stop, neither
+    delays the stop (off within the next VSC heartbeat and the allowance, recorded as
+    ``vsc_estop``, no ``vsc_link_lost``, no internal fault) nor lets the VSC's watchdog miss
+    the user heartbeat (500 ms, read on the VSC's side)."""
+    line = LINES["escaped quotes"](DEFAULT_MAX_MESSAGE_BYTES - 1) + b"\n"
+    with Robot(tmp_path, outputs=(OutputDef("drive"),)) as robot:
+        robot.arm()
+        t_line = robot.now()
+        with (
+            HeartbeatWatch(robot.sim.control_path) as beats,
+            socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock,
+        ):
+            sock.settimeout(REPLY_S)
+            sock.connect(str(robot.socket_path))
+            sock.sendall(line)
+            time.sleep(0.15)
+            stop = robot.remote_estop()  # asserts: off within the VSC heartbeat + allowance
+            (reply,) = _read_lines(sock, 1)
+            time.sleep(0.3)  # the watch goes on past the stop
+        assert (reply["ok"], reply["code"], "honoured" in reply) == (False, "bad_json", False)
+        assert robot.record_raising("vsc_link_lost", t_line) is None, robot.records_since(t_line)
+        assert robot.counters().internal_faults == 0
+        assert beats.samples > 20
+        assert not beats.tripped, "the VSC's key-85 watchdog tripped"
+        assert beats.worst_age < WATCHDOG_S, beats.worst_age
+        print(
+            f"drive off {1000 * (stop.t_off - stop.t_fault):.0f} ms after the e-stop; user "
+            f"heartbeat's worst age on the VSC's side {1000 * beats.worst_age:.0f} ms"
+        )
 
 
 def _read_lines(sock: socket.socket, count: int) -> list[dict[str, Any]]:
