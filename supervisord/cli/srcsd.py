@@ -138,7 +138,20 @@ def flags_first(argv: Sequence[str]) -> list[str]:
     return [a for a in head if a in FLAGS] + [a for a in head if a not in FLAGS] + list(argv[end:])
 
 
+INT_DIGITS: Final = 4300
+"""The most digits a decimal integer in a request may have (Python's own default). A request's
+number is converted in time quadratic in its digits, so this is what keeps that cost bounded
+(SR-10.5); ``PYTHONINTMAXSTRDIGITS=0`` in the environment would lift it, so the daemon sets it
+itself."""
+
+
+def pin_int_digits() -> None:
+    """Bound the digits Python converts, whatever the environment says (SR-10.5)."""
+    sys.set_int_max_str_digits(INT_DIGITS)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    pin_int_digits()
     args = build_parser().parse_args(flags_first(sys.argv[1:] if argv is None else argv))
     if args.check_config:
         return check_config_main(args.check_config, strict_machine=args.strict)

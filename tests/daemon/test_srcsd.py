@@ -9,6 +9,7 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -229,3 +230,18 @@ def test_record_continues_across_restarts_and_srcsctl_log_reads_it(tmp_path: Pat
     )
     assert bad.returncode == 2
     assert "not a time: 'last tuesday'" in bad.stderr
+
+
+def test_the_digits_python_converts_are_bounded_whatever_the_environment_says() -> None:
+    """SR-10.5: a request's number is converted in time quadratic in its digits; Python's own
+    bound of 4,300 keeps one line's cost small, and ``PYTHONINTMAXSTRDIGITS=0`` (no bound)
+    in the daemon's environment must not lift it."""
+    code = (
+        "import sys; from supervisord.cli import srcsd; srcsd.pin_int_digits(); "
+        "print(sys.get_int_max_str_digits())"
+    )
+    env = {**os.environ, "PYTHONINTMAXSTRDIGITS": "0"}
+    run = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert run.stdout.strip() == "4300"
