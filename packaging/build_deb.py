@@ -60,9 +60,11 @@ MANYLINUX_LEGACY = {"manylinux1": (2, 5), "manylinux2010": (2, 12), "manylinux20
 """The C library the older manylinux names stand for (PEP 600)."""
 MACHINES = {"amd64": "x86_64", "arm64": "aarch64"}
 """Debian architecture -> the wheels' machine name."""
-LEFT_OUT = {"srcs-ros2"}
+LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki"}
 """Console scripts not packaged: the ROS 2 bridge is its own package, run by ROS's Python and
-rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install")."""
+rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install"); the fleet's
+targets and certificates are the collector's (``srcs-collector``,
+packaging/build_collector_deb.py; docs/fleet.md "The collector package")."""
 MAINTAINER = "srcs-supervisord maintainers <srcs-supervisord@example.com>"
 """The package's Maintainer: fixed here, whoever builds it."""
 CHANGELOG = REPO / "packaging/changelog"
@@ -457,6 +459,12 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
     put += [(path, DOC / "docs" / path.name) for path in sorted((REPO / "docs").glob("*.md"))]
     put += [(path, DOC / "examples" / path.name) for path in sorted((REPO / "config").glob("*"))]
     put += [(units / "srcs-ros2@.service", DOC / "examples/srcs-ros2@.service")]
+    # The fleet's drop-ins, off until installed (docs/fleet.md "Only the supervisor's
+    # entries leave the robot", SR-13.11).
+    put += [
+        (units / name, DOC / "examples" / name)
+        for name in ("srcsd-log-namespace.conf", "systemd-journal-upload-srcs.conf")
+    ]
     for source, target in put:
         if source.is_dir():
             shutil.copytree(source, root / target)
@@ -483,6 +491,8 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
                 "supervisord.cli.reference",
                 kind,
                 generated / kind,
+                "--only",
+                *names,
                 cwd=work,
                 env=packaged,
             )

@@ -3,8 +3,10 @@
     python -m supervisord.cli.reference man OUTDIR         # srcsd.8 srcsctl.1 ...
     python -m supervisord.cli.reference completion OUTDIR  # OUTDIR/srcsctl, OUTDIR/zsh/_srcsctl ...
 
-``man`` writes srcsd.8, srcsctl.1, srcs-sim.1 and srcs-exporter.8; ``completion`` writes one
-bash file per command, named after it (bash-completion's convention), and zsh's ``_NAME``.
+``man`` writes srcsd.8, srcsctl.1, srcs-sim.1, srcs-exporter.8 and the collector's
+srcs-fleet-targets.8 and srcs-fleet-pki.8 (``--only NAME...``: those alone); ``completion``
+writes one bash file per command, named after it (bash-completion's convention), and zsh's
+``_NAME``.
 
 The package build runs both (docs/srcsctl.md "Man pages and completion"). The options, their
 arguments and help, the commands of ``srcsctl`` and their usage lines come from the very
@@ -25,6 +27,7 @@ the date on each page is ``SOURCE_DATE_EPOCH``'s when it is set (today's otherwi
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -34,11 +37,12 @@ import shtab
 from argparse_manpage.manpage import Manpage
 
 from supervisord import __version__
-from supervisord.cli import exporter, sim, srcsctl, srcsd
+from supervisord.cli import srcsctl
 from supervisord.cli.cause_names import CAUSE_NAMES
 
 PROJECT = "srcs-supervisord"
 DOC_DIR = f"/usr/share/doc/{PROJECT}"
+COLLECTOR_DOC_DIR = "/usr/share/doc/srcs-collector"
 MANUALS = {1: "User Commands", 8: "System Administration Commands"}
 
 FILE_METAVARS = frozenset({"FILE", "PATH", "SOCKET", "SYMLINK"})
@@ -97,6 +101,20 @@ class Command:
     environment: tuple[tuple[str, str], ...] = ()
 
 
+def _parser(module: str) -> Callable[[], argparse.ArgumentParser]:
+    """``supervisord.cli.MODULE.build_parser``, imported when a page is made: the collector's
+    package (packaging/build_collector_deb.py) generates its pages without the robot's
+    dependencies (pyserial, python-can), which the daemon's and simulator's modules import."""
+
+    def build() -> argparse.ArgumentParser:
+        parser: argparse.ArgumentParser = importlib.import_module(
+            f"supervisord.cli.{module}"
+        ).build_parser()
+        return parser
+
+    return build
+
+
 CONFIG_FILE = ("/etc/srcs/NAME.toml", "a robot's configuration, one per srcsd@NAME instance")
 API_SOCKET = ("/run/srcsd/api.sock", "the API socket (its [api] socket in the configuration)")
 RECORD_FILE = (
@@ -113,7 +131,7 @@ COMMANDS: tuple[Command, ...] = (
     Command(
         name="srcsd",
         section=8,
-        build=srcsd.build_parser,
+        build=_parser("srcsd"),
         summary="safety supervisor for a robot with an SRCS remote",
         description=(
             "srcsd runs as a systemd service, one instance per robot: srcsd@NAME reads "
@@ -222,7 +240,7 @@ COMMANDS: tuple[Command, ...] = (
     Command(
         name="srcs-sim",
         section=1,
-        build=sim.build_parser,
+        build=_parser("sim"),
         summary="a simulated SRCS VSC with its remote",
         description=(
             "srcs-sim simulates the SRCS receiver on the vehicle (the VSC) and its remote, "
@@ -243,7 +261,7 @@ COMMANDS: tuple[Command, ...] = (
     Command(
         name="srcs-exporter",
         section=8,
-        build=exporter.build_parser,
+        build=_parser("exporter"),
         summary="the SRCS safety supervisor's state and counters as Prometheus metrics",
         description=(
             "srcs-exporter follows one srcsd(8) over its API socket and serves its state, "
@@ -261,7 +279,59 @@ COMMANDS: tuple[Command, ...] = (
         files=(CONFIG_FILE, API_SOCKET, DOCS),
         see_also=("srcsd(8)", "srcsctl(1)", "prometheus(1)"),
     ),
+    Command(
+        name="srcs-fleet-targets",
+        section=8,
+        build=_parser("fleet_targets"),
+        summary="the fleet's Prometheus targets, generated from the list of robots",
+        description=(
+            "srcs-fleet-targets reads the fleet's list of robots, one 'NAME [ADDRESS[:PORT]]' "
+            "a line, and writes the file_sd targets file the collector's Prometheus reads, "
+            "the robot's name as the target label robot. Every line is checked first (a host "
+            "name, an address, a port, nothing twice); the file is replaced in one rename, "
+            "and a refused list leaves the old one. Prometheus re-reads the file by itself.",
+        ),
+        exit_status=(
+            ("0", "written"),
+            ("2", "bad arguments, an unreadable list, a line that is no robot"),
+        ),
+        files=(
+            ("/etc/srcs-collector/robots", "the list of robots"),
+            ("/var/lib/srcs-collector/targets/robots.yml", "the targets Prometheus reads"),
+            (f"{COLLECTOR_DOC_DIR}/", "the fleet's documentation (docs/fleet.md)"),
+        ),
+        see_also=("srcsctl(1)", "srcs-fleet-pki(8)", "prometheus(1)"),
+    ),
+    Command(
+        name="srcs-fleet-pki",
+        section=8,
+        build=_parser("fleet_pki"),
+        summary="make and renew the fleet's certificates",
+        description=(
+            "srcs-fleet-pki makes the fleet's certificates with openssl(1): the CA (ca), the "
+            "collector's server certificate for every name and address the robots connect to "
+            "(server), and one client certificate per robot with its host name as the CN "
+            "(robot). Making again is renewing: a new key and certificate signed by the same "
+            "CA; ca on an existing CA signs a new CA certificate with the same key, so every "
+            "certificate it signed stays valid. status lists the days each has left.",
+            "Keep the CA's key off the collector when you can: make the certificates on an "
+            "administrator's machine with --dir, and copy each robot's pair to its robot.",
+        ),
+        exit_status=(
+            ("0", "made, or listed"),
+            ("1", "openssl failed or is missing, a file could not be written, a bad name"),
+            ("2", "bad arguments"),
+        ),
+        files=(
+            ("/etc/srcs-collector/pki/", "ca.pem, collector.pem, NAME.pem and their keys"),
+            (f"{COLLECTOR_DOC_DIR}/", "the fleet's documentation (docs/fleet.md)"),
+        ),
+        see_also=("srcsctl(1)", "srcs-fleet-targets(8)", "openssl(1)"),
+    ),
 )
+COLLECTOR_COMMANDS = ("srcsctl", "srcs-fleet-targets", "srcs-fleet-pki")
+"""The collector package's commands (packaging/build_collector_deb.py); the robot's package
+leaves the two srcs-fleet-* out."""
 
 
 class _UnwrappedFormatter(argparse.HelpFormatter):
@@ -357,23 +427,31 @@ def completion(command: Command, shell: str) -> str:
     return note + script
 
 
-def write_man(outdir: Path) -> list[Path]:
-    """Write every man page into ``outdir``; return their paths."""
+def chosen(only: Sequence[str] = ()) -> list[Command]:
+    """The commands named in ``only`` (every one when empty). Raises ``ValueError``."""
+    unknown = set(only) - {command.name for command in COMMANDS}
+    if unknown:
+        raise ValueError(f"no such command: {', '.join(sorted(unknown))}")
+    return [command for command in COMMANDS if not only or command.name in only]
+
+
+def write_man(outdir: Path, only: Sequence[str] = ()) -> list[Path]:
+    """Write every man page (or those of ``only``) into ``outdir``; return their paths."""
     outdir.mkdir(parents=True, exist_ok=True)
     written = []
-    for command in COMMANDS:
+    for command in chosen(only):
         path = outdir / f"{command.name}.{command.section}"
         path.write_text(man_page(command), encoding="utf-8")
         written.append(path)
     return written
 
 
-def write_completion(outdir: Path) -> list[Path]:
+def write_completion(outdir: Path, only: Sequence[str] = ()) -> list[Path]:
     """Write bash completion as ``outdir/NAME`` (bash-completion loads a command's file by
     the command's name) and zsh's as ``outdir/zsh/_NAME``; return their paths."""
     (outdir / "zsh").mkdir(parents=True, exist_ok=True)
     written = []
-    for command in COMMANDS:
+    for command in chosen(only):
         for path, shell in (
             (outdir / command.name, "bash"),
             (outdir / "zsh" / f"_{command.name}", "zsh"),
@@ -390,11 +468,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("what", choices=("man", "completion"))
     parser.add_argument("outdir", type=Path)
+    parser.add_argument("--only", nargs="+", default=[], metavar="NAME", help="these commands")
     args = parser.parse_args(argv)
     write = write_man if args.what == "man" else write_completion
     try:
-        written = write(args.outdir)
-    except OSError as error:
+        written = write(args.outdir, args.only)
+    except (OSError, ValueError) as error:
         print(f"reference: {error}", file=sys.stderr)
         return 1
     for path in written:

@@ -126,14 +126,24 @@ def test_the_command_line_writes_the_files_the_package_build_installs(
 ) -> None:
     """``man OUTDIR`` writes one page per command named NAME.SECTION, and ``completion
     OUTDIR`` one bash file named after each command (bash-completion loads it by that name)
-    and zsh's ``zsh/_NAME``; no page for srcs-ros2, which has no argparse parser."""
+    and zsh's ``zsh/_NAME``; no page for srcs-ros2, which has no argparse parser. The
+    collector's two tools have theirs (packaging/build_collector_deb.py, SR-13.10)."""
     assert sorted(p.name for p in man_dir.iterdir()) == [
         "srcs-exporter.8",
+        "srcs-fleet-pki.8",
+        "srcs-fleet-targets.8",
         "srcs-sim.1",
         "srcsctl.1",
         "srcsd.8",
     ]
-    names = ["srcs-exporter", "srcs-sim", "srcsctl", "srcsd"]
+    names = [
+        "srcs-exporter",
+        "srcs-fleet-pki",
+        "srcs-fleet-targets",
+        "srcs-sim",
+        "srcsctl",
+        "srcsd",
+    ]
     assert sorted(p.name for p in completion_dir.iterdir() if p.is_file()) == names
     assert sorted(p.name for p in (completion_dir / "zsh").iterdir()) == [f"_{n}" for n in names]
 

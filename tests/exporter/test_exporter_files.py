@@ -30,7 +30,7 @@ def test_alert_rules_pass_promtool_check() -> None:
         [PROMTOOL, "check", "rules", str(RULES)], check=False, capture_output=True, text=True
     )
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "11 rules found" in result.stdout
+    assert "12 rules found" in result.stdout
 
 
 @needs_promtool
@@ -109,3 +109,23 @@ def test_without_srcsd_the_exporter_serves_srcs_up_zero(tmp_path: Path) -> None:
     samples = {s.name: s.value for f in families for s in f.samples}
     assert samples["srcs_up"] == 0
     assert not {"srcs_state", "srcs_cause_active", "srcs_link_up"} & set(samples)
+
+
+def _anchor(heading: str) -> str:
+    """A Markdown heading's anchor as GitHub and most renderers make it."""
+    return re.sub(r"[^a-z0-9 _-]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_every_alert_links_a_runbook_in_the_fleet_docs() -> None:
+    """SR-13.10: each rule's runbook_url points into docs/fleet.md as the collector package
+    installs it, at a heading that is there ("Runbooks"), one per alert."""
+    text = RULES.read_text()
+    alerts = re.findall(r"- alert: (\w+)", text)
+    links = re.findall(r'runbook_url: "([^"]+)"', text)
+    assert len(links) == len(alerts)
+    docs = (REPO / "docs" / "fleet.md").read_text()
+    anchors = {_anchor(h) for h in re.findall(r"^#+ (.+)$", docs, flags=re.MULTILINE)}
+    prefix = "file:///usr/share/doc/srcs-collector/docs/fleet.md#"
+    for alert, link in zip(alerts, links, strict=True):
+        assert link == f"{prefix}runbook-{alert.lower()}"
+        assert link.removeprefix(prefix) in anchors, alert

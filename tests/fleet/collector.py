@@ -1,129 +1,193 @@
-"""The fleet tier's collector (docs/fleet.md "The fleet tier"): systemd's own
-``systemd-journal-remote`` over HTTPS, writing one journal per robot into a directory, and a
-real Prometheus (1 s scrapes of every robot's exporter, the robot's name as the target label
-``robot``, the shipped ``config/prometheus/srcs-alerts.yml`` unchanged as its rules) with a
-real Alertmanager, all on the fleet's loopback address 127.0.0.10.
+"""The fleet tier's collector (docs/fleet.md "The fleet tier"): the collector's package
+(``srcs-collector``) installed with dpkg into a layer, mounted as a root of its own over this
+machine's ``/``, and its servers run in that root (chroot) as its shipped files say, unchanged
+(SR-13.10): systemd's ``systemd-journal-remote`` as Debian's unit starts it, over HTTPS on the
+fleet's address 127.0.0.10, with the package's ``journal-remote.conf.d`` drop-in (a file per
+sender, the collector's certificate); Prometheus and Alertmanager with the command lines of the
+package's drop-ins for their units and the package's ``prometheus.yml`` (15 s scrapes, the
+shipped rules, targets made by ``srcs-fleet-targets`` from the list of robots) and
+``alertmanager.yml`` (routes by robot, to the webhook at 127.0.0.1:9095 that :class:`Webhook`
+serves here). Only their ``$ARGS`` (where to keep their data) and journal-remote's listening
+address (its unit gets a socket) are the tier's.
 
 :func:`held` answers "what the collector holds" through the journal's own tool,
 ``journalctl --directory DIR -o json``; it is the one place to read the collector's records,
-beside :func:`fleet_answer`, the fleet's own answer, ``srcsctl fleet -o json --directory DIR``,
+beside :func:`fleet_answer`, the fleet's own answer, the installed ``srcsctl fleet -o json``,
 which holds each record once (SR-13.1)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import re
+import shlex
 import subprocess
-import sys
+import threading
+import time
 import urllib.request
 from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
 from tests.fleet.pki import COLLECTOR_ADDRESS
 
-ROOT = Path(__file__).resolve().parents[2]
-RULES = ROOT / "config/prometheus/srcs-alerts.yml"
-JOURNAL_REMOTE = "/lib/systemd/systemd-journal-remote"
 JOURNAL_PORT = 19532
 PROMETHEUS = f"{COLLECTOR_ADDRESS}:9090"
 ALERTMANAGER = f"{COLLECTOR_ADDRESS}:9093"
 EXPORTER_PORT = 9817
+REMOTE = "var/log/journal/remote"
+"""systemd-journal-remote's directory in the collector's root (its unit's --output=)."""
+UNITS = "usr/lib/systemd/system"
 
-PROMETHEUS_CONFIG = """\
-# The fleet tier's Prometheus (tests/fleet/collector.py): docs/fleet.md's scrape config at
-# a 1 s interval, the shipped rules unchanged.
-global:
-  scrape_interval: 1s
-  scrape_timeout: 1s
-  evaluation_interval: 1s
-rule_files: ['{rules}']
-alerting:
-  alertmanagers:
-    - static_configs:
-        - targets: ['{alertmanager}']
-scrape_configs:
-  - job_name: srcs
-    static_configs:
-{targets}
+ROOT_SCRIPT = r"""
+set -eu
+mkdir -p "$DIR/upper" "$DIR/ovl" "$DIR/root"
+mount -t overlay overlay -o "lowerdir=$LAYER:/,upperdir=$DIR/upper,workdir=$DIR/ovl" "$DIR/root"
+mount --rbind /dev "$DIR/root/dev"
+mount -t proc proc "$DIR/root/proc"
+mount -t tmpfs tmp "$DIR/root/tmp"
+mount -t tmpfs run "$DIR/root/run"
 """
 
-ALERTMANAGER_CONFIG = """\
-# The fleet tier's Alertmanager: it keeps the alerts (read through its API v2), sends none.
-route:
-  receiver: keep
-  group_wait: 1s
-receivers:
-  - name: keep
-"""
+
+def exec_start(unit_file: Path, args: list[str]) -> list[str]:
+    """The last ``ExecStart=`` of a unit or drop-in, as argv, ``$ARGS`` replaced by ``args``."""
+    lines = [line for line in unit_file.read_text().splitlines() if line.startswith("ExecStart=")]
+    argv = shlex.split(lines[-1].removeprefix("ExecStart="))
+    return [word for item in argv for word in (args if item == "$ARGS" else [item])]
+
+
+class Webhook:
+    """The team's receiver of the shipped alertmanager.yml: a tiny HTTP server at its URL
+    that keeps every notification with the wall-clock time it arrived."""
+
+    def __init__(self, url: str) -> None:
+        found = re.fullmatch(r"http://([\d.]+):(\d+)(/.*)", url)
+        assert found, url
+        self.received: list[tuple[float, dict[str, Any]]] = []
+        received = self.received
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_POST(self) -> None:
+                body = self.rfile.read(int(self.headers.get("Content-Length", "0")))
+                with contextlib.suppress(ValueError):
+                    received.append((time.time(), json.loads(body)))
+                self.send_response(200)
+                self.end_headers()
+
+            def log_message(self, format: str, *args: Any) -> None:
+                pass
+
+        self.server = ThreadingHTTPServer((found[1], int(found[2])), Handler)
+        threading.Thread(target=self.server.serve_forever, daemon=True).start()
+
+    def first_firing(self, alertname: str) -> dict[str, float]:
+        """Each robot's first notification of ``alertname`` firing: its arrival time."""
+        first: dict[str, float] = {}
+        for when, payload in list(self.received):
+            for alert in payload.get("alerts", []):
+                labels = alert.get("labels", {})
+                if alert.get("status") == "firing" and labels.get("alertname") == alertname:
+                    first.setdefault(str(labels.get("robot")), when)
+        return first
+
+    def stop(self) -> None:
+        self.server.shutdown()
 
 
 @dataclass
 class Collector:
-    """The collector's three servers, each a child process of the tier."""
+    """The collector's three servers, each a child process of the tier in the collector's
+    root."""
 
     work: Path
-    pki: Path
     robots: dict[str, str]
     """Each robot's name and its exporter's address."""
     processes: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
     journal_remote_cpu: float = 0.0
     """CPU seconds of every journal-remote process ended so far."""
+    webhook: Webhook | None = None
+
+    @property
+    def base(self) -> Path:
+        return self.work / "collector"
+
+    @property
+    def root(self) -> Path:
+        """The collector's root: the installed package over this machine's ``/``."""
+        return self.base / "root"
+
+    @property
+    def pki(self) -> Path:
+        return self.root / "etc/srcs-collector/pki"
 
     @property
     def journal(self) -> Path:
-        return self.work / "collector/journal"
+        return self.root / REMOTE
+
+    def mount(self, layer: Path) -> None:
+        """The collector's root, ready before the certificates are made into it."""
+        self.base.mkdir(parents=True, exist_ok=True)
+        subprocess.run(
+            ["sh", "-c", ROOT_SCRIPT],
+            env={"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "DIR": str(self.base),
+                 "LAYER": str(layer)},
+            check=True,
+            capture_output=True,
+        )  # fmt: skip
 
     def start(self) -> None:
-        base = self.work / "collector"
-        (base / "prometheus").mkdir(parents=True, exist_ok=True)
-        (base / "alertmanager").mkdir(parents=True, exist_ok=True)
-        self.journal.mkdir(parents=True, exist_ok=True)
-        targets = "".join(
-            f"        - targets: ['{address}']\n          labels: {{robot: {robot}}}\n"
-            for robot, address in self.robots.items()
+        # The list of robots, as the fleet's administrator writes it; the targets are the
+        # package's generator's (the path unit runs it on a change; here it is run once).
+        (self.root / "etc/srcs-collector/robots").write_text(
+            "".join(f"{robot} {address}\n" for robot, address in self.robots.items())
         )
-        config = base / "prometheus.yml"
-        config.write_text(
-            PROMETHEUS_CONFIG.format(rules=RULES, alertmanager=ALERTMANAGER, targets=targets)
-        )
-        (base / "alertmanager.yml").write_text(ALERTMANAGER_CONFIG)
+        self.chroot(["srcs-fleet-targets"], check=True)
+        self.journal.mkdir(parents=True, exist_ok=True)  # the unit's LogsDirectory=
+        config = (self.root / "etc/srcs-collector/alertmanager.yml").read_text()
+        self.webhook = Webhook(re.findall(r"url: (\S+)", config)[0])
+        dropins = self.root / UNITS
         self._spawn(
             "alertmanager",
-            [
-                "prometheus-alertmanager",
-                f"--config.file={base / 'alertmanager.yml'}",
-                f"--storage.path={base / 'alertmanager'}",
-                f"--web.listen-address={ALERTMANAGER}",
-                "--cluster.listen-address=",  # no gossip port: one Alertmanager, no peers
-            ],
+            exec_start(
+                dropins / "prometheus-alertmanager.service.d/srcs-collector.conf",
+                ["--storage.path=/var/lib/srcs-collector/alertmanager"],
+            ),
         )
         self._spawn(
             "prometheus",
-            [
-                "prometheus",
-                f"--config.file={config}",
-                f"--storage.tsdb.path={base / 'prometheus'}",
-                f"--web.listen-address={PROMETHEUS}",
-            ],
+            exec_start(
+                dropins / "prometheus.service.d/srcs-collector.conf",
+                ["--storage.tsdb.path=/var/lib/srcs-collector/tsdb"],
+            ),
         )
         self.start_journal_remote()
 
     def start_journal_remote(self) -> None:
-        self._spawn(
-            "journal-remote",
-            [
-                JOURNAL_REMOTE,
-                f"--listen-https={COLLECTOR_ADDRESS}:{JOURNAL_PORT}",
-                f"--key={self.pki / 'collector.key'}",
-                f"--cert={self.pki / 'collector.pem'}",
-                # No --trust: Debian 12 builds journal-remote without GnuTLS ("Option --trust
-                # is not available"), so it cannot check the robots' certificates; it splits
-                # its files by the sender's address, and the robot is the entry's _HOSTNAME.
-                "--split-mode=host",
-                f"--output={self.journal}",
-            ],
-        )
+        # Debian's unit, its socket's descriptor replaced by the address it would listen on;
+        # the key, certificate, CA and split mode from the package's drop-in. Debian 12's
+        # build checks no client certificate ("Certificate checking disabled"); the robots
+        # still check the collector's.
+        argv = exec_start(self.root / "lib/systemd/system/systemd-journal-remote.service", [])
+        argv = [
+            f"--listen-https={COLLECTOR_ADDRESS}:{JOURNAL_PORT}"
+            if word.startswith("--listen-https=")
+            else word
+            for word in argv
+        ]
+        self._spawn("journal-remote", argv)
+
+    def chroot(self, argv: list[str], check: bool = False) -> subprocess.CompletedProcess[bytes]:
+        """A command run in the collector's root, as its administrator would."""
+        return subprocess.run(
+            ["chroot", str(self.root), "/usr/bin/env", "-i",
+             "PATH=/usr/sbin:/usr/bin:/sbin:/bin", "LANG=C.UTF-8", *argv],
+            capture_output=True,
+            check=check,
+            timeout=60,
+        )  # fmt: skip
 
     def kill_journal_remote(self) -> None:
         """SIGKILL: the collector's machine lost, not a clean stop."""
@@ -137,12 +201,17 @@ class Collector:
         return self.journal_remote_cpu + (cpu_seconds(running.pid) if running else 0.0)
 
     def _spawn(self, name: str, argv: list[str]) -> None:
-        log = (self.work / "collector" / f"{name}.log").open("ab")
+        log = (self.base / f"{name}.log").open("ab")
         self.processes[name] = subprocess.Popen(
-            argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+            ["chroot", str(self.root), *argv],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
         )
 
     def stop(self) -> None:
+        if self.webhook is not None:
+            self.webhook.stop()
         for process in self.processes.values():
             process.terminate()
         for process in self.processes.values():
@@ -195,25 +264,13 @@ def held(directory: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in result.stdout.decode().splitlines() if line.strip()]
 
 
-def fleet_answer(directory: Path) -> list[dict[str, Any]]:
-    """The fleet's answer: ``srcsctl fleet -o json --directory DIR`` of the tree under test
-    (SR-13.1), every robot's records as JSON lines, each record once however often the
-    collector holds it, in journalctl's order."""
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "supervisord.cli.fleet",
-            "-o",
-            "json",
-            "--directory",
-            str(directory),
-        ],
-        capture_output=True,
-        check=True,
-        timeout=60,
-        cwd=ROOT,
-    )
+def fleet_answer(collector: Collector) -> list[dict[str, Any]]:
+    """The fleet's answer: the collector package's ``srcsctl fleet -o json`` on its
+    receiver's directory (SR-13.1), every robot's records as JSON lines, each record once
+    however often the collector holds it, in journalctl's order."""
+    result = collector.chroot(["srcsctl", "fleet", "-o", "json", "--directory", f"/{REMOTE}"])
+    if result.returncode not in (0, 1):  # 1: no entries yet
+        raise OSError(f"srcsctl fleet: {result.stderr.decode(errors='replace')[-400:]}")
     return [json.loads(line) for line in result.stdout.decode().splitlines() if line.strip()]
 
 

@@ -18,9 +18,9 @@ HERE = Path(__file__).resolve().parent
 
 LAYER_SCRIPT = r"""
 set -eu
-mkdir -p "$WORK/layer/upper" "$WORK/layer/ovl" "$WORK/layer/root"
-root=$WORK/layer/root
-mount -t overlay overlay -o "lowerdir=/,upperdir=$WORK/layer/upper,workdir=$WORK/layer/ovl" "$root"
+mkdir -p "$LAYER/upper" "$LAYER/ovl" "$LAYER/root"
+root=$LAYER/root
+mount -t overlay overlay -o "lowerdir=/,upperdir=$LAYER/upper,workdir=$LAYER/ovl" "$root"
 mount -t proc proc "$root/proc"
 mount -t tmpfs -o mode=0755 dev "$root/dev"
 mknod -m 0666 "$root/dev/null" c 1 3
@@ -37,17 +37,18 @@ umount "$root/srv/deb" "$root/tmp" "$root/run" "$root/dev" "$root/proc" "$root"
 """
 
 
-def make_layer(work: Path, deb: Path) -> Path:
+def make_layer(work: Path, deb: Path, name: str = "layer") -> Path:
     """The package installed with ``dpkg -i`` into an overlay over this machine's ``/``; its
-    upper directory is the layer every robot shares. Runs in a mount namespace of its own."""
+    upper directory is the layer every robot shares (``layer``), or the collector's
+    (``collector-layer``). Runs in a mount namespace of its own."""
     subprocess.run(
         ["unshare", "--mount", "--propagation", "private", "--pid", "--fork", "sh", "-c",
          LAYER_SCRIPT],
-        env={"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "WORK": str(work), "DEB": str(deb)},
+        env={"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "LAYER": str(work / name), "DEB": str(deb)},
         check=True,
         capture_output=True,
     )  # fmt: skip
-    return work / "layer/upper"
+    return work / name / "upper"
 
 
 def poll(done: Callable[[], bool], limit: float, step: float = 0.05) -> float | None:

@@ -13,9 +13,15 @@ everything it mounts and starts ends with it. Scenarios, one line each:
 - ``robot_down_alert`` (SR-13.2): every process of one robot killed, during the outage;
   ``SrcsExporterDown`` from the shipped rules reaches Alertmanager with its ``robot`` label;
 - ``skewed_clocks`` (SR-13.3): a robot 7 minutes behind and one 5 minutes ahead (libfaketime
-  on all their processes, journald included) keep their own order at the collector.
+  on all their processes, journald included) keep their own order at the collector;
+- ``alert_at_receiver`` (SR-13.10): the first scenario's stops reach the team's receiver (a
+  webhook) as ``SrcsStopped`` through the shipped rules and Alertmanager routes.
 
-usage: python3 -m tests.fleet.tier --deb DEB --work DIR [--started EPOCH]
+The collector is the collector's package installed unchanged (tests/fleet/collector.py); the
+robots upload only srcsd's journal namespace (SR-13.11, tests/fleet/robot). Figures (not
+checks): a stop to its alert at the webhook, and to ``srcsctl fleet``'s answer, p50 and p95.
+
+usage: python3 -m tests.fleet.tier --deb DEB --collector-deb DEB --work DIR [--started EPOCH]
 Last line: "N passed, N failed"; the exit status is 1 when any failed.
 """
 
@@ -23,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 import os
 import signal
 import statistics
@@ -200,10 +207,11 @@ def robot_down_alert(collector: Collector, robot: Robot, killed: float) -> None:
             and alert["labels"].get("alertname") in ("SrcsExporterDown", "SrcsSupervisorDown")
         ]
 
-    # The rule's for: 2m, 1 s evaluations and scrapes, and the scrape timeout.
+    # The rule's for: 2m, the shipped prometheus.yml's 15 s scrapes and evaluations, and the
+    # scrape timeout.
     took = poll(
         lambda: any(a["labels"].get("robot") == robot.name for a in firing()),
-        150 - (time.monotonic() - killed),
+        180 - (time.monotonic() - killed),
         step=1.0,
     )
     after = time.monotonic() - killed
@@ -262,7 +270,7 @@ def outage(collector: Collector, robots: list[Robot], down: Robot) -> None:
     copies = raw_copies(raw)
     # "None twice" is the fleet's answer (SR-13.1): srcsctl fleet holds each record once,
     # while the collector's journal keeps what journal-upload sent again as it got it.
-    holding = by_robot(fleet_answer(collector.journal), key="robot")
+    holding = by_robot(fleet_answer(collector), key="robot")
     problems: list[str] = []
     per_robot: list[str] = []
     for robot in robots:
@@ -308,7 +316,7 @@ def skewed_clocks(collector: Collector, robots: list[Robot], pressed: dict[str, 
     """SR-13.3: the skewed robots' records in their own order at the collector, and their
     clocks off by what libfaketime says (measured on the first scenario's stop)."""
     holding = by_robot(held(collector.journal))
-    answer = by_robot(fleet_answer(collector.journal), key="robot")
+    answer = by_robot(fleet_answer(collector), key="robot")
     problems: list[str] = []
     seen: list[str] = []
     for robot in robots:
@@ -334,6 +342,75 @@ def skewed_clocks(collector: Collector, robots: list[Robot], pressed: dict[str, 
     )
 
 
+def percentile(values: list[float], share: float) -> float:
+    """The nearest-rank percentile: the smallest value with ``share`` of them at or below."""
+    ordered = sorted(values)
+    return ordered[max(0, math.ceil(share * len(ordered)) - 1)]
+
+
+def spread(delays: dict[str, float]) -> str:
+    if not delays:
+        return "none"
+    values = list(delays.values())
+    each = ", ".join(f"{name} {delay:.1f} s" for name, delay in sorted(delays.items()))
+    return (
+        f"p50 {percentile(values, 0.5):.1f} s, p95 {percentile(values, 0.95):.1f} s"
+        f" over {len(values)} stops ({each})"
+    )
+
+
+def answer_times(
+    collector: Collector, robots: list[Robot], before: dict[str, int]
+) -> dict[str, float]:
+    """The wall-clock time at which each robot's first e-stop after ``before`` was first in
+    ``srcsctl fleet``'s answer (the installed command, as a user would run it, again and
+    again), for the robots whose clocks are true (a skewed robot's upload is late by the
+    fake clock's doing, docs/fleet.md "The fleet tier")."""
+    seen: dict[str, float] = {}
+    wanted = [robot for robot in robots if not robot.skew]
+    limit = time.monotonic() + 60
+    while time.monotonic() < limit and len(seen) < len(wanted):
+        try:
+            answer = by_robot(fleet_answer(collector), key="robot")
+        except (OSError, ValueError, subprocess.TimeoutExpired):
+            answer = {}
+        now = time.time()
+        for robot in wanted:
+            pressed = [
+                r
+                for r in robot.own_records()[before[robot.name] :]
+                if any(c.get("name") == "vsc_estop" for c in r.get("causes", []))
+            ]
+            if robot.name in seen or not pressed:
+                continue
+            if pressed[0]["seq"] in seqs(answer.get(robot.name, [])):
+                seen[robot.name] = now
+        time.sleep(0.2)
+    return seen
+
+
+def alert_at_receiver(
+    collector: Collector, pressed: dict[str, float], answered: dict[str, float]
+) -> None:
+    """SR-13.10: each robot's stop of ``stop_at_collector`` as ``SrcsStopped`` at the team's
+    webhook through the shipped rules and routes (a robot killed before a scrape saw its stop
+    is left out: robot-5 goes down at the start of the outage). Figures: press to the alert
+    at the webhook and to srcsctl fleet's answer."""
+    assert collector.webhook is not None
+    arrived = collector.webhook.first_firing("SrcsStopped")
+    to_alert = {name: arrived[name] - pressed[name] for name in pressed if name in arrived}
+    to_answer = {name: at - pressed[name] for name, at in answered.items()}
+    say(f"figure: stop to its alert at the webhook: {spread(to_alert)}")
+    say(f"figure: stop to srcsctl fleet's answer: {spread(to_answer)}")
+    others = [name for name in arrived if name not in pressed]
+    result(
+        "alert_at_receiver",
+        len(to_alert) >= len(pressed) - 1 and not others,
+        f"SrcsStopped at the webhook for {sorted(to_alert)} of {sorted(pressed)}"
+        + (f"; for robots that did not stop: {others}" if others else ""),
+    )
+
+
 def figures(collector: Collector) -> None:
     say(f"figure: journal-remote CPU {collector.journal_remote_cpu_now():.2f} s in all")
     for name, size in collector.bytes_per_file().items():
@@ -351,8 +428,31 @@ def logs(collector: Collector, robots: list[Robot]) -> None:
                 say(f"{robot.name} {name}: {path.read_text(errors='replace')[-800:]}")
 
 
+def keep_for_a_look(work: Path, collector: Collector, robots: list[Robot]) -> None:
+    """SRCS_FLEET_KEEP=DIR: the collector's logs and journal and each robot's /run and /var,
+    copied there for a look afterwards."""
+    keep = os.environ.get("SRCS_FLEET_KEEP")
+    if not keep:
+        return
+    subprocess.run(["rm", "-rf", keep], check=False)
+    # The collector's logs and journal; not its root, which is this machine's / too.
+    subprocess.run(["mkdir", "-p", keep], check=False)
+    for path in [*collector.base.glob("*.log"), collector.journal]:
+        subprocess.run(["cp", "-a", str(path), keep], check=False)
+    for robot in robots:
+        subprocess.run(["cp", "-a", str(robot.run), f"{keep}/{robot.name}"], check=False)
+        subprocess.run(
+            ["cp", "-a", str(robot.dir / "upper/var"), f"{keep}/{robot.name}-var"], check=False
+        )
+
+
 def stop_on_signal(number: int, _frame: object) -> None:
     raise SystemExit(128 + number)
+
+
+def certificates(collector: Collector, layer: Path, robots: list[Robot]) -> None:
+    collector.mount(layer)
+    pki.make(collector, [robot.name for robot in robots])
 
 
 def ready_to_run(robot: Robot) -> bool:
@@ -363,6 +463,7 @@ def ready_to_run(robot: Robot) -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--deb", type=Path, required=True)
+    parser.add_argument("--collector-deb", type=Path, required=True)
     parser.add_argument("--work", type=Path, required=True)
     parser.add_argument("--started", type=float, default=time.time())
     args = parser.parse_args()
@@ -399,24 +500,29 @@ def main() -> int:
     # filesystem of their lower layer, this machine's /.
     subprocess.run(["mount", "-t", "tmpfs", "-o", "mode=0755", "fleet", str(work)], check=True)
     robots = [Robot(n, work, SKEWS.get(n, "")) for n in range(1, ROBOTS + 1)]
-    collector = Collector(work, work / "pki", {r.name: f"{r.address}:9817" for r in robots})
+    collector = Collector(work, {r.name: f"{r.address}:9817" for r in robots})
     t0 = time.monotonic()
     try:
         made = in_parallel(
             {
-                "pki": lambda: pki.make(work / "pki", [r.name for r in robots]),
                 "layer": lambda: make_layer(work, args.deb),
+                "collector-layer": lambda: make_layer(work, args.collector_deb, "collector-layer"),
             }
         )
+        if not isinstance(made["collector-layer"], Exception):
+            # The collector's root, then the certificates made in it by its own tool.
+            made["pki"] = in_parallel(
+                {"pki": functools.partial(certificates, collector, made["collector-layer"], robots)}
+            )["pki"]
         for name, answer in made.items():
             if isinstance(answer, Exception):
                 detail = getattr(answer, "stderr", b"") or b""
                 say(f"setup: {name} failed: {answer} {detail.decode(errors='replace')[-2000:]}")
                 return 1
-        say(f"setup: certificates and the installed layer in {time.monotonic() - t0:.1f} s")
+        say(f"setup: certificates and the installed layers in {time.monotonic() - t0:.1f} s")
         collector.start()
         for robot in robots:
-            robot.start(made["layer"], work / "pki")
+            robot.start(made["layer"], collector.pki)
         ready = in_parallel({r.name: functools.partial(ready_to_run, r) for r in robots})
         not_ready = [name for name, ok in ready.items() if ok is not True]
         if not_ready:
@@ -424,9 +530,17 @@ def main() -> int:
             logs(collector, robots)
             return 1
         say(f"setup: {ROBOTS} robots in RUN {time.monotonic() - t0:.1f} s after the start")
+        before = {robot.name: len(robot.own_records()) for robot in robots}
+        answers: dict[str, float] = {}
+        timer = threading.Thread(
+            target=lambda: answers.update(answer_times(collector, robots, before)), daemon=True
+        )
+        timer.start()
         pressed = stop_at_collector(collector, robots)
         outage(collector, robots, robots[DOWN_ROBOT - 1])
         skewed_clocks(collector, robots, pressed)
+        timer.join()
+        alert_at_receiver(collector, pressed, answers)
         figures(collector)
         if TALLY["failed"]:
             logs(collector, robots)
@@ -434,16 +548,7 @@ def main() -> int:
         for robot in robots:
             robot.kill()
         collector.stop()
-        keep = os.environ.get("SRCS_FLEET_KEEP")
-        if keep:  # the collector's directory and each robot's /run, for a look afterwards
-            subprocess.run(["rm", "-rf", keep], check=False)
-            subprocess.run(["cp", "-a", str(work / "collector"), keep], check=False)
-            for robot in robots:
-                subprocess.run(["cp", "-a", str(robot.run), f"{keep}/{robot.name}"], check=False)
-                subprocess.run(
-                    ["cp", "-a", str(robot.dir / "upper/var"), f"{keep}/{robot.name}-var"],
-                    check=False,
-                )
+        keep_for_a_look(work, collector, robots)
         say(f"took {time.time() - args.started:.0f} s")
     print(f"{TALLY['passed']} passed, {TALLY['failed']} failed", flush=True)
     return 1 if TALLY["failed"] else 0
