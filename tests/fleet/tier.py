@@ -14,6 +14,9 @@ everything it mounts and starts ends with it. Scenarios, one line each:
   ``SrcsExporterDown`` from the shipped rules reaches Alertmanager with its ``robot`` label;
 - ``skewed_clocks`` (SR-13.3): a robot 7 minutes behind and one 5 minutes ahead (libfaketime
   on all their processes, journald included) keep their own order at the collector.
+- ``windows_at_collector`` (SR-13.9): every stop's flight recorder window of the robots that
+  are up is at the collector, and ``srcsctl fleet replay`` of each says what the robot's own
+  ``srcsctl replay`` says, matching its record (``tests/fleet/windows.py``).
 
 usage: python3 -m tests.fleet.tier --deb DEB --work DIR [--started EPOCH]
 Last line: "N passed, N failed"; the exit status is 1 when any failed.
@@ -37,6 +40,7 @@ from typing import Any
 from tests.fleet import pki
 from tests.fleet.collector import Collector, by_robot, fleet_answer, held, raw_copies
 from tests.fleet.robots import Robot, make_layer, poll
+from tests.fleet.windows import windows_at_collector
 
 STOP_MESSAGE_ID = "26c2f33dae3d4a6c8996fc9bc658ad32"
 """A change of state's MESSAGE_ID (docs/record.md "The systemd journal")."""
@@ -427,6 +431,7 @@ def main() -> int:
         pressed = stop_at_collector(collector, robots)
         outage(collector, robots, robots[DOWN_ROBOT - 1])
         skewed_clocks(collector, robots, pressed)
+        windows_at_collector(collector.journal, robots, robots[DOWN_ROBOT - 1], result)
         figures(collector)
         if TALLY["failed"]:
             logs(collector, robots)
