@@ -33,11 +33,11 @@ import json
 import os
 import re
 import stat
-import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, Final
 
+from supervisord.lane import hand_over
 from supervisord.record.flight_codec import (
     VERSION,
     FlightFormatError,
@@ -53,7 +53,7 @@ from supervisord.safety.events import Event
 FORMAT: Final = "srcs-flight"
 SUFFIX: Final = ".jsonl"
 YIELD_EVERY: Final = 64
-"""Inputs encoded between two hand-overs of the interpreter's lock (``time.sleep(0)``): the
+"""Inputs encoded between two hand-overs of the interpreter's lock (``lane.hand_over``): the
 lane's thread never holds the loop's thread back for more than about that many encodings
 (SR-7.12)."""
 MAX_NESTING: Final = 64
@@ -162,7 +162,7 @@ def encode_window(window: Window, max_bytes: int) -> bytes:
     for number, event in enumerate(inputs, 1):
         lines.append(_line(event_to_json(event)))
         if number % YIELD_EVERY == 0:
-            time.sleep(0)  # let the loop's thread have the interpreter (SR-7.12)
+            hand_over()  # let the loop's thread have the interpreter (SR-7.12)
     header: dict[str, Json] = {
         "format": FORMAT,
         "version": VERSION,

@@ -31,12 +31,12 @@ from __future__ import annotations
 import base64
 import binascii
 import hashlib
-import time
 import zlib
 from collections.abc import Mapping
 from typing import Final
 
 from supervisord.journal_ids import FLIGHT_WINDOW_MESSAGE_ID
+from supervisord.lane import hand_over
 
 ENCODING: Final = "zlib+base64"
 """``SRCS_FLIGHT_ENCODING``: how ``SRCS_FLIGHT`` holds the file's bytes."""
@@ -49,7 +49,7 @@ MAX_WINDOW: Final = 1 << 30
 PRIORITY_INFO: Final = "6"
 """Not an event of its own: the stop's record is the entry at CRIT (SR-7.3)."""
 CHUNK: Final = 64 * 1024
-"""Bytes compressed between two hand-overs of the interpreter's lock (``time.sleep(0)``), as the
+"""Bytes compressed between two hand-overs of the interpreter's lock (``lane.hand_over``), as the
 window's encoding does (SR-7.12): the sink's thread never holds the loop's back for long."""
 TEXT_CHUNK: Final = 48 * 1024
 """Bytes written in base64 at a time (a multiple of 3: the pieces join into one text)."""
@@ -66,13 +66,13 @@ def encode(data: bytes) -> str:
     packed = []
     for start in range(0, len(data), CHUNK):
         packed.append(packer.compress(data[start : start + CHUNK]))
-        time.sleep(0)  # let the loop's thread have the interpreter (SR-7.12)
+        hand_over()  # let the loop's thread have the interpreter (SR-7.12)
     packed.append(packer.flush())
     whole = b"".join(packed)
     text = []
     for start in range(0, len(whole), TEXT_CHUNK):
         text.append(base64.b64encode(whole[start : start + TEXT_CHUNK]))
-        time.sleep(0)
+        hand_over()
     return b"".join(text).decode("ascii")
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 import base64
 import hashlib
 import os
+import subprocess
+import sys
 import zlib
 from pathlib import Path
 
@@ -135,3 +137,43 @@ def test_the_real_journald_takes_a_window_too_large_for_a_datagram(tmp_path: Pat
     assert len(text) > 212_992  # past the default datagram: the memfd went
     fields = {key: value for key, value in entries[0].items() if isinstance(value, str)}
     assert window_bytes(fields) == sent.read_bytes()
+
+
+def test_a_window_and_its_entry_are_made_under_a_faked_wall_clock(tmp_path: Path) -> None:
+    """SR-7.12, SR-13.9: under libfaketime with only the wall clock faked (the fleet tier's
+    skewed robots), ``time.sleep`` fails with EINVAL; the lane's hand-overs of the interpreter
+    do not use it, so the window's file and its journal entry are still made."""
+    from supervisord.testkit.faketime import libfaketime  # noqa: PLC0415
+
+    library = libfaketime()
+    if library is None:
+        pytest.skip("needs libfaketime (Debian package faketime)")
+    script = (
+        "import sys\n"
+        "from supervisord.record.flight import FlightWriter\n"
+        "from supervisord.record.flight_journal import window_bytes, window_entry\n"
+        "from tests.record.flight_rig import run, story\n"
+        "story_run = run(story(4.0))\n"
+        "path = FlightWriter(sys.argv[1], 1 << 20).write(story_run.window())\n"
+        "fields = dict(window_entry(path.read_bytes(), story_run.stop))\n"
+        "assert window_bytes(fields) == path.read_bytes()\n"
+        "print('made', path.stat().st_size)\n"
+    )
+    faked = {
+        "LD_PRELOAD": str(library),
+        "FAKETIME": "-420",
+        "DONT_FAKE_MONOTONIC": "1",
+        "FAKETIME_DONT_FAKE_MONOTONIC": "1",
+        "FAKETIME_FORCE_MONOTONIC_FIX": "0",
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "stops.jsonl")],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).resolve().parents[2],
+        env={**os.environ, **faked},
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("made ")
