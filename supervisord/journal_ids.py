@@ -22,3 +22,8 @@ MESSAGE_IDS_BY_KIND: Final[Mapping[str, uuid.UUID]] = {
     "hello_refused": uuid.UUID("31b39d5239c64c748a02ea76dd76a97f"),
     "stoptest": uuid.UUID("55afb9fa858e45458a44937c4062ca84"),
 }
+
+FLIGHT_WINDOW_MESSAGE_ID: Final = uuid.UUID("75233db4b0b14222b4593748065a0c40")
+"""A stop's flight recorder window, sent after its file as a journal entry of its own
+(``supervisord/record/flight_journal.py``, docs/fleet.md "A stop's evidence at the
+collector"). Not a record kind: ``srcsctl fleet``'s record lines never select it."""

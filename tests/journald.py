@@ -36,19 +36,22 @@ done
 {body}
 kill -TERM "$journald"
 wait "$journald" || true
-exec journalctl --directory "$JOURNAL" --all -o json --no-pager SYSLOG_IDENTIFIER=srcsd
+exec journalctl --directory "$JOURNAL" --all -o json --no-pager SYSLOG_IDENTIFIER={identifier}
 """
 
 
-def journal_entries(body: str, env: dict[str, str] | None = None) -> list[dict[str, object]]:
+def journal_entries(
+    body: str, env: dict[str, str] | None = None, identifier: str = "srcsd"
+) -> list[dict[str, object]]:
     """Run the shell snippet ``body`` beside a private journald (``$PYTHON`` is this
-    interpreter, the working directory the repository) and return srcsd's entries as
-    ``journalctl -o json`` gives them. Skips without root or without journald."""
+    interpreter, the working directory the repository) and return srcsd's entries (those of
+    ``identifier``) as ``journalctl -o json`` gives them. Skips without root or without
+    journald."""
     journald = shutil.which("systemd-journald") or "/lib/systemd/systemd-journald"
     unshare = shutil.which("unshare")
     if unshare is None or not Path(journald).exists() or shutil.which("journalctl") is None:
         pytest.skip("needs unshare(1), systemd-journald and journalctl")
-    script = _AROUND.format(namespace=NAMESPACE, body=body)
+    script = _AROUND.format(namespace=NAMESPACE, body=body, identifier=identifier)
     result = subprocess.run(
         [unshare, "--mount", "--propagation", "private", "sh", "-c", script],
         capture_output=True,
@@ -65,7 +68,8 @@ def journal_entries(body: str, env: dict[str, str] | None = None) -> list[dict[s
 
 # A robot of a fleet (tests/cli/test_fleet.py): a host name of its own (a private UTS
 # namespace), journald's default socket where srcsd's sink looks for it, and srcsd's records
-# handed back in journal export format, as systemd-journal-upload sends them to a collector.
+# handed back in journal export format, as systemd-journal-upload sends them to a collector,
+# each stop's flight recorder window with them (SYSLOG_IDENTIFIER srcsd-flight, SR-13.12).
 # $START_JOURNALD starts (or, for a clock set back, restarts) journald under $CLOCK.
 _ROBOT = """
 set -eu
@@ -91,7 +95,8 @@ mkdir -p /run/systemd/journal
 ln -s "$SOCKET" /run/systemd/journal/socket
 {body}
 stop_journald
-exec journalctl --directory "$JOURNAL" --all -o export --no-pager SYSLOG_IDENTIFIER=srcsd
+exec journalctl --directory "$JOURNAL" --all -o export --no-pager SYSLOG_IDENTIFIER=srcsd \
+    SYSLOG_IDENTIFIER=srcsd-flight
 """
 
 

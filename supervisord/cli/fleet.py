@@ -95,10 +95,40 @@ def add_arguments(fleet: argparse.ArgumentParser) -> None:
     )
     log_options.add_output(fleet)
     log_options.add_follow_and_display(fleet, follows="as the collector gets it")
+    _add_replay(fleet)
+
+
+def _add_replay(fleet: argparse.ArgumentParser) -> None:
+    """``srcsctl fleet replay ROBOT SEQ``: a stop's window at the collector (SR-13.12). Its own
+    destinations: a subcommand's defaults would overwrite ``fleet``'s own options."""
+    actions = fleet.add_subparsers(dest="fleet_command", metavar="replay")
+    replay = actions.add_parser(
+        "replay",
+        help="replay a robot's stop from its flight recorder window as the collector holds it",
+        description="Replay the flight recorder window a robot sent for its stop record SEQ "
+        "against its records as the collector holds them, as 'srcsctl replay' does on the "
+        "robot (srcsctl(1), docs/fleet.md). ROBOT: as 'srcsctl fleet' names it, HOST@ADDRESS, "
+        "or its host name alone when one sender sent it.",
+    )
+    replay.add_argument("replay_robot", metavar="ROBOT")
+    replay.add_argument("replay_seq", metavar="SEQ")
+    where = replay.add_mutually_exclusive_group()
+    where.add_argument("-D", "--directory", dest="replay_directory", metavar="DIR")
+    where.add_argument("--file", dest="replay_file", metavar="PATH", action="append")
+    replay.add_argument(
+        "--all",
+        dest="replay_all",
+        action="store_true",
+        help="a line for every input, not only those that decide",
+    )
+    replay.add_argument("--mcap", metavar="OUT", help="as srcsctl replay --mcap")
+    replay.add_argument("--plot", metavar="OUT.svg", help="as srcsctl replay --plot")
 
 
 def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     """``srcsctl fleet`` with the options :func:`add_arguments` parsed."""
+    if getattr(args, "fleet_command", None) == "replay":
+        return _replay(args, out, errors)
     output = "json" if args.json and not args.output else args.output or "short"
     return run_fleet(
         out,
@@ -118,6 +148,28 @@ def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
         causes=args.causes,
         quiet=args.quiet,
         summary=args.summary,
+    )
+
+
+def _replay(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
+    """``srcsctl fleet replay``: the only answer of ``fleet`` that loads the safety core (the
+    replay runs it), imported here and nowhere else (SR-13.6)."""
+    from supervisord.cli.fleet_replay import run_fleet_replay  # noqa: PLC0415
+
+    directory = args.replay_directory or args.directory
+    files = [Path(f) for f in [*(args.file or []), *(args.replay_file or [])]]
+    source, status = _source(Path(directory) if directory else None, files, errors)
+    if status:
+        return status
+    return run_fleet_replay(
+        source,
+        args.replay_robot,
+        args.replay_seq,
+        out,
+        errors,
+        show_all=args.replay_all,
+        plot=Path(args.plot) if args.plot else None,
+        mcap=Path(args.mcap) if args.mcap else None,
     )
 
 

@@ -86,7 +86,8 @@ def no_window(record: Path, seq: int) -> str:
     elif typed is not None and typed.is_stop:
         what = (
             f"record {seq} is a stop, but its window is not kept: only the newest windows are "
-            "(the record's keep + 1), and one that could not be written is counted in status"
+            "(within the record's flight_max_bytes), and one that could not be written is "
+            "counted in status"
         )
     else:
         what = f"record {seq} is {_what_record(typed, data)}: windows are kept for stops only"

@@ -46,6 +46,7 @@ from supervisord.config.model import (
     VscConfig,
 )
 from supervisord.config.paths import (
+    RECORD_FLIGHT_MAX_BYTES,
     RECORD_JOURNAL,
     RECORD_KEEP,
     RECORD_MAX_BYTES,
@@ -462,6 +463,7 @@ class _Loader:
             max_bytes=fields.whole(RECORD_MAX_BYTES),
             keep=fields.whole(RECORD_KEEP),
             journal=fields.flag(RECORD_JOURNAL),
+            flight_max_bytes=fields.whole(RECORD_FLIGHT_MAX_BYTES),
         )
         check_record_files(fields, config.path, config.keep)  # SR-7.9
         return config

@@ -25,7 +25,7 @@ from supervisord.config.schema import (
     SERIAL_BAUD,
 )
 from supervisord.outputs.base import DeviceSpec, OutputKind
-from supervisord.record.jsonl import DEFAULT_KEEP, DEFAULT_MAX_BYTES
+from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES, DEFAULT_KEEP, DEFAULT_MAX_BYTES
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.prooftest import ProofTestPolicy
 
@@ -106,6 +106,8 @@ class RecordConfig:
     max_bytes: int = DEFAULT_MAX_BYTES
     keep: int = DEFAULT_KEEP
     journal: bool = True
+    flight_max_bytes: int = DEFAULT_FLIGHT_MAX_BYTES
+    """The flight recorder's windows together, at most (SR-7.12)."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

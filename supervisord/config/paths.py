@@ -21,8 +21,10 @@ from typing import Final
 from supervisord import strict
 from supervisord.api.framing import DEFAULT_SOCKET_PATH, operator_socket_path
 from supervisord.record.jsonl import (
+    DEFAULT_FLIGHT_MAX_BYTES,
     DEFAULT_KEEP,
     DEFAULT_MAX_BYTES,
+    FLIGHT_MAX_BYTES_RANGE,
     KEEP_RANGE,
     MAX_BYTES_RANGE,
     not_a_regular_file,
@@ -109,7 +111,21 @@ RECORD_JOURNAL: Final = strict.Flag(
     default=True,
     example=True,
 )
-RECORD: Final = (RECORD_PATH, RECORD_MAX_BYTES, RECORD_KEEP, RECORD_JOURNAL)
+RECORD_FLIGHT_MAX_BYTES: Final = strict.Whole(
+    name="flight_max_bytes",
+    doc="The flight recorder's windows beside the record take at most this many bytes together.",
+    default=DEFAULT_FLIGHT_MAX_BYTES,
+    example=DEFAULT_FLIGHT_MAX_BYTES,
+    low=FLIGHT_MAX_BYTES_RANGE[0],
+    high=FLIGHT_MAX_BYTES_RANGE[1],
+)
+RECORD: Final = (
+    RECORD_PATH,
+    RECORD_MAX_BYTES,
+    RECORD_KEEP,
+    RECORD_JOURNAL,
+    RECORD_FLIGHT_MAX_BYTES,
+)
 """``[record]``'s keys."""
 
 

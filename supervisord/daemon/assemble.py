@@ -9,6 +9,7 @@ from supervisord.api.server import ApiServer, ServerConfig
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.config import DaemonConfig, SerialPort
 from supervisord.daemon.api_listener import ApiListener
+from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.daemon.maintenance import PeriodicTest, Schedule
 from supervisord.daemon.notify import Notifier
@@ -116,11 +117,12 @@ def build_supervisor(
     outputs, owned_bus = build_outputs(config, link)
     record = config.record
     writer = RecordWriter(record.path, max_bytes=record.max_bytes, keep=record.keep)
-    journal = None
+    journal = flight_journal = None
     if record.journal:
         sink = JournalSink()
         if sink.available:
             journal = sink.write
+            flight_journal = sink.send  # each stop's window, after its file (SR-13.12)
         else:
             log.warning(
                 "journal unavailable (%s): records go to %s only",
@@ -134,6 +136,8 @@ def build_supervisor(
         outputs,
         writer,
         journal=journal,
+        flight_journal=flight_journal,
+        flight=FlightSettings(max_bytes=record.flight_max_bytes),
         listener=listener,
         notifier=Notifier(),
         clock=clock,

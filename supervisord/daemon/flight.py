@@ -31,6 +31,7 @@ from collections.abc import Mapping
 
 from supervisord import __version__
 from supervisord.record.flight import Base, Window
+from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES, FLIGHT_MAX_BYTES_RANGE
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.events import Event
@@ -42,16 +43,22 @@ from supervisord.timebase import NS_PER_S
 class FlightSettings:
     """How much the ring keeps: at least ``window_s`` seconds before a stop (up to twice that),
     and never more than ``max_inputs`` inputs (a flood of client requests fills it sooner:
-    then the window is shorter, never larger)."""
+    then the window is shorter, never larger); and how many bytes the windows on disk take
+    together, at most ``max_bytes``."""
 
     window_s: float = 5.0
     max_inputs: int = 4096
+    max_bytes: int = DEFAULT_FLIGHT_MAX_BYTES
+    """The windows on disk together, at most (``[record] flight_max_bytes``, SR-7.12)."""
 
     def __post_init__(self) -> None:
         if not 0 < self.window_s <= 60:
             raise ValueError(f"window_s must be over 0 and at most 60, not {self.window_s}")
         if not 16 <= self.max_inputs <= 1 << 20:
             raise ValueError(f"max_inputs must be 16 to {1 << 20}, not {self.max_inputs}")
+        low, high = FLIGHT_MAX_BYTES_RANGE
+        if not low <= self.max_bytes <= high:
+            raise ValueError(f"max_bytes must be {low} to {high}, not {self.max_bytes}")
 
 
 class FlightRecorder:

@@ -27,7 +27,7 @@ import logging
 import os
 import select
 import socket
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from supervisord import __version__
@@ -207,6 +207,7 @@ class Supervisor:
         writer: RecordWriter | None,
         *,
         journal: Callable[[Mapping[str, object]], object] | None = None,
+        flight_journal: Callable[[Sequence[tuple[str, str]]], object] | None = None,
         listener: Listener | None = None,
         notifier: Notifier | None = None,
         clock: Clock = MONOTONIC,
@@ -223,7 +224,8 @@ class Supervisor:
         # (SR-9.4); the others' is always ``None``.
         self._ticking = [o for o in outputs if type(o).next_deadline is not Output.next_deadline]
         self.writer = writer
-        self.journal = journal
+        # Each record's journal copy, and each stop window's (SR-13.12).
+        self.journal, self.flight_journal = journal, flight_journal
         self.listener = listener or Listener()
         self.notifier = notifier or Notifier({})
         self.clock = clock
@@ -277,7 +279,7 @@ class Supervisor:
         self._flight_writer: FlightWriter | None = None
         if writer is not None and flight is not None:
             self.flight = FlightRecorder(safety, flight)
-            self._flight_writer = FlightWriter(writer.path, writer.max_bytes, writer.keep)
+            self._flight_writer = FlightWriter(writer.path, writer.max_bytes, flight.max_bytes)
 
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
@@ -340,7 +342,12 @@ class Supervisor:
         now = self.clock()
         self._started_ns = self._link_since_ns = now
         self.schedule.start(self.wall_clock(), now)  # the passes read from the record
-        self.sink = Sink(self.writer, self.journal, flight=self._flight_writer)
+        self.sink = Sink(
+            self.writer,
+            self.journal,
+            flight=self._flight_writer,
+            flight_journal=self.flight_journal,
+        )
         self.sink.start()
         events: list[Event] = []
         for output in self.outputs.values():

@@ -10,7 +10,10 @@ thread that serves it in order:
 - ``srcsd-journal``: the journal copy of each record (a stuck journald costs up to 2 s each);
 - ``srcsd-log``: log lines, written to the descriptors of the handlers the process had;
 - ``srcsd-flight``: the flight recorder's window of each stop (encoded, written, fsynced and
-  renamed into place beside the record: ``supervisord/record/flight.py``, SR-7.12).
+  renamed into place beside the record: ``supervisord/record/flight.py``, SR-7.12), then its
+  copy to the journal, an entry of its own, for the fleet's collector
+  (``supervisord/record/flight_journal.py``, SR-13.12): after the file, so a journald that is
+  stuck (up to 2 s an entry) costs the copy, never the window's file or anything of the loop.
 
 No lane waits for another, so a journald or a stderr that nobody reads costs journal copies
 and log lines, counted (``journal_dropped``, ``log_lines_dropped`` in ``status``), never a
@@ -38,12 +41,13 @@ import logging
 import os
 import socket
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final
 
 from supervisord.lane import Lane, deadline_after
 from supervisord.record.flight import FlightError, FlightWriter, Window
+from supervisord.record.flight_journal import window_entry
 from supervisord.record.jsonl import RecordError, RecordUsageError, RecordWriter
 
 RECORD_CAPACITY: Final = 4096
@@ -77,6 +81,7 @@ IDLE_STATUS: Final[Mapping[str, int]] = {
 """What :meth:`Sink.status` says before the sink exists."""
 
 JournalWrite = Callable[[Mapping[str, object]], object]
+JournalSend = Callable[[Sequence[tuple[str, str]]], object]
 
 log = logging.getLogger("srcsd")
 
@@ -102,8 +107,9 @@ class Sink:
     ``writer``: the record file (``None``: no file, records are acknowledged as they come);
     ``journal``: a callable sending one record to the journal (its failures are counted in
     ``journal_errors``, never raised); ``flight``: where the flight recorder's windows go
-    (``None``: nowhere). Construct, then :meth:`start`; at the end :meth:`drain_records`,
-    then :meth:`close`.
+    (``None``: nowhere); ``flight_journal``: a callable sending one journal entry's fields,
+    each window's copy (its failures counted in ``journal_errors`` too). Construct, then
+    :meth:`start`; at the end :meth:`drain_records`, then :meth:`close`.
     """
 
     def __init__(
@@ -112,12 +118,14 @@ class Sink:
         journal: JournalWrite | None = None,
         *,
         flight: FlightWriter | None = None,
+        flight_journal: JournalSend | None = None,
         capacity: int = RECORD_CAPACITY,
         journal_capacity: int = JOURNAL_CAPACITY,
         log_capacity: int = LOG_CAPACITY,
         flight_capacity: int = FLIGHT_CAPACITY,
     ) -> None:
         self.writer, self.journal, self.flight = writer, journal, flight
+        self.flight_journal = flight_journal
         self.journal_errors = 0
         self.flight_windows = self.flight_errors = 0
         self._records: Lane[Mapping[str, object]] = Lane(
@@ -345,14 +353,32 @@ class Sink:
         assert self.flight is not None
         for window in windows:
             try:
-                self.flight.write(window)
+                _, data = self.flight.write_bytes(window)
                 self.flight_windows += 1
             except FlightError as error:
                 self.flight_errors += 1
                 log.error("flight recorder window not written: %s", error)
+                continue
             except Exception as error:  # the lane must outlive any failure: counted, not lost
                 self.flight_errors += 1
                 log.error("flight recorder window not written: %s: %s", type(error).__name__, error)
+                continue
+            if self.flight_journal is not None:
+                self._send_window(data, window)
+
+    def _send_window(self, data: bytes, window: Window) -> None:
+        """The window's copy to the journal, after its file (SR-13.12): a failure is a journal
+        copy's, counted in ``journal_errors`` and logged; the file is the robot's evidence."""
+        assert self.flight_journal is not None
+        try:
+            self.flight_journal(window_entry(data, window.stop))
+        except Exception as error:  # the journal is a copy; the lane must outlive it
+            self.journal_errors += 1
+            log.error(
+                "the journal copy of record %s's flight recorder window not sent: %s",
+                window.stop.get("seq"),
+                error,
+            )
 
     def _send_journal(self, entries: list[Mapping[str, object]]) -> None:
         assert self.journal is not None

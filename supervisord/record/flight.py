@@ -16,10 +16,13 @@ is the record file and ``SEQ`` the stop record's sequence number. JSON Lines:
 4. the trailer ``{"end": N}``, so that a cut file is never taken for a whole one.
 
 A window is written to a temporary name, fsynced, renamed into place and the directory fsynced:
-a reader sees a whole window or none. Each is at most the record's ``max_bytes`` (a window
-that would be larger starts from a later base, or keeps no base), and the newest ``keep + 1``
-are kept, as many as the record has files. Only a directory is used as ``PATH.flight`` and only
-regular files are written in it, opened without following a link (SR-7.9's rule for records).
+a reader sees a whole window or none. Each is at most the record's ``max_bytes`` and the
+windows' ``budget`` (a window that would be larger starts from a later base, or keeps no base),
+and the newest are kept as long as they take at most ``budget`` bytes together (the record's
+``flight_max_bytes``, SR-7.12): a byte budget, not a count, so that small windows of many stops
+stay while one large window cannot fill the disk. Only a directory is used as ``PATH.flight``
+and only regular files are written in it, opened without following a link (SR-7.9's rule for
+records).
 """
 
 from __future__ import annotations
@@ -30,11 +33,11 @@ import json
 import os
 import re
 import stat
-import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, Final
 
+from supervisord.lane import hand_over
 from supervisord.record.flight_codec import (
     VERSION,
     FlightFormatError,
@@ -43,13 +46,14 @@ from supervisord.record.flight_codec import (
     event_from_json,
     event_to_json,
 )
+from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES as DEFAULT_BUDGET
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.events import Event
 
 FORMAT: Final = "srcs-flight"
 SUFFIX: Final = ".jsonl"
 YIELD_EVERY: Final = 64
-"""Inputs encoded between two hand-overs of the interpreter's lock (``time.sleep(0)``): the
+"""Inputs encoded between two hand-overs of the interpreter's lock (``lane.hand_over``): the
 lane's thread never holds the loop's thread back for more than about that many encodings
 (SR-7.12)."""
 MAX_NESTING: Final = 64
@@ -158,7 +162,7 @@ def encode_window(window: Window, max_bytes: int) -> bytes:
     for number, event in enumerate(inputs, 1):
         lines.append(_line(event_to_json(event)))
         if number % YIELD_EVERY == 0:
-            time.sleep(0)  # let the loop's thread have the interpreter (SR-7.12)
+            hand_over()  # let the loop's thread have the interpreter (SR-7.12)
     header: dict[str, Json] = {
         "format": FORMAT,
         "version": VERSION,
@@ -197,22 +201,27 @@ def _assemble(header: Mapping[str, Json], extra: bytes, lines: list[bytes]) -> b
 
 
 class FlightWriter:
-    """Writes windows beside the record ``path`` and keeps the newest ``keep + 1``. Used by one
-    thread: the sink's flight lane (``supervisord/daemon/sink.py``)."""
+    """Writes windows beside the record ``path``, each at most ``max_bytes`` and ``budget``,
+    and keeps the newest that take at most ``budget`` bytes together. Used by one thread: the
+    sink's flight lane (``supervisord/daemon/sink.py``)."""
 
-    def __init__(self, path: Path | str, max_bytes: int, keep: int) -> None:
+    def __init__(self, path: Path | str, max_bytes: int, budget: int = DEFAULT_BUDGET) -> None:
         self.path = Path(path)
         self.folder = flight_dir(self.path)
-        self.max_bytes, self.keep = max_bytes, keep
+        self.max_bytes, self.budget = max_bytes, budget
 
     def write(self, window: Window) -> Path:
         """Encode and write ``window`` (its stop record's ``seq`` names it), then drop the
-        windows past the newest ``keep + 1``. Raises :class:`FlightError`."""
+        oldest windows past the budget. Raises :class:`FlightError`."""
+        return self.write_bytes(window)[0]
+
+    def write_bytes(self, window: Window) -> tuple[Path, bytes]:
+        """:meth:`write`, and the bytes written (what the journal's copy carries, SR-13.12)."""
         seq = window.stop.get("seq")
         if not isinstance(seq, int) or isinstance(seq, bool) or seq < 1:
             raise FlightError(f"a stop record without a sequence number: {seq!r}")
         try:
-            data = encode_window(window, self.max_bytes)
+            data = encode_window(window, min(self.max_bytes, self.budget))
         except (FlightFormatError, TypeError, ValueError) as error:
             raise FlightError(f"cannot encode the window of record {seq}: {error}") from error
         try:
@@ -227,7 +236,7 @@ class FlightWriter:
                 f"cannot write {window_path(self.path, seq)}: {error.strerror or error}",
                 error.errno,
             ) from error
-        return window_path(self.path, seq)
+        return window_path(self.path, seq), data
 
     def _open_folder(self) -> int:
         """The windows' folder, created if missing; only a directory, never through a link."""
@@ -259,8 +268,11 @@ class FlightWriter:
         os.fsync(folder)
 
     def _prune(self, folder: int, seq: int) -> None:
-        """Keep the newest ``keep + 1`` windows. A window numbered above ``seq`` is of a record
-        that was removed since (numbers only grow with the record): it goes first."""
+        """Keep the newest windows that take at most :attr:`budget` bytes together; the one
+        just written always stays (it is at most the budget, but for a header alone larger). A
+        window numbered above ``seq`` is of a record that was removed since (numbers only grow
+        with the record): it goes first; so does a temporary file left by a write that never
+        finished."""
         windows = []
         for name in os.listdir(folder):
             if (match := _NAME.fullmatch(name)) is not None:
@@ -268,13 +280,18 @@ class FlightWriter:
                 windows.append((number > seq, number, name))
             elif (match := _TEMPORARY.fullmatch(name)) is not None and int(match.group(1)) != seq:
                 windows.append((True, 0, name))  # left by a write that never finished
-        kept = 0
+        taken, full = 0, False
         for stale, _, name in sorted(windows, key=lambda w: (not w[0], -w[1])):
-            if stale or kept > self.keep:
+            if not (stale or full):
+                try:
+                    size = os.stat(name, dir_fd=folder, follow_symlinks=False).st_size
+                except FileNotFoundError:
+                    continue
+                full = taken > 0 and taken + size > self.budget  # the newest always stays
+                taken += 0 if full else size
+            if stale or full:
                 with contextlib.suppress(FileNotFoundError, IsADirectoryError):
                     os.unlink(name, dir_fd=folder)
-            else:
-                kept += 1
 
 
 def windows(path: Path | str) -> list[tuple[int, Path]]:

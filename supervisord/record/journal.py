@@ -164,6 +164,10 @@ def journal_fields(record: Mapping[str, object]) -> list[tuple[str, str]]:
         value = record.get(key)
         if value is not None:
             fields.append((field, _text(value)))
+    # The record whole, as the record file holds it (ASCII JSON, so any text goes through and
+    # comes back the same): a collector replays a stop's window against the robot's own
+    # records, every field, as the robot does (SR-13.12, `srcsctl fleet replay`).
+    fields.append(("SRCS_RECORD", json.dumps(dict(record), separators=(",", ":"))))
     return fields
 
 
@@ -232,7 +236,12 @@ class JournalSink:
 
         Raises :class:`JournalError` if the journal refuses it, :class:`RecordUsageError` for
         a malformed record."""
-        entry = encode_native(journal_fields(record))
+        return self.send(journal_fields(record))
+
+    def send(self, fields: Iterable[tuple[str, str]]) -> bool:
+        """Send one entry of ``fields`` (a record's, or a stop's window's: SR-13.12); as
+        :meth:`write` (raises :class:`JournalError`, :class:`RecordUsageError`)."""
+        entry = encode_native(fields)
         if self._socket is None:
             return False
         try:

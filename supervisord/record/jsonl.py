@@ -54,6 +54,11 @@ REQUIRED_FIELDS: Final = ("seq", "mono_ns", "utc", "from", "to", "causes", "trig
 DEFAULT_MAX_BYTES: Final = 4 * 1024 * 1024
 MAX_BYTES_RANGE: Final = (4096, 1 << 30)
 DEFAULT_KEEP: Final = 4
+DEFAULT_FLIGHT_MAX_BYTES: Final = 64 * 1024 * 1024
+"""The flight recorder's windows beside the record take at most this many bytes together, by
+default (``[record] flight_max_bytes``, SR-7.12): a window is some 10 to 600 KB
+(docs/record.md "The flight recorder"), so the windows of a hundred stops and more."""
+FLIGHT_MAX_BYTES_RANGE: Final = (4096, 1 << 40)
 KEEP_RANGE: Final = (1, 99)
 
 _CHUNK = 4096

@@ -552,3 +552,63 @@ def test_a_collectors_file_names_its_sender(name: str, sender: str | None) -> No
     from supervisord.cli.fleet_senders import sender_of_file  # noqa: PLC0415
 
     assert sender_of_file(f"/var/log/journal/remote/{name}") == sender
+
+
+STOP_ROBOT = 'start_journald ""\n"$PYTHON" -m tests.cli.fleet_stop_robot "$DIR" "$JOURNAL"\n'
+"""robot-d: the real srcsd and srcs-sim, two remote e-stops in RUN (tests/cli/fleet_stop_robot)."""
+STOPPING = "127.0.1.4"
+
+
+@pytest.fixture(scope="module")
+def stopped(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, bytes]:
+    """robot-d's folder (its record, windows and own replays) and its journal's export."""
+    base = tmp_path_factory.mktemp("stopping")
+    folder = base / "robot-d"
+    folder.mkdir()
+    env = {"DIR": str(folder), "PYTHON": sys.executable}
+    return folder, robot_export("robot-d", STOP_ROBOT, env)
+
+
+def test_a_stops_window_is_replayed_at_the_collector_as_on_the_robot(
+    stopped: tuple[Path, bytes], tmp_path: Path
+) -> None:
+    """SR-13.12: a real srcsd beside a private journald stops twice in RUN; its journal, sent
+    through the real systemd-journal-remote, holds each stop's window as an entry of its own,
+    byte for byte the robot's file. ``srcsctl fleet replay robot-d@ADDRESS SEQ --plot`` at the
+    collector says what the robot's own ``srcsctl replay --file RECORD SEQ --plot`` says, line
+    for line (the files named as the collector's copy), with the same exit status (0: the
+    replay matches the record) and the same picture. A record with no window, and a robot name
+    that is no host name, are refused in words (exit 2)."""
+    folder, export = stopped
+    directory = tmp_path / "remote"
+    directory.mkdir()
+    collect(export, directory / f"remote-{STOPPING}.journal")
+    made = json.loads((folder / "stops.json").read_text())
+    record = Path(made["record"])
+    assert len(made["seqs"]) == 2
+    for seq in made["seqs"]:
+        own_status, own = (folder / f"robot-{seq}.txt").read_text().split("\n", 1)
+        assert own_status == "0", own
+        assert "replay matches the record" in own, own
+        plot = tmp_path / f"collector-{seq}.svg"
+        there = fleet("replay", f"robot-d@{STOPPING}", str(seq), "-D", str(directory),
+                      "--plot", str(plot))  # fmt: skip
+        assert there.returncode == 0, there.stdout + there.stderr
+        named = f"robot-d@{STOPPING}'s window of #{seq} at the collector"
+        expected = own.replace(str(record) + f".flight/{seq}.jsonl", named).replace(
+            str(folder / f"robot-{seq}.svg"), str(plot)
+        )
+        assert there.stdout == expected
+        assert plot.read_bytes() == (folder / f"robot-{seq}.svg").read_bytes()
+        window = (Path(str(record) + ".flight") / f"{seq}.jsonl").read_bytes()
+        assert json.loads(window.splitlines()[0])["seq"] == seq
+    alone = fleet("replay", "robot-d", str(made["seqs"][0]), "-D", str(directory))
+    assert alone.returncode == 0, alone.stderr
+    missing = fleet("replay", f"robot-d@{STOPPING}", "1", "-D", str(directory))
+    assert missing.returncode == 2
+    assert "no window of record 1 from robot-d@127.0.1.4" in missing.stderr, missing.stderr
+    assert f"#{made['seqs'][0]}" in missing.stderr
+    assert "Traceback" not in missing.stderr
+    bad = fleet("replay", "robot-d;rm", "3", "-D", str(directory))
+    assert bad.returncode == 2
+    assert "not a robot's host name" in bad.stderr, bad.stderr

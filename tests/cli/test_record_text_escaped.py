@@ -73,7 +73,7 @@ def test_replay_shows_a_record_files_text_escaped(tmp_path: Path) -> None:
     with RecordWriter(tmp_path / "stops.jsonl") as records:
         for record in story_run.records:
             records.append(record)
-    path = FlightWriter(tmp_path / "stops.jsonl", 1 << 20, 4).write(story_run.window())
+    path = FlightWriter(tmp_path / "stops.jsonl", 1 << 20).write(story_run.window())
     out, errors = io.StringIO(), io.StringIO()
     code = run_replay(str(path), tmp_path / "stops.jsonl", out, errors)
     said = out.getvalue() + errors.getvalue()

@@ -5,6 +5,8 @@ clock. Each stop's window appears beside its record and replays to the same reco
 from __future__ import annotations
 
 import io
+import socket
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,7 +20,9 @@ from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
 from supervisord.record.flight import read_window, window_path, windows
-from supervisord.record.jsonl import RecordWriter
+from supervisord.record.flight_journal import window_bytes
+from supervisord.record.journal import SEND_TIMEOUT_S, JournalSink
+from supervisord.record.jsonl import RecordWriter, StoredRecord, read_records
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
@@ -27,7 +31,9 @@ from tests.daemon.peer import VscPeer
 from tests.daemon.test_loop import ManualClock, _arm, run_until, serve_for, state
 
 
-def _supervisor(tmp_path: Path, settings: FlightSettings) -> Iterator[tuple[Supervisor, VscPeer]]:
+def _supervisor(
+    tmp_path: Path, settings: FlightSettings, flight_journal: JournalSink | None = None
+) -> Iterator[tuple[Supervisor, VscPeer]]:
     port = PtyPort(tmp_path / "vsc")
     clock = ManualClock()
     supervisor = Supervisor(
@@ -44,6 +50,7 @@ def _supervisor(tmp_path: Path, settings: FlightSettings) -> Iterator[tuple[Supe
         backoff=Backoff(first_ms=20, max_ms=100),
         clock=clock,
         flight=settings,
+        flight_journal=None if flight_journal is None else flight_journal.send,
     )
     try:
         yield supervisor, VscPeer(port, clock=clock.seconds)
@@ -147,3 +154,75 @@ def test_a_snapshot_that_fails_is_counted_and_the_loop_goes_on(
     seq = _stop(supervisor, peer)
     out = io.StringIO()
     assert run_replay(str(seq), tmp_path / "stops.jsonl", out, io.StringIO()) == 0, out.getvalue()
+
+
+def _journal_socket(tmp_path: Path) -> tuple[socket.socket, JournalSink]:
+    """A journal socket of the test's own (journald's native protocol: datagrams) and the
+    daemon's sink sending to it."""
+    path = tmp_path / "journal.sock"
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    server.bind(str(path))
+    return server, JournalSink(str(path))
+
+
+def _fields(datagram: bytes) -> dict[str, str]:
+    """One entry in journald's native protocol, every value on one line (the window's are)."""
+    return dict(line.split("=", 1) for line in datagram.decode().splitlines())
+
+
+def test_a_stops_window_goes_to_the_journal_after_its_file(tmp_path: Path) -> None:
+    """SR-13.12, SR-7.12: with the journal on, a stop's window is written beside the record and
+    then sent to the journal as an entry of its own: the stop's seq, and the file's bytes,
+    which come back whole from the entry."""
+    server, sink = _journal_socket(tmp_path)
+    with server, sink:
+        for supervisor, peer in _supervisor(tmp_path, FlightSettings(window_s=60), sink):
+            supervisor.start()
+            _arm(supervisor, peer)
+            seq = _stop(supervisor, peer)
+            server.settimeout(30)
+            fields = _fields(server.recv(1 << 20))
+            assert fields["SRCS_SEQ"] == str(seq)
+            assert fields["SYSLOG_IDENTIFIER"] == "srcsd-flight"
+            file = window_path(tmp_path / "stops.jsonl", seq).read_bytes()
+            assert window_bytes(fields) == file
+            assert supervisor.snapshot(supervisor.clock()).sink["journal_errors"] == 0
+
+
+def test_a_stuck_journal_costs_the_windows_copy_never_the_stop(tmp_path: Path) -> None:
+    """SR-13.12, SR-10, SR-7.12: a journald that takes nothing (its socket's queue full: the send
+    waits its 2 s and is refused). A remote e-stop in RUN still stops at once: STOPPED, every
+    output off, the stop record in the file and its window written; the window's journal copy
+    is then counted in ``journal_errors``, nothing else."""
+    server, sink = _journal_socket(tmp_path)
+    filler = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    filler.setblocking(False)
+    with server, sink, filler:
+        try:
+            while True:
+                filler.sendto(b"MESSAGE=fill\n", str(tmp_path / "journal.sock"))
+        except BlockingIOError:
+            pass  # journald's queue is full: it takes nothing more
+        for supervisor, peer in _supervisor(tmp_path, FlightSettings(window_s=60), sink):
+            _stop_with_the_journal_stuck(supervisor, peer, tmp_path)
+
+
+def _stop_with_the_journal_stuck(supervisor: Supervisor, peer: VscPeer, tmp_path: Path) -> None:
+    supervisor.start()
+    _arm(supervisor, peer)
+    peer.mode, peer.estop = VscMode.OPERATIONAL, 1
+    run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
+    assert not any(output.device_level for output in supervisor.outputs.values())  # type: ignore[attr-defined]
+    lane = supervisor.sink
+    assert lane is not None
+    wait_until(lambda: lane.status()["flight_windows"] == 1, what="the window's file")
+    started = time.monotonic()
+    wait_until(lambda: lane.status()["journal_errors"] == 1, what="the copy refused")
+    assert time.monotonic() - started < SEND_TIMEOUT_S + 30  # refused, not hung
+    stops = [
+        item.data
+        for item in read_records(tmp_path / "stops.jsonl")
+        if isinstance(item, StoredRecord) and item.data.get("to") == "STOPPED"
+    ]
+    assert stops[-1]["from"] == "RUN"
+    assert windows(tmp_path / "stops.jsonl")[-1][0] == stops[-1]["seq"]

@@ -15,7 +15,10 @@ everything it mounts and starts ends with it. Scenarios, one line each:
 - ``skewed_clocks`` (SR-13.3): a robot 7 minutes behind and one 5 minutes ahead (libfaketime
   on all their processes, journald included) keep their own order at the collector;
 - ``alert_at_receiver`` (SR-13.10): the first scenario's stops reach the team's receiver (a
-  webhook) as ``SrcsStopped`` through the shipped rules and Alertmanager routes.
+  webhook) as ``SrcsStopped`` through the shipped rules and Alertmanager routes;
+- ``windows_at_collector`` (SR-13.12): every stop's flight recorder window of the robots that
+  are up is at the collector, and ``srcsctl fleet replay`` of each says what the robot's own
+  ``srcsctl replay`` says, matching its record (``tests/fleet/windows.py``).
 
 The collector is the collector's package installed unchanged (tests/fleet/collector.py); the
 robots upload only srcsd's journal namespace (SR-13.11, tests/fleet/robot). Figures (not
@@ -44,6 +47,7 @@ from typing import Any
 from tests.fleet import pki
 from tests.fleet.collector import Collector, by_robot, fleet_answer, held, raw_copies
 from tests.fleet.robots import Robot, make_layer, poll
+from tests.fleet.windows import windows_at_collector
 
 STOP_MESSAGE_ID = "26c2f33dae3d4a6c8996fc9bc658ad32"
 """A change of state's MESSAGE_ID (docs/record.md "The systemd journal")."""
@@ -541,6 +545,7 @@ def main() -> int:
         skewed_clocks(collector, robots, pressed)
         timer.join()
         alert_at_receiver(collector, pressed, answers)
+        windows_at_collector(collector.journal, robots, robots[DOWN_ROBOT - 1], result)
         figures(collector)
         if TALLY["failed"]:
             logs(collector, robots)

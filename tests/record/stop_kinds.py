@@ -123,7 +123,7 @@ class Story:
         with RecordWriter(folder / RECORD) as records:
             for record in self.records:
                 records.append(record)
-        return FlightWriter(folder / RECORD, 1 << 20, 4).write(self.window())
+        return FlightWriter(folder / RECORD, 1 << 20).write(self.window())
 
 
 def _running(config: SafetyConfig) -> Story:

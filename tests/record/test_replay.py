@@ -39,7 +39,7 @@ def _written(tmp_path: Path, story_run: Run, **window: Any) -> Path:
     with RecordWriter(tmp_path / RECORD) as records:
         for record in story_run.records:
             records.append(record)
-    return FlightWriter(tmp_path / RECORD, 1 << 20, 4).write(story_run.window(**window))
+    return FlightWriter(tmp_path / RECORD, 1 << 20).write(story_run.window(**window))
 
 
 def _replay(tmp_path: Path, which: str, *, record: bool = True) -> tuple[int, str]:
@@ -150,7 +150,7 @@ def test_records_the_files_no_longer_hold_are_counted_not_failed(tmp_path: Path)
     story_run = run(story())
     with RecordWriter(tmp_path / RECORD) as records:
         records.append(story_run.stop)
-    path = FlightWriter(tmp_path / RECORD, 1 << 20, 4).write(story_run.window())
+    path = FlightWriter(tmp_path / RECORD, 1 << 20).write(story_run.window())
     code, said = _replay(tmp_path, str(path))
     assert code == 0, said
     assert f"({len(story_run.records) - 1} not in the record files)" in said
@@ -165,7 +165,7 @@ def test_a_stop_record_the_record_file_does_not_hold_is_not_checked(
     against the window's own copy only: ``srcsctl replay`` says so plainly, claims no match
     with the record file, and exits 3."""
     story_run = run(story())
-    path = FlightWriter(tmp_path / RECORD, 1 << 20, 4).write(story_run.window())
+    path = FlightWriter(tmp_path / RECORD, 1 << 20).write(story_run.window())
     if record_file == "a folder":
         (tmp_path / RECORD).mkdir()
     code, said = _replay(tmp_path, str(path))
