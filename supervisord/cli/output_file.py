@@ -102,7 +102,10 @@ def write_output(
             with contextlib.suppress(OSError):
                 os.unlink(temporary, dir_fd=folder)
             raise
-        os.fsync(folder)
+        # The name's durability, where the file system offers it (some refuse a folder's
+        # fsync): the file is written and in place either way.
+        with contextlib.suppress(OSError):
+            os.fsync(folder)
     except OSError as error:
         if error.filename is None:
             error.filename = str(target)

@@ -8,6 +8,7 @@ pages and completions are written the same way."""
 
 from __future__ import annotations
 
+import ast
 import io
 import os
 import subprocess
@@ -172,3 +173,46 @@ def test_the_man_pages_are_never_written_through_a_link(tmp_path: Path) -> None:
     (pages / "srcsctl.1").unlink()
     written = reference.write_man(pages)
     assert all(path.is_file() and not path.is_symlink() for path in written)
+
+
+WRITERS = {"write_text", "write_bytes", "symlink_to", "mkfifo", "os.replace", "os.rename"}
+"""Calls that make or replace a file at a path: only ``output_file`` may, in the commands
+(``os.replace``, not ``str.replace``)."""
+ALLOWED = {
+    "output_file.py": "the helper itself",
+    "demo.py": "srcsd.log in the demo's own private temporary folder (mkdtemp)",
+}
+
+
+def _writes(path: Path) -> list[str]:
+    """Where ``path``'s code makes a file itself: a writer call, or ``open`` with a mode that
+    writes (``w``, ``a``, ``x``, ``+``)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.Call):
+            continue
+        name = getattr(node.func, "attr", getattr(node.func, "id", ""))
+        owner = getattr(node.func, "value", None)
+        if isinstance(owner, ast.Name) and owner.id == "os":
+            name = f"os.{name}"
+        modes = [
+            a.value
+            for a in (*node.args, *(k.value for k in node.keywords if k.arg == "mode"))
+            if isinstance(a, ast.Constant) and isinstance(a.value, str)
+        ]
+        writes = name == "open" and any(
+            set(m) & set("wax+") and set(m) <= set("rwaxbt+") for m in modes
+        )
+        if name in WRITERS or writes:
+            found.append(f"{path.name}:{node.lineno} {name}")
+    return found
+
+
+def test_every_file_a_command_writes_goes_through_the_helper() -> None:
+    """SR-11.4: no command module (``supervisord/cli``) makes or replaces a file but through
+    ``output_file`` (the demo's log in its own private folder excepted), so a new output path
+    cannot skip the rule unseen."""
+    folder = ROOT / "supervisord" / "cli"
+    found = [w for p in sorted(folder.glob("*.py")) if p.name not in ALLOWED for w in _writes(p)]
+    assert found == [], found
+    assert _writes(folder / "demo.py"), "the exception no longer needed: remove it"
