@@ -39,6 +39,7 @@ from argparse_manpage.manpage import Manpage
 from supervisord import __version__
 from supervisord.cli import srcsctl
 from supervisord.cli.cause_names import CAUSE_NAMES
+from supervisord.cli.output_file import OutputRefused, write_output
 
 PROJECT = "srcs-supervisord"
 DOC_DIR = f"/usr/share/doc/{PROJECT}"
@@ -435,13 +436,20 @@ def chosen(only: Sequence[str] = ()) -> list[Command]:
     return [command for command in COMMANDS if not only or command.name in only]
 
 
+def _write(path: Path, text: str) -> None:
+    """Safely against links and shared folders, as every file a command writes (SR-11.4): a
+    package build may run this as root into a folder others can write."""
+    data = text.encode("utf-8")
+    write_output(path, lambda file: file.write(data))
+
+
 def write_man(outdir: Path, only: Sequence[str] = ()) -> list[Path]:
     """Write every man page (or those of ``only``) into ``outdir``; return their paths."""
     outdir.mkdir(parents=True, exist_ok=True)
     written = []
     for command in chosen(only):
         path = outdir / f"{command.name}.{command.section}"
-        path.write_text(man_page(command), encoding="utf-8")
+        _write(path, man_page(command))
         written.append(path)
     return written
 
@@ -456,7 +464,7 @@ def write_completion(outdir: Path, only: Sequence[str] = ()) -> list[Path]:
             (outdir / command.name, "bash"),
             (outdir / "zsh" / f"_{command.name}", "zsh"),
         ):
-            path.write_text(completion(command, shell), encoding="utf-8")
+            _write(path, completion(command, shell))
             written.append(path)
     return written
 
@@ -473,7 +481,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write = write_man if args.what == "man" else write_completion
     try:
         written = write(args.outdir, args.only)
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError, OutputRefused) as error:
         print(f"reference: {error}", file=sys.stderr)
         return 1
     for path in written:

@@ -15,7 +15,10 @@ the record file's (the fields are printed): the window was edited, or is another
 
 ``--mcap FILE`` and ``--plot FILE.svg`` write the window, its records and the replayed
 decisions as an MCAP file and as a picture (SR-7.15, SR-7.16; ``replay_export``); the exit
-status stays the replay's.
+status stays the replay's. Each is written safely against links and shared folders, ``-``
+being standard output (SR-11.4, ``output_file``): then the replay's own text goes to standard
+error, so that standard output holds the file alone. A link or a device named as the file is
+refused before the replay (exit 2).
 """
 
 from __future__ import annotations
@@ -23,10 +26,11 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, Any, Final
+from typing import IO, Any, BinaryIO, Final
 
 from supervisord import __version__
 from supervisord.cli import replay_export as export
+from supervisord.cli.output_file import OutputRefused, check_target, is_standard_output
 from supervisord.cli.terminal_text import printable
 from supervisord.protocol.jsonview import message_json
 from supervisord.protocol.messages import VscHeartbeat
@@ -288,6 +292,37 @@ def _copy_only(window: LoadedWindow, unread: str | None, record: Path | None) ->
     return f"{record} does not hold record #{window.seq} (rotated away, or never written)"
 
 
+def _refused_targets(mcap: Path | None, plot: Path | None, stdout: BinaryIO | None) -> str | None:
+    """Why the files named cannot be written (no MCAP library; SR-11.4), before anything is
+    replayed; ``None`` when they can."""
+    if mcap is not None and not export.mcap_available():
+        return f"--mcap: {export.MCAP_MISSING}"
+    named = [(option, t) for option, t in (("--mcap", mcap), ("--plot", plot)) if t is not None]
+    to_stdout = [option for option, target in named if is_standard_output(target)]
+    if len(to_stdout) > 1:
+        return "only one of --mcap and --plot can be - (standard output)"
+    if to_stdout and stdout is None:
+        return f"{to_stdout[0]} -: standard output is not taken here"
+    for option, target in named:
+        try:
+            check_target(target)
+        except OutputRefused as error:
+            return f"{option}: {error}"
+    return None
+
+
+def _text_out(out: IO[str], errors: IO[str], *targets: Path | None) -> IO[str]:
+    """Where the replay's text goes: standard error when a file goes to standard output, so
+    that it holds the file alone (SR-11.4)."""
+    return errors if any(t is not None and is_standard_output(t) for t in targets) else out
+
+
+def _write_failure(error: OutputRefused | OSError) -> str:
+    if isinstance(error, OSError):
+        return f"cannot write {error.filename}: {error.strerror}"
+    return str(error)  # a link or a device planted since the check
+
+
 def run_replay(
     which: str | None,
     record: Path | None,
@@ -297,12 +332,16 @@ def run_replay(
     show_all: bool = False,
     mcap: Path | None = None,
     plot: Path | None = None,
+    stdout: BinaryIO | None = None,
 ) -> int:
     """``srcsctl replay``: see the module docstring. ``mcap`` and ``plot`` name the files the
-    window is exported to (SR-7.15, SR-7.16), written whatever the replay's verdict."""
-    if mcap is not None and not export.mcap_available():
-        print(f"srcsctl replay: --mcap: {export.MCAP_MISSING}", file=errors)
+    window is exported to (SR-7.15, SR-7.16), written whatever the replay's verdict; ``-``
+    writes to ``stdout`` (SR-11.4)."""
+    refused = _refused_targets(mcap, plot, stdout)
+    if refused is not None:
+        print(f"srcsctl replay: {refused}", file=errors)
         return EXIT_BAD_INPUT
+    out = _text_out(out, errors, mcap, plot)
     try:
         path = find_window(which, record)
         window = read_window(path)
@@ -334,9 +373,9 @@ def run_replay(
         _mismatch(result.mismatch, result, printer, out)
     if mcap is not None or plot is not None:
         try:
-            export.write_exports(window, result, out, mcap=mcap, plot=plot)
-        except OSError as error:
-            print(f"srcsctl replay: cannot write {error.filename}: {error.strerror}", file=errors)
+            export.write_exports(window, result, out, mcap=mcap, plot=plot, stdout=stdout)
+        except (OutputRefused, OSError) as error:
+            print(f"srcsctl replay: {_write_failure(error)}", file=errors)
             return EXIT_BAD_INPUT
     if contradicted:
         out.write(

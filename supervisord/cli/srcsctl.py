@@ -133,12 +133,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--mcap",
         metavar="OUT",
         help="also write the window and the replayed decisions as an MCAP file, one JSON "
-        "channel per signal, for Foxglove (needs the mcap package: srcs-supervisord[export])",
+        "channel per signal, for Foxglove (needs the mcap package: srcs-supervisord[export]); "
+        "- for standard output (the replay's text then goes to standard error); a link or a "
+        "device is refused",
     )
     replay.add_argument(
         "--plot",
         metavar="OUT.svg",
-        help="also draw the window on one time axis as a self-contained SVG picture",
+        help="also draw the window on one time axis as a self-contained SVG picture; - for "
+        "standard output (the replay's text then goes to standard error); a link or a device "
+        "is refused",
     )
 
     control.add_arguments(commands)
@@ -290,6 +294,7 @@ def _replay(args: argparse.Namespace) -> int:
         show_all=args.all,
         mcap=Path(args.mcap) if args.mcap else None,
         plot=Path(args.plot) if args.plot else None,
+        stdout=sys.stdout.buffer,
     )
 
 

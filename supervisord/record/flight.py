@@ -30,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import re
 import stat
@@ -46,6 +47,7 @@ from supervisord.record.flight_codec import (
     event_from_json,
     event_to_json,
 )
+from supervisord.record.flight_times import check_moments
 from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES as DEFAULT_BUDGET
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.events import Event
@@ -338,6 +340,9 @@ def read_window(path: Path) -> LoadedWindow:
     if not rest or rest[-1] != {"end": count} or len(rest) - 1 != count:
         raise FlightFormatError(f"{path} is cut short: {count!r} inputs announced")
     inputs = [event_from_json(line) for line in rest[:-1]]
+    stop = header.get("stop")
+    # Every time in range before anything replays or exports it (SR-7.13).
+    check_moments(stop if isinstance(stop, dict) else {}, base, [event.now for event in inputs])
     config = config_from_json(header.get("config"))
     return LoadedWindow(path, header, config, base, snapshot, inputs)
 
@@ -345,7 +350,7 @@ def read_window(path: Path) -> LoadedWindow:
 def _json_lines(file: Any) -> Iterator[Json]:
     for number, raw in enumerate(file, 1):
         try:
-            value = json.loads(raw)
+            value = json.loads(raw, parse_constant=_no_constant, parse_float=_finite)
         except ValueError as error:
             raise FlightFormatError(f"line {number} is not JSON: {error}") from error
         except RecursionError as error:  # deeper than the parser's own stack can go
@@ -353,6 +358,21 @@ def _json_lines(file: Any) -> Iterator[Json]:
         if _nesting_over(value, MAX_NESTING):
             raise FlightFormatError(f"line {number} is nested deeper than {MAX_NESTING} levels")
         yield value
+
+
+def _no_constant(name: str) -> float:
+    """``NaN``, ``Infinity``, ``-Infinity``: no JSON, and the daemon never writes them
+    (``allow_nan=False``); a window with one is damaged (SR-7.13)."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _finite(text: str) -> float:
+    """A JSON number with a fraction or exponent; one too large for a float (``1e999``) is
+    refused as the infinity it would be read as (SR-7.13)."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text[:40]} is beyond a float's range")
+    return value
 
 
 def _nesting_over(value: Json, limit: int) -> bool:

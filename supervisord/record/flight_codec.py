@@ -38,6 +38,12 @@ VERSION: Final = 1
 """The encoding's version: a reader takes only this one."""
 
 JsonDict = dict[str, Any]
+INT_LIMIT: Final = 2**63
+"""Every integer of an input lies from -2**63 to 2**63 - 1: what a signed 64-bit field holds
+(the daemon writes none larger; a larger one is damage, SR-7.13)."""
+MOMENT_LIMIT: Final = 2**63
+"""A moment, a reading of the daemon's monotonic clock in ns, lies from 0 to 2**63 - 1: what
+every export's 64-bit time fields take (``flight_times``, SR-7.13)."""
 
 
 class FlightFormatError(ValueError):
@@ -47,6 +53,32 @@ class FlightFormatError(ValueError):
 def _int(value: object) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise FlightFormatError(f"not an integer: {value!r}")
+    if not -INT_LIMIT <= value < INT_LIMIT:
+        raise FlightFormatError(f"an integer out of 64 bits: {preview(value)}")
+    return value
+
+
+def preview(value: object) -> str:
+    """``value`` for a message: short, and never an integer's every digit (the interpreter
+    refuses to print one of more than 4300)."""
+    if isinstance(value, int) and value.bit_length() > 64:
+        return f"an integer of {value.bit_length()} bits"
+    return repr(value)[:40]
+
+
+def is_moment(value: object) -> bool:
+    """Whether ``value`` is a reading of the monotonic clock (an int from 0 to 2**63 - 1)."""
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < MOMENT_LIMIT
+
+
+def moment(value: object, what: str = "an input's now") -> int:
+    """``value`` as a moment (SR-7.13); :class:`FlightFormatError` naming ``what`` when it is
+    none: a replay or an export would otherwise carry a time no 64-bit field takes."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < MOMENT_LIMIT:
+        raise FlightFormatError(
+            f"{what} is not a time of the monotonic clock (an integer from 0 to 2**63 - 1 ns): "
+            f"{preview(value)}"
+        )
     return value
 
 
@@ -219,7 +251,7 @@ def event_from_json(data: object) -> Event:
         raise FlightFormatError(f"unknown input {name!r}")
     values = {key: kind.read(data.get(key)) for key, kind in FIELDS[name]}
     try:
-        event: Event = cls(now=_int(data.get("now")), **values)
+        event: Event = cls(now=moment(data.get("now")), **values)
     except (TypeError, ValueError) as error:
         raise FlightFormatError(f"{name}: {error}") from error
     return event

@@ -29,6 +29,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any, Final
 
 from supervisord.record.flight import LoadedWindow
+from supervisord.record.flight_codec import is_moment, preview
 from supervisord.record.format import record_json
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
@@ -150,6 +151,13 @@ def replay(window: LoadedWindow, recorded: Mapping[int, Mapping[str, Json]]) -> 
             yield event, core.handle(event)
 
     for number, (event, decision) in enumerate(steps()):
+        if not is_moment(decision.now):
+            # The core keeps the latest time it was given: a snapshot's own, out of the
+            # clock's range, would be every later step's and no export could write it.
+            raise ReplayError(
+                f"the core's time at step {number} is no time of the monotonic clock "
+                f"(0 to 2**63 - 1 ns): {preview(decision.now)}; the snapshot is damaged"
+            )
         made = []
         for record in decision.records:
             entry = record_json(record, _ANY_TIME, offset)

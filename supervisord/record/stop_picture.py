@@ -170,10 +170,16 @@ def _spans(samples: Sequence[Sample], key: str, end_ns: int) -> Iterable[tuple[i
 
 
 def _step(span_s: float) -> float:
+    """The axis' step: at most 12 ticks over ``span_s``, however long the window says it is
+    (a damaged one may say 2**63 ns: a fixed largest step drew a tick per 2 minutes, tens of
+    millions of them, until memory ran out; SR-7.13, SR-7.16)."""
     for step in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 30, 60):
         if span_s / step <= 12:
             return step
-    return 120.0
+    step = 120.0
+    while span_s / step > 12:
+        step *= 10
+    return step
 
 
 def _seconds(value: float, step: float) -> str:

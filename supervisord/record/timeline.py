@@ -35,6 +35,7 @@ from supervisord.protocol.messages import (
 )
 from supervisord.record.flight import LoadedWindow
 from supervisord.record.flight_codec import caller_to_json
+from supervisord.record.flight_times import parse_utc, utc_ns
 from supervisord.record.replay import Replay, ReplayError, Step, differing, start_core
 from supervisord.safety.events import (
     ClientCommand,
@@ -240,11 +241,7 @@ class Timeline:
     def utc_ns(self, mono_ns: int) -> int:
         """The wall-clock time (ns since the epoch) of a moment on the monotonic clock, by the
         stop record's ``utc``; with no readable ``utc``, the monotonic time itself."""
-        if self.stop_utc is None:
-            return mono_ns
-        stop = self.stop_utc - dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
-        stop_ns = (stop.days * 86_400 + stop.seconds) * 1_000_000_000 + stop.microseconds * 1000
-        return stop_ns + (mono_ns - self.stop_ns)
+        return utc_ns(self.stop_utc, self.stop_ns, mono_ns)
 
     def signal(self, topic: str, schema: Mapping[str, Json]) -> Signal:
         if topic not in self.signals:
@@ -263,17 +260,6 @@ class Timeline:
         if not isinstance(causes, list):
             return []
         return [str(c.get("name")) for c in causes if isinstance(c, dict) and "name" in c]
-
-
-def parse_utc(text: object) -> dt.datetime | None:
-    """A record's ``utc`` (ISO 8601 with a zone), or ``None``."""
-    if not isinstance(text, str):
-        return None
-    try:
-        value = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        return None
-    return value if value.tzinfo is not None else None
 
 
 def _known_connections(window: LoadedWindow) -> dict[int, str]:

@@ -356,8 +356,11 @@ class _Reader:
             container = set()
         else:
             maxlen = data.get("maxlen")
-            if maxlen is not None and (not isinstance(maxlen, int) or maxlen < 0):
-                raise SnapshotError(f"a deque's maxlen: {maxlen!r}")
+            # Past the interpreter's ssize_t a deque refuses it with OverflowError (SR-7.13).
+            if maxlen is not None and (
+                not isinstance(maxlen, int) or isinstance(maxlen, bool) or not 0 <= maxlen < 2**63
+            ):
+                raise SnapshotError(f"a deque's maxlen: {str(maxlen)[:40]}")
             container = deque(maxlen=maxlen)
         self.made[number] = container
         add = container.add if isinstance(container, set) else container.append
