@@ -186,6 +186,9 @@ ALLOWED = {
     # with modes of its own (a key 0600); a link at the target is replaced, not followed.
     "fleet_pki.py": "keys and certificates made in a private mkdtemp folder, then renamed",
     "fleet_targets.py": "Prometheus' targets written by mkstemp, then renamed",
+    # The window and records a collector's replay reads, laid out in a private folder of its
+    # own (TemporaryDirectory: 0700, a random name), never at a path its user names.
+    "fleet_replay.py": "the replay's input in its own private TemporaryDirectory",
 }
 
 

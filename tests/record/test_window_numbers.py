@@ -78,7 +78,7 @@ def _windows(tmp_path: Path) -> dict[str, tuple[Path, int]]:
     with RecordWriter(second / RECORD) as records:
         for record in snapshot_run.records:
             records.append(record)
-    window = FlightWriter(second / RECORD, 1 << 20, 4).write(
+    window = FlightWriter(second / RECORD, 1 << 20).write(
         snapshot_run.window(bases=snapshot_run.bases[1:])
     )
     return {
