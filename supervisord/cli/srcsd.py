@@ -146,8 +146,11 @@ itself."""
 
 
 def pin_int_digits() -> None:
-    """Bound the digits Python converts, whatever the environment says (SR-10.5)."""
-    sys.set_int_max_str_digits(INT_DIGITS)
+    """Bound the digits Python converts, whatever the environment says (SR-10.5). A Python
+    3.10 before 3.10.7 has neither the bound nor this call; the daemon still starts there."""
+    pin = getattr(sys, "set_int_max_str_digits", None)
+    if pin is not None:
+        pin(INT_DIGITS)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
