@@ -10,8 +10,11 @@ package holds the reading tools and the fleet's configuration, and nothing of th
   ``python3``, as the robot's ``/opt/srcsd`` (packaging/build_deb.py), but with no bundled
   dependency: ``srcsctl`` and the fleet's tools need only the standard library (pyserial,
   python-can, gpiod, prometheus-client are the daemon's, the simulator's and the exporter's).
-  Hence architecture ``all``. Commands: ``srcsctl`` (``fleet``), ``srcs-fleet-targets`` and
-  ``srcs-fleet-pki``, with their man pages and completion.
+  Hence architecture ``all``. Not ``mcap`` either (``fleet replay --mcap``, the export extra):
+  pure Python, but the export compresses with zstandard, a compiled module an ``all`` package
+  cannot carry; ``--mcap`` says what to install (docs/fleet.md "The collector package").
+  Commands: ``srcsctl`` (``fleet``), ``srcs-fleet-targets`` and ``srcs-fleet-pki``, with their
+  man pages and completion.
 - systemd-journal-remote's drop-in (``journal-remote.conf.d``), the retention's timer, the
   targets' watcher, drop-ins that point Debian's Prometheus and Alertmanager at the fleet's
   files; ``/etc/srcs-collector/`` (conffiles): ``prometheus.yml``, ``alertmanager.yml``, the

@@ -17,8 +17,9 @@ everything it mounts and starts ends with it. Scenarios, one line each:
 - ``alert_at_receiver`` (SR-13.10): the first scenario's stops reach the team's receiver (a
   webhook) as ``SrcsStopped`` through the shipped rules and Alertmanager routes;
 - ``windows_at_collector`` (SR-13.12): every stop's flight recorder window of the robots that
-  are up is at the collector, and ``srcsctl fleet replay`` of each says what the robot's own
-  ``srcsctl replay`` says, matching its record (``tests/fleet/windows.py``).
+  are up is at the collector, and the collector package's installed ``srcsctl fleet replay`` of
+  each says what the robot's own ``srcsctl replay`` says, matching its record; its ``--plot``
+  draws the stop and its ``--mcap`` names what to install (``tests/fleet/windows.py``).
 
 The collector is the collector's package installed unchanged (tests/fleet/collector.py); the
 robots upload only srcsd's journal namespace (SR-13.11, tests/fleet/robot). Figures (not
@@ -545,7 +546,13 @@ def main() -> int:
         skewed_clocks(collector, robots, pressed)
         timer.join()
         alert_at_receiver(collector, pressed, answers)
-        windows_at_collector(collector.journal, robots, robots[DOWN_ROBOT - 1], result)
+        windows_at_collector(
+            collector,
+            robots,
+            robots[DOWN_ROBOT - 1],
+            made["layer"] / "opt/srcsd/bin/srcsctl",
+            result,
+        )
         figures(collector)
         if TALLY["failed"]:
             logs(collector, robots)

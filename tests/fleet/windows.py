@@ -1,31 +1,35 @@
-"""The fleet tier's ``windows_at_collector`` scenario (SR-13.12; docs/fleet.md "A stop's evidence
-at the collector"): after the other scenarios' stops (an e-stop on every robot, three more on
-each of four robots during the collector's outage), every stop's flight recorder window is at
-the collector, and ``srcsctl fleet replay ROBOT SEQ`` there says what the robot's own
+"""The fleet tier's ``windows_at_collector`` scenario (SR-13.12, SR-13.10; docs/fleet.md "A
+stop's evidence at the collector"): after the other scenarios' stops (an e-stop on every robot,
+three more on each of four robots during the collector's outage), every stop's flight recorder
+window is at the collector, and the collector package's installed ``srcsctl fleet replay ROBOT
+SEQ``, run in the collector's root as its administrator would, says what the robot's own
 ``srcsctl replay --file RECORD SEQ`` says of its window file, exit 0 ("replay matches the
-record"), line for line but for the files' names.
+record"), line for line but for the files' names. Once, the installed command also draws the
+stop (``--plot``: the standard library only), and refuses ``--mcap`` with what to install: the
+collector's package bundles no MCAP library (its export compresses with zstandard, a compiled
+module an architecture-``all`` package cannot carry).
 
-Both replays run in this process, through the commands' own entry points
-(``supervisord.cli.fleet.main``, ``supervisord.cli.replay.run_replay``): two Python starts a
-stop would cost the shared machine some seconds each, for no other code.
+Both are the shipped commands: the robot's replay is the robot package's installed ``srcsctl``
+(from the robots' layer, on the robot's record file), the reference the collector's answer is
+held to; two Python starts a stop (some 18 stops: about 30 s of the tier on two cores).
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import subprocess
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tests.fleet.collector import REMOTE, Collector
 from tests.fleet.robots import Robot, poll
 
 FLIGHT_MESSAGE_ID = "75233db4b0b14222b4593748065a0c40"
 """A window's entry (docs/record.md "The systemd journal")."""
+EVIDENCE = "srv/evidence"
+"""Where the installed command writes its files, in the collector's root."""
 ARRIVE_LIMIT_S = 60.0
 """How long the last window may take to reach the collector after the other scenarios: the
 skewed robots' uploaders were started again by the outage; one upload round."""
@@ -62,40 +66,100 @@ def windows_there(directory: Path) -> dict[str, dict[int, dict[str, Any]]]:
     return found
 
 
-def _run(main: Callable[[], int]) -> tuple[int, str]:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-        status = main()
-    return status, out.getvalue()
+def robots_replay(srcsctl: Path, robot: Robot, seq: int) -> tuple[int, str, str]:
+    """The robot package's installed ``srcsctl replay --file RECORD SEQ`` (its tree in the
+    robots' shared layer, on this machine's python3, as in the robot's root) on the robot's
+    own record: its exit status, standard output and standard error."""
+    done = subprocess.run(
+        [str(srcsctl), "replay", "--file", str(robot.record_file), str(seq)],
+        env={"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8"},
+        capture_output=True,
+        check=False,
+        timeout=60,
+    )
+    return (
+        done.returncode,
+        done.stdout.decode(errors="replace"),
+        done.stderr.decode(errors="replace"),
+    )
 
 
-def replay_both(robot: Robot, seq: int, directory: Path) -> str | None:
+def collectors_replay(
+    collector: Collector, label: str, seq: int, *options: str
+) -> tuple[int, str, str]:
+    """The collector package's ``srcsctl fleet replay`` on its receiver's directory, in the
+    collector's root (SR-13.10): its exit status, standard output and standard error (each
+    apart: a process's two streams reach one pipe in the order of their buffers' flushes)."""
+    argv = ["srcsctl", "fleet", "replay", label, str(seq), "-D", f"/{REMOTE}", *options]
+    done = collector.chroot(argv)
+    return (
+        done.returncode,
+        done.stdout.decode(errors="replace"),
+        done.stderr.decode(errors="replace"),
+    )
+
+
+def first_difference(mine: str, theirs: str) -> str:
+    """The robot's line and the collector's where they first differ, and how many each has."""
+    ours, others = mine.splitlines(), theirs.splitlines()
+    pairs = zip([*ours, ""], [*others, ""], strict=False)
+    first = next(((a, b) for a, b in pairs if a != b), ("(the same lines)", "(but the ends)"))
+    return f"the robot's {len(ours)} lines, the collector's {len(others)}, first {first!r}"
+
+
+def replay_both(collector: Collector, srcsctl: Path, robot: Robot, seq: int) -> str | None:
     """``None`` when the collector's replay of ``seq`` says what the robot's own does and
     matches the record; else what differs."""
-    from supervisord.cli.fleet import main as fleet_main  # noqa: PLC0415 -- the tree under test
-    from supervisord.cli.replay import run_replay  # noqa: PLC0415
-
     record = robot.record_file
-    # sys.stdout read when the call runs: the redirected one.
-    own_status, own = _run(lambda: run_replay(str(seq), record, sys.stdout, sys.stderr))
+    own_status, *own = robots_replay(srcsctl, robot, seq)
     label = f"{robot.name}@{robot.address}"
-    status, there = _run(lambda: fleet_main(["replay", label, str(seq), "-D", str(directory)]))
+    status, *there = collectors_replay(collector, label, seq)
     named = f"{label}'s window of #{seq} at the collector"
-    expected = own.replace(f"{record}.flight/{seq}.jsonl", named)
-    if own_status != 0 or "replay matches the record" not in own:
-        return f"{label} #{seq}: the robot's own replay exit {own_status}: {own[-300:]}"
+    expected = [text.replace(f"{record}.flight/{seq}.jsonl", named) for text in own]
+    if own_status != 0 or "replay matches the record" not in own[0]:
+        return f"{label} #{seq}: the robot's own replay exit {own_status}: {own[0][-300:]}"
     if status != 0 or there != expected:
-        return f"{label} #{seq}: the collector's replay exit {status}: {there[-300:]}"
+        differs = [
+            f"{name}: {first_difference(mine, theirs)}"
+            for name, mine, theirs in zip(("stdout", "stderr"), expected, there, strict=True)
+            if mine != theirs
+        ]
+        return f"{label} #{seq}: the collector's replay exit {status}: {'; '.join(differs)}"
     return None
 
 
+def exports(collector: Collector, robot: Robot, seq: int) -> tuple[list[str], str]:
+    """The installed command's ``--plot`` (an SVG picture written in the collector's root) and
+    ``--mcap`` (refused before anything is written, exit 2, naming the export extra): what is
+    wrong, and what was seen."""
+    label = f"{robot.name}@{robot.address}"
+    problems: list[str] = []
+    (collector.root / EVIDENCE).mkdir(parents=True, exist_ok=True)
+    picture = collector.root / EVIDENCE / f"{seq}.svg"
+    status, said, _ = collectors_replay(collector, label, seq, "--plot", f"/{EVIDENCE}/{seq}.svg")
+    drawn = picture.read_bytes() if picture.is_file() else b""
+    if status != 0 or b"<svg" not in drawn:
+        problems.append(f"--plot: exit {status}, {len(drawn)} bytes: {said[-300:]}")
+    film = collector.root / EVIDENCE / f"{seq}.mcap"
+    status, _, said = collectors_replay(collector, label, seq, "--mcap", f"/{EVIDENCE}/{seq}.mcap")
+    if status != 2 or "srcs-supervisord[export]" not in said or film.exists():
+        problems.append(f"--mcap: exit {status}, file {film.exists()}: {said[-300:]}")
+    return problems, f"--plot {len(drawn) / 1024:.1f} KiB of SVG, --mcap refused: {said.strip()!r}"
+
+
 def windows_at_collector(
-    directory: Path, robots: list[Robot], down: Robot, result: Callable[[str, bool, str], None]
+    collector: Collector,
+    robots: list[Robot],
+    down: Robot,
+    srcsctl: Path,
+    result: Callable[[str, bool, str], None],
 ) -> None:
     """SR-13.12: every stop of every robot that is up has its window at the collector, and each
-    replays there as on the robot. The robot killed for the alert is shown, not judged: its
-    uploader died with it, perhaps before its last window was sent."""
+    replays there as on the robot (``srcsctl``: the robot package's installed command). The
+    robot killed for the alert is shown, not judged: its uploader died with it, perhaps before
+    its last window was sent."""
     started = time.monotonic()
+    directory = collector.journal
     made = {robot.name: stops(robot) for robot in robots}
     judged = [robot for robot in robots if robot is not down]
 
@@ -113,10 +177,15 @@ def windows_at_collector(
             problems.append(f"{robot.name}: no window at the collector for {missing}")
         for seq in made[robot.name]:
             if seq in there.get(robot.name, {}):
-                differs = replay_both(robot, seq, directory)
+                differs = replay_both(collector, srcsctl, robot, seq)
                 replayed += 1
                 if differs:
                     problems.append(differs)
+    exported = ""
+    shown = next((robot for robot in judged if made[robot.name]), None)
+    if shown is not None and not problems:
+        wrong, exported = exports(collector, shown, made[shown.name][-1])
+        problems += wrong
     sizes = [w for robot in there.values() for w in robot.values()]
     count = sum(len(seqs) for seqs in made.values())
     down_there = len(set(made[down.name]) & set(there.get(down.name, {})))
@@ -128,7 +197,8 @@ def windows_at_collector(
     )
     detail += (
         f" ({down.name}, killed: {down_there} of {len(made[down.name])}); {replayed} replayed at "
-        "the collector, each as the robot's own replay, matching its record"
+        "the collector by its installed srcsctl, each as the robot's own replay, matching its "
+        f"record; {exported}"
     )
     if sizes:
         raw = sorted(w["bytes"] for w in sizes)

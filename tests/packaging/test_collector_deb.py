@@ -1,12 +1,14 @@
 """The fleet collector's package (packaging/build_collector_deb.py, docs/fleet.md "The
 collector package", SR-13.10): ``srcs-collector``, architecture all; the reading tools with no
-bundled dependency, the receiver's, Prometheus's and Alertmanager's configuration checked by
-their own tools; nothing of a robot (no udev, no daemon, its users, units or rule); lintian's
+bundled dependency (``fleet replay`` and ``--plot`` run from it, ``--mcap`` names what to
+install), the receiver's, Prometheus's and Alertmanager's configuration checked by their own
+tools; nothing of a robot (no udev, no daemon, its users, units or rule); lintian's
 approval; installed with dpkg into a root over this machine's, it runs and makes its first
 targets. The fleet tier (tests/fleet/) runs a collector on this package unchanged."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -17,6 +19,8 @@ from pathlib import Path
 import pytest
 
 from supervisord.config import toml
+from tests.cli.test_fleet import STOP_ROBOT, STOPPING
+from tests.journald import collect, robot_export
 
 ROOT = Path(__file__).resolve().parents[2]
 PREFIX = "opt/srcs-collector"
@@ -83,7 +87,8 @@ def test_name_version_architecture_and_no_robot_in_its_depends(deb: Path) -> Non
 
 def test_nothing_of_a_robot_in_it(unpacked: Path) -> None:
     """No sysusers (the daemon's users), no tmpfiles, no srcsd@ or srcs-exporter@ unit, no udev
-    rule, no bundled third-party distribution (srcsctl and the fleet's tools need none)."""
+    rule, no bundled third-party distribution (srcsctl and the fleet's tools need none; not
+    mcap: ``--mcap`` names the export extra, below)."""
     files = {str(p.relative_to(unpacked)) for p in unpacked.rglob("*")}
     assert not [f for f in files if f.startswith(("usr/lib/sysusers.d", "usr/lib/tmpfiles.d"))]
     assert not [f for f in files if "udev" in f or re.search(r"srcsd@|srcs-exporter@", f)]
@@ -114,6 +119,62 @@ def test_the_tools_run_from_the_unpacked_tree_on_the_system_python(
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert '"192.0.2.21:9817"' in out.read_text()
+
+
+@pytest.fixture(scope="module")
+def stopped_at_collector(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """robot-d of tests/cli/test_fleet.py (the real srcsd and srcs-sim, two remote e-stops in
+    RUN, its own replays), its journal written by the real systemd-journal-remote into a
+    collector's directory: the robot's folder and that directory."""
+    base = tmp_path_factory.mktemp("collector-stops")
+    folder = base / "robot-d"
+    folder.mkdir()
+    export = robot_export("robot-d", STOP_ROBOT, {"DIR": str(folder), "PYTHON": sys.executable})
+    directory = base / "remote"
+    directory.mkdir()
+    collect(export, directory / f"remote-{STOPPING}.journal")
+    return folder, directory
+
+
+def test_the_package_replays_a_stop_draws_it_and_names_what_mcap_needs(
+    unpacked: Path, stopped_at_collector: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """SR-13.12 on the package's own tree and /usr/bin/python3 alone: ``srcsctl fleet replay
+    ROBOT SEQ --plot OUT`` says what the robot's own replay says (the files named as the
+    collector's copy) and draws the same picture: the replay and the picture need no module
+    outside the standard library. ``--mcap`` is refused before anything is written (exit 2),
+    naming the export extra: the package bundles no MCAP library (the export compresses with
+    zstandard, compiled, which an architecture-all package cannot carry; docs/fleet.md "The
+    collector package")."""
+    folder, directory = stopped_at_collector
+    made = json.loads((folder / "stops.json").read_text())
+    seq = made["seqs"][0]
+    srcsctl = str(unpacked / PREFIX / "bin/srcsctl")
+    robot = f"robot-d@{STOPPING}"
+    plot = tmp_path / "stop.svg"
+    there = subprocess.run(
+        [srcsctl, "fleet", "replay", robot, str(seq), "-D", str(directory), "--plot", str(plot)],
+        capture_output=True, text=True, env=_clean_env(), timeout=120, check=False,
+    )  # fmt: skip
+    own_status, own = (folder / f"robot-{seq}.txt").read_text().split("\n", 1)
+    assert own_status == "0", own
+    named = f"{robot}'s window of #{seq} at the collector"
+    expected = own.replace(f"{made['record']}.flight/{seq}.jsonl", named).replace(
+        str(folder / f"robot-{seq}.svg"), str(plot)
+    )
+    assert there.returncode == 0, there.stdout + there.stderr
+    assert there.stdout == expected
+    assert plot.read_bytes() == (folder / f"robot-{seq}.svg").read_bytes()
+    film = tmp_path / "stop.mcap"
+    refused = subprocess.run(
+        [srcsctl, "fleet", "replay", robot, str(seq), "-D", str(directory), "--mcap", str(film)],
+        capture_output=True, text=True, env=_clean_env(), timeout=120, check=False,
+    )  # fmt: skip
+    assert refused.returncode == 2, refused.stdout + refused.stderr
+    assert "the mcap package is not installed" in refused.stderr, refused.stderr
+    assert "pip install 'srcs-supervisord[export]'" in refused.stderr
+    assert "Traceback" not in refused.stderr
+    assert not film.exists()
 
 
 def test_lintian_finds_no_error_and_no_warning(deb: Path) -> None:
