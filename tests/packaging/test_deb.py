@@ -152,6 +152,9 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         f"{doc}/examples/example-can.toml",
         f"{doc}/examples/prometheus/srcs-alerts.yml",
         f"{doc}/examples/srcsd.schema.json",
+        f"{doc}/examples/robot_motion.py",
+        f"{doc}/examples/robot-motion@.service",
+        f"{doc}/examples/robot-motion.conf",
         "/opt/srcsd/lib/python3/site-packages/supervisord/cli/demo.toml",
         "/usr/share/man/man8/srcsd.8.gz",
         "/usr/share/man/man1/srcsctl.1.gz",
@@ -170,6 +173,24 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
     assert all(" root/root " in line for line in listing.values())
     assert "/opt/srcsd/bin/srcsd -> " not in listing["/opt/srcsd/bin/srcsd"]  # a file
     assert listing["/usr/sbin/srcsd"].endswith("-> /opt/srcsd/bin/srcsd")
+
+
+def test_the_motion_example_ships_as_in_the_source(unpacked: Path) -> None:
+    """SR-0.2, SR-8.10: the motion service example, its unit and its user are in the package,
+    where docs/bringup.md installs them from, the same bytes as examples/, not executable
+    (documentation), and the unit reads the robot's socket from its config (``-R %i``)."""
+    doc = unpacked / "usr/share/doc/srcs-supervisord/examples"
+    for source in (
+        "motion/robot_motion.py",
+        "systemd/robot-motion@.service",
+        "systemd/robot-motion.conf",
+    ):
+        shipped = doc / Path(source).name
+        assert shipped.read_bytes() == (ROOT / "examples" / source).read_bytes(), source
+        assert not shipped.stat().st_mode & 0o111, source
+    unit = (doc / "robot-motion@.service").read_text()
+    assert "robot_motion.py -R %i " in unit
+    assert "--socket" not in unit
 
 
 def test_the_unit_runs_the_packaged_program(unpacked: Path) -> None:
