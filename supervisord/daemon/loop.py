@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from supervisord import __version__
+from supervisord.api.readiness import DEFAULT_SRCSCTL, commission_fix
 from supervisord.api.status import LinkStatus, LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
@@ -68,6 +69,7 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
+from supervisord.vocabulary import STOP_PATH_CAUSES, CauseKind
 
 log = logging.getLogger("srcsd")
 
@@ -78,6 +80,8 @@ ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could 
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 _REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
+OFF_KIND = CauseKind.VSC_WATCHDOG_OFF
+WATCHDOG_OFF = OFF_KIND.value  # as the decision's active names say it
 
 
 @dataclass
@@ -198,6 +202,11 @@ class Supervisor:
     decisions of the core's cheap path, 90 a second in RUN): :meth:`_apply`. The full path is
     the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
     fed the same inputs and checks that both do the same (SR-9.4)."""
+
+    # How a fix names the command that reaches this daemon (SR-8.18): set by srcsd from its
+    # config's path (``srcsctl -R robot-a``); said when the VSC's watchdog is found off.
+    srcsctl: str = DEFAULT_SRCSCTL
+    _said_watchdog_off: bool = False
 
     def __init__(
         self,
@@ -899,6 +908,12 @@ class Supervisor:
         if status != self._status:
             self._status = status
             self.notifier.send(STATUS=status)
+        off = WATCHDOG_OFF in decision.active_names
+        if off and not self._said_watchdog_off:
+            # Said each time it becomes active, with its fix (SR-8.18): a VSC fresh from the
+            # box has key 85 off, and the gate (SR-8.10) waits for it at every start.
+            log.warning("%s: %s", STOP_PATH_CAUSES[OFF_KIND], commission_fix(self.srcsctl))
+        self._said_watchdog_off = off
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
