@@ -282,7 +282,7 @@ class Supervisor:
         # each: the API pushes the typed record itself, never one read back from its JSON.
         self._in_sink: dict[int, StopRecord] = {}
         self._link_since_ns: int | None = None  # when the link last opened or broke
-        self._link_error: str | None = None  # why it last broke or failed to open
+        self._link_error: str | None = None  # why it broke or failed to open, until it opens
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
         self.flight: FlightRecorder | None = None
         self._flight_writer: FlightWriter | None = None
@@ -683,7 +683,9 @@ class Supervisor:
             return
         self.backoff.succeeded()
         self.counters.link_opens += 1
-        self._link_since_ns = now
+        # The error said why the link was not open; open, it is history (its count stays in
+        # open_failures, the break in the record): status shows none from before (SR-8.18).
+        self._link_since_ns, self._link_error = now, None
         # A period across a reopen would measure the outage, not the cadence: start afresh
         # (the outage shows in the link's counters).
         self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
