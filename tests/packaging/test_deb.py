@@ -509,6 +509,21 @@ def test_copyright_covers_every_bundled_distribution(unpacked: Path) -> None:
         build_deb.check_copyright(site, without)
 
 
+def test_the_first_install_hint_runs_on_a_minimal_system(unpacked: Path) -> None:
+    """SR-0.2, SR-8.18: the next steps a first install prints are commands a minimal Debian
+    has (coreutils, systemd: a dependency) or the package's own, never ``editor`` (absent
+    from a minimal system: the file to edit is named), and end with commissioning the VSC."""
+    text = (unpacked / "DEBIAN/postinst").read_text()
+    block = text.split("<<'NEXT'\n", 1)[1].split("\nNEXT", 1)[0]
+    steps = [line.strip() for line in block.splitlines()[1:]]
+    present = {"cp", "systemctl", "srcsd", "srcsctl"}
+    for step in steps:
+        if not step.startswith("#"):
+            assert step.split()[0] in present, step
+    assert "srcsctl -R ROBOT commission" in block
+    assert "/etc/srcs/ROBOT.toml" in block
+
+
 def test_postinst_compiles_for_the_installed_python(deb: Path, tmp_path: Path) -> None:
     """SR-0.2: postinst's byte-compile, run on an unpacked tree, compiles every module of the
     environment for the python3 the environment links to (here this machine's): the package
