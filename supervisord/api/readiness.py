@@ -101,6 +101,20 @@ def commission_fix(srcsctl: str = DEFAULT_SRCSCTL) -> str:
     )
 
 
+def key85_read_off(status: StatusReply) -> bool:
+    """Whether the VSC answered key 85 with a value other than 1: its watchdog is off and
+    commissioning is the fix. Not before it answered (``key85 = "no answer"``): a VSC not
+    heard yet, or heard and not asked yet, is no reason to commission (SR-8.18)."""
+    for cause in status.report.causes:
+        if cause.active and cause.kind is CauseKind.VSC_WATCHDOG_OFF:
+            return cause.details.get("key85", NO_ANSWER) != NO_ANSWER
+    return False
+
+
+NO_ANSWER: Final = "no answer"
+"""``vsc_watchdog_off``'s ``key85`` detail before the VSC answered."""
+
+
 def missing(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> list[str]:
     """What keeps the supervisor whose ``status`` reply this is from being ready, in words,
     each with what fixes it (SR-8.18; ``srcsctl``: how the fix names the command, as
@@ -111,8 +125,11 @@ def missing(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> list[str]:
         why = f": {link.last_error}" if link.last_error else ""
         gaps.append(f"the link to the VSC is not open ({link.description}{why})")
     active = status.report.active_kinds()
+    read_off = key85_read_off(status)
     gaps += [
-        f"{text}: {commission_fix(srcsctl)}" if kind is CauseKind.VSC_WATCHDOG_OFF else text
+        f"{text}: {commission_fix(srcsctl)}"
+        if kind is CauseKind.VSC_WATCHDOG_OFF and read_off
+        else text
         for kind, text in BLOCKING_CAUSES.items()
         if kind in active
     ]

@@ -31,7 +31,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from supervisord import __version__
-from supervisord.api.readiness import DEFAULT_SRCSCTL, commission_fix
+from supervisord.api.readiness import DEFAULT_SRCSCTL, NO_ANSWER, commission_fix
 from supervisord.api.status import LinkStatus, LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
@@ -81,7 +81,6 @@ MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/sa
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 _REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
 OFF_KIND = CauseKind.VSC_WATCHDOG_OFF
-WATCHDOG_OFF = OFF_KIND.value  # as the decision's active names say it
 
 
 @dataclass
@@ -910,10 +909,16 @@ class Supervisor:
         if status != self._status:
             self._status = status
             self.notifier.send(STATUS=status)
-        off = WATCHDOG_OFF in decision.active_names
+        off = any(
+            state.active
+            and state.cause.kind is OFF_KIND
+            and state.detail("key85") not in (None, NO_ANSWER)
+            for state in decision.causes
+        )
         if off and not self._said_watchdog_off:
-            # Said each time it becomes active, with its fix (SR-8.18): a VSC fresh from the
-            # box has key 85 off, and the gate (SR-8.10) waits for it at every start.
+            # Said each time the VSC answers key 85 with another value than 1, with its fix
+            # (SR-8.18): a VSC fresh from the box has key 85 off, and the gate (SR-8.10) waits
+            # for it at every start. Not before it answered: a commissioned VSC is not read yet.
             log.warning("%s: %s", STOP_PATH_CAUSES[OFF_KIND], commission_fix(self.srcsctl))
         self._said_watchdog_off = off
 
