@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -47,6 +46,7 @@ from build_deb import (
     REPO,
     BuildError,
     changelog_version,
+    dpkg_build,
     gzip_file,
     install_program,
     md5sums,
@@ -203,20 +203,7 @@ def build(out: Path, work: Path) -> Path:
     normalise(root, epoch)
     for name in ("postinst", "prerm", "postrm"):
         (debian / name).chmod(0o755)
-    if compiled := [str(p.relative_to(root)) for p in root.rglob("*.pyc")]:
-        raise BuildError(f"byte-code in the package (postinst compiles it): {compiled[:3]}")
-    out.mkdir(parents=True, exist_ok=True)
-    deb = out / f"{PACKAGE}_{version}_all.deb"
-    result = subprocess.run(
-        ["dpkg-deb", "--root-owner-group", "-Zxz", "-z3", "--build", str(root), str(deb)],
-        capture_output=True,
-        text=True,
-        env=env,
-        check=False,
-    )
-    if result.returncode != 0:
-        raise BuildError(f"dpkg-deb failed:\n{result.stderr}")
-    return deb
+    return dpkg_build(root, out / f"{PACKAGE}_{version}_all.deb", env)
 
 
 def main() -> int:

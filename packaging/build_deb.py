@@ -613,10 +613,15 @@ def build(arch: str, out: Path, work: Path, wheels: Path = REPO / "build/wheels"
     (debian / "md5sums").write_text(md5sums(root))
     maintainer_scripts(debian)
     normalise(root, epoch)
+    return dpkg_build(root, out / f"{PACKAGE}_{version}_{arch}.deb", env)
+
+
+def dpkg_build(root: Path, deb: Path, env: dict[str, str]) -> Path:
+    """``deb`` built from the tree at ``root`` (its ``DEBIAN`` written, its times normalised),
+    refused when byte-code slipped in. The robot's and the collector's package alike."""
     if compiled := [str(p.relative_to(root)) for p in root.rglob("*.pyc")]:
         raise BuildError(f"byte-code in the package (postinst compiles it): {compiled[:3]}")
-    out.mkdir(parents=True, exist_ok=True)
-    deb = out / f"{PACKAGE}_{version}_{arch}.deb"
+    deb.parent.mkdir(parents=True, exist_ok=True)
     # xz at level 3, not dpkg-deb's 6: a tenth larger, and about five times faster on a busy
     # two-core machine (the tests build the package twice). The same bytes whatever the number
     # of threads xz uses.
