@@ -406,7 +406,10 @@ def _follow(
                     heard=heard,
                 )
             finally:
-                tail.terminate()
+                # SIGKILL, not SIGTERM: journalctl 257 (Debian 13) handles SIGTERM in its event
+                # loop, which a write blocked on the full pipe we stopped reading never reaches,
+                # so a wait after SIGTERM waited for ever (SR-13.5).
+                tail.kill()
                 tail.wait()
             if ended:
                 said = tail.stderr.read().decode(errors="replace") if tail.stderr else ""
