@@ -48,6 +48,7 @@ from build_deb import (
     changelog_version,
     dpkg_build,
     gzip_file,
+    install_manuals,
     install_program,
     md5sums,
     normalise,
@@ -136,16 +137,7 @@ def install_files(root: Path, env: dict[str, str]) -> None:
             )  # fmt: skip
         except BuildError as error:
             raise BuildError(f"man pages and completion could not be generated: {error}") from None
-    for page in sorted((generated / "man").iterdir()):
-        section = page.suffix.lstrip(".")
-        if section.isdigit():
-            gzip_file(page, root / f"usr/share/man/man{section}/{page.name}.gz")
-    completions = root / "usr/share/bash-completion/completions"
-    completions.mkdir(parents=True)
-    for name in COMMANDS:
-        shutil.copy2(generated / "completion" / name, completions / name)
-        if not list((root / "usr/share/man").glob(f"man*/{name}.*.gz")):
-            raise BuildError(f"no man page for {name}")
+    install_manuals(generated, root, COMMANDS)
 
 
 def control(root: Path, version: str) -> str:

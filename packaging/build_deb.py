@@ -35,7 +35,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from fnmatch import fnmatchcase
 from pathlib import Path
 
@@ -498,6 +498,12 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
             )
         except BuildError as error:
             raise BuildError(f"man pages and completion could not be generated: {error}") from None
+    install_manuals(generated, root, names)
+
+
+def install_manuals(generated: Path, root: Path, names: Collection[str]) -> None:
+    """The generated man pages (gzipped) and bash completions of ``names`` into ``root``;
+    refused when a command has either missing. The robot's and the collector's package."""
     for page in sorted((generated / "man").iterdir()):
         section = page.suffix.lstrip(".")
         if section.isdigit():
