@@ -459,6 +459,16 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
     put += [(path, DOC / "docs" / path.name) for path in sorted((REPO / "docs").glob("*.md"))]
     put += [(path, DOC / "examples" / path.name) for path in sorted((REPO / "config").glob("*"))]
     put += [(units / "srcs-ros2@.service", DOC / "examples/srcs-ros2@.service")]
+    # The motion service example, its unit and its user, as docs/bringup.md installs them
+    # from here: a team wires its robot from the package, not from a checkout (SR-8.10).
+    put += [
+        (REPO / "examples" / path, DOC / "examples" / Path(path).name)
+        for path in (
+            "motion/robot_motion.py",
+            "systemd/robot-motion@.service",
+            "systemd/robot-motion.conf",
+        )
+    ]
     # The fleet's drop-ins, off until installed (docs/fleet.md "Only the supervisor's
     # entries leave the robot", SR-13.11).
     put += [

@@ -11,7 +11,14 @@ Fail safe (SR-1.3, SR-4): the wheel is set to 0 before anything else, when the s
 the supervisor is lost; a lost connection ends the program with status 1, and systemd starts it
 again behind ``srcsctl wait-ready`` (examples/systemd/robot-motion@.service).
 
-usage: robot_motion.py [--socket PATH] [--name NAME] [--wheel FILE] [--speed S]
+Which supervisor: ``-R NAME`` reads the socket from the robot's config ``/etc/srcs/NAME.toml``
+and ``--config FILE`` from that file, as ``srcsctl -R`` and ``srcsctl --config`` do (the same
+reader, :mod:`supervisord.config.client`), so the program and its unit's ``srcsctl -R %i
+wait-ready`` gate cannot disagree on the socket, whether the robot is alone on its computer
+(``/run/srcsd/api.sock``) or one of several (SR-8.10). ``--socket PATH`` names it directly.
+
+usage: robot_motion.py [-R NAME | --config FILE | --socket PATH] [--name NAME] [--wheel FILE]
+                       [--speed S]
 """
 
 from __future__ import annotations
@@ -26,11 +33,13 @@ from types import FrameType
 
 from supervisord.api.pushes import StatePush
 from supervisord.client import DEFAULT_SOCKET_PATH, SupervisorClient
-from supervisord.errors import SrcsError
+from supervisord.config.client import load_client_config
+from supervisord.errors import ConfigError, SrcsError
 from supervisord.vocabulary import State
 
 HEARTBEAT_S = 0.1  # 10 Hz: well inside the [[clients]] entry's timeout_ms (docs/api.md)
 REPLY_TIMEOUT_S = 5.0
+CONFIG_DIR = Path("/etc/srcs")  # srcsd@NAME reads /etc/srcs/NAME.toml (docs/install.md)
 
 
 class Wheel:
@@ -87,9 +96,22 @@ class Motion:
         self.stopping = True
 
 
+def supervisor_socket(args: argparse.Namespace) -> Path:
+    """The client socket: the robot's config's ``[api] socket`` (``-R``, ``--config``), else
+    ``--socket``, else the default. Raises :class:`ConfigError` for a missing or bad config."""
+    if args.robot:
+        return load_client_config(CONFIG_DIR / f"{args.robot}.toml").socket
+    if args.config:
+        return load_client_config(args.config).socket
+    return Path(args.socket or DEFAULT_SOCKET_PATH)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--socket", default=str(DEFAULT_SOCKET_PATH), help="srcsd's client socket")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("-R", "--robot", metavar="NAME", help="the robot of srcsd@NAME")
+    where.add_argument("--config", metavar="FILE", help="the robot's config: its [api] socket")
+    where.add_argument("--socket", help=f"srcsd's client socket (default {DEFAULT_SOCKET_PATH})")
     parser.add_argument("--name", default="motion", help="the name under [[clients]]")
     parser.add_argument("--wheel", default="wheel", help="the simulated wheel's file")
     parser.add_argument("--speed", type=float, default=0.5, help="the speed in RUN, m/s")
@@ -97,10 +119,15 @@ def main(argv: list[str] | None = None) -> int:
     wheel = Wheel(Path(args.wheel))
     wheel.set(0.0)  # before the supervisor is even asked: the wheel stands
     try:
-        with SupervisorClient.connect(args.socket, args.name, timeout=REPLY_TIMEOUT_S) as client:
+        socket = supervisor_socket(args)
+    except ConfigError as error:
+        print(f"robot-motion: {error}", file=sys.stderr, flush=True)
+        return 2
+    try:
+        with SupervisorClient.connect(socket, args.name, timeout=REPLY_TIMEOUT_S) as client:
             motion = Motion(client, wheel, args.speed)
             signal.signal(signal.SIGTERM, motion.stop)
-            print(f"robot-motion: {args.name} connected to {args.socket}", flush=True)
+            print(f"robot-motion: {args.name} connected to {socket}", flush=True)
             motion.run()
             client.command(False)
     except (SrcsError, OSError) as error:

@@ -11,6 +11,12 @@ publishes it on ``ready`` (docs/srcsctl.md "Starting behind the supervisor").
 A required client is not part of it (SR-8.15): its own service may start behind the gate, and
 the proof test runs without it. What it still keeps from RUN is said apart (:func:`for_run`).
 
+Each part missing names what fixes it (SR-8.18): the VSC's watchdog off, the command that
+commissions it (``srcsctl -R ROBOT commission``, with the way this ``srcsctl`` reached the
+daemon: :func:`srcsctl_for`); the link not open, why it last failed (a device the daemon may
+not open names its group and ``usermod -aG``, :mod:`supervisord.links.base`); a required client
+not there, the program to start.
+
 Ready is not *re-armable*: a takeover is accepted only once every stop condition has been clear
 for ``rearm.hold_ms`` (SR-4.1), so one right after ready may still be refused. When it will be
 accepted is said too (:func:`takeover_said`), and ``wait-ready --rearmable`` waits for it
@@ -19,7 +25,9 @@ accepted is said too (:func:`takeover_said`), and ``wait-ready --rearmable`` wai
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Mapping
+from pathlib import PurePosixPath
 from typing import Final
 
 from supervisord.api.replies import StatusReply
@@ -51,15 +59,80 @@ _CLIENT_REASONS: Final[Mapping[str, str]] = {
 }
 
 
-def missing(status: StatusReply) -> list[str]:
-    """What keeps the supervisor whose ``status`` reply this is from being ready, in words;
-    empty when it is ready."""
+CONFIG_DIR: Final = "/etc/srcs"
+"""Where ``srcsd@NAME`` reads ``NAME.toml`` (docs/install.md): a config there is ``-R NAME``."""
+DEFAULT_SRCSCTL: Final = "srcsctl -R ROBOT"
+"""How a text names the command when it does not know how the daemon is reached."""
+
+
+def srcsctl_for(
+    *,
+    robot: str | None = None,
+    config: str | None = None,
+    socket: str | None = None,
+    demo: bool = False,
+) -> str:
+    """The ``srcsctl`` command line that reaches this daemon, to name in a fix: ``-R NAME``
+    for a robot (or a config in /etc/srcs), else ``--config FILE``, ``--socket PATH``,
+    ``--demo``; the placeholder ``-R ROBOT`` when none is known."""
+    if robot:
+        return f"srcsctl -R {robot.removeprefix('srcsd@').removesuffix('.service')}"
+    if demo:
+        return "srcsctl --demo"
+    if config:
+        path = PurePosixPath(config)
+        if str(path.parent) == CONFIG_DIR and path.suffix == ".toml" and _plain(path.stem):
+            return f"srcsctl -R {path.stem}"
+        return f"srcsctl --config {shlex.quote(config)}"
+    if socket:
+        return f"srcsctl --socket {shlex.quote(socket)}"
+    return DEFAULT_SRCSCTL
+
+
+def _plain(name: str) -> bool:
+    return bool(name) and shlex.quote(name) == name and not name.startswith("-")
+
+
+def commission_fix(srcsctl: str = DEFAULT_SRCSCTL) -> str:
+    """What turns the VSC's key-85 watchdog on: commissioning it, once per VSC (SR-8.18)."""
+    return (
+        f"commission the VSC once: {srcsctl} commission "
+        "(as root or a member of the config's api.admin_group, srcs-admin as installed)"
+    )
+
+
+def key85_read_off(status: StatusReply) -> bool:
+    """Whether the VSC answered key 85 with a value other than 1: its watchdog is off and
+    commissioning is the fix. Not before it answered (``key85 = "no answer"``): a VSC not
+    heard yet, or heard and not asked yet, is no reason to commission (SR-8.18)."""
+    for cause in status.report.causes:
+        if cause.active and cause.kind is CauseKind.VSC_WATCHDOG_OFF:
+            return cause.details.get("key85", NO_ANSWER) != NO_ANSWER
+    return False
+
+
+NO_ANSWER: Final = "no answer"
+"""``vsc_watchdog_off``'s ``key85`` detail before the VSC answered."""
+
+
+def missing(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> list[str]:
+    """What keeps the supervisor whose ``status`` reply this is from being ready, in words,
+    each with what fixes it (SR-8.18; ``srcsctl``: how the fix names the command, as
+    :func:`srcsctl_for` says); empty when it is ready."""
     gaps: list[str] = []
     link = status.daemon.loop.link
     if not link.open:
-        gaps.append(f"the link to the VSC is not open ({link.description})")
+        why = f": {link.last_error}" if link.last_error else ""
+        gaps.append(f"the link to the VSC is not open ({link.description}{why})")
     active = status.report.active_kinds()
-    gaps += [text for kind, text in BLOCKING_CAUSES.items() if kind in active]
+    read_off = key85_read_off(status)
+    gaps += [
+        f"{text}: {commission_fix(srcsctl)}"
+        if kind is CauseKind.VSC_WATCHDOG_OFF and read_off
+        else text
+        for kind, text in BLOCKING_CAUSES.items()
+        if kind in active
+    ]
     proof = status.report.prooftest
     if proof is not None and not proof.proven:
         waits = _proof_waits_for(status) if proof.phase is Phase.WAITING else []
@@ -78,8 +151,16 @@ def for_run(status: StatusReply) -> list[str]:
     for cause in status.report.causes:
         if cause.active and cause.kind is CauseKind.CLIENT_LOST:
             how = _CLIENT_REASONS.get(cause.details.get("reason", ""), "lost")
-            said.append(f"required client `{cause.name.subject}` {how}")
+            said.append(f"required client `{cause.name.subject}` {how}{_client_fix(how)}")
     return said
+
+
+def _client_fix(how: str) -> str:
+    """What brings a required client back (SR-8.18): the program that says hello under its
+    name, started as the user its ``[[clients]]`` entry binds it to."""
+    if how == "not connected":
+        return " (start its program, as the user its [[clients]] entry names)"
+    return ""
 
 
 def for_takeover(status: StatusReply) -> list[str]:

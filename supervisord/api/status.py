@@ -82,7 +82,8 @@ class RearmStatus(Wire):
 @dataclass(frozen=True, slots=True, kw_only=True)
 class LinkStatus(Wire):
     """The link to the VSC: ``since_s`` since it last opened or broke, ``last_error`` why it
-    last broke or failed to open, ``error_frames`` CAN's error frames (``None`` elsewhere)."""
+    last broke or failed to open (``None`` once it opened again, SR-8.18), ``error_frames``
+    CAN's error frames (``None`` elsewhere)."""
 
     description: str
     open: bool

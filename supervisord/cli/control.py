@@ -25,6 +25,7 @@ from supervisord.api.framing import ApiError, ErrorCode, operator_socket_path
 from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.ops import StartProofTest
 from supervisord.api.pushes import JoystickPush, Push, RecordPush, RemoteStatusPush, StatePush
+from supervisord.api.readiness import DEFAULT_SRCSCTL, missing, srcsctl_for
 from supervisord.api.status import Cause, ClientStatus, EstopAvailable, Maintenance, RemoteReport
 from supervisord.cli import numbers
 from supervisord.cli.interrupt import interruptible
@@ -234,7 +235,9 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO, stdin: TextIO = sys.
         return _watch(path, operator, args, out, err)
     try:
         if args.command == "wait-ready":
-            return wait_ready(path, args.timeout, out, err, rearmable=args.rearmable)
+            return wait_ready(
+                path, args.timeout, out, err, rearmable=args.rearmable, srcsctl=reached_by(args)
+            )
         if args.command == "stoptest":
             return on_either(
                 path,
@@ -374,7 +377,7 @@ def _one_shot(client: SupervisorClient, args: argparse.Namespace, out: TextIO) -
         if args.json:
             print(json.dumps(status.json(), sort_keys=True), file=out)
         else:
-            out.write(format_status(status))
+            out.write(format_status(status, reached_by(args)))
         return 0
     if command in ("estop", "hold", "release"):
         holding = command == "hold" or (command == "release" and args.what == "hold")
@@ -452,8 +455,20 @@ def _display(client: SupervisorClient, args: argparse.Namespace) -> None:
 # -- status --------------------------------------------------------------------------------
 
 
-def format_status(status: StatusReply) -> str:
-    """The human form of a ``status`` reply (``docs/api.md``)."""
+def reached_by(args: argparse.Namespace) -> str:
+    """The ``srcsctl`` line that reaches the daemon as this command did, for a fix to name
+    (SR-8.18): ``srcsctl -R robot-a`` after ``-R robot-a``."""
+    return srcsctl_for(
+        robot=getattr(args, "robot", None),
+        config=getattr(args, "config", None),
+        socket=getattr(args, "socket", None),
+        demo=bool(getattr(args, "demo", False)),
+    )
+
+
+def format_status(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> str:
+    """The human form of a ``status`` reply (``docs/api.md``); what keeps it from being
+    ready is said with its fix, the command named as ``srcsctl`` (SR-8.18)."""
     from supervisord.cli.record_text import MARK_MEANS, verdict  # noqa: PLC0415 -- when used (SR-8.8)
 
     report, daemon = status.report, status.daemon
@@ -490,6 +505,8 @@ def format_status(status: StatusReply) -> str:
         lines.append(f"  {label:8} {_cause_text(cause)}")
     if any(cause.held for cause in report.causes):
         lines.append(f"           {MARK_MEANS}")
+    for index, gap in enumerate(missing(status, srcsctl)):
+        lines.append(f"  {'ready' if index == 0 else '':8} {'no: ' if index == 0 else ''}{gap}")
     levels = " ".join(f"{name}={'ON' if on else 'off'}" for name, on in report.outputs.items())
     lines.append(f"  outputs  {levels or 'none'}")
     lines.append(f"  to VSC   heartbeat e-stop byte {report.heartbeat_estop}")

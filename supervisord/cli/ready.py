@@ -9,7 +9,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final, TextIO
 
-from supervisord.api.readiness import for_run, for_takeover, missing, takeover_said
+from supervisord.api.readiness import (
+    DEFAULT_SRCSCTL,
+    for_run,
+    for_takeover,
+    missing,
+    takeover_said,
+)
 from supervisord.api.replies import StatusReply
 from supervisord.client import ClientError, ConnectError, SupervisorClient
 
@@ -29,17 +35,19 @@ def wait_ready(
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
     rearmable: bool = False,
+    srcsctl: str = DEFAULT_SRCSCTL,
 ) -> int:
     """Ask ``status`` until the supervisor at ``path`` is ready (exit 0) or ``timeout_s``
     passed: then exit 1 naming what is missing, or 3 when no supervisor answered at all. A
     line goes to ``err`` whenever what is missing changes, so a unit's journal shows the
     wait. The ready line says when a takeover will be accepted; with ``rearmable`` it waits
-    for that too (SR-8.10: a takeover then is accepted, the operator's act aside)."""
+    for that too (SR-8.10: a takeover then is accepted, the operator's act aside). Each part
+    missing is said with its fix, a command named as ``srcsctl`` reaches this daemon (SR-8.18)."""
     deadline = clock() + timeout_s
     said: list[str] | None = None
     while True:
         status = _status(path)
-        gaps, also = (None, "") if status is None else _judged(status, rearmable)
+        gaps, also = (None, "") if status is None else _judged(status, rearmable, srcsctl)
         if status is not None and gaps is not None and not gaps:
             print(f"wait-ready: ready ({path}){takeover_said(status)}{also}", file=out)
             return 0
@@ -72,11 +80,11 @@ def _status(path: Path) -> StatusReply | None:
         return None
 
 
-def _judged(status: StatusReply, rearmable: bool) -> tuple[list[str], str]:
+def _judged(status: StatusReply, rearmable: bool, srcsctl: str) -> tuple[list[str], str]:
     """What is missing for ready (with ``rearmable``, for a takeover to be accepted too), and
     what else RUN still needs said as a tail (SR-8.15: a required client, which the gate does
     not wait for: its service may be behind it)."""
-    gaps = missing(status)
+    gaps = missing(status, srcsctl)
     if rearmable:
         gaps += for_takeover(status)
     also = [] if rearmable else for_run(status)  # rearmable: a client in the way is a gap

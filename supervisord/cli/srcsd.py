@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Final, TextIO
 
 from supervisord import __version__
+from supervisord.api.readiness import srcsctl_for
 from supervisord.cli.access import advice
 from supervisord.config import check_config_main
 from supervisord.config.check import report_lines
@@ -249,6 +250,7 @@ def _serve(path: str, log: logging.Logger) -> int:
         hint = advice(error.path, error.errno) if isinstance(error, RecordError) else ""
         log.error("cannot start: %s%s", error, hint)
         return EXIT_CANNOT_START
+    supervisor.srcsctl = srcsctl_for(config=path)  # how its fixes name srcsctl (SR-8.18)
     log.info(
         "srcsd %s, robot %s: %s, %d outputs",
         __version__,

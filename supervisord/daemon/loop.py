@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from supervisord import __version__
+from supervisord.api.readiness import DEFAULT_SRCSCTL, NO_ANSWER, commission_fix
 from supervisord.api.status import LinkStatus, LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
@@ -68,6 +69,7 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
+from supervisord.vocabulary import STOP_PATH_CAUSES, CauseKind
 
 log = logging.getLogger("srcsd")
 
@@ -78,6 +80,7 @@ ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could 
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 _REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
+OFF_KIND = CauseKind.VSC_WATCHDOG_OFF
 
 
 @dataclass
@@ -199,6 +202,11 @@ class Supervisor:
     the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
     fed the same inputs and checks that both do the same (SR-9.4)."""
 
+    # How a fix names the command that reaches this daemon (SR-8.18): set by srcsd from its
+    # config's path (``srcsctl -R robot-a``); said when the VSC's watchdog is found off.
+    srcsctl: str = DEFAULT_SRCSCTL
+    _said_watchdog_off: bool = False
+
     def __init__(
         self,
         safety: SafetyConfig,
@@ -273,7 +281,7 @@ class Supervisor:
         # each: the API pushes the typed record itself, never one read back from its JSON.
         self._in_sink: dict[int, StopRecord] = {}
         self._link_since_ns: int | None = None  # when the link last opened or broke
-        self._link_error: str | None = None  # why it last broke or failed to open
+        self._link_error: str | None = None  # why it broke or failed to open, until it opens
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
         self.flight: FlightRecorder | None = None
         self._flight_writer: FlightWriter | None = None
@@ -674,7 +682,9 @@ class Supervisor:
             return
         self.backoff.succeeded()
         self.counters.link_opens += 1
-        self._link_since_ns = now
+        # The error said why the link was not open; open, it is history (its count stays in
+        # open_failures, the break in the record): status shows none from before (SR-8.18).
+        self._link_since_ns, self._link_error = now, None
         # A period across a reopen would measure the outage, not the cadence: start afresh
         # (the outage shows in the link's counters).
         self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
@@ -899,6 +909,18 @@ class Supervisor:
         if status != self._status:
             self._status = status
             self.notifier.send(STATUS=status)
+        off = any(
+            state.active
+            and state.cause.kind is OFF_KIND
+            and state.detail("key85") not in (None, NO_ANSWER)
+            for state in decision.causes
+        )
+        if off and not self._said_watchdog_off:
+            # Said each time the VSC answers key 85 with another value than 1, with its fix
+            # (SR-8.18): a VSC fresh from the box has key 85 off, and the gate (SR-8.10) waits
+            # for it at every start. Not before it answered: a commissioned VSC is not read yet.
+            log.warning("%s: %s", STOP_PATH_CAUSES[OFF_KIND], commission_fix(self.srcsctl))
+        self._said_watchdog_off = off
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened

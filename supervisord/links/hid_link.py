@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 
 from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
+from supervisord.links.denied import denied_advice
 from supervisord.protocol.hid import HidOutput, decode_hid_input, encode_hid_output
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 
@@ -40,7 +41,9 @@ class HidLink(Link):
             try:
                 self._fd = os.open(self._path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC)
             except OSError as error:
-                raise LinkError(error.strerror or str(error)) from error
+                # A device the daemon may not open names its group and the fix (SR-8.18).
+                reason = (error.strerror or str(error)) + denied_advice(self._path, error)
+                raise LinkError(reason) from error
 
     def fileno(self) -> int | None:
         return self._fd

@@ -8,6 +8,7 @@ import os
 import serial
 
 from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
+from supervisord.links.denied import denied_advice
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import Message, UserHeartbeat
 
@@ -46,7 +47,8 @@ class SerialLink(Link):
         try:
             port = serial.Serial(self._path, BAUD, timeout=0, write_timeout=0, exclusive=True)
         except (serial.SerialException, OSError, ValueError) as error:
-            raise LinkError(_short(error)) from error
+            # A device the daemon may not open names its group and the fix (SR-8.18).
+            raise LinkError(_short(error) + denied_advice(self._path, error)) from error
         try:
             # Discard what waited in the port (tcflush TCIFLUSH): a VSC's old heartbeats must
             # never be read as current (SR-2.2, SR-2.11: a heartbeat counts from

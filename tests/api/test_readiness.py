@@ -5,15 +5,18 @@ daemon writes them; the waiting itself runs against the real daemon in
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import pytest
 
 from supervisord.api.readiness import (
     BLOCKING_CAUSES,
     OURS_IN_THE_WAY,
+    commission_fix,
     for_run,
     for_takeover,
     missing,
+    srcsctl_for,
     takeover_said,
 )
 from supervisord.api.replies import StatusReply
@@ -102,7 +105,7 @@ def test_a_closed_link_and_outputs_not_held_are_named() -> None:
     )
     reply = dataclasses.replace(reply, daemon=dataclasses.replace(reply.daemon, loop=loop))
     assert missing(reply) == [
-        "the link to the VSC is not open (serial /dev/srcs-vsc)",
+        "the link to the VSC is not open (serial /dev/srcs-vsc: no such device)",
         "outputs not held by the supervisor: drive, brake",
     ]
 
@@ -124,7 +127,8 @@ def test_a_missing_required_client_is_no_gap_and_is_named_for_run() -> None:
     reply = with_details(reply, "client_lost:bridge", reason="timeout")
     assert missing(reply) == []
     assert for_run(reply) == [
-        "required client `motion` not connected",
+        "required client `motion` not connected (start its program, as the user its "
+        "[[clients]] entry names)",
         "required client `bridge` silent for its timeout",
     ]
     assert for_run(latched_only(reply)) == []
@@ -200,3 +204,36 @@ def test_rearm_status_follows_the_cores_hold() -> None:
     assert rearm_status(rig.last, rig.now, hold_ms) == RearmStatus(
         hold_ms=hold_ms, clear_for_s=None, accepted_in_s=None
     )
+
+
+def test_the_watchdog_off_names_the_command_that_commissions_this_robot() -> None:
+    """SR-8.18: key 85 read off names ``commission`` with the robot the caller named, and who
+    may run it; key 85 not answered yet names nothing to do."""
+    how = srcsctl_for(robot="srcsd@robot-a.service")
+    read = with_details(status("vsc_watchdog_off"), "vsc_watchdog_off", key85="0")
+    (gap,) = missing(read, how)
+    assert gap == f"the VSC's key-85 watchdog is off: {commission_fix(how)}"
+    assert "srcsctl -R robot-a commission (as root or a member of" in gap
+    # Not before the VSC answered: a VSC not heard, or not asked yet, needs no commissioning.
+    unread = with_details(status("vsc_watchdog_off"), "vsc_watchdog_off", key85="no answer")
+    assert missing(unread, how) == ["the VSC's key-85 watchdog is off"]
+
+
+@pytest.mark.parametrize(
+    ("given", "said"),
+    [
+        ({"robot": "robot-a"}, "srcsctl -R robot-a"),
+        ({"config": "/etc/srcs/robot-b.toml"}, "srcsctl -R robot-b"),
+        ({"config": "/home/me/robot c.toml"}, "srcsctl --config '/home/me/robot c.toml'"),
+        ({"config": "/etc/srcs/sub/robot.toml"}, "srcsctl --config /etc/srcs/sub/robot.toml"),
+        ({"socket": "/run/srcsd/api.sock"}, "srcsctl --socket /run/srcsd/api.sock"),
+        ({"demo": True}, "srcsctl --demo"),
+        ({}, "srcsctl -R ROBOT"),
+    ],
+)
+def test_the_fix_names_srcsctl_as_the_caller_reached_the_daemon(
+    given: dict[str, Any], said: str
+) -> None:
+    """SR-8.18: a config in /etc/srcs is its robot (``-R``, as srcsd@NAME reads it); any
+    other names itself, quoted for a shell."""
+    assert srcsctl_for(**given) == said

@@ -21,6 +21,7 @@ import pytest
 from supervisord import __version__
 from supervisord.cli import reference
 from supervisord.cli.reference import COMMANDS, Command
+from supervisord.testkit.namespaces import in_private_mount
 
 REPO = Path(__file__).resolve().parents[2]
 BASH_COMPLETION = Path("/usr/share/bash-completion/bash_completion")
@@ -382,3 +383,56 @@ def test_an_interactive_bash_completes_srcsctl_sta_to_status(
         os.killpg(shell.pid, signal.SIGKILL)
         shell.wait(10)
         os.close(controller)
+
+
+COMPLETE_ROBOTS = r"""
+source "$1"
+fn=$(complete -p srcsctl | sed -E 's/.* -F ([^ ]+) .*/\1/')
+while IFS= read -r typed; do
+    read -ra COMP_WORDS <<< "$typed"
+    [ "${typed: -1}" = " " ] && COMP_WORDS+=("")
+    COMP_CWORD=$(( ${#COMP_WORDS[@]} - 1 ))
+    COMP_LINE="$typed"
+    COMP_POINT=${#COMP_LINE}
+    COMPREPLY=()
+    "$fn" srcsctl "${COMP_WORDS[COMP_CWORD]}" "${COMP_WORDS[COMP_CWORD-1]}" 2>/dev/null
+    printf '%s\n' "${COMPREPLY[*]}"
+done
+"""
+
+
+@pytest.mark.skipif(
+    os.geteuid() != 0 or shutil.which("unshare") is None, reason="needs root and unshare"
+)
+def test_bash_completes_robot_names_from_the_installed_configs(
+    tmp_path: Path, completion_dir: Path
+) -> None:
+    """SR-0.2: ``-R``/``--robot`` completes with the robots of ``/etc/srcs/*.toml`` as they
+    are when TAB is pressed (a robot added later is offered), at the top level and after a
+    command; other files there are not robots. /etc/srcs is given in a mount namespace of the
+    test's own (an overlay on /etc that goes away with it): this machine's /etc is untouched."""
+    upper, work = tmp_path / "upper", tmp_path / "work"
+    (upper / "srcs").mkdir(parents=True)
+    work.mkdir()
+    for name in ("robot-a.toml", "mower-3.toml", "notes.txt"):
+        (upper / "srcs" / name).write_text("")
+    mount = f"mount -t overlay overlay -o lowerdir=/etc,upperdir={upper},workdir={work} /etc"
+    typed = [
+        "srcsctl -R ",
+        "srcsctl status --robot ",
+        "srcsctl wait-ready -R ro",
+        "srcsctl log -R ",
+    ]
+    bash = [BASH, "--norc", "--noprofile", "-c", COMPLETE_ROBOTS, "-"]
+    result = subprocess.run(
+        in_private_mount(mount, upper, [*bash, str(completion_dir / "srcsctl")]),
+        input="".join(f"{line}\n" for line in typed),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    offered = [sorted(line.split()) for line in result.stdout.splitlines()]
+    both = ["mower-3", "robot-a"]
+    assert offered == [both, both, ["robot-a"], both], result.stdout

@@ -119,9 +119,10 @@ def test_wait_ready_says_when_a_takeover_is_accepted(tmp_path: Path) -> None:
 def test_wait_ready_names_a_missing_required_client_and_what_the_proof_test_waits_for(
     tmp_path: Path,
 ) -> None:
-    """SR-8.15, SR-8.10: while it waits, and when it gives up, ``wait-ready`` names each part
-    missing in words: the VSC not heard, key 85 unread, the proof test with what it waits for, the
-    required client ``motion`` by its name, as something RUN needs and ready does not."""
+    """SR-8.15, SR-8.10, SR-8.18: while it waits, and when it gives up, ``wait-ready`` names each
+    part missing in words: the VSC not heard, key 85 unread, the proof test with what it waits
+    for, the required client ``motion`` by its name and what brings it, as something RUN needs
+    and ready does not."""
     config = tmp_path / "robot.toml"
     config.write_text(MINIMAL_CONFIG + '[[clients]]\nname = "motion"\n')
     with PtyPort(tmp_path / "vsc"), SrcsdProcess(config).start():
@@ -136,10 +137,13 @@ def test_wait_ready_names_a_missing_required_client_and_what_the_proof_test_wait
     parts = (
         "the VSC is not heard; the VSC's key-85 watchdog is off; the proof test of the VSC's "
         "watchdog has not passed (waiting for the VSC to be heard and key 85 to read 1); also "
-        "missing for RUN, not for ready: required client `motion` not connected"
+        "missing for RUN, not for ready: required client `motion` not connected (start its "
+        "program, as the user its [[clients]] entry names)"
     )
     assert f"wait-ready: waiting for: {parts}\n" in silent.stderr
     assert f"wait-ready: not ready after 1 s: {parts}\n" in silent.stderr
+    # Key 85 not read yet (the VSC not heard): no commissioning is asked for (SR-8.18).
+    assert "commission" not in silent.stderr
 
 
 def test_wait_ready_names_a_stop_of_ours_that_keeps_the_proof_test_waiting(

@@ -753,3 +753,35 @@ def test_status_says_whether_the_remote_estop_is_available(robot: Robot) -> None
     unlinked = "no remote is linked to the VSC (its mode is searching)"
     _available_when(robot, lambda a: a["missing"] == [unlinked])
     assert robot.status()["state"] == "STOPPED"
+
+
+def test_a_vsc_with_its_watchdog_off_names_the_command_that_commissions_it(
+    tmp_path: Path,
+) -> None:
+    """SR-8.18: a VSC fresh from the box (key 85 = 0): ``wait-ready`` at its timeout,
+    ``status`` and the daemon's log each name ``srcsctl ... commission`` with the way this
+    daemon is reached, and who may run it; once commissioned the gate opens."""
+    config = tmp_path / "robot.toml"
+    config.write_text(CONFIG)
+    log = tmp_path / "srcsd.log"
+    fix = f"commission the VSC once: srcsctl --config {config} commission"
+    with PtyPort(tmp_path / "vsc") as port:
+        peer = VscPeer(port, key85=0)
+        with (
+            SrcsdProcess(config, log=log).start(serve=peer.serve),
+            peer.serving(),
+        ):
+            robot = Robot(tmp_path, peer)
+            wait_until(lambda: "vsc_watchdog_off" in robot.active(), what="vsc_watchdog_off")
+            gate = robot.ctl("wait-ready", "--timeout", "1")
+            assert gate.returncode == 1, gate.stderr
+            assert f"the VSC's key-85 watchdog is off: {fix}" in gate.stderr
+            assert "api.admin_group" in gate.stderr
+            shown = robot.ctl("status")
+            assert f"  ready    no: the VSC's key-85 watchdog is off: {fix}" in shown.stdout
+            wait_until(lambda: fix in log.read_text(), what="the fix in the daemon's log")
+            done = robot.ctl("commission", "--yes")
+            assert done.returncode == 0, done.stderr
+            opened = robot.ctl("wait-ready", "--timeout", "30")
+            assert opened.returncode == 0, opened.stderr
+            assert "  ready    " not in robot.ctl("status").stdout

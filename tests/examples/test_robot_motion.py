@@ -49,12 +49,17 @@ def test_the_motion_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
 
 def test_the_motion_unit_is_bound_to_srcsd_and_gated_by_wait_ready() -> None:
     """SR-8.10, SR-8.15: the unit starts behind the gate on its robot's socket, after srcsd@ and
-    bound to it (stopped and restarted with it), restarted on failure, as its own user."""
+    bound to it (stopped and restarted with it), restarted on failure, as its own user. The
+    program reads the socket from the robot's config (``-R %i``) as the gate does: no socket
+    of its own that could differ from the config's."""
     lines = set(UNIT.read_text().splitlines())
+    assert not [line for line in lines if "--socket" in line or "/run/srcsd" in line]
     for line in (
         "BindsTo=srcsd@%i.service",
         "After=srcsd@%i.service",
         "ExecStartPre=/usr/bin/srcsctl -R %i wait-ready --timeout 60",
+        "ExecStart=/opt/srcsd/bin/python3 /usr/local/lib/robot-motion/robot_motion.py -R %i "
+        "--name motion --wheel /run/robot-motion/%i/wheel",
         "Restart=on-failure",
         "User=robot-motion",
         "SupplementaryGroups=srcsd",
@@ -70,14 +75,16 @@ def wheel(path: Path) -> float | None:
 
 
 def test_the_motion_example_drives_only_in_run_and_stops_its_wheel(tmp_path: Path) -> None:
-    """SR-1.3, SR-4, SR-8.15: the example, the required client ``motion``, clears
+    """SR-1.3, SR-4, SR-8.10, SR-8.15: the example, the required client ``motion``, finds the
+    socket in the robot's config (``--config``; the test robot's is not the default) and clears
     ``client_lost:motion``; its wheel stands while STOPPED, turns after the operator's takeover
     (RUN), stands again on the remote's e-stop, and stands when SIGTERM ends the program
     (exit 0)."""
     wheel_file = tmp_path / "wheel"
     with Robot(tmp_path / "robot", clients=("motion",)) as robot:
         env = {**os.environ, "PYTHONPATH": str(REPO)}
-        command = [sys.executable, str(PROGRAM), "--socket", str(robot.socket_path)]
+        # Its socket from the robot's config, as the unit's -R %i reads /etc/srcs/%i.toml.
+        command = [sys.executable, str(PROGRAM), "--config", str(robot.config_path)]
         command += ["--wheel", str(wheel_file), "--speed", "0.4"]
         with subprocess.Popen(command, env=env) as program:
             try:
@@ -98,3 +105,19 @@ def test_the_motion_example_drives_only_in_run_and_stops_its_wheel(tmp_path: Pat
             finally:
                 if program.poll() is None:
                     program.kill()
+
+
+def test_the_motion_example_refuses_a_missing_config_with_its_name(tmp_path: Path) -> None:
+    """SR-8.10: a robot without its config is a typed refusal naming the file (status 2), not a
+    traceback, and the wheel stands."""
+    wheel_file = tmp_path / "wheel"
+    missing = tmp_path / "robot-z.toml"
+    command = [sys.executable, str(PROGRAM), "--config", str(missing), "--wheel", str(wheel_file)]
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    result = subprocess.run(
+        command, env=env, capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 2, result.stderr
+    assert str(missing) in result.stderr
+    assert "Traceback" not in result.stderr
+    assert wheel(wheel_file) == 0.0

@@ -187,3 +187,22 @@ def test_local_estop_stops_and_reaches_the_vsc(tmp_path: Path) -> None:
         assert done.returncode == 0, done.stderr
         robot.vsc.wait_for(lambda s: s["estop"] == 0, 2.0)
         robot.recover(stop)
+
+
+def test_a_link_that_opened_again_shows_no_error_from_before(tmp_path: Path) -> None:
+    """SR-8.18: ``status``'s link error is why the link is not open; once it opened again the
+    error from before is gone (its count stays), and ``srcsctl status`` shows no ``last
+    error`` (a team read an unplug's error, long fixed, as the fault of the day)."""
+    from supervisord.cli.control import format_status  # noqa: PLC0415
+
+    with Robot(tmp_path) as robot:
+        opens = robot.counters().link.opens
+        robot.vsc.unplug()
+        wait_until(lambda: not robot.counters().link.open, what="the link broken")
+        assert robot.counters().link.last_error
+        robot.vsc.replug()
+        wait_until(lambda: robot.counters().link.opens > opens, what="the reopen")
+        wait_until(lambda: robot.counters().link.open, what="the link open")
+        link = robot.counters().link
+        assert link.last_error is None, link.last_error
+        assert "last error" not in format_status(robot.status())

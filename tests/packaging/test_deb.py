@@ -152,6 +152,9 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         f"{doc}/examples/example-can.toml",
         f"{doc}/examples/prometheus/srcs-alerts.yml",
         f"{doc}/examples/srcsd.schema.json",
+        f"{doc}/examples/robot_motion.py",
+        f"{doc}/examples/robot-motion@.service",
+        f"{doc}/examples/robot-motion.conf",
         "/opt/srcsd/lib/python3/site-packages/supervisord/cli/demo.toml",
         "/usr/share/man/man8/srcsd.8.gz",
         "/usr/share/man/man1/srcsctl.1.gz",
@@ -170,6 +173,24 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
     assert all(" root/root " in line for line in listing.values())
     assert "/opt/srcsd/bin/srcsd -> " not in listing["/opt/srcsd/bin/srcsd"]  # a file
     assert listing["/usr/sbin/srcsd"].endswith("-> /opt/srcsd/bin/srcsd")
+
+
+def test_the_motion_example_ships_as_in_the_source(unpacked: Path) -> None:
+    """SR-0.2, SR-8.10: the motion service example, its unit and its user are in the package,
+    where docs/bringup.md installs them from, the same bytes as examples/, not executable
+    (documentation), and the unit reads the robot's socket from its config (``-R %i``)."""
+    doc = unpacked / "usr/share/doc/srcs-supervisord/examples"
+    for source in (
+        "motion/robot_motion.py",
+        "systemd/robot-motion@.service",
+        "systemd/robot-motion.conf",
+    ):
+        shipped = doc / Path(source).name
+        assert shipped.read_bytes() == (ROOT / "examples" / source).read_bytes(), source
+        assert not shipped.stat().st_mode & 0o111, source
+    unit = (doc / "robot-motion@.service").read_text()
+    assert "robot_motion.py -R %i " in unit
+    assert "--socket" not in unit
 
 
 def test_the_unit_runs_the_packaged_program(unpacked: Path) -> None:
@@ -486,6 +507,21 @@ def test_copyright_covers_every_bundled_distribution(unpacked: Path) -> None:
     assert "Distribution: wrapt" not in without
     with pytest.raises(build_deb.BuildError, match="wrapt"):
         build_deb.check_copyright(site, without)
+
+
+def test_the_first_install_hint_runs_on_a_minimal_system(unpacked: Path) -> None:
+    """SR-0.2, SR-8.18: the next steps a first install prints are commands a minimal Debian
+    has (coreutils, systemd: a dependency) or the package's own, never ``editor`` (absent
+    from a minimal system: the file to edit is named), and end with commissioning the VSC."""
+    text = (unpacked / "DEBIAN/postinst").read_text()
+    block = text.split("<<'NEXT'\n", 1)[1].split("\nNEXT", 1)[0]
+    steps = [line.strip() for line in block.splitlines()[1:]]
+    present = {"cp", "systemctl", "srcsd", "srcsctl"}
+    for step in steps:
+        if not step.startswith("#"):
+            assert step.split()[0] in present, step
+    assert "srcsctl -R ROBOT commission" in block
+    assert "/etc/srcs/ROBOT.toml" in block
 
 
 def test_postinst_compiles_for_the_installed_python(deb: Path, tmp_path: Path) -> None:

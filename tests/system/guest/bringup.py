@@ -10,7 +10,6 @@ starts the robot if an earlier one did not leave it up, so each also runs alone.
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import time
 import urllib.request
@@ -73,14 +72,16 @@ def install_robot(bench: Bench) -> None:
     global _installed  # noqa: PLW0603 - once per boot
     if _installed:
         return
-    repo = Path(__file__).resolve().parents[3]
     run("systemctl", "stop", bench.unit)
-    program = Path("/usr/local/lib/robot-motion")
-    program.mkdir(parents=True, exist_ok=True)
-    shutil.copy(repo / "examples/motion/robot_motion.py", program / "robot_motion.py")
-    shutil.copy(repo / "examples/systemd/robot-motion@.service", "/etc/systemd/system/")
-    Path("/etc/sysusers.d").mkdir(exist_ok=True)
-    shutil.copy(repo / "examples/systemd/robot-motion.conf", "/etc/sysusers.d/robot-motion.conf")
+    # From the installed package, with the commands docs/bringup.md gives (install -D: on
+    # Debian 12 /etc/sysusers.d does not exist until something creates it).
+    examples = Path("/usr/share/doc/srcs-supervisord/examples")
+    for source, target in (
+        ("robot-motion.conf", "/etc/sysusers.d/robot-motion.conf"),
+        ("robot_motion.py", "/usr/local/lib/robot-motion/robot_motion.py"),
+        ("robot-motion@.service", "/etc/systemd/system/robot-motion@.service"),
+    ):
+        run("install", "-D", "-m", "0644", str(examples / source), target)
     run("systemd-sysusers")
     write_config(ROBOT, ROBOT_CONFIG)
     run("systemctl", "daemon-reload")
