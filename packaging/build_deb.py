@@ -58,6 +58,11 @@ GLIBC_CEILING = 35
 22.04's 2.35); the package's libc6 dependency is what the chosen wheels' tags need."""
 MANYLINUX_LEGACY = {"manylinux1": (2, 5), "manylinux2010": (2, 12), "manylinux2014": (2, 17)}
 """The C library the older manylinux names stand for (PEP 600)."""
+NOT_BUNDLED = frozenset({"lz4", "zstandard"})
+"""Locked, but left out of the package: the compression libraries ``mcap`` names, compiled
+(30 MB for each Python), which its writer imports only for a compressed file; ``srcsctl
+replay --mcap`` writes it uncompressed, so the robot's package carries mcap alone and the
+export works where the window is (SR-7.15; docs/record.md "Looking at a stop")."""
 MACHINES = {"amd64": "x86_64", "arm64": "aarch64"}
 """Debian architecture -> the wheels' machine name."""
 LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki"}
@@ -138,9 +143,10 @@ def marker_environment(version: str, machine: str) -> dict[str, str]:
 
 
 def requirements_for(version: str, machine: str, directory: Path) -> Path:
-    """requirements/run.txt for one Python: the entries whose markers hold there, markers
-    removed, hashes kept. pip judges a requirement file's markers by the Python that runs pip,
-    not by ``--python-version``'s, so it would leave out tomli for 3.10 on a 3.11 build."""
+    """requirements/run.txt for one Python: the entries whose markers hold there, but those
+    :data:`NOT_BUNDLED`, markers removed, hashes kept. pip judges a requirement file's markers
+    by the Python that runs pip, not by ``--python-version``'s, so it would leave out tomli
+    for 3.10 on a 3.11 build."""
     text = (REPO / "requirements/run.txt").read_text().replace("\\\n", " ")
     environment = marker_environment(version, machine)
     kept = []
@@ -151,6 +157,8 @@ def requirements_for(version: str, machine: str, directory: Path) -> Path:
         spec, _, options = line.partition(" --")
         requirement = Requirement(spec.strip())
         if requirement.marker is not None and not requirement.marker.evaluate(environment):
+            continue
+        if canonicalize_name(requirement.name) in NOT_BUNDLED:
             continue
         requirement.marker = None
         kept.append(f"{requirement} --{options}\n" if options else f"{requirement}\n")
@@ -195,8 +203,9 @@ def fetch_wheels(machine: str, wheels: Path) -> None:
 
 def check_complete(tree: Path, version: str, machine: str) -> None:
     """Every requirement of the program and of each distribution in ``tree``, as it applies on
-    this Python, is met there. pip checks none of it (--no-deps: the lock is the whole set), so
-    a lock that lacks a dependency for some Python would otherwise ship a broken package."""
+    this Python, is met there (but :data:`NOT_BUNDLED`). pip checks none of it (--no-deps:
+    the lock is the whole set), so a lock that lacks a dependency for some Python would
+    otherwise ship a broken package."""
     environment = marker_environment(version, machine)
     distributions = list(importlib.metadata.distributions(path=[str(tree)]))
     installed = {canonicalize_name(d.metadata["Name"]): Version(d.version) for d in distributions}
@@ -207,6 +216,8 @@ def check_complete(tree: Path, version: str, machine: str) -> None:
     for who, text in wanted:
         requirement = Requirement(text)
         if requirement.marker is not None and not requirement.marker.evaluate(environment):
+            continue
+        if canonicalize_name(requirement.name) in NOT_BUNDLED:
             continue
         have = installed.get(canonicalize_name(requirement.name))
         if have is None or not requirement.specifier.contains(have, prereleases=True):

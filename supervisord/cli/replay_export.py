@@ -6,8 +6,9 @@ and :mod:`supervisord.record.stop_picture`'s.
 A file is written by :mod:`supervisord.cli.output_file` (SR-11.4): a new file of a random name
 beside it, opened exclusively without following a link, renamed into place (a reader sees a
 whole file or none); ``-`` is standard output; a link or a device at the name is refused.
-The MCAP library is imported only here, and only when asked for: it is the
-``export`` extra, which the robot's package leaves out (the picture needs nothing).
+The MCAP library is imported only here, and only when asked for; the robot's package
+carries it, without the compression libraries it names (the file is written uncompressed),
+and the picture needs nothing.
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ from supervisord.record.stop_picture import stop_picture
 from supervisord.record.timeline import Timeline, timeline
 
 MCAP_MISSING: Final = (
-    "the mcap package is not installed; install the export extra "
-    "(pip install 'srcs-supervisord[export]') where the window is looked at"
+    "the mcap package is missing from this installation, which carries it (a robot's in "
+    "/opt/srcsd, a desk's in the source tree's .venv): install srcs-supervisord again, or "
+    "run the srcsctl of ./dev's .venv"
 )
 
 
@@ -49,7 +51,7 @@ def write_exports(
     ``out``. Raises ``OutputRefused`` or ``OSError`` (``output_file``)."""
     made = timeline(window, result)
     if mcap is not None:
-        from supervisord.record.mcap_export import export_mcap  # noqa: PLC0415 - the export extra, asked for
+        from supervisord.record.mcap_export import export_mcap  # noqa: PLC0415 - only when asked for
 
         write_output(mcap, lambda file: export_mcap(made, file), stdout)
         messages = sum(len(signal.samples) for signal in made.signals.values())

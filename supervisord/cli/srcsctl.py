@@ -133,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--mcap",
         metavar="OUT",
         help="also write the window and the replayed decisions as an MCAP file, one JSON "
-        "channel per signal, for Foxglove (needs the mcap package: srcs-supervisord[export]); "
+        "channel per signal, for Foxglove (uncompressed); "
         "- for standard output (the replay's text then goes to standard error); a link or a "
         "device is refused",
     )

@@ -8,9 +8,11 @@ One line per mistake, in file order, as a compiler prints them (editors jump to 
     robot.toml:17: warning: clients[0].user = (not set): unbound: any program that can ...
 
 with the value as TOML writes it (``true``, ``"text"``), then a last line with the verdict.
-A user or group missing on this machine is a warning (exit 0) unless ``--strict``; a valid
-config's own warnings (:meth:`DaemonConfig.warnings`) stay warnings with ``--strict`` too,
-as the daemon starts with them.
+The check is the daemon's start (SR-11.2): what this machine lacks that the daemon needs (a
+user or group, the directory of the record or of a socket, unless srcsd@NAME.service makes it:
+:mod:`supervisord.config.directories`) is an error; ``--portable``, for a config written on
+one machine for another, makes those warnings (exit 0). A valid config's own warnings
+(:meth:`DaemonConfig.warnings`) are warnings either way, as the daemon starts with them.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from typing import TextIO
 
 from supervisord import strict
 from supervisord.config.collect import Finding, Report, collect
+from supervisord.config.directories import present_or_made_by_unit
 from supervisord.config.loader import NotOnMachine
 
 SHOWN_ITEMS = 3
@@ -69,7 +72,9 @@ def finding_line(file: str, finding: Finding) -> str:
         where = f"{line}:{column}:" if syntax else f"{line}:"
     kind = "warning" if finding.warning else "error"
     on_machine = isinstance(error, NotOnMachine) and finding.warning
-    machine = " (an error with --strict, and for the daemon's start)" if on_machine else ""
+    machine = (
+        " (a warning only with --portable: the daemon's start refuses it)" if on_machine else ""
+    )
     return f"{file}:{where} {kind}: {error.key} = {toml_value(error.value)}: {error.fix}{machine}"
 
 
@@ -90,15 +95,16 @@ def report_lines(file: str, report: Report) -> list[str]:
 def check_config_main(
     path: str | Path,
     *,
-    strict_machine: bool = False,
+    portable: bool = False,
     out: TextIO | None = None,
     err: TextIO | None = None,
 ) -> int:
     """Print ``FILE: OK — ...`` and any warnings and return 0, or print every mistake (to
-    stderr) and return 1."""
+    stderr) and return 1. ``portable``: what this machine lacks is a warning."""
     out = out or sys.stdout
     err = err or sys.stderr
-    report = collect(path, strict_machine=strict_machine)
+    there = present_or_made_by_unit(Path(path).absolute())
+    report = collect(path, strict_machine=not portable, directory_there=there)
     config = report.config
     if config is None:
         for line in report_lines(str(path), report):

@@ -24,9 +24,10 @@ at all, the list ends there and says that the checks after it did not run.
 A valid config's warnings (:meth:`DaemonConfig.warnings`: simulated outputs, an unbound
 client) are listed too, each at its key's line.
 
-A user or group the config names that this machine lacks (:class:`NotOnMachine`) is a
-warning, for a config written on one machine for another; ``strict`` makes it an error, as
-it is for the daemon.
+A user, group or directory the config names that this machine lacks (:class:`NotOnMachine`)
+is an error, as it is for the daemon's start; ``strict_machine=False`` (``--portable``) makes
+it a warning, for a config written on one machine for another. Directories are asked of
+``directory_there`` (:mod:`supervisord.config.directories`; ``None``: not asked).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from pathlib import Path
 from typing import Final
 
 from supervisord import strict
+from supervisord.config.directories import missing_directories
 from supervisord.config.lines import KeyPath, Position, key_path, key_positions, position
 from supervisord.config.loader import NotOnMachine, RulesBroken, build_config
 from supervisord.config.model import DaemonConfig
@@ -93,10 +95,11 @@ def collect(
     base_dir: str | Path | None = None,
     group_exists: Callable[[str], bool] | None = None,
     read: Callable[[Path], bytes] = read_at_most,
+    directory_there: Callable[[Path], bool] | None = None,
 ) -> Report:
     """Every mistake of the config at ``path`` (see the module's doc), its file read once with
-    ``read``. ``strict_machine``: a user or group missing on this machine is an error, not a
-    warning."""
+    ``read``. ``strict_machine``: a user, group or directory missing on this machine is an
+    error, not a warning."""
     source = Path(path)
     try:
         text, parsed = read_toml_text(source, read)
@@ -119,6 +122,9 @@ def collect(
             for refused in broken.errors:
                 work.list(refused)
             break
+        if directory_there is not None:  # of the file's own paths, not of those set aside
+            for missing in missing_directories(config, directory_there):
+                work.list(missing)
         if work.report.errors == 0:
             work.report.config = config
             for warning in config.warnings():

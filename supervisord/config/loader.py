@@ -128,10 +128,11 @@ class RulesBroken(Exception):
 
 
 class NotOnMachine(ConfigError):
-    """A user or group the config names does not exist on this machine: a mistake of the
-    machine (a package not installed yet, a developer's laptop) rather than of the file.
-    The daemon refuses to start all the same; ``--check-config`` calls it a warning unless
-    ``--strict`` (docs/configuration.md "Checking a config")."""
+    """A user, group or directory the config names does not exist on this machine: a mistake
+    of the machine (a package not installed yet, a developer's laptop) rather than of the
+    file. The daemon refuses to start all the same, and so does ``--check-config``; only
+    ``--check-config --portable`` calls it a warning (docs/configuration.md "Checking a
+    config"). Directories are judged by :mod:`supervisord.config.collect`."""
 
     def in_file(self, file: str) -> ConfigError:
         return NotOnMachine(self.key, self.value, self.fix, file)

@@ -41,7 +41,10 @@ def _json(value: Mapping[str, Any]) -> bytes:
 
 def export_mcap(timeline: Timeline, stream: IO[bytes]) -> None:
     """Write ``timeline`` to ``stream`` as one MCAP file (SR-7.15)."""
-    writer = Writer(stream, compression=CompressionType.ZSTD)
+    # Uncompressed: the robot's package carries mcap without the compression libraries it
+    # names (lz4 and zstandard, compiled, 30 MB for each Python), so that --mcap works where
+    # the window is (SR-7.15); a window is small, and the file is the same on robot and desk.
+    writer = Writer(stream, compression=CompressionType.NONE)
     writer.start(profile="", library=f"srcs-supervisord {__version__}")
     channels: dict[str, int] = {}
     for topic, signal in timeline.signals.items():

@@ -364,13 +364,12 @@ def run_srcsd(config: Path) -> subprocess.CompletedProcess[str]:
 
 
 def test_a_start_that_fails_after_binding_leaves_no_socket(tmp_path: Path) -> None:
-    """srcsd whose record cannot be opened (its directory is a file) exits 1 and removes the
-    API socket it had already made: no stale api.sock is left behind."""
-    (tmp_path / "not-a-dir").write_text("a file where the record's directory should be")
+    """srcsd whose record cannot be opened (a name longer than the file system takes: its
+    directory is there, so the configuration passes) exits 1 and removes the API socket it
+    had already made: no stale api.sock is left behind. (A missing directory is refused
+    before the socket is made, as a configuration error: tests/config.)"""
     config = tmp_path / "robot.toml"
-    config.write_text(
-        MINIMAL_CONFIG.replace('path = "stops.jsonl"', 'path = "not-a-dir/stops.jsonl"')
-    )
+    config.write_text(MINIMAL_CONFIG.replace('path = "stops.jsonl"', f'path = "{"x" * 300}.jsonl"'))
     result = run_srcsd(config)
     assert result.returncode == 1, result.stderr
     assert "cannot start" in result.stderr

@@ -1,6 +1,7 @@
 """``srcsd --check-config`` lists every mistake at once: in file order, each with its line, the
-key, the value as TOML writes it and the fix; a user or group this machine lacks is a warning
-unless ``--strict`` (docs/configuration.md "Checking a config")."""
+key, the value as TOML writes it and the fix; a user or group this machine lacks is an error,
+as for the daemon's start, and a warning with ``--portable`` (docs/configuration.md "Checking
+a config")."""
 
 from __future__ import annotations
 
@@ -76,11 +77,11 @@ def _names_are_missing() -> None:
 def test_every_mistake_at_once_in_file_order_with_its_line(tmp_path: Path) -> None:
     """SR-11.2: the real ``srcsd --check-config`` names every mistake of the file, not only
     the first, in the order of the file, each as FILE:LINE with the key, the value as TOML
-    writes it (``true``, ``"20"``) and the fix; the user and group this machine lacks are
-    warnings there; the verdict counts them; exit 1, nothing on stdout."""
+    writes it (``true``, ``"20"``) and the fix; with ``--portable`` the user and group this
+    machine lacks are warnings there; the verdict counts them; exit 1, nothing on stdout."""
     config = tmp_path / "robot.toml"
     config.write_text(MISTAKES)
-    checked = _srcsd("--check-config", str(config))
+    checked = _srcsd("--check-config", str(config), "--portable")
     assert checked.returncode == 1, checked.stderr
     assert checked.stdout == ""
     f = str(config)
@@ -90,13 +91,13 @@ def test_every_mistake_at_once_in_file_order_with_its_line(tmp_path: Path) -> No
         f"{f}:13: error: rearm.local-reset = true: unknown key: did you mean 'local_reset'? "
         "(known: hold_ms, local_reset)",
         f'{f}:17: warning: clients[0].user = "{MISSING_USER}": no such user on this machine: '
-        f"create it (useradd --system {MISSING_USER}) or name the user the client runs as (an "
-        "error with --strict, and for the daemon's start)",
+        f"create it (useradd --system {MISSING_USER}) or name the user the client runs as (a "
+        "warning only with --portable: the daemon's start refuses it)",
         f'{f}:24: error: outputs[0].colour = "red": unknown key: remove it (known: name, kind, '
         "role, off_delay_ms, path, stuck_at)",
         f'{f}:28: warning: api.admin_group = "{MISSING_GROUP}": no such group on this machine: '
         f"create it (groupadd --system {MISSING_GROUP}) and add the users to it, or name an "
-        "existing group (an error with --strict, and for the daemon's start)",
+        "existing group (a warning only with --portable: the daemon's start refuses it)",
         f"{f}:29: error: api.max_clients = 0: use a whole number from 1 to 256",
         f"{f}: not valid: 5 errors, 2 warnings",
     ]
@@ -114,10 +115,10 @@ def test_the_daemon_names_every_mistake_too(tmp_path: Path) -> None:
     assert f"{config}:29: error: api.max_clients = 0" in started.stderr
 
 
-def test_a_missing_group_is_a_warning_unless_strict(tmp_path: Path) -> None:
-    """SR-11.2: a valid config naming a group this machine lacks passes ``--check-config``
-    (exit 0, the OK line, the warning with its line); with ``--strict`` it is an error
-    (exit 1), as the daemon's start refuses it."""
+def test_a_missing_group_is_an_error_unless_portable(tmp_path: Path) -> None:
+    """SR-11.2: a valid config naming a group this machine lacks passes ``--check-config
+    --portable`` (exit 0, the OK line, the warning with its line); without it, and with the
+    ``--strict`` of older scripts, it is an error (exit 1), as the daemon's start refuses it."""
     good = MISTAKES.replace("timeout_ms = 5000", "timeout_ms = 200")
     good = good.replace('heartbeat_hz = "20"', "heartbeat_hz = 20")
     good = good.replace("local-reset", "local_reset").replace('colour = "red"\n', "")
@@ -126,22 +127,23 @@ def test_a_missing_group_is_a_warning_unless_strict(tmp_path: Path) -> None:
     config = tmp_path / "robot.toml"
     config.write_text(good)
     line = 1 + good.splitlines().index(f'admin_group = "{MISSING_GROUP}"')
-    checked = _srcsd("--check-config", str(config))
+    checked = _srcsd("--check-config", str(config), "--portable")
     assert checked.returncode == 0, checked.stderr
     assert checked.stdout.startswith(f"{config}: OK — robot mower-3, transport serial")
     assert f"{config}:{line}: warning: api.admin_group = " in checked.stderr
-    strict = _srcsd("--check-config", str(config), "--strict")
-    assert strict.returncode == 1
-    assert f"{config}:{line}: error: api.admin_group = " in strict.stderr
-    assert strict.stderr.splitlines()[-1] == f"{config}: not valid: 1 error"
+    for flags in ((), ("--strict",)):
+        strict = _srcsd("--check-config", str(config), *flags)
+        assert strict.returncode == 1
+        assert f"{config}:{line}: error: api.admin_group = " in strict.stderr
+        assert strict.stderr.splitlines()[-1] == f"{config}: not valid: 1 error"
 
 
 @pytest.mark.parametrize("example", ["config/example-serial-gpio.toml", "config/example-can.toml"])
 def test_the_readme_examples_pass_on_a_developers_machine(example: str) -> None:
-    """SR-11.2, SR-8.6: the README's ``srcsd --check-config config/example-...toml`` passes on
-    a machine without the package's ``srcs-admin`` group or the clients' user ``robot``
-    (exit 0), each named as a warning when it is missing; no client is unbound."""
-    checked = _srcsd("--check-config", example)
+    """SR-11.2, SR-8.6: the README's ``srcsd --check-config --portable config/example-...toml``
+    passes on a machine without the package's ``srcs-admin`` group or the clients' user
+    ``robot`` (exit 0), each named as a warning when it is missing; no client is unbound."""
+    checked = _srcsd("--check-config", "--portable", example)
     assert checked.returncode == 0, checked.stderr
     assert checked.stdout.startswith(f"{example}: OK — ")
     if not _group("srcs-admin"):

@@ -557,3 +557,38 @@ def test_postinst_compiles_for_the_installed_python(deb: Path, tmp_path: Path) -
     assert int(modules) > 100
     assert (int(missing), names) == (0, [])
     assert (root / SITE / f"supervisord/__pycache__/__init__.{tag}.pyc").is_file()
+
+
+def test_replay_mcap_works_from_the_installed_tree(unpacked: Path, tmp_path: Path) -> None:
+    """SR-7.15: on a robot, where the window is, the package's own ``srcsctl replay --mcap``
+    writes the stop's MCAP file (the library is bundled, and nothing tells the team to
+    ``pip install`` what no index has); the file is whole (the mcap reader reads every
+    message); the compiled compression libraries mcap names are not bundled (NOT_BUNDLED)."""
+    from mcap.reader import make_reader  # noqa: PLC0415 - the reader is the test's, not the package's
+
+    from tests.record.stop_kinds import KINDS, RECORD  # noqa: PLC0415
+
+    story = KINDS["remote_estop"]()
+    story.write(tmp_path)
+    out = tmp_path / "stop.mcap"
+    done = subprocess.run(
+        [
+            str(unpacked / "opt/srcsd/bin/srcsctl"),
+            *("replay", str(story.stop["seq"]), "--file", str(tmp_path / RECORD)),
+            *("--mcap", str(out)),
+        ],
+        env=_packaged_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"mcap: wrote {out}" in done.stdout + done.stderr
+    with out.open("rb") as file:
+        messages = sum(1 for _ in make_reader(file).iter_messages())
+    assert messages > 0
+    site = unpacked / SITE
+    assert list(site.glob("mcap-*.dist-info"))
+    assert not list(site.glob("zstandard*"))
+    assert not list(site.glob("lz4*"))

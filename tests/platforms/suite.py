@@ -71,7 +71,7 @@ FAULTS = {
 }
 """The fault suite's files, by the root that runs them (about 140 s each, measured)."""
 DEBIAN = (
-    # ./dev's list (need_debian_packages): venv, the fault suite's socat, faketime and ip,
+    # ./dev's list for the tests (TEST_PACKAGES): venv, the fault suite's socat, faketime and ip,
     # man and bash-completion for the generated pages, prometheus for the exporter's scrape,
     # systemd-journal-remote for srcsctl fleet's collector.
     "python3-venv socat faketime iproute2 man-db bash-completion prometheus "
