@@ -371,11 +371,12 @@ def declared_licence(distribution: importlib.metadata.Distribution) -> str:
     return "; ".join(str(c) for c in classifiers if str(c).startswith("License ::"))
 
 
-def check_copyright(site: Path, text: str) -> None:
+def check_copyright(site: Path, text: str, where: Path = SITE) -> None:
     """The copyright file ``text`` (machine-readable, DEP-5) covers every distribution bundled
-    in ``site``: each of its files is matched (the last matching paragraph wins) by a paragraph
-    whose ``Distribution`` names it and whose ``Distribution-License`` is what its metadata
-    declares. A dependency added or relicensed fails the build until the file says so."""
+    in ``site`` (``where`` in the package: the robot's or the collector's): each of its files
+    is matched (the last matching paragraph wins) by a paragraph whose ``Distribution`` names
+    it and whose ``Distribution-License`` is what its metadata declares. A dependency added or
+    relicensed fails the build until the file says so."""
     paragraphs = [p for p in deb822(text) if "Files" in p]
     for distribution in importlib.metadata.distributions(path=[str(site)]):
         name = distribution.metadata["Name"]
@@ -383,7 +384,7 @@ def check_copyright(site: Path, text: str) -> None:
             continue
         licence = declared_licence(distribution)
         for file in distribution.files or []:
-            path = (SITE / str(file)).as_posix()
+            path = (where / str(file)).as_posix()
             matching = [
                 p for p in paragraphs if any(fnmatchcase(path, f) for f in p["Files"].split())
             ]
