@@ -525,7 +525,8 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
 
 def install_manuals(generated: Path, root: Path, names: Collection[str]) -> None:
     """The generated man pages (gzipped) and bash completions of ``names`` into ``root``;
-    refused when a command has either missing. The robot's and the collector's package."""
+    refused when a command has either missing, or srcsd its configuration file's page. The
+    robot's and the collector's package."""
     for page in sorted((generated / "man").iterdir()):
         section = page.suffix.lstrip(".")
         if section.isdigit():
@@ -540,6 +541,10 @@ def install_manuals(generated: Path, root: Path, names: Collection[str]) -> None
     for name in names:
         if not list((root / "usr/share/man").glob(f"man*/{name}.*.gz")):
             raise BuildError(f"no man page for {name}")
+    # The daemon's configuration file has its page where the daemon is: srcsd.toml(5),
+    # generated from the file's schema (SR-11.2; docs/configuration.md "The man page").
+    if "srcsd" in names and not (root / "usr/share/man/man5/srcsd.toml.5.gz").is_file():
+        raise BuildError("no man page for the configuration file, srcsd.toml(5)")
 
 
 def control(root: Path, version: str, arch: str, glibc: tuple[int, int]) -> str:
