@@ -7,7 +7,7 @@ SEQ``, run in the collector's root as its administrator would, says what the rob
 record"), line for line but for the files' names. Once, the installed command also draws the
 stop (``--plot``: the standard library only) and writes its MCAP file (``--mcap``, SR-7.15:
 the collector's package bundles mcap, pure Python, and the file is written uncompressed), which
-mcap's reader reads whole.
+mcap's reader (the package's own, in its root) reads whole.
 
 Both are the shipped commands: the robot's replay is the robot package's installed ``srcsctl``
 (from the robots' layer, on the robot's record file), the reference the collector's answer is
@@ -22,8 +22,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-
-from mcap.reader import make_reader
 
 from tests.fleet.collector import REMOTE, Collector
 from tests.fleet.robots import Robot, poll
@@ -146,8 +144,8 @@ def exports(collector: Collector, robot: Robot, seq: int) -> tuple[list[str], st
     status, out, said = collectors_replay(
         collector, label, seq, "--mcap", f"/{EVIDENCE}/{seq}.mcap"
     )
-    messages = mcap_messages(film)
-    if status != 0 or not messages:
+    messages = mcap_messages(collector, f"/{EVIDENCE}/{seq}.mcap")
+    if status != 0 or not film.is_file() or messages <= 0:
         problems.append(f"--mcap: exit {status}, {messages} messages read: {(out + said)[-300:]}")
     size = film.stat().st_size / 1024 if film.is_file() else 0.0
     return problems, (
@@ -155,16 +153,22 @@ def exports(collector: Collector, robot: Robot, seq: int) -> tuple[list[str], st
     )
 
 
-def mcap_messages(film: Path) -> int:
-    """How many messages mcap's reader reads from ``film``; 0 for none, no file or a file it
-    cannot read (what it said is the test's failure, not the tier's crash)."""
-    if not film.is_file():
-        return 0
-    try:
-        with film.open("rb") as file:
-            return sum(1 for _ in make_reader(file).iter_messages())
-    except Exception:  # any reader error: a file not written whole
-        return 0
+READ_MCAP = """
+import sys
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as file:
+    print(sum(1 for _ in make_reader(file).iter_messages()))
+"""
+"""Counts an MCAP file's messages with mcap's reader (the tier runs on the system's Python,
+which has no mcap: the collector package's own environment reads it)."""
+
+
+def mcap_messages(collector: Collector, film: str) -> int:
+    """How many messages mcap's reader reads from ``film`` (a path in the collector's root),
+    by the collector package's Python and its bundled mcap; -1 when it cannot read it."""
+    done = collector.chroot(["/opt/srcs-collector/bin/python3", "-c", READ_MCAP, film])
+    said = done.stdout.decode(errors="replace").strip()
+    return int(said) if done.returncode == 0 and said.isdigit() else -1
 
 
 def windows_at_collector(
