@@ -8,6 +8,7 @@ targets. The fleet tier (tests/fleet/) runs a collector on this package unchange
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -184,6 +185,27 @@ def test_the_package_replays_a_stop_draws_it_and_writes_its_mcap_file(
         messages = sum(1 for _ in reader.iter_messages())
     assert "/core/state" in topics, topics
     assert messages > 0
+
+
+def test_the_build_refuses_a_bundled_wheel_that_is_not_pure_python(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Architecture ``all`` holds only while every bundled wheel is pure Python: a locked
+    distribution with compiled modules (msgpack, from the same wheel store) in BUNDLED is
+    refused by name, and nothing of it reaches the package's site-packages."""
+    spec = importlib.util.spec_from_file_location(
+        "build_collector_deb", ROOT / "packaging/build_collector_deb.py"
+    )
+    assert spec is not None
+    assert spec.loader is not None
+    build = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build)
+    monkeypatch.setattr(build, "BUNDLED", frozenset({"msgpack"}))
+    site = tmp_path / "site"
+    site.mkdir()
+    with pytest.raises(build.BuildError, match=r"msgpack-[^ ]*\.dist-info is not pure Python"):
+        build.install_bundled(tmp_path / "work", site)
+    assert list(site.iterdir()) == []
 
 
 def test_lintian_finds_no_error_and_no_warning(deb: Path) -> None:
