@@ -7,12 +7,14 @@ A collector is no robot: it reads the fleet's records and alerts on its metrics.
 package holds the reading tools and the fleet's configuration, and nothing of the robot's:
 
 - ``/opt/srcs-collector``: the program's own modules in a virtual environment on the system's
-  ``python3``, as the robot's ``/opt/srcsd`` (packaging/build_deb.py), but with no bundled
-  dependency: ``srcsctl`` and the fleet's tools need only the standard library (pyserial,
-  python-can, gpiod, prometheus-client are the daemon's, the simulator's and the exporter's).
-  Hence architecture ``all``. Not ``mcap`` either (``fleet replay --mcap``, the export extra):
-  pure Python, but the export compresses with zstandard, a compiled module an ``all`` package
-  cannot carry; ``--mcap`` says what to install (docs/fleet.md "The collector package").
+  ``python3``, as the robot's ``/opt/srcsd`` (packaging/build_deb.py), with one bundled
+  dependency: ``mcap`` (:data:`BUNDLED`), pure Python, from requirements/run.txt with its hash,
+  so that ``fleet replay --mcap`` writes the file where the collector's windows are
+  (SR-7.15). The export writes it uncompressed, so mcap's compression libraries (lz4,
+  zstandard: compiled) stay out, as in the robot's package; ``srcsctl`` and the fleet's tools
+  need nothing else (pyserial, python-can, gpiod, prometheus-client are the daemon's, the
+  simulator's and the exporter's). Hence architecture ``all``, which the build checks: a
+  bundled wheel with a compiled part is refused.
   Commands: ``srcsctl`` (``fleet``), ``srcs-fleet-targets`` and ``srcs-fleet-pki``, with their
   man pages and completion.
 - systemd-journal-remote's drop-in (``journal-remote.conf.d``), the retention's timer, the
@@ -33,7 +35,12 @@ import argparse
 import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
+
+from packaging.requirements import Requirement
+from packaging.tags import parse_tag
+from packaging.utils import canonicalize_name
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -46,12 +53,14 @@ from build_deb import (
     REPO,
     BuildError,
     changelog_version,
+    check_copyright,
     dpkg_build,
     gzip_file,
     install_manuals,
     install_program,
     md5sums,
     normalise,
+    pip,
     project,
     run,
     source_epoch,
@@ -64,6 +73,13 @@ SITE = PREFIX / "lib/python3/site-packages"
 DOC = Path("usr/share/doc", PACKAGE)
 SHARE = Path("usr/share", PACKAGE)
 HERE = REPO / "packaging/collector"
+WHEELS = REPO / "build/wheels"
+"""Where the robot's build keeps the pinned wheels (``./dev test`` fills it before its tests
+run without a network); the collector's are taken from there first."""
+BUNDLED = frozenset({"mcap"})
+"""The locked distributions the collector carries: ``mcap`` for ``fleet replay --mcap``, so
+the MCAP file is written where the windows are (SR-7.15). Pure Python only (architecture
+``all``); not the compression libraries it names, which an uncompressed file does not use."""
 COMMANDS = {"srcsctl": "usr/bin", "srcs-fleet-targets": "usr/sbin", "srcs-fleet-pki": "usr/sbin"}
 """The collector's commands and where their links go (admin tools in /usr/sbin, section 8)."""
 CONFFILES = ("prometheus.yml", "alertmanager.yml", "robots")
@@ -110,6 +126,59 @@ def write_environment(root: Path, scripts: dict[str, str]) -> None:
         link = root / where / name
         link.parent.mkdir(parents=True, exist_ok=True)
         link.symlink_to(f"/{PREFIX}/bin/{name}")
+
+
+def bundled_requirements(directory: Path) -> Path:
+    """requirements/run.txt's entries for :data:`BUNDLED`, hashes kept, markers dropped (they
+    hold on every Python the package serves: the build refuses a compiled wheel below)."""
+    text = (REPO / "requirements/run.txt").read_text().replace("\\\n", " ")
+    kept = []
+    for entry in text.splitlines():
+        line = entry.strip()
+        if not line or line.startswith("#"):
+            continue
+        spec, _, options = line.partition(" --")
+        requirement = Requirement(spec.strip())
+        if canonicalize_name(requirement.name) in BUNDLED:
+            requirement.marker = None
+            kept.append(f"{requirement} --{options}\n")
+    names = {canonicalize_name(Requirement(k.partition(" --")[0]).name) for k in kept}
+    if names != BUNDLED:
+        raise BuildError(f"requirements/run.txt pins none of {sorted(BUNDLED - names)}")
+    path = directory / "bundled.txt"
+    path.write_text("".join(kept))
+    return path
+
+
+def install_bundled(work: Path, site: Path, wheels: Path = WHEELS) -> None:
+    """:data:`BUNDLED` from the lock, hash-checked, into ``site``: the wheels from ``wheels``
+    when there (the tests build without a network), else downloaded. Refused when a wheel is
+    anything but pure Python (its tags: ``none`` ABI, ``any`` platform), which an
+    architecture-``all`` package cannot carry."""
+    tree = work / "bundled"
+    with tempfile.TemporaryDirectory(prefix="srcs-collector-") as scratch:
+        requirements = bundled_requirements(Path(scratch))
+        args = ("--no-deps", "--only-binary=:all:", "--require-hashes", "-r", requirements)
+        try:
+            pip("download", "--no-index", "--find-links", wheels, "--dest", wheels, *args)
+        except BuildError:
+            try:
+                pip("download", "--dest", wheels, *args)
+            except BuildError as error:
+                raise BuildError(f"the collector's {sorted(BUNDLED)}: {error}") from None
+        pip(
+            "install",
+            *("--target", tree, "--no-compile", "--no-index", "--find-links", wheels),
+            *args,
+        )
+    shutil.rmtree(tree / "bin", ignore_errors=True)
+    for wheel in sorted(tree.glob("*.dist-info/WHEEL")):
+        lines = wheel.read_text().splitlines()
+        tags = [t for line in lines if line.startswith("Tag:") for t in parse_tag(line[4:].strip())]
+        if not tags or any(t.abi != "none" or t.platform != "any" for t in tags):
+            raise BuildError(f"{wheel.parent.name} is not pure Python: {sorted(map(str, tags))}")
+    for path in sorted(tree.iterdir()):
+        shutil.move(path, site / path.name)
 
 
 def install_files(root: Path, env: dict[str, str]) -> None:
@@ -181,8 +250,10 @@ def build(out: Path, work: Path) -> Path:
     root = work / "root"
     site = root / SITE
     site.mkdir(parents=True)
+    install_bundled(work, site)
     install_program(work, site, env)
     tidy_records(site)
+    check_copyright(site, (HERE / "copyright").read_text(), SITE)
     write_environment(root, scripts)
     install_files(root, env)
     debian = root / "DEBIAN"

@@ -371,11 +371,12 @@ def declared_licence(distribution: importlib.metadata.Distribution) -> str:
     return "; ".join(str(c) for c in classifiers if str(c).startswith("License ::"))
 
 
-def check_copyright(site: Path, text: str) -> None:
+def check_copyright(site: Path, text: str, where: Path = SITE) -> None:
     """The copyright file ``text`` (machine-readable, DEP-5) covers every distribution bundled
-    in ``site``: each of its files is matched (the last matching paragraph wins) by a paragraph
-    whose ``Distribution`` names it and whose ``Distribution-License`` is what its metadata
-    declares. A dependency added or relicensed fails the build until the file says so."""
+    in ``site`` (``where`` in the package: the robot's or the collector's): each of its files
+    is matched (the last matching paragraph wins) by a paragraph whose ``Distribution`` names
+    it and whose ``Distribution-License`` is what its metadata declares. A dependency added or
+    relicensed fails the build until the file says so."""
     paragraphs = [p for p in deb822(text) if "Files" in p]
     for distribution in importlib.metadata.distributions(path=[str(site)]):
         name = distribution.metadata["Name"]
@@ -383,7 +384,7 @@ def check_copyright(site: Path, text: str) -> None:
             continue
         licence = declared_licence(distribution)
         for file in distribution.files or []:
-            path = (SITE / str(file)).as_posix()
+            path = (where / str(file)).as_posix()
             matching = [
                 p for p in paragraphs if any(fnmatchcase(path, f) for f in p["Files"].split())
             ]
@@ -524,7 +525,8 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
 
 def install_manuals(generated: Path, root: Path, names: Collection[str]) -> None:
     """The generated man pages (gzipped) and bash completions of ``names`` into ``root``;
-    refused when a command has either missing. The robot's and the collector's package."""
+    refused when a command has either missing, or srcsd its configuration file's page. The
+    robot's and the collector's package."""
     for page in sorted((generated / "man").iterdir()):
         section = page.suffix.lstrip(".")
         if section.isdigit():
@@ -539,6 +541,10 @@ def install_manuals(generated: Path, root: Path, names: Collection[str]) -> None
     for name in names:
         if not list((root / "usr/share/man").glob(f"man*/{name}.*.gz")):
             raise BuildError(f"no man page for {name}")
+    # The daemon's configuration file has its page where the daemon is: srcsd.toml(5),
+    # generated from the file's schema (SR-11.2; docs/configuration.md "The man page").
+    if "srcsd" in names and not (root / "usr/share/man/man5/srcsd.toml.5.gz").is_file():
+        raise BuildError("no man page for the configuration file, srcsd.toml(5)")
 
 
 def control(root: Path, version: str, arch: str, glibc: tuple[int, int]) -> str:

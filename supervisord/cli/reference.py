@@ -4,7 +4,9 @@
     python -m supervisord.cli.reference completion OUTDIR  # OUTDIR/srcsctl, OUTDIR/zsh/_srcsctl ...
 
 ``man`` writes srcsd.8, srcsctl.1, srcs-sim.1, srcs-exporter.8 and the collector's
-srcs-fleet-targets.8 and srcs-fleet-pki.8 (``--only NAME...``: those alone); ``completion``
+srcs-fleet-targets.8 and srcs-fleet-pki.8 (``--only NAME...``: those alone), and with srcsd's
+the configuration file's, srcsd.toml.5, from its JSON Schema
+(:mod:`supervisord.cli.config_page`); ``completion``
 writes one bash file per command, named after it (bash-completion's convention), and zsh's
 ``_NAME``.
 
@@ -34,10 +36,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import shtab
+from argparse_manpage.compat import get_reproducible_date
 from argparse_manpage.manpage import Manpage
 
 from supervisord import __version__
-from supervisord.cli import srcsctl
+from supervisord.cli import config_page, srcsctl
 from supervisord.cli.cause_names import CAUSE_NAMES
 from supervisord.cli.output_file import OutputRefused, write_output
 
@@ -170,6 +173,7 @@ COMMANDS: tuple[Command, ...] = (
         files=(CONFIG_FILE, API_SOCKET, RECORD_FILE, DOCS),
         see_also=(
             "srcsctl(1)",
+            "srcsd.toml(5)",
             "srcs-exporter(8)",
             "srcs-sim(1)",
             "systemd.service(5)",
@@ -451,7 +455,22 @@ def write_man(outdir: Path, only: Sequence[str] = ()) -> list[Path]:
         path = outdir / f"{command.name}.{command.section}"
         _write(path, man_page(command))
         written.append(path)
+        if command.name == "srcsd":
+            # The daemon's file, with the daemon's page: only where srcsd is (not the
+            # collector's package, whose build would import no output plugin).
+            path = outdir / f"{config_page.NAME}.{config_page.SECTION}"
+            _write(path, toml_page())
+            written.append(path)
     return written
+
+
+def toml_page(version: str = __version__) -> str:
+    """srcsd.toml(5) from the configuration's JSON Schema, dated as the other pages."""
+    from supervisord.config import schema  # noqa: PLC0415 - imports every output plugin
+
+    return config_page.config_page(
+        schema.json_schema(), schema.CROSS_CHECKS, version, get_reproducible_date()
+    )
 
 
 def write_completion(outdir: Path, only: Sequence[str] = ()) -> list[Path]:

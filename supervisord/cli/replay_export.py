@@ -6,9 +6,9 @@ and :mod:`supervisord.record.stop_picture`'s.
 A file is written by :mod:`supervisord.cli.output_file` (SR-11.4): a new file of a random name
 beside it, opened exclusively without following a link, renamed into place (a reader sees a
 whole file or none); ``-`` is standard output; a link or a device at the name is refused.
-The MCAP library is imported only here, and only when asked for; the robot's package
-carries it, without the compression libraries it names (the file is written uncompressed),
-and the picture needs nothing.
+The MCAP library is imported only here, and only when asked for; the robot's and the
+collector's package carry it, without the compression libraries it names (the file is
+written uncompressed), and the picture needs nothing.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from supervisord.record.timeline import Timeline, timeline
 
 MCAP_MISSING: Final = (
     "the mcap package is missing from this installation, which carries it (a robot's in "
-    "/opt/srcsd, a desk's in the source tree's .venv): install srcs-supervisord again, or "
-    "run the srcsctl of ./dev's .venv"
+    "/opt/srcsd, a collector's in /opt/srcs-collector, a desk's in the source tree's .venv): "
+    "install its package again, or run the srcsctl of ./dev's .venv"
 )
 
 

@@ -10,9 +10,9 @@ by the stop record's ``utc``); every message also carries its ``mono_ns`` and ``
 The stop record, the replay's verdict and the clock's mapping are the file's metadata
 ``srcs.stop``.
 
-The file is written by ``srcsctl replay --mcap``, never by the daemon: a desk's tool, whose
-library (``mcap``, the ``export`` extra) the robot's package leaves out. Pure: the caller
-opens the stream.
+The file is written by ``srcsctl replay --mcap`` and ``srcsctl fleet replay --mcap``, never by
+the daemon; its library (``mcap``, a dependency of the project) is in the robot's and the
+collector's package. Pure: the caller opens the stream.
 """
 
 from __future__ import annotations

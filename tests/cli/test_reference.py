@@ -136,6 +136,7 @@ def test_the_command_line_writes_the_files_the_package_build_installs(
         "srcs-sim.1",
         "srcsctl.1",
         "srcsd.8",
+        "srcsd.toml.5",
     ]
     names = [
         "srcs-exporter",

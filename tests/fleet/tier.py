@@ -19,7 +19,7 @@ everything it mounts and starts ends with it. Scenarios, one line each:
 - ``windows_at_collector`` (SR-13.12): every stop's flight recorder window of the robots that
   are up is at the collector, and the collector package's installed ``srcsctl fleet replay`` of
   each says what the robot's own ``srcsctl replay`` says, matching its record; its ``--plot``
-  draws the stop and its ``--mcap`` names what to install (``tests/fleet/windows.py``).
+  draws the stop and its ``--mcap`` writes the MCAP file (``tests/fleet/windows.py``).
 
 The collector is the collector's package installed unchanged (tests/fleet/collector.py); the
 robots upload only srcsd's journal namespace (SR-13.11, tests/fleet/robot). Figures (not

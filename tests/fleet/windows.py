@@ -5,9 +5,9 @@ window is at the collector, and the collector package's installed ``srcsctl flee
 SEQ``, run in the collector's root as its administrator would, says what the robot's own
 ``srcsctl replay --file RECORD SEQ`` says of its window file, exit 0 ("replay matches the
 record"), line for line but for the files' names. Once, the installed command also draws the
-stop (``--plot``: the standard library only), and refuses ``--mcap`` with what to install: the
-collector's package bundles no MCAP library (its export compresses with zstandard, a compiled
-module an architecture-``all`` package cannot carry).
+stop (``--plot``: the standard library only) and writes its MCAP file (``--mcap``, SR-7.15:
+the collector's package bundles mcap, pure Python, and the file is written uncompressed), which
+mcap's reader (the package's own, in its root) reads whole.
 
 Both are the shipped commands: the robot's replay is the robot package's installed ``srcsctl``
 (from the robots' layer, on the robot's record file), the reference the collector's answer is
@@ -130,8 +130,8 @@ def replay_both(collector: Collector, srcsctl: Path, robot: Robot, seq: int) -> 
 
 def exports(collector: Collector, robot: Robot, seq: int) -> tuple[list[str], str]:
     """The installed command's ``--plot`` (an SVG picture written in the collector's root) and
-    ``--mcap`` (refused before anything is written, exit 2, naming the export extra): what is
-    wrong, and what was seen."""
+    ``--mcap`` (an MCAP file written there, exit 0, whose every message mcap's reader reads):
+    what is wrong, and what was seen."""
     label = f"{robot.name}@{robot.address}"
     problems: list[str] = []
     (collector.root / EVIDENCE).mkdir(parents=True, exist_ok=True)
@@ -141,10 +141,34 @@ def exports(collector: Collector, robot: Robot, seq: int) -> tuple[list[str], st
     if status != 0 or b"<svg" not in drawn:
         problems.append(f"--plot: exit {status}, {len(drawn)} bytes: {said[-300:]}")
     film = collector.root / EVIDENCE / f"{seq}.mcap"
-    status, _, said = collectors_replay(collector, label, seq, "--mcap", f"/{EVIDENCE}/{seq}.mcap")
-    if status != 2 or "srcs-supervisord[export]" not in said or film.exists():
-        problems.append(f"--mcap: exit {status}, file {film.exists()}: {said[-300:]}")
-    return problems, f"--plot {len(drawn) / 1024:.1f} KiB of SVG, --mcap refused: {said.strip()!r}"
+    status, out, said = collectors_replay(
+        collector, label, seq, "--mcap", f"/{EVIDENCE}/{seq}.mcap"
+    )
+    messages = mcap_messages(collector, f"/{EVIDENCE}/{seq}.mcap")
+    if status != 0 or not film.is_file() or messages <= 0:
+        problems.append(f"--mcap: exit {status}, {messages} messages read: {(out + said)[-300:]}")
+    size = film.stat().st_size / 1024 if film.is_file() else 0.0
+    return problems, (
+        f"--plot {len(drawn) / 1024:.1f} KiB of SVG, --mcap {size:.1f} KiB, {messages} messages"
+    )
+
+
+READ_MCAP = """
+import sys
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as file:
+    print(sum(1 for _ in make_reader(file).iter_messages()))
+"""
+"""Counts an MCAP file's messages with mcap's reader (the tier runs on the system's Python,
+which has no mcap: the collector package's own environment reads it)."""
+
+
+def mcap_messages(collector: Collector, film: str) -> int:
+    """How many messages mcap's reader reads from ``film`` (a path in the collector's root),
+    by the collector package's Python and its bundled mcap; -1 when it cannot read it."""
+    done = collector.chroot(["/opt/srcs-collector/bin/python3", "-c", READ_MCAP, film])
+    said = done.stdout.decode(errors="replace").strip()
+    return int(said) if done.returncode == 0 and said.isdigit() else -1
 
 
 def windows_at_collector(

@@ -1,13 +1,14 @@
 """The fleet collector's package (packaging/build_collector_deb.py, docs/fleet.md "The
-collector package", SR-13.10): ``srcs-collector``, architecture all; the reading tools with no
-bundled dependency (``fleet replay`` and ``--plot`` run from it, ``--mcap`` names what to
-install), the receiver's, Prometheus's and Alertmanager's configuration checked by their own
+collector package", SR-13.10): ``srcs-collector``, architecture all; the reading tools with
+one bundled dependency, pure Python (``fleet replay``, ``--plot`` and ``--mcap`` run from it),
+the receiver's, Prometheus's and Alertmanager's configuration checked by their own
 tools; nothing of a robot (no udev, no daemon, its users, units or rule); lintian's
 approval; installed with dpkg into a root over this machine's, it runs and makes its first
 targets. The fleet tier (tests/fleet/) runs a collector on this package unchanged."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -87,14 +88,17 @@ def test_name_version_architecture_and_no_robot_in_its_depends(deb: Path) -> Non
 
 def test_nothing_of_a_robot_in_it(unpacked: Path) -> None:
     """No sysusers (the daemon's users), no tmpfiles, no srcsd@ or srcs-exporter@ unit, no udev
-    rule, no bundled third-party distribution (srcsctl and the fleet's tools need none; not
-    mcap: ``--mcap`` names the export extra, below)."""
+    rule, no bundled third-party distribution but mcap (``fleet replay --mcap``, below), pure
+    Python and without the compiled compression libraries it names; no compiled file at all
+    (architecture all)."""
     files = {str(p.relative_to(unpacked)) for p in unpacked.rglob("*")}
     assert not [f for f in files if f.startswith(("usr/lib/sysusers.d", "usr/lib/tmpfiles.d"))]
     assert not [f for f in files if "udev" in f or re.search(r"srcsd@|srcs-exporter@", f)]
     site = unpacked / PREFIX / "lib/python3/site-packages"
-    names = sorted(p.name for p in site.iterdir())
-    assert names == [f"srcs_supervisord-{_version()}.dist-info", "supervisord"]
+    names = sorted(p.name for p in site.iterdir() if not p.name.startswith("mcap-"))
+    assert names == ["mcap", f"srcs_supervisord-{_version()}.dist-info", "supervisord"]
+    assert [p.name for p in site.glob("mcap-*.dist-info")]
+    assert not [str(p) for p in unpacked.rglob("*.so*")]
 
 
 def test_the_tools_run_from_the_unpacked_tree_on_the_system_python(
@@ -136,16 +140,17 @@ def stopped_at_collector(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path
     return folder, directory
 
 
-def test_the_package_replays_a_stop_draws_it_and_names_what_mcap_needs(
+def test_the_package_replays_a_stop_draws_it_and_writes_its_mcap_file(
     unpacked: Path, stopped_at_collector: tuple[Path, Path], tmp_path: Path
 ) -> None:
     """SR-13.12 on the package's own tree and /usr/bin/python3 alone: ``srcsctl fleet replay
     ROBOT SEQ --plot OUT`` says what the robot's own replay says (the files named as the
     collector's copy) and draws the same picture: the replay and the picture need no module
-    outside the standard library. ``--mcap`` is refused before anything is written (exit 2),
-    naming the export extra: the package bundles no MCAP library (the export compresses with
-    zstandard, compiled, which an architecture-all package cannot carry; docs/fleet.md "The
-    collector package")."""
+    outside the standard library. SR-7.15: ``--mcap`` writes the stop's MCAP file at the
+    collector too, from the package's bundled mcap (pure Python, the file uncompressed;
+    docs/fleet.md "The collector package"), whole: mcap's reader reads every message."""
+    from mcap.reader import make_reader  # noqa: PLC0415 - the reader is the test's, not the package's
+
     folder, directory = stopped_at_collector
     made = json.loads((folder / "stops.json").read_text())
     seq = made["seqs"][0]
@@ -166,15 +171,41 @@ def test_the_package_replays_a_stop_draws_it_and_names_what_mcap_needs(
     assert there.stdout == expected
     assert plot.read_bytes() == (folder / f"robot-{seq}.svg").read_bytes()
     film = tmp_path / "stop.mcap"
-    refused = subprocess.run(
+    written = subprocess.run(
         [srcsctl, "fleet", "replay", robot, str(seq), "-D", str(directory), "--mcap", str(film)],
         capture_output=True, text=True, env=_clean_env(), timeout=120, check=False,
     )  # fmt: skip
-    assert refused.returncode == 2, refused.stdout + refused.stderr
-    assert "the mcap package is not installed" in refused.stderr, refused.stderr
-    assert "pip install 'srcs-supervisord[export]'" in refused.stderr
-    assert "Traceback" not in refused.stderr
-    assert not film.exists()
+    assert written.returncode == 0, written.stdout + written.stderr
+    assert f"mcap: wrote {film}" in written.stdout, written.stdout
+    with film.open("rb") as file:
+        reader = make_reader(file)
+        summary = reader.get_summary()
+        assert summary is not None
+        topics = {channel.topic for channel in summary.channels.values()}
+        messages = sum(1 for _ in reader.iter_messages())
+    assert "/core/state" in topics, topics
+    assert messages > 0
+
+
+def test_the_build_refuses_a_bundled_wheel_that_is_not_pure_python(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Architecture ``all`` holds only while every bundled wheel is pure Python: a locked
+    distribution with compiled modules (msgpack, from the same wheel store) in BUNDLED is
+    refused by name, and nothing of it reaches the package's site-packages."""
+    spec = importlib.util.spec_from_file_location(
+        "build_collector_deb", ROOT / "packaging/build_collector_deb.py"
+    )
+    assert spec is not None
+    assert spec.loader is not None
+    build = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build)
+    monkeypatch.setattr(build, "BUNDLED", frozenset({"msgpack"}))
+    site = tmp_path / "site"
+    site.mkdir()
+    with pytest.raises(build.BuildError, match=r"msgpack-[^ ]*\.dist-info is not pure Python"):
+        build.install_bundled(tmp_path / "work", site)
+    assert list(site.iterdir()) == []
 
 
 def test_lintian_finds_no_error_and_no_warning(deb: Path) -> None:

@@ -157,6 +157,7 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         f"{doc}/examples/robot-motion.conf",
         "/opt/srcsd/lib/python3/site-packages/supervisord/cli/demo.toml",
         "/usr/share/man/man8/srcsd.8.gz",
+        "/usr/share/man/man5/srcsd.toml.5.gz",
         "/usr/share/man/man1/srcsctl.1.gz",
         "/usr/share/man/man1/srcs-sim.1.gz",
         "/usr/share/man/man8/srcs-exporter.8.gz",

@@ -78,3 +78,24 @@ def test_each_command_that_writes_a_file_has_its_directory(page: str) -> None:
         elif path.parent not in made:
             missing.append(f"{command!r}: {path.parent} may not exist")
     assert not missing, "\n".join(missing)
+
+
+def _first(found: list[str], pattern: str) -> int | None:
+    return next((i for i, command in enumerate(found) if re.search(pattern, command)), None)
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_commissioning_is_a_step_after_the_start_and_before_the_motion_service(page: str) -> None:
+    """SR-8.18, SR-8.10: a VSC fresh from the box has key 85 off, so the pages a team follows
+    commission it (``srcsctl ... commission``) once srcsd@ runs, and before any command starts
+    a service behind the gate (``robot-motion@``), which would otherwise wait out its
+    ``wait-ready --timeout`` at every boot."""
+    found = commands(page)
+    start = _first(found, r"systemctl enable .*srcsd@")
+    commission = _first(found, r"^srcsctl .*\bcommission\b")
+    motion = _first(found, r"systemctl (enable|start|restart) .*robot-motion@")
+    assert start is not None, f"{page}: no command starts srcsd@"
+    assert commission is not None, f"{page}: no srcsctl ... commission step"
+    assert start < commission, f"{page}: commissioning before srcsd@ runs: {found[commission]!r}"
+    if motion is not None:
+        assert commission < motion, f"{page}: {found[motion]!r} before commissioning"
