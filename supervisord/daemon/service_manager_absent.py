@@ -106,8 +106,9 @@ def absent(facts: Surroundings) -> list[Absent]:
                 Part.WATCHDOG,
                 "no NOTIFY_SOCKET and WATCHDOG_USEC",
                 "a hung loop is not killed (the VSC's key-85 watchdog still opens its relays); "
-                "check it from outside, e.g. the container "
-                "engine's health check running `srcsctl status`, and restart it when it fails",
+                "check it from outside: the container "
+                "engine's health check running `srcsctl status` (exit 3: no srcsd answers), "
+                "and a restart when it fails",
             )
         )
     if not facts.realtime:
@@ -115,9 +116,10 @@ def absent(facts: Surroundings) -> list[Absent]:
             Absent(
                 Part.REALTIME,
                 "not SCHED_FIFO",
-                "the loop waits behind every busy program; start it with `chrt -f 10` and a "
-                "real-time budget (podman/docker: --cap-add=SYS_NICE, docker: "
-                "--cpu-rt-runtime=950000 --ulimit rtprio=10)",
+                "the loop waits behind every busy program; start it with `chrt -f 10` under "
+                "`prlimit --rttime=1000000:2000000`, which the engine must allow "
+                "(--cap-add=SYS_NICE; a kernel with RT group scheduling needs a budget, "
+                "docker's --cpu-rt-runtime=950000)",
             )
         )
     if not facts.no_new_privs:
@@ -125,9 +127,10 @@ def absent(facts: Surroundings) -> list[Absent]:
             Absent(
                 Part.SANDBOX,
                 "NoNewPrivs is 0",
-                "run it as the user srcsd, not root, with no new privileges "
-                "(--security-opt=no-new-privileges, --cap-drop=ALL but SYS_NICE) and a "
-                "read-only root but its record and socket directories",
+                "run it as the user srcsd, never root, with no new privileges and no "
+                "capabilities (`setpriv --reuid=srcsd --no-new-privs --bounding-set=-all`, "
+                "--security-opt=no-new-privileges) on a read-only root but its record's and "
+                "sockets' directories",
             )
         )
     if not env.get("INVOCATION_ID"):
@@ -136,7 +139,8 @@ def absent(facts: Surroundings) -> list[Absent]:
                 Part.RESTART,
                 "no INVOCATION_ID: not a systemd unit",
                 "nothing here starts it again when it exits; give the container a restart "
-                "policy (--restart=on-failure) or a supervisor of its own",
+                "policy (--restart=on-failure) or a supervisor of its own; exit 78 is a "
+                "configuration error, not to be restarted",
             )
         )
     if not env.get("RUNTIME_DIRECTORY"):

@@ -15,6 +15,8 @@ architecture given, as docs/install.md tells an administrator:
 2. ``estop.py`` (beside this file) with the package's ``/opt/srcsd/bin/python3``, inside a
    network namespace of its own (loopback only): ``srcs-sim`` and ``srcsd`` from the package,
    a takeover, the remote's e-stop, ``srcsctl status`` and ``srcsctl log``.
+   Then ``container.py`` (beside this file), the same way: docs/containers.md's recipe as the
+   package installs the page, srcsd without systemd as PID 1 of a PID namespace (SR-0.4).
 3. ``apt-get remove``: the program is gone, the stop record, the config and the users stay
    (SR-7.4). ``apt-get purge``: nothing the package installed remains, nor the record, the
    users and groups; the administrator's config in ``/etc/srcs`` stays.
@@ -154,6 +156,17 @@ def admits(depends: str, python: str) -> bool:
     return True
 
 
+def relay(report: Report, output: str, what: str) -> None:
+    """A script's ``time:`` and ``check:`` lines (estop.py's, container.py's) as the report's."""
+    for line in output.splitlines():
+        if line.startswith("time: "):
+            report.say("time " + line[6:] + " s")
+        elif line.startswith("check: ok "):
+            report.check(True, what + line[10:])
+        elif line.startswith("check: FAILED "):
+            report.check(False, what + line[14:])
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 3:
         print("usage: python3 -m tests.platforms.package SUITE ARCH DEB", file=sys.stderr)
@@ -272,14 +285,16 @@ def main(argv: list[str]) -> int:
     estop = f"/opt/srcsd/bin/python3 /srv/platforms/estop.py --slow {slow}"
     code, output, took = inside(estop, net=True, limit=300 * slow)
     report.say(f"time end to end: {took:.0f} s")
-    for line in output.splitlines():
-        if line.startswith("time: "):
-            report.say("time " + line[6:] + " s")
-        elif line.startswith("check: ok "):
-            report.check(True, "stop end to end: " + line[10:])
-        elif line.startswith("check: FAILED "):
-            report.check(False, "stop end to end: " + line[14:])
+    relay(report, output, "stop end to end: ")
     report.check(code == 0, "estop.py exits 0", tail(output, 40))
+
+    # docs/containers.md's recipe as written: srcsd without systemd, PID 1 of its own PID
+    # namespace (SR-0.4).
+    recipe = f"/opt/srcsd/bin/python3 /srv/platforms/container.py --slow {slow}"
+    code, output, took = inside(recipe, net=True, limit=300 * slow)
+    report.say(f"time container recipe: {took:.0f} s")
+    relay(report, output, "container recipe: ")
+    report.check(code == 0, "container.py exits 0", tail(output, 40))
 
     code, output, took = inside(REMOVE, limit=300 * max(1.0, slow / 4))
     report.say(f"time apt-get remove: {took:.0f} s")
