@@ -558,9 +558,13 @@ def control(root: Path, version: str, arch: str, glibc: tuple[int, int]) -> str:
         f"Maintainer: {MAINTAINER}\n"
         f"Installed-Size: {size}\n"
         # The interpreter the venv links to, a version whose extension modules are bundled;
-        # the C library the bundled wheels' manylinux tags need; systemd for the units,
-        # sysusers and tmpfiles (and systemctl); udev for the rule. Nothing to compile.
-        f"Depends: python3 (>= {python_min}), python3 (<< {python_next}){libc}, systemd, udev\n"
+        # the C library the bundled wheels' manylinux tags need; systemd for the units and
+        # for systemd-sysusers and systemd-tmpfiles, which the postinst runs even where no
+        # systemd runs (a container). udev only applies the rule: a container has none and
+        # needs none (the postinst skips udevadm without it), so a Recommends (SR-0.4,
+        # docs/containers.md "The package's dependencies"). Nothing to compile.
+        f"Depends: python3 (>= {python_min}), python3 (<< {python_next}){libc}, systemd\n"
+        "Recommends: udev\n"
         "Section: misc\n"
         "Priority: optional\n"
         "Description: safety supervisor for robots with the SRCS remote\n"

@@ -22,6 +22,7 @@ from supervisord.config.collect import collect
 from supervisord.config.directories import present
 from supervisord.config.toml_file import MAX_CONFIG_BYTES
 from supervisord.daemon import signals
+from supervisord.daemon.service_manager_absent import absent, surroundings
 from supervisord.errors import SrcsError
 from supervisord.record.jsonl import RecordError
 
@@ -269,6 +270,10 @@ def _serve(path: str, log: logging.Logger) -> int:
         supervisor.link.description,
         len(supervisor.outputs),
     )
+    # Once, at the start: what no service manager gives this start, and what to provide
+    # instead (SR-0.4, docs/containers.md).
+    for finding in absent(surroundings(config)):
+        log.warning("%s", finding.line())
     return supervisor.run()
 
 

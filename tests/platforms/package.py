@@ -3,8 +3,9 @@
 In a fresh copy of a cached base root (``roots.base``: minbase and python3) of the suite and
 architecture given, as docs/install.md tells an administrator:
 
-1. ``apt-get install -y ./srcs-supervisord_VERSION_ARCH.deb``: apt fetches systemd and udev
-   from the registry; postinst runs ``systemd-sysusers`` and ``systemd-tmpfiles`` in the
+1. ``apt-get install -y ./srcs-supervisord_VERSION_ARCH.deb``: apt fetches systemd from the
+   registry (not udev, which the package only recommends: the roots install no recommended
+   package); postinst runs ``systemd-sysusers`` and ``systemd-tmpfiles`` in the
    root (no systemd runs there; its ``systemctl`` and ``udevadm`` calls are skipped as in an
    image build). ``policy-rc.d`` keeps every service down. Checked: the package installed,
    ``srcsd --version``, the users and groups, the directories and their owners,
@@ -15,6 +16,9 @@ architecture given, as docs/install.md tells an administrator:
 2. ``estop.py`` (beside this file) with the package's ``/opt/srcsd/bin/python3``, inside a
    network namespace of its own (loopback only): ``srcs-sim`` and ``srcsd`` from the package,
    a takeover, the remote's e-stop, ``srcsctl status`` and ``srcsctl log``.
+   Then ``container.py`` (beside this file), the same way: docs/containers.md's recipe as the
+   package installs the page, srcsd without systemd as PID 1 of a PID namespace (SR-0.4);
+   natively only (``RECIPE_NATIVE_ONLY``).
 3. ``apt-get remove``: the program is gone, the stop record, the config and the users stay
    (SR-7.4). ``apt-get purge``: nothing the package installed remains, nor the record, the
    users and groups; the administrator's config in ``/etc/srcs`` stays.
@@ -32,6 +36,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from tests.platforms.report import Report, tail
@@ -154,6 +159,34 @@ def admits(depends: str, python: str) -> bool:
     return True
 
 
+RECIPE_NATIVE_ONLY = (
+    "its commands are the same on every architecture, and its real-time CPU budget, 1 s "
+    "without blocking, is spent by Python's start-up under emulation: the SIGXCPU left the "
+    "emulated srcsd hung in qemu-user"
+)
+
+
+def container(report: Report, inside: Callable[..., tuple[int, str, float]]) -> None:
+    """docs/containers.md's recipe as written: srcsd without systemd, PID 1 of its own PID
+    namespace (SR-0.4)."""
+    recipe = "/opt/srcsd/bin/python3 /srv/platforms/container.py"
+    code, output, took = inside(recipe, net=True, limit=300)
+    report.say(f"time container recipe: {took:.0f} s")
+    relay(report, output, "container recipe: ")
+    report.check(code == 0, "container.py exits 0", tail(output, 40))
+
+
+def relay(report: Report, output: str, what: str) -> None:
+    """A script's ``time:`` and ``check:`` lines (estop.py's, container.py's) as the report's."""
+    for line in output.splitlines():
+        if line.startswith("time: "):
+            report.say("time " + line[6:] + " s")
+        elif line.startswith("check: ok "):
+            report.check(True, what + line[10:])
+        elif line.startswith("check: FAILED "):
+            report.check(False, what + line[14:])
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 3:
         print("usage: python3 -m tests.platforms.package SUITE ARCH DEB", file=sys.stderr)
@@ -272,14 +305,13 @@ def main(argv: list[str]) -> int:
     estop = f"/opt/srcsd/bin/python3 /srv/platforms/estop.py --slow {slow}"
     code, output, took = inside(estop, net=True, limit=300 * slow)
     report.say(f"time end to end: {took:.0f} s")
-    for line in output.splitlines():
-        if line.startswith("time: "):
-            report.say("time " + line[6:] + " s")
-        elif line.startswith("check: ok "):
-            report.check(True, "stop end to end: " + line[10:])
-        elif line.startswith("check: FAILED "):
-            report.check(False, "stop end to end: " + line[14:])
+    relay(report, output, "stop end to end: ")
     report.check(code == 0, "estop.py exits 0", tail(output, 40))
+
+    if slow == 1.0:
+        container(report, inside)
+    else:
+        report.say(f"container recipe: not under qemu-user ({RECIPE_NATIVE_ONLY})")
 
     code, output, took = inside(REMOVE, limit=300 * max(1.0, slow / 4))
     report.say(f"time apt-get remove: {took:.0f} s")

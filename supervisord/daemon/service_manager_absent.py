@@ -1,0 +1,217 @@
+"""What srcsd runs without when no service manager gives it (SR-0.4, docs/containers.md).
+
+``srcsd@.service`` gives the daemon six things that a start by hand or in a container does
+not: systemd's watchdog, real-time scheduling, a sandbox, restarts, the runtime directory,
+and (through udev and the package's rule) a group of its own on the VSC's device. The daemon
+runs without any of them, so it says at its start, once, one line per part, which it lacks
+and what the container or the person starting it must provide instead.
+
+:func:`absent` is pure: the facts in (:class:`Surroundings`), the findings out, in a fixed
+order. :func:`surroundings` reads the facts of this process and machine; the start calls both
+(``supervisord/cli/srcsd.py``) and logs each finding as one warning.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import os
+import stat
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Final
+
+from supervisord.config.model import DaemonConfig, HidDevice, SerialPort
+
+UDEV_CONTROL: Final = Path("/run/udev/control")
+"""The socket systemd-udevd listens on: there when udev runs on this machine (the package's
+postinst asks the same before ``udevadm trigger``)."""
+
+GUIDE: Final = "docs/containers.md"
+
+
+class Part(enum.Enum):
+    """A part of what the unit gives, as the start-up line names it."""
+
+    WATCHDOG = "systemd's watchdog"
+    REALTIME = "real-time scheduling"
+    SANDBOX = "a sandbox"
+    RESTART = "a restart"
+    RUNTIME_DIRECTORY = "a runtime directory"
+    DEVICE_GROUP = "udev's group on the device"
+
+
+@dataclasses.dataclass(frozen=True)
+class Device:
+    """A device node the daemon opens, as it is now: ``None`` fields when it is not there
+    (a VSC not plugged in yet)."""
+
+    path: Path
+    uid: int | None = None
+    gid: int | None = None
+    mode: int | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Surroundings:
+    """The facts :func:`absent` judges, each read from this process or machine."""
+
+    environ: Mapping[str, str]
+    pid: int
+    realtime: bool
+    """The process runs SCHED_FIFO or SCHED_RR (the unit's ``CPUSchedulingPolicy=fifo``)."""
+    no_new_privs: bool
+    """``NoNewPrivs: 1`` in /proc/self/status (the unit's ``NoNewPrivileges=yes``)."""
+    udev: bool
+    """udev runs on this machine (:data:`UDEV_CONTROL` is a socket)."""
+    socket_dirs: tuple[Path, ...]
+    devices: tuple[Device, ...]
+    uid: int = 0
+    groups: tuple[int, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class Absent:
+    """One part the daemon runs without: ``fact`` says how it knows, ``instead`` what to
+    provide in its place."""
+
+    part: Part
+    fact: str
+    instead: str
+
+    def line(self) -> str:
+        return f"runs without {self.part.value} ({self.fact}): {self.instead} ({GUIDE})"
+
+
+def _watchdog(env: Mapping[str, str], pid: int) -> bool:
+    """As :class:`~supervisord.daemon.notify.Notifier` reads it: a socket to ping and a
+    period meant for this process."""
+    mine = env.get("WATCHDOG_PID", str(pid)) == str(pid)
+    return bool(env.get("NOTIFY_SOCKET")) and env.get("WATCHDOG_USEC", "").isdigit() and mine
+
+
+def _device_text(device: Device) -> str:
+    if device.mode is None:
+        return f"{device.path} (not there yet)"
+    return f"{device.path} (uid {device.uid}, gid {device.gid}, mode {device.mode:04o})"
+
+
+def absent(facts: Surroundings) -> list[Absent]:
+    """Each part no service manager gives this start, in :class:`Part`'s order (SR-0.4)."""
+    env = facts.environ
+    found: list[Absent] = []
+    if not _watchdog(env, facts.pid):
+        found.append(
+            Absent(
+                Part.WATCHDOG,
+                "no NOTIFY_SOCKET and WATCHDOG_USEC",
+                "a hung loop is not killed (the VSC's key-85 watchdog still opens its relays); "
+                "check it from outside: the container "
+                "engine's health check running `srcsctl status` (exit 3: no srcsd answers), "
+                "and a restart when it fails",
+            )
+        )
+    if not facts.realtime:
+        found.append(
+            Absent(
+                Part.REALTIME,
+                "not SCHED_FIFO",
+                "the loop waits behind every busy program; start it with `chrt -f 10` under "
+                "`prlimit --rttime=1000000:2000000`, which the engine must allow "
+                "(--cap-add=SYS_NICE; a kernel with RT group scheduling needs a budget, "
+                "docker's --cpu-rt-runtime=950000)",
+            )
+        )
+    if not facts.no_new_privs:
+        found.append(
+            Absent(
+                Part.SANDBOX,
+                "NoNewPrivs is 0",
+                "run it as the user srcsd, never root, with no new privileges and no "
+                "capabilities (`setpriv --reuid=srcsd --no-new-privs --bounding-set=-all`, "
+                "--security-opt=no-new-privileges) on a read-only root but its record's and "
+                "sockets' directories",
+            )
+        )
+    if not env.get("INVOCATION_ID"):
+        found.append(
+            Absent(
+                Part.RESTART,
+                "no INVOCATION_ID: not a systemd unit",
+                "nothing here starts it again when it exits; give the container a restart "
+                "policy (--restart=on-failure) or a supervisor of its own; exit 78 is a "
+                "configuration error, not to be restarted",
+            )
+        )
+    if not env.get("RUNTIME_DIRECTORY"):
+        dirs = " and ".join(str(d) for d in facts.socket_dirs)
+        found.append(
+            Absent(
+                Part.RUNTIME_DIRECTORY,
+                "no RUNTIME_DIRECTORY",
+                f"{dirs} must exist before the start, writable by srcsd only, and be shared "
+                "with the robot's programs (a volume or a tmpfs)",
+            )
+        )
+    if not facts.udev and facts.devices:
+        devices = ", ".join(_device_text(d) for d in facts.devices)
+        groups = ", ".join(str(g) for g in facts.groups)
+        found.append(
+            Absent(
+                Part.DEVICE_GROUP,
+                "udev does not run here",
+                f"opened with the permissions it has: {devices}, srcsd as uid {facts.uid}, "
+                f"groups {groups}; pass the device in with a group srcsd is in "
+                "(--device and --group-add)",
+            )
+        )
+    return found
+
+
+def devices(config: DaemonConfig) -> tuple[Path, ...]:
+    """The device nodes the config's VSC link opens (none for CAN: an interface, no node)."""
+    link = config.vsc.link
+    if isinstance(link, SerialPort):
+        return (link.port,)
+    if isinstance(link, HidDevice):
+        return (link.hidraw,)
+    return ()
+
+
+def _device(path: Path) -> Device:
+    try:
+        info = path.stat()
+    except OSError:
+        return Device(path)
+    return Device(path, info.st_uid, info.st_gid, stat.S_IMODE(info.st_mode))
+
+
+def _no_new_privs() -> bool:
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as status:
+            return any(line.split() == ["NoNewPrivs:", "1"] for line in status)
+    except OSError:
+        return False
+
+
+def _udev() -> bool:
+    try:
+        return stat.S_ISSOCK(UDEV_CONTROL.stat().st_mode)
+    except OSError:
+        return False
+
+
+def surroundings(config: DaemonConfig) -> Surroundings:
+    """The facts of this process and machine now, for :func:`absent`."""
+    dirs = dict.fromkeys((config.api.socket.parent, config.api.operator_path.parent))
+    return Surroundings(
+        environ=dict(os.environ),
+        pid=os.getpid(),
+        realtime=os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR),
+        no_new_privs=_no_new_privs(),
+        udev=_udev(),
+        socket_dirs=tuple(dirs),
+        devices=tuple(_device(path) for path in devices(config)),
+        uid=os.getuid(),
+        groups=tuple(sorted({os.getgid(), *os.getgroups()})),
+    )
