@@ -161,7 +161,6 @@ def hand(step: str, bench: Bench, measured: Measured) -> None:
 def died(bench: Bench, timeline: Timeline, seq: int, restarts: int, measured: Measured) -> None:
     """After the page's death block: the motion line went off, the record has the stop from
     RUN with client_lost:motion, systemd restarted the service, STOPPED without a takeover."""
-    timeline.stop()
     offs = [t for t, level in timeline.of(DRIVE) if t >= 0 and level == 0]
     check(bool(offs), f"the motion line never went off: {timeline.of(DRIVE)}")
     stops = [r for r in records() if r.seq > seq and "client_lost:motion" in r.cause_names]
@@ -172,7 +171,8 @@ def died(bench: Bench, timeline: Timeline, seq: int, restarts: int, measured: Me
     check(int(prop(MOTION, "NRestarts")) > restarts, "systemd did not restart it")
     check(state() == "STOPPED", f"{state()} after the death, before a takeover")
     check(bench.gpio.value(DRIVE) == 0, "the motion line on before a takeover")
-    measured["kill to motion line off ms"] = round(offs[0] * 1000)
+    # From the block's start: bash and systemctl kill first, then the client's 1000 ms.
+    measured["death block's start to the motion line off ms"] = round(offs[0] * 1000)
 
 
 def checked(step: str, output: str, bench: Bench) -> None:
@@ -213,11 +213,13 @@ def scenario_quickstart(bench: Bench) -> tuple[str, Measured]:
             timeline = Timeline(bench.gpio, (DRIVE,))
             restarts = int(prop(MOTION, "NRestarts") or 0)
             seq = max((r.seq for r in records()), default=0)
-            output = run_block(block.step, block.text, bench)
+            try:
+                output = run_block(block.step, block.text, bench)
+            finally:
+                timeline.stop()
             measured[f"{block.step} s"] = round(time.monotonic() - t0, 1)
             if block.step == "death":
                 died(bench, timeline, seq, restarts, measured)
-            timeline.stop()
             if "takeover" not in steps:
                 check(state() != "RUN", f"RUN before the first takeover, after {block.step}")
             checked(block.step, output, bench)
