@@ -1984,6 +1984,14 @@ def bringup(name: str) -> Scenario:
     return scenario
 
 
+def quickstart(bench: Bench) -> tuple[str, Measured]:
+    """docs/quickstart.md's guest blocks as written (guest/quickstart.py), imported when it
+    runs: it uses this module's helpers."""
+    from tests.system.guest.quickstart import scenario_quickstart  # noqa: PLC0415
+
+    return scenario_quickstart(bench)
+
+
 MAIN: list[tuple[str, Scenario]] = [
     ("install", scenario_install),
     ("gpio", scenario_gpio),
@@ -2000,6 +2008,8 @@ MAIN: list[tuple[str, Scenario]] = [
     ("robot_motion_killed", bringup("robot_motion_killed")),
     ("robot_restart", bringup("robot_restart")),
     ("robot_stop", bringup("robot_stop")),
+    # The first-hour page as written (guest/quickstart.py): its own robot, robot-a.
+    ("quickstart", quickstart),
     # On the USB VSC (they move /dev/srcs-vsc from the pty to the gadget): last.
     ("usb_enum", scenario_usb_enum),
     ("usb_unplug", scenario_usb_unplug),
