@@ -562,9 +562,11 @@ def control(root: Path, version: str, arch: str, glibc: tuple[int, int]) -> str:
         # for systemd-sysusers and systemd-tmpfiles, which the postinst runs even where no
         # systemd runs (a container). udev only applies the rule: a container has none and
         # needs none (the postinst skips udevadm without it), so a Recommends (SR-0.4,
-        # docs/containers.md "The package's dependencies"). Nothing to compile.
+        # docs/containers.md "The package's dependencies"). bash-completion loads the
+        # completion that offers the robots of /etc/srcs for -R: a minimal system lacks it
+        # (SR-0.2). Nothing to compile.
         f"Depends: python3 (>= {python_min}), python3 (<< {python_next}){libc}, systemd\n"
-        "Recommends: udev\n"
+        "Recommends: udev, bash-completion\n"
         "Section: misc\n"
         "Priority: optional\n"
         "Description: safety supervisor for robots with the SRCS remote\n"

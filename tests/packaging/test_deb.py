@@ -120,12 +120,13 @@ def test_depends_on_no_compiler_and_no_dev_package(deb: Path) -> None:
     """SR-0.2, SR-0.4: the robot needs Python 3.10 to 3.14, the C library and systemd (its
     sysusers and tmpfiles, run by the postinst), and no compiler, headers or -dev package
     (nothing is built on the robot); udev, which only applies the rule, is recommended, so a
-    container installs the package without it (docs/containers.md)."""
+    container installs the package without it (docs/containers.md); bash-completion too, which
+    loads the completion of the robots' names."""
     depends = [d.strip() for d in field(deb, "Depends").split(",")]
     names = {re.split(r"[ (]", d)[0] for d in depends}
     assert {"python3", "libc6", "systemd"} <= names
     assert "udev" not in names, depends
-    assert field(deb, "Recommends") == "udev"
+    assert field(deb, "Recommends") == "udev, bash-completion"
     assert "python3 (>= 3.10)" in depends, depends
     assert "python3 (<< 3.15)" in depends, depends
     compilers = {"gcc", "cc", "build-essential", "pkg-config", "cpp", "clang"}
