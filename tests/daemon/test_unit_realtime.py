@@ -1,6 +1,6 @@
 """The service unit's real-time scheduling, bounded (SR-9): ``srcsd@.service``
 runs the daemon in SCHED_FIFO at a modest priority under RLIMIT_RTTIME, keeps
-``RestrictRealtime=yes`` and its offline exposure at or under 1.4; and, as root, the kernel does
+``RestrictRealtime=yes`` and its offline exposure at or under 1.5; and, as root, the kernel does
 with the unit's own numbers what the unit's comments promise: a real-time process that spins is
 killed by SIGXCPU, one that blocks now and then is never killed however much CPU it uses in all.
 The same, under systemd with the real daemon, is the system tier's ``rttime`` scenario."""
@@ -58,9 +58,10 @@ def test_the_unit_bounds_the_real_time_loop_with_rlimit_rttime() -> None:
 
 
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")
-def test_offline_exposure_is_at_most_1_4(tmp_path: Path) -> None:
+def test_offline_exposure_is_at_most_1_5(tmp_path: Path) -> None:
     """SR-9: the real-time settings cost the sandbox nothing: ``systemd-analyze security
-    --offline=yes`` rates the unit 1.4 or better, as it did without them."""
+    --offline=yes`` rates the unit 1.5 or better: 1.4, as without them, plus the 0.1 that
+    ``@chown`` allowed back costs (the operator socket's group, SR-8.14; install.md)."""
     copy = tmp_path / "srcsd@robot-a.service"
     shutil.copy(UNIT, copy)
     result = subprocess.run(
@@ -72,7 +73,7 @@ def test_offline_exposure_is_at_most_1_4(tmp_path: Path) -> None:
     )
     match = re.search(r"Overall exposure level for \S+: (\d+\.\d+)", result.stdout)
     assert match is not None, result.stdout + result.stderr
-    assert float(match.group(1)) <= 1.4
+    assert float(match.group(1)) <= 1.5
 
 
 FIFO_PROBE = "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))"

@@ -373,7 +373,7 @@ def test_without_the_mcap_library_the_export_says_what_to_install(tmp_path: Path
     )
     lines = done.stdout.splitlines()
     assert lines[0].startswith(f"{EXIT_BAD_INPUT} srcsctl replay: --mcap: the mcap package"), done
-    assert "install srcs-supervisord again" in lines[0]
+    assert "install its package again" in lines[0]
     assert "pip install" not in lines[0]  # the project is on no index; /opt/srcsd has no pip
     assert lines[-1] == "0", done
     assert not (tmp_path / "x.mcap").exists()
