@@ -16,6 +16,12 @@ given also goes into the flight recorder's ring, and each stop's window leaves t
 sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user
 heartbeat, the outputs and the link are served only by this loop, so if it hangs, the
 heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
+
+The loop keeps the turn's order and the apply order; parts with narrow faces do the rest, each
+told what it needs as arguments and answering with values, none calling back into the loop
+(``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
+its watches, the wake pair, the clients' order) and the service manager's face
+(:mod:`~supervisord.daemon.service_manager`: READY, STATUS, WATCHDOG, STOPPING).
 """
 
 from __future__ import annotations
@@ -26,12 +32,10 @@ import datetime as dt
 import logging
 import os
 import select
-import socket
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from supervisord import __version__
-from supervisord.api.readiness import DEFAULT_SRCSCTL, NO_ANSWER, commission_fix
 from supervisord.api.status import LinkStatus, LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
@@ -40,8 +44,10 @@ from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.reflex import EarlyOff
+from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
+from supervisord.daemon.waiter import Waiter
 from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
 from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
 from supervisord.outputs.base import Output, OutputError, ReadBack
@@ -53,7 +59,6 @@ from supervisord.record.flight import FlightWriter
 from supervisord.record.format import stop_record
 from supervisord.record.jsonl import RecordWriter
 from supervisord.record.stop import StopRecord
-from supervisord.safety.causes import CauseState
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision, Record, RefusalReason
@@ -69,7 +74,6 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
-from supervisord.vocabulary import STOP_PATH_CAUSES, CauseKind
 
 log = logging.getLogger("srcsd")
 
@@ -80,7 +84,6 @@ ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could 
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 _REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
-OFF_KIND = CauseKind.VSC_WATCHDOG_OFF
 
 
 @dataclass
@@ -202,11 +205,6 @@ class Supervisor:
     the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
     fed the same inputs and checks that both do the same (SR-9.4)."""
 
-    # How a fix names the command that reaches this daemon (SR-8.18): set by srcsd from its
-    # config's path (``srcsctl -R robot-a``); said when the VSC's watchdog is found off.
-    srcsctl: str = DEFAULT_SRCSCTL
-    _said_watchdog_off: bool = False
-
     def __init__(
         self,
         safety: SafetyConfig,
@@ -235,7 +233,8 @@ class Supervisor:
         # Each record's journal copy, and each stop window's (SR-13.12).
         self.journal, self.flight_journal = journal, flight_journal
         self.listener = listener or Listener()
-        self.notifier = notifier or Notifier({})
+        # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
+        self.service = ServiceManager(notifier or Notifier({}))
         self.clock = clock
         self.wall_clock = wall_clock
         self.backoff = backoff or Backoff()
@@ -253,27 +252,15 @@ class Supervisor:
         self.decision: Decision | None = None
         self._stop_requested = False
         self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
-        self._status = ""
-        self._status_causes: tuple[CauseState, ...] | None = None  # what ``_status`` is of
-        self._status_state: State | None = None
-        self._next_watchdog: int | None = None
         self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
         # The outputs' levels the last decision set, every one of them (each output named is
         # open and was left at its level): the mapping object itself, for the steady path.
         # ``None`` once anything else drives or opens an output.
         self._applied_outputs: Mapping[str, bool] | None = None
-        # The loop's wait: epoll itself, not the ``selectors`` wrapper, which builds a key per
-        # ready descriptor on every turn (SR-9.4). ``_tags`` says what each watched fd is.
-        self._epoll = select.epoll()
-        self._wait = self._epoll.poll
-        self._tags: dict[int, str] = {}  # fd -> "wake", "sink" or "io" (the link, clients)
-        self._watched: dict[int, int] = {}  # the "io" fds and their epoll events
-        self._watched_api: list[tuple[int, bool]] | None = None  # the listener's, last turn
-        self._watched_link: int | None = None
-        self._watchdog_interval: int | None = None  # the notifier's, read once at start
-        self._wake_r, self._wake_w = socket.socketpair()
+        # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
+        # SR-10.1).
+        self.waiter = Waiter()
         self.sink: Sink | None = None
-        self._client_cursor = -1  # the last client descriptor served: the next turn starts after
         self._limited_unlogged = self._next_limit_log = 0  # refusals not logged yet, and when
         self._started_ns: int | None = None  # for ``status``: uptime
         self._version_due = True  # the first record of this start names the version
@@ -288,6 +275,15 @@ class Supervisor:
         if writer is not None and flight is not None:
             self.flight = FlightRecorder(safety, flight)
             self._flight_writer = FlightWriter(writer.path, writer.max_bytes, flight.max_bytes)
+
+    @property
+    def srcsctl(self) -> str:
+        """How a fix names the command that reaches this daemon (SR-8.18), set by srcsd."""
+        return self.service.srcsctl
+
+    @srcsctl.setter
+    def srcsctl(self, srcsctl: str) -> None:
+        self.service.srcsctl = srcsctl
 
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
@@ -373,14 +369,9 @@ class Supervisor:
         for event in events:
             self._apply(self._feed(event))
         self._try_open_link(now)
-        self._wake_r.setblocking(False)
-        for fd, tag in ((self._wake_r.fileno(), "wake"), (self.sink.fileno(), "sink")):
-            self._epoll.register(fd, select.EPOLLIN)
-            self._tags[fd] = tag
-        interval = self._watchdog_interval = self.notifier.watchdog_interval_ns
-        self._next_watchdog = now if interval else None
+        self.waiter.start(self.sink.fileno())
         assert self.decision is not None
-        self.notifier.send(READY="1", STATUS=self._status_text(self.decision))
+        self.service.ready(now, self.decision)  # the startup decision applied: outputs off
         return self.decision
 
     def request_stop(self, signum: int | None = None) -> None:
@@ -389,14 +380,13 @@ class Supervisor:
         if self._stop_signal is None:
             self._stop_signal = signum
         self._stop_requested = True
-        with contextlib.suppress(OSError):
-            self._wake_w.send(b"\0")
+        self.waiter.wake()
 
     def shutdown(self) -> None:
         """All outputs off, then release the link; drain the record (every queued record
         written and fsynced, and pushed to subscribers, within the sink's deadline), then the
         socket (SIGTERM path)."""
-        self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
+        self.service.stopping()
         self._applied_outputs = None  # every output driven off and closed here
         now = self.clock()
         for output in self.outputs.values():
@@ -423,10 +413,8 @@ class Supervisor:
         elif self.writer is not None:
             self.writer.close()
         self.listener.close()
-        self._epoll.close()
-        self._wake_r.close()
-        self._wake_w.close()
-        self.notifier.close()
+        self.waiter.close()
+        self.service.close()
 
     def _record_shutdown(self, now: int) -> None:
         """The ``shutdown:REASON`` stop (SR-7.14): REASON is the signal that asked for the
@@ -483,31 +471,19 @@ class Supervisor:
         link = self.link
         link_fd = link.fileno() if link.is_open else None  # once, for the deadline and the watch
         timeout = max(0.0, (self._next_deadline(before, link_fd) - before) / 1e9)
-        self._sync_watches(before, link_fd)
-        ready = self._wait(timeout)
+        waiter = self.waiter
+        waiter.watch(link_fd, self.listener.descriptors(before))
+        ready = waiter.wait(timeout)
         now = self.clock()
         try:
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
-            link_fd = self._watched_link  # the link's fd as watched for this wait (or None)
-            clients: list[tuple[int, int]] = []
-            sink_ready = received = False
-            for fd, mask in ready:
-                if fd == link_fd:
-                    self._receive()
-                    received = True
-                    continue
-                tag = self._tags.get(fd)
-                if tag == "wake":
-                    with contextlib.suppress(BlockingIOError):
-                        self._wake_r.recv(64)
-                elif tag == "sink":
-                    sink_ready = True  # taken below, after the timers
-                elif fd in self._watched:
-                    clients.append((fd, mask))
-            if link_fd is None and link.is_open and link.fileno() is None:
+            received, sink_ready, clients = waiter.sort(ready)  # the sink's: after the timers
+            if received:
+                self._receive()
+            elif waiter.link_fd is None and link.is_open and link.fileno() is None:
                 self._receive()  # a link without a descriptor is polled
                 received = True
             # The timers at the time the wait returned, or after the read when there was one
@@ -524,49 +500,27 @@ class Supervisor:
             self._internal_fault(self.clock(), error)
 
     def _serve_clients(self, ready: list[tuple[int, int]]) -> None:
-        """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, starting after the one
-        served last (so every client gets its turn), and stop early when the link has bytes
-        waiting or a core deadline has come: those go first (docs/safety.md). The listener's
-        urgent descriptors (the operator socket, SR-8.14) come before them all, uncounted."""
-        if not ready:
-            return
-        urgent = self.listener.urgent()
-        first = [item for item in ready if item[0] in urgent]
-        ready = sorted(item for item in ready if item[0] not in urgent)
-        later = [item for item in ready if item[0] > self._client_cursor]
-        ordered = later + [item for item in ready if item[0] <= self._client_cursor]
+        """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, in the waiter's order
+        (starting after the one served last, so every client gets its turn), and stop early
+        when the link has bytes waiting or a core deadline has come: those go first
+        (docs/safety.md). The listener's urgent descriptors (the operator socket, SR-8.14) come
+        before them all, uncounted."""
+        waiter, listener = self.waiter, self.listener
+        first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
-            readable, writable = self._readiness(fd, mask)
-            self.listener.handle(
-                fd,
-                readable,
-                writable,
-                self.clock(),
-                self._feed_and_apply,
-                snapshot=self._snapshot,
+            readable, writable = waiter.readiness(fd, mask)
+            listener.handle(
+                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
             )
         for served, (fd, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them
-            self._client_cursor = fd
-            readable, writable = self._readiness(fd, mask)
+            waiter.cursor = fd
+            readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self.listener.handle(
-                fd,
-                readable,
-                writable,
-                self.clock(),
-                self._feed_and_apply,
-                snapshot=self._snapshot,
+            listener.handle(
+                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
             )
-
-    def _readiness(self, fd: int, mask: int) -> tuple[bool, bool]:
-        """Readable and writable, as ``selectors`` reads an epoll mask: an error or a hang-up
-        counts as both, each only where it is watched."""
-        watched = self._watched.get(fd, 0)
-        readable = bool(mask & ~select.EPOLLOUT and watched & select.EPOLLIN)
-        writable = bool(mask & ~select.EPOLLIN and watched & select.EPOLLOUT)
-        return readable, writable
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -590,36 +544,15 @@ class Supervisor:
                 deadline = min(deadline, self.backoff.next_attempt)
             else:
                 deadline = min(deadline, now + POLL_NS)
-        if self._next_watchdog is not None and self._next_watchdog < deadline:
-            deadline = self._next_watchdog
+        watchdog = self.service.next_watchdog
+        if watchdog is not None and watchdog < deadline:
+            deadline = watchdog
         for backoff in self._acquiring.values():
             deadline = min(deadline, backoff.next_attempt)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and listener_deadline < deadline:
             deadline = listener_deadline
         return deadline
-
-    def _sync_watches(self, now: int, fd: int | None) -> None:
-        """Watch the link's ``fd`` (``None``: none) and the listener's descriptors."""
-        api = self.listener.descriptors(now)
-        if fd == self._watched_link and api == self._watched_api:
-            return  # the usual turn: the same list as the last, nothing to register (SR-9.4)
-        wanted: dict[int, int] = {}
-        if fd is not None:
-            wanted[fd] = select.EPOLLIN
-        for api_fd, wants_write in api:
-            wanted[api_fd] = select.EPOLLIN | (select.EPOLLOUT if wants_write else 0)
-        for old in set(self._watched) - set(wanted):
-            with contextlib.suppress(KeyError, ValueError, OSError):
-                self._epoll.unregister(old)
-        for new, events in wanted.items():
-            if new not in self._watched:
-                self._epoll.register(new, events)
-            elif self._watched[new] != events:
-                self._epoll.modify(new, events)
-        self._watched = wanted
-        self._watched_link = fd
-        self._watched_api = api if isinstance(api, list) else None  # a list compares cheaply
 
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
@@ -643,16 +576,15 @@ class Supervisor:
                 tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
             )
         if (
-            self._watched_link is None
+            self.waiter.link_fd is None
             and not self.link.is_open
             and now >= self.backoff.next_attempt
         ):
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
             self._try_open_link(now)
-        interval = self._watchdog_interval
-        if self._next_watchdog is not None and interval and now >= self._next_watchdog:
-            self.notifier.send(WATCHDOG="1")
-            self._next_watchdog = now + interval
+        service = self.service
+        if service.next_watchdog is not None and now >= service.next_watchdog:
+            service.watchdog(now)
 
     def _acquire(self, name: str, backoff: Backoff, now: int) -> None:
         output = self.outputs[name]
@@ -897,30 +829,11 @@ class Supervisor:
             else:
                 log.info("refused: %s", refusal.message)
         self.listener.decided(decision)
-        if decision.causes is not self._status_causes or decision.state is not self._status_state:
+        service = self.service
+        if decision.causes is not service.causes or decision.state is not service.state:
             # The status line depends on these two alone; a decision of the cheap path keeps
             # the previous one's (SR-9.4).
-            self._update_status(decision)
-
-    def _update_status(self, decision: Decision) -> None:
-        """systemd's status line, sent when its text changes."""
-        self._status_causes, self._status_state = decision.causes, decision.state
-        status = self._status_text(decision)
-        if status != self._status:
-            self._status = status
-            self.notifier.send(STATUS=status)
-        off = any(
-            state.active
-            and state.cause.kind is OFF_KIND
-            and state.detail("key85") not in (None, NO_ANSWER)
-            for state in decision.causes
-        )
-        if off and not self._said_watchdog_off:
-            # Said each time the VSC answers key 85 with another value than 1, with its fix
-            # (SR-8.18): a VSC fresh from the box has key 85 off, and the gate (SR-8.10) waits
-            # for it at every start. Not before it answered: a commissioned VSC is not read yet.
-            log.warning("%s: %s", STOP_PATH_CAUSES[OFF_KIND], commission_fix(self.srcsctl))
-        self._said_watchdog_off = off
+            service.decided(decision)
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
@@ -975,12 +888,6 @@ class Supervisor:
             )
             self._limited_unlogged = 0
             self._next_limit_log = now + LIMIT_LOG_NS
-
-    @staticmethod
-    def _status_text(decision: Decision) -> str:
-        causes = sorted(decision.active_names | decision.latched_names)
-        state = decision.state.value.upper()
-        return f"{state}: {', '.join(causes)}" if causes else state
 
     def _internal_fault(self, now: int, error: Exception) -> None:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
