@@ -20,8 +20,10 @@ heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 The loop keeps the turn's order and the apply order; parts with narrow faces do the rest, each
 told what it needs as arguments and answering with values, none calling back into the loop
 (``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
-its watches, the wake pair, the clients' order) and the service manager's face
-(:mod:`~supervisord.daemon.service_manager`: READY, STATUS, WATCHDOG, STOPPING).
+its watches, the wake pair, the clients' order), the link port
+(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters) and
+the service manager's face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
+WATCHDOG, STOPPING).
 """
 
 from __future__ import annotations
@@ -33,28 +35,27 @@ import logging
 import os
 import select
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from supervisord import __version__
-from supervisord.api.status import LinkStatus, LoopStatus
+from supervisord.api.status import LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.reflex import EarlyOff
 from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
+from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
-from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
-from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
+from supervisord.links.base import Backoff, Link
 from supervisord.outputs.base import Output, OutputError, ReadBack
-from supervisord.protocol.framing import Rejection
-from supervisord.protocol.hid import HidInput, HidRejection
-from supervisord.protocol.j1939 import CanRejection
-from supervisord.protocol.messages import Message, UserHeartbeat, VscHeartbeat
+from supervisord.protocol.hid import HidInput
+from supervisord.protocol.messages import Message, VscHeartbeat
 from supervisord.record.flight import FlightWriter
 from supervisord.record.format import stop_record
 from supervisord.record.jsonl import RecordWriter
@@ -66,7 +67,6 @@ from supervisord.safety.events import (
     Event,
     InternalFault,
     LinkBroken,
-    LinkOpened,
     OutputReadback,
     Shutdown,
     Tick,
@@ -83,44 +83,16 @@ MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at mos
 ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
-_REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
 
 
 @dataclass
 class Counters:
-    """What the loop has seen, for ``srcsctl status``."""
+    """What the loop has seen, for ``srcsctl status`` (the link's counts are its port's)."""
 
-    messages: int = 0
-    rejections: dict[str, int] = field(default_factory=dict)
-    link_opens: int = 0
-    link_failures: int = 0
     record_errors: int = 0
     records_dropped: int = 0
     rate_limited: int = 0
     internal_faults: int = 0
-
-    def reject(self, reason: str) -> None:
-        self.rejections[reason] = self.rejections.get(reason, 0) + 1
-
-
-@dataclass
-class Timings:
-    """The loop's own timing, on its monotonic clock, since the daemon started
-    (docs/fleet.md "Timing histograms")."""
-
-    vsc_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
-    user_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
-    stop_to_off: Histogram = field(default_factory=lambda: Histogram(STOP_TO_OFF_BOUNDS_NS))
-    last_vsc_heartbeat_ns: int | None = None  # the read stamp of the last VSC heartbeat
-    last_user_heartbeat_ns: int | None = None  # when the last user heartbeat's write returned
-
-    def histograms(self) -> dict[str, Histogram]:
-        """By their names on the wire (docs/api.md)."""
-        return {
-            "vsc_heartbeat_period_seconds": self.vsc_heartbeat_period,
-            "user_heartbeat_period_seconds": self.user_heartbeat_period,
-            "stop_to_off_seconds": self.stop_to_off,
-        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -237,9 +209,10 @@ class Supervisor:
         self.service = ServiceManager(notifier or Notifier({}))
         self.clock = clock
         self.wall_clock = wall_clock
-        self.backoff = backoff or Backoff()
         self.counters = Counters()
         self.timings = Timings()
+        # The link: open with its backoff, receive, send, its counters (SR-2, SR-5.1).
+        self.port = LinkPort(link, clock, self.timings, backoff)
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
@@ -267,8 +240,6 @@ class Supervisor:
         # The typed records the sink has as JSON, by ``seq``, until it says what became of
         # each: the API pushes the typed record itself, never one read back from its JSON.
         self._in_sink: dict[int, StopRecord] = {}
-        self._link_since_ns: int | None = None  # when the link last opened or broke
-        self._link_error: str | None = None  # why it broke or failed to open, until it opens
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
         self.flight: FlightRecorder | None = None
         self._flight_writer: FlightWriter | None = None
@@ -294,27 +265,15 @@ class Supervisor:
             pid=os.getpid(),
             version=__version__,
             uptime_s=seconds_since(now, self._started_ns),
-            link=LinkStatus(
-                description=self.link.description,
-                open=self.link.is_open,
-                opens=counters.link_opens,
-                open_failures=counters.link_failures,
-                # How long it has been open (or not), and the last reason it broke or could
-                # not open (kept after a reopen: a flapping link shows why).
-                since_s=seconds_since(now, self._link_since_ns),
-                last_error=self._link_error,
-                # CAN only (null on serial and HID): error frames counted since start, each
-                # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
-                error_frames=_error_frames(self.link),
-            ),
+            link=self.port.status(now),
             outputs_not_acquired=tuple(sorted(self._acquiring)),
             # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
             # "Stop categories"); an output not named is category 0.
             outputs_off_delay_ms={
                 o.name: o.off_delay_ms for o in self.safety.outputs if o.off_delay_ms
             },
-            messages=counters.messages,
-            rejections=dict(sorted(counters.rejections.items())),
+            messages=self.port.messages,
+            rejections=dict(sorted(self.port.rejections.items())),
             record_errors=counters.record_errors,
             records_dropped=counters.records_dropped,
             # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
@@ -344,7 +303,7 @@ class Supervisor:
         Once acquired (off), the fault's condition clears; its stop waits for a re-arm (SR-4).
         """
         now = self.clock()
-        self._started_ns = self._link_since_ns = now
+        self._started_ns = self.port.since_ns = now
         self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         self.sink = Sink(
             self.writer,
@@ -368,7 +327,7 @@ class Supervisor:
         self._apply(self.core.decision)  # the startup decision, with the first record
         for event in events:
             self._apply(self._feed(event))
-        self._try_open_link(now)
+        self._apply(self._feed(self.port.open(now)))
         self.waiter.start(self.sink.fileno())
         assert self.decision is not None
         self.service.ready(now, self.decision)  # the startup decision applied: outputs off
@@ -541,7 +500,7 @@ class Supervisor:
                 deadline = due
         if link_fd is None:
             if not self.link.is_open:
-                deadline = min(deadline, self.backoff.next_attempt)
+                deadline = min(deadline, self.port.next_attempt)
             else:
                 deadline = min(deadline, now + POLL_NS)
         watchdog = self.service.next_watchdog
@@ -575,13 +534,9 @@ class Supervisor:
             self._send(
                 tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
             )
-        if (
-            self.waiter.link_fd is None
-            and not self.link.is_open
-            and now >= self.backoff.next_attempt
-        ):
+        if self.waiter.link_fd is None and not self.link.is_open and now >= self.port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
-            self._try_open_link(now)
+            self._apply(self._feed(self.port.open(now)))
         service = self.service
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)
@@ -601,50 +556,21 @@ class Supervisor:
 
     # ----------------------------------------------------------------- the link
 
-    def _try_open_link(self, now: int) -> None:
-        try:
-            self.link.open()
-        except LinkError as error:
-            self.counters.link_failures += 1
-            self._link_error = f"cannot open: {error.reason}"
-            self.backoff.failed(now)
-            if self.counters.link_failures == 1 or self.counters.link_failures % 50 == 0:
-                log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
-            self._apply(self._feed(LinkBroken(now, f"cannot open: {error.reason}")))
-            return
-        self.backoff.succeeded()
-        self.counters.link_opens += 1
-        # The error said why the link was not open; open, it is history (its count stays in
-        # open_failures, the break in the record): status shows none from before (SR-8.18).
-        self._link_since_ns, self._link_error = now, None
-        # A period across a reopen would measure the outage, not the cadence: start afresh
-        # (the outage shows in the link's counters).
-        self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
-        log.info("%s: open", self.link.description)
-        self._apply(self._feed(LinkOpened(now)))
-
     def _receive(self) -> None:
-        try:
-            received = self.link.receive()
-        except LinkBrokenError as error:
-            self._link_broken(self.clock(), error.reason)
+        """What the link brought, each message fed and applied in its order."""
+        got = self.port.receive()
+        if isinstance(got, LinkBroken):
+            self._apply(self._feed(got))
             return
-        now = self.clock()  # what was read counts as received now: right after the read (SR-2)
+        now, received = got
         heartbeat = False
-        counters, received_by = self.counters, self.listener.received
-        flight, core = self.flight, self.core
+        received_by, flight, core = self.listener.received, self.flight, self.core
         assert core is not None
         for item in received:
             kind = type(item)
-            if kind in _REJECTIONS:
-                counters.reject(
-                    item.reason.value if kind is not HidRejection else "wrong_length"  # type: ignore[union-attr]
-                )
-                continue
-            counters.messages += 1
             if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
                 self._early.heard(item, now, core)  # type: ignore[arg-type]
-            received_by(item, now)  # type: ignore[arg-type]
+            received_by(item, now)
             if kind is not HidInput:
                 # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per
                 # input, SR-9.4).
@@ -656,40 +582,14 @@ class Supervisor:
                 if kind is VscHeartbeat:
                     heartbeat = True
         if heartbeat:
-            # One period per read that brought heartbeats, on its read stamp: the time the
-            # link-loss timer saw between two signs of life (SR-2.2). Heartbeats read together
-            # (after a stall) are one sign, not periods of 0 (docs/fleet.md). Observed after
-            # the decisions are applied: a heartbeat with an e-stop bit waits for nothing (SR-9).
-            timings = self.timings
-            if timings.last_vsc_heartbeat_ns is not None:
-                timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
-            timings.last_vsc_heartbeat_ns = now
-
-    def _link_broken(self, now: int, reason: str) -> None:
-        log.warning("%s: broken: %s", self.link.description, reason)
-        self._link_since_ns, self._link_error = now, reason
-        self.link.close()
-        self.backoff.failed(now)
-        self._apply(self._feed(LinkBroken(now, reason)))
+            # Observed after the decisions are applied: a heartbeat with an e-stop bit waits
+            # for nothing (SR-9).
+            self.port.heard(now)
 
     def _send(self, frames: tuple[Message, ...], now: int) -> None:
-        if not frames or not self.link.is_open:
-            return
-        try:
-            self.link.send(list(frames))
-        except LinkBrokenError as error:
-            self._link_broken(now, error.reason)
-            return
-        for frame in frames:
-            if type(frame) is UserHeartbeat:
-                # When the write returned: the period the VSC's watchdog sees, to the loop's
-                # accuracy (SR-5.1, SR-9.3). One clock read per heartbeat, 20 to 50 a second.
-                sent = self.clock()
-                timings = self.timings
-                if timings.last_user_heartbeat_ns is not None:
-                    timings.user_heartbeat_period.observe(sent - timings.last_user_heartbeat_ns)
-                timings.last_user_heartbeat_ns = sent
-                break
+        broken = self.port.send(frames, now)
+        if broken is not None:
+            self._apply(self._feed(broken))
 
     # ----------------------------------------------------------------- decisions
 
@@ -899,10 +799,3 @@ class Supervisor:
                 output.set(False, now)
         with contextlib.suppress(Exception):
             self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))
-
-
-def _error_frames(link: Link) -> int | None:
-    """The link's count of CAN error frames, or ``None`` for a link that has none (read by
-    attribute: the CAN link, and python-can with it, is imported only for a CAN VSC)."""
-    count = getattr(link, "error_frames", None)
-    return count if isinstance(count, int) else None
