@@ -439,7 +439,12 @@ class Supervisor:
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
-            received, sink_ready, clients = waiter.sort(ready)  # the sink's: after the timers
+            if not ready:  # a deadline's turn: nothing to sort (SR-9.4)
+                received, sink_ready, clients = False, False, None
+            elif len(ready) == 1 and ready[0][0] == waiter.link_fd:  # a frame's turn: the same
+                received, sink_ready, clients = True, False, None
+            else:  # the sink's is taken after the timers
+                received, sink_ready, clients = waiter.sort(ready)
             if received:
                 self._receive()
             elif waiter.link_fd is None and link.is_open and link.fileno() is None:

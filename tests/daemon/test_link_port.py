@@ -82,6 +82,11 @@ def test_what_was_read_comes_back_with_the_time_it_was_read_and_rejections_count
     assert port.rejections["bad_checksum"] == 1  # (and its bytes' resync, as the decoder says)
     assert set(port.rejections) <= {reason.value for reason in RejectReason}
     assert port.receive() == (7 * MS, [])
+    rejected = dict(port.rejections)
+    vsc.send(RUN)  # a read of messages alone, the usual one
+    clock.at(9 * MS)
+    assert port.receive() == (9 * MS, [RUN])
+    assert (port.messages, port.rejections) == (3, rejected)
 
 
 def test_a_link_broken_under_a_read_or_a_write_is_closed_and_reopened_after_the_backoff(
