@@ -7,9 +7,11 @@ a pty VSC that is unplugged and replugged, is
 
 from __future__ import annotations
 
+import logging
+
 import pytest
 
-from supervisord.daemon.link_port import LinkPort
+from supervisord.daemon.link_port import FAILURES_LOGGED_EVERY, LinkPort
 from supervisord.daemon.timings import Timings
 from supervisord.links.base import Backoff
 from supervisord.links.memory_link import MemoryLink, MemoryPort
@@ -141,3 +143,18 @@ def test_a_vsc_heartbeat_period_is_one_per_read_and_a_reopen_starts_afresh(
     port.heard(5_050 * MS)
     assert periods.count == 2
     assert port.timings.last_user_heartbeat_ns is None
+
+
+def test_a_link_that_keeps_failing_to_open_is_logged_once_then_one_failure_in_50(
+    rig: tuple[LinkPort, MemoryPort, Clock], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A missing device retried for hours must not flood the log; its count is in status."""
+    port, vsc, _ = rig
+    vsc.unplug()
+    with caplog.at_level(logging.WARNING, logger="srcsd"):
+        for attempt in range(FAILURES_LOGGED_EVERY * 2):
+            port.open(attempt * 500 * MS)
+    assert [r.getMessage() for r in caplog.records] == [
+        "memory memory: cannot open: No such device (retrying)"
+    ] * 3  # the 1st, the 50th and the 100th
+    assert port.status(0).open_failures == FAILURES_LOGGED_EVERY * 2
