@@ -195,7 +195,7 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
         heap.settle()  # as ``Supervisor.run`` does between the start and the first turn
     reader = supervisor.link.fileno()
     assert reader is not None
-    wait = supervisor._wait
+    wait = supervisor.waiter.wait
 
     def virtual_wait(timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
         own = driver.now + math.ceil((timeout or 0.0) * 1000) * NS_PER_MS
@@ -206,7 +206,7 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
         driver.idle_turn(own)
         return wait(0, maxevents)
 
-    supervisor._wait = virtual_wait
+    supervisor.waiter.wait = virtual_wait
     flight = supervisor.flight
     assert flight is not None
     driver.inputs_so_far = lambda: flight.count

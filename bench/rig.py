@@ -158,7 +158,7 @@ class TurnStats:
         self.max_wall_ns = self.max_cpu_ns = self.busy_ns = 0
         self._first_ns: int | None = None
         self._woke: tuple[int, int] | None = None
-        wait = supervisor._wait  # the loop's epoll wait, measured from outside: no hook
+        wait = supervisor.waiter.wait  # the loop's epoll wait, measured from outside: no hook
 
         def select(timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
             self._turn_ends()
@@ -166,7 +166,7 @@ class TurnStats:
             self._woke = (time.monotonic_ns(), time.thread_time_ns())
             return ready
 
-        supervisor._wait = select
+        supervisor.waiter.wait = select
 
     def _turn_ends(self) -> None:
         now = time.monotonic_ns()

@@ -16,6 +16,14 @@ given also goes into the flight recorder's ring, and each stop's window leaves t
 sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user
 heartbeat, the outputs and the link are served only by this loop, so if it hangs, the
 heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
+
+The loop keeps the turn's order and the apply order; parts with narrow faces do the rest, each
+told what it needs as arguments and answering with values, none calling back into the loop
+(``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
+its watches, the wake pair, the clients' order), the link port
+(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters) and
+the service manager's face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
+WATCHDOG, STOPPING).
 """
 
 from __future__ import annotations
@@ -26,34 +34,32 @@ import datetime as dt
 import logging
 import os
 import select
-import socket
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from supervisord import __version__
-from supervisord.api.readiness import DEFAULT_SRCSCTL, NO_ANSWER, commission_fix
-from supervisord.api.status import LinkStatus, LoopStatus
+from supervisord.api.status import LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.reflex import EarlyOff
+from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
-from supervisord.histogram import HEARTBEAT_BOUNDS_NS, STOP_TO_OFF_BOUNDS_NS, Histogram
-from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
+from supervisord.daemon.timings import Timings
+from supervisord.daemon.waiter import Waiter
+from supervisord.links.base import Backoff, Link
 from supervisord.outputs.base import Output, OutputError, ReadBack
-from supervisord.protocol.framing import Rejection
-from supervisord.protocol.hid import HidInput, HidRejection
-from supervisord.protocol.j1939 import CanRejection
-from supervisord.protocol.messages import Message, UserHeartbeat, VscHeartbeat
+from supervisord.protocol.hid import HidInput
+from supervisord.protocol.messages import Message, VscHeartbeat
 from supervisord.record.flight import FlightWriter
 from supervisord.record.format import stop_record
 from supervisord.record.jsonl import RecordWriter
 from supervisord.record.stop import StopRecord
-from supervisord.safety.causes import CauseState
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision, Record, RefusalReason
@@ -61,7 +67,6 @@ from supervisord.safety.events import (
     Event,
     InternalFault,
     LinkBroken,
-    LinkOpened,
     OutputReadback,
     Shutdown,
     Tick,
@@ -69,7 +74,6 @@ from supervisord.safety.events import (
 )
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
-from supervisord.vocabulary import STOP_PATH_CAUSES, CauseKind
 
 log = logging.getLogger("srcsd")
 
@@ -79,45 +83,16 @@ MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at mos
 ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
-_REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
-OFF_KIND = CauseKind.VSC_WATCHDOG_OFF
 
 
 @dataclass
 class Counters:
-    """What the loop has seen, for ``srcsctl status``."""
+    """What the loop has seen, for ``srcsctl status`` (the link's counts are its port's)."""
 
-    messages: int = 0
-    rejections: dict[str, int] = field(default_factory=dict)
-    link_opens: int = 0
-    link_failures: int = 0
     record_errors: int = 0
     records_dropped: int = 0
     rate_limited: int = 0
     internal_faults: int = 0
-
-    def reject(self, reason: str) -> None:
-        self.rejections[reason] = self.rejections.get(reason, 0) + 1
-
-
-@dataclass
-class Timings:
-    """The loop's own timing, on its monotonic clock, since the daemon started
-    (docs/fleet.md "Timing histograms")."""
-
-    vsc_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
-    user_heartbeat_period: Histogram = field(default_factory=lambda: Histogram(HEARTBEAT_BOUNDS_NS))
-    stop_to_off: Histogram = field(default_factory=lambda: Histogram(STOP_TO_OFF_BOUNDS_NS))
-    last_vsc_heartbeat_ns: int | None = None  # the read stamp of the last VSC heartbeat
-    last_user_heartbeat_ns: int | None = None  # when the last user heartbeat's write returned
-
-    def histograms(self) -> dict[str, Histogram]:
-        """By their names on the wire (docs/api.md)."""
-        return {
-            "vsc_heartbeat_period_seconds": self.vsc_heartbeat_period,
-            "user_heartbeat_period_seconds": self.user_heartbeat_period,
-            "stop_to_off_seconds": self.stop_to_off,
-        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -202,11 +177,6 @@ class Supervisor:
     the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
     fed the same inputs and checks that both do the same (SR-9.4)."""
 
-    # How a fix names the command that reaches this daemon (SR-8.18): set by srcsd from its
-    # config's path (``srcsctl -R robot-a``); said when the VSC's watchdog is found off.
-    srcsctl: str = DEFAULT_SRCSCTL
-    _said_watchdog_off: bool = False
-
     def __init__(
         self,
         safety: SafetyConfig,
@@ -235,12 +205,14 @@ class Supervisor:
         # Each record's journal copy, and each stop window's (SR-13.12).
         self.journal, self.flight_journal = journal, flight_journal
         self.listener = listener or Listener()
-        self.notifier = notifier or Notifier({})
+        # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
+        self.service = ServiceManager(notifier or Notifier({}))
         self.clock = clock
         self.wall_clock = wall_clock
-        self.backoff = backoff or Backoff()
         self.counters = Counters()
         self.timings = Timings()
+        # The link: open with its backoff, receive, send, its counters (SR-2, SR-5.1).
+        self.port = LinkPort(link, clock, self.timings, backoff)
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
@@ -253,41 +225,36 @@ class Supervisor:
         self.decision: Decision | None = None
         self._stop_requested = False
         self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
-        self._status = ""
-        self._status_causes: tuple[CauseState, ...] | None = None  # what ``_status`` is of
-        self._status_state: State | None = None
-        self._next_watchdog: int | None = None
         self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
         # The outputs' levels the last decision set, every one of them (each output named is
         # open and was left at its level): the mapping object itself, for the steady path.
         # ``None`` once anything else drives or opens an output.
         self._applied_outputs: Mapping[str, bool] | None = None
-        # The loop's wait: epoll itself, not the ``selectors`` wrapper, which builds a key per
-        # ready descriptor on every turn (SR-9.4). ``_tags`` says what each watched fd is.
-        self._epoll = select.epoll()
-        self._wait = self._epoll.poll
-        self._tags: dict[int, str] = {}  # fd -> "wake", "sink" or "io" (the link, clients)
-        self._watched: dict[int, int] = {}  # the "io" fds and their epoll events
-        self._watched_api: list[tuple[int, bool]] | None = None  # the listener's, last turn
-        self._watched_link: int | None = None
-        self._watchdog_interval: int | None = None  # the notifier's, read once at start
-        self._wake_r, self._wake_w = socket.socketpair()
+        # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
+        # SR-10.1).
+        self.waiter = Waiter()
         self.sink: Sink | None = None
-        self._client_cursor = -1  # the last client descriptor served: the next turn starts after
         self._limited_unlogged = self._next_limit_log = 0  # refusals not logged yet, and when
         self._started_ns: int | None = None  # for ``status``: uptime
         self._version_due = True  # the first record of this start names the version
         # The typed records the sink has as JSON, by ``seq``, until it says what became of
         # each: the API pushes the typed record itself, never one read back from its JSON.
         self._in_sink: dict[int, StopRecord] = {}
-        self._link_since_ns: int | None = None  # when the link last opened or broke
-        self._link_error: str | None = None  # why it broke or failed to open, until it opens
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
         self.flight: FlightRecorder | None = None
         self._flight_writer: FlightWriter | None = None
         if writer is not None and flight is not None:
             self.flight = FlightRecorder(safety, flight)
             self._flight_writer = FlightWriter(writer.path, writer.max_bytes, flight.max_bytes)
+
+    @property
+    def srcsctl(self) -> str:
+        """How a fix names the command that reaches this daemon (SR-8.18), set by srcsd."""
+        return self.service.srcsctl
+
+    @srcsctl.setter
+    def srcsctl(self, srcsctl: str) -> None:
+        self.service.srcsctl = srcsctl
 
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
@@ -298,27 +265,15 @@ class Supervisor:
             pid=os.getpid(),
             version=__version__,
             uptime_s=seconds_since(now, self._started_ns),
-            link=LinkStatus(
-                description=self.link.description,
-                open=self.link.is_open,
-                opens=counters.link_opens,
-                open_failures=counters.link_failures,
-                # How long it has been open (or not), and the last reason it broke or could
-                # not open (kept after a reopen: a flapping link shows why).
-                since_s=seconds_since(now, self._link_since_ns),
-                last_error=self._link_error,
-                # CAN only (null on serial and HID): error frames counted since start, each
-                # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
-                error_frames=_error_frames(self.link),
-            ),
+            link=self.port.status(now),
             outputs_not_acquired=tuple(sorted(self._acquiring)),
             # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
             # "Stop categories"); an output not named is category 0.
             outputs_off_delay_ms={
                 o.name: o.off_delay_ms for o in self.safety.outputs if o.off_delay_ms
             },
-            messages=counters.messages,
-            rejections=dict(sorted(counters.rejections.items())),
+            messages=self.port.messages,
+            rejections=dict(sorted(self.port.rejections.items())),
             record_errors=counters.record_errors,
             records_dropped=counters.records_dropped,
             # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
@@ -348,7 +303,7 @@ class Supervisor:
         Once acquired (off), the fault's condition clears; its stop waits for a re-arm (SR-4).
         """
         now = self.clock()
-        self._started_ns = self._link_since_ns = now
+        self._started_ns = self.port.since_ns = now
         self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         self.sink = Sink(
             self.writer,
@@ -372,15 +327,10 @@ class Supervisor:
         self._apply(self.core.decision)  # the startup decision, with the first record
         for event in events:
             self._apply(self._feed(event))
-        self._try_open_link(now)
-        self._wake_r.setblocking(False)
-        for fd, tag in ((self._wake_r.fileno(), "wake"), (self.sink.fileno(), "sink")):
-            self._epoll.register(fd, select.EPOLLIN)
-            self._tags[fd] = tag
-        interval = self._watchdog_interval = self.notifier.watchdog_interval_ns
-        self._next_watchdog = now if interval else None
+        self._apply(self._feed(self.port.open(now)))
+        self.waiter.start(self.sink.fileno())
         assert self.decision is not None
-        self.notifier.send(READY="1", STATUS=self._status_text(self.decision))
+        self.service.ready(now, self.decision)  # the startup decision applied: outputs off
         return self.decision
 
     def request_stop(self, signum: int | None = None) -> None:
@@ -389,14 +339,13 @@ class Supervisor:
         if self._stop_signal is None:
             self._stop_signal = signum
         self._stop_requested = True
-        with contextlib.suppress(OSError):
-            self._wake_w.send(b"\0")
+        self.waiter.wake()
 
     def shutdown(self) -> None:
         """All outputs off, then release the link; drain the record (every queued record
         written and fsynced, and pushed to subscribers, within the sink's deadline), then the
         socket (SIGTERM path)."""
-        self.notifier.send(STOPPING="1", STATUS="stopping: outputs off")
+        self.service.stopping()
         self._applied_outputs = None  # every output driven off and closed here
         now = self.clock()
         for output in self.outputs.values():
@@ -423,10 +372,8 @@ class Supervisor:
         elif self.writer is not None:
             self.writer.close()
         self.listener.close()
-        self._epoll.close()
-        self._wake_r.close()
-        self._wake_w.close()
-        self.notifier.close()
+        self.waiter.close()
+        self.service.close()
 
     def _record_shutdown(self, now: int) -> None:
         """The ``shutdown:REASON`` stop (SR-7.14): REASON is the signal that asked for the
@@ -483,31 +430,24 @@ class Supervisor:
         link = self.link
         link_fd = link.fileno() if link.is_open else None  # once, for the deadline and the watch
         timeout = max(0.0, (self._next_deadline(before, link_fd) - before) / 1e9)
-        self._sync_watches(before, link_fd)
-        ready = self._wait(timeout)
+        waiter = self.waiter
+        waiter.watch(link_fd, self.listener.descriptors(before))
+        ready = waiter.wait(timeout)
         now = self.clock()
         try:
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
                 late = (now - core_deadline) // NS_PER_MS
                 self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
-            link_fd = self._watched_link  # the link's fd as watched for this wait (or None)
-            clients: list[tuple[int, int]] = []
-            sink_ready = received = False
-            for fd, mask in ready:
-                if fd == link_fd:
-                    self._receive()
-                    received = True
-                    continue
-                tag = self._tags.get(fd)
-                if tag == "wake":
-                    with contextlib.suppress(BlockingIOError):
-                        self._wake_r.recv(64)
-                elif tag == "sink":
-                    sink_ready = True  # taken below, after the timers
-                elif fd in self._watched:
-                    clients.append((fd, mask))
-            if link_fd is None and link.is_open and link.fileno() is None:
+            if not ready:  # a deadline's turn: nothing to sort (SR-9.4)
+                received, sink_ready, clients = False, False, None
+            elif len(ready) == 1 and ready[0][0] == waiter.link_fd:  # a frame's turn: the same
+                received, sink_ready, clients = True, False, None
+            else:  # the sink's is taken after the timers
+                received, sink_ready, clients = waiter.sort(ready)
+            if received:
+                self._receive()
+            elif waiter.link_fd is None and link.is_open and link.fileno() is None:
                 self._receive()  # a link without a descriptor is polled
                 received = True
             # The timers at the time the wait returned, or after the read when there was one
@@ -524,49 +464,27 @@ class Supervisor:
             self._internal_fault(self.clock(), error)
 
     def _serve_clients(self, ready: list[tuple[int, int]]) -> None:
-        """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, starting after the one
-        served last (so every client gets its turn), and stop early when the link has bytes
-        waiting or a core deadline has come: those go first (docs/safety.md). The listener's
-        urgent descriptors (the operator socket, SR-8.14) come before them all, uncounted."""
-        if not ready:
-            return
-        urgent = self.listener.urgent()
-        first = [item for item in ready if item[0] in urgent]
-        ready = sorted(item for item in ready if item[0] not in urgent)
-        later = [item for item in ready if item[0] > self._client_cursor]
-        ordered = later + [item for item in ready if item[0] <= self._client_cursor]
+        """Serve up to MAX_CLIENTS_PER_TURN ready client descriptors, in the waiter's order
+        (starting after the one served last, so every client gets its turn), and stop early
+        when the link has bytes waiting or a core deadline has come: those go first
+        (docs/safety.md). The listener's urgent descriptors (the operator socket, SR-8.14) come
+        before them all, uncounted."""
+        waiter, listener = self.waiter, self.listener
+        first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
-            readable, writable = self._readiness(fd, mask)
-            self.listener.handle(
-                fd,
-                readable,
-                writable,
-                self.clock(),
-                self._feed_and_apply,
-                snapshot=self._snapshot,
+            readable, writable = waiter.readiness(fd, mask)
+            listener.handle(
+                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
             )
         for served, (fd, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them
-            self._client_cursor = fd
-            readable, writable = self._readiness(fd, mask)
+            waiter.cursor = fd
+            readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self.listener.handle(
-                fd,
-                readable,
-                writable,
-                self.clock(),
-                self._feed_and_apply,
-                snapshot=self._snapshot,
+            listener.handle(
+                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
             )
-
-    def _readiness(self, fd: int, mask: int) -> tuple[bool, bool]:
-        """Readable and writable, as ``selectors`` reads an epoll mask: an error or a hang-up
-        counts as both, each only where it is watched."""
-        watched = self._watched.get(fd, 0)
-        readable = bool(mask & ~select.EPOLLOUT and watched & select.EPOLLIN)
-        writable = bool(mask & ~select.EPOLLIN and watched & select.EPOLLOUT)
-        return readable, writable
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -587,39 +505,18 @@ class Supervisor:
                 deadline = due
         if link_fd is None:
             if not self.link.is_open:
-                deadline = min(deadline, self.backoff.next_attempt)
+                deadline = min(deadline, self.port.next_attempt)
             else:
                 deadline = min(deadline, now + POLL_NS)
-        if self._next_watchdog is not None and self._next_watchdog < deadline:
-            deadline = self._next_watchdog
+        watchdog = self.service.next_watchdog
+        if watchdog is not None and watchdog < deadline:
+            deadline = watchdog
         for backoff in self._acquiring.values():
             deadline = min(deadline, backoff.next_attempt)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and listener_deadline < deadline:
             deadline = listener_deadline
         return deadline
-
-    def _sync_watches(self, now: int, fd: int | None) -> None:
-        """Watch the link's ``fd`` (``None``: none) and the listener's descriptors."""
-        api = self.listener.descriptors(now)
-        if fd == self._watched_link and api == self._watched_api:
-            return  # the usual turn: the same list as the last, nothing to register (SR-9.4)
-        wanted: dict[int, int] = {}
-        if fd is not None:
-            wanted[fd] = select.EPOLLIN
-        for api_fd, wants_write in api:
-            wanted[api_fd] = select.EPOLLIN | (select.EPOLLOUT if wants_write else 0)
-        for old in set(self._watched) - set(wanted):
-            with contextlib.suppress(KeyError, ValueError, OSError):
-                self._epoll.unregister(old)
-        for new, events in wanted.items():
-            if new not in self._watched:
-                self._epoll.register(new, events)
-            elif self._watched[new] != events:
-                self._epoll.modify(new, events)
-        self._watched = wanted
-        self._watched_link = fd
-        self._watched_api = api if isinstance(api, list) else None  # a list compares cheaply
 
     def _due(self, now: int) -> None:
         if self.decision is not None and now >= self.decision.next_deadline:
@@ -642,17 +539,12 @@ class Supervisor:
             self._send(
                 tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
             )
-        if (
-            self._watched_link is None
-            and not self.link.is_open
-            and now >= self.backoff.next_attempt
-        ):
+        if self.waiter.link_fd is None and not self.link.is_open and now >= self.port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
-            self._try_open_link(now)
-        interval = self._watchdog_interval
-        if self._next_watchdog is not None and interval and now >= self._next_watchdog:
-            self.notifier.send(WATCHDOG="1")
-            self._next_watchdog = now + interval
+            self._apply(self._feed(self.port.open(now)))
+        service = self.service
+        if service.next_watchdog is not None and now >= service.next_watchdog:
+            service.watchdog(now)
 
     def _acquire(self, name: str, backoff: Backoff, now: int) -> None:
         output = self.outputs[name]
@@ -669,50 +561,21 @@ class Supervisor:
 
     # ----------------------------------------------------------------- the link
 
-    def _try_open_link(self, now: int) -> None:
-        try:
-            self.link.open()
-        except LinkError as error:
-            self.counters.link_failures += 1
-            self._link_error = f"cannot open: {error.reason}"
-            self.backoff.failed(now)
-            if self.counters.link_failures == 1 or self.counters.link_failures % 50 == 0:
-                log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
-            self._apply(self._feed(LinkBroken(now, f"cannot open: {error.reason}")))
-            return
-        self.backoff.succeeded()
-        self.counters.link_opens += 1
-        # The error said why the link was not open; open, it is history (its count stays in
-        # open_failures, the break in the record): status shows none from before (SR-8.18).
-        self._link_since_ns, self._link_error = now, None
-        # A period across a reopen would measure the outage, not the cadence: start afresh
-        # (the outage shows in the link's counters).
-        self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
-        log.info("%s: open", self.link.description)
-        self._apply(self._feed(LinkOpened(now)))
-
     def _receive(self) -> None:
-        try:
-            received = self.link.receive()
-        except LinkBrokenError as error:
-            self._link_broken(self.clock(), error.reason)
+        """What the link brought, each message fed and applied in its order."""
+        got = self.port.receive()
+        if isinstance(got, LinkBroken):
+            self._apply(self._feed(got))
             return
-        now = self.clock()  # what was read counts as received now: right after the read (SR-2)
+        now, received = got
         heartbeat = False
-        counters, received_by = self.counters, self.listener.received
-        flight, core = self.flight, self.core
+        received_by, flight, core = self.listener.received, self.flight, self.core
         assert core is not None
         for item in received:
             kind = type(item)
-            if kind in _REJECTIONS:
-                counters.reject(
-                    item.reason.value if kind is not HidRejection else "wrong_length"  # type: ignore[union-attr]
-                )
-                continue
-            counters.messages += 1
             if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
                 self._early.heard(item, now, core)  # type: ignore[arg-type]
-            received_by(item, now)  # type: ignore[arg-type]
+            received_by(item, now)
             if kind is not HidInput:
                 # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per
                 # input, SR-9.4).
@@ -724,40 +587,14 @@ class Supervisor:
                 if kind is VscHeartbeat:
                     heartbeat = True
         if heartbeat:
-            # One period per read that brought heartbeats, on its read stamp: the time the
-            # link-loss timer saw between two signs of life (SR-2.2). Heartbeats read together
-            # (after a stall) are one sign, not periods of 0 (docs/fleet.md). Observed after
-            # the decisions are applied: a heartbeat with an e-stop bit waits for nothing (SR-9).
-            timings = self.timings
-            if timings.last_vsc_heartbeat_ns is not None:
-                timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
-            timings.last_vsc_heartbeat_ns = now
-
-    def _link_broken(self, now: int, reason: str) -> None:
-        log.warning("%s: broken: %s", self.link.description, reason)
-        self._link_since_ns, self._link_error = now, reason
-        self.link.close()
-        self.backoff.failed(now)
-        self._apply(self._feed(LinkBroken(now, reason)))
+            # Observed after the decisions are applied: a heartbeat with an e-stop bit waits
+            # for nothing (SR-9).
+            self.port.heard(now)
 
     def _send(self, frames: tuple[Message, ...], now: int) -> None:
-        if not frames or not self.link.is_open:
-            return
-        try:
-            self.link.send(list(frames))
-        except LinkBrokenError as error:
-            self._link_broken(now, error.reason)
-            return
-        for frame in frames:
-            if type(frame) is UserHeartbeat:
-                # When the write returned: the period the VSC's watchdog sees, to the loop's
-                # accuracy (SR-5.1, SR-9.3). One clock read per heartbeat, 20 to 50 a second.
-                sent = self.clock()
-                timings = self.timings
-                if timings.last_user_heartbeat_ns is not None:
-                    timings.user_heartbeat_period.observe(sent - timings.last_user_heartbeat_ns)
-                timings.last_user_heartbeat_ns = sent
-                break
+        broken = self.port.send(frames, now)
+        if broken is not None:
+            self._apply(self._feed(broken))
 
     # ----------------------------------------------------------------- decisions
 
@@ -897,30 +734,11 @@ class Supervisor:
             else:
                 log.info("refused: %s", refusal.message)
         self.listener.decided(decision)
-        if decision.causes is not self._status_causes or decision.state is not self._status_state:
+        service = self.service
+        if decision.causes is not service.causes or decision.state is not service.state:
             # The status line depends on these two alone; a decision of the cheap path keeps
             # the previous one's (SR-9.4).
-            self._update_status(decision)
-
-    def _update_status(self, decision: Decision) -> None:
-        """systemd's status line, sent when its text changes."""
-        self._status_causes, self._status_state = decision.causes, decision.state
-        status = self._status_text(decision)
-        if status != self._status:
-            self._status = status
-            self.notifier.send(STATUS=status)
-        off = any(
-            state.active
-            and state.cause.kind is OFF_KIND
-            and state.detail("key85") not in (None, NO_ANSWER)
-            for state in decision.causes
-        )
-        if off and not self._said_watchdog_off:
-            # Said each time the VSC answers key 85 with another value than 1, with its fix
-            # (SR-8.18): a VSC fresh from the box has key 85 off, and the gate (SR-8.10) waits
-            # for it at every start. Not before it answered: a commissioned VSC is not read yet.
-            log.warning("%s: %s", STOP_PATH_CAUSES[OFF_KIND], commission_fix(self.srcsctl))
-        self._said_watchdog_off = off
+            service.decided(decision)
 
     def _write_record(self, record: Record) -> None:
         """Hand the record to the sink (never waits). The stop itself has already happened
@@ -976,12 +794,6 @@ class Supervisor:
             self._limited_unlogged = 0
             self._next_limit_log = now + LIMIT_LOG_NS
 
-    @staticmethod
-    def _status_text(decision: Decision) -> str:
-        causes = sorted(decision.active_names | decision.latched_names)
-        state = decision.state.value.upper()
-        return f"{state}: {', '.join(causes)}" if causes else state
-
     def _internal_fault(self, now: int, error: Exception) -> None:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
         self.counters.internal_faults += 1
@@ -992,10 +804,3 @@ class Supervisor:
                 output.set(False, now)
         with contextlib.suppress(Exception):
             self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))
-
-
-def _error_frames(link: Link) -> int | None:
-    """The link's count of CAN error frames, or ``None`` for a link that has none (read by
-    attribute: the CAN link, and python-can with it, is imported only for a CAN VSC)."""
-    count = getattr(link, "error_frames", None)
-    return count if isinstance(count, int) else None

@@ -179,7 +179,7 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     peer.port.replug()
     peer.silent = False
     run_until(supervisor, peer, lambda: "transport_fault" not in active(supervisor))
-    assert supervisor.counters.link_opens == 2
+    assert supervisor.port.opens == 2
     assert state(supervisor) is State.STOPPED  # a reconnect is a new start
 
     # Records reach the file on the sink's thread: read it once every record is written.
@@ -213,7 +213,7 @@ def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:
         with PtyPort(tmp_path / "vsc") as port:
             peer = VscPeer(port)
             run_until(supervisor, peer, lambda: supervisor.link.is_open)
-            assert supervisor.counters.link_failures >= 1
+            assert supervisor.port.failures >= 1
     finally:
         supervisor.shutdown()
 

@@ -1,0 +1,172 @@
+"""The link to the VSC as the loop uses it: open with a backoff, receive, send, and count.
+
+The loop asks and the port answers with values, never calling back into the loop: what the
+core must be fed of the link comes back as an event (``LinkOpened``, ``LinkBroken``) or as the
+messages read with the time they were read; the loop feeds them and applies each decision in
+its order (SR-6).
+
+- ``open(now)``: ``LinkOpened``, or ``LinkBroken`` with the reason it could not open (the
+  backoff then says when to try again, ``next_attempt``; SR-2.5 ``transport_fault``).
+- ``receive()``: the messages read and the clock read right after the read (what was read
+  counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
+  ``LinkBroken``, the link closed and the backoff started.
+- ``send(frames, now)``: the frames written at once, in order; ``LinkBroken`` if the write
+  broke the link. When a user heartbeat's write returned is its period as the VSC's watchdog
+  sees it (SR-5.1, SR-9.3).
+- ``heard(now)``: a read that brought VSC heartbeats, after their decisions were applied: one
+  period each (SR-2.2).
+- ``status(now)``: the link's part of ``srcsctl status`` (SR-8.18).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from supervisord.api.status import LinkStatus
+from supervisord.clock import Clock
+from supervisord.daemon.timings import Timings
+from supervisord.links.base import Backoff, Link, LinkBrokenError, LinkError
+from supervisord.protocol.framing import Rejection
+from supervisord.protocol.hid import HidInput, HidRejection
+from supervisord.protocol.j1939 import CanRejection
+from supervisord.protocol.messages import Message, UserHeartbeat
+from supervisord.safety.events import LinkBroken, LinkOpened
+from supervisord.timebase import seconds_since
+
+log = logging.getLogger("srcsd")
+
+_REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
+FAILURES_LOGGED_EVERY = 50  # a link that keeps failing to open: its first failure, then 1 in 50
+
+Received = list[Message | HidInput]
+"""The messages of one read, in the order they arrived."""
+
+
+class LinkPort:
+    """One link, its reopen backoff, its counters, and the heartbeats' periods (written into
+    the loop's :class:`~supervisord.daemon.timings.Timings`, handed at construction)."""
+
+    def __init__(
+        self, link: Link, clock: Clock, timings: Timings, backoff: Backoff | None = None
+    ) -> None:
+        self.link = link
+        self.clock = clock
+        self.timings = timings
+        self.backoff = backoff or Backoff()
+        self.opens = 0
+        self.failures = 0  # opens that failed
+        self.messages = 0  # valid messages received
+        self.rejections: dict[str, int] = {}  # what arrived and was no message, by reason
+        self.since_ns: int | None = None  # when the link last opened or broke (or the start)
+        self.error: str | None = None  # why it broke or failed to open, until it opens
+
+    @property
+    def next_attempt(self) -> int:
+        """When a closed link is to be opened again."""
+        return self.backoff.next_attempt
+
+    def open(self, now: int) -> LinkOpened | LinkBroken:
+        """Try to open the link at ``now``."""
+        try:
+            self.link.open()
+        except LinkError as error:
+            self.failures += 1
+            self.error = f"cannot open: {error.reason}"
+            self.backoff.failed(now)
+            if self.failures == 1 or self.failures % FAILURES_LOGGED_EVERY == 0:
+                log.warning("%s: cannot open: %s (retrying)", self.link.description, error)
+            return LinkBroken(now, f"cannot open: {error.reason}")
+        self.backoff.succeeded()
+        self.opens += 1
+        # The error said why the link was not open; open, it is history (its count stays in
+        # open_failures, the break in the record): status shows none from before (SR-8.18).
+        self.since_ns, self.error = now, None
+        # A period across a reopen would measure the outage, not the cadence: start afresh
+        # (the outage shows in the link's counters).
+        self.timings.last_vsc_heartbeat_ns = self.timings.last_user_heartbeat_ns = None
+        log.info("%s: open", self.link.description)
+        return LinkOpened(now)
+
+    def broken(self, now: int, reason: str) -> LinkBroken:
+        """The world broke the link at ``now``: closed, and reopened after the backoff."""
+        log.warning("%s: broken: %s", self.link.description, reason)
+        self.since_ns, self.error = now, reason
+        self.link.close()
+        self.backoff.failed(now)
+        return LinkBroken(now, reason)
+
+    def receive(self) -> tuple[int, Received] | LinkBroken:
+        """What has arrived, and when it was read; or the break the read found."""
+        try:
+            received = self.link.receive()
+        except LinkBrokenError as error:
+            return self.broken(self.clock(), error.reason)
+        now = self.clock()  # what was read counts as received now: right after the read (SR-2)
+        for item in received:
+            if type(item) in _REJECTIONS:
+                break
+        else:  # the usual read, every item a message: handed on as it is (SR-9.4)
+            self.messages += len(received)
+            return now, received  # type: ignore[return-value]
+        messages: Received = []
+        for item in received:
+            kind = type(item)
+            if kind in _REJECTIONS:
+                reason = "wrong_length" if kind is HidRejection else item.reason.value  # type: ignore[union-attr]
+                self.rejections[reason] = self.rejections.get(reason, 0) + 1
+            else:
+                messages.append(item)  # type: ignore[arg-type]
+        self.messages += len(messages)
+        return now, messages
+
+    def heard(self, now: int) -> None:
+        """A read at ``now`` brought VSC heartbeats: one period since the last such read, the
+        time the link-loss timer saw between two signs of life (SR-2.2). Heartbeats read
+        together (after a stall) are one sign, not periods of 0 (docs/fleet.md)."""
+        timings = self.timings
+        if timings.last_vsc_heartbeat_ns is not None:
+            timings.vsc_heartbeat_period.observe(now - timings.last_vsc_heartbeat_ns)
+        timings.last_vsc_heartbeat_ns = now
+
+    def send(self, frames: tuple[Message, ...], now: int) -> LinkBroken | None:
+        """Write ``frames`` (none, or a closed link: nothing); the break if the write broke it."""
+        if not frames or not self.link.is_open:
+            return None
+        try:
+            self.link.send(list(frames))
+        except LinkBrokenError as error:
+            return self.broken(now, error.reason)
+        for frame in frames:
+            if type(frame) is UserHeartbeat:
+                # When the write returned: the period the VSC's watchdog sees, to the loop's
+                # accuracy (SR-5.1, SR-9.3). One clock read per heartbeat, 20 to 50 a second.
+                sent = self.clock()
+                timings = self.timings
+                if timings.last_user_heartbeat_ns is not None:
+                    timings.user_heartbeat_period.observe(sent - timings.last_user_heartbeat_ns)
+                timings.last_user_heartbeat_ns = sent
+                break
+        return None
+
+    def status(self, now: int) -> LinkStatus:
+        """The link as ``srcsctl status`` shows it at ``now`` (docs/api.md "status")."""
+        return LinkStatus(
+            description=self.link.description,
+            open=self.link.is_open,
+            opens=self.opens,
+            open_failures=self.failures,
+            # How long it has been open (or not), and the last reason it broke or could
+            # not open (kept after a reopen: a flapping link shows why).
+            since_s=seconds_since(now, self.since_ns),
+            last_error=self.error,
+            # CAN only (null on serial and HID): error frames counted since start, each
+            # one stopping nothing (SR-2.12; docs/safety.md "CAN error frames").
+            error_frames=_error_frames(self.link),
+        )
+
+
+def _error_frames(link: Link) -> int | None:
+    """The link's count of CAN error frames, or ``None`` for a link that has none (read by
+    attribute: the CAN link, and python-can with it, is imported only for a CAN VSC)."""
+    count = getattr(link, "error_frames", None)
+    return count if isinstance(count, int) else None

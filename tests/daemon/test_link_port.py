@@ -1,0 +1,160 @@
+"""The link port on the in-memory link (the serial protocol's bytes, no port: it passes the
+links' conformance suite), time passed as ``now`` and a clock the test moves: opening with a
+backoff, receiving into messages with their read time, sending, the counters and the
+heartbeats' periods (SR-2, SR-2.2, SR-5.1, SR-8.18, SR-9.3). The port in the real loop, with
+a pty VSC that is unplugged and replugged, is
+``tests/daemon/test_loop.py::test_start_takeover_estop_silence_unplug``."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from supervisord.daemon.link_port import FAILURES_LOGGED_EVERY, LinkPort
+from supervisord.daemon.timings import Timings
+from supervisord.links.base import Backoff
+from supervisord.links.memory_link import MemoryLink, MemoryPort
+from supervisord.protocol.codes import VscMode
+from supervisord.protocol.framing import RejectReason, encode_frame
+from supervisord.protocol.messages import UserHeartbeat, VscHeartbeat
+from supervisord.safety.events import LinkBroken, LinkOpened
+from supervisord.timebase import NS_PER_MS
+
+MS = NS_PER_MS
+RUN = VscHeartbeat(VscMode.OPERATIONAL)
+
+
+class Clock:
+    """A clock the test sets; it never runs backwards."""
+
+    def __init__(self) -> None:
+        self.now = 0
+
+    def __call__(self) -> int:
+        return self.now
+
+    def at(self, now: int) -> int:
+        assert now >= self.now
+        self.now = now
+        return now
+
+
+@pytest.fixture
+def rig() -> tuple[LinkPort, MemoryPort, Clock]:
+    vsc, clock = MemoryPort(), Clock()
+    return LinkPort(MemoryLink(vsc), clock, Timings(), Backoff(100, 400)), vsc, clock
+
+
+def test_a_link_that_cannot_open_backs_off_and_says_why_until_it_opens(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    port, vsc, _ = rig
+    vsc.unplug()
+    failed = port.open(1_000 * MS)
+    assert failed == LinkBroken(1_000 * MS, "cannot open: No such device")
+    assert port.next_attempt == 1_100 * MS
+    assert port.open(1_100 * MS) == LinkBroken(1_100 * MS, "cannot open: No such device")
+    assert port.next_attempt == 1_300 * MS  # doubled
+    status = port.status(1_200 * MS)
+    assert (status.open, status.opens, status.open_failures) == (False, 0, 2)
+    assert status.last_error == "cannot open: No such device"
+    vsc.replug()
+    assert port.open(1_300 * MS) == LinkOpened(1_300 * MS)
+    status = port.status(1_500 * MS)
+    assert (status.open, status.opens, status.open_failures) == (True, 1, 2)
+    assert status.last_error is None  # SR-8.18: history once open; the count stays
+    assert status.since_s == pytest.approx(0.2)
+    assert status.error_frames is None  # CAN only
+
+
+def test_what_was_read_comes_back_with_the_time_it_was_read_and_rejections_counted(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    """SR-2: stamped right after the read; SR-2.1: a frame that fails its check is counted
+    by its reason and never handed on as a message."""
+    port, vsc, clock = rig
+    assert port.open(0) == LinkOpened(0)
+    bad = bytearray(encode_frame(RUN))
+    bad[-1] ^= 0xFF
+    vsc.write(bytes(bad) + encode_frame(RUN) + encode_frame(VscHeartbeat(VscMode.PAUSE)))
+    clock.at(7 * MS)
+    assert port.receive() == (7 * MS, [RUN, VscHeartbeat(VscMode.PAUSE)])
+    assert port.messages == 2
+    assert port.rejections["bad_checksum"] == 1  # (and its bytes' resync, as the decoder says)
+    assert set(port.rejections) <= {reason.value for reason in RejectReason}
+    assert port.receive() == (7 * MS, [])
+    rejected = dict(port.rejections)
+    vsc.send(RUN)  # a read of messages alone, the usual one
+    clock.at(9 * MS)
+    assert port.receive() == (9 * MS, [RUN])
+    assert (port.messages, port.rejections) == (3, rejected)
+
+
+def test_a_link_broken_under_a_read_or_a_write_is_closed_and_reopened_after_the_backoff(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    port, vsc, clock = rig
+    port.open(0)
+    vsc.unplug()
+    clock.at(50 * MS)
+    assert port.receive() == LinkBroken(50 * MS, "device gone")
+    assert not port.link.is_open
+    assert port.next_attempt == 150 * MS
+    assert port.status(60 * MS).last_error == "device gone"
+    assert port.send((UserHeartbeat(),), 60 * MS) is None  # closed: nothing is written
+    vsc.replug()
+    assert port.open(150 * MS) == LinkOpened(150 * MS)
+    vsc.unplug()
+    assert port.send((UserHeartbeat(),), 200 * MS) == LinkBroken(200 * MS, "device gone")
+    assert port.next_attempt == 300 * MS  # the backoff started afresh at the open
+
+
+def test_frames_go_out_in_order_and_the_user_heartbeat_period_is_the_writes_return(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    """SR-5.1, SR-9.3: the period the VSC's watchdog sees, from when each write returned."""
+    port, vsc, clock = rig
+    port.open(0)
+    for sent in (10 * MS, 60 * MS, 115 * MS):
+        clock.at(sent)
+        assert port.send((UserHeartbeat(),), sent - MS) is None
+    assert vsc.read() == encode_frame(UserHeartbeat()) * 3
+    periods = port.timings.user_heartbeat_period
+    assert (periods.count, periods.sum_ns) == (2, 105 * MS)
+    assert port.send((), 200 * MS) is None
+
+
+def test_a_vsc_heartbeat_period_is_one_per_read_and_a_reopen_starts_afresh(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    """SR-2.2: one period per read that brought heartbeats; none across a reopen (it would
+    measure the outage, docs/fleet.md)."""
+    port, _, _ = rig
+    port.open(0)
+    port.heard(100 * MS)
+    port.heard(150 * MS)
+    port.heard(210 * MS)
+    periods = port.timings.vsc_heartbeat_period
+    assert (periods.count, periods.sum_ns) == (2, 110 * MS)
+    port.send((UserHeartbeat(),), 220 * MS)
+    port.link.close()
+    port.open(5_000 * MS)
+    port.heard(5_050 * MS)
+    assert periods.count == 2
+    assert port.timings.last_user_heartbeat_ns is None
+
+
+def test_a_link_that_keeps_failing_to_open_is_logged_once_then_one_failure_in_50(
+    rig: tuple[LinkPort, MemoryPort, Clock], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A missing device retried for hours must not flood the log; its count is in status."""
+    port, vsc, _ = rig
+    vsc.unplug()
+    with caplog.at_level(logging.WARNING, logger="srcsd"):
+        for attempt in range(FAILURES_LOGGED_EVERY * 2):
+            port.open(attempt * 500 * MS)
+    assert [r.getMessage() for r in caplog.records] == [
+        "memory memory: cannot open: No such device (retrying)"
+    ] * 3  # the 1st, the 50th and the 100th
+    assert port.status(0).open_failures == FAILURES_LOGGED_EVERY * 2
