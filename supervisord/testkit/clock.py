@@ -66,6 +66,11 @@ class FakeClock:
         self._now = t_ns
         return t_ns
 
+    def __call__(self) -> int:
+        """The time in nanoseconds: the clock a loop takes as a function (the daemon's
+        ``Supervisor(clock=...)``, docs/testing.md "Time in tests")."""
+        return self._now
+
     def monotonic(self) -> float:
         """The time in seconds, as ``time.monotonic`` gives it."""
         return self._now / NS_PER_S

@@ -26,6 +26,7 @@ def test_it_moves_only_when_told_and_by_what_it_is_told() -> None:
     assert clock.advance() == clock.now_ns  # zero: two inputs at one instant
     assert clock.advance_to(clock.now_ns + 7) == clock.now_ns
     assert clock.monotonic() == clock.now_ns / NS_PER_S
+    assert clock() == clock.now_ns  # the clock a loop takes as a function
 
 
 @pytest.mark.parametrize(
