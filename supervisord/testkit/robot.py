@@ -10,9 +10,14 @@ daemon starts, reads the stop record, and talks to the client API with ``Supervi
         robot.arm()                                      # takeover: RUN, outputs on
         t0 = robot.now()
         robot.sim.control.fault(drop=1.0, only_types=[0x20])
-        stop = robot.expect_stop("vsc_link_lost", t0, deadline_s=robot.vsc_timeout_s)
+        stop = robot.expect_stop(CauseKind.VSC_LINK_LOST, t0, deadline_s=robot.vsc_timeout_s)
+        assert stop.record.to_state is State.STOPPED     # a typed record (StopRecord)
         robot.sim.control.fault()
         robot.recover(stop)                              # valid re-arm, RUN, status answers
+
+Records are the typed ``StopRecord`` the API's clients read, parsed with the same
+``read_record``; states and causes are ``supervisord.vocabulary`` members
+(``record_lines`` is the file's JSON as written, for a test of the file's own form).
 
 ``expect_stop`` checks the first three promises of every scenario: every output off within
 the rule's deadline plus ``ALLOWANCE_S``, the cause raised in a stop record, and (with
@@ -43,12 +48,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Literal
+from typing import Any, Literal, TypeAlias
 
 from supervisord.api.pushes import RecordPush
 from supervisord.api.status import LoopStatus
 from supervisord.client import ClientError, StatusReply, SupervisorClient
 from supervisord.record.jsonl import StoredRecord, read_records
+from supervisord.record.stop import RecordKind, StopRecord, read_record
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimControl, SimError, SimProcess
 from supervisord.testkit.clients import ClientProcess
@@ -57,7 +63,7 @@ from supervisord.testkit.namespaces import NetNamespace, in_private_mount
 from supervisord.testkit.wait import WAIT_S, FaultHarnessError, wait_until
 from supervisord.testkit.watcher import OutputWatcher
 from supervisord.tooling.children import kill, log_tail, terminate
-from supervisord.vocabulary import CauseKind, ChangeKind, Severity, State
+from supervisord.vocabulary import Cause, CauseKind, CauseName, ChangeKind, Severity, State
 
 # Scheduling allowance added to every rule's deadline. The machine has two cores and other
 # test runs share it; a Python process can be descheduled for a few hundred milliseconds.
@@ -87,15 +93,31 @@ class OutputDef:
     off_delay_ms: int = 0  # a power output's stop category 1 (SR-1.4)
 
 
+CauseWanted: TypeAlias = "CauseKind | Cause | str"
+"""A cause a scenario waits for: a kind (any subject: ``CauseKind.OUTPUT_FAULT``), one cause
+(``Cause(CauseKind.OUTPUT_FAULT, "drive")``), or its name as the record writes it."""
+
+
+def names_cause(name: CauseName, wanted: CauseWanted, prefix: bool = False) -> bool:
+    """Whether the cause ``name`` is the one ``wanted`` (with ``prefix``, a text ``wanted``
+    matches every name that starts with it)."""
+    if isinstance(wanted, CauseKind):
+        return name.kind is wanted
+    if isinstance(wanted, Cause):
+        return name == wanted
+    return str(name).startswith(wanted) if prefix else str(name) == wanted
+
+
 @dataclass
 class Stop:
     """A stop the harness saw: the fault injected at ``t_fault``, every output off by
-    ``t_off`` (monotonic s), and the stop record that raised ``cause``."""
+    ``t_off`` (monotonic s), and the stop record (typed, as the API's clients read it) that
+    raised ``cause``."""
 
-    cause: str
+    cause: CauseName
     t_fault: float
     t_off: float
-    record: dict[str, Any]
+    record: StopRecord
 
 
 DEFAULT_OUTPUTS = (OutputDef("drive", "motion"), OutputDef("power", "power"))
@@ -363,28 +385,37 @@ class Robot:
             return Path(f"/proc/{self.daemon.pid}/root") / path.relative_to("/")
         return path
 
-    def records(self) -> list[dict[str, Any]]:
-        """Every record written so far, oldest first, read with the store's own reader."""
+    def records(self) -> list[StopRecord]:
+        """Every record written so far, oldest first, typed: read with the store's own reader
+        and the parser the API's clients use (``record.stop.read_record``), so a test holds
+        what an integrator's client holds. A line that is no typed record raises
+        ``WireError``: the daemon wrote a record its own clients cannot read."""
+        return [read_record(line, f"{self.record_path} record") for line in self.record_lines()]
+
+    def records_since(self, t: float) -> list[StopRecord]:
+        """The records at or after ``t`` (monotonic s, as ``now``)."""
+        t_ns = int(t * 1e9)
+        return [r for r in self.records() if r.mono_ns >= t_ns]
+
+    def record_lines(self) -> list[dict[str, Any]]:
+        """Every record as the file holds it (JSON objects), oldest first: for a test of the
+        file's own form; every other test reads ``records``."""
         return [
             dict(item.data)
             for item in read_records(self.record_path)
             if isinstance(item, StoredRecord)
         ]
 
-    def records_since(self, t: float) -> list[dict[str, Any]]:
-        t_ns = int(t * 1e9)
-        return [r for r in self.records() if r["mono_ns"] >= t_ns]
-
-    def refused_takeover(self) -> dict[str, Any]:
+    def refused_takeover(self) -> StopRecord:
         """Put the remote in Operational (from Local: what a takeover looks like) and return
         the ``rearm_refused`` record that answers it (SR-4.1, SR-4.2: a stop still active)."""
         t = self.now()
         self.vsc.mode("operational")
-        refused = wait_until(
-            lambda: [r for r in self.records_since(t) if r.get("kind") == "rearm_refused"],
+        refused: list[StopRecord] = wait_until(
+            lambda: [r for r in self.records_since(t) if r.kind is RecordKind.REARM_REFUSED],
             what="the refused takeover",
         )
-        return dict(refused[0])
+        return refused[0]
 
     # ------------------------------------------------------------- arming
 
@@ -405,7 +436,7 @@ class Robot:
             self._helpers.append(process)
         return process
 
-    def arm(self) -> dict[str, Any]:
+    def arm(self) -> StopRecord:
         """From start to RUN: required clients running, the VSC linked, a takeover; every
         output on. Returns the re-arm record."""
         self.start_clients()
@@ -416,7 +447,7 @@ class Robot:
                 self.watcher.wait(output.name, True, 0.0)
         return record
 
-    def rearm(self, attempts: int = 6) -> dict[str, Any]:
+    def rearm(self, attempts: int = 6) -> StopRecord:
         """A valid re-arm by the operator's takeover on the remote (SR-4): wait until
         no stop condition is active and the hold time has passed, make sure the VSC reports a
         mode other than Operational (a pause, if it is in Operational), then take over. Returns
@@ -453,7 +484,7 @@ class Robot:
                 return found
         raise FaultHarnessError(f"no valid re-arm in {attempts} takeovers; {self.status()}")
 
-    def refused_rearm(self, reason: str, attempts: int = 3) -> dict[str, Any]:
+    def refused_rearm(self, reason: str, attempts: int = 3) -> StopRecord:
         """The operator's takeover as :meth:`rearm` makes it, where a rule the scenario set up
         refuses it: returns the ``rearm_refused`` record whose reason starts with ``reason``.
         A takeover the harness could not make, or one refused for another reason (a condition
@@ -466,7 +497,7 @@ class Robot:
                 found = [
                     r
                     for r in self.records_since(t)
-                    if r.get("kind") == "rearm_refused" and r["reason"].startswith(reason)
+                    if r.kind is RecordKind.REARM_REFUSED and (r.reason or "").startswith(reason)
                 ]
                 if found:
                     return found[0]
@@ -474,13 +505,13 @@ class Robot:
             raise FaultHarnessError(f"re-armed where {reason!r} should refuse it: {record}")
         raise FaultHarnessError(f"no takeover refused for {reason!r} in {attempts} tries")
 
-    def _wait_rearm(self, since: float) -> dict[str, Any] | None:
+    def _wait_rearm(self, since: float) -> StopRecord | None:
         end = time.monotonic() + 3.0
         while time.monotonic() < end:
             for record in self.records_since(since - 0.05):
-                if record.get("rearm") is not None:
+                if record.rearm is not None:
                     return record
-                if record.get("kind") == "rearm_refused":
+                if record.kind is RecordKind.REARM_REFUSED:
                     return None
             time.sleep(0.02)
         return None
@@ -488,18 +519,21 @@ class Robot:
     # ------------------------------------------------------------- the four promises
 
     def expect_stop(
-        self, cause: str, t_fault: float, deadline_s: float, *, prefix: bool = False
+        self, cause: CauseWanted, t_fault: float, deadline_s: float, *, prefix: bool = False
     ) -> Stop:
         """Promise 1 and 2: every output off within ``deadline_s`` + ``ALLOWANCE_S`` of
-        ``t_fault``, and a record at or after ``t_fault`` that raises ``cause`` (with
-        ``prefix``, any cause starting with it) with the state STOPPED after it."""
+        ``t_fault``, and a record at or after ``t_fault`` that raises ``cause`` (a kind: any
+        of its subjects; text with ``prefix``: any cause starting with it) with the state
+        STOPPED after it. The ``Stop`` names the cause the record raised."""
         t_off = self.expect_off(t_fault, deadline_s)
         record = wait_until(
             lambda: self.record_raising(cause, t_fault, prefix),
             what=f"a stop record raising {cause}",
         )
-        assert record["to"] == "STOPPED", record
-        return Stop(cause, t_fault, t_off, record)
+        assert record.to_state is State.STOPPED, record
+        raised = self.raised_in(record, cause, prefix)
+        assert raised is not None
+        return Stop(raised, t_fault, t_off, record)
 
     def expect_off(self, t_fault: float, deadline_s: float) -> float:
         """Every output that was on at ``t_fault`` seen off within ``deadline_s`` +
@@ -520,17 +554,23 @@ class Robot:
         return t_off
 
     def record_raising(
-        self, cause: str, since: float, prefix: bool = False
-    ) -> dict[str, Any] | None:
+        self, cause: CauseWanted, since: float, prefix: bool = False
+    ) -> StopRecord | None:
+        """The first record at or after ``since`` that raises ``cause``, if any."""
         for record in self.records_since(since):
-            for change in record.get("changes", []):
-                name = change["name"]
-                hit = name.startswith(cause) if prefix else name == cause
-                if hit and change["change"] == "raised":
-                    return record
+            if self.raised_in(record, cause, prefix) is not None:
+                return record
         return None
 
-    def recover(self, stop: Stop) -> dict[str, Any]:
+    @staticmethod
+    def raised_in(record: StopRecord, cause: CauseWanted, prefix: bool = False) -> CauseName | None:
+        """The cause ``record`` raises that is ``cause``, if it raises one."""
+        for change in record.changes or ():
+            if change.change is ChangeKind.RAISED and names_cause(change.name, cause, prefix):
+                return change.name
+        return None
+
+    def recover(self, stop: Stop) -> StopRecord:
         """Promise 3 and 4: a valid re-arm (a takeover after the fault was cleared by the
         test), no output on between the stop and that re-arm record, every record between
         them STOPPED, then RUN with every output on and ``status`` answering."""
@@ -539,31 +579,31 @@ class Robot:
         self.assert_serving(rearm)
         return rearm
 
-    def assert_nothing_on(self, t_stop: float, rearm: dict[str, Any]) -> None:
+    def assert_nothing_on(self, t_stop: float, rearm: StopRecord) -> None:
         """No output on between the stop and the re-arm (SR-1, SR-4): the watcher
         saw no "on" in that time, and the daemon never left STOPPED in its records."""
         assert self.watcher is not None
-        t_rearm = rearm["mono_ns"] / 1e9
+        t_rearm = rearm.mono_ns / 1e9
         stops = [n for n in self.output_paths if not self._stuck_on(n)]
         ons = [(n, lv) for n, lv in self.watcher.ons_between(t_stop, t_rearm) if n in stops]
         # An "on" seen just after the re-arm record may be the re-arm's own; one seen before
         # it is not.
         early = [(n, lv) for n, lv in ons if lv.t < t_rearm]
         assert not early, f"output on before a valid re-arm: {early}"
-        between = [r for r in self.records_since(t_stop) if r["mono_ns"] < rearm["mono_ns"]]
-        assert all(r["to"] == "STOPPED" for r in between if r is not rearm), between
+        between = [r for r in self.records_since(t_stop) if r.mono_ns < rearm.mono_ns]
+        assert all(r.to_state is State.STOPPED for r in between), between
         for name in stops:
             first_on = self.watcher.first(name, True, t_stop)
             if first_on is not None:
                 assert first_on.t >= t_rearm, (name, first_on, t_rearm)
 
-    def assert_serving(self, rearm: dict[str, Any] | None = None) -> StatusReply:
+    def assert_serving(self, rearm: StopRecord | None = None) -> StatusReply:
         """Alive and serving: the process runs, ``status`` answers RUN (or HOLD for a power
         output only), and every healthy output is on in the files and in the status."""
         assert self.daemon is not None
         assert self.daemon.poll() is None, self.log()
         assert self.watcher is not None
-        after = rearm["mono_ns"] / 1e9 - 0.05 if rearm else 0.0
+        after = rearm.mono_ns / 1e9 - 0.05 if rearm else 0.0
         for output in self.outputs:
             if output.stuck_at is None:
                 self.watcher.wait(output.name, True, after)
@@ -588,7 +628,7 @@ class Robot:
         assert self.watcher is not None
         t = self.now()
         time.sleep(seconds)
-        left = [r for r in self.records_since(t) if r["to"] != "RUN"]
+        left = [r for r in self.records_since(t) if r.to_state is not State.RUN]
         assert not left, f"the robot left RUN: {left}"
         for name in self.healthy_outputs():
             off = self.watcher.first(name, False, t)
@@ -613,7 +653,7 @@ class Robot:
                 for c in changes
             ):
                 assert record.to_state is State.STOPPED, record
-                return Stop("vsc_estop", t, t_off, record.json())  # as the record file has it
+                return Stop(Cause(CauseKind.VSC_ESTOP), t, t_off, record)
         raise FaultHarnessError("no stop record raising vsc_estop was pushed")
 
     def remote_estop(self) -> Stop:
@@ -623,9 +663,10 @@ class Robot:
         self.vsc.estop()
         return self.expect_stop("vsc_estop", t, self.beat_s)
 
-    def wait_state(self, state: str, timeout: float = WAIT_S) -> StatusReply:
+    def wait_state(self, state: State, timeout: float = WAIT_S) -> StatusReply:
+        """The status once the daemon is in ``state``."""
         found = wait_until(
-            lambda: (s := self.status()).report.state.name == state and s,
+            lambda: (s := self.status()).report.state is state and s,
             timeout,
             what=f"state {state}",
         )

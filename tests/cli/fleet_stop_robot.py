@@ -48,7 +48,7 @@ def main(folder: Path, journal: str) -> None:
         robot.arm()
         for number in range(STOPS):
             stop = robot.remote_estop()
-            seqs.append(stop.record["seq"])
+            seqs.append(stop.record.seq)
 
             def sent(count: int = number + 1) -> bool:
                 return windows_in_journal(journal) >= count

@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.sim.pty import PtyPort
 from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
 from supervisord.testkit.robot import Robot
@@ -88,16 +89,16 @@ def test_a_takeover_right_after_wait_ready_rearmable_is_accepted(tmp_path: Path)
         assert sim["mode_name"] != "operational", sim
         t = robot.now()
         control.takeover()
-        answer = wait_until(
+        answer: list[StopRecord] = wait_until(
             lambda: [
                 r
                 for r in robot.records_since(t)
-                if r.get("rearm") is not None or r.get("kind") == "rearm_refused"
+                if r.rearm is not None or r.kind is RecordKind.REARM_REFUSED
             ],
             what="the takeover's record",
         )
-        assert answer[0].get("rearm") is not None, answer[0]
-        assert answer[0]["to"] == "RUN", answer[0]
+        assert answer[0].rearm is not None, answer[0]
+        assert answer[0].to_state is State.RUN, answer[0]
 
 
 def test_wait_ready_says_when_a_takeover_is_accepted(tmp_path: Path) -> None:

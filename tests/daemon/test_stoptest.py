@@ -13,15 +13,15 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from supervisord.api.status import Maintenance, PeriodicDue
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import State
+from supervisord.vocabulary import CauseKind, ChangeKind, State
 from tests.daemon.test_srcsctl import _Output
 
 ROOT = Path(__file__).parents[2]
@@ -47,7 +47,7 @@ class _CutShort(Exception):
     """``srcsctl stoptest`` ended "not done" because a stop the test did not make came first."""
 
 
-LOAD_CAUSES = frozenset({"vsc_link_lost", "internal", "transport_fault"})
+LOAD_CAUSES = frozenset({CauseKind.VSC_LINK_LOST, CauseKind.INTERNAL, CauseKind.TRANSPORT_FAULT})
 """Stops a busy machine makes by itself: the VSC's heartbeat unread for its timeout, the
 loop woken late (docs/testing.md "Under load")."""
 
@@ -60,10 +60,10 @@ def _prompted(output: _Output, text: str, proc: subprocess.Popen[str], robot: Ro
         if proc.poll() is not None:
             output.until(lambda lines: any("not done" in line for line in lines))
             raised = {
-                c["name"]
+                c.name.kind
                 for r in robot.records()
-                for c in r["causes"]
-                if {"name": c["name"], "change": "raised"} in r.get("changes", [])
+                for c in r.changes or ()
+                if c.change is ChangeKind.RAISED
             }
             assert proc.returncode == 3, (proc.returncode, output.lines)
             assert raised & LOAD_CAUSES, (raised, output.lines)
@@ -74,8 +74,8 @@ def _prompted(output: _Output, text: str, proc: subprocess.Popen[str], robot: Ro
             output.data += os.read(output.fd, 65536)
 
 
-def _stop_raising(records: list[dict[str, Any]], seq: int) -> dict[str, Any]:
-    return next(r for r in records if r["seq"] == seq)
+def _stop_raising(records: list[StopRecord], seq: int) -> StopRecord:
+    return next(r for r in records if r.seq == seq)
 
 
 def test_stoptest_measures_each_press_and_output_and_records_the_verdict(tmp_path: Path) -> None:
@@ -126,43 +126,45 @@ def _scenario(robot: Robot) -> None:
     assert status in (0, 1), (status, lines, errors)
 
     records = robot.records()
-    tests = [r for r in records if r.get("kind") == "stoptest"]
+    tests = [r for r in records if r.kind is RecordKind.STOPTEST]
     assert len(tests) == 1, tests
-    result = tests[0]["stoptest"]
-    assert tests[0]["to"] == "STOPPED"
-    steps = result["steps"]
-    assert [s["source"] for s in steps] == ["remote", "wired"]
+    result = tests[0].stoptest
+    assert result is not None, tests[0]
+    assert tests[0].to_state is State.STOPPED
+    steps = result.steps
+    assert [s.source for s in steps] == ["remote", "wired"]
     every_ms = []
     for step, pressed in zip(steps, (t_remote, t_wired), strict=True):
-        stop = _stop_raising(records, step["seq"])
-        assert (stop["from"], stop["to"]) == ("RUN", "STOPPED"), stop
-        estop = next(c for c in stop["causes"] if c["name"] == "vsc_estop")
-        assert step["source"] in estop["details"]["sources"].split(","), estop
-        assert step["stop_ns"] == stop["mono_ns"]
-        assert pressed * 1e9 <= stop["mono_ns"], "the stop's frame was read after the press"
-        assert [o["name"] for o in step["outputs"]] == ["drive", "power"]
-        for out in step["outputs"]:
-            assert out["off_ns"] is not None, out
-            assert out["off_ns"] >= 0, out
-            daemon_off = (step["stop_ns"] + out["off_ns"]) / 1e9
-            seen = robot.watcher.first(out["name"], False, pressed)
+        stop = _stop_raising(records, step.seq)
+        assert (stop.from_state, stop.to_state) == (State.RUN, State.STOPPED), stop
+        estop = stop.cause(CauseKind.VSC_ESTOP)
+        assert estop is not None, stop
+        assert step.source in estop.details["sources"].split(","), estop
+        assert step.stop_ns == stop.mono_ns
+        assert pressed * 1e9 <= stop.mono_ns, "the stop's frame was read after the press"
+        assert [o.name for o in step.outputs] == ["drive", "power"]
+        for out in step.outputs:
+            assert out.off_ns is not None, out
+            assert out.off_ns >= 0, out
+            daemon_off = (step.stop_ns + out.off_ns) / 1e9
+            seen = robot.watcher.first(out.name, False, pressed)
             assert seen is not None, out
             assert abs(seen.t - daemon_off) <= ALLOWANCE_S, (seen.t, daemon_off)
-            delay = DELAY_MS if out["name"] == "power" else 0
-            assert out["off_delay_ms"] == delay
-            assert out["off_ns"] >= delay * 1_000_000, "a category-1 output went off early"
-            assert out["passed"] == (out["off_ns"] <= (LIMIT_MS + delay) * 1_000_000)
-            every_ms.append(out["off_ns"] / 1e6 - delay)
-            assert any(line.strip().startswith(out["name"]) for line in lines), lines
+            delay = DELAY_MS if out.name == "power" else 0
+            assert out.off_delay_ms == delay
+            assert out.off_ns >= delay * 1_000_000, "a category-1 output went off early"
+            assert out.passed == (out.off_ns <= (LIMIT_MS + delay) * 1_000_000)
+            every_ms.append(out.off_ns / 1e6 - delay)
+            assert any(line.strip().startswith(out.name) for line in lines), lines
     passed = all(ms <= LIMIT_MS for ms in every_ms)
-    assert result["result"] == ("passed" if passed else "failed"), result
-    assert result["limit_ms"] == LIMIT_MS
+    assert result.result == ("passed" if passed else "failed"), result
+    assert result.limit_ms == LIMIT_MS
     assert status == (0 if passed else 1), (status, lines)
     assert any(("PASSED" if passed else "FAILED") in line for line in lines), lines
     # It cites what a robot has: the installed docs, not a path of the repository (SR-12.1).
     cited = "(/usr/share/doc/srcs-supervisord/docs/requirements.md SR-12.1)"
     assert any(cited in line for line in lines), lines
-    assert tests[0]["reason"].startswith("passed" if passed else "FAILED")
+    assert (tests[0].reason or "").startswith("passed" if passed else "FAILED")
     # The verdict is the record's alone: the robot stays stopped until a re-arm.
     assert robot.status().report.state is State.STOPPED
 
@@ -180,7 +182,7 @@ def test_stoptest_without_a_press_is_not_done_and_records_nothing(tmp_path: Path
         assert proc.returncode == 3, (out, err)
         assert "not done: no stop within 1 s" in out, out
         assert time.monotonic() - t >= 1.0
-        assert not [r for r in robot.records() if r.get("kind") == "stoptest"]
+        assert not [r for r in robot.records() if r.kind is RecordKind.STOPTEST]
         wait_until(lambda: robot.status().report.state is State.RUN, what="still RUN")
 
 

@@ -10,13 +10,14 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.record.stop import StopRecord
 from supervisord.safety.budget import BUDGET_WINDOW_NS, RECORDS_PER_UID
 from supervisord.testkit.clients import BELOW_THE_DAEMON
 from supervisord.testkit.robot import ALLOWANCE_S, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import Cause, CauseKind, CauseName, State
 
 CHURN_S = 3.0
 CHURNER = r"""
@@ -37,20 +38,20 @@ print(cycles, flush=True)
 """
 
 
-def _worst_second(records: list[dict[str, Any]]) -> int:
-    times = sorted(r["mono_ns"] for r in records)
+def _worst_second(records: list[StopRecord]) -> int:
+    times = sorted(r.mono_ns for r in records)
     return max(
         (sum(1 for u in times[i:] if u - t < BUDGET_WINDOW_NS) for i, t in enumerate(times)),
         default=0,
     )
 
 
-def _changes(record: dict[str, Any]) -> set[str]:
+def _changes(record: StopRecord) -> set[CauseName]:
     """The names of the causes a record raised or cleared."""
-    return {change["name"] for change in record.get("changes", [])}
+    return {change.name for change in record.changes or ()}
 
 
-def _state_once_served(robot: Robot) -> str | None:
+def _state_once_served(robot: Robot) -> State | None:
     """The state, or ``None`` while the server is still draining the connections the churn
     left in its backlog: a status then may find every ordinary and e-stop slot taken, and an
     admin's connection evicts only a non-admin's (SR-8.4; the churners run as root here)."""
@@ -60,7 +61,7 @@ def _state_once_served(robot: Robot) -> str | None:
         if error.code != ErrorCode.TOO_MANY_CLIENTS:
             raise
         return None
-    return str(state)
+    return state
 
 
 def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
@@ -94,21 +95,21 @@ def test_processes_churning_holds_before_hello_stay_within_the_users_budget(
         cycles = [int(p.communicate(timeout=CHURN_S + 30)[0] or 0) for p in churners]
         t1 = robot.now()
         assert sum(cycles) > 100, cycles  # the churn did churn
-        during = [r for r in robot.records_since(t0) if r["mono_ns"] <= t1 * 1e9]
+        during = [r for r in robot.records_since(t0) if r.mono_ns <= t1 * 1e9]
         assert during, "the holds were not recorded at all"
         # The user's records change its hold before hello and nothing else; any other record
         # (a stop because the loop missed the VSC meanwhile, SR-10) is a failure of its own.
-        hold = {f"client_hold:#uid{os.getuid()}"}  # the churners run as this test's user
+        hold = {Cause(CauseKind.CLIENT_HOLD, f"#uid{os.getuid()}")}  # the churners' user
         users = [r for r in during if _changes(r) and _changes(r) <= hold]
         others = [r for r in during if r not in users]
         if others or _worst_second(users) > RECORDS_PER_UID + 1:
             for record in during:  # in full: an assertion's message would be cut
-                print(json.dumps(record, sort_keys=True))
+                print(json.dumps(record.json(), sort_keys=True))
         assert [_changes(r) for r in others] == []
         assert _worst_second(users) <= RECORDS_PER_UID + 1
-        assert all(r["to"] != "STOPPED" for r in during)
+        assert all(r.to_state is not State.STOPPED for r in during)
         wait_until(
-            lambda: _state_once_served(robot) == "RUN",
+            lambda: _state_once_served(robot) is State.RUN,
             BUDGET_WINDOW_NS / 1e9 + ALLOWANCE_S + 5,
             what="RUN once the hold's budget allows",
         )

@@ -12,7 +12,7 @@ from pathlib import Path
 from supervisord.client import SupervisorClient
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import State
+from supervisord.vocabulary import CauseKind, State
 
 CLIENT_TIMEOUT_S = 0.5  # the required client's heartbeat deadline (SR-8 default)
 MAX_CLIENTS = 16  # api.max_clients default (docs/configuration.md)
@@ -65,8 +65,10 @@ def test_required_client_whose_progress_stops_is_lost_after_its_timeout(tmp_path
         t0 = robot.now()
         nav.signal(signal.SIGUSR2)
         stop = robot.expect_stop("client_lost:nav", t0, CLIENT_TIMEOUT_S)
-        lost = {c["name"]: c for c in stop.record["causes"]}["client_lost:nav"]
-        assert lost["details"]["reason"] == "stale progress", stop.record
+        lost = stop.record.cause(CauseKind.CLIENT_LOST)
+        assert lost is not None, stop.record
+        assert str(lost.name) == "client_lost:nav", stop.record
+        assert lost.details["reason"] == "stale progress", stop.record
         nav.wait_log("refused: stale_progress")
         assert "client_lost:nav" in robot.active_stops()  # its beats go on, and count for nothing
         nav.kill()
@@ -104,7 +106,7 @@ def test_flood_on_the_socket_neither_stops_nor_starves_the_robot(tmp_path: Path)
         flooder.wait_log("closed after")
         robot.stays_running(max(0.0, 0.5 - (robot.now() - t)))
         assert '"code": "flood"' in flooder.log() or "flood" in flooder.log()
-        assert not [r for r in robot.records_since(t) if r["to"] != "RUN"]
+        assert not [r for r in robot.records_since(t) if r.to_state is not State.RUN]
         t0 = robot.now()
         with robot.client() as operator:
             operator.estop()
@@ -126,7 +128,7 @@ def test_client_estop_outlives_the_client(tmp_path: Path) -> None:
         stop = robot.expect_stop("client_estop:arm", t0, 0.0)
         time.sleep(0.3)
         assert "client_estop:arm" in robot.active_stops()
-        assert "client_estop:arm" in robot.refused_takeover()["reason"]
+        assert "client_estop:arm" in (robot.refused_takeover().reason or "")
         with SupervisorClient.connect(robot.socket_path, name="arm") as arm:
             arm.release("estop")
         robot.recover(stop)

@@ -11,12 +11,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from supervisord.record.flight import flight_dir, read_window, window_path
 from supervisord.record.replay import replay
+from supervisord.record.stop import StopRecord, read_record
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 from tests.faults.test_record_faults import (
@@ -44,9 +44,9 @@ def srcsctl(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def _window_of(robot: Robot, record: dict[str, Any]) -> Path:
-    path = window_path(robot.record_path, record["seq"])
-    wait_until(path.exists, what=f"the window of record {record['seq']}")
+def _window_of(robot: Robot, record: StopRecord) -> Path:
+    path = window_path(robot.record_path, record.seq)
+    wait_until(path.exists, what=f"the window of record {record.seq}")
     return path
 
 
@@ -92,19 +92,19 @@ def test_a_stop_leaves_its_window_and_srcsctl_replay_reproduces_it(tmp_path: Pat
         stop = robot.remote_estop()
         path = _window_of(robot, stop.record)
         window = read_window(path)
-        assert window.stop == stop.record
-        assert window.inputs[-1].now == stop.record["mono_ns"]
-        done = srcsctl("replay", str(stop.record["seq"]), "--config", str(robot.config_path))
+        assert read_record(window.stop) == stop.record
+        assert window.inputs[-1].now == stop.record.mono_ns
+        done = srcsctl("replay", str(stop.record.seq), "--config", str(robot.config_path))
         assert done.returncode == 0, done.stdout + done.stderr
         assert "replay matches the record" in done.stdout, done.stdout
-        reproduced = f"the stop #{stop.record['seq']} RUN -> STOPPED state_change [vsc_estop"
+        reproduced = f"the stop #{stop.record.seq} RUN -> STOPPED state_change [vsc_estop"
         assert reproduced in done.stdout, done.stdout
         tampered = tmp_path / "tampered.jsonl"
         _stop_heartbeat_cleared(path, tampered)
         bad = srcsctl("replay", str(tampered), "--file", str(robot.record_path))
         assert bad.returncode == 1, bad.stdout + bad.stderr
         assert "MISMATCH at " in bad.stdout, bad.stdout
-        assert f": record #{stop.record['seq']}\n" in bad.stdout, bad.stdout
+        assert f": record #{stop.record.seq}\n" in bad.stdout, bad.stdout
         forged = tmp_path / "forged.jsonl"
         _stop_word_and_copy_forged(path, forged)
         done = srcsctl("replay", str(forged), "--file", str(robot.record_path))

@@ -42,10 +42,10 @@ def test_wall_clock_jump_changes_nothing(tmp_path: Path, jump_s: int) -> None:
         clock.jump(jump_s)
         robot.stays_running(SEEN_WITHIN_S + LINK_TIMEOUT_MS / 1000 + ALLOWANCE_S)
         stop = robot.remote_estop()
-        utc = dt.datetime.fromisoformat(stop.record["utc"])
+        utc = dt.datetime.fromisoformat(stop.record.utc)
         shift = (utc - dt.datetime.now(dt.timezone.utc)).total_seconds()
-        assert abs(shift - jump_s) < 60, (stop.record["utc"], jump_s)
-        assert stop.t_fault * 1e9 <= stop.record["mono_ns"] <= stop.t_off * 1e9
+        assert abs(shift - jump_s) < 60, (stop.record.utc, jump_s)
+        assert stop.t_fault * 1e9 <= stop.record.mono_ns <= stop.t_off * 1e9
         robot.vsc.release()
         clock.jump(-jump_s)  # and back: a second jump, the other way
         robot.recover(stop)
@@ -74,10 +74,10 @@ def test_full_disk_under_the_record_still_stops(tmp_path: Path) -> None:
         assert robot.daemon is not None
         assert robot.daemon.poll() is None
         robot.vsc.release()
-        last_seq = robot.records()[-1]["seq"]
+        last_seq = robot.records()[-1].seq
         robot.free_record_disk()
         rearm = robot.recover(stop)
-        assert rearm["seq"] > last_seq
+        assert rearm.seq > last_seq
         assert rearm in robot.records()
 
 
@@ -103,8 +103,8 @@ def test_output_stuck_off_is_an_output_fault(tmp_path: Path) -> None:
             rearm = robot.rearm()
             on = robot.watcher.wait("power", True, t0)
             off = robot.watcher.wait("power", False, on.t)
-            assert off.t - rearm["mono_ns"] / 1e9 <= ALLOWANCE_S
-            status = robot.wait_state("STOPPED")
+            assert off.t - rearm.mono_ns / 1e9 <= ALLOWANCE_S
+            status = robot.wait_state(State.STOPPED)
             fault = next(
                 c for c in status.report.causes if c.name == Named(CauseKind.OUTPUT_FAULT, "drive")
             )
@@ -121,9 +121,9 @@ def test_output_fault_stop_is_recorded(tmp_path: Path) -> None:
     with Robot(tmp_path, outputs=STUCK_OFF) as robot:
         t0 = robot.now()
         robot.rearm()
-        robot.wait_state("STOPPED")
+        robot.wait_state(State.STOPPED)
         stop = robot.expect_stop("output_fault:drive", t0, 0.0)
-        assert stop.record["from"] == "RUN"
+        assert stop.record.from_state is State.RUN
 
 
 def test_output_stuck_on_never_lets_the_robot_run(tmp_path: Path) -> None:
@@ -140,7 +140,7 @@ def test_output_stuck_on_never_lets_the_robot_run(tmp_path: Path) -> None:
         time.sleep(0.3)
         assert "output_fault:drive" in robot.active_stops()
         assert "user_request" in robot.vsc.state()["estop_bits"]
-        assert "output_fault:drive" in robot.refused_takeover()["reason"]
+        assert "output_fault:drive" in (robot.refused_takeover().reason or "")
         time.sleep(0.3)
         assert robot.status().report.state is State.STOPPED
         assert robot.watcher.first("power", True, 0.0) is None

@@ -104,5 +104,5 @@ def test_a_hung_user_lookup_freezes_nothing(tmp_path: Path) -> None:
             assert client.returncode == 0, err.decode(errors="replace")
             assert float(out) < HELLO_WITHIN_S
             robot.stays_running(0.5)
-            left = [r for r in robot.records_since(t0) if r["to"] != "RUN"]
+            left = [r for r in robot.records_since(t0) if r.to_state is not State.RUN]
             assert left == []

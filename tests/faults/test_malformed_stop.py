@@ -53,7 +53,7 @@ def test_a_hold_with_a_wrong_id_holds_until_its_connection_ends(tmp_path: Path) 
             assert "id" not in hold
             assert (status["id"], status["state"]) == (2, "HOLD")
             assert robot.output_file("drive") is False
-        robot.wait_state("RUN")
+        robot.wait_state(State.RUN)
 
 
 def test_pipelined_replies_come_back_in_request_order(tmp_path: Path) -> None:

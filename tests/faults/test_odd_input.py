@@ -22,23 +22,20 @@ from typing import Any
 
 import pytest
 
+from supervisord.record.stop import StopRecord
 from supervisord.testkit.namespaces import in_private_mount
 from supervisord.testkit.robot import OutputDef, Robot
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import CauseKind, State
+from supervisord.vocabulary import Cause, CauseKind, State
 
 ODD_NAME = b"r\xe9mi"  # Latin-1, not UTF-8: how a name from an old system arrives
 SHOWN_NAME = "r\\xe9mi"  # the name as records and replies show it: the byte escaped
 REPLY_S = 5.0  # coarse: a shared two-core machine
 
 
-def internal_records(robot: Robot) -> list[dict[str, Any]]:
+def internal_records(robot: Robot) -> list[StopRecord]:
     """Every record that raised ``internal``."""
-    return [
-        r
-        for r in robot.records()
-        if any(c["name"] == "internal" and c["change"] == "raised" for c in r["changes"])
-    ]
+    return [r for r in robot.records() if robot.raised_in(r, CauseKind.INTERNAL)]
 
 
 def assert_record_whole(robot: Robot) -> None:
@@ -203,11 +200,11 @@ def test_a_user_whose_name_is_not_utf8_can_estop_and_the_stop_is_recorded(
             [record] = [
                 r
                 for r in robot.records_since(t0)
-                if {"name": "local_estop", "change": "raised"} in r["changes"]
+                if robot.raised_in(r, Cause(CauseKind.LOCAL_ESTOP))
             ]
-            assert record["trigger"]["caller"] == {
+            assert record.trigger["caller"] == {
                 "uid": uid,
-                "pid": record["trigger"]["caller"]["pid"],
+                "pid": record.trigger["caller"]["pid"],
                 "name": SHOWN_NAME,
                 "admin": False,
             }

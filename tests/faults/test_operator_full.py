@@ -119,7 +119,7 @@ def estop_through(robot: OperatorsRobot, pids: list[int]) -> str:
         assert estop.returncode == 0, estop.stderr
         assert "estop (local): done; the supervisor is STOPPED" in estop.stdout
         stop = robot.expect_stop("local_estop", t0, took)
-        assert stop.record["trigger"]["caller"]["uid"] == 0
+        assert stop.record.trigger["caller"]["uid"] == 0
     finally:
         end(pids)
     release = srcsctl(robot.config_path, "release", where="--config")

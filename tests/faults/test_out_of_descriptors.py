@@ -93,7 +93,7 @@ def test_more_clients_than_descriptors_neither_spins_the_loop_nor_stops_acceptin
         took = robot.now() - t0
         assert estop.returncode == 0, estop.stderr
         stop = robot.expect_stop("local_estop", t0, took)
-        assert stop.record["trigger"]["caller"]["uid"] == 0
+        assert stop.record.trigger["caller"]["uid"] == 0
         release = srcsctl(robot.socket_path, "release")
         assert release.returncode == 0, release.stderr
         robot.recover(stop)

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from supervisord.api.status import ProofTestResult, ProofTestStatus
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
 from supervisord.vocabulary import CauseKind, Phase, State
@@ -40,11 +41,16 @@ def _wait_phase(robot: Robot, *phases: Phase, timeout: float = WAIT_S) -> ProofT
     return _proof(robot)
 
 
-def _proof_records(robot: Robot) -> list[dict[str, Any]]:
-    return [r for r in robot.records() if r.get("kind") == "prooftest"]
+def _proof_records(robot: Robot) -> list[StopRecord]:
+    return [r for r in robot.records() if r.kind is RecordKind.PROOFTEST]
 
 
-def _written(robot: Robot, count: int) -> list[dict[str, Any]]:
+def _result(record: StopRecord) -> str | None:
+    """The proof test's outcome a record holds (``passed``, ``failed``), if it holds one."""
+    return record.prooftest.result if record.prooftest is not None else None
+
+
+def _written(robot: Robot, count: int) -> list[StopRecord]:
     """The proof-test records once ``count`` are in the file: ``status`` shows an outcome as
     soon as the loop decided it, and the record reaches the file afterwards, on the record's
     own writer (SR-7.5)."""
@@ -68,7 +74,7 @@ def test_a_healthy_vsc_passes_at_start_and_the_robot_then_runs(tmp_path: Path) -
         assert 450 <= last.trip_ms <= 700, last
         assert last.cleared == "by_itself", last
         records = _written(robot, 1)
-        assert [r["prooftest"]["result"] for r in records] == ["passed"], records
+        assert [_result(r) for r in records] == ["passed"], records
         robot.arm()
         assert robot.status().report.state is State.RUN
 
@@ -104,7 +110,7 @@ def test_a_faulty_vsc_is_caught_recorded_and_keeps_the_robot_stopped(
         cause = next(c for c in robot.status().report.causes if c.kind is CauseKind(UNTESTED))
         assert cause.active, cause
         assert "failed" in cause.details["observed"], cause
-        assert [r["prooftest"]["result"] for r in _written(robot, 1)] == ["failed"]
+        assert [_result(r) for r in _written(robot, 1)] == ["failed"]
         if failure != "not_cleared":
             robot.vsc.wait_for(lambda s: s["estop"] & 0x80 == 0, timeout=WAIT_S)
             time.sleep(0.5)
@@ -163,7 +169,7 @@ def test_a_vsc_reboot_repeats_the_proof_test(tmp_path: Path) -> None:
         robot.vsc.call("reboot", delay=0.5, unplug=False)
         wait_until(lambda: robot.status().report.state is State.STOPPED, what="the reboot stops")
         wait_until(lambda: len(_proof_records(robot)) == 2, what="a second proof test")
-        assert _proof_records(robot)[-1]["prooftest"]["result"] == "passed"
+        assert _result(_proof_records(robot)[-1]) == "passed"
         robot.rearm()
         assert robot.status().report.state is State.RUN
 

@@ -10,6 +10,7 @@ from pathlib import Path
 from supervisord.protocol.codes import VscMode
 from supervisord.testkit.robot import OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import State
 
 DELAY_MS = 400
 OUTPUTS = (
@@ -88,7 +89,7 @@ def test_a_remote_estop_switches_its_outputs_off_before_the_cores_full_step(
         t = robot.now()
         robot.vsc.estop()
         stop = robot.expect_stop("vsc_estop", t, robot.beat_s)
-        assert stop.record["from"] == "RUN", stop.record
+        assert stop.record.from_state is State.RUN, stop.record
         wait_until(lambda: not robot.output_file("brakes"), what="the brakes off after the delay")
         lines = robot.probe()[start:]
         at = next(i for i, line in enumerate(lines) if _first_estop(line))
@@ -112,7 +113,7 @@ def test_a_pause_switches_the_motion_output_off_before_the_cores_full_step(
         robot.arm()
         start = len(robot.probe())
         robot.vsc.pause()
-        status = robot.wait_state("HOLD")
+        status = robot.wait_state(State.HOLD)
         assert "vsc_mode:pause" in robot.active(status)
         lines = robot.probe()[start:]
         pause = f"step VscReceived {int(VscMode.PAUSE)} "

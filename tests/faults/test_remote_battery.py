@@ -43,20 +43,21 @@ def test_a_low_remote_battery_in_run_holds_or_stops_and_a_good_one_is_needed_aga
         t0 = robot.now()
         robot.vsc.call("remote_status", battery_level=10)
         off = robot.watcher.wait("drive", False, t0, timeout=REPORT_S * 5)
-        held = robot.wait_state("HOLD" if reaction == "hold" else "STOPPED")
+        held = robot.wait_state(State.HOLD if reaction == "hold" else State.STOPPED)
         assert cause in robot.active(held)
         record = robot.record_raising(cause, t0)
         assert record is not None
-        reason = {c["name"]: c for c in record["causes"]}[cause]["details"]["reason"]
+        [raised] = [c for c in record.causes if str(c.name) == cause]
+        reason = raised.details["reason"]
         assert reason == "the remote's battery is 10 %, below 20 %"
         assert robot.output_file("power") is (reaction == "hold")
         if reaction == "stop":  # its window, replayed, decides as the daemon did (SR-7.12)
             _window_of(robot, record)
-            done = srcsctl("replay", str(record["seq"]), "--config", str(robot.config_path))
+            done = srcsctl("replay", str(record.seq), "--config", str(robot.config_path))
             assert "replay matches the record" in done.stdout, done.stdout + done.stderr
         robot.vsc.call("remote_status", battery_level=80)
         if reaction == "hold":
-            robot.wait_state("RUN", timeout=REPORT_S * 5)
+            robot.wait_state(State.RUN, timeout=REPORT_S * 5)
             robot.watcher.wait("drive", True, off.t)
         else:
             wait_until(lambda: cause not in robot.active(), what="the battery back")

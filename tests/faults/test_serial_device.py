@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from supervisord.record.stop import StopRecord
 from supervisord.testkit.robot import ALLOWANCE_S, Robot, Stop
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import State
+from supervisord.vocabulary import Cause, CauseKind, State
 
 WATCHDOG_S = 0.5  # the VSC's key-85 watchdog trips after 500 ms without our heartbeat (SR-5)
 
@@ -40,7 +41,7 @@ def test_unplug_is_a_transport_fault_and_replug_is_a_new_start(
         wait_until(lambda: not robot.active_stops(), what="the link back")
         time.sleep(0.5)
         assert robot.status().report.state is State.STOPPED
-        assert not [r for r in robot.records_since(t0) if r.get("rearm")]
+        assert not [r for r in robot.records_since(t0) if r.rearm]
         wait_until(lambda: robot.record_raising("vsc_watchdog_off", t0), what="key 85 read again")
         robot.recover(stop)
 
@@ -70,8 +71,8 @@ def test_vsc_reboot_on_rs232_is_a_silent_line(tmp_path: Path) -> None:
         t0 = robot.now()
         robot.vsc.reboot(unplug=False)
         stop = robot.expect_stop("vsc_link_lost", t0, robot.vsc_timeout_s)
-        record = wait_until(lambda: robot.record_raising("vsc_estop", t0))
-        estop = next(c for c in record["causes"] if c["name"] == "vsc_estop")
+        record: StopRecord = wait_until(lambda: robot.record_raising(CauseKind.VSC_ESTOP, t0))
+        estop = record.cause(CauseKind.VSC_ESTOP)
         assert "remote" in str(estop), estop
         robot.recover(stop)
 
@@ -91,7 +92,7 @@ def test_replacement_vsc_without_its_watchdog_cannot_be_rearmed(tmp_path: Path) 
         robot.vsc.wait_for(lambda s: s["linked"])
         wait_until(lambda: "vsc_watchdog_off" in robot.active_stops(), what="key 85 read as 0")
         assert "user_request" in robot.vsc.state()["estop_bits"]
-        assert "vsc_watchdog_off" in robot.refused_takeover()["reason"]
+        assert "vsc_watchdog_off" in (robot.refused_takeover().reason or "")
         assert robot.watcher is not None
         assert robot.watcher.ons_between(t0, robot.now()) == []
         # The forced mode is a test lever that outlasts an e-stop; a remote action ends it, so
@@ -121,7 +122,7 @@ def test_hung_daemon_lets_the_vsc_stop_and_wakes_as_an_internal_fault(tmp_path: 
             t1 = robot.now()
             robot.daemon.send_signal(signal.SIGCONT)
         stop = robot.expect_stop("internal", t1, 0.0)
-        assert "late" in str(stop.record["trigger"]) or "late" in str(stop.record["causes"])
+        assert "late" in str(stop.record.trigger) or "late" in str(stop.record.causes)
         assert robot.counters().internal_faults == 0  # an overrun, not an exception
         robot.recover(stop)
 
@@ -148,11 +149,11 @@ def test_killed_daemon_restarts_stopped_and_needs_a_takeover(tmp_path: Path) -> 
         levels = {name: robot.output_file(name) for name in robot.healthy_outputs()}
         t_up = robot.now()
         assert levels == dict.fromkeys(robot.healthy_outputs(), False), levels
-        record = wait_until(lambda: robot.record_raising("startup", t1))
-        stop = Stop("startup", t1, t_up, record)
+        record: StopRecord = wait_until(lambda: robot.record_raising(CauseKind.STARTUP, t1))
+        stop = Stop(Cause(CauseKind.STARTUP), t1, t_up, record)
         robot.vsc.wait_for(lambda s: s["estop"] == 0)
         robot.recover(stop)
-        seqs = [r["seq"] for r in robot.records()]
+        seqs = [r.seq for r in robot.records()]
         assert seqs == sorted(set(seqs)), "the record's sequence continues across the restart"
 
 

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
 
 import pytest
 
+from supervisord.record.stop import StopRecord
 from supervisord.testkit.robot import ALLOWANCE_S, Robot
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import CauseKind, State
+from supervisord.vocabulary import Cause, CauseKind, ChangeKind, State
 
 HEARTBEAT = 0x20  # the VSC heartbeat's message type (manual §8.3.3)
 
@@ -91,7 +91,7 @@ def test_noisy_line_keeps_running_and_still_carries_the_estop(
             assert robot.counters().rejections.get(rejection, 0) > 0
         assert sum(robot.vsc.state()["fault_counts"].values()) > 10
         stop = robot.remote_estop()
-        assert stop.record["causes"][0]["name"] == "vsc_estop"
+        assert stop.record.causes[0].name == Cause(CauseKind.VSC_ESTOP)
         robot.vsc.release()
         robot.vsc.fault()
         robot.recover(stop)
@@ -116,7 +116,7 @@ def test_frozen_heartbeat_cannot_rearm(tmp_path: Path) -> None:
         robot.vsc.takeover()  # the model moves; the frozen heartbeat does not
         time.sleep(0.5)
         assert robot.status().report.state is State.STOPPED
-        assert not [r for r in robot.records_since(t0) if r.get("rearm")]
+        assert not [r for r in robot.records_since(t0) if r.rearm]
         robot.vsc.fault()
         robot.recover(stop)
 
@@ -138,20 +138,22 @@ def _flap(robot: Robot, **fault: object) -> tuple[float, float]:
     return t0, t1
 
 
-STALL_CAUSES = frozenset({"vsc_link_lost", "vsc_watchdog_untested", "internal"})
+STALL_CAUSES = frozenset(
+    {CauseKind.VSC_LINK_LOST, CauseKind.VSC_WATCHDOG_UNTESTED, CauseKind.INTERNAL}
+)
 """The stop causes a stalled machine raises by itself, whatever the VSC's mode: a VSC heartbeat
 read 200 ms after the one before (``vsc_link_lost``, SR-2.2, and the proof test due again
 after that silence, ``vsc_watchdog_untested``), or the loop waking 250 ms late (``internal``).
 Seen once with this scenario on a machine at load 12 with two more busy processes."""
 
 
-def _stalled(record: dict[str, Any]) -> bool:
-    raised = {c["name"] for c in record["changes"] if c["change"] == "raised"}
-    return record["to"] == "STOPPED" and bool(raised) and raised <= STALL_CAUSES
+def _stalled(record: StopRecord) -> bool:
+    raised = {c.name.kind for c in record.changes or () if c.change is ChangeKind.RAISED}
+    return record.to_state is State.STOPPED and bool(raised) and raised <= STALL_CAUSES
 
 
-def _stops(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [r for r in records if r["to"] == "STOPPED" != r["from"]]
+def _stops(records: list[StopRecord]) -> list[StopRecord]:
+    return [r for r in records if r.is_stop]
 
 
 def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
@@ -179,12 +181,13 @@ def _check_flap_held(robot: Robot, t0: float, t1: float, mode: str) -> None:
     records = robot.records_since(t0)
     stops = _stops(records)
     assert all(_stalled(r) for r in stops), f"a mode flap stopped the robot: {stops}"
-    end = min([t1, *(r["mono_ns"] / 1e9 for r in stops)])
+    end = min([t1, *(r.mono_ns / 1e9 for r in stops)])
     power_off = robot.watcher.first("power", False, t0)
     assert power_off is None or power_off.t >= end, robot.watcher.history("power")
-    during = [r for r in records if r["mono_ns"] < end * 1e9]
+    during = [r for r in records if r.mono_ns < end * 1e9]
     assert len(during) <= RECORDS_PER_S * FLAP_S + 1, during
-    assert any(c["name"] == f"vsc_mode:{mode}" for r in during for c in r["changes"]), during
+    flap = Cause(CauseKind.VSC_MODE, mode)
+    assert any(c.name == flap for r in during for c in r.changes or ()), during
     ons = [lv for lv in robot.watcher.history("drive") if t0 <= lv.t <= end and lv.on]
     assert len(ons) <= RUN_ENTRIES_PER_S * FLAP_S + 1, robot.watcher.history("drive")
     robot.assert_serving(robot.rearm() if stops else None)
@@ -230,12 +233,12 @@ def test_unknown_mode_is_a_hold(tmp_path: Path) -> None:
         robot.vsc.mode(0x42)
         off = robot.watcher.wait("drive", False, t0)
         assert off.t - t0 <= robot.beat_s + ALLOWANCE_S
-        status = robot.wait_state("HOLD")
+        status = robot.wait_state(State.HOLD)
         assert "vsc_mode:unknown_0x42" in robot.active(status)
         assert status.report.outputs == {"drive": False, "power": True}
         assert robot.watcher.first("power", False, t0) is None
         robot.vsc.mode("operational")
-        robot.wait_state("RUN")
+        robot.wait_state(State.RUN)
         robot.assert_serving()
 
 

@@ -9,11 +9,12 @@ import re
 import signal
 import time
 from pathlib import Path
-from typing import Any
 
 from supervisord.daemon import signals
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.vocabulary import Cause, CauseKind, ChangeKind, State
 from tests.faults.test_record_faults import (
     ROOT_ONLY,
     Journald,
@@ -30,7 +31,7 @@ from tests.faults.test_record_faults import (
 SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
 
 
-def _end(robot: Robot, sig: signal.Signals) -> tuple[int, list[dict[str, Any]]]:
+def _end(robot: Robot, sig: signal.Signals) -> tuple[int, list[StopRecord]]:
     """Send ``sig``, wait for the exit; the exit status and the records before it."""
     daemon = robot.daemon
     assert daemon is not None
@@ -40,21 +41,21 @@ def _end(robot: Robot, sig: signal.Signals) -> tuple[int, list[dict[str, Any]]]:
 
 
 def _the_exit_record(
-    robot: Robot, sig: signal.Signals, before: list[dict[str, Any]], state: str
+    robot: Robot, sig: signal.Signals, before: list[StopRecord], state: State
 ) -> None:
     """The file's last record is the exit's: ``shutdown:SIG``, from ``state`` to STOPPED,
     triggered by the ``shutdown`` input, one after the record before it."""
     records = robot.records()
     what = f"{sig.name}: {records[-3:]} {robot.log()}"
     last = records[-1]
-    cause = f"shutdown:{sig.name}"
-    assert [c["change"] for c in last["changes"] if c["name"] == cause] == ["raised"], what
-    assert {c["name"] for c in last["causes"] if c["latched"]} >= {cause}, what
-    assert last["trigger"] == {"event": "shutdown", "reason": sig.name}, what
-    assert (last["from"], last["to"]) == (state, "STOPPED"), what
+    cause = Cause(CauseKind.SHUTDOWN, sig.name)
+    assert [c.change for c in last.changes or () if c.name == cause] == [ChangeKind.RAISED], what
+    assert {c.name for c in last.causes if c.latched} >= {cause}, what
+    assert last.trigger == {"event": "shutdown", "reason": sig.name}, what
+    assert (last.from_state, last.to_state) == (state, State.STOPPED), what
     assert records[: len(before)] == before, what
-    assert last["seq"] == records[-2]["seq"] + 1, what  # the sequence continues
-    exits = [r for r in records[len(before) :] if r["trigger"].get("event") == "shutdown"]
+    assert last.seq == records[-2].seq + 1, what  # the sequence continues
+    exits = [r for r in records[len(before) :] if r.event == "shutdown"]
     assert exits == [last], what
 
 
@@ -72,7 +73,7 @@ def test_each_shutdown_in_run_is_the_last_record(tmp_path: Path) -> None:
             assert code == signals.exit_status(sig), f"{sig.name}: {robot.log()}"
             for name in robot.output_paths:
                 assert robot.output_file(name) is False, f"{name} left on after {sig.name}"
-            _the_exit_record(robot, sig, before, "RUN")
+            _the_exit_record(robot, sig, before, State.RUN)
             assert "Traceback" not in robot.log(), robot.log()
         robot.start_daemon()  # for the harness's own end: status, SIGTERM, exit 0
 
@@ -81,11 +82,11 @@ def test_a_shutdown_in_stopped_is_a_record_too(tmp_path: Path) -> None:
     """SR-7.14: every exit of the daemon is recorded: SIGTERM while STOPPED (just started,
     never armed) leaves a ``cause_raised`` record of ``shutdown:SIGTERM`` last in the file."""
     with Robot(tmp_path) as robot:
-        robot.wait_state("STOPPED")
+        robot.wait_state(State.STOPPED)
         code, before = _end(robot, signal.SIGTERM)
         assert code == 0, robot.log()
-        _the_exit_record(robot, signal.SIGTERM, before, "STOPPED")
-        assert robot.records()[-1]["kind"] == "cause_raised"
+        _the_exit_record(robot, signal.SIGTERM, before, State.STOPPED)
+        assert robot.records()[-1].kind is RecordKind.CAUSE_RAISED
         robot.start_daemon()
 
 
@@ -104,7 +105,7 @@ def test_the_shutdown_record_reaches_the_journal(tmp_path: Path) -> None:
             wait_until(lambda: journal.entries, what="journal entries from srcsd")
             code, before = _end(robot, sig)
             assert code == 0, robot.log()
-            _the_exit_record(robot, sig, before, "RUN")
+            _the_exit_record(robot, sig, before, State.RUN)
         finally:
             robot.close()
         cause = f"\nSRCS_CAUSE=shutdown:{sig.name}\n".encode()

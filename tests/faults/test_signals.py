@@ -22,6 +22,7 @@ from supervisord.daemon import signals
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import WAIT_S, wait_until
 from supervisord.tooling.children import kill
+from supervisord.vocabulary import Cause, CauseKind, State
 
 # One of each kind signal(7) lists with the default action Term or Core that srcsd stops on,
 # and the first and last real-time signal (the rest are the same to the kernel and to us).
@@ -69,14 +70,8 @@ def test_each_stopping_signal_in_run_stops_as_sigterm_does(tmp_path: Path) -> No
             assert code == (0 if sig in (signal.SIGTERM, signal.SIGINT) else 128 + sig), what
             for name in robot.output_paths:
                 assert robot.output_file(name) is False, f"{name} left on after {what}"
-            holds = [
-                r
-                for r in robot.records_since(t_hold)
-                if any(
-                    c["name"] == "client_hold:held" and c["change"] == "raised"
-                    for c in r.get("changes", [])
-                )
-            ]
+            held = Cause(CauseKind.CLIENT_HOLD, "held")
+            holds = [r for r in robot.records_since(t_hold) if robot.raised_in(r, held)]
             assert holds, f"the hold's record is not in the file after {what}"
             assert f"{signals.name(sig)}: stopping, every output off" in robot.log(), what
             assert "Traceback" not in robot.log(), f"a traceback: {what}"
@@ -264,7 +259,7 @@ def test_the_soft_rttime_limit_is_a_stop_the_daemon_makes(tmp_path: Path) -> Non
             assert robot.output_file(name) is False, f"{name} left on after SIGXCPU: {what}"
         assert "SIGXCPU: stopping, every output off" in what, what
         last = robot.records()[-1]
-        assert last["trigger"] == {"event": "shutdown", "reason": "SIGXCPU"}, (last, what)
-        assert (last["from"], last["to"]) == ("RUN", "STOPPED"), last
+        assert last.trigger == {"event": "shutdown", "reason": "SIGXCPU"}, (last, what)
+        assert (last.from_state, last.to_state) == (State.RUN, State.STOPPED), last
         assert "Traceback" not in what, what
         robot.start_daemon()  # for the harness's own end: status, SIGTERM, exit 0

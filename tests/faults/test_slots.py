@@ -23,6 +23,7 @@ from typing import Any
 
 import pytest
 
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
 
@@ -166,7 +167,7 @@ def test_operator_estop_gets_through_every_slot_held_and_churn(shared_dir: Path)
             print(f"10 srcsctl status under churn: {robot.now() - t:.2f} s")
             # Not asserted here: whether the churn alone stopped the robot (it can, on two
             # busy cores, with the code before this change too); printed for the record.
-            print("stops raised during the churn:", [r["changes"] for r in robot.records_since(t)])
+            print("stops raised during the churn:", [r.changes for r in robot.records_since(t)])
             t0 = robot.now()
             estop = srcsctl(path, "estop")
             took = robot.now() - t0
@@ -177,7 +178,7 @@ def test_operator_estop_gets_through_every_slot_held_and_churn(shared_dir: Path)
             # command says done. Its run time here is mostly its interpreter starting on two
             # cores the churners keep busy; the daemon's own latency is the benches' job.
             stop = robot.expect_stop("local_estop", t0, took)
-            assert stop.record["trigger"]["caller"]["uid"] == 0
+            assert stop.record.trigger["caller"]["uid"] == 0
         finally:
             end(pids)
         release = srcsctl(path, "release")
@@ -214,7 +215,7 @@ def test_operator_gets_through_churn_at_the_operators_own_priority(shared_dir: P
             assert estop.returncode == 0, estop.stderr
             assert "estop (local): done; the supervisor is STOPPED" in estop.stdout
             stop = robot.expect_stop("local_estop", t0, took)
-            assert stop.record["trigger"]["caller"]["uid"] == 0
+            assert stop.record.trigger["caller"]["uid"] == 0
         finally:
             end(pids)
         release = srcsctl(config, "release", where="--config")
@@ -265,12 +266,12 @@ def test_hello_as_a_bound_client_from_another_user_is_refused_and_recorded(
         hello, *beats = replies
         assert (hello["ok"], hello["code"]) == (False, "not_allowed"), hello
         assert [b["code"] for b in beats] == ["not_hello"] * 3, beats
-        refused = wait_until(
-            lambda: [r for r in robot.records_since(t0) if r["kind"] == "hello_refused"],
+        refused: list[StopRecord] = wait_until(
+            lambda: [r for r in robot.records_since(t0) if r.kind is RecordKind.HELLO_REFUSED],
             what="the refused hello's record",
         )
-        assert refused[0]["trigger"]["name"] == "nav"
-        assert refused[0]["trigger"]["caller"]["uid"] == NOBODY
+        assert refused[0].trigger["name"] == "nav"
+        assert refused[0].trigger["caller"]["uid"] == NOBODY
         assert "client_lost:nav" in robot.active_stops()
         robot.start_clients()
         robot.recover(stop)

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from supervisord.record.stop import StopRecord
 from supervisord.testkit.robot import ALLOWANCE_S, OutputDef, Robot
 from supervisord.testkit.wait import wait_until
+from supervisord.vocabulary import CauseKind, State
 
 DELAY_MS = 400
 OUTPUTS = (
@@ -34,11 +36,11 @@ def test_a_category_1_output_goes_off_its_delay_after_the_motion_output(tmp_path
         lights = watcher.wait("lights", False, t)
         for level in (drive, lights):
             assert level.t - t <= robot.beat_s + ALLOWANCE_S
-        record = wait_until(
-            lambda: robot.record_raising("vsc_estop", t, False), what="the stop's record"
+        record: StopRecord = wait_until(
+            lambda: robot.record_raising(CauseKind.VSC_ESTOP, t), what="the stop's record"
         )
-        assert record["to"] == "STOPPED", record
-        stopped = record["mono_ns"] / 1e9
+        assert record.to_state is State.STOPPED, record
+        stopped = record.mono_ns / 1e9
         brakes = watcher.wait("brakes", False, t)
         assert brakes.t >= stopped + DELAY_MS / 1000, (
             f"brakes off {(brakes.t - stopped) * 1000:.0f} ms after the stop"

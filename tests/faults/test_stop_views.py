@@ -5,6 +5,7 @@ headless Chromium, shows the marker at the stop."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from mcap.reader import make_reader
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.record.flight import read_window
 from supervisord.record.replay import replay
+from supervisord.record.stop import read_record
 from supervisord.record.stop_picture import MARKER, STATE_COLOURS, stop_picture
 from supervisord.record.timeline import timeline
 from supervisord.safety.events import VscReceived
@@ -34,7 +36,7 @@ def test_a_real_stop_exported_as_mcap_and_as_a_picture(tmp_path: Path) -> None:
         mcap, svg = tmp_path / "stop.mcap", tmp_path / "stop.svg"
         done = srcsctl(
             "replay",
-            str(stop.record["seq"]),
+            str(stop.record.seq),
             "--config",
             str(robot.config_path),
             "--mcap",
@@ -53,9 +55,7 @@ def test_a_real_stop_exported_as_mcap_and_as_a_picture(tmp_path: Path) -> None:
         ]
     records = [value for topic, _, value in messages if topic == "/core/record"]
     last = records[-1]["record"]
-    assert {k: v for k, v in last.items() if k != "utc"} == {
-        k: v for k, v in stop.record.items() if k != "utc"
-    }
+    assert dataclasses.replace(read_record(last), utc=stop.record.utc) == stop.record
     beats = [value for topic, _, value in messages if topic == "/vsc/heartbeat"]
     heard = [
         e.now

@@ -12,6 +12,7 @@ import pytest
 
 from supervisord.client import SupervisorClient
 from supervisord.protocol.codes import VscMode
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
@@ -20,9 +21,9 @@ from supervisord.vocabulary import State
 FLAP_S = 2.0  # twenty times the 100 ms re-arm hold the harness configures
 
 
-def _refused(records: list[dict[str, Any]], until: float) -> list[dict[str, Any]]:
+def _refused(records: list[StopRecord], until: float) -> list[StopRecord]:
     """The ``rearm_refused`` records up to ``until`` (monotonic s)."""
-    return [r for r in records if r.get("kind") == "rearm_refused" and r["mono_ns"] <= until * 1e9]
+    return [r for r in records if r.kind is RecordKind.REARM_REFUSED and r.mono_ns <= until * 1e9]
 
 
 @pytest.mark.parametrize(
@@ -58,14 +59,14 @@ def test_a_flapping_vsc_never_rearms_after_an_estop(tmp_path: Path, flap: dict[s
         robot.vsc.fault()
         assert counts.get("flap_mode", 0) >= 10, counts  # the VSC did report Operational
         records = robot.records_since(t0)
-        assert not [r for r in records if r.get("rearm")], records
-        assert all(r["to"] == "STOPPED" for r in records), records
+        assert not [r for r in records if r.rearm], records
+        assert all(r.to_state is State.STOPPED for r in records), records
         assert robot.watcher.ons_between(t0, t1) == []
         assert robot.status().report.state is State.STOPPED
         refused = _refused(records, t1)
         assert 1 <= len(refused) <= FLAP_S + 1, refused
         too_short = RefusalReason.TAKEOVER_TOO_SHORT.value
-        assert all(r["reason"].startswith(too_short) for r in refused), refused
+        assert all((r.reason or "").startswith(too_short) for r in refused), refused
         robot.recover(stop)
 
 
@@ -91,8 +92,8 @@ def test_a_takeover_while_a_client_commands_motion_is_refused_and_shown_on_the_r
             robot.vsc.release()
             # every rule of SR-4 met but the command's
             refused = robot.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
-            assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: planner"
-            assert not [r for r in robot.records_since(stop.t_fault) if r.get("rearm")]
+            assert refused.reason == f"{RefusalReason.COMMAND_NONZERO.value}: planner"
+            assert not [r for r in robot.records_since(stop.t_fault) if r.rearm]
             assert robot.watcher.ons_between(stop.t_fault, robot.now()) == []
             status = robot.status()
             assert status.report.state is State.STOPPED

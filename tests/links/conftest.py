@@ -9,7 +9,6 @@ bus (no socket: nothing leaves the process), the memory link on its ``MemoryPort
 
 from __future__ import annotations
 
-import dataclasses
 import signal
 import uuid
 from collections.abc import Callable, Iterator
@@ -48,34 +47,13 @@ from supervisord.protocol.messages import (
     VscHeartbeat,
 )
 from supervisord.sim.pty import PtyPort
+from supervisord.testkit.link_conformance import LinkHarness
 
 KINDS = ["serial-pty", "can-virtual", "hid-pty", "memory"]
 
 
-@dataclasses.dataclass
-class Harness:
-    """A link under test and its far end.
-
-    ``first`` and ``second`` are two different things the far end can send, as the link must
-    decode them; ``put`` sends one in the protocol's encoding, ``put_corrupt`` sends its frame
-    damaged so that the protocol's check refuses it, ``put_partial`` sends only the start of
-    it. ``taken`` is what has reached the far end so far, decoded there. ``carries`` is the
-    set of message types the transport has a form for (the others are not sent). ``hang_up``
-    makes the far end go away for real; ``come_back`` brings a new one at the same place.
-    ``place`` is what the link's description must name.
-    """
-
-    link: Link
-    place: str
-    first: Incoming
-    second: Incoming
-    put: Callable[[Incoming], None]
-    put_corrupt: Callable[[Incoming], None]
-    put_partial: Callable[[Incoming], None]
-    taken: Callable[[], list[Message]]
-    carries: frozenset[type[Message]]
-    hang_up: Callable[[], None]
-    come_back: Callable[[], None]
+Harness = LinkHarness
+"""The kit's harness (``supervisord.testkit.link_conformance``), by its old name here."""
 
 
 EVERY_MESSAGE: frozenset[type[Message]] = frozenset(
@@ -130,6 +108,7 @@ def _serial_harness(
         lambda thing: port.write(_frame_of(thing)),
         lambda thing: port.write(_damaged(_frame_of(thing))),
         lambda thing: port.write(_frame_of(thing)[:5]),
+        port.write,
         taken,
         EVERY_MESSAGE,
         port.unplug,
@@ -193,6 +172,15 @@ def _can(tmp_path: Path) -> Iterator[Harness]:
         frame = frame_of(thing)
         put(CanFrame(frame.arbitration_id, frame.data[:2], frame.is_extended_id))
 
+    def garbage(data: bytes) -> None:
+        # Frames of noise: identifiers and payloads from the bytes, standard and extended.
+        for at in range(0, len(data), 8):
+            chunk = data[at : at + 8]
+            ident = int.from_bytes(chunk[:4].ljust(4, b"\0"), "big")
+            extended = bool(chunk[0] & 1)
+            ident &= 0x1FFFFFFF if extended else 0x7FF
+            far.send(can.Message(arbitration_id=ident, data=chunk, is_extended_id=extended))
+
     link = CanLink("virtual", channel, 250_000)
     yield Harness(
         link,
@@ -202,6 +190,7 @@ def _can(tmp_path: Path) -> Iterator[Harness]:
         lambda thing: put(frame_of(thing)),
         corrupt,
         partial,
+        garbage,
         taken,
         FEEDBACK_ONLY,
         lambda: far.send(BUS_OFF),
@@ -253,6 +242,7 @@ def _hid(tmp_path: Path) -> Iterator[Harness]:
         lambda thing: port.write(report_of(thing)),
         lambda thing: port.write(report_of(thing) + b"\0"),  # a report of the wrong length
         lambda thing: port.write(report_of(thing)[:5]),
+        port.write,
         taken,
         FEEDBACK_ONLY,
         port.unplug,

@@ -7,7 +7,6 @@ break the device for real so that the suite can check that a fault is reported a
 
 from __future__ import annotations
 
-import dataclasses
 import glob
 import os
 import shutil
@@ -18,30 +17,14 @@ from pathlib import Path
 import can
 import pytest
 
-from supervisord.outputs import Output, OutputFault, OutputRole
+from supervisord.outputs import OutputFault, OutputRole
 from supervisord.outputs.can_enable import CanEnableOutput, CanEnableSpec
 from supervisord.outputs.gpio import GpioOutput, GpioSpec
 from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.testkit.output_conformance import OutputHarness
 
-T0 = 5_000_000_000
-"""An arbitrary monotonic start time (ns): tests never read a clock."""
-
-
-@dataclasses.dataclass
-class Harness:
-    """An output under test and its outside view.
-
-    ``outside()`` is the level an observer outside the output sees, or ``None`` when the kind
-    gives no outside view. ``break_device(level)`` makes the device fail for real so that the
-    next write of ``level`` cannot succeed; it must then come back with ``fault``.
-    """
-
-    output: Output
-    outside: Callable[[], bool | None]
-    break_device: Callable[[bool], None]
-    fault: OutputFault
-    periodic: bool
-
+Harness = OutputHarness
+"""The kit's harness (``supervisord.testkit.output_conformance``), by its old name here."""
 
 KINDS = ["sim", "sim-file", "can-virtual", "gpio"]
 
@@ -50,7 +33,12 @@ def _sim(tmp_path: Path) -> Iterator[Harness]:
     out = SimOutput(SimSpec(name="sim"))
     # A line stuck at the opposite level, like a welded relay contact or a shorted driver.
     yield Harness(
-        out, lambda: out.device_level, lambda lv: out.stick(not lv), OutputFault.MISMATCH, False
+        out,
+        lambda: out.device_level,
+        lambda lv: out.stick(not lv),
+        OutputFault.MISMATCH,
+        False,
+        lambda: out.stick(True),  # stuck on before it is acquired
     )
     out.close()
 
@@ -66,7 +54,10 @@ def _sim_file(tmp_path: Path) -> Iterator[Harness]:
         assert text in ("0\n", "1\n"), f"torn or unexpected content {text!r}"
         return text == "1\n"
 
-    yield Harness(out, outside, lambda _: shutil.rmtree(folder), OutputFault.IO_ERROR, False)
+    def gone(_: object = None) -> None:
+        shutil.rmtree(folder)
+
+    yield Harness(out, outside, gone, OutputFault.IO_ERROR, False, gone)
     out.close()
 
 
@@ -133,7 +124,14 @@ def _can(buses: tuple[can.BusABC, can.BusABC]) -> Iterator[Harness]:
     mine, theirs = buses
     out = CanEnableOutput(CAN_SPEC, mine)
     watcher = BusWatcher(theirs, CAN_SPEC)
-    yield Harness(out, watcher.outside, lambda _: mine.shutdown(), OutputFault.SEND_ERROR, True)
+    yield Harness(
+        out,
+        watcher.outside,
+        lambda _: mine.shutdown(),
+        OutputFault.SEND_ERROR,
+        True,
+        mine.shutdown,
+    )
     out.close()
 
 

@@ -8,7 +8,8 @@ import pytest
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputFault, create_output, parse_output_spec
 from supervisord.outputs.can_enable import CanEnableOutput, CanEnableSpec, parse_hex
-from tests.outputs.conftest import CAN_SPEC, T0, BusWatcher
+from supervisord.testkit.output_conformance import T0
+from tests.outputs.conftest import CAN_SPEC, BusWatcher
 
 MS = 1_000_000
 

@@ -11,7 +11,7 @@ import pytest
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputError, OutputFault, parse_output_spec
 from supervisord.outputs.gpio import GpioOutput, GpioSpec, find_chip
-from tests.outputs.conftest import T0
+from supervisord.testkit.output_conformance import T0
 
 MS = 1_000_000
 

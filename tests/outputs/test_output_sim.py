@@ -9,7 +9,7 @@ import pytest
 from supervisord.errors import ConfigError
 from supervisord.outputs import OutputError, OutputFault, parse_output_spec
 from supervisord.outputs.sim import SimOutput, SimSpec
-from tests.outputs.conftest import T0
+from supervisord.testkit.output_conformance import T0
 
 
 def test_file_shows_each_change(tmp_path: Path) -> None:

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from supervisord.outputs.sim import SimOutput, SimSpec
-from tests.outputs.conftest import T0
+from supervisord.testkit.output_conformance import T0
 
 WRITER = """
 import sys, time

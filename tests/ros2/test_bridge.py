@@ -25,10 +25,11 @@ except ImportError as error:  # rclpy's libraries are not on the library path
     )
 
 from supervisord.client import SupervisorClient
+from supervisord.record.stop import StopRecord
 from supervisord.safety.decision import RefusalReason
 from supervisord.testkit.robot import Robot
 from supervisord.testkit.wait import wait_until
-from supervisord.vocabulary import State
+from supervisord.vocabulary import Cause, CauseKind, State
 
 pytestmark = pytest.mark.usefixtures("private_network")
 
@@ -162,8 +163,10 @@ def test_services_estop_and_hold(robot: tuple[Robot, BridgeProcess], ros: RosPee
     response = ros.call("estop")
     assert response.success, response.message
     ros.spin_until(lambda: ros.estop[-1:] == [True], what="estop true")
-    record = wait_until(lambda: running.record_raising("client_estop:ros", t), what="the record")
-    assert record["to"] == "STOPPED"
+    record: StopRecord = wait_until(
+        lambda: running.record_raising(Cause(CauseKind.CLIENT_ESTOP, "ros"), t), what="the record"
+    )
+    assert record.to_state is State.STOPPED
     assert ros.call("release_estop").success
     refused = ros.call("release_estop")
     assert not refused.success
@@ -259,7 +262,7 @@ def test_killed_bridge_stops_the_robot(robot: tuple[Robot, BridgeProcess], ros: 
     t = running.now()
     bridge.kill()
     stop = running.expect_stop("client_lost:ros", t, deadline_s=0.5)
-    assert stop.record["to"] == "STOPPED"
+    assert stop.record.to_state is State.STOPPED
 
 
 def test_srcsd_restart_reconnects(robot: tuple[Robot, BridgeProcess], ros: RosPeer) -> None:
@@ -332,8 +335,8 @@ def test_a_nonzero_cmd_vel_in_blocks_the_takeover_and_zero_lets_it(
     forwarded = len(ros.cmd_out)
     running.vsc.release()
     refused = running.refused_rearm(RefusalReason.COMMAND_NONZERO.value)
-    assert refused["reason"] == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
-    assert not [r for r in running.records_since(stop.t_fault) if r.get("rearm")]
+    assert refused.reason == f"{RefusalReason.COMMAND_NONZERO.value}: ros"
+    assert not [r for r in running.records_since(stop.t_fault) if r.rearm]
     assert running.status().report.state is State.STOPPED
     ros.cmd_in.publish(go)  # still refused: the gate stays closed
 
