@@ -308,6 +308,7 @@ class Vsc:
         self.edges: list[Edge] = []
         self.heartbeat_arrivals: list[int] = []  # monotonic ns of each user heartbeat read
         self.heartbeat_estops = 0
+        self.heard_frames = 0  # every frame the supervisor wrote, of any kind
         self.sent_frames = 0
         self.sent_bytes = 0
         self._decoder = FrameDecoder()
@@ -365,6 +366,7 @@ class Vsc:
         data = self.port.read()
         arrived = time.monotonic_ns()
         for event in self._decoder.feed(data):
+            self.heard_frames += 1
             if isinstance(event, UserHeartbeat):
                 self.heartbeat_arrivals.append(arrived)
                 self.heartbeat_estops += event.estop != 0
