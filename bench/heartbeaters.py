@@ -25,11 +25,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
 
+from supervisord.api.framing import ApiError
 from supervisord.client import SupervisorClient
 from supervisord.timebase import NS_PER_S, next_due
 
 NAME_PREFIX = "bench-"
 RATE_HZ = 10
+HELLO_LIMIT_S = 30.0
 
 
 def client_names(count: int) -> list[str]:
@@ -50,6 +52,21 @@ def read_count(path: Path) -> tuple[int, int]:
     return int(beats), int(at)
 
 
+def hello(client: SupervisorClient, name: str) -> SupervisorClient:
+    """Say hello as ``name``; a hello the record budget refuses (each hello is a record, and
+    the budget counts a user's records per second, SR-8.5) is said again a moment later."""
+    deadline = time.monotonic() + HELLO_LIMIT_S
+    while True:
+        try:
+            client.hello(name)
+        except ApiError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+        else:
+            return client
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench.heartbeaters", description=__doc__)
     parser.add_argument("socket")
@@ -67,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     count = Path(args.count)
     with contextlib.ExitStack() as stack:
         clients = [
-            stack.enter_context(SupervisorClient.connect(args.socket, name=name))
+            hello(stack.enter_context(SupervisorClient.connect(args.socket)), name)
             for name in client_names(args.clients)
         ]
         step = int(NS_PER_S / args.rate / len(clients))  # one client's turn every step
