@@ -22,8 +22,13 @@ from bench import (
     rt_budget,
     stop_latency,
 )
+from bench.bare import BareLoop, open_port
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
+from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.protocol.framing import FrameDecoder
+from supervisord.protocol.messages import UserHeartbeat
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.wait import wait_until
 from supervisord.testkit.worst_input import LINES
 from supervisord.timebase import NS_PER_MS
@@ -363,3 +368,29 @@ def test_client_input_measures_every_family_and_the_heartbeat_under_its_flood(
     assert len(periods) >= 5
     assert turns["turns"] > 0
     assert status is None
+
+
+def test_the_bare_loop_sends_the_user_heartbeat_on_srcsds_cadence(tmp_path: Path) -> None:
+    """SR-5.1, SR-9.4: the floor writes the user heartbeat as srcsd does, every 50 ms on a
+    schedule that a late turn does not move, and waits no longer than its next one: at the
+    same rate as srcsd, so that the idle bench compares the same I/O. Real pty, driven clock."""
+    vsc = PtyPort(tmp_path / "vsc")
+    port = open_port(str(tmp_path / "vsc"))
+    now = [1_000 * NS_PER_MS]
+    output = SimOutput(SimSpec(name="drive", path=None))
+    output.open(now[0])
+    loop = BareLoop(port, output, True, lambda: now[0])
+    heard = FrameDecoder()
+    beats = []
+    try:
+        for late_ms in (0, 60, 100, 120, 150):  # a turn 10 ms late, then on time
+            now[0] = 1_000 * NS_PER_MS + late_ms * NS_PER_MS
+            loop.turn()
+            written = heard.feed(vsc.read(timeout=0.5 if late_ms != 120 else 0.0))
+            beats += [late_ms for event in written if isinstance(event, UserHeartbeat)]
+        assert beats == [0, 60, 100, 150]  # due at 0, 50, 100, 150: the late one kept the rest
+        assert loop.wait_s() == pytest.approx(0.05)  # until the heartbeat due at 200 ms
+    finally:
+        output.close()
+        os.close(port)
+        vsc.close()
