@@ -19,7 +19,7 @@ that drives the loop turn by turn on a **virtual clock**:
   that frame's or deadline's time; everything in a turn is the real code, the epoll wait
   included (it returns at once: the frame is there, or the deadline has come);
 - **bare**: the bare event-driven loop of ``bench.stop_latency --model event``
-  (``bench.rig.BareLoop``: select, read, decode, set the output, a user heartbeat every 50 ms),
+  (``bench.bare.BareLoop``: select, read, decode, set the output, a user heartbeat every 50 ms),
   one turn per frame;
 - **driver**: the child's own side alone (writing each frame and reading the loop's user
   heartbeats back), which both counts above include; subtracted in the "own" columns.
@@ -50,16 +50,8 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from bench.rig import (
-    GPS_NS,
-    HEARTBEAT_NS,
-    JOYSTICK_NS,
-    REPO,
-    SAMPLE_GGA,
-    BareLoop,
-    open_port,
-    table,
-)
+from bench.bare import HEARTBEAT_NS, BareLoop, open_port
+from bench.rig import GPS_NS, JOYSTICK_NS, REPO, SAMPLE_GGA, table
 from supervisord.daemon.loop import Supervisor
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame

@@ -9,12 +9,13 @@ Two processes, as on a robot, where the VSC and the supervisor do not share a sc
   the supervisor writes back (its user heartbeats).
 - **The child process is the supervisor** (``python -m bench.rig``): the real
   :class:`~supervisord.daemon.loop.Supervisor` with the real serial link, safety core and
-  fsynced JSON Lines record; or, with ``--model poll50``, a minimal model of the public
-  drivers' 20 ms polling loop over the same port. Its one output is a sim output that
-  timestamps each change of level with ``time.monotonic_ns()`` right where the loop drives it
-  and reports the time over a pipe: the timestamp is taken in the loop's own process, so no
-  polling of a file adds to it. CLOCK_MONOTONIC is one clock for the whole machine, so the
-  VSC's send times and the supervisor's output times subtract directly.
+  fsynced JSON Lines record; or, with ``--model event`` or ``poll50``, the bare event-driven
+  loop or a minimal model of the public drivers' 20 ms polling loop over the same port
+  (``python -m bench.bare``, a process of the floor's modules only). Its one output is a sim
+  output that timestamps each change of level with ``time.monotonic_ns()`` right where the
+  loop drives it and reports the time over a pipe: the timestamp is taken in the loop's own
+  process, so no polling of a file adds to it. CLOCK_MONOTONIC is one clock for the whole
+  machine, so the VSC's send times and the supervisor's output times subtract directly.
 - **A flooding client** (``--client-flood``, ``python -m bench.rig flood SOCKET``): a third
   process that pipelines hold/release and every other request kind into the supervisor's
   API socket as fast as the socket takes them, and reads its replies as they come.
@@ -32,24 +33,22 @@ import random
 import select
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import time
-import tty
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
 
+from bench.bare import HEARTBEAT_NS, REPORT, TimedOutput
+from bench.bare import MODELS as BARE_MODELS
 from supervisord.api.server import ApiServer, ServerConfig
-from supervisord.clock import Clock
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
-from supervisord.outputs.base import ReadBack
-from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.outputs.sim import SimSpec
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
 from supervisord.protocol.messages import (
@@ -70,43 +69,14 @@ from supervisord.timebase import NS_PER_MS, next_due
 from supervisord.tooling.children import terminate
 
 REPO = Path(__file__).resolve().parents[1]  # the child runs ``-m bench.rig`` from here
-REPORT = struct.Struct("<?qq")  # level, write started, write finished (monotonic ns)
 SAMPLE_GGA = "$GPGGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,*69"
-JOYSTICK_NS = 20 * NS_PER_MS  # the VSC's default rates (manual table 5)
-HEARTBEAT_NS = 50 * NS_PER_MS
+JOYSTICK_NS = 20 * NS_PER_MS  # the VSC's default rates (manual table 5; HEARTBEAT_NS)
 GPS_NS = 1000 * NS_PER_MS
-POLL_PERIOD_NS = 20 * NS_PER_MS  # the public drivers' 50 Hz loop
-MODELS = ("supervisor", "poll50", "event")
+MODELS = ("supervisor", *BARE_MODELS)
 
 
 # ---------------------------------------------------------------------------------------------
-# The child: the supervisor (or the polling model) with a timestamping output
-
-
-class TimedOutput(SimOutput):
-    """A sim output that reports every change of its level: (level, started, finished).
-
-    ``started`` is taken as the loop enters the write, ``finished`` once the level is set and
-    read back. By default the level lives in memory only, so ``finished - started`` is a few
-    microseconds where a GPIO write would spend its ioctl; with ``--level-file`` the sim
-    output also rewrites its mirror file in that interval, which costs milliseconds on ext4
-    (its rename-over-a-file flushes the data). The report goes out after the second
-    timestamp, so its cost is not in the measured interval.
-    """
-
-    def __init__(self, spec: SimSpec, report_fd: int) -> None:
-        super().__init__(spec)
-        self._report_fd = report_fd
-        self._reported: bool | None = None
-
-    def _write(self, on: bool, now: int) -> ReadBack:
-        started = time.monotonic_ns()
-        readback = super()._write(on, now)
-        finished = time.monotonic_ns()
-        if on != self._reported:  # a stop re-asserting off is no new edge
-            self._reported = on
-            os.write(self._report_fd, REPORT.pack(on, started, finished))
-        return readback
+# The child: the supervisor with a timestamping output (the floor's loops: bench/bare.py)
 
 
 def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
@@ -215,82 +185,8 @@ def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
     supervisor.shutdown = fast_shutdown  # type: ignore[method-assign]
 
 
-class BareLoop:
-    """The work of the bare loops (``--model event`` and ``poll50``) for one wake-up: read
-    what has arrived, decode it, switch the output on the last heartbeat's mode and e-stop
-    word, send a user heartbeat when one is due (every wake-up for the polling model, as the
-    drivers do; every 50 ms for the event-driven one). ``clock`` is the loop's clock
-    (``bench.input_instructions`` drives it by hand)."""
-
-    def __init__(self, fd: int, output: SimOutput, event_driven: bool, clock: Clock) -> None:
-        self.fd, self.output, self.event_driven, self.clock = fd, output, event_driven, clock
-        self.decoder = FrameDecoder()
-        self.on = False
-        self.next_beat = clock()
-
-    def turn(self) -> None:
-        try:
-            data = os.read(self.fd, 4096)
-        except BlockingIOError:
-            data = b""
-        for event in self.decoder.feed(data):
-            if isinstance(event, VscHeartbeat):
-                allowed = event.mode == VscMode.OPERATIONAL and event.estop == 0
-                if allowed != self.on:
-                    self.on = allowed
-                    self.output.set(allowed, self.clock())
-        now = self.clock()
-        if not self.event_driven or now >= self.next_beat:  # polling: one per tick
-            os.write(self.fd, encode_frame(UserHeartbeat(0)))
-            self.next_beat = now + HEARTBEAT_NS
-
-
-def open_port(path: str) -> int:
-    """The supervisor side of the pty, raw and non-blocking, as the bare loops open it."""
-    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    tty.setraw(fd)
-    return fd
-
-
-def run_poll_model(args: argparse.Namespace, output: TimedOutput) -> int:
-    """A minimal model of the public drivers' loop: wake every 20 ms, read what has arrived,
-    decode it, act on each heartbeat, send a user heartbeat. Written for this bench; it is
-    the best case of that design (the drivers hand the value to another node to act on).
-
-    ``--model event`` is the same loop woken by the port instead of a timer: the floor that
-    any Python loop on this machine meets (pty hand-off, wake-up, read, decode, write), to
-    tell the supervisor's own cost from the platform's.
-    """
-    event_driven = args.model == "event"
-    stop = False
-
-    def request_stop(_signum: int, _frame: FrameType | None) -> None:
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGTERM, request_stop)
-    fd = open_port(args.port)
-    output.open(time.monotonic_ns())
-    loop = BareLoop(fd, output, event_driven, time.monotonic_ns)
-    tick = time.monotonic_ns()
-    try:
-        while not stop:
-            if event_driven:
-                with contextlib.suppress(InterruptedError):
-                    select.select([fd], [], [], 0.05)
-            else:
-                tick += POLL_PERIOD_NS
-                time.sleep(max(0, tick - time.monotonic_ns()) / 1e9)
-            loop.turn()
-    finally:
-        output.close()
-        os.close(fd)
-    return 0
-
-
 def child_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench.rig", description="the supervisor side")
-    parser.add_argument("--model", choices=MODELS, default="supervisor")
     parser.add_argument("--port", required=True)
     parser.add_argument("--report-fd", type=int, required=True)
     parser.add_argument("--level-file", default=None, help="mirror the level here (sim path)")
@@ -304,8 +200,6 @@ def child_main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     level_file = Path(args.level_file) if args.level_file else None
     output = TimedOutput(SimSpec(name="drive", path=level_file), args.report_fd)
-    if args.model != "supervisor":
-        return run_poll_model(args, output)
     return run_supervisor(args, output)
 
 
@@ -414,6 +308,7 @@ class Vsc:
         self.edges: list[Edge] = []
         self.heartbeat_arrivals: list[int] = []  # monotonic ns of each user heartbeat read
         self.heartbeat_estops = 0
+        self.heard_frames = 0  # every frame the supervisor wrote, of any kind
         self.sent_frames = 0
         self.sent_bytes = 0
         self._decoder = FrameDecoder()
@@ -471,6 +366,7 @@ class Vsc:
         data = self.port.read()
         arrived = time.monotonic_ns()
         for event in self._decoder.feed(data):
+            self.heard_frames += 1
             if isinstance(event, UserHeartbeat):
                 self.heartbeat_arrivals.append(arrived)
                 self.heartbeat_estops += event.estop != 0
@@ -545,26 +441,28 @@ class Rig:
         self.api_socket = api_socket
         read_fd, write_fd = os.pipe()
         self.vsc = Vsc(directory / "vsc", read_fd)
-        command = [
-            sys.executable,
-            "-m",
-            "bench.rig",
-            f"--model={model}",
-            f"--port={directory / 'vsc'}",
-            f"--report-fd={write_fd}",
-            f"--record={directory / 'stops.jsonl'}",
-            f"--timeout-ms={timeout_ms}",
-            f"--hold-ms={hold_ms}",
-        ]
+        port = f"--port={directory / 'vsc'}"
+        command = [sys.executable, "-m"]
+        if model != "supervisor":  # the floor: a process of its own modules only (bench/bare.py)
+            command += ["bench.bare", f"--model={model}", port, f"--report-fd={write_fd}"]
+        else:
+            command += [
+                "bench.rig",
+                port,
+                f"--report-fd={write_fd}",
+                f"--record={directory / 'stops.jsonl'}",
+                f"--timeout-ms={timeout_ms}",
+                f"--hold-ms={hold_ms}",
+                f"--role={role}",
+            ]
+            if api_socket is not None:
+                command.append(f"--api-socket={api_socket}")
+            if api_max_line:
+                command.append(f"--api-max-line={api_max_line}")
+            if fsync_delay_ms:
+                command.append(f"--fsync-delay-ms={fsync_delay_ms}")
         if mirror:
             command.append(f"--level-file={directory / 'drive'}")
-        if api_socket is not None:
-            command.append(f"--api-socket={api_socket}")
-        if api_max_line:
-            command.append(f"--api-max-line={api_max_line}")
-        command.append(f"--role={role}")
-        if fsync_delay_ms:
-            command.append(f"--fsync-delay-ms={fsync_delay_ms}")
         # Our own interpreter running our own module: no untrusted input reaches the command.
         self.process = subprocess.Popen(command, cwd=REPO, pass_fds=(write_fd,))  # noqa: S603
         os.close(write_fd)  # the child's copy is the only writer: EOF means it died

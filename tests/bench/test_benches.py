@@ -22,8 +22,13 @@ from bench import (
     rt_budget,
     stop_latency,
 )
+from bench.bare import BareLoop, open_port
 from bench.rig import percentile
 from bench.unit import Scheduling, read_unit, span_us
+from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.protocol.framing import FrameDecoder
+from supervisord.protocol.messages import UserHeartbeat
+from supervisord.sim.pty import PtyPort
 from supervisord.testkit.wait import wait_until
 from supervisord.testkit.worst_input import LINES
 from supervisord.timebase import NS_PER_MS
@@ -232,20 +237,53 @@ def test_heartbeat_jitter_periods(tmp_path: Path) -> None:
     assert sum(periods) > 0
 
 
-def test_idle_cost_of_the_real_daemon(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    """SR-9.4: the real daemon in RUN uses some CPU and memory, feeds the VSC, and the bench
-    prints its verdicts and the steal."""
-    result = idle_cost.run(tmp_path, seconds=1.0)
-    assert result["frames"] > 0
-    assert result["wall"] >= 1.0
-    assert result["cpu"] >= 0
-    assert 0 < result["rss_max_kb"] <= result["hwm_kb"]
-    assert result["heartbeats"] > 0  # the daemon was in service, feeding the VSC
-    idle_cost.main(["--seconds", "1"])
+def test_idle_cost_measures_srcsd_the_bare_loop_and_clients_side_by_side(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """SR-9.4: one round runs the real daemon, the bare loop and the daemon with a client, each
+    in service at the VSC's full traffic and writing it user heartbeats; the client beats;
+    every run prints its load and steal, and the ratios and targets follow (no time asserted)."""
+    idle_cost.main(["--seconds", "1", "--rounds", "1", "--clients", "2", "--warm-up", "0.5"])
     out = capsys.readouterr().out
-    assert "| CPU time / wall time |" in out
-    assert "under 40 MB resident" in out
+    rows = [line.split(" | ") for line in out.splitlines() if line.startswith("| 1 | ")]
+    runs = {row[1]: row for row in rows if len(row) == 11}  # the table of every run
+    for loop in ("srcsd", "bare", "srcsd+2"):
+        row = runs[loop]
+        assert float(row[6]) > 0  # the VSC's frames went in
+        beats, frames_out = (float(part) for part in row[7].split(" / "))
+        assert 0 < beats <= frames_out  # it fed the VSC: in service
+    assert float(runs["srcsd+2"][8]) > 0  # the clients' heartbeats went out
     assert "host steal during the run:" in out
+    assert "| CPU share |" in out
+    assert "| VmHWM |" in out
+    assert "| 2 |" in out  # what a client adds
+    assert "target: srcsd's share at most 1.5 x the bare loop's ->" in out
+    assert "SR-9.4 target: under 40 MB resident" in out
+
+
+def test_idle_cost_pairs_the_runs_of_one_round() -> None:
+    """The ratios and a client's share are taken between the runs of one round, never across
+    rounds; a round without its partner gives none."""
+
+    def run(loop: str, round_: int, cpu: float, clients: int = 0) -> idle_cost.Run:
+        return idle_cost.Run(
+            loop, clients, round_, 10.0, cpu, 710, 13000, 200, 200, 0.0, 1024, 2048, 1536, 0.5, 0.0
+        )
+
+    runs = [
+        run("srcsd", 0, 0.2),
+        run("bare", 0, 0.1),
+        run("srcsd+10", 0, 0.3, 10),
+        run("bare", 1, 0.5),
+        run("srcsd", 1, 0.6),
+        run("srcsd", 2, 0.9),
+    ]
+    assert idle_cost.ratios(runs, "srcsd", "bare", lambda r: r.share) == pytest.approx([2.0, 1.2])
+    assert idle_cost.per_client(runs, 10) == pytest.approx([0.001])
+    assert idle_cost.per_client(runs, 50) == []
+    assert idle_cost.spread([1.0, 3.0, 2.0], str) == "2.0 (1.0 to 3.0)"
+    assert idle_cost.client_counts("1, 10,50") == [1, 10, 50]
+    assert idle_cost.client_counts("") == []
 
 
 def test_the_unit_file_is_read_as_systemd_reads_its_scheduling(tmp_path: Path) -> None:
@@ -330,3 +368,29 @@ def test_client_input_measures_every_family_and_the_heartbeat_under_its_flood(
     assert len(periods) >= 5
     assert turns["turns"] > 0
     assert status is None
+
+
+def test_the_bare_loop_sends_the_user_heartbeat_on_srcsds_cadence(tmp_path: Path) -> None:
+    """SR-5.1, SR-9.4: the floor writes the user heartbeat as srcsd does, every 50 ms on a
+    schedule that a late turn does not move, and waits no longer than its next one: at the
+    same rate as srcsd, so that the idle bench compares the same I/O. Real pty, driven clock."""
+    vsc = PtyPort(tmp_path / "vsc")
+    port = open_port(str(tmp_path / "vsc"))
+    now = [1_000 * NS_PER_MS]
+    output = SimOutput(SimSpec(name="drive", path=None))
+    output.open(now[0])
+    loop = BareLoop(port, output, True, lambda: now[0])
+    heard = FrameDecoder()
+    beats = []
+    try:
+        for late_ms in (0, 60, 100, 120, 150):  # a turn 10 ms late, then on time
+            now[0] = 1_000 * NS_PER_MS + late_ms * NS_PER_MS
+            loop.turn()
+            written = heard.feed(vsc.read(timeout=0.5 if late_ms != 120 else 0.0))
+            beats += [late_ms for event in written if isinstance(event, UserHeartbeat)]
+        assert beats == [0, 60, 100, 150]  # due at 0, 50, 100, 150: the late one kept the rest
+        assert loop.wait_s() == pytest.approx(0.05)  # until the heartbeat due at 200 ms
+    finally:
+        output.close()
+        os.close(port)
+        vsc.close()
