@@ -108,8 +108,8 @@ def test_side_by_side_prints_the_ratios_load_and_steal(
     assert "| poll50 / srcsd |" in out
     assert "host steal during the run:" in out
     assert "load average" in out
-    assert "side-by-side target: srcsd p50 within 1.3 x bare ->" in out
-    assert "side-by-side target: srcsd p99 within 1.5 x bare ->" in out
+    assert "side-by-side target: srcsd p50 within 1.15 x bare ->" in out
+    assert "side-by-side target: srcsd p99 within 1.3 x bare ->" in out
 
 
 def test_loaded_mode_runs_busy_processes_and_stops_them(
