@@ -38,7 +38,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-from packaging.requirements import Requirement
 from packaging.tags import parse_tag
 from packaging.utils import canonicalize_name
 
@@ -58,8 +57,10 @@ from build_deb import (
     gzip_file,
     install_manuals,
     install_program,
+    locked,
     md5sums,
     normalise,
+    pinned,
     pip,
     project,
     run,
@@ -131,18 +132,14 @@ def write_environment(root: Path, scripts: dict[str, str]) -> None:
 def bundled_requirements(directory: Path) -> Path:
     """requirements/run.txt's entries for :data:`BUNDLED`, hashes kept, markers dropped (they
     hold on every Python the package serves: the build refuses a compiled wheel below)."""
-    text = (REPO / "requirements/run.txt").read_text().replace("\\\n", " ")
     kept = []
-    for entry in text.splitlines():
-        line = entry.strip()
-        if not line or line.startswith("#"):
-            continue
-        spec, _, options = line.partition(" --")
-        requirement = Requirement(spec.strip())
-        if canonicalize_name(requirement.name) in BUNDLED:
+    names = set()
+    for requirement, options in locked():
+        name = canonicalize_name(requirement.name)
+        if name in BUNDLED:
             requirement.marker = None
-            kept.append(f"{requirement} --{options}\n")
-    names = {canonicalize_name(Requirement(k.partition(" --")[0]).name) for k in kept}
+            kept.append(pinned(requirement, options))
+            names.add(name)
     if names != BUNDLED:
         raise BuildError(f"requirements/run.txt pins none of {sorted(BUNDLED - names)}")
     path = directory / "bundled.txt"

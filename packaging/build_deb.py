@@ -35,7 +35,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from fnmatch import fnmatchcase
 from pathlib import Path
 
@@ -142,26 +142,37 @@ def marker_environment(version: str, machine: str) -> dict[str, str]:
     }
 
 
-def requirements_for(version: str, machine: str, directory: Path) -> Path:
-    """requirements/run.txt for one Python: the entries whose markers hold there, but those
-    :data:`NOT_BUNDLED`, markers removed, hashes kept. pip judges a requirement file's markers
-    by the Python that runs pip, not by ``--python-version``'s, so it would leave out tomli
-    for 3.10 on a 3.11 build."""
+def locked() -> Iterator[tuple[Requirement, str]]:
+    """requirements/run.txt's entries, in order: each requirement with its options (its
+    hashes), for :func:`pinned` to write again."""
     text = (REPO / "requirements/run.txt").read_text().replace("\\\n", " ")
-    environment = marker_environment(version, machine)
-    kept = []
     for entry in text.splitlines():
         line = entry.strip()
         if not line or line.startswith("#"):
             continue
         spec, _, options = line.partition(" --")
-        requirement = Requirement(spec.strip())
+        yield Requirement(spec.strip()), options
+
+
+def pinned(requirement: Requirement, options: str) -> str:
+    """One line of a requirement file for pip: the requirement and its options."""
+    return f"{requirement} --{options}\n" if options else f"{requirement}\n"
+
+
+def requirements_for(version: str, machine: str, directory: Path) -> Path:
+    """requirements/run.txt for one Python: the entries whose markers hold there, but those
+    :data:`NOT_BUNDLED`, markers removed, hashes kept. pip judges a requirement file's markers
+    by the Python that runs pip, not by ``--python-version``'s, so it would leave out tomli
+    for 3.10 on a 3.11 build."""
+    environment = marker_environment(version, machine)
+    kept = []
+    for requirement, options in locked():
         if requirement.marker is not None and not requirement.marker.evaluate(environment):
             continue
         if canonicalize_name(requirement.name) in NOT_BUNDLED:
             continue
         requirement.marker = None
-        kept.append(f"{requirement} --{options}\n" if options else f"{requirement}\n")
+        kept.append(pinned(requirement, options))
     path = directory / f"requirements-{version}.txt"
     path.write_text("".join(kept))
     return path
@@ -454,9 +465,31 @@ def gzip_file(source: Path, target: Path) -> None:
         shutil.copyfileobj(raw, packed)
 
 
-def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
+def generator_path(work: Path, machine: str, site: Path, wheels: Path) -> str:
+    """The ``PYTHONPATH`` the man pages and completion are generated with: the packaged tree.
+    For a package of another machine (arm64, built on amd64) this machine's own dependencies
+    come first: the build's Python cannot load the package's compiled modules, and the
+    configuration's page imports gpiod's through the outputs' schema (srcsd.toml(5))."""
+    here = os.uname().machine
+    if machine == here:
+        return str(site)
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    native = work / "native"
+    native.mkdir()
+    fetch_wheels(here, wheels)
+    requirements = requirements_for(version, here, native)
+    pip(
+        "install",
+        *("--target", native / "site", "--no-compile", "--no-index", "--find-links", wheels),
+        *wheel_args(version, here, requirements),
+    )
+    return f"{native / 'site'}{os.pathsep}{site}"
+
+
+def install_files(root: Path, names: list[str], env: Mapping[str, str], generators: str) -> None:
     """Units, sysusers, tmpfiles, udev; docs, examples, copyright, changelog and the lintian
-    overrides; man pages and completion."""
+    overrides; man pages and completion, generated with ``generators`` on the path
+    (:func:`generator_path`)."""
     units = REPO / "units"
     put: list[tuple[Path, Path]] = [
         (units / "srcsd@.service", Path("usr/lib/systemd/system/srcsd@.service")),
@@ -504,7 +537,7 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str]) -> None:
     # package supports; the build environment adds only the generators (shtab,
     # argparse-manpage). The pages' date is SOURCE_DATE_EPOCH's. No byte-code is written into
     # the tree (it would name the work directory).
-    packaged = {**env, "PYTHONPATH": str(root / SITE), "PYTHONDONTWRITEBYTECODE": "1"}
+    packaged = {**env, "PYTHONPATH": generators, "PYTHONDONTWRITEBYTECODE": "1"}
     for kind in ("man", "completion"):
         try:
             run(
@@ -635,7 +668,7 @@ def build(arch: str, out: Path, work: Path, wheels: Path = REPO / "build/wheels"
     tidy_records(site)
     check_copyright(site, COPYRIGHT.read_text())
     names = write_environment(root, scripts)
-    install_files(root, names, env)
+    install_files(root, names, env, generator_path(work, machine, site, wheels))
     debian = root / "DEBIAN"
     debian.mkdir()
     (debian / "control").write_text(control(root, version, arch, glibc))
