@@ -155,8 +155,8 @@ class LinkPort:
             open=self.link.is_open,
             opens=self.opens,
             open_failures=self.failures,
-            # How long it has been open (or not), and the last reason it broke or could
-            # not open (kept after a reopen: a flapping link shows why).
+            # How long it has been open (or not), and why it last broke or could not open;
+            # cleared when it opens (SR-8.18): a flapping link shows its count instead.
             since_s=seconds_since(now, self.since_ns),
             last_error=self.error,
             # CAN only (null on serial and HID): error frames counted since start, each

@@ -9,6 +9,16 @@ from __future__ import annotations
 
 import os
 import socket
+from collections.abc import Mapping
+
+
+def watchdog_usec(env: Mapping[str, str], pid: int) -> int:
+    """systemd's watchdog period for process ``pid`` in ``env`` (``WATCHDOG_USEC``, when
+    ``WATCHDOG_PID`` is unset or names it), or 0 for none, as sd_watchdog_enabled(3) reads it."""
+    usec = env.get("WATCHDOG_USEC", "")
+    owner = env.get("WATCHDOG_PID", "")
+    mine = not owner or owner == str(pid)
+    return int(usec) if usec.isdigit() and mine else 0
 
 
 class Notifier:
@@ -24,10 +34,7 @@ class Notifier:
         if self._address:
             self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
             self._socket.setblocking(False)
-        usec = env.get("WATCHDOG_USEC", "")
-        pid = env.get("WATCHDOG_PID", "")
-        mine = not pid or pid == str(os.getpid())
-        self.watchdog_usec = int(usec) if usec.isdigit() and mine else 0
+        self.watchdog_usec = watchdog_usec(env, os.getpid())
         self.failures = 0
 
     @property

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Final
 
 from supervisord.config.model import DaemonConfig, HidDevice, SerialPort
+from supervisord.daemon.notify import watchdog_usec
 
 UDEV_CONTROL: Final = Path("/run/udev/control")
 """The socket systemd-udevd listens on: there when udev runs on this machine (the package's
@@ -86,8 +87,7 @@ class Absent:
 def _watchdog(env: Mapping[str, str], pid: int) -> bool:
     """As :class:`~supervisord.daemon.notify.Notifier` reads it: a socket to ping and a
     period meant for this process."""
-    mine = env.get("WATCHDOG_PID", str(pid)) == str(pid)
-    return bool(env.get("NOTIFY_SOCKET")) and env.get("WATCHDOG_USEC", "").isdigit() and mine
+    return bool(env.get("NOTIFY_SOCKET")) and watchdog_usec(env, pid) > 0
 
 
 def _device_text(device: Device) -> str:
