@@ -199,7 +199,7 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
         return wait(0, maxevents)
 
     supervisor.waiter.wait = virtual_wait
-    flight = supervisor.flight
+    flight = supervisor.records.flight
     assert flight is not None
     driver.inputs_so_far = lambda: flight.count
     while driver.next_due() is not None:
@@ -221,9 +221,9 @@ def replay_core(supervisor: Supervisor, start: int, first: int) -> None:
     marks. The core is pure, so it decides the same (checked)."""
     from supervisord.safety.core import SafetyCore  # noqa: PLC0415
 
-    assert supervisor.flight is not None
-    inputs = list(supervisor.flight.inputs)
-    assert len(inputs) == supervisor.flight.count, "raise FlightSettings.max_inputs"
+    assert supervisor.records.flight is not None
+    inputs = list(supervisor.records.flight.inputs)
+    assert len(inputs) == supervisor.records.flight.count, "raise FlightSettings.max_inputs"
     core = SafetyCore(supervisor.safety, start)
     for event in inputs[:first]:
         core.handle(event)

@@ -21,7 +21,9 @@ The loop keeps the turn's order and the apply order; parts with narrow faces do 
 told what it needs as arguments and answering with values, none calling back into the loop
 (``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
 its watches, the wake pair, the clients' order), the link port
-(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters) and
+(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters), the
+record path (:mod:`~supervisord.daemon.record_path`: the sink and its lanes, the records it
+holds, the flight ring; it hands back the records finished, which the loop pushes) and
 the service manager's face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
 WATCHDOG, STOPPING).
 """
@@ -29,7 +31,6 @@ WATCHDOG, STOPPING).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import datetime as dt
 import logging
 import os
@@ -42,13 +43,13 @@ from supervisord.api.status import LoopStatus
 from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
-from supervisord.daemon.flight import FlightRecorder, FlightSettings
+from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.record_path import RecordPath
 from supervisord.daemon.reflex import EarlyOff
 from supervisord.daemon.service_manager import ServiceManager
-from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
@@ -56,13 +57,11 @@ from supervisord.links.base import Backoff, Link
 from supervisord.outputs.base import Output, OutputError, ReadBack
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, VscHeartbeat
-from supervisord.record.flight import FlightWriter
-from supervisord.record.format import stop_record
 from supervisord.record.jsonl import RecordWriter
 from supervisord.record.stop import StopRecord
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
-from supervisord.safety.decision import Decision, Record, RefusalReason
+from supervisord.safety.decision import Decision, RefusalReason
 from supervisord.safety.events import (
     Event,
     InternalFault,
@@ -201,14 +200,21 @@ class Supervisor:
         # enable frame, a GPIO pulse): the only ones the loop asks for a deadline every turn
         # (SR-9.4); the others' is always ``None``.
         self._ticking = [o for o in outputs if type(o).next_deadline is not Output.next_deadline]
-        self.writer = writer
-        # Each record's journal copy, and each stop window's (SR-13.12).
-        self.journal, self.flight_journal = journal, flight_journal
         self.listener = listener or Listener()
         # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
         self.service = ServiceManager(notifier or Notifier({}))
         self.clock = clock
         self.wall_clock = wall_clock
+        # The record path: the sink and its lanes, the records it holds, the flight ring, and
+        # each record's and stop window's journal copy (SR-7.4, SR-7.7, SR-7.10, SR-13.12).
+        self.records = RecordPath(
+            safety,
+            writer,
+            journal=journal,
+            flight_journal=flight_journal,
+            flight=flight,
+            wall_clock=wall_clock,
+        )
         self.counters = Counters()
         self.timings = Timings()
         # The link: open with its backoff, receive, send, its counters (SR-2, SR-5.1).
@@ -219,8 +225,6 @@ class Supervisor:
         self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
         self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
-        # Sequence numbers continue the record across restarts (the core counts from 1).
-        self.sequence_offset = 0
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         self._stop_requested = False
@@ -233,19 +237,17 @@ class Supervisor:
         # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
         # SR-10.1).
         self.waiter = Waiter()
-        self.sink: Sink | None = None
         self._limited_unlogged = self._next_limit_log = 0  # refusals not logged yet, and when
         self._started_ns: int | None = None  # for ``status``: uptime
-        self._version_due = True  # the first record of this start names the version
-        # The typed records the sink has as JSON, by ``seq``, until it says what became of
-        # each: the API pushes the typed record itself, never one read back from its JSON.
-        self._in_sink: dict[int, StopRecord] = {}
-        # The flight recorder (SR-7.10): beside a record file only, as its windows are.
-        self.flight: FlightRecorder | None = None
-        self._flight_writer: FlightWriter | None = None
-        if writer is not None and flight is not None:
-            self.flight = FlightRecorder(safety, flight)
-            self._flight_writer = FlightWriter(writer.path, writer.max_bytes, flight.max_bytes)
+
+    @property
+    def sequence_offset(self) -> int:
+        """Added to the core's record numbers: the record continues across restarts."""
+        return self.records.sequence_offset
+
+    @sequence_offset.setter
+    def sequence_offset(self, offset: int) -> None:
+        self.records.sequence_offset = offset
 
     @property
     def srcsctl(self) -> str:
@@ -274,23 +276,17 @@ class Supervisor:
             },
             messages=self.port.messages,
             rejections=dict(sorted(self.port.rejections.items())),
-            record_errors=counters.record_errors,
-            records_dropped=counters.records_dropped,
+            record_errors=self.records.record_errors,
+            records_dropped=self.records.records_dropped,
             # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
             # flight_windows, flight_errors (a snapshot's too) and flight_dropped
-            sink=self._sink_status(),
+            sink=self.records.status(),
             rate_limited=counters.rate_limited,
             internal_faults=counters.internal_faults,
             histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
             # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
             maintenance=self.schedule.status(now),
         )
-
-    def _sink_status(self) -> dict[str, int]:
-        status = dict(self.sink.status() if self.sink is not None else IDLE_STATUS)
-        if self.flight is not None:
-            status["flight_errors"] += self.flight.snapshot_errors
-        return status
 
     # ----------------------------------------------------------------- start and stop
 
@@ -305,13 +301,7 @@ class Supervisor:
         now = self.clock()
         self._started_ns = self.port.since_ns = now
         self.schedule.start(self.wall_clock(), now)  # the passes read from the record
-        self.sink = Sink(
-            self.writer,
-            self.journal,
-            flight=self._flight_writer,
-            flight_journal=self.flight_journal,
-        )
-        self.sink.start()
+        sink_fd = self.records.start()
         events: list[Event] = []
         for output in self.outputs.values():
             try:
@@ -322,13 +312,12 @@ class Supervisor:
                 self._acquiring[output.name] = backoff = Backoff(ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS)
                 backoff.failed(now)
         self.core = SafetyCore(self.safety, now)
-        if self.flight is not None:
-            self.flight.start(now, self.sequence_offset)  # a window can start from here
+        self.records.began(now)  # a flight window can start from here
         self._apply(self.core.decision)  # the startup decision, with the first record
         for event in events:
             self._apply(self._feed(event))
         self._apply(self._feed(self.port.open(now)))
-        self.waiter.start(self.sink.fileno())
+        self.waiter.start(sink_fd)
         assert self.decision is not None
         self.service.ready(now, self.decision)  # the startup decision applied: outputs off
         return self.decision
@@ -362,15 +351,12 @@ class Supervisor:
         # are closed by now, so the decision switches and sends nothing.
         with contextlib.suppress(Exception):
             self._record_shutdown(self.clock())
-        if self.sink is not None:
-            # The records first, with a deadline well inside the unit's stop timeout, then
-            # pushed; then journal copies and log lines, best effort (SR-7.7).
-            self.sink.drain_records()
-            with contextlib.suppress(Exception):
-                self._take_written()
-            self.sink.close()  # closes the writer, unless a write is stuck in the disk
-        elif self.writer is not None:
-            self.writer.close()
+        # The records first, with a deadline well inside the unit's stop timeout, then
+        # pushed; then journal copies and log lines, best effort (SR-7.7).
+        finished = self.records.drain()
+        with contextlib.suppress(Exception):
+            self._recorded(finished)
+        self.records.close()
         self.listener.close()
         self.waiter.close()
         self.service.close()
@@ -396,10 +382,11 @@ class Supervisor:
         previous = signals.install(self.request_stop)
         try:
             self.start()
-            if self.sink is not None:
+            sink = self.records.sink
+            if sink is not None:
                 # Log lines leave the loop through the sink too: a slow stderr or journald
                 # must not hold the loop (SR-7.5).
-                self.sink.capture_logging(logging.getLogger())
+                sink.capture_logging(logging.getLogger())
             heap.settle()  # no full scan of start-up's objects in the loop (SR-9.1, SR-9.4)
             while not self._stop_requested:
                 self.step()
@@ -424,9 +411,9 @@ class Supervisor:
         :data:`MAX_CLIENTS_PER_TURN` client descriptors (SR-10.1; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
         before = self.clock()
-        flight = self.flight
-        if flight is not None and flight.due(before):
-            self._rebase_flight(before)  # before the wait: never between an input and its outputs
+        self.records.rebase(
+            self.core, before
+        )  # before the wait: never between an input and its outputs
         link = self.link
         link_fd = link.fileno() if link.is_open else None  # once, for the deadline and the watch
         timeout = max(0.0, (self._next_deadline(before, link_fd) - before) / 1e9)
@@ -456,7 +443,7 @@ class Supervisor:
             if sink_ready:
                 # Only when the sink said so (its socket is readable once a record is
                 # finished): not a system call per turn (SR-9.4).
-                self._take_written()
+                self._recorded(self.records.take_written())
             if clients:
                 self._serve_clients(clients)
             self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self._snapshot)
@@ -569,7 +556,7 @@ class Supervisor:
             return
         now, received = got
         heartbeat = False
-        received_by, flight, core = self.listener.received, self.flight, self.core
+        received_by, flight, core = self.listener.received, self.records.flight, self.core
         assert core is not None
         for item in received:
             kind = type(item)
@@ -602,21 +589,11 @@ class Supervisor:
         """Every input of the core goes through here, and into the flight recorder's ring (a
         reference appended and counted: SR-7.10)."""
         assert self.core is not None
-        flight = self.flight
+        flight = self.records.flight
         if flight is not None:
             flight.inputs.append(event)
             flight.count += 1
         return self.core.handle(event)
-
-    def _rebase_flight(self, now: int) -> None:
-        """A snapshot of the core for the flight recorder's next windows (SR-7.11)."""
-        assert self.flight is not None
-        if self.core is None:
-            return
-        error = self.flight.rebase(self.core, now)
-        if error is not None:
-            name = type(error).__name__
-            log.error("flight recorder: no snapshot of the core: %s: %s", name, error)
 
     def _feed_and_apply(self, event: Event) -> Decision:
         decision = self._feed(event)
@@ -726,8 +703,14 @@ class Supervisor:
         self.decision = decision
         if decision.frames:
             self._send(decision.frames, decision.now)
-        for record in decision.records:
-            self._write_record(record)
+        if decision.records:
+            write = self.records.write
+            for record in decision.records:
+                # Records after the outputs and the frames (SR-6); one the sink cannot take
+                # comes back finished at once, in its place in the order.
+                finished = write(record)
+                if finished:
+                    self._recorded(finished)
         for refusal in decision.refusals:
             if refusal.reason is RefusalReason.RATE_LIMITED:
                 self._rate_limited(decision.now)
@@ -740,46 +723,12 @@ class Supervisor:
             # the previous one's (SR-9.4).
             service.decided(decision)
 
-    def _write_record(self, record: Record) -> None:
-        """Hand the record to the sink (never waits). The stop itself has already happened
-        (outputs first, SR-6); the record follows on the sink's record lane."""
-        typed = stop_record(record, self.wall_clock(), self.sequence_offset)
-        if self._version_due:
-            # The first record of a start (the startup stop) names the build that made it, so
-            # a stop record says which version was running (docs/record.md).
-            typed = dataclasses.replace(typed, version=__version__)
-            self._version_due = False
-        entry = typed.json()
-        self._in_sink[typed.seq] = typed
-        if self.sink is None:  # not started: nothing can be written yet
-            self._recorded(Written(entry, "the record sink is not running", dropped=True))
-            return
-        if not self.sink.record(entry):
-            self._take_written()  # the dropped record is pushed in its place in the order
-        flight = self.flight
-        if flight is not None:
-            flight.last_seq = entry["seq"]
-            if record.state is State.STOPPED and record.previous is not State.STOPPED:
-                # A stop: its window goes to the flight lane, after the record (SR-7.12).
-                self.sink.window(flight.window(entry, self.sequence_offset))
-
-    def _take_written(self) -> None:
-        if self.sink is not None:
-            for written in self.sink.take_written():
-                self._recorded(written)
-
-    def _recorded(self, written: Written) -> None:
-        """A record is finished. Not written (a full disk, a full queue) is counted and
-        logged, never a stop of its own: docs/record.md "A full disk"."""
-        if not written.acknowledged:
-            self.counters.record_errors += 1
-            self.counters.records_dropped += written.dropped
-            log.error("stop record not written: %s", written.error)
-        self.schedule.recorded(written.entry)  # a pass resets its test's age (SR-12.2)
-        seq = written.entry.get("seq")
-        typed = self._in_sink.pop(seq, None) if isinstance(seq, int) else None
-        if typed is not None:
-            self.listener.recorded(typed)
+    def _recorded(self, finished: Sequence[StopRecord]) -> None:
+        """Records finished (on disk, or counted as not written), in record order: a pass
+        resets its test's age (SR-12.2), and each is pushed to subscribers (SR-7.4)."""
+        for record in finished:
+            self.schedule.recorded(record)
+            self.listener.recorded(record)
 
     def _rate_limited(self, now: int) -> None:
         """Count a release or reset refused under the record budget; log the count at most

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Final
 
 from supervisord.api.status import Maintenance, PeriodicDue
+from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.timebase import NS_PER_S
 
 NS_PER_DAY: Final = 86_400 * NS_PER_S
@@ -73,15 +74,19 @@ def on_monotonic(passed: dt.datetime | None, wall_now: dt.datetime, now_ns: int)
     return now_ns - (age // dt.timedelta(microseconds=1)) * 1000
 
 
-def passed(entry: Mapping[str, object]) -> PeriodicTest | None:
+def passed(record: StopRecord) -> PeriodicTest | None:
     """The test a record says passed (a ``stoptest`` or ``prooftest`` record whose result is
-    ``passed``), or ``None``."""
-    kind = entry.get("kind")
-    for test in PeriodicTest:
-        if kind == test.value:
-            outcome = entry.get(test.value)
-            if isinstance(outcome, Mapping) and outcome.get("result") == "passed":
-                return test
+    ``passed``), or ``None``. The typed record the core made (docs/record.md), not its JSON."""
+    kind = record.kind
+    if kind is RecordKind.STOPTEST:
+        return (
+            PeriodicTest.STOPTEST
+            if record.stoptest is not None and record.stoptest.passed
+            else None
+        )
+    if kind is RecordKind.PROOFTEST:
+        proof = record.prooftest
+        return PeriodicTest.PROOFTEST if proof is not None and proof.passed else None
     return None
 
 
@@ -98,12 +103,11 @@ class Schedule:
         for test in PeriodicTest:
             self.passed_ns[test] = on_monotonic(self.found.get(test), wall_now, now_ns)
 
-    def recorded(self, entry: Mapping[str, object]) -> None:
+    def recorded(self, record: StopRecord) -> None:
         """A record the daemon wrote: a pass resets its test's age, at its ``mono_ns``."""
-        test = passed(entry)
-        mono = entry.get("mono_ns")
-        if test is not None and isinstance(mono, int):
-            self.passed_ns[test] = mono
+        test = passed(record)
+        if test is not None:
+            self.passed_ns[test] = record.mono_ns
 
     def status(self, now_ns: int) -> Maintenance:
         """For ``status`` (docs/api.md): each test's interval, last pass's age, overdue."""

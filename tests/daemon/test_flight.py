@@ -69,10 +69,10 @@ def _stop(supervisor: Supervisor, peer: VscPeer) -> int:
     """The remote's e-stop in RUN; the stop record's seq once its window is written."""
     peer.mode, peer.estop = VscMode.OPERATIONAL, 1
     run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
-    sink = supervisor.sink
+    sink = supervisor.records.sink
     assert sink is not None
     wait_until(lambda: sink.status()["flight_windows"] >= 1 and not sink.pending, what="window")
-    return windows(supervisor.writer.path)[-1][0]  # type: ignore[union-attr]
+    return windows(supervisor.records.writer.path)[-1][0]  # type: ignore[union-attr]
 
 
 def test_a_stop_writes_its_window_beside_the_record_and_it_replays(
@@ -213,7 +213,7 @@ def _stop_with_the_journal_stuck(supervisor: Supervisor, peer: VscPeer, tmp_path
     peer.mode, peer.estop = VscMode.OPERATIONAL, 1
     run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
     assert not any(output.device_level for output in supervisor.outputs.values())  # type: ignore[attr-defined]
-    lane = supervisor.sink
+    lane = supervisor.records.sink
     assert lane is not None
     wait_until(lambda: lane.status()["flight_windows"] == 1, what="the window's file")
     started = time.monotonic()

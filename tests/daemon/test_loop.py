@@ -183,7 +183,8 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     assert state(supervisor) is State.STOPPED  # a reconnect is a new start
 
     # Records reach the file on the sink's thread: read it once every record is written.
-    run_until(supervisor, peer, lambda: supervisor.sink is not None and not supervisor.sink.pending)
+    sink = supervisor.records.sink
+    run_until(supervisor, peer, lambda: sink is not None and not sink.pending)
     lines = (tmp / "stops.jsonl").read_text().splitlines()
     stored = [r for r in read_records(tmp / "stops.jsonl") if isinstance(r, StoredRecord)]
     assert len(stored) == len(lines)
@@ -291,7 +292,7 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
     logging after (SR-6.1, SR-10.2)."""
     supervisor, peer, tmp = rig
     seen: list[tuple[str, str]] = []
-    supervisor.journal = lambda entry: seen.append((str(entry["to"]), level(tmp, "drive")))
+    supervisor.records.journal = lambda entry: seen.append((str(entry["to"]), level(tmp, "drive")))
     supervisor.start()
     run_until(
         supervisor,
@@ -562,7 +563,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
             peer.mode, peer.estop = VscMode.LOCAL, 1
             run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
             assert level(tmp_path, "drive") == "0"
-            run_until(supervisor, peer, lambda: supervisor.counters.record_errors >= 4)
+            run_until(supervisor, peer, lambda: supervisor.records.record_errors >= 4)
             assert supervisor.decision is not None
             assert {c.name for c in supervisor.decision.causes} <= {
                 "startup",

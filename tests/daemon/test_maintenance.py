@@ -14,11 +14,37 @@ from supervisord.daemon.maintenance import (
     on_monotonic,
     passed,
 )
+from supervisord.record.stop import ProofTestResult, RecordKind, StopRecord, StopTestReport
+from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_S
 
 UTC = dt.timezone.utc
 WALL = dt.datetime(2026, 11, 25, 12, 0, tzinfo=UTC)
 MONO = 10_000 * NS_PER_S  # the monotonic clock at WALL
+
+
+def _record(kind: RecordKind, result: str, mono_ns: int = MONO) -> StopRecord:
+    """A typed record of ``kind`` whose stop or proof test says ``result``, as the core makes
+    it (the schedule reads the typed record, never its JSON)."""
+    stoptest = prooftest = None
+    if kind is RecordKind.STOPTEST:
+        stoptest = StopTestReport(result=result, limit_ms=500, steps=())
+    elif kind is RecordKind.PROOFTEST:
+        prooftest = ProofTestResult(
+            result=result, failure=None, trip_ms=None, cleared=None, cleared_ms=None
+        )
+    return StopRecord(
+        seq=1,
+        mono_ns=mono_ns,
+        utc="2026-11-25T12:00:00.000000Z",
+        kind=kind,
+        from_state=State.STOPPED,
+        to_state=State.STOPPED,
+        causes=(),
+        trigger={"event": kind.value},
+        stoptest=stoptest,
+        prooftest=prooftest,
+    )
 
 
 def test_a_test_is_overdue_past_its_interval_or_never_passed() -> None:
@@ -49,15 +75,13 @@ def test_a_pass_from_the_file_is_placed_on_the_monotonic_clock_or_not_at_all() -
 
 
 def test_only_a_passed_stoptest_or_prooftest_record_is_a_pass() -> None:
-    """SR-12.2: a ``stoptest`` or ``prooftest`` record whose object says ``passed``; a failed
-    one, another kind, or a malformed object is none."""
-    assert passed({"kind": "stoptest", "stoptest": {"result": "passed"}}) is PeriodicTest.STOPTEST
-    assert (
-        passed({"kind": "prooftest", "prooftest": {"result": "passed"}}) is PeriodicTest.PROOFTEST
-    )
-    assert passed({"kind": "stoptest", "stoptest": {"result": "failed"}}) is None
-    assert passed({"kind": "prooftest", "prooftest": "passed"}) is None
-    assert passed({"kind": "state_change", "stoptest": {"result": "passed"}}) is None
+    """SR-12.2: a ``stoptest`` or ``prooftest`` record whose result is ``passed``; a failed
+    one, or another kind of record, is none."""
+    assert passed(_record(RecordKind.STOPTEST, "passed")) is PeriodicTest.STOPTEST
+    assert passed(_record(RecordKind.PROOFTEST, "passed")) is PeriodicTest.PROOFTEST
+    assert passed(_record(RecordKind.STOPTEST, "failed")) is None
+    assert passed(_record(RecordKind.PROOFTEST, "failed")) is None
+    assert passed(_record(RecordKind.STATE_CHANGE, "passed")) is None
 
 
 def test_the_schedule_ages_by_the_monotonic_clock_and_a_pass_resets_it() -> None:
@@ -73,9 +97,9 @@ def test_the_schedule_ages_by_the_monotonic_clock_and_a_pass_resets_it() -> None
         interval_days=30, last_pass_age_s=30 * 86_400.0 + 1, overdue=True
     )
     assert view.prooftest == PeriodicDue(interval_days=7, last_pass_age_s=None, overdue=True)
-    schedule.recorded({"kind": "stoptest", "mono_ns": in_a_day, "stoptest": {"result": "failed"}})
+    schedule.recorded(_record(RecordKind.STOPTEST, "failed", in_a_day))
     assert schedule.status(in_a_day).stoptest == view.stoptest
-    schedule.recorded({"kind": "stoptest", "mono_ns": in_a_day, "stoptest": {"result": "passed"}})
+    schedule.recorded(_record(RecordKind.STOPTEST, "passed", in_a_day))
     assert schedule.status(in_a_day + 3 * NS_PER_S).stoptest == PeriodicDue(
         interval_days=30, last_pass_age_s=3.0, overdue=False
     )
