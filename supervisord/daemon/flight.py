@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections import deque
-from collections.abc import Mapping
 
 from supervisord import __version__
 from supervisord.record.flight import Base, Window
 from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES, FLIGHT_MAX_BYTES_RANGE
+from supervisord.record.stop import StopRecord
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.events import Event
@@ -107,7 +107,7 @@ class FlightRecorder:
         self._older, self._newer = self._newer, base
         return None
 
-    def window(self, stop: Mapping[str, object], sequence_offset: int) -> Window:
+    def window(self, stop: StopRecord, sequence_offset: int) -> Window:
         """What the sink writes for the stop record ``stop``: the ring as a tuple and the bases
         that reach into it."""
         inputs = tuple(self.inputs)

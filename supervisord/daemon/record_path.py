@@ -8,7 +8,10 @@ the record's bookkeeping itself (``docs/safety.md`` "The loop's parts"). The par
 
 - the :class:`~supervisord.daemon.sink.Sink` and its lanes (record file, journal, log lines,
   flight windows), which the loop never waits for;
-- the records the sink holds, by ``seq``, until it says what became of each;
+- the typed record, from the core's :class:`~supervisord.safety.decision.Record` to the disk,
+  the journal, the flight window, the schedule and the pushes: its JSON is made only where
+  its bytes are written or sent (the sink's lanes), and what the sink hands back is the typed
+  record itself, never one read back from its JSON (SR-7.4);
 - the flight recorder's ring (:attr:`RecordPath.flight`: the loop appends each input the core
   is given to its ``inputs``, SR-7.10) and its snapshots of the core (SR-7.11);
 - the counts of records not written (``record_errors``, ``records_dropped``).
@@ -70,9 +73,6 @@ class RecordPath:
         """Added to the core's record numbers: the record continues across restarts."""
         self.record_errors = self.records_dropped = 0
         self._version_due = True  # the first record of this start names the version
-        # The typed records the sink has, by ``seq``, until it says what became of each: the
-        # API pushes the typed record itself, never one read back from its JSON (SR-7.4).
-        self._in_sink: dict[int, StopRecord] = {}
         # The flight recorder (SR-7.10): beside a record file only, as its windows are.
         self.flight: FlightRecorder | None = None
         self._flight_writer: FlightWriter | None = None
@@ -119,20 +119,18 @@ class RecordPath:
             # a stop record says which version was running (docs/record.md).
             typed = dataclasses.replace(typed, version=__version__)
             self._version_due = False
-        entry = typed.json()
-        self._in_sink[typed.seq] = typed
         sink = self.sink
         if sink is None:  # not started: nothing can be written yet
-            return self._finished([Written(entry, NOT_RUNNING, dropped=True)])
+            return self._finished([Written(typed, NOT_RUNNING, dropped=True)])
         finished: Sequence[StopRecord] = ()
-        if not sink.record(entry):
+        if not sink.record(typed):  # the typed record: its JSON is made where it is written
             finished = self.take_written()  # the dropped record, in its place in the order
         flight = self.flight
         if flight is not None:
             flight.last_seq = typed.seq
             if record.state is State.STOPPED and record.previous is not State.STOPPED:
                 # A stop: its window goes to the flight lane, after the record (SR-7.12).
-                sink.window(flight.window(entry, self.sequence_offset))
+                sink.window(flight.window(typed, self.sequence_offset))
         return finished
 
     def take_written(self) -> list[StopRecord]:
@@ -174,8 +172,5 @@ class RecordPath:
                 self.record_errors += 1
                 self.records_dropped += one.dropped
                 log.error("stop record not written: %s", one.error)
-            seq = one.entry.get("seq")
-            typed = self._in_sink.pop(seq, None) if isinstance(seq, int) else None
-            if typed is not None:
-                finished.append(typed)
+            finished.append(one.record)
         return finished

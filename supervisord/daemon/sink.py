@@ -49,6 +49,7 @@ from supervisord.lane import Lane, deadline_after
 from supervisord.record.flight import FlightError, FlightWriter, Window
 from supervisord.record.flight_journal import window_entry
 from supervisord.record.jsonl import RecordError, RecordUsageError, RecordWriter
+from supervisord.record.stop import StopRecord
 
 RECORD_CAPACITY: Final = 4096
 """Records waiting for the disk at most (about a minute of the worst client traffic the
@@ -89,9 +90,10 @@ log = logging.getLogger("srcsd")
 @dataclass(frozen=True, slots=True)
 class Written:
     """What became of one record: acknowledged (``error`` ``None``, not ``dropped``), or not
-    written because the file refused it (``error``) or the queue was full (``dropped``)."""
+    written because the file refused it (``error``) or the queue was full (``dropped``). The
+    typed record the loop handed over itself, never one read back from its JSON."""
 
-    entry: Mapping[str, object]
+    record: StopRecord
     error: str | None = None
     disk_full: bool = False
     dropped: bool = False
@@ -128,10 +130,10 @@ class Sink:
         self.flight_journal = flight_journal
         self.journal_errors = 0
         self.flight_windows = self.flight_errors = 0
-        self._records: Lane[Mapping[str, object]] = Lane(
-            "srcsd-record", capacity, self._write, RECORD_BATCH
-        )
-        self._journal: Lane[Mapping[str, object]] = Lane(
+        # The typed records travel the lanes; each lane makes the JSON it writes or sends, off
+        # the loop's thread (docs/record.md "How a record leaves the loop").
+        self._records: Lane[StopRecord] = Lane("srcsd-record", capacity, self._write, RECORD_BATCH)
+        self._journal: Lane[StopRecord] = Lane(
             "srcsd-journal", journal_capacity, self._send_journal
         )
         self._logs: Lane[logging.LogRecord] = Lane("srcsd-log", log_capacity, self._emit)
@@ -145,10 +147,10 @@ class Sink:
         self._closed = False
         self._records_drained = False
         # Every record given to the record lane and not finished yet, in record order (keyed by
-        # the entry's identity): at the exit's deadline these are the ones not written, the one
+        # the record's identity): at the exit's deadline these are the ones not written, the one
         # in the disk's hands included (SR-7.14). Each is finished exactly once, under the lock:
         # by the lane, or by the deadline, never both.
-        self._unfinished: dict[int, Mapping[str, object]] = {}
+        self._unfinished: dict[int, StopRecord] = {}
         self._unfinished_lock = threading.Lock()
 
     # -- the loop's side -------------------------------------------------------------------
@@ -162,19 +164,19 @@ class Sink:
             self._flight.start()
         self._logs.start()
 
-    def record(self, entry: Mapping[str, object]) -> bool:
+    def record(self, record: StopRecord) -> bool:
         """Queue one record for the file and its copy for the journal; never waits.
         ``False``: the record queue was full, the record is not written, and its
         :class:`Written` (``dropped``) is ready at once (its journal copy is still sent)."""
         if self.journal is not None:
-            self._journal.put(entry)  # a full journal lane counts the copy, nothing more
+            self._journal.put(record)  # a full journal lane counts the copy, nothing more
         with self._unfinished_lock:  # before the lane may serve it
-            self._unfinished[id(entry)] = entry
-        if self._records.put(entry):
+            self._unfinished[id(record)] = record
+        if self._records.put(record):
             return True
         with self._unfinished_lock:
-            del self._unfinished[id(entry)]
-        self._finished(Written(entry, "the record queue is full", dropped=True))
+            del self._unfinished[id(record)]
+        self._finished(Written(record, "the record queue is full", dropped=True))
         return False
 
     def window(self, window: Window) -> bool:
@@ -246,9 +248,9 @@ class Sink:
                 self._unfinished.clear()
             if left:
                 _say_not_written(left, timeout_s)
-            for entry in left:
+            for record in left:
                 reason = f"the record file did not take it within {timeout_s:g} s of the exit"
-                self._finished(Written(entry, reason, dropped=True))
+                self._finished(Written(record, reason, dropped=True))
         return self._records.idle
 
     def close(self, timeout_s: float = SIDE_DRAIN_S) -> None:
@@ -285,43 +287,44 @@ class Sink:
 
     # -- the lanes -------------------------------------------------------------------------
 
-    def _write(self, entries: list[Mapping[str, object]]) -> None:
+    def _write(self, records: list[StopRecord]) -> None:
         """The records queued together: as many as fit go to the file with one fsync
         (:meth:`RecordWriter.append_fitting`); after a failure, one alone, for its own
-        outcome (a full disk, a record the store cannot file)."""
-        while entries:
+        outcome (a full disk, a record the store cannot file). Each record's JSON is made
+        here, where its bytes are written."""
+        while records:
             if self.writer is None:
-                done, outcomes = len(entries), [Written(entry) for entry in entries]
-            elif len(entries) == 1:
-                done, outcomes = 1, [self._write_one(entries[0])]
+                done, outcomes = len(records), [Written(record) for record in records]
+            elif len(records) == 1:
+                done, outcomes = 1, [self._write_one(records[0])]
             else:
                 reopens = self.writer.reopens
                 try:
-                    done = self.writer.append_fitting(entries)
-                    outcomes = [Written(entry) for entry in entries[:done]]
+                    done = self.writer.append_fitting([record.json() for record in records])
+                    outcomes = [Written(record) for record in records[:done]]
                 except Exception:
-                    done, outcomes = 1, [self._write_one(entries[0])]
-                self._said_reopened(reopens, entries[0])
+                    done, outcomes = 1, [self._write_one(records[0])]
+                self._said_reopened(reopens, records[0])
             for written in outcomes:
                 self._served(written)
-            entries = entries[done:]
+            records = records[done:]
 
-    def _write_one(self, entry: Mapping[str, object]) -> Written:
+    def _write_one(self, record: StopRecord) -> Written:
         assert self.writer is not None
         reopens = self.writer.reopens
         try:
-            self.writer.append(entry)
-            written = Written(entry)
+            self.writer.append(record.json())
+            written = Written(record)
         except RecordError as error:
-            written = Written(entry, str(error), disk_full=error.disk_full)
+            written = Written(record, str(error), disk_full=error.disk_full)
         except RecordUsageError as error:
-            written = Written(entry, str(error))
+            written = Written(record, str(error))
         except Exception as error:  # the lane must outlive any failure: counted, not lost
-            written = Written(entry, f"{type(error).__name__}: {error}")
-        self._said_reopened(reopens, entry)
+            written = Written(record, f"{type(error).__name__}: {error}")
+        self._said_reopened(reopens, record)
         return written
 
-    def _said_reopened(self, before: int, entry: Mapping[str, object]) -> None:
+    def _said_reopened(self, before: int, record: StopRecord) -> None:
         """SR-7.9: a record file found removed or replaced is said at error priority (and
         counted by the writer: ``record_reopens``)."""
         assert self.writer is not None
@@ -331,14 +334,14 @@ class Sink:
                 "after it are in the new file",
                 self.writer.path,
                 self.writer.last_reopen,
-                entry.get("seq"),
+                record.seq,
             )
 
     def _served(self, written: Written) -> None:
         """The record lane's outcome of one record, unless the exit's deadline has already
         said it was not written (:meth:`drain_records`)."""
         with self._unfinished_lock:
-            if self._unfinished.pop(id(written.entry), None) is None:
+            if self._unfinished.pop(id(written.record), None) is None:
                 return
         self._finished(written)
 
@@ -371,20 +374,20 @@ class Sink:
         copy's, counted in ``journal_errors`` and logged; the file is the robot's evidence."""
         assert self.flight_journal is not None
         try:
-            self.flight_journal(window_entry(data, window.stop))
+            self.flight_journal(window_entry(data, window.stop.json()))
         except Exception as error:  # the journal is a copy; the lane must outlive it
             self.journal_errors += 1
             log.error(
                 "the journal copy of record %s's flight recorder window not sent: %s",
-                window.stop.get("seq"),
+                window.stop.seq,
                 error,
             )
 
-    def _send_journal(self, entries: list[Mapping[str, object]]) -> None:
+    def _send_journal(self, records: list[StopRecord]) -> None:
         assert self.journal is not None
-        for entry in entries:
+        for record in records:
             try:
-                self.journal(entry)
+                self.journal(record.json())  # its JSON made here, where it is sent
             except Exception:  # the journal is a copy; the file is the record (docs/record.md)
                 self.journal_errors += 1
 
@@ -395,22 +398,21 @@ class Sink:
                     _emit_unlocked(handler, line)
 
 
-def _say_not_written(entries: list[Mapping[str, object]], timeout_s: float) -> None:
+def _say_not_written(records: list[StopRecord], timeout_s: float) -> None:
     """One error line for the records the exit's deadline left unwritten: how many, their
     ``seq`` range, and the exit's own ``shutdown:REASON`` when it is among them (SR-7.14; it
     goes out on the log lane, to stderr and the journal, not to the disk that hangs)."""
-    seqs = [seq for entry in entries if isinstance(seq := entry.get("seq"), int)]
+    seqs = [record.seq for record in records]
     span = f"seq {min(seqs)} to {max(seqs)}" if seqs else "no seq"
     exits = [
-        f"the exit's own shutdown:{trigger.get('reason')}"
-        for entry in entries
-        if isinstance(trigger := entry.get("trigger"), Mapping)
-        and trigger.get("event") == "shutdown"
+        f"the exit's own shutdown:{record.trigger.get('reason')}"
+        for record in records
+        if record.event == "shutdown"
     ]
     log.error(
         "%d stop record(s) not written: the record file took none of them within %g s of the "
         "exit (%s%s); every output is off",
-        len(entries),
+        len(records),
         timeout_s,
         span,
         "".join(f", {name}" for name in exits),

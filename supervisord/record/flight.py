@@ -49,6 +49,7 @@ from supervisord.record.flight_codec import (
 )
 from supervisord.record.flight_times import check_moments
 from supervisord.record.jsonl import DEFAULT_FLIGHT_MAX_BYTES as DEFAULT_BUDGET
+from supervisord.record.stop import StopRecord
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.events import Event
 
@@ -115,7 +116,8 @@ class Window:
     inputs, the last of them numbered ``end - 1``, and the bases that reach into them, oldest
     first; ``cut`` says why there is none."""
 
-    stop: Mapping[str, object]
+    stop: StopRecord
+    """The stop's record, typed: its JSON is made only where the window is encoded."""
     config: SafetyConfig
     sequence_offset: int
     inputs: tuple[Event, ...]
@@ -169,11 +171,11 @@ def encode_window(window: Window, max_bytes: int) -> bytes:
         "format": FORMAT,
         "version": VERSION,
         "srcsd": window.version,
-        "seq": window.stop.get("seq"),
+        "seq": window.stop.seq,
         "sequence_offset": window.sequence_offset,
         "window_ms": window.window_ns // 1_000_000,
         "config": config_to_json(window.config),
-        "stop": dict(window.stop),
+        "stop": window.stop.json(),
     }
     for base in window.bases:
         kept = lines[base.index - start :]
@@ -219,7 +221,7 @@ class FlightWriter:
 
     def write_bytes(self, window: Window) -> tuple[Path, bytes]:
         """:meth:`write`, and the bytes written (what the journal's copy carries, SR-13.12)."""
-        seq = window.stop.get("seq")
+        seq = window.stop.seq
         if not isinstance(seq, int) or isinstance(seq, bool) or seq < 1:
             raise FlightError(f"a stop record without a sequence number: {seq!r}")
         try:

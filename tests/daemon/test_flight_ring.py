@@ -10,6 +10,7 @@ from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.events import Event, Tick
+from tests.record.conftest import make_stop_record
 
 MS = 1_000_000
 START = 1_000 * MS
@@ -61,21 +62,21 @@ def test_a_window_starts_at_the_oldest_base_the_ring_reaches() -> None:
     recorder = FlightRecorder(core.config, FlightSettings(window_s=1.0, max_inputs=16))
     recorder.start(START, 3)
     _feed(recorder, core, _ticks(1, 4))
-    window = recorder.window({"seq": 9}, 3)
+    window = recorder.window(make_stop_record(9), 3)
     assert [b.state is None for b in window.bases] == [True]
     assert window.bases[0].after_seq == 3
     recorder.last_seq = 5
     recorder.rebase(core, START + 5 * MS)
     _feed(recorder, core, _ticks(6, 4))
-    window = recorder.window({"seq": 9}, 3)
+    window = recorder.window(make_stop_record(9), 3)
     assert [(b.index, b.state is None) for b in window.bases] == [(0, True), (4, False)]
     assert window.bases[1].after_seq == 5
     assert window.end == 8
     _feed(recorder, core, _ticks(10, 10))  # 18 inputs: the start (index 0) is out of the ring
-    window = recorder.window({"seq": 9}, 3)
+    window = recorder.window(make_stop_record(9), 3)
     assert [b.index for b in window.bases] == [4]
     _feed(recorder, core, _ticks(20, 10))
-    window = recorder.window({"seq": 9}, 3)
+    window = recorder.window(make_stop_record(9), 3)
     assert window.bases == ()
     assert "16 inputs" in window.cut
 
@@ -87,7 +88,7 @@ def test_a_window_does_not_change_with_later_inputs() -> None:
     recorder = FlightRecorder(core.config)
     recorder.start(START, 0)
     _feed(recorder, core, _ticks(1, 5))
-    window = recorder.window({"seq": 1}, 0)
+    window = recorder.window(make_stop_record(1), 0)
     _feed(recorder, core, _ticks(6, 5))
     assert window.inputs == tuple(_ticks(1, 5))
     assert window.end == 5

@@ -8,9 +8,12 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+
+import pytest
 
 from supervisord import __version__
 from supervisord.daemon.flight import FlightSettings
@@ -111,3 +114,43 @@ def test_a_stop_sends_its_window_after_its_record(tmp_path: Path) -> None:
     path.close()
     assert [seq for seq, _ in windows(tmp_path / "stops.jsonl")] == [3]
     assert path.status()["flight_windows"] == 1
+
+
+def test_the_record_is_typed_to_the_edge_its_json_made_on_the_lanes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SR-7.7: the loop hands the typed record on; its JSON is made only where its bytes are
+    written or sent (the sink's record, journal and flight lanes), never on the loop's thread,
+    and what comes back is the typed record itself, the one the flight window carries too."""
+    made_on: list[str] = []
+    to_json = StopRecord.json
+
+    def json_seen(record: StopRecord) -> dict[str, object]:
+        made_on.append(threading.current_thread().name)
+        return to_json(record)
+
+    monkeypatch.setattr(StopRecord, "json", json_seen)
+    journal: list[Mapping[str, object]] = []
+    path = _path(tmp_path, journal=journal.append, flight=FlightSettings(window_s=1.0))
+    path.start()
+    path.began(START)
+    for record in _records(2):
+        assert path.write(record) == ()
+    assert threading.current_thread().name not in made_on
+    finished: list[StopRecord] = []
+
+    def taken() -> bool:
+        finished.extend(path.take_written())
+        return len(finished) == 2
+
+    _until(taken)
+    sink = path.sink
+    assert sink is not None
+    _until(lambda: sink.status()["flight_windows"] == 1 and len(journal) == 2)
+    path.close()
+    assert threading.current_thread().name not in made_on
+    assert {"srcsd-record", "srcsd-journal", "srcsd-flight"} <= set(made_on)
+    assert journal == [to_json(r) for r in finished]
+    ((_, window),) = windows(tmp_path / "stops.jsonl")
+    header = json.loads(window.read_text().splitlines()[0])
+    assert header["stop"] == to_json(finished[1])

@@ -17,7 +17,7 @@ from supervisord.daemon.loop import OVERRUN_NS
 from supervisord.daemon.sink import RECORD_DRAIN_S, Sink, Written
 from supervisord.record.jsonl import RecordWriter
 from supervisord.testkit.wait import wait_until
-from tests.record.conftest import make_record, seqs_in
+from tests.record.conftest import make_stop_record, seqs_in
 
 
 class _GatedWriter(RecordWriter):
@@ -53,9 +53,9 @@ def test_records_are_written_in_order_and_reported_once_fsynced(tmp_path: Path) 
     sink.start()
     try:
         for seq in range(1, 51):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         taken = _wait_written(sink, 50)
-        assert [w.entry["seq"] for w in taken] == list(range(1, 51))
+        assert [w.record.seq for w in taken] == list(range(1, 51))
         assert all(w.acknowledged for w in taken)
         assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 51))
         assert journal == list(range(1, 51))
@@ -77,18 +77,18 @@ def test_a_full_queue_drops_at_once_and_never_waits(tmp_path: Path) -> None:
     sink = Sink(writer, capacity=3)
     sink.start()
     try:
-        assert sink.record(make_record(1))
+        assert sink.record(make_stop_record(1))
         assert writer.entered.wait(10)  # record 1 is in the hung write: 2 and 3 wait
         for seq in range(2, 5):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         started = time.monotonic_ns()
-        assert not sink.record(make_record(5))  # records 2-4 wait behind the hung disk
+        assert not sink.record(make_stop_record(5))  # records 2-4 wait behind the hung disk
         assert time.monotonic_ns() - started < OVERRUN_NS
         dropped = sink.take_written()
-        assert [(w.entry["seq"], w.dropped) for w in dropped] == [(5, True)]
+        assert [(w.record.seq, w.dropped) for w in dropped] == [(5, True)]
         writer.gate.set()
         later = _wait_written(sink, 4)
-        assert [(w.entry["seq"], w.acknowledged) for w in later] == [
+        assert [(w.record.seq, w.acknowledged) for w in later] == [
             (1, True),
             (2, True),
             (3, True),
@@ -108,7 +108,7 @@ def test_close_drains_every_queued_record_and_joins_the_thread(tmp_path: Path) -
     sink = Sink(writer)
     sink.start()
     for seq in range(1, 201):
-        sink.record(make_record(seq))
+        sink.record(make_stop_record(seq))
     sink.close()
     writer.close()
     assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 201))
@@ -151,7 +151,7 @@ def test_a_hung_journal_holds_no_record_and_close_does_not_wait_for_it(tmp_path:
     sink.start()
     try:
         for seq in range(1, 21):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         taken = _wait_written(sink, 20)
         assert all(w.acknowledged for w in taken)
         assert seqs_in(tmp_path / "stops.jsonl") == list(range(1, 21))
@@ -189,7 +189,7 @@ def test_a_stuck_log_handler_holds_no_record(tmp_path: Path) -> None:
         for n in range(50):
             logger.warning("line %d", n)
         for seq in range(1, 11):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         assert all(w.acknowledged for w in _wait_written(sink, 10))
         assert sink.status()["log_lines_dropped"] >= 50 - 8 - 1
         sink.close(timeout_s=0.0)
@@ -214,21 +214,21 @@ def test_drain_records_gives_up_at_its_deadline_and_says_what_was_lost(
     sink = Sink(writer)
     sink.start()
     try:
-        assert sink.record(make_record(1))
+        assert sink.record(make_stop_record(1))
         assert writer.entered.wait(10)  # record 1 is in the hung write
         for seq in range(2, 6):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         with caplog.at_level(logging.ERROR, logger="srcsd"):
             assert not sink.drain_records(timeout_s=0.0)
         lost = sink.take_written()
-        assert [w.entry["seq"] for w in lost] == [1, 2, 3, 4, 5]
+        assert [w.record.seq for w in lost] == [1, 2, 3, 4, 5]
         assert all(w.dropped and "exit" in (w.error or "") for w in lost)
         said = [r.getMessage() for r in caplog.records if "not written" in r.getMessage()]
         assert len(said) == 1, said
         assert said[0].startswith("5 stop record(s) not written"), said
         assert "seq 1 to 5" in said[0], said
-        assert not sink.record(make_record(6))  # nothing is taken after the drain
-        assert [w.entry["seq"] for w in sink.take_written()] == [6]
+        assert not sink.record(make_stop_record(6))  # nothing is taken after the drain
+        assert [w.record.seq for w in sink.take_written()] == [6]
         # close() after the drain does not give the hung disk its time again: it returns
         # well before RECORD_DRAIN_S (the rule: the records get that time once).
         started = time.monotonic()
@@ -253,10 +253,10 @@ def test_records_queued_together_share_one_fsync(
     sink = Sink(writer)
     sink.start()
     try:
-        assert sink.record(make_record(1))
+        assert sink.record(make_stop_record(1))
         assert writer.entered.wait(10)
         for seq in range(2, 102):
-            assert sink.record(make_record(seq))
+            assert sink.record(make_stop_record(seq))
         synced: list[int] = []
         real_fsync = os.fsync
 
@@ -267,7 +267,7 @@ def test_records_queued_together_share_one_fsync(
         monkeypatch.setattr(os, "fsync", fsync)
         writer.gate.set()
         taken = _wait_written(sink, 101)
-        assert [w.entry["seq"] for w in taken if w.acknowledged] == list(range(1, 102))
+        assert [w.record.seq for w in taken if w.acknowledged] == list(range(1, 102))
         # record 1, then 2-101 together; each a stop, also in the transitions' file
         assert len(synced) <= 2 * 2
     finally:

@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from supervisord.record.jsonl import BadLine, StoredRecord, format_utc, read_records
+from supervisord.record.stop import StopRecord, read_written
 from tests.descriptors import no_descriptor_left_open  # noqa: F401 -- an autouse fixture
 
 EPOCH = dt.datetime(2026, 3, 1, 12, 0, tzinfo=dt.timezone.utc)
@@ -38,6 +39,13 @@ def make_record(
     if pad:
         record["note"] = "x" * pad
     return record
+
+
+def make_stop_record(seq: int) -> StopRecord:
+    """:func:`make_record`'s record typed, as the daemon hands it to its sink."""
+    typed = read_written(make_record(seq))
+    assert typed is not None
+    return typed
 
 
 def records_in(path: Path) -> list[StoredRecord]:

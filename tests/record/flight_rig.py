@@ -14,6 +14,7 @@ from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import FeedbackSet, Joystick, VscHeartbeat
 from supervisord.record.flight import Base, Window
 from supervisord.record.format import record_json
+from supervisord.record.stop import read_record
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.events import Event, LinkOpened, Tick, VscReceived
@@ -65,7 +66,7 @@ class Run:
     ) -> Window:
         inputs = self.inputs if keep is None else self.inputs[-keep:]
         return Window(
-            stop=self.stop,
+            stop=read_record(self.stop),
             config=CONFIG,
             sequence_offset=OFFSET,
             inputs=tuple(inputs),

@@ -21,6 +21,7 @@ from supervisord.protocol.messages import FeedbackSet, Joystick, VscHeartbeat
 from supervisord.record.flight import Base, FlightWriter, Window
 from supervisord.record.format import record_json
 from supervisord.record.jsonl import RecordWriter
+from supervisord.record.stop import read_record
 from supervisord.release import Request
 from supervisord.safety.config import ClientSpec, OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -108,7 +109,7 @@ class Story:
         """The window the daemon writes at the stop (the last input): from the start."""
         assert self.state is State.STOPPED
         return Window(
-            stop=self.stop,
+            stop=read_record(self.stop),
             config=self.config,
             sequence_offset=OFFSET,
             inputs=tuple(self.inputs),

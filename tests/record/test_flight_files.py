@@ -86,7 +86,7 @@ def test_the_newest_windows_within_the_byte_budget_are_kept(tmp_path: Path) -> N
     (folder / "notes.txt").write_text("an operator's")
     writer = FlightWriter(record, 1 << 20, budget=3 * size + size // 2)
     for seq in range(41, 47):
-        writer.write(dataclasses.replace(window, stop={**window.stop, "seq": seq}))
+        writer.write(dataclasses.replace(window, stop=dataclasses.replace(window.stop, seq=seq)))
     assert [seq for seq, _ in windows(record)] == [44, 45, 46]
     assert sorted(os.listdir(folder)) == ["44.jsonl", "45.jsonl", "46.jsonl", "notes.txt"]
     taken = sum(path.stat().st_size for _, path in windows(record))
@@ -101,7 +101,7 @@ def test_many_small_windows_stay_where_a_count_kept_five(tmp_path: Path) -> None
     writer = FlightWriter(record, 1 << 20)
     window = story_run.window()
     for seq in range(1, 41):
-        writer.write(dataclasses.replace(window, stop={**window.stop, "seq": seq}))
+        writer.write(dataclasses.replace(window, stop=dataclasses.replace(window.stop, seq=seq)))
     assert [seq for seq, _ in windows(record)] == list(range(1, 41))
 
 
