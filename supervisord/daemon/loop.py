@@ -353,9 +353,8 @@ class Supervisor:
             self._record_shutdown(self.clock())
         # The records first, with a deadline well inside the unit's stop timeout, then
         # pushed; then journal copies and log lines, best effort (SR-7.7).
-        finished = self.records.drain()
-        with contextlib.suppress(Exception):
-            self._recorded(finished)
+        with contextlib.suppress(Exception):  # the sockets and the link are closed whatever
+            self._recorded(self.records.drain())
         self.records.close()
         self.listener.close()
         self.waiter.close()

@@ -46,7 +46,8 @@ NOT_RUNNING = "the record sink is not running"
 
 
 class RecordPath:
-    """The sink, its side table, the flight ring and the counts (see the module docstring).
+    """The sink, the first record's version, the flight ring and the counts (see the module
+    docstring).
 
     ``writer``: the record file (``None``: records go nowhere and are acknowledged as they
     come; no flight ring either, as its windows go beside the file); ``journal`` and
