@@ -21,8 +21,10 @@ The loop keeps the turn's order and the apply order; parts with narrow faces do 
 told what it needs as arguments and answering with values, none calling back into the loop
 (``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
 its watches, the wake pair, the clients' order), the link port
-(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters) and
-the service manager's face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
+(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters), the
+output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
+the reflex's writes and the steady path's test, read back, all off) and the service manager's
+face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
 WATCHDOG, STOPPING).
 """
 
@@ -46,14 +48,14 @@ from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
-from supervisord.daemon.reflex import EarlyOff
+from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
 from supervisord.links.base import Backoff, Link
-from supervisord.outputs.base import Output, OutputError, ReadBack
+from supervisord.outputs.base import Output
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, VscHeartbeat
 from supervisord.record.flight import FlightWriter
@@ -67,7 +69,6 @@ from supervisord.safety.events import (
     Event,
     InternalFault,
     LinkBroken,
-    OutputReadback,
     Shutdown,
     Tick,
     VscReceived,
@@ -80,7 +81,6 @@ log = logging.getLogger("srcsd")
 POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
-ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 
@@ -196,11 +196,6 @@ class Supervisor:
     ) -> None:
         self.safety = safety
         self.link = link
-        self.outputs = {output.name: output for output in outputs}
-        # The outputs with a periodic duty (their kind has a ``next_deadline`` of its own: a CAN
-        # enable frame, a GPIO pulse): the only ones the loop asks for a deadline every turn
-        # (SR-9.4); the others' is always ``None``.
-        self._ticking = [o for o in outputs if type(o).next_deadline is not Output.next_deadline]
         self.writer = writer
         # Each record's journal copy, and each stop window's (SR-13.12).
         self.journal, self.flight_journal = journal, flight_journal
@@ -216,7 +211,9 @@ class Supervisor:
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
-        self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
+        # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
+        # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5).
+        self.bank = OutputBank(outputs, clock, self.stop_times)
         self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
@@ -225,11 +222,6 @@ class Supervisor:
         self.decision: Decision | None = None
         self._stop_requested = False
         self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
-        self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
-        # The outputs' levels the last decision set, every one of them (each output named is
-        # open and was left at its level): the mapping object itself, for the steady path.
-        # ``None`` once anything else drives or opens an output.
-        self._applied_outputs: Mapping[str, bool] | None = None
         # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
         # SR-10.1).
         self.waiter = Waiter()
@@ -246,6 +238,11 @@ class Supervisor:
         if writer is not None and flight is not None:
             self.flight = FlightRecorder(safety, flight)
             self._flight_writer = FlightWriter(writer.path, writer.max_bytes, flight.max_bytes)
+
+    @property
+    def outputs(self) -> dict[str, Output]:
+        """The outputs by name (the bank's)."""
+        return self.bank.outputs
 
     @property
     def srcsctl(self) -> str:
@@ -266,7 +263,7 @@ class Supervisor:
             version=__version__,
             uptime_s=seconds_since(now, self._started_ns),
             link=self.port.status(now),
-            outputs_not_acquired=tuple(sorted(self._acquiring)),
+            outputs_not_acquired=self.bank.not_acquired(),
             # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
             # "Stop categories"); an output not named is category 0.
             outputs_off_delay_ms={
@@ -312,15 +309,7 @@ class Supervisor:
             flight_journal=self.flight_journal,
         )
         self.sink.start()
-        events: list[Event] = []
-        for output in self.outputs.values():
-            try:
-                events.append(self._readback_event(output.open(now), now))
-            except OutputError as error:
-                log.error("output %s cannot be acquired: %s (retrying)", output.name, error)
-                events.append(OutputReadback(now, output.name, False, None))
-                self._acquiring[output.name] = backoff = Backoff(ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS)
-                backoff.failed(now)
+        events = self.bank.open(now)
         self.core = SafetyCore(self.safety, now)
         if self.flight is not None:
             self.flight.start(now, self.sequence_offset)  # a window can start from here
@@ -346,13 +335,7 @@ class Supervisor:
         written and fsynced, and pushed to subscribers, within the sink's deadline), then the
         socket (SIGTERM path)."""
         self.service.stopping()
-        self._applied_outputs = None  # every output driven off and closed here
-        now = self.clock()
-        for output in self.outputs.values():
-            with contextlib.suppress(Exception):
-                output.set(False, now)
-            with contextlib.suppress(Exception):
-                output.close()
+        self.bank.all_off(self.clock(), close=True)
         self.link.close()
         for release in self._release:
             with contextlib.suppress(Exception):
@@ -500,9 +483,9 @@ class Supervisor:
         """The earliest deadline of the loop's, at ``now`` (the clock read before the wait),
         with the link's descriptor as read then (``None``: closed, or polled)."""
         deadline = self.decision.next_deadline if self.decision else now
-        for output in self._ticking:
-            if output.is_open and (due := output.next_deadline()) is not None and due < deadline:
-                deadline = due
+        bank = self.bank
+        if bank.ticking or bank.acquiring:  # the usual bank has neither: no call (SR-9.4)
+            deadline = bank.next_deadline(deadline)
         if link_fd is None:
             if not self.link.is_open:
                 deadline = min(deadline, self.port.next_attempt)
@@ -511,8 +494,6 @@ class Supervisor:
         watchdog = self.service.next_watchdog
         if watchdog is not None and watchdog < deadline:
             deadline = watchdog
-        for backoff in self._acquiring.values():
-            deadline = min(deadline, backoff.next_attempt)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and listener_deadline < deadline:
             deadline = listener_deadline
@@ -524,16 +505,10 @@ class Supervisor:
             # A stop at a deadline (a link or client timeout) started at the deadline, not
             # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
             self._apply(self._feed(Tick(now)), since=self.decision.next_deadline)
-        for output in self._ticking:
-            deadline = output.next_deadline() if output.is_open else None
-            if deadline is not None and now >= deadline:
-                readback = output.tick(now)
-                if readback is not None and not readback.ok:
-                    self._apply(self._feed(self._readback_event(readback, now)))
-        if self._acquiring:
-            for name, backoff in list(self._acquiring.items()):
-                if now >= backoff.next_attempt:
-                    self._acquire(name, backoff, now)
+        bank = self.bank
+        if bank.ticking or bank.acquiring:
+            for event in bank.due(now):  # each applied before the next duty (SR-6)
+                self._apply(self._feed(event))
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
             self._send(
@@ -546,19 +521,6 @@ class Supervisor:
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)
 
-    def _acquire(self, name: str, backoff: Backoff, now: int) -> None:
-        output = self.outputs[name]
-        try:
-            readback = output.open(now)
-        except OutputError as error:
-            backoff.failed(now)
-            log.debug("output %s still cannot be acquired: %s", name, error)
-            return
-        del self._acquiring[name]
-        self._applied_outputs = None  # an output opened (off): the next decision sets all
-        log.info("output %s acquired (off)", name)
-        self._apply(self._feed(self._readback_event(readback, now)))
-
     # ----------------------------------------------------------------- the link
 
     def _receive(self) -> None:
@@ -570,11 +532,12 @@ class Supervisor:
         now, received = got
         heartbeat = False
         received_by, flight, core = self.listener.received, self.flight, self.core
+        heard = self.bank.heard
         assert core is not None
         for item in received:
             kind = type(item)
             if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
-                self._early.heard(item, now, core)  # type: ignore[arg-type]
+                heard(item, now, core)  # type: ignore[arg-type]
             received_by(item, now)
             if kind is not HidInput:
                 # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per
@@ -623,13 +586,6 @@ class Supervisor:
         self._apply(decision)
         return decision
 
-    @staticmethod
-    def _readback_event(readback: ReadBack, now: int) -> OutputReadback:
-        observed = readback.observed if readback.fault is None else None
-        if readback.fault is None and observed is None:
-            observed = readback.written  # CAN: a frame that went out is the read-back
-        return OutputReadback(now, readback.name, readback.requested, observed)
-
     def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).
 
@@ -639,18 +595,18 @@ class Supervisor:
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
         previous = self.decision
         if (
-            decision.outputs is self._applied_outputs
-            and previous is not None
+            previous is not None
             and decision.state is previous.state
             and not decision.records
             and not decision.refusals
-            and not self._early.written  # SR-9.5: the full path hands on the reflex's writes
             and self.steady_path
+            and self.bank.unchanged(decision.outputs)  # SR-9.5: hands on the reflex's writes
         ):
             # The steady path (SR-9.4): the same levels as the last decision set, every output
-            # already at them (nothing else has driven one since), the same state (the stop
-            # times were told already) and nothing to record or refuse: what the full path
-            # below does for it is only its finish. The frames (the user heartbeat) still go out.
+            # already at them (nothing else has driven one since, the bank says), the same
+            # state (the stop times were told already) and nothing to record or refuse: what
+            # the full path below does for it is only its finish. The frames (the user
+            # heartbeat) still go out.
             self._finish(decision)
             return
         self._apply_full(decision, since)
@@ -661,51 +617,29 @@ class Supervisor:
         # The usual decision switches nothing and has no read-backs: no list is made for it
         # (SR-9.4); ``pending`` holds the decisions of read-backs, in order, when there are.
         pending: list[Decision] | None = None
-        fed, outputs, times = 0, self.outputs, self.stop_times
+        fed, bank, times = 0, self.bank, self.stop_times
         while True:
-            if decision.state is not State.STOPPED:
-                times.ended()
-            elif self.decision is not None and self.decision.state is not State.STOPPED:
-                self._stop_began(decision)
-            readbacks: list[ReadBack] = []
-            early_ns = self._early.take(readbacks, times) if self._early.written else None
-            early_writes = len(readbacks)
-            complete = True  # every output named is open and left at its level
-            for name, on in decision.outputs.items():
-                output = outputs.get(name)
-                if output is None or not output.is_open:
-                    complete = False
-                    continue
-                if output.requested == on:
-                    continue
-                readback = output.set(on, decision.now)
-                readbacks.append(readback)
-                if not on and times.waiting(name):
-                    # When this off write returned (SR-12.1): one clock read per output, on
-                    # a stop only, after the write (outputs first, SR-6.1).
-                    times.off(readback, self.clock())
-            self._applied_outputs = decision.outputs if complete else None
             previous = self.decision
-            if (
-                readbacks
-                and decision.state is State.STOPPED
+            stopping = (
+                decision.state is State.STOPPED
                 and previous is not None
                 and previous.state is not State.STOPPED
-            ):
+            )
+            if decision.state is not State.STOPPED:
+                times.ended()
+            elif stopping:
+                self._stop_began(decision)
+            readbacks, off_ns = bank.apply(decision, stopping)  # outputs first (SR-6)
+            self._finish(decision)
+            if off_ns is not None:
                 # A change into STOPPED that switched outputs off: the clock when the writes
                 # returned, observed only after the frames are sent (SR-6, SR-10).
-                # SR-9.5: when the last off write returned, the reflex's if it wrote them all
-                only_early = len(readbacks) == early_writes  # nothing written here after it
-                off_ns = early_ns if early_ns is not None and only_early else self.clock()
-                self._finish(decision)
                 start = decision.now if since is None else min(since, decision.now)
                 self.timings.stop_to_off.observe(off_ns - start)
-            else:
-                self._finish(decision)
             if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
                 fed += 1
                 if readbacks:
-                    settled = [self._feed(self._readback_event(r, decision.now)) for r in readbacks]
+                    settled = [self._feed(readback_event(r, decision.now)) for r in readbacks]
                     pending = settled if pending is None else pending + settled
             if not pending:
                 return
@@ -715,8 +649,8 @@ class Supervisor:
         """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
         for record in decision.records:
             if record.state is State.STOPPED and record.previous is not State.STOPPED:
-                early = self._early.wrote  # SR-9.5: off already, ahead of this decision
-                on = [n for n, o in self.outputs.items() if o.is_open and (o.requested or early(n))]
+                # Those on, or off already by the reflex ahead of this decision (SR-9.5).
+                on = self.bank.on()
                 self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
                 return
 
@@ -798,9 +732,6 @@ class Supervisor:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
         self.counters.internal_faults += 1
         log.exception("internal fault in the main loop")
-        self._applied_outputs = None  # every output driven off here, outside a decision
-        for output in self.outputs.values():
-            with contextlib.suppress(Exception):
-                output.set(False, now)
+        self.bank.all_off(now)  # outside a decision
         with contextlib.suppress(Exception):
             self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))
