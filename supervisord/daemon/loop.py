@@ -25,7 +25,9 @@ its watches, the wake pair, the clients' order), the link port
 output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
 the reflex's writes and the steady path's test, read back, all off) and the service manager's
 face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
-WATCHDOG, STOPPING).
+WATCHDOG, STOPPING). The client API's listener returns what it needs of the loop as asks
+(:data:`Asks`: an event to feed, a look at the loop, frames to send), which the loop answers
+one at a time.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ import datetime as dt
 import logging
 import os
 import select
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from supervisord import __version__
@@ -97,20 +99,51 @@ class Counters:
 
 @dataclass(frozen=True, slots=True)
 class Snapshot:
-    """What the loop hands the listener with every call: ``status(now)``, the loop's own
-    status at a time (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
+    """What the loop shows the listener when it asks (:class:`Look`): ``status``, the loop's
+    own status at the time asked (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
     ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
     ``stoptest``, SR-12.1)."""
 
-    status: Callable[[int], LoopStatus]
+    status: LoopStatus
     stop_times: StopTimes
 
 
-class Listener:
-    """Something else the loop serves (the client API): descriptors to watch and callbacks.
+@dataclass(frozen=True, slots=True)
+class Look:
+    """The listener asks to see the loop at ``now``: answered with a :class:`Snapshot`."""
 
-    ``decided`` and ``received`` are told every decision and every valid VSC message, so
-    clients see state, records and traffic as they happen.
+    now: int
+
+
+@dataclass(frozen=True, slots=True)
+class Send:
+    """The listener asks the loop to send ``frames`` to the VSC at ``now`` (a commissioning's
+    key-85 requests): answered with ``None``."""
+
+    frames: tuple[Message, ...]
+    now: int
+
+
+Ask = Event | Look | Send
+"""What a listener asks of the loop: an event is fed to the core and applied at once
+(outputs, frames, records, pushes: SR-6), and answered with its decision."""
+
+Answer = Decision | Snapshot | None
+"""The loop's answer to an :data:`Ask`: the event's decision, the snapshot, ``None``."""
+
+Asks = Generator[Ask, Answer, None]
+"""A listener's work that needs the loop: the loop takes each ask in turn and sends back its
+answer before the work goes on, so the listener never calls into the loop and every answer
+(a refusal, a status) is the one of the moment asked (``Supervisor._serve_listener``)."""
+
+
+class Listener:
+    """Something else the loop serves (the client API): descriptors to watch, and work.
+
+    ``handle``, ``settle`` and ``due`` return the work they need the loop for, as
+    :data:`Asks` (``None``: none); the loop answers every ask in order. ``decided`` and
+    ``received`` are told every decision and every valid VSC message, so clients see state,
+    records and traffic as they happen.
     """
 
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
@@ -122,33 +155,21 @@ class Listener:
         and outside :data:`MAX_CLIENTS_PER_TURN`: the operator socket (SR-8.14)."""
         return frozenset()
 
-    def handle(
-        self,
-        fd: int,
-        readable: bool,
-        writable: bool,
-        now: int,
-        feed: Callable[[Event], Decision],
-        *,
-        snapshot: Snapshot,
-    ) -> None:
-        """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
-        and returns the core's decision (to answer with its refusals); ``snapshot.status(now)`` is
-        what the loop says about itself, for a ``status`` reply; ``snapshot.stop_times``
-        its stops' measured times to off, for a ``stoptest``."""
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> Asks | None:
+        """Serve ``fd``; every safety input it brought is asked of the loop as an event (the
+        answer, the core's decision, to answer the client with its refusals); a ``status``
+        asks to :class:`Look` at the loop, a ``stoptest`` too (its stops' measured times)."""
+        return None
 
-    def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
-        """Serve, through ``feed``, the safety inputs that arose outside ``handle`` (e.g. a
-        client dropped while a push was written to it). Called once at the end of a turn.
-        ``feed`` and ``snapshot`` as for :meth:`handle`."""
+    def settle(self, now: int) -> Asks | None:
+        """The safety inputs that arose outside ``handle`` (e.g. a client dropped while a push
+        was written to it), asked as for :meth:`handle`. Called once at the end of a turn."""
+        return None
 
-    def due(
-        self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot
-    ) -> list[Message]:
+    def due(self, now: int) -> Asks | None:
         """Work of the listener's own that is due (commissioning, requests that waited for
-        the caller's name): frames to send to the VSC. ``feed`` and ``snapshot`` as for
-        :meth:`handle`."""
-        return []
+        the caller's name), asked as for :meth:`handle`; frames for the VSC as :class:`Send`."""
+        return None
 
     def next_deadline(self) -> int | None:
         """When ``due`` must be called next, if the listener has work of its own."""
@@ -214,7 +235,6 @@ class Supervisor:
         # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
         # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5).
         self.bank = OutputBank(outputs, clock, self.stop_times)
-        self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -256,7 +276,8 @@ class Supervisor:
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
         version and uptime, the link and the loop's counters (docs/api.md "status"). The
-        listener is handed this method, and builds the ``status`` reply with it."""
+        listener is shown it when it asks (:class:`Look`), and builds the ``status`` reply
+        with it."""
         counters = self.counters
         return LoopStatus(
             pid=os.getpid(),
@@ -442,7 +463,9 @@ class Supervisor:
                 self._take_written()
             if clients:
                 self._serve_clients(clients)
-            self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self._snapshot)
+            work = self.listener.settle(self.clock())
+            if work is not None:  # the usual turn has none: no call (SR-9.4)
+                self._serve_listener(work)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
@@ -456,18 +479,14 @@ class Supervisor:
         first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
             readable, writable = waiter.readiness(fd, mask)
-            listener.handle(
-                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
-            )
+            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
         for served, (fd, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them
             waiter.cursor = fd
             readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            listener.handle(
-                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
-            )
+            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -511,9 +530,7 @@ class Supervisor:
                 self._apply(self._feed(event))
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
-            self._send(
-                tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
-            )
+            self._serve_listener(self.listener.due(now))
         if self.waiter.link_fd is None and not self.link.is_open and now >= self.port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
             self._apply(self._feed(self.port.open(now)))
@@ -581,10 +598,25 @@ class Supervisor:
             name = type(error).__name__
             log.error("flight recorder: no snapshot of the core: %s: %s", name, error)
 
-    def _feed_and_apply(self, event: Event) -> Decision:
-        decision = self._feed(event)
-        self._apply(decision)
-        return decision
+    def _serve_listener(self, work: Asks | None) -> None:
+        """Answer what the listener asks, in its order: an event fed and applied at once (its
+        decision the answer: SR-6), a look at the loop, frames sent to the VSC."""
+        if work is None:
+            return
+        answer: Answer = None
+        while True:
+            try:
+                asked = work.send(answer)
+            except StopIteration:
+                return
+            if isinstance(asked, Look):
+                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
+            elif isinstance(asked, Send):
+                answer = None
+                self._send(asked.frames, asked.now)
+            else:
+                answer = self._feed(asked)
+                self._apply(answer)
 
     def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).
