@@ -12,7 +12,7 @@ seconds later; the loop meanwhile goes on as ever.
 
 The listener never calls into the loop: what it needs of it (an event fed and its decision, a
 look at the loop's status and stop times, frames sent to the VSC) it asks as it goes, as the
-:data:`~supervisord.daemon.loop.Asks` its ``handle``, ``settle`` and ``due`` return, and the
+:data:`~supervisord.daemon.listener.Asks` its ``handle``, ``settle`` and ``due`` return, and the
 loop sends back each answer before the work goes on: the same order, and the same bytes, as
 when the work called the loop itself.
 """
@@ -46,7 +46,7 @@ from supervisord.api.views import (
 )
 from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
-from supervisord.daemon.loop import Asks, Listener, Look, Send, Snapshot
+from supervisord.daemon.listener import Asks, Listener, Look, Send, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report

@@ -25,9 +25,9 @@ its watches, the wake pair, the clients' order), the link port
 output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
 the reflex's writes and the steady path's test, read back, all off) and the service manager's
 face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
-WATCHDOG, STOPPING). The client API's listener returns what it needs of the loop as asks
-(:data:`Asks`: an event to feed, a look at the loop, frames to send), which the loop answers
-one at a time.
+WATCHDOG, STOPPING). The client API's listener (:mod:`~supervisord.daemon.listener`) returns
+what it needs of the loop as asks (an event to feed, a look at the loop, frames to send), which
+the loop answers one at a time.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ import datetime as dt
 import logging
 import os
 import select
-from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from supervisord import __version__
@@ -48,6 +48,7 @@ from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.link_port import LinkPort
+from supervisord.daemon.listener import Answer, Asks, Listener, Look, Send, Snapshot
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.output_bank import OutputBank, readback_event
@@ -78,6 +79,8 @@ from supervisord.safety.events import (
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
 
+__all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
+
 log = logging.getLogger("srcsd")
 
 POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
@@ -95,98 +98,6 @@ class Counters:
     records_dropped: int = 0
     rate_limited: int = 0
     internal_faults: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class Snapshot:
-    """What the loop shows the listener when it asks (:class:`Look`): ``status``, the loop's
-    own status at the time asked (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
-    ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
-    ``stoptest``, SR-12.1)."""
-
-    status: LoopStatus
-    stop_times: StopTimes
-
-
-@dataclass(frozen=True, slots=True)
-class Look:
-    """The listener asks to see the loop at ``now``: answered with a :class:`Snapshot`."""
-
-    now: int
-
-
-@dataclass(frozen=True, slots=True)
-class Send:
-    """The listener asks the loop to send ``frames`` to the VSC at ``now`` (a commissioning's
-    key-85 requests): answered with ``None``."""
-
-    frames: tuple[Message, ...]
-    now: int
-
-
-Ask = Event | Look | Send
-"""What a listener asks of the loop: an event is fed to the core and applied at once
-(outputs, frames, records, pushes: SR-6), and answered with its decision."""
-
-Answer = Decision | Snapshot | None
-"""The loop's answer to an :data:`Ask`: the event's decision, the snapshot, ``None``."""
-
-Asks = Generator[Ask, Answer, None]
-"""A listener's work that needs the loop: the loop takes each ask in turn and sends back its
-answer before the work goes on, so the listener never calls into the loop and every answer
-(a refusal, a status) is the one of the moment asked (``Supervisor._serve_listener``)."""
-
-
-class Listener:
-    """Something else the loop serves (the client API): descriptors to watch, and work.
-
-    ``handle``, ``settle`` and ``due`` return the work they need the loop for, as
-    :data:`Asks` (``None``: none); the loop answers every ask in order. ``decided`` and
-    ``received`` are told every decision and every valid VSC message, so clients see state,
-    records and traffic as they happen.
-    """
-
-    def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
-        """(fd, wants_write) pairs to watch now (``now``: the loop's clock, as everywhere)."""
-        return ()
-
-    def urgent(self) -> frozenset[int]:
-        """Descriptors (of :meth:`descriptors`) served before the other client descriptors
-        and outside :data:`MAX_CLIENTS_PER_TURN`: the operator socket (SR-8.14)."""
-        return frozenset()
-
-    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> Asks | None:
-        """Serve ``fd``; every safety input it brought is asked of the loop as an event (the
-        answer, the core's decision, to answer the client with its refusals); a ``status``
-        asks to :class:`Look` at the loop, a ``stoptest`` too (its stops' measured times)."""
-        return None
-
-    def settle(self, now: int) -> Asks | None:
-        """The safety inputs that arose outside ``handle`` (e.g. a client dropped while a push
-        was written to it), asked as for :meth:`handle`. Called once at the end of a turn."""
-        return None
-
-    def due(self, now: int) -> Asks | None:
-        """Work of the listener's own that is due (commissioning, requests that waited for
-        the caller's name), asked as for :meth:`handle`; frames for the VSC as :class:`Send`."""
-        return None
-
-    def next_deadline(self) -> int | None:
-        """When ``due`` must be called next, if the listener has work of its own."""
-        return None
-
-    def decided(self, decision: Decision) -> None:
-        """A decision was applied (outputs set, frames sent)."""
-
-    def recorded(self, record: StopRecord) -> None:
-        """A stop record is finished: on disk, or counted as not written. Called in record
-        order, after the decision that made it."""
-
-    def received(self, message: Message | HidInput, now: int) -> None:
-        """A valid message arrived from the VSC, read at ``now``."""
-
-    def close(self) -> None:
-        """Release everything."""
 
 
 class Supervisor:

@@ -13,7 +13,7 @@ from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
 from supervisord.api.status import LoopStatus
 from supervisord.daemon.api_listener import ApiListener
-from supervisord.daemon.loop import Answer, Asks, Look, Send, Snapshot
+from supervisord.daemon.listener import Answer, Asks, Look, Send, Snapshot
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
 from supervisord.safety.config import ClientSpec, SafetyConfig
