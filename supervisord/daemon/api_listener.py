@@ -9,11 +9,17 @@ every end of a connection included (a stopped or flooding client dropped while b
 to), is taken from its one queue in one place (``_take``), so no end is lost on the way.
 A ``commission`` is answered when its procedure ends (``daemon/commission.py``), a few
 seconds later; the loop meanwhile goes on as ever.
+
+The listener never calls into the loop: what it needs of it (an event fed and its decision, a
+look at the loop's status and stop times, frames sent to the VSC) it asks as it goes, as the
+:data:`~supervisord.daemon.listener.Asks` its ``handle``, ``settle`` and ``due`` return, and the
+loop sends back each answer before the work goes on: the same order, and the same bytes, as
+when the work called the loop itself.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 
 from supervisord.api.framing import ApiError, ErrorCode
 from supervisord.api.pushes import RecordPush
@@ -40,7 +46,7 @@ from supervisord.api.views import (
 )
 from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
-from supervisord.daemon.loop import Listener, Snapshot
+from supervisord.daemon.listener import Asks, Listener, Look, Send, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
@@ -49,7 +55,7 @@ from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY
 from supervisord.safety.causes import CauseKind
 from supervisord.safety.config import DEFAULT_REARM_HOLD_MS
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import Event, StopTested
+from supervisord.safety.events import StopTested
 from supervisord.safety.stoptest import LIMIT_MS
 from supervisord.timebase import seconds_since
 
@@ -94,36 +100,26 @@ class ApiListener(Listener):
     def urgent(self) -> frozenset[int]:
         return self.server.urgent()  # the operator socket (SR-8.14)
 
-    def handle(
-        self,
-        fd: int,
-        readable: bool,
-        writable: bool,
-        now: int,
-        feed: Callable[[Event], Decision],
-        *,
-        snapshot: Snapshot,
-    ) -> None:
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> Asks | None:
         self.server.handle(fd, readable, writable, now)
-        self._take(now, feed, snapshot)
+        return self.settle(now)  # what it queued, taken as at the end of a turn
 
-    def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
+    def settle(self, now: int) -> Asks | None:
         # Ends queued outside handle and due: a client dropped while a push was written.
-        take = self.server.take  # once a turn, mostly with nothing queued (SR-9.4)
-        while (result := take()) is not None:
-            self._result(result, now, feed, snapshot)
+        result = self.server.take()  # once a turn, mostly with nothing queued (SR-9.4)
+        return None if result is None else self._take(now, result)
 
-    def _take(self, now: int, feed: Callable[[Event], Decision], snapshot: Snapshot) -> None:
-        """Every result the server queued, in order: the one place they are taken. Answering
-        one may queue more (an end while writing the answer): taken in the same pass."""
-        while (result := self.server.take()) is not None:
-            self._result(result, now, feed, snapshot)
+    def _take(self, now: int, result: Result | None) -> Asks:
+        """Every result the server queued, from ``result`` on, in order: the one place they
+        are taken. Answering one may queue more (an end while writing the answer): taken in
+        the same pass."""
+        while result is not None:
+            yield from self._result(result, now)
+            result = self.server.take()
 
-    def _result(
-        self, result: Result, now: int, feed: Callable[[Event], Decision], snapshot: Snapshot
-    ) -> None:
+    def _result(self, result: Result, now: int) -> Asks:
         event = core_event(result, now)
-        decision = feed(event) if event is not None else None
+        decision = (yield event) if event is not None else None
         if isinstance(result, Closed):
             self._beats.pop(result.client.connection, None)
             self._nonzero.pop(result.client.connection, None)
@@ -131,16 +127,20 @@ class ApiListener(Listener):
             return  # Denied was answered by the server; Accepted and Closed need no reply
         request = result.request
         if isinstance(request, Status):
+            snapshot = yield Look(now)
+            assert isinstance(snapshot, Snapshot)
             self.server.reply(result, self.status(request, now, snapshot))
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
             return
         if isinstance(request, StopTest):
-            self._stoptest(result, request, now, feed, snapshot)
+            yield from self._stoptest(result, request, now)
             return
         refusal = (
-            next((r for r in decision.refusals if r.trigger == event), None) if decision else None
+            next((r for r in decision.refusals if r.trigger == event), None)
+            if isinstance(decision, Decision)
+            else None
         )
         if refusal is not None:
             self.server.reply_error(result, refusal_error(request, refusal))
@@ -181,7 +181,7 @@ class ApiListener(Listener):
             remote = remote_report(message, seconds_since(now, seen))
         daemon = DaemonStatus(
             robot=self.robot,
-            loop=snapshot.status(now),
+            loop=snapshot.status,
             clients=tuple(clients),
             connections=len(every),
             remote=remote,
@@ -210,23 +210,18 @@ class ApiListener(Listener):
             min_battery=self.min_remote_battery,
         )
 
-    def _stoptest(
-        self,
-        result: Received,
-        request: StopTest,
-        now: int,
-        feed: Callable[[Event], Decision],
-        snapshot: Snapshot,
-    ) -> None:
+    def _stoptest(self, result: Received, request: StopTest, now: int) -> Asks:
         """Judge the presses the client names from the loop's own measurements and record
         the result (SR-12.1); admin rights were checked by the server. The client's part is
         the dialogue and which stops its presses made, never a number."""
+        snapshot = yield Look(now)
+        assert isinstance(snapshot, Snapshot)
         judged = snapshot.stop_times.result(request.steps, LIMIT_MS)
         if isinstance(judged, str):
             error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
             self.server.reply_error(result, error)
             return
-        feed(StopTested(now, result.client.caller, judged))  # the stoptest record
+        yield StopTested(now, result.client.caller, judged)  # the stoptest record
         self.server.reply(result, StopTestReply(id=request.id, stoptest=stoptest_report(judged)))
 
     def _begin_commissioning(self, result: Received, now: int) -> None:
@@ -245,20 +240,27 @@ class ApiListener(Listener):
             return
         self._commissioning = (Commissioning(result.client.caller, now), result)
 
-    def due(
-        self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot
-    ) -> list[Message]:
+    def due(self, now: int) -> Asks | None:
         server_due = self.server.next_deadline()
-        if server_due is not None and now >= server_due:
+        server = server_due is not None and now >= server_due
+        if not server and self._commissioning is None:
+            return None
+        return self._due(now, server=server)
+
+    def _due(self, now: int, *, server: bool) -> Asks:
+        if server:
             self.server.due(now)
-            self._take(now, feed, snapshot)
+            yield from self._take(now, self.server.take())
         if self._commissioning is None:
-            return []
+            return
         procedure, result = self._commissioning
         if not procedure.finished(now):
-            return procedure.due(now)
+            frames = tuple(procedure.due(now))
+            if frames:
+                yield Send(frames, now)
+            return
         self._commissioning = None
-        feed(procedure.outcome(now))  # recorded by the core, whatever the outcome
+        yield procedure.outcome(now)  # recorded by the core, whatever the outcome
         if procedure.key85 != 1:
             read = "no answer" if procedure.key85 is None else procedure.key85
             request = result.request
@@ -275,7 +277,6 @@ class ApiListener(Listener):
                 id=result.request.id, key85=procedure.key85, remote_status=procedure.remote_status
             )
             self.server.reply(result, reply)
-        return []
 
     def next_deadline(self) -> int | None:
         # The server's own (an idle e-stop slot to close, checked when the loop asks for its

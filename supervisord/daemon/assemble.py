@@ -10,7 +10,8 @@ from supervisord.clock import MONOTONIC, Clock
 from supervisord.config import DaemonConfig, SerialPort
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.flight import FlightSettings
-from supervisord.daemon.loop import Listener, Supervisor
+from supervisord.daemon.listener import Listener
+from supervisord.daemon.loop import Supervisor
 from supervisord.daemon.maintenance import PeriodicTest, Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.links.base import Backoff, Link

@@ -23,9 +23,13 @@ told what it needs as arguments and answering with values, none calling back int
 its watches, the wake pair, the clients' order), the link port
 (:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters), the
 record path (:mod:`~supervisord.daemon.record_path`: the sink and its lanes, the records it
-holds, the flight ring; it hands back the records finished, which the loop pushes) and
-the service manager's face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
-WATCHDOG, STOPPING).
+holds, the flight ring; it hands back the records finished, which the loop pushes), the
+output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
+the reflex's writes and the steady path's test, read back, all off) and the service manager's
+face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
+WATCHDOG, STOPPING). The client API's listener (:mod:`~supervisord.daemon.listener`) returns
+what it needs of the loop as asks (an event to feed, a look at the loop, frames to send), which
+the loop answers one at a time.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ import datetime as dt
 import logging
 import os
 import select
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from supervisord import __version__
@@ -45,16 +49,17 @@ from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.link_port import LinkPort
+from supervisord.daemon.listener import Answer, Asks, Listener, Look, Send, Snapshot
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.record_path import RecordPath
-from supervisord.daemon.reflex import EarlyOff
 from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
 from supervisord.links.base import Backoff, Link
-from supervisord.outputs.base import Output, OutputError, ReadBack
+from supervisord.outputs.base import Output
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, VscHeartbeat
 from supervisord.record.jsonl import RecordWriter
@@ -66,7 +71,6 @@ from supervisord.safety.events import (
     Event,
     InternalFault,
     LinkBroken,
-    OutputReadback,
     Shutdown,
     Tick,
     VscReceived,
@@ -74,12 +78,13 @@ from supervisord.safety.events import (
 from supervisord.safety.transitions import State
 from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
 
+__all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
+
 log = logging.getLogger("srcsd")
 
 POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
-ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS = 500, 10_000  # retrying an output that could not be acquired
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
 
@@ -92,79 +97,6 @@ class Counters:
     records_dropped: int = 0
     rate_limited: int = 0
     internal_faults: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class Snapshot:
-    """What the loop hands the listener with every call: ``status(now)``, the loop's own
-    status at a time (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
-    ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
-    ``stoptest``, SR-12.1)."""
-
-    status: Callable[[int], LoopStatus]
-    stop_times: StopTimes
-
-
-class Listener:
-    """Something else the loop serves (the client API): descriptors to watch and callbacks.
-
-    ``decided`` and ``received`` are told every decision and every valid VSC message, so
-    clients see state, records and traffic as they happen.
-    """
-
-    def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
-        """(fd, wants_write) pairs to watch now (``now``: the loop's clock, as everywhere)."""
-        return ()
-
-    def urgent(self) -> frozenset[int]:
-        """Descriptors (of :meth:`descriptors`) served before the other client descriptors
-        and outside :data:`MAX_CLIENTS_PER_TURN`: the operator socket (SR-8.14)."""
-        return frozenset()
-
-    def handle(
-        self,
-        fd: int,
-        readable: bool,
-        writable: bool,
-        now: int,
-        feed: Callable[[Event], Decision],
-        *,
-        snapshot: Snapshot,
-    ) -> None:
-        """Serve ``fd``; every safety input goes through ``feed``, which applies it at once
-        and returns the core's decision (to answer with its refusals); ``snapshot.status(now)`` is
-        what the loop says about itself, for a ``status`` reply; ``snapshot.stop_times``
-        its stops' measured times to off, for a ``stoptest``."""
-
-    def settle(self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot) -> None:
-        """Serve, through ``feed``, the safety inputs that arose outside ``handle`` (e.g. a
-        client dropped while a push was written to it). Called once at the end of a turn.
-        ``feed`` and ``snapshot`` as for :meth:`handle`."""
-
-    def due(
-        self, now: int, feed: Callable[[Event], Decision], *, snapshot: Snapshot
-    ) -> list[Message]:
-        """Work of the listener's own that is due (commissioning, requests that waited for
-        the caller's name): frames to send to the VSC. ``feed`` and ``snapshot`` as for
-        :meth:`handle`."""
-        return []
-
-    def next_deadline(self) -> int | None:
-        """When ``due`` must be called next, if the listener has work of its own."""
-        return None
-
-    def decided(self, decision: Decision) -> None:
-        """A decision was applied (outputs set, frames sent)."""
-
-    def recorded(self, record: StopRecord) -> None:
-        """A stop record is finished: on disk, or counted as not written. Called in record
-        order, after the decision that made it."""
-
-    def received(self, message: Message | HidInput, now: int) -> None:
-        """A valid message arrived from the VSC, read at ``now``."""
-
-    def close(self) -> None:
-        """Release everything."""
 
 
 class Supervisor:
@@ -195,11 +127,6 @@ class Supervisor:
     ) -> None:
         self.safety = safety
         self.link = link
-        self.outputs = {output.name: output for output in outputs}
-        # The outputs with a periodic duty (their kind has a ``next_deadline`` of its own: a CAN
-        # enable frame, a GPIO pulse): the only ones the loop asks for a deadline every turn
-        # (SR-9.4); the others' is always ``None``.
-        self._ticking = [o for o in outputs if type(o).next_deadline is not Output.next_deadline]
         self.listener = listener or Listener()
         # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
         self.service = ServiceManager(notifier or Notifier({}))
@@ -222,18 +149,14 @@ class Supervisor:
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
-        self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
-        self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
+        # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
+        # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5).
+        self.bank = OutputBank(outputs, clock, self.stop_times)
         self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         self._stop_requested = False
         self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
-        self._acquiring: dict[str, Backoff] = {}  # outputs not acquired yet, and when to retry
-        # The outputs' levels the last decision set, every one of them (each output named is
-        # open and was left at its level): the mapping object itself, for the steady path.
-        # ``None`` once anything else drives or opens an output.
-        self._applied_outputs: Mapping[str, bool] | None = None
         # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
         # SR-10.1).
         self.waiter = Waiter()
@@ -250,6 +173,11 @@ class Supervisor:
         self.records.sequence_offset = offset
 
     @property
+    def outputs(self) -> dict[str, Output]:
+        """The outputs by name (the bank's)."""
+        return self.bank.outputs
+
+    @property
     def srcsctl(self) -> str:
         """How a fix names the command that reaches this daemon (SR-8.18), set by srcsd."""
         return self.service.srcsctl
@@ -261,14 +189,15 @@ class Supervisor:
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
         version and uptime, the link and the loop's counters (docs/api.md "status"). The
-        listener is handed this method, and builds the ``status`` reply with it."""
+        listener is shown it when it asks (:class:`Look`), and builds the ``status`` reply
+        with it."""
         counters = self.counters
         return LoopStatus(
             pid=os.getpid(),
             version=__version__,
             uptime_s=seconds_since(now, self._started_ns),
             link=self.port.status(now),
-            outputs_not_acquired=tuple(sorted(self._acquiring)),
+            outputs_not_acquired=self.bank.not_acquired(),
             # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
             # "Stop categories"); an output not named is category 0.
             outputs_off_delay_ms={
@@ -302,15 +231,7 @@ class Supervisor:
         self._started_ns = self.port.since_ns = now
         self.schedule.start(self.wall_clock(), now)  # the passes read from the record
         sink_fd = self.records.start()
-        events: list[Event] = []
-        for output in self.outputs.values():
-            try:
-                events.append(self._readback_event(output.open(now), now))
-            except OutputError as error:
-                log.error("output %s cannot be acquired: %s (retrying)", output.name, error)
-                events.append(OutputReadback(now, output.name, False, None))
-                self._acquiring[output.name] = backoff = Backoff(ACQUIRE_FIRST_MS, ACQUIRE_MAX_MS)
-                backoff.failed(now)
+        events = self.bank.open(now)
         self.core = SafetyCore(self.safety, now)
         self.records.began(now)  # a flight window can start from here
         self._apply(self.core.decision)  # the startup decision, with the first record
@@ -335,13 +256,7 @@ class Supervisor:
         written and fsynced, and pushed to subscribers, within the sink's deadline), then the
         socket (SIGTERM path)."""
         self.service.stopping()
-        self._applied_outputs = None  # every output driven off and closed here
-        now = self.clock()
-        for output in self.outputs.values():
-            with contextlib.suppress(Exception):
-                output.set(False, now)
-            with contextlib.suppress(Exception):
-                output.close()
+        self.bank.all_off(self.clock(), close=True)
         self.link.close()
         for release in self._release:
             with contextlib.suppress(Exception):
@@ -445,7 +360,9 @@ class Supervisor:
                 self._recorded(self.records.take_written())
             if clients:
                 self._serve_clients(clients)
-            self.listener.settle(self.clock(), self._feed_and_apply, snapshot=self._snapshot)
+            work = self.listener.settle(self.clock())
+            if work is not None:  # the usual turn has none: no call (SR-9.4)
+                self._serve_listener(work)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
@@ -459,18 +376,14 @@ class Supervisor:
         first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
             readable, writable = waiter.readiness(fd, mask)
-            listener.handle(
-                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
-            )
+            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
         for served, (fd, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them
             waiter.cursor = fd
             readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            listener.handle(
-                fd, readable, writable, self.clock(), self._feed_and_apply, snapshot=self._snapshot
-            )
+            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
 
     def _stop_path_waits(self) -> bool:
         """Whether the link has bytes to read or the core's deadline has come."""
@@ -486,9 +399,9 @@ class Supervisor:
         """The earliest deadline of the loop's, at ``now`` (the clock read before the wait),
         with the link's descriptor as read then (``None``: closed, or polled)."""
         deadline = self.decision.next_deadline if self.decision else now
-        for output in self._ticking:
-            if output.is_open and (due := output.next_deadline()) is not None and due < deadline:
-                deadline = due
+        bank = self.bank
+        if bank.ticking or bank.acquiring:  # the usual bank has neither: no call (SR-9.4)
+            deadline = bank.next_deadline(deadline)
         if link_fd is None:
             if not self.link.is_open:
                 deadline = min(deadline, self.port.next_attempt)
@@ -497,8 +410,6 @@ class Supervisor:
         watchdog = self.service.next_watchdog
         if watchdog is not None and watchdog < deadline:
             deadline = watchdog
-        for backoff in self._acquiring.values():
-            deadline = min(deadline, backoff.next_attempt)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and listener_deadline < deadline:
             deadline = listener_deadline
@@ -510,40 +421,19 @@ class Supervisor:
             # A stop at a deadline (a link or client timeout) started at the deadline, not
             # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
             self._apply(self._feed(Tick(now)), since=self.decision.next_deadline)
-        for output in self._ticking:
-            deadline = output.next_deadline() if output.is_open else None
-            if deadline is not None and now >= deadline:
-                readback = output.tick(now)
-                if readback is not None and not readback.ok:
-                    self._apply(self._feed(self._readback_event(readback, now)))
-        if self._acquiring:
-            for name, backoff in list(self._acquiring.items()):
-                if now >= backoff.next_attempt:
-                    self._acquire(name, backoff, now)
+        bank = self.bank
+        if bank.ticking or bank.acquiring:
+            for event in bank.due(now):  # each applied before the next duty (SR-6)
+                self._apply(self._feed(event))
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
-            self._send(
-                tuple(self.listener.due(now, self._feed_and_apply, snapshot=self._snapshot)), now
-            )
+            self._serve_listener(self.listener.due(now))
         if self.waiter.link_fd is None and not self.link.is_open and now >= self.port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
             self._apply(self._feed(self.port.open(now)))
         service = self.service
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)
-
-    def _acquire(self, name: str, backoff: Backoff, now: int) -> None:
-        output = self.outputs[name]
-        try:
-            readback = output.open(now)
-        except OutputError as error:
-            backoff.failed(now)
-            log.debug("output %s still cannot be acquired: %s", name, error)
-            return
-        del self._acquiring[name]
-        self._applied_outputs = None  # an output opened (off): the next decision sets all
-        log.info("output %s acquired (off)", name)
-        self._apply(self._feed(self._readback_event(readback, now)))
 
     # ----------------------------------------------------------------- the link
 
@@ -556,11 +446,12 @@ class Supervisor:
         now, received = got
         heartbeat = False
         received_by, flight, core = self.listener.received, self.records.flight, self.core
+        heard = self.bank.heard
         assert core is not None
         for item in received:
             kind = type(item)
             if kind is VscHeartbeat:  # SR-9.5: a stop's outputs off before the full step
-                self._early.heard(item, now, core)  # type: ignore[arg-type]
+                heard(item, now, core)  # type: ignore[arg-type]
             received_by(item, now)
             if kind is not HidInput:
                 # ``_feed`` written out: the ring, then the core (SR-7.10; one call fewer per
@@ -594,17 +485,25 @@ class Supervisor:
             flight.count += 1
         return self.core.handle(event)
 
-    def _feed_and_apply(self, event: Event) -> Decision:
-        decision = self._feed(event)
-        self._apply(decision)
-        return decision
-
-    @staticmethod
-    def _readback_event(readback: ReadBack, now: int) -> OutputReadback:
-        observed = readback.observed if readback.fault is None else None
-        if readback.fault is None and observed is None:
-            observed = readback.written  # CAN: a frame that went out is the read-back
-        return OutputReadback(now, readback.name, readback.requested, observed)
+    def _serve_listener(self, work: Asks | None) -> None:
+        """Answer what the listener asks, in its order: an event fed and applied at once (its
+        decision the answer: SR-6), a look at the loop, frames sent to the VSC."""
+        if work is None:
+            return
+        answer: Answer = None
+        while True:
+            try:
+                asked = work.send(answer)
+            except StopIteration:
+                return
+            if isinstance(asked, Look):
+                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
+            elif isinstance(asked, Send):
+                answer = None
+                self._send(asked.frames, asked.now)
+            else:
+                answer = self._feed(asked)
+                self._apply(answer)
 
     def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).
@@ -615,18 +514,18 @@ class Supervisor:
         ``decision`` was read (its ``now`` if not given), for the stop-to-off histogram."""
         previous = self.decision
         if (
-            decision.outputs is self._applied_outputs
-            and previous is not None
+            previous is not None
             and decision.state is previous.state
             and not decision.records
             and not decision.refusals
-            and not self._early.written  # SR-9.5: the full path hands on the reflex's writes
             and self.steady_path
+            and self.bank.unchanged(decision.outputs)  # SR-9.5: hands on the reflex's writes
         ):
             # The steady path (SR-9.4): the same levels as the last decision set, every output
-            # already at them (nothing else has driven one since), the same state (the stop
-            # times were told already) and nothing to record or refuse: what the full path
-            # below does for it is only its finish. The frames (the user heartbeat) still go out.
+            # already at them (nothing else has driven one since, the bank says), the same
+            # state (the stop times were told already) and nothing to record or refuse: what
+            # the full path below does for it is only its finish. The frames (the user
+            # heartbeat) still go out.
             self._finish(decision)
             return
         self._apply_full(decision, since)
@@ -637,51 +536,29 @@ class Supervisor:
         # The usual decision switches nothing and has no read-backs: no list is made for it
         # (SR-9.4); ``pending`` holds the decisions of read-backs, in order, when there are.
         pending: list[Decision] | None = None
-        fed, outputs, times = 0, self.outputs, self.stop_times
+        fed, bank, times = 0, self.bank, self.stop_times
         while True:
-            if decision.state is not State.STOPPED:
-                times.ended()
-            elif self.decision is not None and self.decision.state is not State.STOPPED:
-                self._stop_began(decision)
-            readbacks: list[ReadBack] = []
-            early_ns = self._early.take(readbacks, times) if self._early.written else None
-            early_writes = len(readbacks)
-            complete = True  # every output named is open and left at its level
-            for name, on in decision.outputs.items():
-                output = outputs.get(name)
-                if output is None or not output.is_open:
-                    complete = False
-                    continue
-                if output.requested == on:
-                    continue
-                readback = output.set(on, decision.now)
-                readbacks.append(readback)
-                if not on and times.waiting(name):
-                    # When this off write returned (SR-12.1): one clock read per output, on
-                    # a stop only, after the write (outputs first, SR-6.1).
-                    times.off(readback, self.clock())
-            self._applied_outputs = decision.outputs if complete else None
             previous = self.decision
-            if (
-                readbacks
-                and decision.state is State.STOPPED
+            stopping = (
+                decision.state is State.STOPPED
                 and previous is not None
                 and previous.state is not State.STOPPED
-            ):
+            )
+            if decision.state is not State.STOPPED:
+                times.ended()
+            elif stopping:
+                self._stop_began(decision)
+            readbacks, off_ns = bank.apply(decision, stopping)  # outputs first (SR-6)
+            self._finish(decision)
+            if off_ns is not None:
                 # A change into STOPPED that switched outputs off: the clock when the writes
                 # returned, observed only after the frames are sent (SR-6, SR-10).
-                # SR-9.5: when the last off write returned, the reflex's if it wrote them all
-                only_early = len(readbacks) == early_writes  # nothing written here after it
-                off_ns = early_ns if early_ns is not None and only_early else self.clock()
-                self._finish(decision)
                 start = decision.now if since is None else min(since, decision.now)
                 self.timings.stop_to_off.observe(off_ns - start)
-            else:
-                self._finish(decision)
             if fed < MAX_SETTLE_STEPS:  # bounded: outputs that flap cannot hold the loop
                 fed += 1
                 if readbacks:
-                    settled = [self._feed(self._readback_event(r, decision.now)) for r in readbacks]
+                    settled = [self._feed(readback_event(r, decision.now)) for r in readbacks]
                     pending = settled if pending is None else pending + settled
             if not pending:
                 return
@@ -691,8 +568,8 @@ class Supervisor:
         """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
         for record in decision.records:
             if record.state is State.STOPPED and record.previous is not State.STOPPED:
-                early = self._early.wrote  # SR-9.5: off already, ahead of this decision
-                on = [n for n, o in self.outputs.items() if o.is_open and (o.requested or early(n))]
+                # Those on, or off already by the reflex ahead of this decision (SR-9.5).
+                on = self.bank.on()
                 self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
                 return
 
@@ -746,9 +623,6 @@ class Supervisor:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
         self.counters.internal_faults += 1
         log.exception("internal fault in the main loop")
-        self._applied_outputs = None  # every output driven off here, outside a decision
-        for output in self.outputs.values():
-            with contextlib.suppress(Exception):
-                output.set(False, now)
+        self.bank.all_off(now)  # outside a decision
         with contextlib.suppress(Exception):
             self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))

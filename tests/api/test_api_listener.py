@@ -13,7 +13,7 @@ from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
 from supervisord.api.status import LoopStatus
 from supervisord.daemon.api_listener import ApiListener
-from supervisord.daemon.loop import Snapshot
+from supervisord.daemon.listener import Answer, Asks, Look, Send, Snapshot
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
 from supervisord.safety.config import ClientSpec, SafetyConfig
@@ -36,8 +36,8 @@ class Judged(Loop):
         self.listener.decided(self.core.decision)
         self.decisions: list[Decision] = []
         self.events: list[Event] = []
-        # What the loop hands the listener: a fixed status, no stops measured.
-        self.loop = Snapshot(self.snapshot, StopTimes())
+        # What the loop shows the listener: a fixed status, no stops measured.
+        self.stop_times = StopTimes()
 
     def feed(self, event: Event) -> Decision:
         self.events.append(event)
@@ -50,16 +50,29 @@ class Judged(Loop):
         """What the loop says about itself: a fixed one, there being no daemon behind."""
         return LOOP
 
+    def serve(self, work: Asks | None) -> None:
+        """Answer what the listener asks, in order, as the daemon's loop does."""
+        answer: Answer = None
+        while work is not None:
+            try:
+                asked = work.send(answer)
+            except StopIteration:
+                return
+            if isinstance(asked, Look):
+                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
+            elif isinstance(asked, Send):
+                answer = None  # no VSC behind
+            else:
+                answer = self.feed(asked)
+
     def turn(self, timeout: float = 0.0) -> list[Result]:
         self.sync()
         for key, mask in self.selector.select(timeout):
             readable, writable = bool(mask & READ), bool(mask & WRITE)
-            self.listener.handle(
-                key.fd, readable, writable, self.clock(), self.feed, snapshot=self.loop
-            )
+            self.serve(self.listener.handle(key.fd, readable, writable, self.clock()))
         if (due := self.listener.next_deadline()) is not None and self.clock() >= due:
-            self.listener.due(self.clock(), self.feed, snapshot=self.loop)
-        self.listener.settle(self.clock(), self.feed, snapshot=self.loop)
+            self.serve(self.listener.due(self.clock()))
+        self.serve(self.listener.settle(self.clock()))
         return []
 
     def refusals(self) -> list[str]:
@@ -223,3 +236,25 @@ def test_a_heartbeat_with_stale_progress_is_refused_with_its_reason(tmp_path: Pa
     finally:
         nav.close()
         loop.close()
+
+
+def test_each_request_is_answered_before_the_next_is_taken(
+    judged: Judged, peers: Callable[[], Peer]
+) -> None:
+    """SR-6, SR-8: an e-stop, a status and a hold in one write: each request's decision is
+    applied (its state push out) and the request answered before the next is fed, so the
+    status sees the e-stop and not the hold, and the bytes come in request order: push, reply,
+    status, push, reply."""
+    peer = peers()
+    judged.until(lambda: [c.caller.name for c in judged.server.clients()] == ["root"])
+    assert peer.ask(judged, {"op": "hello", "name": "nav"})["ok"] is True
+    assert peer.ask(judged, {"op": "subscribe", "topics": ["state"], "id": 0})["ok"] is True
+    peer.read(judged)  # the state as it was, pushed with the subscription
+    peer.send(b'{"op":"estop","id":1}\n{"op":"status","id":2}\n{"op":"hold","id":3}\n')
+    lines = peer.read(judged, 5)
+    kinds = [(line.get("event") or line.get("op"), line.get("id")) for line in lines]
+    assert kinds == [("state", None), ("estop", 1), ("status", 2), ("state", None), ("hold", 3)]
+    seen = [{c["name"] for c in lines[i]["causes"] if c["active"]} for i in (0, 2, 3)]
+    assert "client_estop:nav" in seen[0]
+    assert seen[1] == seen[0]  # the status is the e-stop's state, before the hold
+    assert any(name.startswith("client_hold") for name in seen[2] - seen[1])

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from supervisord.daemon import loop
-from supervisord.daemon.loop import Listener, Snapshot, Supervisor
+from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
@@ -26,8 +26,6 @@ from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import UserHeartbeat, VscHeartbeat
 from supervisord.record.jsonl import RecordWriter, StoredRecord, read_records
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
-from supervisord.safety.decision import Decision
-from supervisord.safety.events import Event
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
 from tests.api.samples import status_reply
@@ -471,16 +469,7 @@ class _RecordingListener(Listener):
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
         return [(ours.fileno(), False) for ours, _ in self.pairs]
 
-    def handle(
-        self,
-        fd: int,
-        readable: bool,
-        writable: bool,
-        now: int,
-        feed: Callable[[Event], Decision],
-        *,
-        snapshot: Snapshot,
-    ) -> None:
+    def handle(self, fd: int, readable: bool, writable: bool, now: int) -> None:
         self.order.append(f"client:{fd}")
 
     def close(self) -> None:
