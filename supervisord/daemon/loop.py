@@ -216,6 +216,9 @@ class Supervisor:
         # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
+        # Whether the start locked the memory (SR-9.6): set by srcsd, ``None`` when no start
+        # said (a loop built by a test).
+        self.memory_locked: bool | None = None
         self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
         self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
         self._release = release or []
@@ -284,6 +287,7 @@ class Supervisor:
             histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
             # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
             maintenance=self.schedule.status(now),
+            memory_locked=self.memory_locked,  # SR-9.6
         )
 
     def _sink_status(self) -> dict[str, int]:
