@@ -16,6 +16,8 @@ import time
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
+from supervisord import threads
+
 T = TypeVar("T")
 
 
@@ -27,8 +29,9 @@ def deadline_after(seconds: float) -> float:
 class Lane(Generic[T]):
     """A bounded queue and one daemon thread that serves its items in order with ``serve``
     (which must not raise), up to ``batch`` of them at a time. :meth:`put` never waits;
-    :meth:`finish` waits at most until a deadline. The thread is a daemon thread: one stuck in
-    a device (a pipe nobody reads) never holds the process's exit."""
+    :meth:`finish` waits at most until a deadline. The thread (:func:`supervisord.threads.start`)
+    is a daemon thread: one stuck in a device (a pipe nobody reads) never holds the process's
+    exit. ``name`` is the thread's, in the kernel too: 15 bytes at most."""
 
     def __init__(
         self, name: str, capacity: int, serve: Callable[[list[T]], None], batch: int = 1
@@ -41,10 +44,15 @@ class Lane(Generic[T]):
         self._busy = 0  # items being served
         self._closed = False
         self._cond = threading.Condition()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self.name = name
+        self._thread: threading.Thread | None = None
 
     def start(self) -> None:
-        self._thread.start()
+        """Start the lane's thread: named, at ordinary priority (SR-9.7, SR-9.8)."""
+        self._thread = threads.start(self._run, self.name)
+
+    def _alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
 
     def put(self, item: T) -> bool:
         """Queue ``item``; ``False`` (counted in :attr:`dropped`) when full or finished."""
@@ -75,7 +83,7 @@ class Lane(Generic[T]):
         with self._cond:
             self._closed = True
             self._cond.notify_all()
-            while (self._items or self._busy) and self._thread.is_alive():
+            while (self._items or self._busy) and self._alive():
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     break
@@ -84,8 +92,8 @@ class Lane(Generic[T]):
             self._items.clear()
             self.dropped += len(left)
             self._cond.notify_all()
-            ending = self._thread.is_alive() and not self._busy
-        if ending:  # nothing left: the thread ends at once
+            ending = self._alive() and not self._busy
+        if ending and self._thread is not None:  # nothing left: the thread ends at once
             self._thread.join(max(0.0, deadline - time.monotonic()))
         return left
 

@@ -24,6 +24,7 @@ import threading
 from collections.abc import Callable
 from typing import Final
 
+from supervisord import threads
 from supervisord.timebase import NS_PER_S
 
 NAME_WAIT_NS: Final = 2 * NS_PER_S
@@ -67,8 +68,8 @@ class UserNames:
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
         # A daemon thread: a lookup that never returns must not hold the process at exit.
-        self._thread = threading.Thread(target=self._run, name="srcsd-names", daemon=True)
-        self._thread.start()
+        # Named, and at ordinary priority: a lookup is never the loop's work (SR-9.7, SR-9.8).
+        self._thread = threads.start(self._run, "srcsd-names")
 
     # -- the loop's side -------------------------------------------------------------------
 

@@ -172,6 +172,9 @@ class LoopStatus(Wire):
     histograms: Mapping[str, HistogramStatus] = wire(absent={})
     # A daemon older than SR-12.2 has none.
     maintenance: Maintenance | None = wire(omit_none=True, default=None)
+    # Whether its start locked its memory (SR-9.6); a daemon older than the lock, or a loop
+    # started by no srcsd, says nothing.
+    memory_locked: bool | None = wire(omit_none=True, default=None)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

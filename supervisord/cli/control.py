@@ -515,6 +515,8 @@ def format_status(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> str:
         lines.append(f"  proof    {proof.phase}; last: {result}")
     if loop.maintenance is not None:
         lines.append(f"  tests    {tests_text(loop.maintenance)}")
+    if loop.memory_locked is False:  # SR-9.6; None: a daemon older than the lock
+        lines.append(f"  memory   {MEMORY_NOT_LOCKED}")
     rejected = ", ".join(f"{k} {v}" for k, v in loop.rejections.items())
     lines.append(
         f"  traffic  {loop.messages} messages; rejected: {rejected or 'none'}; "
@@ -524,6 +526,11 @@ def format_status(status: StatusReply, srcsctl: str = DEFAULT_SRCSCTL) -> str:
 
 
 TEST_NAMES: Final = {"stoptest": "stop test", "prooftest": "proof test"}
+MEMORY_NOT_LOCKED: Final = (
+    "NOT LOCKED: the loop may wait on a page fault under memory pressure; the daemon's start "
+    'said why (docs/configuration.md "[realtime]")'
+)
+"""What ``status`` says of a daemon whose memory lock was refused or turned off (SR-9.6)."""
 
 
 def tests_text(schedule: Maintenance) -> str:

@@ -13,15 +13,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Final, TextIO
 
-from supervisord import __version__
+from supervisord import __version__, threads
 from supervisord.api.readiness import srcsctl_for
 from supervisord.cli.access import advice
 from supervisord.config import check_config_main
 from supervisord.config.check import report_lines
 from supervisord.config.collect import collect
 from supervisord.config.directories import present
+from supervisord.config.realtime import LockMode
 from supervisord.config.toml_file import MAX_CONFIG_BYTES
-from supervisord.daemon import signals
+from supervisord.daemon import memory_lock, signals
 from supervisord.daemon.service_manager_absent import absent, surroundings
 from supervisord.errors import SrcsError
 from supervisord.record.jsonl import RecordError
@@ -243,6 +244,18 @@ def _serve(path: str, log: logging.Logger) -> int:
         for line in report_lines(path, report):
             log.error("%s", line)
         return EXIT_CONFIG
+    # The loop is the main thread: named as the process (SR-9.7); the memory locked before any
+    # thread starts and before the parts are built, so that all of it is locked (SR-9.6).
+    threads.name_this_thread(threads.LOOP_NAME)
+    memory_lock.prepare()
+    memory = memory_lock.lock(config.realtime.lock_memory)
+    if not memory.locked and memory.mode is LockMode.REQUIRED:
+        log.error(
+            'cannot start: memory not locked (%s) and [realtime] lock_memory = "required": '
+            "raise the unit's LimitMEMLOCK= (units/srcsd@.service)",
+            memory.fact(),
+        )
+        return EXIT_CANNOT_START
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
 
@@ -263,6 +276,7 @@ def _serve(path: str, log: logging.Logger) -> int:
         log.error("cannot start: %s%s", error, hint)
         return EXIT_CANNOT_START
     supervisor.srcsctl = srcsctl_for(config=path)  # how its fixes name srcsctl (SR-8.18)
+    supervisor.memory_locked = memory.locked  # in status and the exporter (SR-9.6)
     log.info(
         "srcsd %s, robot %s: %s, %d outputs",
         __version__,
@@ -272,7 +286,7 @@ def _serve(path: str, log: logging.Logger) -> int:
     )
     # Once, at the start: what no service manager gives this start, and what to provide
     # instead (SR-0.4, docs/containers.md).
-    for finding in absent(surroundings(config)):
+    for finding in absent(surroundings(config, memory)):
         log.warning("%s", finding.line())
     return supervisor.run()
 

@@ -39,6 +39,7 @@ from supervisord.config.model import (
     DaemonConfig,
     HidDevice,
     MaintenanceConfig,
+    RealtimeConfig,
     RecordConfig,
     Reopen,
     RobotConfig,
@@ -56,6 +57,7 @@ from supervisord.config.paths import (
     check_record_files,
     file_path,
 )
+from supervisord.config.realtime import LOCK_MEMORY, LockMode
 from supervisord.config.schema import (
     API,
     BAUD,
@@ -234,6 +236,8 @@ class _Loader:
         record = self.record(_section(root, SECTION["record"]))
         maintenance = _section(root, SECTION["maintenance"])
         intervals = (maintenance.whole(STOPTEST_INTERVAL), maintenance.whole(PROOFTEST_INTERVAL))
+        realtime = _section(root, SECTION["realtime"])
+        lock_memory = LockMode(realtime.read(LOCK_MEMORY))
         output_bus = self.output_bus(root)
         safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
         # The rules between entries and sections last, once every section's own keys have
@@ -252,6 +256,7 @@ class _Loader:
             record=record,
             api=api,
             maintenance=MaintenanceConfig(*intervals),
+            realtime=RealtimeConfig(lock_memory),
         )
 
     def path(self, fields: strict.Fields, key: strict.Text) -> Path:

@@ -11,6 +11,7 @@ from supervisord.api.framing import operator_socket_path
 from supervisord.api.server import DEFAULT_MAX_CLIENTS
 from supervisord.config.paths import DEFAULT_RECORD_PATH, DEFAULT_SOCKET
 from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS
+from supervisord.config.realtime import LockMode
 from supervisord.config.schema import (
     DEFAULT_CAN_BITRATE,
     DEFAULT_CAN_CHANNEL,
@@ -119,6 +120,13 @@ class MaintenanceConfig:
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
+class RealtimeConfig:
+    """``[realtime]``: whether the start locks the daemon's memory (SR-9.6)."""
+
+    lock_memory: LockMode = LockMode.ON
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
 class ApiConfig:
     """``[api]``: the Unix socket the robot's software and ``srcsctl`` talk to.
 
@@ -168,6 +176,7 @@ class DaemonConfig:
     record: RecordConfig = RecordConfig()
     api: ApiConfig = ApiConfig()
     maintenance: MaintenanceConfig = MaintenanceConfig()
+    realtime: RealtimeConfig = RealtimeConfig()
 
     @property
     def can_output_bus(self) -> CanBus | None:

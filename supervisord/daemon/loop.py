@@ -152,6 +152,9 @@ class Supervisor:
         # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
         # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5).
         self.bank = OutputBank(outputs, clock, self.stop_times)
+        # Whether the start locked the memory (SR-9.6): set by srcsd, ``None`` when no start
+        # said (a loop built by a test).
+        self.memory_locked: bool | None = None
         self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
@@ -215,6 +218,7 @@ class Supervisor:
             histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
             # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
             maintenance=self.schedule.status(now),
+            memory_locked=self.memory_locked,  # SR-9.6
         )
 
     # ----------------------------------------------------------------- start and stop

@@ -1,8 +1,10 @@
 """What srcsd runs without when no service manager gives it (SR-0.4, docs/containers.md).
 
-``srcsd@.service`` gives the daemon six things that a start by hand or in a container does
+``srcsd@.service`` gives the daemon seven things that a start by hand or in a container does
 not: systemd's watchdog, real-time scheduling, a sandbox, restarts, the runtime directory,
-and (through udev and the package's rule) a group of its own on the VSC's device. The daemon
+(through udev and the package's rule) a group of its own on the VSC's device, and the limit
+that lets it lock its memory (``LimitMEMLOCK=``, SR-9.6: a lock refused, or turned off by
+``[realtime] lock_memory``, is said here too, whoever started it). The daemon
 runs without any of them, so it says at its start, once, one line per part, which it lacks
 and what the container or the person starting it must provide instead.
 
@@ -22,6 +24,7 @@ from pathlib import Path
 from typing import Final
 
 from supervisord.config.model import DaemonConfig, HidDevice, SerialPort
+from supervisord.daemon.memory_lock import LOCKED, MemoryLock
 from supervisord.daemon.notify import watchdog_usec
 
 UDEV_CONTROL: Final = Path("/run/udev/control")
@@ -29,6 +32,9 @@ UDEV_CONTROL: Final = Path("/run/udev/control")
 postinst asks the same before ``udevadm trigger``)."""
 
 GUIDE: Final = "docs/containers.md"
+MEMLOCK_ADVICE: Final = "128 MiB"
+"""The lock's limit a start without the unit is advised to give: the unit's own
+``LimitMEMLOCK=`` (``units/srcsd@.service``)."""
 
 
 class Part(enum.Enum):
@@ -40,6 +46,7 @@ class Part(enum.Enum):
     RESTART = "a restart"
     RUNTIME_DIRECTORY = "a runtime directory"
     DEVICE_GROUP = "udev's group on the device"
+    MEMORY_LOCK = "locked memory"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +76,8 @@ class Surroundings:
     devices: tuple[Device, ...]
     uid: int = 0
     groups: tuple[int, ...] = ()
+    memory: MemoryLock = LOCKED
+    """What became of the start's memory lock (SR-9.6)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -165,6 +174,17 @@ def absent(facts: Surroundings) -> list[Absent]:
                 "(--device and --group-add)",
             )
         )
+    if not facts.memory.locked:
+        found.append(
+            Absent(
+                Part.MEMORY_LOCK,
+                facts.memory.fact(),
+                "the loop may wait on a page fault under memory pressure; give it "
+                f"RLIMIT_MEMLOCK of {MEMLOCK_ADVICE} (LimitMEMLOCK=, `prlimit --memlock=`, "
+                f"--ulimit memlock=) or CAP_IPC_LOCK (--cap-add=IPC_LOCK); "
+                '[realtime] lock_memory = "required" refuses to start without it',
+            )
+        )
     return found
 
 
@@ -194,6 +214,14 @@ def _no_new_privs() -> bool:
         return False
 
 
+def _realtime() -> bool:
+    """The process's policy is SCHED_FIFO or SCHED_RR, with or without SCHED_RESET_ON_FORK,
+    which the unit's CPUSchedulingResetOnFork=yes (SR-9.8) or'es into what the kernel reports
+    (seen: the unit's own start said it ran without real-time scheduling)."""
+    policy = os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK
+    return policy in (os.SCHED_FIFO, os.SCHED_RR)
+
+
 def _udev() -> bool:
     try:
         return stat.S_ISSOCK(UDEV_CONTROL.stat().st_mode)
@@ -201,17 +229,19 @@ def _udev() -> bool:
         return False
 
 
-def surroundings(config: DaemonConfig) -> Surroundings:
-    """The facts of this process and machine now, for :func:`absent`."""
+def surroundings(config: DaemonConfig, memory: MemoryLock = LOCKED) -> Surroundings:
+    """The facts of this process and machine now, for :func:`absent`; ``memory``: what the
+    start's lock did (SR-9.6)."""
     dirs = dict.fromkeys((config.api.socket.parent, config.api.operator_path.parent))
     return Surroundings(
         environ=dict(os.environ),
         pid=os.getpid(),
-        realtime=os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR),
+        realtime=_realtime(),
         no_new_privs=_no_new_privs(),
         udev=_udev(),
         socket_dirs=tuple(dirs),
         devices=tuple(_device(path) for path in devices(config)),
         uid=os.getuid(),
         groups=tuple(sorted({os.getgid(), *os.getgroups()})),
+        memory=memory,
     )

@@ -176,6 +176,12 @@ SPECS: Final = _specs(
     Spec("srcs_record_errors", C, "stop records that could not be written (since srcsd started)"),
     Spec("srcs_internal_faults", C, "internal faults the loop caught (since srcsd started)"),
     Spec(
+        "srcs_memory_locked",
+        G,
+        "1 when srcsd's start locked its memory, 0 when it runs without the lock (refused, or "
+        '[realtime] lock_memory = "off"): its loop may then wait on a page fault (SR-9.6)',
+    ),
+    Spec(
         "srcs_vsc_heartbeat_period_seconds",
         H,
         "time between successive VSC heartbeats as srcsd's loop read them (since it started)",
@@ -267,6 +273,7 @@ class DaemonInfo:
     rejections: tuple[tuple[str, int], ...] = ()
     record_errors: int | None = None
     internal_faults: int | None = None
+    memory_locked: bool | None = None
     outputs_not_acquired: int | None = None
     histograms: tuple[tuple[str, HistogramValue], ...] = ()  # by metric name
     tests: tuple[tuple[str, float | None, bool], ...] = ()  # test, age, overdue
@@ -446,6 +453,7 @@ class ExporterModel:
             rejections=tuple(sorted(rejections.items())),
             record_errors=loop.record_errors,
             internal_faults=loop.internal_faults,
+            memory_locked=loop.memory_locked,
             outputs_not_acquired=len(loop.outputs_not_acquired),
             histograms=tuple(histograms),
             tests=_tests(loop.maintenance),
@@ -572,6 +580,7 @@ class ExporterModel:
             put("srcs_rejections", count, reason=reason)
         put("srcs_record_errors", daemon.record_errors)
         put("srcs_internal_faults", daemon.internal_faults)
+        put("srcs_memory_locked", daemon.memory_locked)
         put("srcs_outputs_not_acquired", daemon.outputs_not_acquired)
         for test, age, overdue in daemon.tests:
             put("srcs_test_last_pass_age_seconds", age, test=test)

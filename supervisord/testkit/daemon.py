@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
@@ -79,8 +79,12 @@ class SrcsdProcess:
         env: Mapping[str, str] | None = None,
         log: Path | None = None,
         ready_timeout: float = 15.0,
+        prefix: Sequence[str] = (),
     ) -> None:
         self.config = Path(config)
+        # A command that execs the daemon in the surroundings a test gives it (``chrt -f 10``,
+        # ``prlimit``, ``setpriv``): each execs the next, so the daemon keeps the PID started.
+        self.prefix = tuple(prefix)
         self.socket = load_config(self.config).api.socket
         self.env = dict(env) if env is not None else None
         self.log = log
@@ -92,7 +96,14 @@ class SrcsdProcess:
         """Start it and wait until its API socket exists; ``serve`` runs while waiting (e.g.
         a test's own VSC peer, which must answer for the daemon to get anywhere)."""
         self.process = spawn(
-            [sys.executable, "-m", "supervisord.cli.srcsd", "--config", str(self.config)],
+            [
+                *self.prefix,
+                sys.executable,
+                "-m",
+                "supervisord.cli.srcsd",
+                "--config",
+                str(self.config),
+            ],
             self.log,
             self.env,
         )

@@ -84,6 +84,14 @@ def test_the_names_the_client_checks_are_the_schemas() -> None:
     assert RENAMED["log"] == "record"
 
 
+def test_the_client_reads_a_config_with_every_section(tmp_path: Path) -> None:
+    """SR-11.2, SR-9.6: a config that sets ``[realtime]`` (the daemon's memory lock) is read
+    by srcsctl as by the daemon: no section the daemon takes is an unknown one to it."""
+    path = tmp_path / "robot.toml"
+    path.write_text(VALID + '[realtime]\nlock_memory = "required"\n')
+    assert load_client_config(path) == on_the_robot(path)
+
+
 def _fifo(tmp_path: Path) -> str:
     os.mkfifo(tmp_path / "fifo.jsonl")
     return '[record]\npath = "fifo.jsonl"\n'

@@ -23,6 +23,8 @@ from typing import Any
 import pytest
 
 from supervisord.config import load_config
+from supervisord.config.realtime import LockMode
+from supervisord.daemon.memory_lock import MemoryLock
 from supervisord.daemon.service_manager_absent import (
     UDEV_CONTROL,
     Absent,
@@ -228,6 +230,7 @@ def test_each_fact_is_one_part() -> None:
             "environ": {k: v for k, v in env.items() if k != "RUNTIME_DIRECTORY"}
         },
         Part.DEVICE_GROUP: {"udev": False},
+        Part.MEMORY_LOCK: {"memory": REFUSED},
     }
     for part, change in cases.items():
         found = absent(dataclasses.replace(FULL, **change))
@@ -236,6 +239,26 @@ def test_each_fact_is_one_part() -> None:
     everything: dict[str, Any] = {k: v for change in cases.values() for k, v in change.items()}
     everything["environ"] = {}
     assert parts(absent(dataclasses.replace(FULL, **everything))) == list(Part)
+
+
+REFUSED = MemoryLock(LockMode.ON, locked=False, reason="Cannot allocate memory", limit=8 << 20)
+"""The lock refused under Debian's default RLIMIT_MEMLOCK (SR-9.6)."""
+
+
+def test_the_memory_lock_line_names_the_refusal_the_limit_and_the_fix() -> None:
+    """SR-0.4, SR-9.6: a refused lock names the error and the limit, and the fix (the unit's
+    LimitMEMLOCK=, prlimit, the engine's ulimit or CAP_IPC_LOCK); the lock turned off says
+    the configuration's key instead; a held lock says nothing."""
+    (line,) = [f.line() for f in absent(dataclasses.replace(FULL, memory=REFUSED))]
+    assert line.startswith(
+        "runs without locked memory (mlockall: Cannot allocate memory, RLIMIT_MEMLOCK 8192 KiB)"
+    )
+    for fix in ("LimitMEMLOCK=", "prlimit --memlock=", "--ulimit memlock=", "CAP_IPC_LOCK"):
+        assert fix in line
+    off = MemoryLock(LockMode.OFF, locked=False)
+    (line,) = [f.line() for f in absent(dataclasses.replace(FULL, memory=off))]
+    assert line.startswith('runs without locked memory (lock_memory = "off")')
+    assert absent(dataclasses.replace(FULL, memory=MemoryLock(LockMode.REQUIRED, True))) == []
 
 
 def test_a_watchdog_for_another_process_is_none() -> None:

@@ -354,3 +354,13 @@ def test_the_periodic_tests_are_an_age_and_an_overdue_gauge() -> None:
     model.status(status_reply({**STATUS, "daemon": {**STATUS["daemon"], "maintenance": schedule}}))
     model.disconnected()
     assert overdue not in values(model)
+
+
+def test_the_memory_lock_is_a_gauge_from_the_status_reply() -> None:
+    """SR-9.6: ``srcs_memory_locked`` is 1 or 0 as the status reply's
+    ``daemon.memory_locked`` says; absent from a daemon older than the lock."""
+    gauge = ("srcs_memory_locked", ())
+    assert gauge not in values(connected())
+    for locked, value in ((True, 1), (False, 0)):
+        reply = {**STATUS, "daemon": {**STATUS["daemon"], "memory_locked": locked}}
+        assert values(connected(reply))[gauge] == value

@@ -32,6 +32,7 @@ from supervisord.config.paths import (
     SOCKET_PATH_MAX_BYTES,
 )
 from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
+from supervisord.config.realtime import REALTIME
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
 from supervisord.safety.availability import (
     DEFAULT_MIN_REMOTE_BATTERY,
@@ -483,6 +484,11 @@ SECTIONS: Final = (
         "maintenance",
         "When the periodic tests are overdue (SR-12.2, docs/safety-manual.md).",
         MAINTENANCE,
+    ),
+    Section(
+        "realtime",
+        "What the start does for the loop's real time (SR-9.6, docs/safety-manual.md).",
+        REALTIME,
     ),
 )
 SECTION: Final = {section.name: section for section in SECTIONS}
