@@ -7,14 +7,16 @@ any other user is refused."""
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 
 import pytest
 
 from supervisord.api.framing import ApiError
-from supervisord.api.ops import FleetReleaseRequest, FleetStopRequest
+from supervisord.api.ops import FleetKeepaliveRequest, FleetReleaseRequest, FleetStopRequest
 from supervisord.api.replies import FleetStopReply, OkReply
 from supervisord.testkit.robot import OutputDef, Robot
+from supervisord.testkit.wait import wait_until
 from supervisord.vocabulary import CauseKind, State
 
 OUTPUTS = (OutputDef("drive"), OutputDef("lights", role="power"))
@@ -91,3 +93,56 @@ def test_a_connection_of_another_user_is_refused_and_stops_nothing(tmp_path: Pat
         assert refused.value.code == "not_allowed"
         assert robot.status().report.state is State.RUN
         assert robot.output_file("drive") is True
+
+
+class Console:
+    """The fleet agent's keepalives on a connection of its own, every ``period_s``, until
+    stopped (a console closed, a broker down, a network cut: the agent goes quiet)."""
+
+    def __init__(self, robot: Robot, period_s: float) -> None:
+        self.client = robot.client()
+        self.period_s = period_s
+        self.quiet = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while not self.quiet.is_set():
+            self.client.call(FleetKeepaliveRequest("console-a"))
+            self.quiet.wait(self.period_s)
+
+    def stop(self) -> None:
+        self.quiet.set()
+        self.thread.join()
+        self.client.close()
+
+
+CONSOLE_TIMEOUT_MS = 2000  # ten keepalive periods: a busy machine misses none
+
+
+def test_a_required_console_that_goes_quiet_stops_the_robot(tmp_path: Path) -> None:
+    """SR-8.21: with ``console_required``, the robot starts with ``fleet_console_lost``
+    (never heard) and re-arms only once keepalives come; when they stop, every output is off
+    within ``console_timeout_ms`` (plus the harness's allowance) and the record names
+    ``fleet_console_lost`` with the reason ``timeout``; keepalives that come back leave it
+    STOPPED until the takeover."""
+    more = f"console_required = true\nconsole_timeout_ms = {CONSOLE_TIMEOUT_MS}\n"
+    with fleet_robot(tmp_path, os.getuid(), more) as robot:
+        assert "fleet_console_lost" in robot.active_stops()
+        console = Console(robot, CONSOLE_TIMEOUT_MS / 10_000)
+        try:
+            robot.arm()
+        finally:
+            console.stop()
+        t0 = robot.now()
+        stop = robot.expect_stop(CauseKind.FLEET_CONSOLE_LOST, t0, CONSOLE_TIMEOUT_MS / 1000)
+        cause = next(c for c in stop.record.causes if c.kind is CauseKind.FLEET_CONSOLE_LOST)
+        assert dict(cause.details) == {"reason": "timeout", "timeout_ms": str(CONSOLE_TIMEOUT_MS)}
+        console = Console(robot, CONSOLE_TIMEOUT_MS / 10_000)
+        try:
+            wait_until(lambda: "fleet_console_lost" not in robot.active(), what="the console back")
+            assert robot.status().report.state is State.STOPPED  # latched: no re-arm by it
+            robot.rearm()
+            assert robot.status().report.state is State.RUN
+        finally:
+            console.stop()
