@@ -195,6 +195,22 @@ FAULTS = (
         "P8",
         module="clients",
     ),
+    Fault(
+        "a fleet release re-arms: a message from the network asks a local reset",
+        "        step.refuse_if(self._clients.fleet.release(event))\n",
+        "        step.refuse_if(self._clients.fleet.release(event))\n"
+        "        return RearmRequest(RearmKind.LOCAL_RESET, Caller(0, 0, 'fleet', admin=True))\n",
+        "fleet",
+        "P2",  # P24 too, in the same step (tests/safety/test_exploration.py): P2 is checked first
+    ),
+    Fault(
+        "the required console's loss is never raised",
+        "lost = clients.fleet.console_lost(now)  # SR-8.21",
+        "lost = None",
+        "fleet",
+        "P25",
+        module="conditions",
+    ),
 )
 
 

@@ -50,7 +50,8 @@ from supervisord.safety import (
 )
 from supervisord.safety.availability import Reaction
 from supervisord.safety.budget import RECORDS_OF_ALL_CLIENTS, RecordBudget
-from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.config import FleetSpec
+from supervisord.safety.events import FleetKeepalive, FleetRelease, FleetStop, ProofTestRequest
 from supervisord.safety.prooftest import ProofTestPolicy
 
 START_NS = 1_000_000_000_000
@@ -156,6 +157,8 @@ SEEN_BY: dict[str, frozenset[str]] = {
     "proof:sent": frozenset(),
     # the remote's battery report goes stale by itself; a new report restarts it (SR-8.12)
     "battery": frozenset({TICK, BATTERY}) | _STATE_READERS,
+    # SR-8.21: the fleet console's silence changes the state; its next keepalive reads it
+    "fleet": frozenset({TICK, BEAT}) | _STATE_READERS,
     # the record budget: the inputs it limits or charges, and a deferred end
     "budget": frozenset({TICK, BEAT, CLIENT, REARM, PROOF}),
     # SR-1.4: a stop from HOLD reads when the motion outputs went off; a category-1 output
@@ -280,6 +283,48 @@ def _progress_beat(value: int) -> Input:
 PROGRESS_BEATS = [_progress_beat(value) for value in PROGRESS_VALUES]
 """The required client's heartbeats with a progress value (SR-8.16)."""
 OPTIONAL_CLIENT = client(OPTIONAL, OPTIONAL_CONNECTION, OPTIONAL_UID)
+FLEET_CONNECTION, STRANGER_CONNECTION = 3, 4
+FLEET_AGENT = Caller(uid=1003, pid=3, name="srcs-fleet", admin=False)
+STRANGER = Caller(uid=OPTIONAL_UID, pid=4, name="o", admin=False)
+FLEET_CONSOLE_MS = 200  # the shortest console_timeout_ms: four grid steps
+
+
+def _fleet(kind: type[FleetStop | FleetRelease], stop_id: str) -> Input:
+    """The agent's stop or release of ``stop_id`` (SR-8.19)."""
+    word = "stop" if kind is FleetStop else "release"
+    return Input(
+        f"fleet {word} {stop_id}",
+        lambda now: kind(now, FLEET_CONNECTION, FLEET_AGENT, stop_id, "console"),
+        CLIENT,
+    )
+
+
+FLEET_INPUTS = [
+    *[_fleet(kind, stop_id) for kind in (FleetStop, FleetRelease) for stop_id in ("s1", "s2")],
+    Input(
+        "fleet stop s3 by another user",
+        lambda now: FleetStop(now, STRANGER_CONNECTION, STRANGER, "s3", "console"),
+        CLIENT,
+    ),
+    Input(
+        "fleet release s1 by another user",
+        lambda now: FleetRelease(now, STRANGER_CONNECTION, STRANGER, "s1", "console"),
+        CLIENT,
+    ),
+    Input(
+        "fleet keepalive",
+        lambda now: FleetKeepalive(now, FLEET_CONNECTION, FLEET_AGENT, "console"),
+        BEAT,
+    ),
+    Input(
+        "fleet keepalive by another user",
+        lambda now: FleetKeepalive(now, STRANGER_CONNECTION, STRANGER, "console"),
+        BEAT,
+    ),
+]
+"""The fleet agent's stops (two ids, so that a repeat and a second stop of one console are
+in reach), releases and keepalives, and the same from a user the config does not name
+(SR-8.19 to SR-8.21)."""
 ALL_MODES = (OPERATIONAL, LOCAL, PAUSE)
 ALL_WORDS = (0, REMOTE_ESTOP, USER_ESTOP)
 
@@ -483,6 +528,19 @@ MODELS = {
             "delay and after it; the reflex of each (SR-9.5)",
         ),
         Model(
+            "fleet",
+            dataclasses.replace(
+                BASE,
+                transport=Transport.CAN,
+                require_watchdog=False,
+                fleet=FleetSpec(frozenset({FLEET_AGENT.uid}), True, FLEET_CONSOLE_MS),
+            ),
+            (*vsc((OPERATIONAL, LOCAL), (0,)), LINK[0], LOCAL_COMMANDS[2], *FLEET_INPUTS, *TICKS),
+            what="the fleet's stops, releases and the required console's keepalive (SR-8.19, "
+            "SR-8.21), from the agent and from another user, against takeovers and a reset, on "
+            "CAN: no user heartbeat hides the console's deadline",
+        ),
+        Model(
             "all",
             SMALL,
             alphabet(),
@@ -507,6 +565,7 @@ BOUNDED: Final[Mapping[str, int]] = MappingProxyType(
         "battery_hold": 14,
         "battery_stop": 19,
         "category1": 9,
+        "fleet": 6,
         "all": 3,
     }
 )

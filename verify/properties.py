@@ -51,7 +51,7 @@ from supervisord.safety import (
 from supervisord.safety.availability import Reaction
 from supervisord.safety.canonical import Canonical, Clock, clock
 from supervisord.safety.decision import ChangeKind, RefusalReason
-from supervisord.safety.events import ProofTestRequest
+from supervisord.safety.events import FleetKeepalive, FleetRelease, FleetStop, ProofTestRequest
 from supervisord.safety.prooftest import (
     KEY85_WAIT_NS,
     WITHHOLD_LIMIT_NS,
@@ -85,6 +85,8 @@ OURS = frozenset(  # SR-5.2, docs/safety.md choice 6: the stops that set the hea
         "internal",
         "estop_unavailable",  # SR-8.12
         "shutdown",  # SR-7.14 (the daemon's exit: the link is closed by then)
+        "fleet_stop",  # SR-8.19
+        "fleet_console_lost",  # SR-8.21
     }
 )
 QUIET_IN_PROOF = frozenset({"client_lost"})  # SR-8.15: no byte while a proof test is unfinished
@@ -126,6 +128,7 @@ class Ghost:
     state: State = State.STOPPED
     motion_off: int | None = None
     braking: int | None = None
+    fleet_keepalive: int | None = None  # SR-8.21: the agent's last keepalive accepted
     sequence: int = field(default=0, compare=False)  # the last record's (not part of the key)
 
     def key(self, now: int, config: SafetyConfig) -> tuple[object, ...]:
@@ -152,6 +155,10 @@ class Ghost:
             clocks.append(clock("battery:good", self.battery_good, now, BATTERY_SETTLE_NS))
         if self.battery_renamed is not None:
             clocks.append(clock("battery:renamed", self.battery_renamed, now, BATTERY_SETTLE_NS))
+        if config.fleet.console_required and self.fleet_keepalive is not None:  # SR-8.21
+            clocks.append(
+                clock("fleet", self.fleet_keepalive, now, config.fleet.console_timeout_ns)
+            )
         delays = _delays(config)
         if delays:  # SR-1.4 (no clock without a category-1 output: the other models' keys)
             for name, at in (("motion_off", self.motion_off), ("braking", self.braking)):
@@ -177,6 +184,7 @@ class Ghost:
             battery_low,
             self.battery_held,
             self.battery_reason,
+            self.fleet_keepalive is None,
             tuple(clocks),
         )
 
@@ -412,6 +420,12 @@ def _prooftest(ghost: Ghost, seen: _Seen) -> Ghost:
     return ghost if seen.refused else replace(ghost, proven=False)
 
 
+def _fleet_keepalive(ghost: Ghost, seen: _Seen) -> Ghost:
+    """SR-8.21: a keepalive the core took (from the agent's user) restarts the console's
+    deadline; one it refused does not."""
+    return ghost if seen.refused else replace(ghost, fleet_keepalive=seen.now)
+
+
 _TAKE_IN: dict[type, Callable[[Ghost, _Seen], Ghost]] = {
     LinkOpened: _link_opened,
     LinkClosed: _link_down,
@@ -427,6 +441,7 @@ _TAKE_IN: dict[type, Callable[[Ghost, _Seen], Ghost]] = {
     LocalEstop: _local_estop,
     LocalRelease: _local_release,
     ProofTestRequest: _prooftest,
+    FleetKeepalive: _fleet_keepalive,
 }
 """How each input changes what the checker has seen; inputs not listed change nothing."""
 
@@ -776,6 +791,39 @@ class Property:
         return self.text.split(": ", 1)[0]
 
 
+_RANK = {State.STOPPED: 0, State.HOLD: 1, State.RUN: 2}
+FLEET_EVENTS = (FleetStop, FleetRelease, FleetKeepalive)
+
+
+def _p24(step: Step) -> Iterator[str]:
+    if not isinstance(step.event, FLEET_EVENTS):
+        return
+    name = type(step.event).__name__
+    for output, on in step.after.outputs.items():
+        if on and not step.before.outputs.get(output, False):
+            yield f"{name} turned {output} on"
+    if step.after.rearm is not None:
+        yield f"{name} re-armed: {step.after.rearm}"
+    if _RANK[step.state] > _RANK[step.before.state]:
+        yield f"{name} moved {step.before.state.name} to {step.state.name}"
+
+
+def _p25(step: Step) -> Iterator[str]:
+    fleet = step.config.fleet
+    if not fleet.console_required:
+        return
+    cause = "fleet_console_lost"
+
+    def lost(ghost: Ghost) -> bool:
+        last = ghost.fleet_keepalive
+        return last is None or step.now - last >= fleet.console_timeout_ns
+
+    if lost(step.was) and (cause not in step.present or not step.stopped):
+        yield f"console lost, {step.state.name} with {sorted(step.present)}"
+    if (cause in step.active) is not lost(step.seen):
+        yield f"console lost: {lost(step.seen)}, active {sorted(step.active)}"
+
+
 PROPERTIES = {
     "P1": Property(
         "SR-1.1, SR-1.2, SR-1.4: a motion output is on exactly in RUN, a power output in HOLD "
@@ -886,6 +934,17 @@ PROPERTIES = {
         "the outputs the full step switches off at once: no more (a category-1 output within "
         "its delay stays on), no fewer",
         _p23,
+    ),
+    "P24": Property(
+        "SR-8.19: no fleet input (a stop, a release or a keepalive, from the agent or anyone "
+        "else) turns an output on, re-arms, or moves the state towards RUN",
+        _p24,
+    ),
+    "P25": Property(
+        "SR-8.21: with the console required, no keepalive from the agent for "
+        "console_timeout_ms (or none since the start) is fleet_console_lost and STOPPED at the "
+        "deadline, never later; a keepalive in time is not",
+        _p25,
     ),
 }
 """Every property, by ID (docs/verification.md "Properties")."""

@@ -100,6 +100,7 @@ from supervisord.api.requests import (
     ApiRequest,
     Command,
     Estop,
+    FleetStopRequest,
     Heartbeat,
     Hello,
     Status,
@@ -147,9 +148,10 @@ ROBOT_REQUESTS: Final = (Heartbeat, Command)
 belong on the client socket, where ``api.max_clients`` counts them."""
 SLOT_REQUESTS: Final = (Estop, Status)
 """What an e-stop slot serves: the operator's stop and a look at the state (docs/api.md)."""
-NAMELESS_REQUESTS: Final = (Estop, Status)
+NAMELESS_REQUESTS: Final = (Estop, Status, FleetStopRequest)
 """What a connection is served while its user's name is being looked up (SR-10.3): what
-needs no name. Its other requests wait, in order, until the name is known."""
+needs no name (a fleet stop is judged by the peer's uid, SR-8.19, and must not wait). Its
+other requests wait, in order, until the name is known."""
 MAX_DEFERRED: Final = 64
 """Requests read and kept waiting for a name, per connection; past it the rest stay in the
 socket (read once the name is known)."""

@@ -50,6 +50,7 @@ SECTION_NAMES: Final = (
     "api",
     "maintenance",
     "realtime",
+    "fleet",
 )
 """The file's sections, in the schema's order: any other is a mistake."""
 API_KEY_NAMES: Final = (

@@ -27,6 +27,7 @@ from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
 from supervisord.api.requests import (
     Command,
     Commission,
+    FleetStopRequest,
     Heartbeat,
     Status,
     StopTest,
@@ -46,7 +47,9 @@ from supervisord.api.views import (
 )
 from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
-from supervisord.daemon.listener import Asks, Listener, Look, Send, Snapshot
+from supervisord.daemon.fleet_ack import FleetAcks
+from supervisord.daemon.listener import Asks, CheckOff, Listener, Look, Send, Snapshot
+from supervisord.daemon.offcheck import OffCheck
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
@@ -93,6 +96,7 @@ class ApiListener(Listener):
         self._state_since: int | None = None
         self.last: Decision | None = None
         self._commissioning: tuple[Commissioning, Received] | None = None
+        self._fleet = FleetAcks(lambda: self.last)  # SR-8.20
 
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
         return self.server.descriptors(now)
@@ -144,6 +148,15 @@ class ApiListener(Listener):
         )
         if refusal is not None:
             self.server.reply_error(result, refusal_error(request, refusal))
+        elif isinstance(request, FleetStopRequest) and isinstance(decision, Decision):
+            # SR-8.20: the acknowledgement is sent after the stop is applied (the loop set the
+            # outputs when it answered the event), with what they read back now.
+            ack = self._fleet.repeated(request)
+            if ack is None:
+                check = yield CheckOff(now)
+                assert isinstance(check, OffCheck)
+                ack = self._fleet.acknowledge(request, decision, now, check)
+            self.server.reply(result, ack)
         else:
             if isinstance(request, Heartbeat):
                 self._beats[result.client.connection] = now

@@ -15,6 +15,7 @@ from collections.abc import Generator, Iterable
 from dataclasses import dataclass
 
 from supervisord.api.status import LoopStatus
+from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message
@@ -50,12 +51,22 @@ class Send:
     now: int
 
 
-Ask = Event | Look | Send
+@dataclass(frozen=True, slots=True)
+class CheckOff:
+    """The listener asks the loop to write every output that is off off again and read it
+    back, at ``now`` (a fleet stop's acknowledgement, SR-8.20): answered with an
+    :class:`~supervisord.daemon.offcheck.OffCheck`."""
+
+    now: int
+
+
+Ask = Event | Look | CheckOff | Send
 """What a listener asks of the loop: an event is fed to the core and applied at once
 (outputs, frames, records, pushes: SR-6), and answered with its decision."""
 
-Answer = Decision | Snapshot | None
-"""The loop's answer to an :data:`Ask`: the event's decision, the snapshot, ``None``."""
+Answer = Decision | Snapshot | OffCheck | None
+"""The loop's answer to an :data:`Ask`: the event's decision, the snapshot, the off check,
+``None``."""
 
 Asks = Generator[Ask, Answer, None]
 """A listener's work that needs the loop: the loop takes each ask in turn and sends back its

@@ -49,9 +49,10 @@ from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.link_port import LinkPort
-from supervisord.daemon.listener import Answer, Asks, Listener, Look, Send, Snapshot
+from supervisord.daemon.listener import Answer, Asks, CheckOff, Listener, Look, Send, Snapshot
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.offcheck import OffCheck, check_off
 from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.record_path import RecordPath
 from supervisord.daemon.service_manager import ServiceManager
@@ -491,7 +492,8 @@ class Supervisor:
 
     def _serve_listener(self, work: Asks | None) -> None:
         """Answer what the listener asks, in its order: an event fed and applied at once (its
-        decision the answer: SR-6), a look at the loop, frames sent to the VSC."""
+        decision the answer: SR-6), a look at the loop, the outputs' off checked, frames sent to
+        the VSC."""
         if work is None:
             return
         answer: Answer = None
@@ -502,12 +504,22 @@ class Supervisor:
                 return
             if isinstance(asked, Look):
                 answer = Snapshot(self.snapshot(asked.now), self.stop_times)
+            elif isinstance(asked, CheckOff):
+                answer = self._check_off()
             elif isinstance(asked, Send):
                 answer = None
                 self._send(asked.frames, asked.now)
             else:
                 answer = self._feed(asked)
                 self._apply(answer)
+
+    def _check_off(self) -> OffCheck:
+        """SR-8.20: every output off written off again and read back, for a fleet stop's
+        acknowledgement; a read-back that disagrees goes to the core as any (SR-6)."""
+        checked = check_off(self.outputs, self.clock, self.sequence_offset)
+        for readback in checked.faults:
+            self._apply(self._feed(readback_event(readback, checked.checked_ns)))
+        return checked
 
     def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).

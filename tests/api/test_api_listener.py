@@ -13,7 +13,8 @@ from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
 from supervisord.api.status import LoopStatus
 from supervisord.daemon.api_listener import ApiListener
-from supervisord.daemon.listener import Answer, Asks, Look, Send, Snapshot
+from supervisord.daemon.listener import Answer, Asks, CheckOff, Look, Send, Snapshot
+from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.protocol.messages import Joystick
 from supervisord.safety.config import ClientSpec, SafetyConfig
@@ -60,6 +61,8 @@ class Judged(Loop):
                 return
             if isinstance(asked, Look):
                 answer = Snapshot(self.snapshot(asked.now), self.stop_times)
+            elif isinstance(asked, CheckOff):
+                answer = OffCheck((), asked.now, 0)  # no outputs behind
             elif isinstance(asked, Send):
                 answer = None  # no VSC behind
             else:

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from supervisord.api.names import NAME_WAIT_NS, UserNames
-from supervisord.api.requests import Estop, Heartbeat, Hello
+from supervisord.api.requests import Estop, FleetStopRequest, Heartbeat, Hello
 from supervisord.api.server import Received, ServerConfig
 from supervisord.testkit.wait import wait_until
 from tests.api.test_api_server import Loop, Peer
@@ -134,5 +134,29 @@ def test_a_connection_waiting_for_its_name_is_served_estop_and_the_rest_in_order
         held.released.set()
         loop.until(lambda: loop.server.clients()[0].caller.name == f"user{uid}")
     finally:
+        peer.close()
+        loop.close()
+
+
+def test_a_fleet_stop_is_served_while_the_name_is_looked_up(
+    tmp_path: Path, held: HeldLookup
+) -> None:
+    """SR-10.3, SR-8.19: a ``fleet_stop`` is judged by the peer's uid alone, so, as an
+    ``estop``, it is served at once while the lookup of the caller's name hangs; a
+    ``fleet_release`` behind it waits for the name."""
+    clock = ManualClock()
+    loop = Loop(ServerConfig(tmp_path / "api.sock"), clock=clock, names=UserNames(held))
+    peer = Peer(tmp_path / "api.sock")
+    try:
+        peer.send(
+            b'{"op":"fleet_stop","stop_id":"s-1","sender":"c"}\n'
+            b'{"op":"fleet_release","stop_id":"s-1","sender":"c"}\n'
+        )
+        loop.until(lambda: bool(loop.of_type(Received)))
+        for _ in range(5):
+            loop.turn()
+        assert [r.request for r in loop.of_type(Received)] == [FleetStopRequest("s-1", "c")]
+    finally:
+        held.released.set()
         peer.close()
         loop.close()

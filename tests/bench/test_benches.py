@@ -15,6 +15,7 @@ import pytest
 from bench import (
     client_input,
     core_input_cost,
+    fleet_ack,
     heartbeat_jitter,
     idle_cost,
     input_instructions,
@@ -41,6 +42,15 @@ def test_percentile_is_a_nearest_rank_measured_value() -> None:
     assert percentile(values, 0.99) == 99
     assert percentile(values, 1.0) == 100
     assert percentile([7], 0.99) == 7
+
+
+def test_fleet_ack_measures_every_stop(tmp_path: Path) -> None:
+    """SR-8.20: every fleet stop asked for is acknowledged with the outputs read back off and
+    measured: a time from arrival to off within the agent's own round trip."""
+    measured = fleet_ack.run(tmp_path, stops=2)
+    assert len(measured) == 2
+    for arrival, trip in measured:
+        assert 0 < arrival < trip
 
 
 def test_stop_latency_measures_every_stop_of_both_kinds(tmp_path: Path) -> None:

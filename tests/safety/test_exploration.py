@@ -1,10 +1,10 @@
 """The exhaustive exploration of the real safety core, bounded to run with every test run, and
 the faults it must catch (docs/verification.md; ``./dev verify`` runs it without the bound).
 
-Every step of the exploration is checked against the properties P1-P23 of
+Every step of the exploration is checked against the properties P1-P25 of
 ``verify/properties.py``, which prove SR-1.1 to SR-1.4, SR-2, SR-3.1, SR-4, SR-5.1 to SR-5.3,
-SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-9.5 and SR-10.1 over every input
-sequence the bound allows (the battery models completely).
+SR-5.6, SR-5.7, SR-7.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-8.19, SR-8.21, SR-9.5 and SR-10.1
+over every input sequence the bound allows (the battery models completely).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from verify import model
 from verify.broken import FAULTS, Fault, broken_core
 from verify.clone import clone
 from verify.explore import explore, regression_test
+from verify.properties import check_trace
 
 BOUNDS = model.BOUNDED
 
@@ -31,9 +32,9 @@ took 86 s on a two-core machine at load 9); the suite's 120 s guard against a ha
 def test_the_bounded_exploration_breaks_no_property(name: str) -> None:
     """SR-1.1, SR-1.2, SR-1.3, SR-1.4, SR-2.1, SR-2.2, SR-2.3, SR-2.4, SR-2.5, SR-2.6, SR-2.9,
     SR-2.11, SR-3.1, SR-4.1, SR-4.2, SR-4.3, SR-4.5, SR-4.6, SR-5.1, SR-5.2, SR-5.3, SR-5.6,
-    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-9.5, SR-10.1: every input
-    sequence of the model, each input now and at every boundary a clock can see, up to the
-    bound, keeps every property in every step."""
+    SR-5.7, SR-7.1, SR-8.1, SR-8.7, SR-8.12, SR-8.15, SR-8.16, SR-8.19, SR-8.21, SR-9.5,
+    SR-10.1: every input sequence of the model, each input now and at every boundary a clock
+    can see, up to the bound, keeps every property in every step."""
     result = explore(model.MODELS[name], max_depth=BOUNDS[name])
     shown = [f"{c.pid}: {c.what}\n{regression_test(c, name)}" for c in result.counterexamples]
     assert shown == []
@@ -54,6 +55,19 @@ def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
     property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
+
+
+@pytest.mark.timeout(COMPUTE_TIMEOUT_S)
+def test_p24_names_a_fleet_input_that_re_arms() -> None:
+    """SR-8.19: a core whose fleet release asks a local reset breaks P24 (no fleet input
+    re-arms or moves towards RUN), not only P2, which is checked before it and ends the run
+    above: the shortest sequence the exploration found breaks both in its last step."""
+    (fault,) = [f for f in FAULTS if f.name.startswith("a fleet release re-arms")]
+    core_class = broken_core(fault)
+    result = explore(model.MODELS[fault.model], core_class=core_class, max_depth=12)
+    (example,) = result.counterexamples
+    found = {pid for pid, _ in check_trace(core_class, fault.model, example.events)}
+    assert {"P2", "P24"} <= found
 
 
 def test_a_counterexample_is_a_regression_test_that_fails_until_the_core_is_fixed() -> None:
