@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import queue
 import ssl
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +62,8 @@ class Connection:
     ) -> None:
         self.incoming: queue.Queue[Incoming] = queue.Queue(maxsize=10_000)
         self.connected = False
+        self.subscribed = threading.Event()
+        """Set once the broker granted this connection's subscriptions (or it has none)."""
         self.last_error = "not connected yet"
         self._topics = topics
         self._announce = on_connect_publish or []
@@ -83,6 +86,7 @@ class Connection:
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
+        client.on_subscribe = self._on_subscribe
         self.client = client
 
     def start(self, host: str, port: int, keepalive: int = 5) -> None:
@@ -115,6 +119,8 @@ class Connection:
         self.last_error = ""
         if self._topics:
             client.subscribe([(t, 1) for t in self._topics])
+        else:
+            self.subscribed.set()
         for topic, payload in self._announce:
             client.publish(topic, payload, qos=1, retain=True)
 
@@ -127,7 +133,20 @@ class Connection:
         properties: Properties | None,
     ) -> None:
         self.connected = False
+        self.subscribed.clear()
         self.last_error = f"disconnected: {reason}"
+
+    def _on_subscribe(
+        self,
+        client: mqtt.Client,
+        userdata: object,
+        mid: int,
+        reasons: list[ReasonCode],
+        properties: Properties | None,
+    ) -> None:
+        # MQTT 3.1.1's SUBACK grants or refuses each topic (0x80); mosquitto grants a topic
+        # its ACL denies and then delivers nothing on it (SR-13.13: the ACL is the rule).
+        self.subscribed.set()
 
     def _on_message(self, client: mqtt.Client, userdata: object, msg: mqtt.MQTTMessage) -> None:
         item = Incoming(msg.topic, bytes(msg.payload), bool(msg.retain), time.monotonic())
