@@ -63,6 +63,8 @@ class CauseKind(_Word):
     INTERNAL = "internal"
     SHUTDOWN = "shutdown"  # SR-7.14: the daemon exits (``shutdown:SIGTERM``)
     ESTOP_UNAVAILABLE = "estop_unavailable"  # SR-8.12, vsc.on_estop_unavailable = "stop"
+    FLEET_STOP = "fleet_stop"  # SR-8.19: a fleet console's stop, named by its sender
+    FLEET_CONSOLE_LOST = "fleet_console_lost"  # SR-8.21: a required console's keepalive lost
     VSC_MODE = "vsc_mode"  # SR-3 hold
     CLIENT_HOLD = "client_hold"  # SR-3 hold
     ESTOP_UNAVAILABLE_HOLD = "estop_unavailable_hold"  # SR-8.12, on_estop_unavailable = "hold"
@@ -103,6 +105,7 @@ _SUBJECT_KINDS = frozenset(
     {
         CauseKind.CLIENT_LOST,
         CauseKind.CLIENT_ESTOP,
+        CauseKind.FLEET_STOP,
         CauseKind.OUTPUT_FAULT,
         CauseKind.VSC_MODE,
         CauseKind.CLIENT_HOLD,

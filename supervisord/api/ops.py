@@ -203,6 +203,35 @@ class StopTest(_Request):
     steps: tuple[tuple[str, int], ...]
 
 
+@dataclass(frozen=True, slots=True)
+class FleetStopRequest(_Request):
+    """A fleet console's stop, sent by the robot's fleet agent (SR-8.19): ``fleet_stop:SENDER``
+    until ``fleet_release``; the reply, sent once the outputs are set, says what they read
+    back (SR-8.20). Only from a user of ``[fleet] agent_users``."""
+
+    OP = "fleet_stop"
+    stop_id: str
+    sender: str
+
+
+@dataclass(frozen=True, slots=True)
+class FleetReleaseRequest(_Request):
+    """The console withdrew its stop ``stop_id`` (SR-8.19): the robot stays STOPPED until the
+    operator's takeover on the remote."""
+
+    OP = "fleet_release"
+    stop_id: str
+    sender: str
+
+
+@dataclass(frozen=True, slots=True)
+class FleetKeepaliveRequest(_Request):
+    """The fleet console is there (SR-8.21), for a robot that requires it."""
+
+    OP = "fleet_keepalive"
+    sender: str
+
+
 ApiRequest = (
     Hello
     | Heartbeat
@@ -221,6 +250,9 @@ ApiRequest = (
     | Commission
     | StartProofTest
     | StopTest
+    | FleetStopRequest
+    | FleetReleaseRequest
+    | FleetKeepaliveRequest
 )
 """Any request of the client API. Not :class:`supervisord.release.Request` (what a
 ``release`` ends; the safety core's ``supervisord.safety.events.Request``), which
@@ -264,6 +296,13 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["confirm"] = True
         case StopTest(steps=steps):
             obj["steps"] = [{"source": source, "seq": seq} for source, seq in steps]
+        case (
+            FleetStopRequest(stop_id=stop_id, sender=sender)
+            | FleetReleaseRequest(stop_id=stop_id, sender=sender)
+        ):
+            obj["stop_id"], obj["sender"] = stop_id, sender
+        case FleetKeepaliveRequest(sender=sender):
+            obj["sender"] = sender
     if request.id is not None:
         obj["id"] = request.id
     return obj

@@ -21,6 +21,7 @@ from supervisord.api.framing import ApiError
 from supervisord.api.ops import RequestId
 from supervisord.api.status import DaemonStatus, EstopAvailable, RearmStatus, StateReport
 from supervisord.record.stop import StopTestReport
+from supervisord.vocabulary import State
 from supervisord.wire import Fields, JsonDict, Wire, WireError, wire
 
 _ERROR_FIELDS = ("ok", "code", "error", "op", "id")
@@ -84,7 +85,37 @@ class StopTestReply(Wire):
     stoptest: StopTestReport
 
 
-Reply = OkReply | StatusReply | CommissionReply | StopTestReply
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FleetOutput(Wire):
+    """One output in a fleet stop's acknowledgement (SR-8.20): the ``level`` the supervisor
+    asks for and the ``readback`` the line gave when written again (``None``: not read, an
+    output not open, or a category-1 output still on while the drives brake, SR-1.4)."""
+
+    name: str
+    level: bool
+    readback: bool | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FleetStopReply(Wire):
+    """``fleet_stop``'s acknowledgement (SR-8.20), sent once the stop is applied: the state,
+    every output's level and read-back, the ``record_seq`` of the record that raised the stop
+    (``None``: it raised no new cause, the console's stop was already active), and
+    ``arrival_to_off_ms``, monotonic, from the request's arrival to the last read-back.
+    ``repeat``: the stop id was taken before; this is its first acknowledgement again."""
+
+    OP: ClassVar[str] = "fleet_stop"
+    WIRE_HEAD: ClassVar[JsonDict] = {"ok": True, "op": OP}
+    id: RequestId = _request_id()
+    stop_id: str
+    state: State = wire(by_name=True)
+    outputs: tuple[FleetOutput, ...]
+    record_seq: int | None
+    arrival_to_off_ms: float
+    repeat: bool = wire(absent=False, default=False)
+
+
+Reply = OkReply | StatusReply | CommissionReply | StopTestReply | FleetStopReply
 
 
 def read_reply(obj: object) -> Reply | ApiError:
@@ -101,8 +132,8 @@ def read_reply(obj: object) -> Reply | ApiError:
     return OkReply(op, _id(f))
 
 
-_REPLIES: dict[str, type[StatusReply | CommissionReply | StopTestReply]] = {
-    kind.OP: kind for kind in (StatusReply, CommissionReply, StopTestReply)
+_REPLIES: dict[str, type[StatusReply | CommissionReply | StopTestReply | FleetStopReply]] = {
+    kind.OP: kind for kind in (StatusReply, CommissionReply, StopTestReply, FleetStopReply)
 }
 
 
@@ -121,6 +152,8 @@ def read_error(f: Fields) -> ApiError:
 
 __all__ = [
     "CommissionReply",
+    "FleetOutput",
+    "FleetStopReply",
     "OkReply",
     "Reply",
     "RequestId",

@@ -30,6 +30,9 @@ from supervisord.api.ops import (
     DisplayRow,
     DisplayValue,
     Estop,
+    FleetKeepaliveRequest,
+    FleetReleaseRequest,
+    FleetStopRequest,
     Heartbeat,
     Hello,
     Hold,
@@ -50,6 +53,7 @@ from supervisord.protocol.messages import I32, NAME_TEXT_LENGTH, check_text
 from supervisord.protocol.text import clean, is_clean
 from supervisord.release import Request
 from supervisord.safety.config import NAME_PATTERN
+from supervisord.safety.fleet import FLEET_TEXT
 from supervisord.safety.progress import PROGRESS_MODULUS
 
 __all__ = [
@@ -64,6 +68,9 @@ __all__ = [
     "DisplayRow",
     "DisplayValue",
     "Estop",
+    "FleetKeepaliveRequest",
+    "FleetReleaseRequest",
+    "FleetStopRequest",
     "Heartbeat",
     "Hello",
     "Hold",
@@ -345,6 +352,25 @@ def _stoptest(f: _Fields) -> ApiRequest:
     return StopTest(tuple(parsed), id=f.id)
 
 
+def _fleet_text(f: _Fields, name: str) -> str:
+    value = f.get(name)
+    if not isinstance(value, str) or FLEET_TEXT.fullmatch(value) is None:
+        raise f.error(f"{name} must be 1-64 letters, digits, '_', '.', ':' or '-'")
+    return value
+
+
+def _fleet_stop(f: _Fields) -> ApiRequest:
+    return FleetStopRequest(_fleet_text(f, "stop_id"), _fleet_text(f, "sender"), id=f.id)
+
+
+def _fleet_release(f: _Fields) -> ApiRequest:
+    return FleetReleaseRequest(_fleet_text(f, "stop_id"), _fleet_text(f, "sender"), id=f.id)
+
+
+def _fleet_keepalive(f: _Fields) -> ApiRequest:
+    return FleetKeepaliveRequest(_fleet_text(f, "sender"), id=f.id)
+
+
 _PARSERS = {
     "hello": _hello,
     "heartbeat": _heartbeat,
@@ -360,6 +386,9 @@ _PARSERS = {
     "commission": _commission,
     "prooftest": _prooftest,
     "stoptest": _stoptest,
+    "fleet_stop": _fleet_stop,
+    "fleet_release": _fleet_release,
+    "fleet_keepalive": _fleet_keepalive,
 }
 OPS: Final = tuple(_PARSERS)
 """Every request op, in the order ``docs/api.md`` documents them."""

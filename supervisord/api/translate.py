@@ -17,6 +17,9 @@ from supervisord.api.requests import (
     DisplayRow,
     DisplayValue,
     Estop,
+    FleetKeepaliveRequest,
+    FleetReleaseRequest,
+    FleetStopRequest,
     Heartbeat,
     Hello,
     Hold,
@@ -40,6 +43,9 @@ from supervisord.safety.events import (
     ClientRelease,
     DisplayUpdate,
     Event,
+    FleetKeepalive,
+    FleetRelease,
+    FleetStop,
     LocalEstop,
     LocalRelease,
     ProofTestRequest,
@@ -77,7 +83,9 @@ class ClientInfo:
     name: str | None = None
 
 
-def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | None:
+def to_core_event(  # noqa: PLR0912 -- one case per request, flat as docs/api.md lists them
+    request: ApiRequest, client: ClientInfo, now: int
+) -> Event | None:
     """The safety-core event for a request from ``client`` received at ``now``, or ``None``
     for requests the daemon answers itself (``status``, ``subscribe``, ``commission``,
     ``stoptest``).
@@ -110,5 +118,12 @@ def to_core_event(request: ApiRequest, client: ClientInfo, now: int) -> Event | 
             return ResetRequest(now, client.caller)
         case StartProofTest():
             return ProofTestRequest(now, client.caller)
+        case FleetStopRequest(stop_id=stop_id, sender=sender):
+            # SR-8.19: the core judges who sent it (the caller's uid) and raises the stop.
+            return FleetStop(now, connection, client.caller, stop_id, sender)
+        case FleetReleaseRequest(stop_id=stop_id, sender=sender):
+            return FleetRelease(now, connection, client.caller, stop_id, sender)
+        case FleetKeepaliveRequest(sender=sender):
+            return FleetKeepalive(now, connection, client.caller, sender)
         case Status() | Subscribe() | Commission() | StopTest():
             return None

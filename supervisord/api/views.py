@@ -60,8 +60,9 @@ _HELLO_CODES: Final[Mapping[RefusalReason, ErrorCode]] = {
     RefusalReason.ALREADY_NAMED: ErrorCode.ALREADY_NAMED,
     RefusalReason.NAME_IN_USE: ErrorCode.NAME_IN_USE,
     RefusalReason.WRONG_USER: ErrorCode.NOT_ALLOWED,
+    RefusalReason.NOT_FLEET_AGENT: ErrorCode.NOT_ALLOWED,  # SR-8.19
 }
-"""The core's refusals of a ``hello`` that have codes of their own (docs/api.md "hello")."""
+"""The core's refusals that have codes of their own (docs/api.md "hello", "fleet_stop")."""
 
 
 def refusal_error(request: ApiRequest, refusal: Refusal) -> ApiError:

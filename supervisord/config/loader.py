@@ -66,6 +66,7 @@ from supervisord.config.schema import (
     ERROR_LIMIT,
     ERROR_PASSIVE,
     ERROR_WINDOW,
+    FLEET,
     HEARTBEAT_HZ,
     HIDRAW,
     MAINTENANCE,
@@ -96,6 +97,7 @@ from supervisord.safety.availability import Reaction
 from supervisord.safety.config import (
     VSC_TIMEOUT_MS,
     ClientSpec,
+    FleetSpec,
     OutputRole,
     SafetyConfig,
     Transport,
@@ -110,6 +112,10 @@ CLIENT_UID: Final = strict.named(CLIENTS, "uid", strict.Whole)
 CLIENT_PROGRESS: Final = strict.named(CLIENTS, "progress", strict.Flag)
 STOPTEST_INTERVAL: Final = strict.named(MAINTENANCE, "stoptest_interval_days", strict.Whole)
 PROOFTEST_INTERVAL: Final = strict.named(MAINTENANCE, "prooftest_interval_days", strict.Whole)
+FLEET_AGENT_USER: Final = strict.named(FLEET, "agent_user", strict.Text)
+FLEET_AGENT_UID: Final = strict.named(FLEET, "agent_uid", strict.Whole)
+FLEET_CONSOLE_REQUIRED: Final = strict.named(FLEET, "console_required", strict.Flag)
+FLEET_CONSOLE_TIMEOUT: Final = strict.named(FLEET, "console_timeout_ms", strict.Whole)
 API_GROUP: Final = strict.named(API, "group", strict.Text)
 API_ADMIN_GROUP: Final = strict.named(API, "admin_group", strict.Text)
 API_MAX_CLIENTS: Final = strict.named(API, "max_clients", strict.Whole)
@@ -235,7 +241,8 @@ class _Loader:
         maintenance = _section(root, SECTION["maintenance"])
         intervals = (maintenance.whole(STOPTEST_INTERVAL), maintenance.whole(PROOFTEST_INTERVAL))
         output_bus = self.output_bus(root)
-        safety = self.safety(vsc, vsc_fields, rearm, clients, outputs)
+        fleet = self.fleet(_section(root, SECTION["fleet"]))
+        safety = self.safety(vsc, vsc_fields, rearm, clients, outputs, fleet)
         # The rules between entries and sections last, once every section's own keys have
         # been read: a clash between two outputs must not hide a wrong key after them
         # (SR-11.2). ``--check-config`` gets every broken rule, the daemon the first.
@@ -368,6 +375,34 @@ class _Loader:
             )
         return uid
 
+    # [fleet] ------------------------------------------------------------------------------
+
+    def fleet(self, fields: strict.Fields) -> FleetSpec:
+        """``[fleet]`` (SR-8.19 to SR-8.21): the agent's user, by name or number, and whether
+        the console is a required stop source. Its errors name the file's keys."""
+        user, uid = fields.read(FLEET_AGENT_USER), fields.read(FLEET_AGENT_UID)
+        if user is not None and uid is not None:
+            raise fields.refuse("agent_uid", uid, "give agent_user or agent_uid, not both")
+        if isinstance(user, str):
+            uid = self.user_uid(user)
+            if uid is None:
+                raise NotOnMachine(
+                    fields.key("agent_user"),
+                    user,
+                    f"no such user on this machine: create it (useradd --system {user}) or "
+                    "name the user the fleet agent runs as",
+                )
+        required = fields.flag(FLEET_CONSOLE_REQUIRED)
+        if required and uid is None:
+            raise fields.refuse(
+                "console_required",
+                True,
+                "name the fleet agent's user (agent_user): without it no keepalive can "
+                "arrive, and the robot would never leave STOPPED",
+            )
+        agents = frozenset[int]() if uid is None else frozenset({int(uid)})  # type: ignore[call-overload]
+        return FleetSpec(agents, required, fields.whole(FLEET_CONSOLE_TIMEOUT))
+
     # [[outputs]] --------------------------------------------------------------------------
 
     def outputs(self, root: strict.Fields) -> tuple[DeviceSpec, ...]:
@@ -411,13 +446,14 @@ class _Loader:
 
     # SafetyConfig -------------------------------------------------------------------------
 
-    def safety(
+    def safety(  # noqa: PLR0917 -- one argument per section the core's config is read from
         self,
         vsc: VscConfig,
         fields: strict.Fields,
         rearm: strict.Fields,
         clients: tuple[ClientSpec, ...],
         outputs: Sequence[DeviceSpec],
+        fleet: FleetSpec,
     ) -> SafetyConfig:
         hold, local_reset = (rearm.read(key) for key in SECTION["rearm"].keys)
         require_watchdog = fields.flag(REQUIRE_WATCHDOG)
@@ -439,6 +475,7 @@ class _Loader:
             on_estop_unavailable=Reaction(fields.read(ON_ESTOP_UNAVAILABLE)),
             clients=clients,
             outputs=tuple(outputs),
+            fleet=fleet,
         )
 
     @staticmethod

@@ -49,6 +49,7 @@ SECTION_NAMES: Final = (
     "record",
     "api",
     "maintenance",
+    "fleet",
 )
 """The file's sections, in the schema's order: any other is a mistake."""
 API_KEY_NAMES: Final = (

@@ -21,6 +21,7 @@ from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
 from supervisord.api.requests import (
     Command,
     Commission,
+    FleetStopRequest,
     Heartbeat,
     Status,
     StopTest,
@@ -40,6 +41,7 @@ from supervisord.api.views import (
 )
 from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
+from supervisord.daemon.fleet_ack import FleetAcks
 from supervisord.daemon.loop import Listener, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
@@ -87,6 +89,7 @@ class ApiListener(Listener):
         self._state_since: int | None = None
         self.last: Decision | None = None
         self._commissioning: tuple[Commissioning, Received] | None = None
+        self._fleet = FleetAcks(lambda: self.last)  # SR-8.20
 
     def descriptors(self, now: int) -> Iterable[tuple[int, bool]]:
         return self.server.descriptors(now)
@@ -144,6 +147,10 @@ class ApiListener(Listener):
         )
         if refusal is not None:
             self.server.reply_error(result, refusal_error(request, refusal))
+        elif isinstance(request, FleetStopRequest) and decision is not None:
+            # SR-8.20: the acknowledgement is sent after the stop is applied (``feed`` set
+            # the outputs), with what they read back now.
+            self.server.reply(result, self._fleet.acknowledge(request, decision, now, snapshot))
         else:
             if isinstance(request, Heartbeat):
                 self._beats[result.client.connection] = now

@@ -46,6 +46,7 @@ from supervisord.daemon.flight import FlightRecorder, FlightSettings
 from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
+from supervisord.daemon.offcheck import OffCheck, check_off
 from supervisord.daemon.reflex import EarlyOff
 from supervisord.daemon.service_manager import ServiceManager
 from supervisord.daemon.sink import IDLE_STATUS, Sink, Written
@@ -100,10 +101,13 @@ class Snapshot:
     """What the loop hands the listener with every call: ``status(now)``, the loop's own
     status at a time (:meth:`Supervisor.snapshot`, for a ``status`` reply), and
     ``stop_times``, the last stops' outputs' times to off, measured by the loop (for a
-    ``stoptest``, SR-12.1)."""
+    ``stoptest``, SR-12.1), and ``check_off()``, every output written off again and read
+    back now, for a fleet stop's acknowledgement (SR-8.20, ``offcheck.py``; ``None``: a loop
+    that has no outputs to check)."""
 
     status: Callable[[int], LoopStatus]
     stop_times: StopTimes
+    check_off: Callable[[], OffCheck] | None = None
 
 
 class Listener:
@@ -217,7 +221,8 @@ class Supervisor:
         self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
         self._early = EarlyOff(self.outputs, self.clock)  # the reflex's writes (SR-9.5)
-        self._snapshot = Snapshot(self.snapshot, self.stop_times)  # handed to the listener
+        # Handed to the listener.
+        self._snapshot = Snapshot(self.snapshot, self.stop_times, self._check_off)
         self._release = release or []
         # Sequence numbers continue the record across restarts (the core counts from 1).
         self.sequence_offset = 0
@@ -617,6 +622,14 @@ class Supervisor:
         if error is not None:
             name = type(error).__name__
             log.error("flight recorder: no snapshot of the core: %s: %s", name, error)
+
+    def _check_off(self) -> OffCheck:
+        """SR-8.20: every output off written off again and read back, for a fleet stop's
+        acknowledgement; a read-back that disagrees goes to the core as any (SR-6)."""
+        checked = check_off(self.outputs, self.clock, self.sequence_offset)
+        for readback in checked.faults:
+            self._apply(self._feed(self._readback_event(readback, checked.checked_ns)))
+        return checked
 
     def _feed_and_apply(self, event: Event) -> Decision:
         decision = self._feed(event)

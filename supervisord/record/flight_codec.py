@@ -25,6 +25,7 @@ from supervisord.record.format import TRIGGER_EVENTS
 from supervisord.safety.availability import DEFAULT_MIN_REMOTE_BATTERY, Reaction
 from supervisord.safety.config import (
     ClientSpec,
+    FleetSpec,
     OutputRole,
     OutputSpec,
     SafetyConfig,
@@ -194,6 +195,7 @@ STOPTEST = Kind(_stoptest_to_json, _stoptest_from_json)
 
 _CONNECTION = (("connection", INT),)
 _CALLER = (("caller", CALLER),)
+_FLEET = (("connection", INT), ("caller", OPTIONAL_CALLER))
 
 FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "tick": (),
@@ -220,6 +222,9 @@ FIELDS: Final[Mapping[str, tuple[tuple[str, Kind], ...]]] = {
     "commissioned": (("caller", CALLER), ("key85", OPTIONAL_INT), ("remote_status", FLAG)),
     "proof_test_request": _CALLER,
     "stop_tested": (("caller", CALLER), ("result", STOPTEST)),
+    "fleet_stop": (*_FLEET, ("stop_id", TEXT), ("sender", TEXT)),
+    "fleet_release": (*_FLEET, ("stop_id", TEXT), ("sender", TEXT)),
+    "fleet_keepalive": (*_FLEET, ("sender", TEXT)),
 }
 """Each input's fields by its name in the file (the field names are the file's keys too, so a
 field renamed in the code needs its old key here: ``tests/record/test_flight_codec.py``)."""
@@ -278,7 +283,25 @@ def config_to_json(config: SafetyConfig) -> JsonDict:
         "prooftest_clear_ms": config.prooftest_clear_ms,
         "min_remote_battery": config.min_remote_battery,
         "on_estop_unavailable": config.on_estop_unavailable.value,
+        "fleet": {
+            "agent_uids": sorted(config.fleet.agent_uids),
+            "console_required": config.fleet.console_required,
+            "console_timeout_ms": config.fleet.console_timeout_ms,
+        },
     }
+
+
+def _fleet_from_json(data: object) -> FleetSpec:
+    """``[fleet]`` as written (SR-8.19); a window written before it: the default, no fleet."""
+    if data is None:
+        return FleetSpec()
+    if not isinstance(data, dict) or not isinstance(data.get("agent_uids"), list):
+        raise FlightFormatError("the configuration's fleet is not a table")
+    return FleetSpec(
+        frozenset(_int(uid) for uid in data["agent_uids"]),
+        _flag(data.get("console_required")),
+        _int(data.get("console_timeout_ms")),
+    )
 
 
 def config_from_json(data: object) -> SafetyConfig:
@@ -315,6 +338,7 @@ def config_from_json(data: object) -> SafetyConfig:
             # A window written before SR-8.12: the defaults it ran with.
             min_remote_battery=_int(data.get("min_remote_battery", DEFAULT_MIN_REMOTE_BATTERY)),
             on_estop_unavailable=Reaction(data.get("on_estop_unavailable", Reaction.WARN.value)),
+            fleet=_fleet_from_json(data.get("fleet")),
         )
     except (AttributeError, ValueError) as error:  # ConfigError is a ValueError too
         raise FlightFormatError(f"not a configuration: {error}") from error

@@ -52,6 +52,9 @@ from supervisord.safety.events import (
     ClientRelease,
     Commissioned,
     DisplayUpdate,
+    FleetKeepalive,
+    FleetRelease,
+    FleetStop,
     InternalFault,
     LinkBroken,
     LinkClosed,
@@ -221,6 +224,9 @@ TRIGGER_EVENTS: Final[Mapping[type, str]] = {
     Commissioned: "commissioned",
     ProofTestRequest: "proof_test_request",
     StopTested: "stop_tested",
+    FleetStop: "fleet_stop",
+    FleetRelease: "fleet_release",
+    FleetKeepalive: "fleet_keepalive",
 }
 """A trigger's ``event`` name in the record, per core event type. Written out, not derived
 from the class name, so that renaming a class in the code cannot change the record's format

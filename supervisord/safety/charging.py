@@ -24,6 +24,9 @@ from supervisord.safety.events import (
     ClientRelease,
     Commissioned,
     Event,
+    FleetKeepalive,
+    FleetRelease,
+    FleetStop,
     LocalEstop,
     LocalRelease,
     ProofTestRequest,
@@ -47,9 +50,12 @@ CLIENT_EVENTS: Final = (
     ProofTestRequest,
     Commissioned,
     StopTested,
+    FleetStop,
+    FleetRelease,
+    FleetKeepalive,
 )
 """Inputs from the client socket: the records they cause are charged to their user (SR-8.5)."""
-LIMITED_EVENTS: Final = (ClientRelease, LocalRelease, ResetRequest, ClientHello)
+LIMITED_EVENTS: Final = (ClientRelease, LocalRelease, ResetRequest, ClientHello, FleetRelease)
 """Past its user's budget these are refused (``RATE_LIMITED``): each can take a reason to stop
 away (a release, a re-arm, a hello that ends a required client's loss or names a new
 requester); refusing them leaves the robot held or stopped, the safe side (SR-8.5)."""

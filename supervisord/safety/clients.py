@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from supervisord.safety.budget import RecordBudget, Uid
 from supervisord.safety.canonical import Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
-from supervisord.safety.config import NAME_PATTERN, ClientSpec
+from supervisord.safety.config import NAME_PATTERN, ClientSpec, FleetSpec
 from supervisord.safety.decision import Refusal, RefusalReason
 from supervisord.safety.events import (
     Caller,
@@ -31,6 +31,7 @@ from supervisord.safety.events import (
     Event,
     Request,
 )
+from supervisord.safety.fleet import Fleet
 from supervisord.safety.progress import ProgressBook
 
 
@@ -47,7 +48,10 @@ class _Unnamed:
 class Clients:
     """The connected clients, the required ones' liveness and every client's requests."""
 
-    def __init__(self, specs: tuple[ClientSpec, ...]) -> None:
+    def __init__(self, specs: tuple[ClientSpec, ...], fleet: FleetSpec | None = None) -> None:
+        # The fleet's agent is a client too (SR-8.19 to SR-8.21): its stops and its console's
+        # keepalive, whose deadline is one of the clients' (``expired``, ``next_deadline``).
+        self.fleet = Fleet(fleet or FleetSpec())
         self._required = {c.name: c for c in specs}
         self._timeout_ns = {c.name: c.timeout_ns for c in specs}  # read for every input
         self._connections: dict[int, str | None] = {}
@@ -260,7 +264,7 @@ class Clients:
         for name, beat in self._beat_ns.items():
             if beat is not None and now - beat >= timeouts[name]:
                 return True
-        return False
+        return self.fleet.expired(now)  # SR-8.21: the console's keepalive
 
     def pending(self) -> bool:
         """Whether a request before hello waits for its user's budget to end (SR-8.5)."""
@@ -280,15 +284,22 @@ class Clients:
                 due = beat + timeouts[name]
                 if now < due and (earliest is None or due < earliest):
                     earliest = due
+        console = self.fleet.next_deadline(now)  # SR-8.21
+        if console is not None and (earliest is None or console < earliest):
+            earliest = console
         return earliest
 
     def canonical(self, now: int) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts (as ``(name, value)`` pairs) and clocks of the clients: each required
         client's heartbeat as its age, with its timeout (docs/verification.md)."""
-        clocks = tuple(
-            clock(f"client:{name}", beat, now, self._timeout_ns[name])
-            for name, beat in sorted(self._beat_ns.items())
-            if beat is not None
+        fleet_facts, fleet_clocks = self.fleet.canonical(now)
+        clocks = (
+            tuple(
+                clock(f"client:{name}", beat, now, self._timeout_ns[name])
+                for name, beat in sorted(self._beat_ns.items())
+                if beat is not None
+            )
+            + fleet_clocks
         )
         facts = (
             ("connections", tuple(sorted(self._connections.items()))),
@@ -309,6 +320,7 @@ class Clients:
                     )
                 ),
             ),
+            *fleet_facts,
         )
         return facts, clocks
 

@@ -26,6 +26,7 @@ from supervisord.safety.vsc import VscLink
 
 VSC_WATCHDOG_UNTESTED: Final = Cause(CauseKind.VSC_WATCHDOG_UNTESTED)
 LOCAL_ESTOP: Final = Cause(CauseKind.LOCAL_ESTOP)
+FLEET_CONSOLE_LOST: Final = Cause(CauseKind.FLEET_CONSOLE_LOST)
 
 
 def refresh(
@@ -54,6 +55,9 @@ def refresh(
     book.sync(CauseKind.OUTPUT_FAULT, outputs.faults(), now)
     book.sync(CauseKind.VSC_MODE, vsc.mode_hold(), now)
     book.sync(CauseKind.CLIENT_HOLD, clients.holds(), now)
+    book.sync(CauseKind.FLEET_STOP, clients.fleet.stops(), now)  # SR-8.19
+    lost = clients.fleet.console_lost(now)  # SR-8.21
+    book.set(FLEET_CONSOLE_LOST, lost is not None, now, lost or ())
     if battery.cause is not None:  # SR-8.12: when watched
         words = battery.judge(now, arriving=step.arriving, taken_in=step.taken_in)
         details = make_details([("reason", words)]) if words is not None else ()

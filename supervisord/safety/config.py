@@ -71,6 +71,8 @@ DEFAULT_PROOFTEST_CLEAR_MS = 10_000  # docs/safety.md "The proof test": a held b
 DEFAULT_CLIENT_TIMEOUT_MS = 500  # SR-8
 DEFAULT_REARM_HOLD_MS: Final = 500  # rearm.hold_ms (SR-4.1)
 UID_RANGE = (0, (1 << 32) - 2)  # (uid_t) -1 means "no user" to the kernel
+CONSOLE_TIMEOUT_RANGE_MS = (200, 60_000)  # SR-8.21: a fleet console's keepalive deadline
+DEFAULT_CONSOLE_TIMEOUT_MS = 3_000  # SR-8.21: a third of it is the console's keepalive period
 
 VSC_TIMEOUT_MS: Final = strict.Whole(
     name="timeout_ms",
@@ -125,6 +127,44 @@ class ClientSpec:
     @property
     def timeout_ns(self) -> int:
         return self.timeout_ms * NS_PER_MS
+
+
+@dataclass(frozen=True, slots=True)
+class FleetSpec:
+    """The fleet's per-robot agent and console (SR-8.19 to SR-8.21; docs/safety.md "The fleet
+    stop"). ``agent_uids``: the only users whose connections may send ``fleet_stop``,
+    ``fleet_release`` and ``fleet_keepalive`` (the file names one, ``agent_user`` or
+    ``agent_uid``; empty, the default: nobody, the fleet ops are refused).
+    ``console_required``: the console is a required stop source; no keepalive for
+    ``console_timeout_ms`` raises ``fleet_console_lost``, a stop."""
+
+    agent_uids: frozenset[int] = frozenset()
+    console_required: bool = False
+    console_timeout_ms: int = DEFAULT_CONSOLE_TIMEOUT_MS
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.agent_uids, frozenset):
+            raise ConfigError("fleet.agent_uid", self.agent_uids, "give the agent's user")
+        for uid in self.agent_uids:
+            strict.whole("fleet.agent_uid", uid, *UID_RANGE, ConfigError)
+        strict.flag("fleet.console_required", self.console_required, ConfigError)
+        strict.whole(
+            "fleet.console_timeout_ms",
+            self.console_timeout_ms,
+            *CONSOLE_TIMEOUT_RANGE_MS,
+            ConfigError,
+        )
+        if self.console_required and not self.agent_uids:
+            raise ConfigError(
+                "fleet.console_required",
+                True,
+                "name the agent's user in fleet.agent_user: without one no keepalive can "
+                "arrive, and the robot would never leave STOPPED",
+            )
+
+    @property
+    def console_timeout_ns(self) -> int:
+        return self.console_timeout_ms * NS_PER_MS
 
 
 @dataclass(frozen=True)
@@ -194,6 +234,7 @@ class SafetyConfig:
     prooftest_clear_ms: int = DEFAULT_PROOFTEST_CLEAR_MS
     min_remote_battery: int = DEFAULT_MIN_REMOTE_BATTERY
     on_estop_unavailable: Reaction = Reaction.WARN
+    fleet: FleetSpec = FleetSpec()
 
     def __post_init__(self) -> None:
         if not isinstance(self.transport, Transport):
@@ -246,6 +287,8 @@ class SafetyConfig:
             isinstance(o, OutputSpec) for o in self.outputs
         ):
             raise ConfigError("outputs", self.outputs, "give a list of output tables")
+        if not isinstance(self.fleet, FleetSpec):
+            raise ConfigError("fleet", self.fleet, "give a [fleet] table")
         _unique("clients.name", [c.name for c in self.clients])
         _unique("outputs.name", [o.name for o in self.outputs])
 

@@ -72,6 +72,9 @@ from supervisord.safety.events import (
     Commissioned,
     DisplayUpdate,
     Event,
+    FleetKeepalive,
+    FleetRelease,
+    FleetStop,
     InternalFault,
     LinkBroken,
     LinkClosed,
@@ -123,7 +126,7 @@ class SafetyCore:
             config.prooftest if self._serial else ProofTestPolicy.OFF,
             config.prooftest_clear_ns,
         )
-        self._clients = Clients(config.clients)  # SR-8
+        self._clients = Clients(config.clients, config.fleet)  # SR-8, the fleet SR-8.19
         self._local_estop: Caller | None = None
         self._display = DisplayStore()
         self._budget = RecordBudget()  # records per user (SR-8.5)
@@ -549,6 +552,17 @@ class SafetyCore:
     def _on_disconnected(self, event: ClientDisconnected, step: Step) -> None:
         step.refuse_if(self._clients.disconnected(event, step.limited))
 
+    def _on_fleet_stop(self, event: FleetStop, step: Step) -> None:
+        # SR-8.19: it can only add a reason to stop; it asks for no re-arm.
+        step.refuse_if(self._clients.fleet.stop(event))
+
+    def _on_fleet_release(self, event: FleetRelease, step: Step) -> None:
+        # SR-8.19: ends the condition only; the stop stays latched until the takeover (SR-4).
+        step.refuse_if(self._clients.fleet.release(event))
+
+    def _on_fleet_keepalive(self, event: FleetKeepalive, step: Step) -> None:
+        step.refuse_if(self._clients.fleet.keepalive(event, step.now))  # SR-8.21
+
     def _on_readback(self, event: OutputReadback, step: Step) -> None:
         refusal = self._outputs.readback(event)
         if refusal is not None:
@@ -587,6 +601,9 @@ _HANDLERS: Final[Mapping[type, _Handler]] = MappingProxyType(
         DisplayUpdate: SafetyCore._on_display,
         ProofTestRequest: SafetyCore._on_prooftest,
         StopTested: SafetyCore._on_stoptested,
+        FleetStop: SafetyCore._on_fleet_stop,
+        FleetRelease: SafetyCore._on_fleet_release,
+        FleetKeepalive: SafetyCore._on_fleet_keepalive,
     }
 )
 """Step 2's dispatch: each event type to the handler that applies it to the facts. Every type

@@ -80,6 +80,9 @@ class RefusalReason(enum.Enum):
     PROOFTEST_NOT_STOPPED = "the proof test runs only while STOPPED, never in RUN or HOLD"
     PROOFTEST_RUNNING = "a proof test is already running"
     INTERNAL_ERROR = "the core failed on this input and stopped"
+    # The fleet's ops (SR-8.19).
+    NOT_FLEET_AGENT = "only the fleet agent's user ([fleet] agent_user) may send fleet ops"
+    BAD_FLEET_TEXT = "a stop id and a sender are 1-64 letters, digits, '_', '.', ':' or '-'"
 
 
 @dataclass(frozen=True, slots=True)

@@ -236,6 +236,40 @@ class StopTested(_Event):
     result: StopTestResult
 
 
+@dataclass(frozen=True, slots=True)
+class FleetStop(_Event):
+    """A fleet console's stop, carried by the robot's fleet agent (SR-8.19): raises
+    ``fleet_stop:SENDER``, a latched stop, until the agent sends its release. ``caller`` is
+    who is at the other end of the connection (only the config's agent users are heard);
+    ``stop_id`` names the console's stop: a repeat of one already taken changes nothing."""
+
+    connection: int
+    caller: Caller | None
+    stop_id: str
+    sender: str
+
+
+@dataclass(frozen=True, slots=True)
+class FleetRelease(_Event):
+    """The console withdrew its stop ``stop_id`` (SR-8.19): the condition ends; the stop stays
+    latched until the operator's takeover on the remote, as every stop (SR-4)."""
+
+    connection: int
+    caller: Caller | None
+    stop_id: str
+    sender: str
+
+
+@dataclass(frozen=True, slots=True)
+class FleetKeepalive(_Event):
+    """The fleet console is there (SR-8.21): with ``[fleet] console_required``, its absence
+    for ``console_timeout_ms`` is ``fleet_console_lost``, a stop."""
+
+    connection: int
+    caller: Caller | None
+    sender: str
+
+
 Event = (
     Tick
     | VscReceived
@@ -260,6 +294,9 @@ Event = (
     | Commissioned
     | ProofTestRequest
     | StopTested
+    | FleetStop
+    | FleetRelease
+    | FleetKeepalive
 )
 
 EVENT_TYPES: tuple[type, ...] = get_args(Event)

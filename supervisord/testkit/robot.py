@@ -133,7 +133,8 @@ class Robot:
     ``record_max_bytes``: ``record.max_bytes``, which also bounds each flight window (SR-7.12).
     ``record_tmpfs_bytes``: put the record directory on
     a tmpfs of that size in a private mount namespace (the full-disk scenario; root only).
-    ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines."""
+    ``clock``: a ``FakeWallClock`` for the daemon. ``extra_vsc`` adds ``[vsc]`` lines,
+    ``extra_toml`` sections of its own after the others (e.g. ``[fleet]``)."""
 
     workdir: Path
     transport: Literal["serial", "can"] = "serial"
@@ -146,6 +147,7 @@ class Robot:
     clock: FakeWallClock | None = None
     local_reset: bool = False
     extra_vsc: str = ""
+    extra_toml: str = ""
     sim_args: Sequence[str] = ()
     boot_delay: float = 1.0
     seed: int = 0
@@ -231,6 +233,7 @@ class Robot:
         lines += ["[record]", f'path = "{self.record_dir / "stops.jsonl"}"']
         lines += [f"max_bytes = {self.record_max_bytes}", "keep = 2", "journal = false"]
         lines += ["[api]", f'socket = "{self.socket_path}"']
+        lines += [self.extra_toml] if self.extra_toml else []
         return "\n".join(lines) + "\n"
 
     def start(self) -> Robot:

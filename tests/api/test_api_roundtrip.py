@@ -39,6 +39,8 @@ from supervisord.api.pushes import (
 )
 from supervisord.api.replies import (
     CommissionReply,
+    FleetOutput,
+    FleetStopReply,
     OkReply,
     Reply,
     StatusReply,
@@ -267,6 +269,19 @@ REPLIES: st.SearchStrategy[Reply] = st.one_of(
     ),
     kw(CommissionReply, id=IDS, key85=st.none() | st.integers(0, 255), remote_status=st.booleans()),
     kw(StopTestReply, id=IDS, stoptest=STOPTESTS),
+    kw(
+        FleetStopReply,  # SR-8.20
+        id=IDS,
+        stop_id=NAMES,
+        state=st.sampled_from(State),
+        outputs=st.lists(
+            kw(FleetOutput, name=NAMES, level=st.booleans(), readback=st.none() | st.booleans()),
+            max_size=3,
+        ).map(tuple),
+        record_seq=st.none() | COUNTS,
+        arrival_to_off_ms=FLOATS,
+        repeat=st.booleans(),
+    ),
 )
 CALLERS = kw(Caller, uid=COUNTS, pid=COUNTS, name=TEXT, admin=st.booleans())
 RECORDS = kw(

@@ -83,6 +83,8 @@ VALUES: dict[str, st.SearchStrategy[Any]] = {
     "nonzero": st.booleans(),
     "result": stoptest_results,
     "progress": st.integers(0, 2**32 - 1),
+    "stop_id": words,  # SR-8.19
+    "sender": words,
 }
 """Values for each field of the events, by its name, from what the field holds (its type in
 the code), not from the encoding's kind: a field given the wrong kind fails to round-trip."""

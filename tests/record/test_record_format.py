@@ -52,6 +52,9 @@ TRIGGERS = {
     "commissioned": ("caller", "key85", "remote_status"),
     "proof_test_request": ("caller",),
     "stop_tested": ("caller", "result"),
+    "fleet_stop": ("connection", "caller", "stop_id", "sender"),  # SR-8.19
+    "fleet_release": ("connection", "caller", "stop_id", "sender"),
+    "fleet_keepalive": ("connection", "caller", "sender"),  # SR-8.21
 }
 """Every trigger's ``event`` name and its fields, as records written so far carry them."""
 

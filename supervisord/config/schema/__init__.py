@@ -40,7 +40,9 @@ from supervisord.safety.availability import (
 )
 from supervisord.safety.config import (
     CLIENT_TIMEOUT_RANGE_MS,
+    CONSOLE_TIMEOUT_RANGE_MS,
     DEFAULT_CLIENT_TIMEOUT_MS,
+    DEFAULT_CONSOLE_TIMEOUT_MS,
     DEFAULT_PROOFTEST_CLEAR_MS,
     HEARTBEAT_HZ_RANGE,
     PROOFTEST_CLEAR_RANGE_MS,
@@ -438,6 +440,44 @@ MAINTENANCE: Final = (
 )
 
 
+FLEET: Final = (
+    strict.Text(
+        name="agent_user",
+        doc="The fleet agent's user: only its connections may send fleet_stop, fleet_release "
+        "and fleet_keepalive (SR-8.19; it must exist). Give agent_user or agent_uid, not both; "
+        "neither: the fleet ops are refused.",
+        pattern=USER_NAME.pattern,
+        rule="a user name in double quotes",
+        default=None,
+        example="srcs-fleet",
+    ),
+    strict.Whole(
+        name="agent_uid",
+        doc="As agent_user, by number.",
+        default=None,
+        example=998,
+        low=UID_RANGE[0],
+        high=UID_RANGE[1],
+    ),
+    strict.Flag(
+        name="console_required",
+        doc="The fleet's console is a required stop source: no fleet_keepalive for "
+        "console_timeout_ms (or none since the start) stops the robot, fleet_console_lost "
+        "(SR-8.21).",
+        default=False,
+        example=False,
+    ),
+    strict.Whole(
+        name="console_timeout_ms",
+        doc="The console's keepalive deadline; the agent sends one at least every third of it.",
+        default=DEFAULT_CONSOLE_TIMEOUT_MS,
+        example=DEFAULT_CONSOLE_TIMEOUT_MS,
+        low=CONSOLE_TIMEOUT_RANGE_MS[0],
+        high=CONSOLE_TIMEOUT_RANGE_MS[1],
+    ),
+)
+
+
 @dataclasses.dataclass(frozen=True)
 class Section:
     """A top-level section: its ``name``, ``doc`` and ``keys``; ``many``: an array of tables
@@ -484,6 +524,11 @@ SECTIONS: Final = (
         "When the periodic tests are overdue (SR-12.2, docs/safety-manual.md).",
         MAINTENANCE,
     ),
+    Section(
+        "fleet",
+        "The fleet's stop through the robot's fleet agent (SR-8.19 to SR-8.21, docs/safety.md).",
+        FLEET,
+    ),
 )
 SECTION: Final = {section.name: section for section in SECTIONS}
 
@@ -491,6 +536,8 @@ CROSS_CHECKS: Final[Mapping[str, str]] = {
     "vsc.reopen_max_ms": "at least reopen_min_ms",
     "clients[].name": "unique among the clients",
     "clients[].user": "an existing user on this machine",
+    "fleet.agent_user": "an existing user on this machine; not with agent_uid",
+    "fleet.console_required": "needs agent_user or agent_uid",
     "outputs[].name": "unique among the outputs",
     "outputs[].line": "one GPIO line per output (a chip by path, kernel name or label)",
     "outputs[].arbitration_id": "one CAN identifier per output",
