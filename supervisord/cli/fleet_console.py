@@ -132,7 +132,7 @@ def run_stop(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     try:
         sent_at = time.time()
         stop_id = args.stop_id or new_stop_id(args.console, sent_at)
-        tally = Round(stop_id, targets)
+        tally = Round(stop_id, targets, kind)
         start = time.monotonic()
         deadline = start + args.deadline
 

@@ -83,9 +83,13 @@ def judge(state: str | None, outputs: tuple[OutputState, ...]) -> str | None:
     """``None`` when these facts are a stop, else why not (SR-13.15)."""
     if state != "STOPPED":
         return f"state {state or 'unknown'}"
-    on = [o.name for o in outputs if not o.off]
-    if on:
-        return "output reads back on: " + ", ".join(on)
+    read_on = [o.name for o in outputs if o.readback is True]
+    if read_on:
+        return "output reads back on: " + ", ".join(read_on)
+    # Not read back (not acquired, or a category-1 power output still braking): its level.
+    still_on = [o.name for o in outputs if not o.off]
+    if still_on:
+        return "output still on, not read back: " + ", ".join(still_on)
     return None
 
 

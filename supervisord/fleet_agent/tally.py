@@ -6,10 +6,10 @@ Who a stop is for: the robots named (``srcsctl fleet stop ROBOT...``), or for ``
 ``--group`` every robot the broker knows by its presence message (retained at the broker, so
 a robot that was ever there is known, an agent that went away marked offline by its will) and
 covered by the target. A robot that answers without a presence message counts too.
-An acknowledgement of another stop (a robot's retained answer to an earlier one) is not this
-stop's. A robot's first conclusive answer (``stopped``, ``not_stopped``, ``released``) is
-kept: a later ``refused`` for the same stop (a duplicate the agent refused as ``replayed``)
-does not hide it.
+An acknowledgement of another stop (a robot's retained answer to an earlier one), or of the
+same stop's other kind (the stop's answer, when its release is sent), is not this one's. A
+robot's first conclusive answer (``stopped``, ``not_stopped``, ``released``) is kept: a later
+``refused`` for the same stop (a duplicate the agent refused as ``replayed``) does not hide it.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ class Presence:
 class Round:
     stop_id: str | None
     targets: tuple[Target, ...]
+    kind: str = "stop"
     roster: dict[str, Presence] = field(default_factory=dict)
     answers: dict[str, Ack] = field(default_factory=dict)
     answered_at: dict[str, float] = field(default_factory=dict)
@@ -42,7 +43,7 @@ class Round:
     def answer(self, ack: Ack, at: float) -> bool:
         """Count ``ack`` (``at``: when it arrived); ``False`` when it is not this stop's or a
         robot's answer is already conclusive."""
-        if self.stop_id is not None and ack.stop_id != self.stop_id:
+        if self.stop_id is not None and (ack.stop_id, ack.kind) != (self.stop_id, self.kind):
             return False
         held = self.answers.get(ack.robot)
         if held is not None and (held.result in CONCLUSIVE or ack.result not in CONCLUSIVE):

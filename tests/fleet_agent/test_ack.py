@@ -95,3 +95,10 @@ def test_no_bytes_raise(payload: bytes) -> None:
 )
 def test_no_reply_raises(reply: dict[str, object]) -> None:
     assert isinstance(from_reply("r", "stop", "s1", reply, 1.0), Ack)
+
+
+def test_an_output_on_that_reads_nothing_back_is_named_apart() -> None:
+    reply = {**REPLY, "outputs": [{"name": "wheels", "level": True, "readback": None}]}
+    ack = from_reply("robot-a", "stop", "s1", reply, 1.0)
+    assert ack.result == "not_stopped"
+    assert ack.reason == "output still on, not read back: wheels"
