@@ -101,7 +101,7 @@ def add_arguments(fleet: argparse.ArgumentParser) -> None:
 def _add_replay(fleet: argparse.ArgumentParser) -> None:
     """``srcsctl fleet replay ROBOT SEQ``: a stop's window at the collector (SR-13.12). Its own
     destinations: a subcommand's defaults would overwrite ``fleet``'s own options."""
-    actions = fleet.add_subparsers(dest="fleet_command", metavar="{replay,stop,status}")
+    actions = fleet.add_subparsers(dest="fleet_command", metavar="{replay,stop,status,keepalive}")
     replay = actions.add_parser(
         "replay",
         help="replay a robot's stop from its flight recorder window as the collector holds it",
@@ -135,6 +135,8 @@ def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
         return fleet_console.run_stop(args, out, errors)
     if getattr(args, "fleet_command", None) == "status":
         return fleet_console.run_status(args, out, errors)
+    if getattr(args, "fleet_command", None) == "keepalive":
+        return fleet_console.run_keepalive(args, out, errors)
     output = "json" if args.json and not args.output else args.output or "short"
     return run_fleet(
         out,

@@ -173,11 +173,14 @@ def _serve(
     agent: Agent, connection: Connection, answers: str, stop: threading.Event, log: logging.Logger
 ) -> None:
     """Answer each message until ``stop``; log each change of the broker's connection."""
-    was = ""
+    was, keepalive = "", ""
     while not stop.is_set():
         if connection.last_error != was:
             was = connection.last_error
             log.info("broker: %s", was or "connected")
+        if agent.keepalive_error != keepalive:
+            keepalive = agent.keepalive_error
+            log.info("%s", keepalive or "keepalives passed on")
         try:
             item = connection.incoming.get(timeout=0.5)
         except queue.Empty:

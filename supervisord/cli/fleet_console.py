@@ -1,15 +1,16 @@
 """``srcsctl fleet stop`` and ``srcsctl fleet status``: the fleet's console (SR-13.15,
 docs/fleet.md "The fleet stop").
 
-``stop`` sends one stop (``--all``, ``--group G`` or ``ROBOT...``) through the fleet's broker,
-waits for the robots' acknowledgements until every robot has answered or ``--deadline``, and
-shows per robot: stopped (state, each output's read-back, the stop record's number, the
-robot's arrival-to-off time and the time to its answer), not stopped (why), or silent. Silent
-robots are sent the same stop again (a new nonce, the same ``stop_id``) every ``--retry``
-seconds until the deadline: the daemon answers a stop_id it has seen without a second record.
-``--release`` withdraws the console's stop instead (the robots stay STOPPED until the
-operator's takeover on the remote). ``status`` shows the robots the broker knows, online or
-not, their groups and their last acknowledgement.
+``keepalive`` says the console is there until interrupted (SR-8.21). ``stop`` sends one stop
+(``--all``, ``--group G`` or ``ROBOT...``) through the fleet's broker, waits for the robots'
+acknowledgements until every robot has answered or ``--deadline``, and shows per robot: stopped
+(state, each output's read-back, the stop record's number, the robot's arrival-to-off time and
+the time to its answer), not stopped (why), or silent. Silent robots are sent the same stop
+again (a new nonce, the same ``stop_id``) every ``--retry`` seconds until the deadline: the
+daemon answers a stop_id it has seen without a second record. ``--release`` withdraws the
+console's stop instead (the robots stay STOPPED until the operator's takeover on the remote).
+``status`` shows the robots the broker knows, online or not, their groups and their last
+acknowledgement.
 
 Every text shown is another machine's and is escaped (:mod:`terminal_text`). Exit status: 0
 when every robot the stop is for answered stopped (or released), 1 when one did not or is
@@ -21,6 +22,8 @@ from __future__ import annotations
 import argparse
 import json
 import queue
+import signal
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -35,6 +38,7 @@ from supervisord.fleet_agent.topics import (
     PREFIX,
     Target,
     checked_name,
+    keepalive_topic,
     parse_robot_topic,
     stop_topic,
 )
@@ -101,6 +105,17 @@ def add_subcommands(actions: argparse._SubParsersAction) -> None:  # type: ignor
     )
     stop.add_argument("--stop-id", dest="stop_id", help="the stop's id (default: a new one)")
     _broker(stop)
+    keepalive = actions.add_parser(
+        "keepalive",
+        help="say this console is there, until interrupted (for robots that require it)",
+        description="Send this console's keepalive every --period seconds until SIGINT or "
+        "SIGTERM, for robots whose config makes the fleet's console a required stop source "
+        "([fleet] console_required): they stop when it ends (docs/fleet.md 'The fleet stop').",
+    )
+    keepalive.add_argument(
+        "--period", type=float, default=1.0, help="seconds between keepalives (1)"
+    )
+    _broker(keepalive)
     status = actions.add_parser(
         "status",
         help="the robots the fleet's broker knows, online or not, and their last answers",
@@ -152,6 +167,31 @@ def run_stop(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     finally:
         connection.stop()
     return _report(tally, kind, ended, args.console_json, out)
+
+
+def run_keepalive(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
+    """Publish a keepalive every ``--period`` until a signal; a broker away meanwhile is
+    reconnected to by paho, and the robots' own timeouts judge the gap (SR-8.21)."""
+    if not 0.05 <= args.period <= 20:
+        print("srcsctl fleet keepalive: --period 0.05 to 20 s", file=errors)
+        return EXIT_BAD_INPUT
+    connection = _connect(args, errors)
+    if connection is None:
+        return EXIT_FAILED
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    topic = keepalive_topic(args.fleet_name, args.console)
+    sent = 0
+    try:
+        while not stop.is_set():
+            message = new_message("keepalive", "keepalive", args.console, time.time())
+            sent += connection.publish(topic, message.encode())
+            stop.wait(args.period)
+    finally:
+        connection.stop()
+    out.write(f"{sent} keepalives sent\n")
+    return 0
 
 
 def run_status(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:

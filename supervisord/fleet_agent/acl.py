@@ -7,7 +7,9 @@ gives, per name and nothing by pattern:
 - a robot: **read** its stops (``stop/all``, ``stop/group/G`` for its groups,
   ``stop/robot/NAME``), **write** its own acknowledgements and presence; nothing else, so it
   can neither send a stop nor answer for another robot, nor read another robot's stops;
-- a console: **write** stops, **read** every acknowledgement and presence.
+  and read every console's keepalive;
+- a console: **write** stops and its own keepalive, **read** every acknowledgement and
+  presence.
 
 Mosquitto denies whatever the file does not grant (a refused publish is dropped, a refused
 subscription gets no messages). A name that is both a robot and a console is refused here:
@@ -24,6 +26,7 @@ from supervisord.fleet_agent.topics import (
     Target,
     ack_topic,
     checked_name,
+    keepalive_topic,
     presence_topic,
     stop_topic,
 )
@@ -46,6 +49,7 @@ def acl_text(fleet: str, robots: Mapping[str, frozenset[str]], consoles: Sequenc
                 f"topic read {stop_topic(fleet, Target('group', checked_name(group, 'group')))}"
             )
         lines.append(f"topic read {stop_topic(fleet, Target('robot', robot))}")
+        lines.append(f"topic read {keepalive_topic(fleet, '+')}")
         lines.append(f"topic write {ack_topic(fleet, robot)}")
         lines.append(f"topic write {presence_topic(fleet, robot)}")
         lines.append("")
@@ -53,6 +57,7 @@ def acl_text(fleet: str, robots: Mapping[str, frozenset[str]], consoles: Sequenc
         checked_name(console, "console")
         lines.append(f"user {console}")
         lines.append(f"topic write {PREFIX}/{fleet}/stop/#")
+        lines.append(f"topic write {keepalive_topic(fleet, console)}")
         lines.append(f"topic read {PREFIX}/{fleet}/ack/+")
         lines.append(f"topic read {PREFIX}/{fleet}/robot/+")
         lines.append("")

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Any, Final
 
-OPS: Final = {"stop": "fleet_stop", "release": "fleet_release"}
+OPS: Final = {"stop": "fleet_stop", "release": "fleet_release", "keepalive": "fleet_keepalive"}
 MAX_LINE: Final = 1 << 20
 
 
@@ -31,9 +31,9 @@ class LinkFailed(Exception):
 
 
 def request(socket_path: Path, op: str, fields: dict[str, str], timeout: float) -> dict[str, Any]:
-    """Send ``op`` (one of :data:`OPS`' values, or ``fleet_keepalive``) with ``fields`` and
+    """Send ``op`` (one of :data:`OPS`' values) with ``fields`` and
     return the daemon's successful reply."""
-    if op not in (*OPS.values(), "fleet_keepalive"):
+    if op not in OPS.values():
         raise LinkFailed(f"op {op} is not the agent's")  # never from the network (see above)
     deadline = time.monotonic() + timeout
     line = json.dumps({"op": op, **fields, "id": 1}).encode() + b"\n"

@@ -3,13 +3,14 @@
     {"v": 1, "kind": "stop", "stop_id": "...", "sender": "console-1",
      "sent_utc": 1765000000.123, "nonce": "32 hex digits"}
 
-``kind`` is ``stop`` or ``release`` (the console withdraws its request; the robot stays
-STOPPED until the operator's takeover, docs/fleet.md): no other kind exists, so nothing read
-here can ask for anything else (SR-13.13). ``sent_utc``: the console's wall clock at the send,
-seconds since the epoch, for the replay window (:mod:`.replay`); ``nonce``: fresh for each
-send, so a console's retry of the same ``stop_id`` is a new message and a captured one sent
-again is not. Every payload is another machine's: :func:`parse` returns a typed
-:class:`Refused` for anything else and never raises.
+``kind`` is ``stop``, ``release`` (the console withdraws its request; the robot stays STOPPED
+until the operator's takeover, docs/fleet.md) or ``keepalive`` (the console is there, for a
+robot whose config requires it, SR-8.21; its ``stop_id`` is the word ``keepalive``): no other
+kind exists, so nothing read here can ask for anything else (SR-13.13). ``sent_utc``: the
+console's wall clock at the send, seconds since the epoch, for the replay window
+(:mod:`.replay`); ``nonce``: fresh for each send, so a console's retry of the same ``stop_id``
+is a new message and a captured one sent again is not. Every payload is another machine's:
+:func:`parse` returns a typed :class:`Refused` for anything else and never raises.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Final
 from supervisord.fleet_agent.topics import valid_name
 
 VERSION: Final = 1
-KINDS: Final = frozenset({"stop", "release"})
+KINDS: Final = frozenset({"stop", "release", "keepalive"})
 MAX_PAYLOAD: Final = 1024
 _STOP_ID: Final = re.compile(r"[A-Za-z0-9._:-]{1,64}")
 _NONCE: Final = re.compile(r"[0-9a-f]{16,64}")

@@ -5,6 +5,7 @@
     srcs/<fleet>/stop/robot/<robot>     one robot
     srcs/<fleet>/ack/<robot>            that robot's acknowledgements (its agent alone writes)
     srcs/<fleet>/robot/<robot>          that robot's presence: its groups, online or not
+    srcs/<fleet>/keepalive/<console>    a console's keepalive (for robots that require one)
 
 Names are plain words (letters, digits, ``.``, ``_``, ``-``, 1 to 64): no ``/``, ``+`` or
 ``#``, so that a name can never widen a subscription or an ACL line into another robot's
@@ -59,12 +60,19 @@ def stop_topic(fleet: str, target: Target) -> str:
 
 
 def stop_topics(fleet: str, robot: str, groups: frozenset[str]) -> list[str]:
-    """Every topic a robot's agent subscribes to: its stops, and no other robot's."""
+    """Every topic a robot's agent subscribes to: its stops, and no other robot's, and the
+    consoles' keepalives."""
     return [
         stop_topic(fleet, ALL),
         *(stop_topic(fleet, Target("group", g)) for g in sorted(groups)),
         stop_topic(fleet, Target("robot", robot)),
+        keepalive_topic(fleet, "+"),
     ]
+
+
+def keepalive_topic(fleet: str, console: str) -> str:
+    """Where a console says it is there; every robot's agent reads every console's."""
+    return f"{PREFIX}/{fleet}/keepalive/{console}"
 
 
 def ack_topic(fleet: str, robot: str) -> str:

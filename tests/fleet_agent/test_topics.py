@@ -22,6 +22,7 @@ def test_a_robot_subscribes_to_all_its_groups_and_itself() -> None:
         "srcs/f1/stop/group/site-1",
         "srcs/f1/stop/group/site-2",
         "srcs/f1/stop/robot/robot-a",
+        "srcs/f1/keepalive/+",
     ]
 
 
