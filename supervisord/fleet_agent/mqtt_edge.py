@@ -13,7 +13,9 @@ from its own thread (paho's ``publish`` is thread-safe).
 
 from __future__ import annotations
 
+import contextlib
 import queue
+import socket
 import ssl
 import threading
 import time
@@ -117,6 +119,12 @@ class Connection:
             return
         self.connected = True
         self.last_error = ""
+        # A stop and its answer are small writes: without TCP_NODELAY, Nagle's algorithm
+        # holds one back for the peer's delayed ACK (40 ms on Linux), on every hop.
+        sock = client.socket()
+        if isinstance(sock, socket.socket):  # an ssl.SSLSocket is one
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         if self._topics:
             client.subscribe([(t, 1) for t in self._topics])
         else:
