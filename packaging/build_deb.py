@@ -65,11 +65,14 @@ replay --mcap`` writes it uncompressed, so the robot's package carries mcap alon
 export works where the window is (SR-7.15; docs/record.md "Looking at a stop")."""
 MACHINES = {"amd64": "x86_64", "arm64": "aarch64"}
 """Debian architecture -> the wheels' machine name."""
-LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki"}
+LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki", "srcs-fleet-agent"}
 """Console scripts not packaged: the ROS 2 bridge is its own package, run by ROS's Python and
 rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install"); the fleet's
 targets and certificates are the collector's (``srcs-collector``,
-packaging/build_collector_deb.py; docs/fleet.md "The collector package")."""
+packaging/build_collector_deb.py; docs/fleet.md "The collector package"); the fleet stop's
+agent waits for its MQTT client (paho-mqtt, the ``fleet`` extra) to be bundled, with its unit
+and user (units/srcs-fleet-agent@.service, units/srcs-fleet-agent.sysusers.conf; docs/fleet.md
+"The fleet stop")."""
 MAINTAINER = "srcs-supervisord maintainers <srcs-supervisord@example.com>"
 """The package's Maintainer: fixed here, whoever builds it."""
 CHANGELOG = REPO / "packaging/changelog"

@@ -33,7 +33,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Final
 
-from supervisord.cli import log_options
+from supervisord.cli import fleet_console, log_options
 from supervisord.cli.access import advice
 from supervisord.cli.cause_names import CauseFilter
 from supervisord.cli.fleet_journal import (
@@ -101,7 +101,7 @@ def add_arguments(fleet: argparse.ArgumentParser) -> None:
 def _add_replay(fleet: argparse.ArgumentParser) -> None:
     """``srcsctl fleet replay ROBOT SEQ``: a stop's window at the collector (SR-13.12). Its own
     destinations: a subcommand's defaults would overwrite ``fleet``'s own options."""
-    actions = fleet.add_subparsers(dest="fleet_command", metavar="replay")
+    actions = fleet.add_subparsers(dest="fleet_command", metavar="{replay,stop,status,keepalive}")
     replay = actions.add_parser(
         "replay",
         help="replay a robot's stop from its flight recorder window as the collector holds it",
@@ -123,12 +123,20 @@ def _add_replay(fleet: argparse.ArgumentParser) -> None:
     )
     replay.add_argument("--mcap", metavar="OUT", help="as srcsctl replay --mcap")
     replay.add_argument("--plot", metavar="OUT.svg", help="as srcsctl replay --plot")
+    # The fleet's console (SR-13.15): its own module, which reads no journal.
+    fleet_console.add_subcommands(actions)
 
 
 def run(args: argparse.Namespace, out: IO[str], errors: IO[str]) -> int:
     """``srcsctl fleet`` with the options :func:`add_arguments` parsed."""
     if getattr(args, "fleet_command", None) == "replay":
         return _replay(args, out, errors)
+    if getattr(args, "fleet_command", None) == "stop":
+        return fleet_console.run_stop(args, out, errors)
+    if getattr(args, "fleet_command", None) == "status":
+        return fleet_console.run_status(args, out, errors)
+    if getattr(args, "fleet_command", None) == "keepalive":
+        return fleet_console.run_keepalive(args, out, errors)
     output = "json" if args.json and not args.output else args.output or "short"
     return run_fleet(
         out,
