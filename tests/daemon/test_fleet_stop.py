@@ -51,6 +51,12 @@ def test_the_agents_stop_stops_the_robot_and_is_acknowledged_with_the_facts(
             }
             assert ack.arrival_to_off_ms > 0
             assert not ack.repeat
+            # The record is written by the record's lane after the reply went (SR-7.7): its
+            # seq is in the acknowledgement at once, the record on disk soon after.
+            wait_until(
+                lambda: any(r.seq == ack.record_seq for r in robot.records()[before:]),
+                what=f"record {ack.record_seq} on disk",
+            )
             records = robot.records()
             raised = [r for r in records[before:] if r.seq == ack.record_seq]
             assert len(raised) == 1, [r.seq for r in records]
