@@ -20,6 +20,9 @@ from supervisord.api.requests import (
     DisplayRow,
     DisplayValue,
     Estop,
+    FleetKeepaliveRequest,
+    FleetReleaseRequest,
+    FleetStopRequest,
     Heartbeat,
     Hello,
     Hold,
@@ -109,6 +112,9 @@ EVERY_REQUEST: tuple[ApiRequest, ...] = (
     Commission(),
     StartProofTest(),
     StopTest((("remote", 41), ("wired", 44))),
+    FleetStopRequest("2026-12-06T14:00:00Z:17", "console-a", id=9),
+    FleetReleaseRequest("s-1", "console.b"),
+    FleetKeepaliveRequest("console-a"),
 )
 
 
