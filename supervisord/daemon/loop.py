@@ -27,11 +27,12 @@ holds, the flight ring; it hands back the records finished, which the loop pushe
 output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
 the reflex's writes and the steady path's test, read back, all off), the service manager's
 face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS, WATCHDOG, STOPPING), the
-status it shows (:mod:`~supervisord.daemon.loop_status`: assembled from the parts' own) and
-the refusal log (:mod:`~supervisord.daemon.refusal_log`: the record budget's refusals counted,
-logged once a second). The client API's listener (:mod:`~supervisord.daemon.listener`) returns
-what it needs of the loop as asks (an event to feed, a look at the loop, frames to send), which
-the loop answers one at a time.
+status it shows (:mod:`~supervisord.daemon.loop_status`: assembled from the parts' own), the
+refusal log (:mod:`~supervisord.daemon.refusal_log`: the record budget's refusals counted,
+logged once a second) and the stop request (:mod:`~supervisord.daemon.stop_request`: the
+first signal's reason and exit status). The client API's listener
+(:mod:`~supervisord.daemon.listener`) returns what it needs of the loop as asks (an event to
+feed, a look at the loop, frames to send), which the loop answers one at a time.
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.record_path import RecordPath
 from supervisord.daemon.refusal_log import RefusalLog
 from supervisord.daemon.service_manager import ServiceManager
+from supervisord.daemon.stop_request import StopRequest
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
@@ -148,8 +150,8 @@ class Supervisor:
         self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
-        self._stop_requested = False
-        self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
+        # Whether the loop was asked to end, and the first signal that asked (SR-6.6, SR-7.14).
+        self.stop = StopRequest()
         # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
         # SR-10.1).
         self.waiter = Waiter()
@@ -227,9 +229,7 @@ class Supervisor:
     def request_stop(self, signum: int | None = None) -> None:
         """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop).
         The first signal asked for decides the exit status (SR-6.6)."""
-        if self._stop_signal is None:
-            self._stop_signal = signum
-        self._stop_requested = True
+        self.stop.ask(signum)
         self.waiter.wake()
 
     def shutdown(self) -> None:
@@ -263,11 +263,7 @@ class Supervisor:
         is recorded, in STOPPED and HOLD too (a cause raised, or a stop)."""
         if self.core is None:
             return  # the core never started: there is no sequence to continue
-        if self._stop_signal is not None:
-            reason = signals.name(self._stop_signal)
-        else:  # asked for without a signal (an embedding program), or an exception
-            reason = "requested" if self._stop_requested else "error"
-        self._apply(self._feed(Shutdown(now, reason)))
+        self._apply(self._feed(Shutdown(now, self.stop.reason())))
 
     def run(self) -> int:
         """Start, loop until a stopping signal, shut down. Every signal that would end the
@@ -283,12 +279,10 @@ class Supervisor:
                 # must not hold the loop (SR-7.5).
                 sink.capture_logging(logging.getLogger())
             heap.settle()  # no full scan of start-up's objects in the loop (SR-9.1, SR-9.4)
-            while not self._stop_requested:
+            stop = self.stop
+            while not stop.asked:
                 self.step()
-            if self._stop_signal is not None:
-                # Before the shutdown, so that the sink drains it with the records.
-                level = logging.INFO if self._stop_signal in signals.CLEAN_EXIT else logging.WARNING
-                log.log(level, "%s: stopping, every output off", signals.name(self._stop_signal))
+            stop.log()  # before the shutdown: the sink drains it with the records
         finally:
             try:
                 # A second signal during the shutdown changes nothing: the handlers stay
@@ -296,7 +290,7 @@ class Supervisor:
                 self.shutdown()
             finally:
                 signals.restore(previous)
-        return 0 if self._stop_signal is None else signals.exit_status(self._stop_signal)
+        return self.stop.exit_status()
 
     # ----------------------------------------------------------------- the loop
 
