@@ -25,11 +25,14 @@ its watches, the wake pair, the clients' order), the link port
 record path (:mod:`~supervisord.daemon.record_path`: the sink and its lanes, the records it
 holds, the flight ring; it hands back the records finished, which the loop pushes), the
 output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
-the reflex's writes and the steady path's test, read back, all off) and the service manager's
-face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS,
-WATCHDOG, STOPPING). The client API's listener (:mod:`~supervisord.daemon.listener`) returns
-what it needs of the loop as asks (an event to feed, a look at the loop, frames to send), which
-the loop answers one at a time.
+the reflex's writes and the steady path's test, read back, all off), the service manager's
+face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS, WATCHDOG, STOPPING), the
+status it shows (:mod:`~supervisord.daemon.loop_status`: assembled from the parts' own), the
+refusal log (:mod:`~supervisord.daemon.refusal_log`: the record budget's refusals counted,
+logged once a second) and the stop request (:mod:`~supervisord.daemon.stop_request`: the
+first signal's reason and exit status). The client API's listener
+(:mod:`~supervisord.daemon.listener`) returns what it needs of the loop as asks (an event to
+feed, a look at the loop, frames to send), which the loop answers one at a time.
 """
 
 from __future__ import annotations
@@ -37,25 +40,24 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import logging
-import os
 import select
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 
-from supervisord import __version__
 from supervisord.api.status import LoopStatus
-from supervisord.api.views import histogram_status
 from supervisord.clock import MONOTONIC, Clock
 from supervisord.daemon import heap, signals
 from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.link_port import LinkPort
 from supervisord.daemon.listener import Answer, Asks, CheckOff, Listener, Look, Send, Snapshot
+from supervisord.daemon.loop_status import Counters, loop_status
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
 from supervisord.daemon.offcheck import OffCheck, check_off
 from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.record_path import RecordPath
+from supervisord.daemon.refusal_log import RefusalLog
 from supervisord.daemon.service_manager import ServiceManager
+from supervisord.daemon.stop_request import StopRequest
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.daemon.timings import Timings
 from supervisord.daemon.waiter import Waiter
@@ -77,7 +79,7 @@ from supervisord.safety.events import (
     VscReceived,
 )
 from supervisord.safety.transitions import State
-from supervisord.timebase import NS_PER_MS, NS_PER_S, seconds_since
+from supervisord.timebase import NS_PER_MS
 
 __all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
 
@@ -87,17 +89,6 @@ POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is
 OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
-LIMIT_LOG_NS = NS_PER_S  # rate-limited refusals are logged as a count, once a second
-
-
-@dataclass
-class Counters:
-    """What the loop has seen, for ``srcsctl status`` (the link's counts are its port's)."""
-
-    record_errors: int = 0
-    records_dropped: int = 0
-    rate_limited: int = 0
-    internal_faults: int = 0
 
 
 class Supervisor:
@@ -159,12 +150,13 @@ class Supervisor:
         self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
-        self._stop_requested = False
-        self._stop_signal: int | None = None  # the signal that asked for the stop (SR-6.6)
+        # Whether the loop was asked to end, and the first signal that asked (SR-6.6, SR-7.14).
+        self.stop = StopRequest()
         # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
         # SR-10.1).
         self.waiter = Waiter()
-        self._limited_unlogged = self._next_limit_log = 0  # refusals not logged yet, and when
+        # The refusals under the record budget: counted, logged once a second (SR-8.5).
+        self.refusals = RefusalLog()
         self._started_ns: int | None = None  # for ``status``: uptime
 
     @property
@@ -191,35 +183,21 @@ class Supervisor:
         self.service.srcsctl = srcsctl
 
     def snapshot(self, now: int) -> LoopStatus:
-        """What ``status`` says about the daemon itself at ``now`` (the loop's clock): its
-        version and uptime, the link and the loop's counters (docs/api.md "status"). The
-        listener is shown it when it asks (:class:`Look`), and builds the ``status`` reply
-        with it."""
-        counters = self.counters
-        return LoopStatus(
-            pid=os.getpid(),
-            version=__version__,
-            uptime_s=seconds_since(now, self._started_ns),
-            link=self.port.status(now),
-            outputs_not_acquired=self.bank.not_acquired(),
-            # SR-1.4: each category-1 output's delay after the motion outputs (docs/outputs.md
-            # "Stop categories"); an output not named is category 0.
-            outputs_off_delay_ms={
-                o.name: o.off_delay_ms for o in self.safety.outputs if o.off_delay_ms
-            },
-            messages=self.port.messages,
-            rejections=dict(sorted(self.port.rejections.items())),
-            record_errors=self.records.record_errors,
-            records_dropped=self.records.records_dropped,
-            # records_pending, journal_errors and _dropped, log_lines_dropped, record_reopens,
-            # flight_windows, flight_errors (a snapshot's too) and flight_dropped
-            sink=self.records.status(),
-            rate_limited=counters.rate_limited,
-            internal_faults=counters.internal_faults,
-            histograms={name: histogram_status(h) for name, h in self.timings.histograms().items()},
-            # the periodic tests: each one's interval, last pass's age, overdue (SR-12.2)
-            maintenance=self.schedule.status(now),
-            memory_locked=self.memory_locked,  # SR-9.6
+        """What ``status`` says about the daemon itself at ``now`` (the loop's clock), from its
+        parts' own status (:func:`~supervisord.daemon.loop_status.loop_status`). The listener is
+        shown it when it asks (:class:`Look`), and builds the ``status`` reply with it."""
+        return loop_status(
+            now,
+            started_ns=self._started_ns,
+            safety=self.safety,
+            port=self.port,
+            bank=self.bank,
+            records=self.records,
+            refusals=self.refusals,
+            counters=self.counters,
+            timings=self.timings,
+            schedule=self.schedule,
+            memory_locked=self.memory_locked,
         )
 
     # ----------------------------------------------------------------- start and stop
@@ -251,9 +229,7 @@ class Supervisor:
     def request_stop(self, signum: int | None = None) -> None:
         """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop).
         The first signal asked for decides the exit status (SR-6.6)."""
-        if self._stop_signal is None:
-            self._stop_signal = signum
-        self._stop_requested = True
+        self.stop.ask(signum)
         self.waiter.wake()
 
     def shutdown(self) -> None:
@@ -287,11 +263,7 @@ class Supervisor:
         is recorded, in STOPPED and HOLD too (a cause raised, or a stop)."""
         if self.core is None:
             return  # the core never started: there is no sequence to continue
-        if self._stop_signal is not None:
-            reason = signals.name(self._stop_signal)
-        else:  # asked for without a signal (an embedding program), or an exception
-            reason = "requested" if self._stop_requested else "error"
-        self._apply(self._feed(Shutdown(now, reason)))
+        self._apply(self._feed(Shutdown(now, self.stop.reason())))
 
     def run(self) -> int:
         """Start, loop until a stopping signal, shut down. Every signal that would end the
@@ -307,12 +279,10 @@ class Supervisor:
                 # must not hold the loop (SR-7.5).
                 sink.capture_logging(logging.getLogger())
             heap.settle()  # no full scan of start-up's objects in the loop (SR-9.1, SR-9.4)
-            while not self._stop_requested:
+            stop = self.stop
+            while not stop.asked:
                 self.step()
-            if self._stop_signal is not None:
-                # Before the shutdown, so that the sink drains it with the records.
-                level = logging.INFO if self._stop_signal in signals.CLEAN_EXIT else logging.WARNING
-                log.log(level, "%s: stopping, every output off", signals.name(self._stop_signal))
+            stop.log()  # before the shutdown: the sink drains it with the records
         finally:
             try:
                 # A second signal during the shutdown changes nothing: the handlers stay
@@ -320,7 +290,7 @@ class Supervisor:
                 self.shutdown()
             finally:
                 signals.restore(previous)
-        return 0 if self._stop_signal is None else signals.exit_status(self._stop_signal)
+        return self.stop.exit_status()
 
     # ----------------------------------------------------------------- the loop
 
@@ -605,7 +575,7 @@ class Supervisor:
                     self._recorded(finished)
         for refusal in decision.refusals:
             if refusal.reason is RefusalReason.RATE_LIMITED:
-                self._rate_limited(decision.now)
+                self.refusals.refused(decision.now)  # counted, logged once a second
             else:
                 log.info("refused: %s", refusal.message)
         self.listener.decided(decision)
@@ -621,19 +591,6 @@ class Supervisor:
         for record in finished:
             self.schedule.recorded(record)
             self.listener.recorded(record)
-
-    def _rate_limited(self, now: int) -> None:
-        """Count a release or reset refused under the record budget; log the count at most
-        once a second (a flood must not become a flood of log lines)."""
-        self.counters.rate_limited += 1
-        self._limited_unlogged += 1
-        if now >= self._next_limit_log:
-            log.warning(
-                "%d client requests refused: record budget exceeded (docs/safety.md)",
-                self._limited_unlogged,
-            )
-            self._limited_unlogged = 0
-            self._next_limit_log = now + LIMIT_LOG_NS
 
     def _internal_fault(self, now: int, error: Exception) -> None:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
