@@ -31,6 +31,7 @@ from supervisord.safety.events import (
     Event,
     Request,
 )
+from supervisord.safety.face import View
 from supervisord.safety.progress import ProgressBook
 
 
@@ -266,9 +267,21 @@ class Clients:
         """Whether a request before hello waits for its user's budget to end (SR-8.5)."""
         return any(not entry.holders for entry in self._unnamed.values())
 
-    def next_deadline(self, now: int, budget: RecordBudget) -> int | None:
-        """The earliest time after ``now`` at which a deferred request may end or a required
-        client's timeout falls due, or ``None``."""
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def moving(self, view: View) -> bool:
+        """A deferred end moves with time (SR-8.5)."""
+        return self.pending()
+
+    def due_by(self, view: View) -> bool:
+        """A required client's timeout falls due at ``view.now`` or has (SR-8.2)."""
+        return self.expired(view.now)
+
+    def next_deadline(self, view: View) -> int | None:
+        """The earliest time after ``view.now`` at which a deferred request may end (its
+        user's budget in ``view.budget``) or a required client's timeout falls due, or
+        ``None``."""
+        now, budget = view.now, view.budget
         earliest: int | None = None
         for kind, name in self._pending_ends():
             free = budget.free_at(self._unnamed[(kind, name)].uid, now)
@@ -282,9 +295,10 @@ class Clients:
                     earliest = due
         return earliest
 
-    def canonical(self, now: int) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts (as ``(name, value)`` pairs) and clocks of the clients: each required
         client's heartbeat as its age, with its timeout (docs/verification.md)."""
+        now = view.now
         clocks = tuple(
             clock(f"client:{name}", beat, now, self._timeout_ns[name])
             for name, beat in sorted(self._beat_ns.items())

@@ -87,6 +87,7 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
+from supervisord.safety.face import Machines
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.proofrequest import request_prooftest
@@ -150,16 +151,10 @@ class SafetyCore:
         heartbeat's deadline alone does not count: the VSC's heartbeats and the user
         heartbeat keep one cadence, so a stop often arrives just as the beat is due. Derived
         from the state, no part of it: a pure function, kept for the last states seen."""
-        if now >= self.decision.next_deadline and not only_the_beat_moves(
-            now,
-            self._vsc,
-            self._proof,
-            self._clients,
-            self._outputs,
-            self._display,
-            self._battery,
-        ):
-            return None
+        if now >= self.decision.next_deadline:
+            machines = self._machines()
+            if not only_the_beat_moves(machines.view(now), machines):
+                return None
         return prepare(self._state, *self._outputs.reflex_facts())
 
     def tick(self, now: int) -> Decision:
@@ -188,35 +183,24 @@ class SafetyCore:
             if at is not None:
                 clocks.append(clock(name, at, now, *limits))
 
-        vsc_facts, vsc_clocks = self._vsc.canonical(now, book.last_stop_raised_ns)
-        clocks += vsc_clocks
         keep("clear_since", book.stops_clear_since(), self._config.rearm_hold_ns)
-        output_facts, output_clocks = self._outputs.canonical(now)
-        clocks += output_clocks
         if self._steady:  # read only by the cheap path and step 1, after a normal step
             keep("decision:next", self.decision.next_deadline, 0)
-        client_facts, client_clocks = self._clients.canonical(now)
-        clocks += client_clocks
-        battery_facts, battery_clocks = self._battery.canonical(now)
-        clocks += battery_clocks
-        proof_facts, proof_clocks = self._proof.canonical(now, self._vsc.key85)
-        display_facts, display_clocks = self._display.canonical(now)
-        clocks += [*proof_clocks, *display_clocks, *self._budget.canonical(now)]
-        facts = (
+        facts: list[object] = [
             ("state", self._state),
             ("cheap_path", self.cheap_path),
             ("steady", self._steady),
             ("steady_estop", self._steady and self._steady_estop),
             ("causes", book.canonical()),
-            *vsc_facts,
-            *client_facts,
             ("local_estop", self._local_estop),
-            *output_facts,
-            *battery_facts,
-            ("proof", proof_facts),
-            ("display", display_facts),
-        )
-        return facts, tuple(clocks)
+        ]
+        machines = self._machines()
+        view = machines.view(now, book.last_stop_raised_ns)
+        for machine in machines:  # each machine's own facts and clocks (face.py)
+            machine_facts, machine_clocks = machine.canonical(view)
+            facts += machine_facts
+            clocks += machine_clocks
+        return tuple(facts), tuple(clocks)
 
     _NOT_CANONICAL = frozenset(
         {
@@ -242,19 +226,7 @@ class SafetyCore:
         step: Step | None = None  # made only for the full step: the cheap path needs none
         try:
             decision = (
-                cheap(
-                    event,
-                    self.decision,
-                    self._now,
-                    self._steady_estop,
-                    self._vsc,
-                    self._proof,
-                    self._clients,
-                    self._outputs,
-                    self._display,
-                    self._battery,
-                    self._budget,
-                )
+                cheap(event, self.decision, self._now, self._steady_estop, self._machines())
                 if self._steady and self.cheap_path
                 else None
             )
@@ -268,6 +240,19 @@ class SafetyCore:
             self._steady = False
             self.decision = self._fail_safe(event, error, step or Step(self._now))
         return self.decision
+
+    def _machines(self) -> Machines:
+        """The core's machines, as the parts that compose them read them (``face.py``).
+        Made when asked, never kept: the machines are the core's attributes alone."""
+        return Machines(
+            self._vsc,
+            self._clients,
+            self._budget,
+            self._outputs,
+            self._battery,
+            self._display,
+            self._proof,
+        )
 
     # ----------------------------------------------------------------- the step
 
@@ -361,6 +346,7 @@ class SafetyCore:
 
     def _finish(self, event: Event, previous: State, step: Step) -> Decision:
         now = step.now
+        machines = self._machines()
         # SR-8.15: while an unfinished proof test needs the byte at 0, a missing required
         # client neither sets it nor aborts the test (the outputs are off: STOPPED).
         quiet = self._proof.quiet(self._state is State.STOPPED)
@@ -401,16 +387,7 @@ class SafetyCore:
             causes=causes,
             outputs=self._outputs.levels(previous, self._state, now),
             heartbeat_estop=estop,
-            next_deadline=next_deadline(
-                now,
-                self._vsc,
-                self._clients,
-                self._budget,
-                self._battery,
-                self._outputs,
-                self._display,
-                self._proof,
-            ),
+            next_deadline=next_deadline(machines.view(now), machines),
             frames=tuple(step.frames),
             records=records,
             refusals=tuple(step.refusals),

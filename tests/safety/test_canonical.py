@@ -40,16 +40,21 @@ LEFT_OUT: dict[type, frozenset[str]] = {
 }
 
 
-def _read(cls: type) -> set[str]:
-    """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``."""
-    tree = ast.parse(textwrap.dedent(inspect.getsource(cls.canonical)))  # type: ignore[attr-defined]
-    return {
+def _read(cls: type, method: str = "canonical") -> set[str]:
+    """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``,
+    and in the methods of the class it calls (``self._machines()``: the machines it iterates)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(getattr(cls, method))))
+    read = {
         node.attr
         for node in ast.walk(tree)
         if isinstance(node, ast.Attribute)
         and isinstance(node.value, ast.Name)
         and node.value.id == "self"
     }
+    for name in list(read):
+        if name != method and inspect.isfunction(getattr(cls, name, None)):
+            read |= _read(cls, name)
+    return read
 
 
 def _instances() -> dict[type, object]:
