@@ -13,7 +13,7 @@ import pytest
 
 from supervisord.safety import SafetyCore
 from verify import model
-from verify.broken import FAULTS, Fault, broken_core
+from verify.broken import CHEAP_FAULT, FAULTS, Fault, broken_core
 from verify.clone import clone
 from verify.explore import explore, regression_test
 
@@ -54,6 +54,19 @@ def test_the_exploration_rejects_each_broken_core(fault: Fault) -> None:
     property that guards against it, so the checker cannot silently stop checking."""
     result = explore(model.MODELS[fault.model], core_class=broken_core(fault), max_depth=12)
     assert [c.pid for c in result.counterexamples] == [fault.expected]
+
+
+@pytest.mark.timeout(COMPUTE_TIMEOUT_S)
+def test_p17_sees_a_cheap_path_that_ignores_one_machine() -> None:
+    """SR-9.4: the cheap path decides as the full step at every explored step (P17); one that
+    leaves a machine out of its comparison over the machines' face (here the link: the VSC's
+    timeout falls due with the user heartbeat) is caught, not only by examples."""
+    fault = CHEAP_FAULT
+    broken = broken_core(fault)
+    found = explore(model.MODELS[fault.model], core_class=broken, max_depth=12, all_violations=True)
+    p17 = [c for c in found.counterexamples if c.pid == "P17"]
+    assert p17
+    assert "the cheap path's decision differs" in p17[0].what
 
 
 def test_a_counterexample_is_a_regression_test_that_fails_until_the_core_is_fixed() -> None:
