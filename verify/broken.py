@@ -199,8 +199,8 @@ FAULTS = (
 
 CHEAP_FAULT = Fault(
     "the cheap path ignores one machine: the VSC's timeout at the user heartbeat",
-    "return not any(machine.due_by(view) for machine in machines)",
-    "return not any(machine.due_by(view) for machine in machines[1:])",
+    "for machine in view.machines:  # noqa: SIM110",
+    "for machine in view.machines[1:]:  # noqa: SIM110",
     "vsc",
     "P17",
     module="cheap",

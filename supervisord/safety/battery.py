@@ -100,8 +100,11 @@ class RemoteBattery:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
         """The battery moves only when its report goes stale."""
+        return False
+
+    def moving(self) -> bool:
         return False
 
     def due_by(self, view: View) -> bool:

@@ -84,9 +84,12 @@ class RecordBudget:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
         """A window ageing out changes nothing by itself: the clients' deferred ends, which
         wait for it, are theirs (``Clients.next_deadline``)."""
+        return False
+
+    def moving(self) -> bool:
         return False
 
     def due_by(self, view: View) -> bool:

@@ -24,11 +24,10 @@ from supervisord.safety.book import CauseBook
 from supervisord.safety.deadline import IDLE_NS, next_deadline
 from supervisord.safety.decision import Decision, again
 from supervisord.safety.events import ClientHeartbeat, Event, Tick, VscReceived
-from supervisord.safety.face import Machines, View
+from supervisord.safety.face import View
 from supervisord.safety.prooftest import SETTLED
-from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
-from supervisord.safety.vscmessage import take_vsc_message
+from supervisord.safety.vscmessage import take_vsc_heartbeat
 
 INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)
 """VSC messages that change no fact the core keeps (``SafetyCore._on_vsc`` ignores them): in a
@@ -45,19 +44,20 @@ _INERT_TYPES = frozenset(INERT_VSC_MESSAGES)
 
 
 def cheap(  # noqa: PLR0912 -- inline: called for every input (SR-9.4)
-    event: Event, previous: Decision, last: int, estop: int, machines: Machines
+    event: Event, previous: Decision, last: int, estop: int, view: View
 ) -> Decision | None:
     """The decision for an input that cannot change one, or ``None`` for the full step.
 
     ``previous`` is the core's last decision, ``last`` the time of its last input and ``estop`` the
-    user heartbeat's byte from the conditions alone (no urgent raise); ``machines`` the core's.
+    user heartbeat's byte from the conditions alone (no urgent raise); ``view`` the core's view of
+    its machines (``face.View``, built once: its ``now`` is set here).
     The core asks only after a step that ended normally on a fixed point of the table
     (:func:`fixed_point`). Cheap are a :class:`Tick`, an inert VSC message
     (:data:`INERT_VSC_MESSAGES`), a VSC heartbeat with the same mode and e-stop word as the last and
     a client's heartbeat that changes no condition (``Clients.beat_unchanged``: named, in time, no
     progress value), while no machine moves with time (``Machine.moving``), either before the
     previous decision's ``next_deadline`` or when the user heartbeat is the only thing due
-    (:func:`_only_heartbeat_due`: no machine ``due``). Then no timeout expires and no other frame
+    (:func:`_only_heartbeat_due`: no machine ``due_by``). Then no timeout expires and no other frame
     is due (:func:`~supervisord.safety.deadline.next_deadline` takes every machine's), so step 1
     of the full path changes nothing; such an input changes no condition (a heartbeat after an
     expired timeout clears ``vsc_link_lost`` and is not cheap, and so is one while the mode's hold
@@ -74,15 +74,15 @@ def cheap(  # noqa: PLR0912 -- inline: called for every input (SR-9.4)
     kind = type(event)
     if kind not in _CHEAP_EVENTS:
         return None
-    now = event.now if event.now > last else last
-    view = machines.view(now)
-    for machine in machines:
-        if machine.moving(view):
+    for machine in view.movers:  # a plain loop over the few that can move (SR-9.4)
+        if machine.moving():
             return None  # a proof test running, a deferred end, an output braking
+    now = event.now if event.now > last else last
+    view.now = now
     beat_due = now >= previous.next_deadline
-    if beat_due and not _only_heartbeat_due(view, machines):
+    if beat_due and not _only_heartbeat_due(view):
         return None
-    vsc = machines.vsc
+    vsc = view.vsc
     moved = False  # whether the input moved a fact that a deadline is counted from
     if type(event) is VscReceived:
         message = event.message
@@ -91,37 +91,29 @@ def cheap(  # noqa: PLR0912 -- inline: called for every input (SR-9.4)
         if type(message) is VscHeartbeat:
             if not vsc.unchanged_by(message, now):
                 return None
-            # Applied by the full step's own handler of a VSC message (SR-2.2, SR-5.3).
-            request = take_vsc_message(
-                event,
-                Step(now),
-                vsc=vsc,
-                proof=machines.proof,
-                display=machines.display,
-                battery=machines.battery,
-            )
-            if request is not None:
+            # Applied by the full step's own handler of a VSC heartbeat (SR-2.2, SR-5.3).
+            if take_vsc_heartbeat(message, now, vsc, view.proof, view.display) is not None:
                 raise AssertionError("a heartbeat of an unchanged mode asked a takeover")
             moved = True  # the link's timeout restarts (SR-2.2)
         # SR-8.12: a remote status is inert only while the battery is not watched
         elif type(message) not in _INERT_TYPES or (
-            machines.battery.cause is not None and type(message) is RemoteStatus
+            view.battery.cause is not None and type(message) is RemoteStatus
         ):
             return None
     elif type(event) is ClientHeartbeat:
-        if not machines.clients.beat_unchanged(event, now):
+        if not view.clients.beat_unchanged(event, now):
             return None
         moved = True  # the client's timeout restarts (SR-8.2)
     frames: tuple[Message, ...] = ()
     if beat_due:
         # What the full step's link frames are for a heartbeat that is not urgent (SR-5.1).
         frames = (UserHeartbeat(estop),)
-        machines.proof.sent(now)
+        view.proof.sent(now)
         vsc.beat_sent(now)
     deadline = (
         previous.next_deadline
         if not (beat_due or moved) and _kept_deadline(previous)
-        else next_deadline(view, machines)
+        else next_deadline(view)
     )
     # Every other field as the previous decision has it, as the full step would compute it
     # again (``again``).
@@ -139,24 +131,27 @@ def _kept_deadline(previous: Decision) -> bool:
     return previous.next_deadline - previous.now < IDLE_NS
 
 
-def only_the_beat_moves(view: View, machines: Machines) -> bool:
+def only_the_beat_moves(view: View) -> bool:
     """Whether at ``view.now`` time moves nothing but the user heartbeat: no machine moving
     (the proof test settled, no client's end deferred, no category-1 output braking), and of
     everything due only the beat. The cheap path's own test of time; the reflex holds at such
     a time too (SR-9.5)."""
-    for machine in machines:
-        if machine.moving(view):
+    for machine in view.movers:
+        if machine.moving():
             return False
-    return _only_heartbeat_due(view, machines)
+    return _only_heartbeat_due(view)
 
 
-def _only_heartbeat_due(view: View, machines: Machines) -> bool:
+def _only_heartbeat_due(view: View) -> bool:
     """Whether the user heartbeat is due at ``view.now`` and nothing else any machine keeps
     is (nor does the proof test withhold it): the time at which the full step's only work is
-    to send it. One comparison over the machines' face."""
-    if not machines.vsc.beat_due(view.now):
+    to send it. One comparison over the machines' face (``Machine.due_by``)."""
+    if not view.vsc.beat_due(view.now):
         return False
-    return not any(machine.due_by(view) for machine in machines)
+    for machine in view.machines:  # noqa: SIM110 -- every machine's due times, no generator
+        if machine.due_by(view):
+            return False
+    return True
 
 
 def fixed_point(state: State, book: CauseBook) -> bool:

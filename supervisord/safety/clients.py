@@ -269,9 +269,17 @@ class Clients:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
-        """A deferred end moves with time (SR-8.5)."""
-        return self.pending()
+    def can_move(self) -> bool:
+        """A request before hello may wait for its user's budget (SR-8.5)."""
+        return True
+
+    def moving(self) -> bool:
+        """A deferred end moves with time (SR-8.5): :meth:`pending`, inline (asked for
+        every input the cheap path sees, SR-9.4)."""
+        for entry in self._unnamed.values():  # noqa: SIM110 -- no generator per input
+            if not entry.holders:
+                return True
+        return False
 
     def due_by(self, view: View) -> bool:
         """A required client's timeout falls due at ``view.now`` or has (SR-8.2)."""

@@ -87,7 +87,7 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
-from supervisord.safety.face import Machines
+from supervisord.safety.face import View
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.proofrequest import request_prooftest
@@ -129,6 +129,7 @@ class SafetyCore:
         self._display = DisplayStore()
         self._budget = RecordBudget()  # records per user (SR-8.5)
         self._battery = RemoteBattery(config)  # the remote's battery (SR-8.12)
+        self._compose()
         self._book.pulse(Cause(CauseKind.STARTUP), now)  # SR-1: start STOPPED, cause startup
         self.decision: Decision = self.handle(Tick(now))
         """The latest decision returned (the startup decision until the first input)."""
@@ -151,10 +152,8 @@ class SafetyCore:
         heartbeat's deadline alone does not count: the VSC's heartbeats and the user
         heartbeat keep one cadence, so a stop often arrives just as the beat is due. Derived
         from the state, no part of it: a pure function, kept for the last states seen."""
-        if now >= self.decision.next_deadline:
-            machines = self._machines()
-            if not only_the_beat_moves(machines.view(now), machines):
-                return None
+        if now >= self.decision.next_deadline and not only_the_beat_moves(self._view.at(now)):
+            return None
         return prepare(self._state, *self._outputs.reflex_facts())
 
     def tick(self, now: int) -> Decision:
@@ -194,10 +193,9 @@ class SafetyCore:
             ("causes", book.canonical()),
             ("local_estop", self._local_estop),
         ]
-        machines = self._machines()
-        view = machines.view(now, book.last_stop_raised_ns)
-        for machine in machines:  # each machine's own facts and clocks (face.py)
-            machine_facts, machine_clocks = machine.canonical(view)
+        at = self._view.at(now, book.last_stop_raised_ns)
+        for machine in at.machines:  # each machine's own facts and clocks (face.py)
+            machine_facts, machine_clocks = machine.canonical(at)
             facts += machine_facts
             clocks += machine_clocks
         return tuple(facts), tuple(clocks)
@@ -226,7 +224,7 @@ class SafetyCore:
         step: Step | None = None  # made only for the full step: the cheap path needs none
         try:
             decision = (
-                cheap(event, self.decision, self._now, self._steady_estop, self._machines())
+                cheap(event, self.decision, self._now, self._steady_estop, self._view)
                 if self._steady and self.cheap_path
                 else None
             )
@@ -241,10 +239,15 @@ class SafetyCore:
             self.decision = self._fail_safe(event, error, step or Step(self._now))
         return self.decision
 
-    def _machines(self) -> Machines:
-        """The core's machines, as the parts that compose them read them (``face.py``).
-        Made when asked, never kept: the machines are the core's attributes alone."""
-        return Machines(
+    COMPOSED = frozenset({"_view"})
+    """What :meth:`_compose` builds from the machines: no state of its own. A copy of the core
+    (``verify/clone.py``) and a snapshot (``snapshot.py``) leave it out and compose again."""
+
+    def _compose(self) -> None:
+        """The view of the core's machines that the parts composing them read (``face.py``),
+        built once: the machines live as long as the core, so that no input pays for a
+        tuple or a view (SR-9.4)."""
+        self._view = View(
             self._vsc,
             self._clients,
             self._budget,
@@ -346,7 +349,6 @@ class SafetyCore:
 
     def _finish(self, event: Event, previous: State, step: Step) -> Decision:
         now = step.now
-        machines = self._machines()
         # SR-8.15: while an unfinished proof test needs the byte at 0, a missing required
         # client neither sets it nor aborts the test (the outputs are off: STOPPED).
         quiet = self._proof.quiet(self._state is State.STOPPED)
@@ -387,7 +389,7 @@ class SafetyCore:
             causes=causes,
             outputs=self._outputs.levels(previous, self._state, now),
             heartbeat_estop=estop,
-            next_deadline=next_deadline(machines.view(now), machines),
+            next_deadline=next_deadline(self._view.at(now)),
             frames=tuple(step.frames),
             records=records,
             refusals=tuple(step.refusals),

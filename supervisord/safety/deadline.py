@@ -10,21 +10,20 @@ end with it.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from typing import Final
 
-from supervisord.safety.face import Machine, View
+from supervisord.safety.face import View
 from supervisord.timebase import NS_PER_S
 
 IDLE_NS: Final = NS_PER_S  # the longest the core sleeps when nothing else is due
 
 
-def next_deadline(view: View, machines: Iterable[Machine]) -> int:
+def next_deadline(view: View) -> int:
     """The earliest future time at which something falls due; never ``view.now`` or earlier."""
     # A deadline already passed has been acted on in this step (an expired timeout stays
     # expired until a new heartbeat), so each machine gives only future times.
     earliest = view.now + IDLE_NS
-    for machine in machines:
+    for machine in view.machines:
         later = machine.next_deadline(view)
         if later is not None and later < earliest:
             earliest = later

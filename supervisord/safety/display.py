@@ -151,8 +151,11 @@ class DisplayStore:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
         """The display moves only at its rate slots."""
+        return False
+
+    def moving(self) -> bool:
         return False
 
     def due_by(self, view: View) -> bool:
@@ -162,7 +165,7 @@ class DisplayStore:
 
     def next_deadline(self, view: View) -> int | None:
         """When the next waiting frame may go, if after ``view.now`` and on an open link."""
-        due = self.next_due() if view.link_open else None
+        due = self.next_due() if view.vsc.open else None
         return due if due is not None and due > view.now else None
 
     def canonical(self, view: View) -> Canonical:

@@ -1,15 +1,19 @@
 """The one face every machine of the safety core shows it (docs/safety.md "The core").
 
 The core composes machines (the link to the VSC, the clients, the record budget, the outputs,
-the remote's battery and display, the proof test); each answers the same four questions about
-a :class:`View` of the step, so that the canonical form (``SafetyCore.canonical``), the next
+the remote's battery and display, the proof test); each answers the same questions about a
+:class:`View` of the step, so that the canonical form (``SafetyCore.canonical``), the next
 deadline (``deadline.py``) and the cheap path (``cheap.py``) iterate over the machines instead
 of naming them one by one (SR-2.11, SR-9.4; docs/verification.md "The time abstraction").
+
+The core builds its :class:`View` once (``SafetyCore._compose``): the machines live as long as
+the core, and the cheap path, which answers most inputs, must not pay for a tuple per input
+(SR-9.4; docs/performance.md "The cheap path").
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from supervisord.safety.canonical import Canonical
 
@@ -21,17 +25,6 @@ if TYPE_CHECKING:
     from supervisord.safety.outputs import Outputs
     from supervisord.safety.prooftest import ProofTest
     from supervisord.safety.vsc import VscLink
-
-
-class View(NamedTuple):
-    """What a machine may read of the step and of the other machines, at ``now``. A tuple:
-    made for every input the cheap path answers, so as cheap to make as two calls (SR-9.4)."""
-
-    now: int
-    key85: int | None  # the VSC's answer to key 85 (the proof test's wait for it; SR-5.3)
-    link_open: bool  # the display's frames and the proof test's limits need the link
-    budget: RecordBudget  # when a user's deferred end may come (SR-8.5)
-    last_stop_raised_ns: int | None = None  # the takeover's run is ordered against it (SR-4.3)
 
 
 class Machine(Protocol):
@@ -47,9 +40,16 @@ class Machine(Protocol):
         (SR-2.11: the core's deadline is the earliest of these)."""
         ...
 
-    def moving(self, view: View) -> bool:
-        """Whether time moves it between its deadlines (a proof test running, a deferred end,
-        an output braking): then the cheap path declines every input (SR-9.4)."""
+    def can_move(self) -> bool:
+        """Whether time can ever move it between its deadlines, by its configuration: asked
+        once, when the core composes its machines; only those that can are asked
+        :meth:`moving` for each input (SR-9.4)."""
+        ...
+
+    def moving(self) -> bool:
+        """Whether time moves it now between its deadlines (a proof test running, a deferred
+        end, an output braking): then the cheap path declines every input (SR-9.4). Read
+        from its own state alone: asked for every input the cheap path sees."""
         ...
 
     def due_by(self, view: View) -> bool:
@@ -58,21 +58,67 @@ class Machine(Protocol):
         ...
 
 
-class Machines(NamedTuple):
-    """The core's machines, made by the core when a step needs them (never kept: the
-    exploration copies the core attribute by attribute, and a tuple would be shared). Iterated
-    as :class:`Machine` wherever the core composes them; named only where an input speaks to
-    one of them (its handler)."""
+class View:
+    """The core's machines as each machine sees the others, at :attr:`now`: what every
+    question of the face is asked about. Built once by the core (``SafetyCore._compose``),
+    as its machines live as long as it does; :attr:`now` (and, for the canonical form, the
+    time of the last stop) is set before each question (:meth:`at`), so that no input pays for
+    a tuple or a view (SR-9.4; docs/performance.md "The cheap path"). A machine reads of the
+    others only what its deadlines need: the link's answer to key 85 and whether it is open
+    (the display's frames and the proof test's limits), the record budget (a deferred end).
+    Named where an input speaks to one machine (its handler), iterated as :attr:`machines`
+    everywhere the core composes them."""
 
-    vsc: VscLink
-    clients: Clients
-    budget: RecordBudget
-    outputs: Outputs
-    battery: RemoteBattery
-    display: DisplayStore
-    proof: ProofTest
+    __slots__ = (
+        "battery",
+        "budget",
+        "clients",
+        "display",
+        "last_stop_raised_ns",
+        "machines",
+        "movers",
+        "now",
+        "outputs",
+        "proof",
+        "vsc",
+    )
 
-    def view(self, now: int, last_stop_raised_ns: int | None = None) -> View:
-        """The view of the step at ``now``."""
-        vsc = self.vsc
-        return View(now, vsc.key85, vsc.open, self.budget, last_stop_raised_ns)
+    def __init__(  # noqa: PLR0917 -- one per machine, once per core
+        self,
+        vsc: VscLink,
+        clients: Clients,
+        budget: RecordBudget,
+        outputs: Outputs,
+        battery: RemoteBattery,
+        display: DisplayStore,
+        proof: ProofTest,
+    ) -> None:
+        self.vsc = vsc
+        self.clients = clients
+        self.budget = budget
+        self.outputs = outputs
+        self.battery = battery
+        self.display = display
+        self.proof = proof
+        self.machines: tuple[Machine, ...] = (
+            vsc,
+            clients,
+            budget,
+            outputs,
+            battery,
+            display,
+            proof,
+        )
+        """Every machine, in the order the canonical form lists them."""
+        self.movers = tuple(machine for machine in self.machines if machine.can_move())
+        """The machines that time can move between their deadlines (``Machine.can_move``):
+        the only ones asked ``moving`` for each input."""
+        self.now = 0
+        self.last_stop_raised_ns: int | None = None  # the takeover's run is ordered against it
+
+    def at(self, now: int, last_stop_raised_ns: int | None = None) -> View:
+        """This view, at ``now`` (and the latest stop raised at ``last_stop_raised_ns``,
+        SR-4.3: read by the canonical form alone)."""
+        self.now = now
+        self.last_stop_raised_ns = last_stop_raised_ns
+        return self

@@ -124,7 +124,11 @@ class Outputs:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
+        """Only an output with a delay brakes (SR-1.4)."""
+        return bool(self._delays_ns)
+
+    def moving(self) -> bool:
         """A category-1 output braking goes off with time (SR-1.4)."""
         return self._braking_since is not None
 

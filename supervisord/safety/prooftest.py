@@ -58,9 +58,6 @@ second, SR-5.3): no answer by then and the watchdog cannot be proven."""
 
 
 NOT_IN_THE_WAY: Final = frozenset({CauseKind.CLIENT_LOST})
-SETTLED: Final = frozenset({Phase.OFF, Phase.PASSED})
-"""Phases in which neither time nor an unchanged heartbeat moves the test (its face's
-``moving``; the cheap path's ``SETTLED_PROOF``)."""
 """The stop causes that neither keep an unfinished proof test from starting nor set the user
 heartbeat's byte while it is unfinished and the supervisor STOPPED (SR-8.15): a required
 client not connected yet. Its service may itself start behind ``srcsctl wait-ready``, which
@@ -68,6 +65,10 @@ waits for the proof test; the test needs the byte at 0 (PR-2.6). It cannot move 
 the outputs are off (STOPPED) and ``client_lost`` stays active, latched and blocking every
 re-arm; the withholding itself opens the VSC's relays, and once the test is over the byte is
 1 again until the client is there."""
+
+SETTLED: Final = frozenset({Phase.OFF, Phase.PASSED})
+"""Phases in which neither time nor an unchanged heartbeat moves the test (its face's
+``moving``; the cheap path's ``SETTLED_PROOF``)."""
 
 
 class Cleared(enum.Enum):
@@ -178,7 +179,11 @@ class ProofTest:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
+        """No test ever runs while the policy is off (its phase stays OFF)."""
+        return self.policy is not ProofTestPolicy.OFF
+
+    def moving(self) -> bool:
         """A test pending or running moves with time and heartbeats (docs/safety.md "The
         proof test")."""
         return self.phase not in SETTLED
@@ -187,12 +192,12 @@ class ProofTest:
         """Whether the test withholds the user heartbeat or one of its limits has come."""
         if self.phase is Phase.WITHHOLDING:
             return True
-        due = self.next_limit(view.key85)
+        due = self.next_limit(view.vsc.key85)
         return due is not None and due <= view.now
 
     def next_deadline(self, view: View) -> int | None:
         """The next of its limits after ``view.now``, while the link is open."""
-        due = self.next_limit(view.key85) if view.link_open else None
+        due = self.next_limit(view.vsc.key85) if view.vsc.open else None
         return due if due is not None and due > view.now else None
 
     def next_limit(self, key85: int | None) -> int | None:
@@ -216,7 +221,7 @@ class ProofTest:
         if self.policy is ProofTestPolicy.OFF:
             # No test ever runs: the times it keeps are never read.
             return (("proof", (self.phase,)),), ()
-        now, key85 = view.now, view.key85
+        now, key85 = view.now, view.vsc.key85
 
         def outcome(done: Outcome | None) -> object:
             return None if done is None else (done.passed, done.failure)

@@ -298,8 +298,11 @@ class VscLink:
 
     # ----------------------------------------------------------------- the face (face.py)
 
-    def moving(self, view: View) -> bool:
+    def can_move(self) -> bool:
         """The link moves only at its deadlines."""
+        return False
+
+    def moving(self) -> bool:
         return False
 
     def due_by(self, view: View) -> bool:

@@ -40,9 +40,15 @@ LEFT_OUT: dict[type, frozenset[str]] = {
 }
 
 
+BUILT_BY = {"_view": "_compose"}
+"""An attribute of the core built once from others (the view of its machines), by the method
+that builds it: ``canonical`` reading it reads what that method reads."""
+
+
 def _read(cls: type, method: str = "canonical") -> set[str]:
     """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``,
-    and in the methods of the class it calls (``self._machines()``: the machines it iterates)."""
+    in the methods of the class it calls, and in the method that builds an attribute it reads
+    (:data:`BUILT_BY`: ``self._view``, whose machines it iterates)."""
     tree = ast.parse(textwrap.dedent(inspect.getsource(getattr(cls, method))))
     read = {
         node.attr
@@ -54,6 +60,8 @@ def _read(cls: type, method: str = "canonical") -> set[str]:
     for name in list(read):
         if name != method and inspect.isfunction(getattr(cls, name, None)):
             read |= _read(cls, name)
+        elif name in BUILT_BY and BUILT_BY[name] != method:
+            read |= _read(cls, BUILT_BY[name])
     return read
 
 

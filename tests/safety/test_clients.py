@@ -13,6 +13,7 @@ from supervisord.safety import (
     RecordNote,
     RefusalReason,
     Request,
+    SafetyCore,
     State,
     Transport,
 )
@@ -214,8 +215,13 @@ def test_the_clients_next_deadline_is_the_timeout_of_the_one_heard_longest_ago()
     assert clients.heartbeat(ClientHeartbeat(100 * MS, 2), 100 * MS) is None  # planner
     assert clients.heartbeat(ClientHeartbeat(300 * MS, 1), 300 * MS) is None  # arm
 
+    core = SafetyCore(ROBOT, 0)  # the other machines, as a core composes them
+    view = View(
+        core._vsc, clients, RecordBudget(), core._outputs, core._battery, core._display, core._proof
+    )
+
     def at(now: int) -> View:
-        return View(now, None, True, RecordBudget())
+        return view.at(now)
 
     assert clients.next_deadline(at(300 * MS)) == 600 * MS  # the planner's
     assert clients.next_deadline(at(600 * MS)) == 800 * MS  # then the arm's

@@ -12,6 +12,7 @@ from __future__ import annotations
 import pytest
 
 from supervisord.safety import SafetyCore
+from tests.safety.rig import composed_of_its_own
 from verify import model
 from verify.broken import CHEAP_FAULT, FAULTS, Fault, broken_core
 from verify.clone import clone
@@ -88,6 +89,20 @@ def test_a_counterexample_is_a_regression_test_that_fails_until_the_core_is_fixe
                 test()
         else:
             test()
+
+
+def test_a_copy_composes_the_view_of_its_own_machines() -> None:
+    """SR-8.7, SR-9.4: the core builds the view of its machines once (``face.View``); a copy
+    builds its own, so the copy's cheap path and deadlines read the copy's machines and not
+    the original's (which a view shared or copied beside them would hold), and a model's
+    record budget is the one the view holds."""
+    core = model.MODELS["all"].start()
+    assert composed_of_its_own(core)
+    for item in model.MODELS["all"].inputs[:20]:
+        core.handle(item.build(model.START_NS))
+    copy = clone(core)
+    assert composed_of_its_own(copy)
+    assert composed_of_its_own(core)
 
 
 def test_a_copy_of_the_core_is_independent_of_its_original() -> None:
