@@ -123,11 +123,11 @@ FAULTS = (
     ),
     Fault(
         "the remote's battery report never goes stale before another input",
-        "if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old",
-        "if False:  # SR-8.12: the report is too old",
+        "return stale if stale is not None and stale > view.now else None",
+        "return None",
         "battery_stop",
         "P8",
-        module="deadline",
+        module="battery",
     ),
     Fault(
         "a low battery is read as a good one",
@@ -213,6 +213,17 @@ FAULTS = (
     ),
 )
 
+CHEAP_FAULT = Fault(
+    "the cheap path ignores one machine: the VSC's timeout at the user heartbeat",
+    "for machine in view.machines:  # noqa: SIM110",
+    "for machine in view.machines[1:]:  # noqa: SIM110",
+    "vsc",
+    "P17",
+    module="cheap",
+)
+"""A cheap path that decides otherwise than the full step: P17 must see it (besides the
+properties of what it then gets wrong, P4 and P23, which see it first)."""
+
 
 def broken_core(fault: Fault) -> type[SafetyCore]:
     """The ``SafetyCore`` of a copy of core.py with ``fault`` applied (to core.py or to the
@@ -222,7 +233,7 @@ def broken_core(fault: Fault) -> type[SafetyCore]:
     source = Path(real.__file__).read_text(encoding="utf-8")
     if source.count(fault.old) != 1:
         raise ValueError(f"{fault.name}: the patched text is not in {fault.module}.py exactly once")
-    name = f"verify._broken_{FAULTS.index(fault)}"
+    name = f"verify._broken_{FAULTS.index(fault) if fault in FAULTS else len(FAULTS)}"
     patched = _load(name, source.replace(fault.old, fault.new), real.__file__)
     if real is real_core:
         core_class: type[SafetyCore] = patched.SafetyCore

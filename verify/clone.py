@@ -31,8 +31,10 @@ def clone(value: Any) -> Any:
     about four times faster. Immutable values are shared: numbers, text, tuples and frozen
     sets (the core keeps only immutable values in them), enums, frozen dataclasses and
     read-only mappings; dicts, lists, sets, deques and objects are copied, without a memo (the
-    core shares no mutable object between two places; ``tests/safety/test_exploration.py``
-    checks that a copy stepped on leaves its original as it was)."""
+    core shares no mutable object between two places but the view of its machines, which the
+    copy leaves out and builds again: ``SafetyCore.COMPOSED``, ``_compose``;
+    ``tests/safety/test_exploration.py`` checks that a copy stepped on leaves its original as it
+    was)."""
     kind = type(value)
     if kind in _SHARED:
         return value
@@ -81,4 +83,24 @@ def _copier(kind: type) -> _Copier:
         )
         return new
 
-    return by_dict
+    compose = getattr(kind, "_compose", None)
+    if compose is None:
+        return by_dict
+    composed: frozenset[str] = getattr(kind, "COMPOSED", frozenset())
+
+    def by_dict_composed(obj: Any) -> Any:
+        # The core keeps a view of its own machines (``SafetyCore._compose``): copied, it
+        # would hold copies of the machines beside the copy's own, so the copy composes its own.
+        new = object.__new__(kind)
+        shared = _SHARED
+        new.__dict__.update(
+            {
+                k: v if type(v) in shared else clone(v)
+                for k, v in obj.__dict__.items()
+                if k not in composed
+            }
+        )
+        compose(new)
+        return new
+
+    return by_dict_composed

@@ -384,6 +384,7 @@ class Model:
         core = core_class(self.config, START_NS)
         limit = UNREACHABLE if self.budget_limit is None else self.budget_limit
         core._budget = RecordBudget(limit=limit, total=max(limit, RECORDS_OF_ALL_CLIENTS))
+        core._compose()  # the view of its machines holds the new budget
         return core
 
 

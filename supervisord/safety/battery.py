@@ -23,6 +23,7 @@ from supervisord.safety.availability import (
 from supervisord.safety.canonical import Clock, clock
 from supervisord.safety.causes import Cause, CauseKind
 from supervisord.safety.config import SafetyConfig
+from supervisord.safety.face import View
 from supervisord.timebase import NS_PER_MS
 
 BATTERY_SEEN_CLIP_NS: Final = REMOTE_STATUS_FRESH_NS + 10 * NS_PER_MS
@@ -97,9 +98,29 @@ class RemoteBattery:
             return None
         return battery[1] + REMOTE_STATUS_FRESH_NS
 
-    def canonical(self, now: int) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """The battery moves only when its report goes stale."""
+        return False
+
+    def moving(self) -> bool:
+        return False
+
+    def due_by(self, view: View) -> bool:
+        """Whether the last report has gone stale by ``view.now`` (SR-8.12)."""
+        stale = self.stale_at()
+        return stale is not None and stale <= view.now
+
+    def next_deadline(self, view: View) -> int | None:
+        """When the last report goes stale, if after ``view.now`` (SR-8.12)."""
+        stale = self.stale_at()
+        return stale if stale is not None and stale > view.now else None
+
+    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the battery (docs/verification.md): the report's age and
         whether it is low, while watched; the condition's reason and its runs."""
+        now = view.now
         clocks: list[Clock] = []
         low = None
         battery = self._last

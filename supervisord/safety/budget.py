@@ -19,7 +19,8 @@ from __future__ import annotations
 from collections import deque
 from typing import Final
 
-from supervisord.safety.canonical import Clock, clock
+from supervisord.safety.canonical import Canonical, clock
+from supervisord.safety.face import View
 from supervisord.timebase import NS_PER_S
 
 RECORDS_PER_UID: Final = 20
@@ -81,12 +82,28 @@ class RecordBudget:
         ]
         return max(due)
 
-    def canonical(self, now: int) -> tuple[Clock, ...]:
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """A window ageing out changes nothing by itself: the clients' deferred ends, which
+        wait for it, are theirs (``Clients.next_deadline``)."""
+        return False
+
+    def moving(self) -> bool:
+        return False
+
+    def due_by(self, view: View) -> bool:
+        return False
+
+    def next_deadline(self, view: View) -> int | None:
+        return None
+
+    def canonical(self, view: View) -> Canonical:
         """The records that can still change an answer, per user and for all, as clocks
         (docs/verification.md): a window is exhausted exactly while its ``limit``-th newest
         record is less than a window old, so only the ``limit`` newest inside the window
         count (``total`` for all users). ``limit``, ``total`` and ``window_ns`` are constants."""
-        window = self.window_ns
+        now, window = view.now, self.window_ns
 
         def newest(times: deque[int], cap: int) -> list[int]:
             return [t for t in list(times)[-cap:] if now - t < window]
@@ -98,7 +115,7 @@ class RecordBudget:
             for t in newest(times, self.limit)
         ]
         clocks += [clock("budget:all", t, now, window) for t in newest(self._all, self.total)]
-        return tuple(clocks)
+        return (), tuple(clocks)
 
     @property
     def tracked(self) -> int:

@@ -31,6 +31,7 @@ from supervisord.safety.events import (
     Event,
     Request,
 )
+from supervisord.safety.face import View
 from supervisord.safety.fleet import Fleet
 from supervisord.safety.progress import ProgressBook
 
@@ -270,9 +271,29 @@ class Clients:
         """Whether a request before hello waits for its user's budget to end (SR-8.5)."""
         return any(not entry.holders for entry in self._unnamed.values())
 
-    def next_deadline(self, now: int, budget: RecordBudget) -> int | None:
-        """The earliest time after ``now`` at which a deferred request may end or a required
-        client's timeout falls due, or ``None``."""
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """A request before hello may wait for its user's budget (SR-8.5)."""
+        return True
+
+    def moving(self) -> bool:
+        """A deferred end moves with time (SR-8.5): :meth:`pending`, inline (asked for
+        every input the cheap path sees, SR-9.4)."""
+        for entry in self._unnamed.values():  # noqa: SIM110 -- no generator per input
+            if not entry.holders:
+                return True
+        return False
+
+    def due_by(self, view: View) -> bool:
+        """A required client's timeout falls due at ``view.now`` or has (SR-8.2)."""
+        return self.expired(view.now)
+
+    def next_deadline(self, view: View) -> int | None:
+        """The earliest time after ``view.now`` at which a deferred request may end (its
+        user's budget in ``view.budget``) or a required client's timeout falls due, or
+        ``None``."""
+        now, budget = view.now, view.budget
         earliest: int | None = None
         for kind, name in self._pending_ends():
             free = budget.free_at(self._unnamed[(kind, name)].uid, now)
@@ -289,9 +310,10 @@ class Clients:
             earliest = console
         return earliest
 
-    def canonical(self, now: int) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts (as ``(name, value)`` pairs) and clocks of the clients: each required
         client's heartbeat as its age, with its timeout (docs/verification.md)."""
+        now = view.now
         fleet_facts, fleet_clocks = self.fleet.canonical(now)
         clocks = (
             tuple(

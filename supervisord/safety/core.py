@@ -90,6 +90,7 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
+from supervisord.safety.face import View
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.proofrequest import request_prooftest
@@ -131,6 +132,7 @@ class SafetyCore:
         self._display = DisplayStore()
         self._budget = RecordBudget()  # records per user (SR-8.5)
         self._battery = RemoteBattery(config)  # the remote's battery (SR-8.12)
+        self._compose()
         self._book.pulse(Cause(CauseKind.STARTUP), now)  # SR-1: start STOPPED, cause startup
         self.decision: Decision = self.handle(Tick(now))
         """The latest decision returned (the startup decision until the first input)."""
@@ -153,15 +155,7 @@ class SafetyCore:
         heartbeat's deadline alone does not count: the VSC's heartbeats and the user
         heartbeat keep one cadence, so a stop often arrives just as the beat is due. Derived
         from the state, no part of it: a pure function, kept for the last states seen."""
-        if now >= self.decision.next_deadline and not only_the_beat_moves(
-            now,
-            self._vsc,
-            self._proof,
-            self._clients,
-            self._outputs,
-            self._display,
-            self._battery,
-        ):
+        if now >= self.decision.next_deadline and not only_the_beat_moves(self._view.at(now)):
             return None
         return prepare(self._state, *self._outputs.reflex_facts())
 
@@ -191,35 +185,23 @@ class SafetyCore:
             if at is not None:
                 clocks.append(clock(name, at, now, *limits))
 
-        vsc_facts, vsc_clocks = self._vsc.canonical(now, book.last_stop_raised_ns)
-        clocks += vsc_clocks
         keep("clear_since", book.stops_clear_since(), self._config.rearm_hold_ns)
-        output_facts, output_clocks = self._outputs.canonical(now)
-        clocks += output_clocks
         if self._steady:  # read only by the cheap path and step 1, after a normal step
             keep("decision:next", self.decision.next_deadline, 0)
-        client_facts, client_clocks = self._clients.canonical(now)
-        clocks += client_clocks
-        battery_facts, battery_clocks = self._battery.canonical(now)
-        clocks += battery_clocks
-        proof_facts, proof_clocks = self._proof.canonical(now, self._vsc.key85)
-        display_facts, display_clocks = self._display.canonical(now)
-        clocks += [*proof_clocks, *display_clocks, *self._budget.canonical(now)]
-        facts = (
+        facts: list[object] = [
             ("state", self._state),
             ("cheap_path", self.cheap_path),
             ("steady", self._steady),
             ("steady_estop", self._steady and self._steady_estop),
             ("causes", book.canonical()),
-            *vsc_facts,
-            *client_facts,
             ("local_estop", self._local_estop),
-            *output_facts,
-            *battery_facts,
-            ("proof", proof_facts),
-            ("display", display_facts),
-        )
-        return facts, tuple(clocks)
+        ]
+        at = self._view.at(now, book.last_stop_raised_ns)
+        for machine in at.machines:  # each machine's own facts and clocks (face.py)
+            machine_facts, machine_clocks = machine.canonical(at)
+            facts += machine_facts
+            clocks += machine_clocks
+        return tuple(facts), tuple(clocks)
 
     _NOT_CANONICAL = frozenset(
         {
@@ -245,19 +227,7 @@ class SafetyCore:
         step: Step | None = None  # made only for the full step: the cheap path needs none
         try:
             decision = (
-                cheap(
-                    event,
-                    self.decision,
-                    self._now,
-                    self._steady_estop,
-                    self._vsc,
-                    self._proof,
-                    self._clients,
-                    self._outputs,
-                    self._display,
-                    self._battery,
-                    self._budget,
-                )
+                cheap(event, self.decision, self._now, self._steady_estop, self._view)
                 if self._steady and self.cheap_path
                 else None
             )
@@ -271,6 +241,24 @@ class SafetyCore:
             self._steady = False
             self.decision = self._fail_safe(event, error, step or Step(self._now))
         return self.decision
+
+    COMPOSED = frozenset({"_view"})
+    """What :meth:`_compose` builds from the machines: no state of its own. A copy of the core
+    (``verify/clone.py``) and a snapshot (``snapshot.py``) leave it out and compose again."""
+
+    def _compose(self) -> None:
+        """The view of the core's machines that the parts composing them read (``face.py``),
+        built once: the machines live as long as the core, so that no input pays for a
+        tuple or a view (SR-9.4)."""
+        self._view = View(
+            self._vsc,
+            self._clients,
+            self._budget,
+            self._outputs,
+            self._battery,
+            self._display,
+            self._proof,
+        )
 
     # ----------------------------------------------------------------- the step
 
@@ -404,16 +392,7 @@ class SafetyCore:
             causes=causes,
             outputs=self._outputs.levels(previous, self._state, now),
             heartbeat_estop=estop,
-            next_deadline=next_deadline(
-                now,
-                self._vsc,
-                self._clients,
-                self._budget,
-                self._battery,
-                self._outputs,
-                self._display,
-                self._proof,
-            ),
+            next_deadline=next_deadline(self._view.at(now)),
             frames=tuple(step.frames),
             records=records,
             refusals=tuple(step.refusals),

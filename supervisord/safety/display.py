@@ -16,6 +16,7 @@ from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.decision import RefusalReason
+from supervisord.safety.face import View
 
 VALUE_PERIOD_NS = 50_000_000  # values at most 20 Hz
 STRING_PERIOD_NS = 250_000_000  # strings at most 4 Hz
@@ -148,9 +149,29 @@ class DisplayStore:
             times.append(self._next_value_ns)
         return min(times) if times else None
 
-    def canonical(self, now: int) -> Canonical:
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """The display moves only at its rate slots."""
+        return False
+
+    def moving(self) -> bool:
+        return False
+
+    def due_by(self, view: View) -> bool:
+        """Whether a waiting frame may go at ``view.now`` (SR-5.4)."""
+        due = self.next_due()
+        return due is not None and due <= view.now
+
+    def next_deadline(self, view: View) -> int | None:
+        """When the next waiting frame may go, if after ``view.now`` and on an open link."""
+        due = self.next_due() if view.vsc.open else None
+        return due if due is not None and due > view.now else None
+
+    def canonical(self, view: View) -> Canonical:
         """The content kept and waiting, in order, and the rate slots as clocks that matter
-        only once they have come (docs/verification.md)."""
+        only once they have come (docs/verification.md), as the one fact ``display``."""
+        now = view.now
         facts = (
             tuple(self._values.items()),
             tuple(self._names.items()),
@@ -159,7 +180,8 @@ class DisplayStore:
             self._notice,
         )
         slots = (("display:value", self._next_value_ns), ("display:name", self._next_name_ns))
-        return facts, tuple(clock(name, at, now, 0) for name, at in slots if at is not None)
+        clocks = tuple(clock(name, at, now, 0) for name, at in slots if at is not None)
+        return (("display", facts),), clocks
 
     @property
     def pending(self) -> bool:

@@ -16,6 +16,7 @@ from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import OutputRole, SafetyConfig
 from supervisord.safety.decision import Refusal, RefusalReason
 from supervisord.safety.events import OutputReadback
+from supervisord.safety.face import View
 from supervisord.safety.transitions import State
 
 Levels = MappingProxyType[str, bool]
@@ -121,9 +122,24 @@ class Outputs:
         """``output_fault`` for each output whose last read-back disagreed (SR-6)."""
         return {Cause(CauseKind.OUTPUT_FAULT, n): d for n, d in self._faults.items()}
 
-    def next_deadline(self, now: int) -> int | None:
-        """The earliest time after ``now`` at which a category-1 output goes off (SR-1.4: at
-        its delay, never later), or ``None``."""
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """Only an output with a delay brakes (SR-1.4)."""
+        return bool(self._delays_ns)
+
+    def moving(self) -> bool:
+        """A category-1 output braking goes off with time (SR-1.4)."""
+        return self._braking_since is not None
+
+    def due_by(self, view: View) -> bool:
+        """While braking, its delays run: :meth:`moving` already declines (SR-1.4)."""
+        return self._braking_since is not None
+
+    def next_deadline(self, view: View) -> int | None:
+        """The earliest time after ``view.now`` at which a category-1 output goes off (SR-1.4:
+        at its delay, never later), or ``None``."""
+        now = view.now
         earliest: int | None = None
         since = self._braking_since
         if since is not None:
@@ -133,10 +149,11 @@ class Outputs:
                     earliest = due
         return earliest
 
-    def canonical(self, now: int) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the outputs (docs/verification.md): the read-backs that
         disagree, and, only when an output has a delay, when motion went off and the stop's
         braking began."""
+        now = view.now
         clocks: list[Clock] = []
         if self._delays_ns:  # SR-1.4: read only when an output has a delay
             delays = sorted(set(self._delays_ns.values()))

@@ -20,6 +20,7 @@ from typing import Final
 from supervisord.protocol.codes import VscMode
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.causes import CauseKind
+from supervisord.safety.face import View
 from supervisord.timebase import NS_PER_MS
 from supervisord.vocabulary import (
     READING_MARGIN_NS,
@@ -64,6 +65,10 @@ waits for the proof test; the test needs the byte at 0 (PR-2.6). It cannot move 
 the outputs are off (STOPPED) and ``client_lost`` stays active, latched and blocking every
 re-arm; the withholding itself opens the VSC's relays, and once the test is over the byte is
 1 again until the client is there."""
+
+SETTLED: Final = frozenset({Phase.OFF, Phase.PASSED})
+"""Phases in which neither time nor an unchanged heartbeat moves the test (its face's
+``moving``; the cheap path's ``SETTLED_PROOF``)."""
 
 
 class Cleared(enum.Enum):
@@ -172,7 +177,30 @@ class ProofTest:
         """For ``status``: the phase and the latest result."""
         return ProofStatus(self.policy, self.phase, self.last)
 
-    def next_deadline(self, key85: int | None) -> int | None:
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """No test ever runs while the policy is off (its phase stays OFF)."""
+        return self.policy is not ProofTestPolicy.OFF
+
+    def moving(self) -> bool:
+        """A test pending or running moves with time and heartbeats (docs/safety.md "The
+        proof test")."""
+        return self.phase not in SETTLED
+
+    def due_by(self, view: View) -> bool:
+        """Whether the test withholds the user heartbeat or one of its limits has come."""
+        if self.phase is Phase.WITHHOLDING:
+            return True
+        due = self.next_limit(view.vsc.key85)
+        return due is not None and due <= view.now
+
+    def next_deadline(self, view: View) -> int | None:
+        """The next of its limits after ``view.now``, while the link is open."""
+        due = self.next_limit(view.vsc.key85) if view.vsc.open else None
+        return due if due is not None and due > view.now else None
+
+    def next_limit(self, key85: int | None) -> int | None:
         """When the test next moves with time alone; ``key85`` is the core's answer to key 85
         (while none came, the wait for it ends 3 s after the VSC was first heard)."""
         if self.phase is Phase.WAITING and key85 is None and self._heard_ns is not None:
@@ -183,7 +211,7 @@ class ProofTest:
             return self._resumed_ns + self.clear_limit_ns
         return None
 
-    def canonical(self, now: int, key85: int | None) -> Canonical:
+    def canonical(self, view: View) -> Canonical:
         """The phase and every fact a later step reads, the times as clocks while a guard can
         still read them (docs/verification.md). ``key85`` is the core's answer to key 85, which
         decides whether the wait for it runs. Outcomes keep whether they passed and why not:
@@ -191,7 +219,9 @@ class ProofTest:
         details, which the core's book keeps); the trip keeps only whether it was late.
         ``policy``, ``clear_limit_ns`` and ``late_tries`` are constants."""
         if self.policy is ProofTestPolicy.OFF:
-            return (self.phase,), ()  # no test ever runs: the times it keeps are never read
+            # No test ever runs: the times it keeps are never read.
+            return (("proof", (self.phase,)),), ()
+        now, key85 = view.now, view.vsc.key85
 
         def outcome(done: Outcome | None) -> object:
             return None if done is None else (done.passed, done.failure)
@@ -232,7 +262,7 @@ class ProofTest:
             for name, (at, limits, read) in live.items()
             if at is not None and read
         )
-        return facts, clocks
+        return (("proof", facts),), clocks
 
     # -- inputs
 

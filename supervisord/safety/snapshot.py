@@ -24,9 +24,10 @@ core's own modules and the protocol's message modules (:data:`MODULES`), sets on
 the fields its class declares (:class:`_Declared`: a dataclass's fields, else the attributes a
 fresh core's instance holds and the class's own annotated or cached ones; never a name that is
 a method of the class, never one missing), each of its declared type, and never calls a
-constructor, a method or anything named in the data (SR-7.13). Tied to the code that wrote
-it: the state of one version of the core is not a state of another, which the window's header
-says (``srcsd`` version) and ``srcsctl replay`` checks.
+constructor, a method or anything named in the data (SR-7.13): once made, the core composes the
+view of its machines again (``SafetyCore._compose``: built from them, never in a snapshot).
+Tied to the code that wrote it: the state of one version of the core is not a state of another,
+which the window's header says (``srcsd`` version) and ``srcsctl replay`` checks.
 
 Pure, as the rest of the core (``tests/safety/test_purity.py``).
 """
@@ -189,7 +190,11 @@ def snapshot(safety: SafetyCore) -> Json:
     (it never does: only values of the core's own classes, the protocol's messages and the
     builtin containers)."""
     writer = _Writer()
-    state = {name: writer.value(value) for name, value in vars(safety).items() if name != CONFIG}
+    state = {
+        name: writer.value(value)
+        for name, value in vars(safety).items()
+        if name != CONFIG and name not in SafetyCore.COMPOSED
+    }
     return {"t": "obj", "c": _name(SafetyCore), "i": -1, "f": state}
 
 
@@ -249,7 +254,7 @@ class _Declared:
             elif type(obj) in CLASSES.values() and not dataclasses.is_dataclass(obj):
                 fields = self.required.setdefault(type(obj), {})
                 for name, value in getattr(obj, "__dict__", {}).items():
-                    if obj is core and name == CONFIG:
+                    if obj is core and (name == CONFIG or name in SafetyCore.COMPOSED):
                         continue  # never in a snapshot: restore gives it back
                     fields[name] = Any if value is None else type(value) | None
                     todo.append(value)
@@ -426,4 +431,5 @@ def restore(data: Json, config: SafetyConfig) -> SafetyCore:
     if not isinstance(made, SafetyCore) or CONFIG in vars(made):
         raise SnapshotError("the snapshot is not of a safety core")
     object.__setattr__(made, CONFIG, config)
+    made._compose()  # the view of its machines: built from them, never in the data (face.py)
     return made

@@ -19,6 +19,7 @@ from supervisord.safety.canonical import Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import RefusalReason
+from supervisord.safety.face import View
 from supervisord.timebase import NS_PER_MS, NS_PER_S, next_due
 
 KEY85_RETRY_NS = NS_PER_S  # re-ask key 85 every second until it reads 1 (SR-5)
@@ -290,18 +291,33 @@ class VscLink:
             or (self._held_mode is not None and message.mode != self._held_mode)
         )
 
-    def only_beat_due(self, now: int) -> bool:
-        """Whether the user heartbeat is due at ``now`` and neither the VSC's timeout nor key
-        85's query is."""
+    def beat_due(self, now: int) -> bool:
+        """Whether the user heartbeat is due at ``now`` on an open link (SR-5.1)."""
         beat = self.next_heartbeat_ns
-        if not self.open or beat is None or now < beat or self.lost(now):
-            return False
-        key85 = self._next_key85_ns
-        return key85 is None or key85 > now
+        return self.open and beat is not None and now >= beat
 
-    def next_deadline(self, now: int) -> int | None:
-        """The earliest time after ``now`` at which the VSC's timeout, the user heartbeat or
-        key 85's query falls due, or ``None``."""
+    # ----------------------------------------------------------------- the face (face.py)
+
+    def can_move(self) -> bool:
+        """The link moves only at its deadlines."""
+        return False
+
+    def moving(self) -> bool:
+        return False
+
+    def due_by(self, view: View) -> bool:
+        """Whether the link is closed, the VSC's timeout has fallen due or key 85's query is
+        due at ``view.now`` (the user heartbeat aside: :meth:`beat_due`)."""
+        now = view.now
+        if not self.open or self.lost(now):
+            return True
+        key85 = self._next_key85_ns
+        return key85 is not None and key85 <= now
+
+    def next_deadline(self, view: View) -> int | None:
+        """The earliest time after ``view.now`` at which the VSC's timeout, the user heartbeat
+        or key 85's query falls due, or ``None``."""
+        now = view.now
         earliest: int | None = None
         last = self.last_ns
         candidates = [None if last is None else last + self._timeout_ns]  # SR-2.2
@@ -359,15 +375,15 @@ class VscLink:
 
     # ----------------------------------------------------------------- canonical form
 
-    def canonical(
-        self, now: int, last_stop_ns: int | None
-    ) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the link (docs/verification.md). Two guards are not of the
         form ``age >= constant`` and are kept as facts or clocks of their own: the span of the
         takeover's run (first to last heartbeat, a fact once the run stops growing) and its
         rate (``act_refusal``: a count against the age of its first heartbeat, kept as the age
         at which the count is allowed, clipped at ``RATE_SLACK_NS``: the one inexact clip).
-        ``last_stop_ns``: when the latest stop was raised (SR-4.3 orders the run against it)."""
+        ``view.last_stop_raised_ns``: when the latest stop was raised (SR-4.3 orders the run
+        against it)."""
+        now, last_stop_ns = view.now, view.last_stop_raised_ns
         clocks: list[Clock] = []
 
         def keep(name: str, at: int | None, *limits: int) -> None:

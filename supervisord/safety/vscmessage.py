@@ -39,17 +39,8 @@ def take_vsc_message(
         step.refuse(RefusalReason.LINK_NOT_OPEN, type(message).__name__, event)
         return None
     if isinstance(message, VscHeartbeat):
-        heard = vsc.heartbeat(message, step.now)
-        if heard.silent_before:
-            # The VSC was silent: it may have rebooted (a firmware update can reset key
-            # 85), so its watchdog is proven again (docs/safety.md "The proof test").
-            proof.restart()
-        proof.heartbeat(message.mode, message.estop, step.now)
-        if heard.relinked:
-            display.relink()
-        if heard.takeover:
-            return RearmRequest(RearmKind.TAKEOVER, None, heard.run)
-    elif isinstance(message, RemoteStatus):
+        return take_vsc_heartbeat(message, step.now, vsc, proof, display)
+    if isinstance(message, RemoteStatus):
         if battery.cause is not None:
             battery.report(message.battery_level, step.now)
             step.taken_in = True
@@ -58,4 +49,24 @@ def take_vsc_message(
             vsc.key85_read(message.value)
         else:
             display.edited_on_remote(message)
+    return None
+
+
+def take_vsc_heartbeat(
+    message: VscHeartbeat, now: int, vsc: VscLink, proof: ProofTest, display: DisplayStore
+) -> RearmRequest | None:
+    """Apply a VSC heartbeat at ``now`` on an open link: to the link and the proof test (a
+    takeover it completes is returned). The one handler of a heartbeat: the full step's
+    (:func:`take_vsc_message`) and the cheap path's (SR-2.2, SR-5.3, SR-9.4); positional
+    and without the step, which a heartbeat neither refuses nor notes in."""
+    heard = vsc.heartbeat(message, now)
+    if heard.silent_before:
+        # The VSC was silent: it may have rebooted (a firmware update can reset key
+        # 85), so its watchdog is proven again (docs/safety.md "The proof test").
+        proof.restart()
+    proof.heartbeat(message.mode, message.estop, now)
+    if heard.relinked:
+        display.relink()
+    if heard.takeover:
+        return RearmRequest(RearmKind.TAKEOVER, None, heard.run)
     return None

@@ -22,7 +22,7 @@ from supervisord.safety.config import OutputRole
 from supervisord.safety.events import ClientConnected, LinkOpened, VscReceived
 from supervisord.safety.prooftest import ProofTestPolicy
 from supervisord.safety.snapshot import SnapshotError, restore, snapshot
-from tests.safety.rig import LOCAL, MS, ROBOT
+from tests.safety.rig import LOCAL, MS, ROBOT, composed_of_its_own
 from tests.safety.test_properties import CONFIGS, Maker, _bring_up, steps
 
 SNAPSHOT_CONFIGS = [
@@ -98,6 +98,16 @@ def test_shared_values_stay_shared() -> None:
     core = SafetyCore(ROBOT, 0)
     restored = _through_text(core)
     assert restored.decision.outputs is restored._outputs._levels_by_state[restored.state]
+
+
+def test_a_restored_core_composes_the_view_of_its_own_machines() -> None:
+    """SR-7.11, SR-9.4: the view of the core's machines (``face.View``, built once by the
+    core) is built from them and never in a snapshot: the restored core's view holds the
+    restored machines, so its cheap path and its deadlines read them and not stale copies."""
+    core = _live(SafetyCore(ROBOT, 0))
+    assert "_view" not in snapshot(core)["f"]
+    restored = _through_text(core)
+    assert composed_of_its_own(restored)
 
 
 def _live(core: SafetyCore) -> SafetyCore:

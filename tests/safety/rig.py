@@ -40,6 +40,19 @@ SEARCHING = VscMode.SEARCHING.value
 ADMIN = Caller(uid=1000, pid=42, name="alice", admin=True)
 NOBODY = Caller(uid=1001, pid=43, name="bob", admin=False)
 
+MACHINES = ("vsc", "clients", "budget", "outputs", "battery", "display", "proof")
+"""The core's machines, by the names its view of them gives them (``face.View``)."""
+
+
+def composed_of_its_own(core: SafetyCore) -> bool:
+    """Whether the core's view of its machines (``face.View``) holds the core's own machines,
+    each once, by name and in the tuple it iterates (SR-9.4)."""
+    view = core._view
+    own = tuple(getattr(core, f"_{name}") for name in MACHINES)
+    named = tuple(getattr(view, name) for name in MACHINES)
+    return all(a is b for a, b in zip(named + view.machines, own + own, strict=True))
+
+
 ROBOT = SafetyConfig(
     clients=(ClientSpec("planner"),),
     outputs=(OutputSpec("drive", OutputRole.MOTION), OutputSpec("lights", OutputRole.POWER)),

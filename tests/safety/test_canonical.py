@@ -40,16 +40,29 @@ LEFT_OUT: dict[type, frozenset[str]] = {
 }
 
 
-def _read(cls: type) -> set[str]:
-    """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``."""
-    tree = ast.parse(textwrap.dedent(inspect.getsource(cls.canonical)))  # type: ignore[attr-defined]
-    return {
+BUILT_BY = {"_view": "_compose"}
+"""An attribute of the core built once from others (the view of its machines), by the method
+that builds it: ``canonical`` reading it reads what that method reads."""
+
+
+def _read(cls: type, method: str = "canonical") -> set[str]:
+    """Every ``self.NAME`` (and ``self._proof``-style read through a local) in ``canonical``,
+    in the methods of the class it calls, and in the method that builds an attribute it reads
+    (:data:`BUILT_BY`: ``self._view``, whose machines it iterates)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(getattr(cls, method))))
+    read = {
         node.attr
         for node in ast.walk(tree)
         if isinstance(node, ast.Attribute)
         and isinstance(node.value, ast.Name)
         and node.value.id == "self"
     }
+    for name in list(read):
+        if name != method and inspect.isfunction(getattr(cls, name, None)):
+            read |= _read(cls, name)
+        elif name in BUILT_BY and BUILT_BY[name] != method:
+            read |= _read(cls, BUILT_BY[name])
+    return read
 
 
 def _instances() -> dict[type, object]:

@@ -13,11 +13,13 @@ from supervisord.safety import (
     RecordNote,
     RefusalReason,
     Request,
+    SafetyCore,
     State,
     Transport,
 )
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.clients import Clients
+from supervisord.safety.face import View
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
 
@@ -212,5 +214,14 @@ def test_the_clients_next_deadline_is_the_timeout_of_the_one_heard_longest_ago()
         assert clients.hello(ClientHello(0, connection, name)) is None
     assert clients.heartbeat(ClientHeartbeat(100 * MS, 2), 100 * MS) is None  # planner
     assert clients.heartbeat(ClientHeartbeat(300 * MS, 1), 300 * MS) is None  # arm
-    assert clients.next_deadline(300 * MS, RecordBudget()) == 600 * MS  # the planner's
-    assert clients.next_deadline(600 * MS, RecordBudget()) == 800 * MS  # then the arm's
+
+    core = SafetyCore(ROBOT, 0)  # the other machines, as a core composes them
+    view = View(
+        core._vsc, clients, RecordBudget(), core._outputs, core._battery, core._display, core._proof
+    )
+
+    def at(now: int) -> View:
+        return view.at(now)
+
+    assert clients.next_deadline(at(300 * MS)) == 600 * MS  # the planner's
+    assert clients.next_deadline(at(600 * MS)) == 800 * MS  # then the arm's

@@ -12,8 +12,9 @@ from __future__ import annotations
 import pytest
 
 from supervisord.safety import SafetyCore
+from tests.safety.rig import composed_of_its_own
 from verify import model
-from verify.broken import FAULTS, Fault, broken_core
+from verify.broken import CHEAP_FAULT, FAULTS, Fault, broken_core
 from verify.clone import clone
 from verify.explore import explore, regression_test
 from verify.properties import check_trace
@@ -70,6 +71,20 @@ def test_p24_names_a_fleet_input_that_re_arms() -> None:
     assert {"P2", "P24"} <= found
 
 
+def test_p17_sees_a_cheap_path_that_ignores_one_machine() -> None:
+    """SR-9.4: the cheap path decides as the full step at every explored step (P17); one that
+    leaves a machine out of its comparison over the machines' face (here the link: the VSC's
+    timeout falls due with the user heartbeat) is caught, not only by examples."""
+    fault = CHEAP_FAULT
+    broken = broken_core(fault)
+    # Its shortest counterexample is 6 inputs long; 8 levels find it in about 100 s of one
+    # core (12 levels, every violation, outran the compute timeout on a loaded machine).
+    found = explore(model.MODELS[fault.model], core_class=broken, max_depth=8, all_violations=True)
+    p17 = [c for c in found.counterexamples if c.pid == "P17"]
+    assert p17
+    assert "the cheap path's decision differs" in p17[0].what
+
+
 def test_a_counterexample_is_a_regression_test_that_fails_until_the_core_is_fixed() -> None:
     """SR-7.1: the shortest input sequence breaking a property is printed as a pytest test; run
     on the broken core it fails, run on the real one it passes."""
@@ -89,6 +104,20 @@ def test_a_counterexample_is_a_regression_test_that_fails_until_the_core_is_fixe
                 test()
         else:
             test()
+
+
+def test_a_copy_composes_the_view_of_its_own_machines() -> None:
+    """SR-8.7, SR-9.4: the core builds the view of its machines once (``face.View``); a copy
+    builds its own, so the copy's cheap path and deadlines read the copy's machines and not
+    the original's (which a view shared or copied beside them would hold), and a model's
+    record budget is the one the view holds."""
+    core = model.MODELS["all"].start()
+    assert composed_of_its_own(core)
+    for item in model.MODELS["all"].inputs[:20]:
+        core.handle(item.build(model.START_NS))
+    copy = clone(core)
+    assert composed_of_its_own(copy)
+    assert composed_of_its_own(core)
 
 
 def test_a_copy_of_the_core_is_independent_of_its_original() -> None:

@@ -357,11 +357,11 @@ def test_the_wait_for_key_85_runs_from_the_first_heartbeat_since_the_restart() -
     from one heard before it: a restart starts the wait again."""
     proof = ProofTest(ProofTestPolicy.BLOCK, 10_000 * MS)
     proof.heartbeat(LOCAL, 0, START_NS)
-    assert proof.next_deadline(None) == START_NS + KEY85_WAIT_NS
+    assert proof.next_limit(None) == START_NS + KEY85_WAIT_NS
     proof.restart()
-    assert proof.next_deadline(None) is None
+    assert proof.next_limit(None) is None
     proof.heartbeat(LOCAL, 0, START_NS + 2_000 * MS)
-    assert proof.next_deadline(None) == START_NS + 2_000 * MS + KEY85_WAIT_NS
+    assert proof.next_limit(None) == START_NS + 2_000 * MS + KEY85_WAIT_NS
     proof.advance(START_NS + 2_000 * MS + KEY85_WAIT_NS - 1, False, None, LOCAL)
     assert proof.phase is Phase.WAITING
 
@@ -374,15 +374,15 @@ def test_the_next_deadline_is_the_phase_s_own() -> None:
     proof = ProofTest(ProofTestPolicy.BLOCK, 2_000 * MS)
     proof.sent(START_NS)
     proof.advance(START_NS + 10 * MS, True, 1, LOCAL)
-    assert proof.next_deadline(1) == START_NS + WITHHOLD_LIMIT_NS
+    assert proof.next_limit(1) == START_NS + WITHHOLD_LIMIT_NS
     proof.heartbeat(LOCAL, 0x80, START_NS + 600 * MS)
     assert proof.phase is Phase.RESUMED
-    assert proof.next_deadline(1) is None  # no heartbeat sent again yet
+    assert proof.next_limit(1) is None  # no heartbeat sent again yet
     proof.sent(START_NS + 650 * MS)
-    assert proof.next_deadline(1) == START_NS + 650 * MS + 2_000 * MS
+    assert proof.next_limit(1) == START_NS + 650 * MS + 2_000 * MS
     proof.heartbeat(LOCAL, 0, START_NS + 700 * MS)
     assert proof.status().phase is Phase.PASSED
-    assert proof.next_deadline(1) is None
+    assert proof.next_limit(1) is None
 
 
 def test_the_cause_shows_the_failure_only_while_failed() -> None:
@@ -827,7 +827,7 @@ def _at_a_failing_clear_limit() -> tuple[Vsc, int]:
     proof = vsc.core._proof  # the one deadline these tests need exactly
     while proof.phase is not Phase.RESUMED:
         vsc.beat()
-    due = proof.next_deadline(1)  # key 85 read as 1
+    due = proof.next_limit(1)  # key 85 read as 1
     assert due is not None
     while vsc.now + 50 * MS < due:
         vsc.beat()
@@ -993,10 +993,10 @@ def test_a_vsc_silent_for_its_timeout_aborts_the_test_at_that_nanosecond() -> No
     vsc.never_clears = True
     proof = vsc.core._proof  # the one deadline this test needs exactly
     for _ in range(60):  # within 3 s the heartbeat is withheld, the bit trips, it resumes
-        if proof.phase is Phase.RESUMED and proof.next_deadline(1) is not None:
+        if proof.phase is Phase.RESUMED and proof.next_limit(1) is not None:
             break
         vsc.beat()
-    due = proof.next_deadline(1)
+    due = proof.next_limit(1)
     assert due is not None
     silent_from = due - 200 * MS  # the VSC's last heartbeat: its timeout falls on the due time
     while vsc.now + 50 * MS <= silent_from:  # at most 1 s of heartbeats
