@@ -23,7 +23,7 @@ from supervisord.safety.availability import (
 from supervisord.safety.canonical import Clock, clock
 from supervisord.safety.causes import Cause, CauseKind
 from supervisord.safety.config import SafetyConfig
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.timebase import NS_PER_MS
 
 BATTERY_SEEN_CLIP_NS: Final = REMOTE_STATUS_FRESH_NS + 10 * NS_PER_MS
@@ -107,17 +107,17 @@ class RemoteBattery:
     def moving(self) -> bool:
         return False
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """Whether the last report has gone stale by ``view.now`` (SR-8.12)."""
         stale = self.stale_at()
         return stale is not None and stale <= view.now
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """When the last report goes stale, if after ``view.now`` (SR-8.12)."""
         stale = self.stale_at()
         return stale if stale is not None and stale > view.now else None
 
-    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: Seen) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the battery (docs/verification.md): the report's age and
         whether it is low, while watched; the condition's reason and its runs."""
         now = view.now

@@ -20,7 +20,7 @@ from collections import deque
 from typing import Final
 
 from supervisord.safety.canonical import Canonical, clock
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.timebase import NS_PER_S
 
 RECORDS_PER_UID: Final = 20
@@ -92,13 +92,13 @@ class RecordBudget:
     def moving(self) -> bool:
         return False
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         return False
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         return None
 
-    def canonical(self, view: View) -> Canonical:
+    def canonical(self, view: Seen) -> Canonical:
         """The records that can still change an answer, per user and for all, as clocks
         (docs/verification.md): a window is exhausted exactly while its ``limit``-th newest
         record is less than a window old, so only the ``limit`` newest inside the window

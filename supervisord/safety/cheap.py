@@ -24,9 +24,9 @@ from supervisord.safety.book import CauseBook
 from supervisord.safety.deadline import IDLE_NS, next_deadline
 from supervisord.safety.decision import Decision, again
 from supervisord.safety.events import ClientHeartbeat, Event, Tick, VscReceived
-from supervisord.safety.face import View
 from supervisord.safety.prooftest import SETTLED
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
+from supervisord.safety.view import View
 from supervisord.safety.vscmessage import take_vsc_heartbeat
 
 INERT_VSC_MESSAGES = (Joystick, Gps, RemoteStatus)

@@ -31,7 +31,7 @@ from supervisord.safety.events import (
     Event,
     Request,
 )
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.safety.fleet import Fleet
 from supervisord.safety.progress import ProgressBook
 
@@ -285,11 +285,11 @@ class Clients:
                 return True
         return False
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """A required client's timeout falls due at ``view.now`` or has (SR-8.2)."""
         return self.expired(view.now)
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """The earliest time after ``view.now`` at which a deferred request may end (its
         user's budget in ``view.budget``) or a required client's timeout falls due, or
         ``None``."""
@@ -310,7 +310,7 @@ class Clients:
             earliest = console
         return earliest
 
-    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: Seen) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts (as ``(name, value)`` pairs) and clocks of the clients: each required
         client's heartbeat as its age, with its timeout (docs/verification.md)."""
         now = view.now

@@ -90,7 +90,6 @@ from supervisord.safety.events import (
     VscReceived,
     is_event,
 )
-from supervisord.safety.face import View
 from supervisord.safety.finish import link_frames, step_records
 from supervisord.safety.outputs import Outputs
 from supervisord.safety.proofrequest import request_prooftest
@@ -99,6 +98,7 @@ from supervisord.safety.rearm import RearmRequest, check_rearm
 from supervisord.safety.reflex import Reflex, prepare
 from supervisord.safety.step import Step
 from supervisord.safety.transitions import IllegalTransition, Situation, State, next_state
+from supervisord.safety.view import View
 from supervisord.safety.vsc import LINKED_MODES, TAKEOVER_DWELL_NS, VscLink
 from supervisord.safety.vscmessage import take_vsc_message
 from supervisord.timebase import NS_PER_MS

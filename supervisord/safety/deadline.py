@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Final
 
-from supervisord.safety.face import View
+from supervisord.safety.view import View
 from supervisord.timebase import NS_PER_S
 
 IDLE_NS: Final = NS_PER_S  # the longest the core sleeps when nothing else is due

@@ -16,7 +16,7 @@ from supervisord.protocol.codes import USER_VALUE_KEYS, DisplayMode, FeedbackKey
 from supervisord.protocol.messages import FeedbackName, FeedbackSet, Message
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.decision import RefusalReason
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 
 VALUE_PERIOD_NS = 50_000_000  # values at most 20 Hz
 STRING_PERIOD_NS = 250_000_000  # strings at most 4 Hz
@@ -158,17 +158,17 @@ class DisplayStore:
     def moving(self) -> bool:
         return False
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """Whether a waiting frame may go at ``view.now`` (SR-5.4)."""
         due = self.next_due()
         return due is not None and due <= view.now
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """When the next waiting frame may go, if after ``view.now`` and on an open link."""
         due = self.next_due() if view.vsc.open else None
         return due if due is not None and due > view.now else None
 
-    def canonical(self, view: View) -> Canonical:
+    def canonical(self, view: Seen) -> Canonical:
         """The content kept and waiting, in order, and the rate slots as clocks that matter
         only once they have come (docs/verification.md), as the one fact ``display``."""
         now = view.now

@@ -2,40 +2,69 @@
 
 The core composes machines (the link to the VSC, the clients, the record budget, the outputs,
 the remote's battery and display, the proof test); each answers the same questions about a
-:class:`View` of the step, so that the canonical form (``SafetyCore.canonical``), the next
-deadline (``deadline.py``) and the cheap path (``cheap.py``) iterate over the machines instead
-of naming them one by one (SR-2.11, SR-9.4; docs/verification.md "The time abstraction").
+view of the step (:class:`Seen`, built as ``view.View``), so that the canonical form
+(``SafetyCore.canonical``), the next deadline (``deadline.py``) and the cheap path
+(``cheap.py``) iterate over the machines instead of naming them one by one (SR-2.11, SR-9.4;
+docs/verification.md "The time abstraction").
 
-The core builds its :class:`View` once (``SafetyCore._compose``): the machines live as long as
-the core, and the cheap path, which answers most inputs, must not pay for a tuple per input
+The core builds its view once (``SafetyCore._compose``): the machines live as long as the
+core, and the cheap path, which answers most inputs, must not pay for a tuple per input
 (SR-9.4; docs/performance.md "The cheap path").
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 from supervisord.safety.canonical import Canonical
 
-if TYPE_CHECKING:
-    from supervisord.safety.battery import RemoteBattery
-    from supervisord.safety.budget import RecordBudget
-    from supervisord.safety.clients import Clients
-    from supervisord.safety.display import DisplayStore
-    from supervisord.safety.outputs import Outputs
-    from supervisord.safety.prooftest import ProofTest
-    from supervisord.safety.vsc import VscLink
+
+class LinkSeen(Protocol):
+    """What the other machines read of the link to the VSC: whether it is open, and the VSC's
+    answer to key 85 (the display's frames and the proof test's limits)."""
+
+    @property
+    def open(self) -> bool: ...
+
+    @property
+    def key85(self) -> int | None: ...
+
+
+class BudgetSeen(Protocol):
+    """What the clients read of the record budget: when a user is within it again (a
+    deferred end, SR-8.5)."""
+
+    def free_at(self, uid: int | None, now: int) -> int | None: ...
+
+
+class Seen(Protocol):
+    """The view of the step as a machine reads it (``view.View`` is the one the core builds):
+    the time asked about, the latest stop raised (the canonical form, SR-4.3), and of the
+    others only what a machine's deadlines need. Named by these faces alone, so that no
+    machine imports another through the view (one-way imports)."""
+
+    @property
+    def now(self) -> int: ...
+
+    @property
+    def last_stop_raised_ns(self) -> int | None: ...
+
+    @property
+    def vsc(self) -> LinkSeen: ...
+
+    @property
+    def budget(self) -> BudgetSeen: ...
 
 
 class Machine(Protocol):
     """One machine of the core, as the core composes it."""
 
-    def canonical(self, view: View) -> Canonical:
+    def canonical(self, view: Seen) -> Canonical:
         """Its facts, as flat ``(name, value)`` pairs, and its clocks at ``view.now``
         (docs/verification.md): what the exploration compares states by."""
         ...
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """The earliest time after ``view.now`` at which time alone moves it, or ``None``
         (SR-2.11: the core's deadline is the earliest of these)."""
         ...
@@ -52,73 +81,7 @@ class Machine(Protocol):
         from its own state alone: asked for every input the cheap path sees."""
         ...
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """Whether one of its deadlines, the user heartbeat's aside, falls at or before
         ``view.now``: then the full step has work beyond sending the beat (SR-9.4)."""
         ...
-
-
-class View:
-    """The core's machines as each machine sees the others, at :attr:`now`: what every
-    question of the face is asked about. Built once by the core (``SafetyCore._compose``),
-    as its machines live as long as it does; :attr:`now` (and, for the canonical form, the
-    time of the last stop) is set before each question (:meth:`at`), so that no input pays for
-    a tuple or a view (SR-9.4; docs/performance.md "The cheap path"). A machine reads of the
-    others only what its deadlines need: the link's answer to key 85 and whether it is open
-    (the display's frames and the proof test's limits), the record budget (a deferred end).
-    Named where an input speaks to one machine (its handler), iterated as :attr:`machines`
-    everywhere the core composes them."""
-
-    __slots__ = (
-        "battery",
-        "budget",
-        "clients",
-        "display",
-        "last_stop_raised_ns",
-        "machines",
-        "movers",
-        "now",
-        "outputs",
-        "proof",
-        "vsc",
-    )
-
-    def __init__(  # noqa: PLR0917 -- one per machine, once per core
-        self,
-        vsc: VscLink,
-        clients: Clients,
-        budget: RecordBudget,
-        outputs: Outputs,
-        battery: RemoteBattery,
-        display: DisplayStore,
-        proof: ProofTest,
-    ) -> None:
-        self.vsc = vsc
-        self.clients = clients
-        self.budget = budget
-        self.outputs = outputs
-        self.battery = battery
-        self.display = display
-        self.proof = proof
-        self.machines: tuple[Machine, ...] = (
-            vsc,
-            clients,
-            budget,
-            outputs,
-            battery,
-            display,
-            proof,
-        )
-        """Every machine, in the order the canonical form lists them."""
-        self.movers = tuple(machine for machine in self.machines if machine.can_move())
-        """The machines that time can move between their deadlines (``Machine.can_move``):
-        the only ones asked ``moving`` for each input."""
-        self.now = 0
-        self.last_stop_raised_ns: int | None = None  # the takeover's run is ordered against it
-
-    def at(self, now: int, last_stop_raised_ns: int | None = None) -> View:
-        """This view, at ``now`` (and the latest stop raised at ``last_stop_raised_ns``,
-        SR-4.3: read by the canonical form alone)."""
-        self.now = now
-        self.last_stop_raised_ns = last_stop_raised_ns
-        return self

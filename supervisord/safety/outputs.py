@@ -16,7 +16,7 @@ from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import OutputRole, SafetyConfig
 from supervisord.safety.decision import Refusal, RefusalReason
 from supervisord.safety.events import OutputReadback
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.safety.transitions import State
 
 Levels = MappingProxyType[str, bool]
@@ -132,11 +132,11 @@ class Outputs:
         """A category-1 output braking goes off with time (SR-1.4)."""
         return self._braking_since is not None
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """While braking, its delays run: :meth:`moving` already declines (SR-1.4)."""
         return self._braking_since is not None
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """The earliest time after ``view.now`` at which a category-1 output goes off (SR-1.4:
         at its delay, never later), or ``None``."""
         now = view.now
@@ -149,7 +149,7 @@ class Outputs:
                     earliest = due
         return earliest
 
-    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: Seen) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the outputs (docs/verification.md): the read-backs that
         disagree, and, only when an output has a delay, when motion went off and the stop's
         braking began."""

@@ -20,7 +20,7 @@ from typing import Final
 from supervisord.protocol.codes import VscMode
 from supervisord.safety.canonical import Canonical, clock
 from supervisord.safety.causes import CauseKind
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.timebase import NS_PER_MS
 from supervisord.vocabulary import (
     READING_MARGIN_NS,
@@ -188,14 +188,14 @@ class ProofTest:
         proof test")."""
         return self.phase not in SETTLED
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """Whether the test withholds the user heartbeat or one of its limits has come."""
         if self.phase is Phase.WITHHOLDING:
             return True
         due = self.next_limit(view.vsc.key85)
         return due is not None and due <= view.now
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """The next of its limits after ``view.now``, while the link is open."""
         due = self.next_limit(view.vsc.key85) if view.vsc.open else None
         return due if due is not None and due > view.now else None
@@ -211,7 +211,7 @@ class ProofTest:
             return self._resumed_ns + self.clear_limit_ns
         return None
 
-    def canonical(self, view: View) -> Canonical:
+    def canonical(self, view: Seen) -> Canonical:
         """The phase and every fact a later step reads, the times as clocks while a guard can
         still read them (docs/verification.md). ``key85`` is the core's answer to key 85, which
         decides whether the wait for it runs. Outcomes keep whether they passed and why not:

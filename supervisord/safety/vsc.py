@@ -19,7 +19,7 @@ from supervisord.safety.canonical import Clock, clock
 from supervisord.safety.causes import Cause, CauseKind, Details, make_details
 from supervisord.safety.config import SafetyConfig, Transport
 from supervisord.safety.decision import RefusalReason
-from supervisord.safety.face import View
+from supervisord.safety.face import Seen
 from supervisord.timebase import NS_PER_MS, NS_PER_S, next_due
 
 KEY85_RETRY_NS = NS_PER_S  # re-ask key 85 every second until it reads 1 (SR-5)
@@ -305,7 +305,7 @@ class VscLink:
     def moving(self) -> bool:
         return False
 
-    def due_by(self, view: View) -> bool:
+    def due_by(self, view: Seen) -> bool:
         """Whether the link is closed, the VSC's timeout has fallen due or key 85's query is
         due at ``view.now`` (the user heartbeat aside: :meth:`beat_due`)."""
         now = view.now
@@ -314,7 +314,7 @@ class VscLink:
         key85 = self._next_key85_ns
         return key85 is not None and key85 <= now
 
-    def next_deadline(self, view: View) -> int | None:
+    def next_deadline(self, view: Seen) -> int | None:
         """The earliest time after ``view.now`` at which the VSC's timeout, the user heartbeat
         or key 85's query falls due, or ``None``."""
         now = view.now
@@ -375,7 +375,7 @@ class VscLink:
 
     # ----------------------------------------------------------------- canonical form
 
-    def canonical(self, view: View) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
+    def canonical(self, view: Seen) -> tuple[tuple[object, ...], tuple[Clock, ...]]:
         """The facts and clocks of the link (docs/verification.md). Two guards are not of the
         form ``age >= constant`` and are kept as facts or clocks of their own: the span of the
         takeover's run (first to last heartbeat, a fact once the run stops growing) and its

@@ -19,7 +19,7 @@ from supervisord.safety import (
 )
 from supervisord.safety.budget import RecordBudget
 from supervisord.safety.clients import Clients
-from supervisord.safety.face import View
+from supervisord.safety.view import View
 from tests.safety.rig import MS, NOBODY, OPERATIONAL, ROBOT, Rig
 
 
