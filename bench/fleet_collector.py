@@ -48,14 +48,14 @@ import uuid
 from collections.abc import Sequence
 from pathlib import Path
 
-from bench.rig import REPO, load, machine, table
+from bench.netns import in_namespace
+from bench.rig import load, machine, table
 from supervisord.record.journal import journal_fields
 from supervisord.testkit.daemon import MINIMAL_CONFIG
 
 PORT = 19532
 RECEIVER = "/lib/systemd/systemd-journal-remote"
 TICKS = os.sysconf("SC_CLK_TCK")
-IN_NAMESPACE = "SRCS_BENCH_NETNS"
 ANSWER_LIMIT_S = 60.0
 """A coarse bound on the delay measured: only a record that never shows fails it."""
 
@@ -294,23 +294,6 @@ def answered(robot: Robot, context: ssl.SSLContext, out: Path) -> tuple[float, f
     return delays[0], delays[1]
 
 
-def in_namespace() -> None:
-    """Run again in a network namespace of its own, its loopback up (nothing leaves it)."""
-    if os.environ.get(IN_NAMESPACE):
-        subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
-        return
-    if os.geteuid() != 0 or shutil.which("unshare") is None:
-        raise SystemExit("needs root and unshare(1): it runs in a network namespace of its own")
-    env = {**os.environ, IN_NAMESPACE: "1"}
-    done = subprocess.run(
-        ["unshare", "--net", sys.executable, "-m", "bench.fleet_collector", *sys.argv[1:]],
-        env=env,
-        cwd=REPO,
-        check=False,
-    )
-    raise SystemExit(done.returncode)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default="5,100,1000", help="fleet sizes, comma-separated")
@@ -325,7 +308,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not Path(RECEIVER).exists():
         raise SystemExit("needs systemd-journal-remote (Debian package systemd-journal-remote)")
-    in_namespace()
+    in_namespace("bench.fleet_collector")
     print(f"machine: {machine()}; {load()}")
     rows = []
     with tempfile.TemporaryDirectory(prefix="srcs-fleet-") as tmp:

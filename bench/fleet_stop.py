@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from statistics import quantiles
 
+from bench.netns import in_namespace
 from supervisord.cli import srcsctl
 from supervisord.fleet_agent.acl import acl_text, broker_conf
 from supervisord.testkit.robot import OutputDef, Robot
@@ -42,25 +43,7 @@ from tests.fleet_agent.agents import running_agents
 from tests.fleet_agent.broker import FLEET, Broker, free_port, pki
 
 REPO = Path(__file__).resolve().parent.parent
-IN_NAMESPACE = "SRCS_BENCH_FLEET_STOP_NS"
 OUTPUTS = (OutputDef("drive"), OutputDef("lights", role="power"))
-
-
-def in_namespace() -> None:
-    """Run again in a network namespace of its own, its loopback up (nothing leaves it)."""
-    if os.environ.get(IN_NAMESPACE):
-        subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
-        return
-    if os.geteuid() != 0 or shutil.which("unshare") is None:
-        raise SystemExit("needs root and unshare(1): it runs in a network namespace of its own")
-    env = {**os.environ, IN_NAMESPACE: "1"}
-    done = subprocess.run(
-        ["unshare", "--net", sys.executable, "-m", "bench.fleet_stop", *sys.argv[1:]],
-        env=env,
-        cwd=REPO,
-        check=False,
-    )
-    raise SystemExit(done.returncode)
 
 
 def stop_round(broker: Broker, deadline: float) -> dict[str, object]:
@@ -165,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--loss", type=float, default=10.0, help="percent lost under netem")
     parser.add_argument("--deadline", type=float, default=2.0)
     args = parser.parse_args(argv)
-    in_namespace()
+    in_namespace("bench.fleet_stop")
     names = [f"robot-{i + 1}" for i in range(args.robots)]
     with contextlib.ExitStack() as stack:
         work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="fleet-stop-")))
