@@ -22,7 +22,7 @@ from sensor_msgs.msg import Joy, NavSatFix
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from supervisord.ros2.node import LATCHED, STREAM
+from supervisord.ros2.node import LATCHED, NODE_NAME, STREAM
 
 with warnings.catch_warnings():
     # rclpy loads the message type support through rosidl's parser, which imports lark,
@@ -32,6 +32,7 @@ with warnings.catch_warnings():
     import rosidl_generator_py  # noqa: F401
 from supervisord.testkit.clients import ClientProcess
 from supervisord.testkit.wait import WAIT_S, wait_until
+from supervisord.tooling.polling import poll_until
 
 _DOMAINS = itertools.count()
 
@@ -139,6 +140,20 @@ class RosPeer:
         return None
 
     def close(self) -> None:
+        """Destroy the node once the bridge's departure is seen in the graph. Fast DDS has
+        crashed this process twice in ``destroy_node`` (a segmentation fault that ended the
+        whole run), each time just after the bridge's process ended: its discovery thread
+        taking the leaving participant while the node is torn down. Spinning until the bridge
+        is gone from the graph (or for at most ``WAIT_S``) lets that work finish first; the
+        node leaves the executor before it is destroyed."""
+        poll_until(
+            lambda: NODE_NAME not in self.node.get_node_names(),
+            bool,
+            WAIT_S,
+            lambda seconds: self.executor.spin_once(timeout_sec=seconds),
+            0.05,
+        )
+        self.executor.remove_node(self.node)
         self.executor.shutdown()
         self.node.destroy_node()
         self.context.try_shutdown()
