@@ -71,7 +71,7 @@ rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install
 targets and certificates are the collector's (``srcs-collector``,
 packaging/build_collector_deb.py; docs/fleet.md "The collector package"); the fleet stop's
 agent waits for its MQTT client (paho-mqtt, the ``fleet`` extra) to be bundled, with its unit
-and user (units/srcs-fleet-agent@.service, units/srcs-fleet-agent.sysusers.conf; docs/fleet.md
+and user (packaging/fleet-agent/, out of units/ until the package ships it; docs/fleet.md
 "The fleet stop")."""
 MAINTAINER = "srcs-supervisord maintainers <srcs-supervisord@example.com>"
 """The package's Maintainer: fixed here, whoever builds it."""
