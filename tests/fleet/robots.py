@@ -70,6 +70,8 @@ class Robot:
     work: Path
     skew: str = ""
     """libfaketime's offset of the robot's wall clock (``-7m``), or none."""
+    console_ms: str = ""
+    """The fleet's console is a required stop source with this timeout (SR-8.21), or not."""
     process: subprocess.Popen[bytes] | None = None
 
     @property
@@ -99,11 +101,16 @@ class Robot:
         self.process = subprocess.Popen(
             ["unshare", "--mount", "--uts", "--pid", "--fork", "--kill-child",
              str(HERE / "robot"), str(self.number), str(self.work), str(layer), str(pki),
-             self.skew],
+             self.skew, self.console_ms],
             stdout=log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
         )  # fmt: skip
+
+    @property
+    def netns(self) -> Path:
+        """The agent's network namespace, made by the tier (tests/fleet/broker.py)."""
+        return self.dir / "agent.netns"
 
     def kill(self) -> None:
         """Every process of the robot at once: its unshare's child is the first process of

@@ -21,6 +21,12 @@ everything it mounts and starts ends with it. Scenarios, one line each:
   each says what the robot's own ``srcsctl replay`` says, matching its record; its ``--plot``
   draws the stop and its ``--mcap`` writes the MCAP file (``tests/fleet/windows.py``).
 
+- the acknowledged fleet stop's scenarios, ``fleet_*`` (SR-8.19 to SR-8.21, SR-13.13 to
+  SR-13.15): each robot's packaged agent, a real mosquitto with mutual TLS and the ACL, the
+  package's console (``tests/fleet/fleet_stop.py``).
+
+``SRCS_FLEET_SCENARIOS=fleet_stop`` runs only the fleet stop's (a development run).
+
 The collector is the collector's package installed unchanged (tests/fleet/collector.py); the
 robots upload only srcsd's journal namespace (SR-13.11, tests/fleet/robot). Figures (not
 checks): a stop to its alert at the webhook, and to ``srcsctl fleet``'s answer, p50 and p95.
@@ -45,8 +51,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tests.fleet import broker as fleet_net
 from tests.fleet import pki
+from tests.fleet.broker import Broker
 from tests.fleet.collector import Collector, by_robot, fleet_answer, held, raw_copies
+from tests.fleet.fleet_stop import Fleet
+from tests.fleet.fleet_stop import scenarios as fleet_stop_scenarios
 from tests.fleet.robots import Robot, make_layer, poll
 from tests.fleet.windows import windows_at_collector
 
@@ -470,7 +480,7 @@ def ready_to_run(robot: Robot) -> bool:
     return robot.up(90) and robot.take_over(90)
 
 
-def main() -> int:
+def main() -> int:  # noqa: PLR0912 - the tier's one sequence, its setup's checks
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--deb", type=Path, required=True)
     parser.add_argument("--collector-deb", type=Path, required=True)
@@ -511,7 +521,10 @@ def main() -> int:
     subprocess.run(["mount", "-t", "tmpfs", "-o", "mode=0755", "fleet", str(work)], check=True)
     robots = [Robot(n, work, SKEWS.get(n, "")) for n in range(1, ROBOTS + 1)]
     collector = Collector(work, {r.name: f"{r.address}:9817" for r in robots})
+    broker = Broker(work)
+    only_fleet_stop = os.environ.get("SRCS_FLEET_SCENARIOS") == "fleet_stop"
     t0 = time.monotonic()
+    fleet: Fleet | None = None
     try:
         made = in_parallel(
             {
@@ -531,6 +544,11 @@ def main() -> int:
                 return 1
         say(f"setup: certificates and the installed layers in {time.monotonic() - t0:.1f} s")
         collector.start()
+        # The fleet stop's broker, and each robot's agent's network, before the robots.
+        broker.configure(collector.pki, [robot.name for robot in robots])
+        broker.start()
+        for robot in robots:
+            fleet_net.link(robot.number, robot.netns)
         for robot in robots:
             robot.start(made["layer"], collector.pki)
         ready = in_parallel({r.name: functools.partial(ready_to_run, r) for r in robots})
@@ -540,6 +558,10 @@ def main() -> int:
             logs(collector, robots)
             return 1
         say(f"setup: {ROBOTS} robots in RUN {time.monotonic() - t0:.1f} s after the start")
+        fleet = Fleet(robots, broker, made["layer"], collector.pki, collector.root, result, say)
+        if only_fleet_stop:
+            fleet_stop_scenarios(fleet, made["layer"], collector.pki)
+            return 1 if TALLY["failed"] else 0
         before = {robot.name: len(robot.own_records()) for robot in robots}
         answers: dict[str, float] = {}
         timer = threading.Thread(
@@ -558,10 +580,14 @@ def main() -> int:
             made["layer"] / "opt/srcsd/bin/srcsctl",
             result,
         )
+        fleet_stop_scenarios(fleet, made["layer"], collector.pki)
         figures(collector)
         if TALLY["failed"]:
             logs(collector, robots)
     finally:
+        if fleet is not None:
+            fleet.stop_keepalive()
+        broker.kill()
         for robot in robots:
             robot.kill()
         collector.stop()
