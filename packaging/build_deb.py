@@ -65,14 +65,16 @@ replay --mcap`` writes it uncompressed, so the robot's package carries mcap alon
 export works where the window is (SR-7.15; docs/record.md "Looking at a stop")."""
 MACHINES = {"amd64": "x86_64", "arm64": "aarch64"}
 """Debian architecture -> the wheels' machine name."""
-LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki", "srcs-fleet-agent"}
+LEFT_OUT = {"srcs-ros2", "srcs-fleet-targets", "srcs-fleet-pki"}
 """Console scripts not packaged: the ROS 2 bridge is its own package, run by ROS's Python and
 rclpy (``python3-srcs-ros2``, packaging/build_ros2_deb.py; docs/ros2.md "Install"); the fleet's
 targets and certificates are the collector's (``srcs-collector``,
-packaging/build_collector_deb.py; docs/fleet.md "The collector package"); the fleet stop's
-agent waits for its MQTT client (paho-mqtt, the ``fleet`` extra) to be bundled, with its unit
-and user (packaging/fleet-agent/, out of units/ until the package ships it; docs/fleet.md
-"The fleet stop")."""
+packaging/build_collector_deb.py; docs/fleet.md "The collector package"). The fleet stop's
+agent, ``srcs-fleet-agent``, is the robot's: packaged with its MQTT client (paho-mqtt, the
+``fleet`` extra, locked in requirements/run.txt), its unit and its user, and off until a fleet
+enables it (SR-13.13; docs/fleet.md "The agent's unit")."""
+SERVICES = ("srcsd", "srcs-exporter", "srcs-fleet-agent")
+"""The commands systemd runs, each as its own unit: in /usr/sbin, their pages in section 8."""
 MAINTAINER = "srcs-supervisord maintainers <srcs-supervisord@example.com>"
 """The package's Maintainer: fixed here, whoever builds it."""
 CHANGELOG = REPO / "packaging/changelog"
@@ -450,7 +452,7 @@ def write_environment(root: Path, scripts: dict[str, str]) -> list[str]:
         names.append(name)
     # On the path: the admin tools in /usr/sbin (their man pages are in section 8).
     for name in names:
-        where = "usr/sbin" if name in ("srcsd", "srcs-exporter") else "usr/bin"
+        where = "usr/sbin" if name in SERVICES else "usr/bin"
         link = root / where / name
         link.parent.mkdir(parents=True, exist_ok=True)
         link.symlink_to(f"/{PREFIX}/bin/{name}")
@@ -497,7 +499,17 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str], generato
     put: list[tuple[Path, Path]] = [
         (units / "srcsd@.service", Path("usr/lib/systemd/system/srcsd@.service")),
         (units / "srcs-exporter@.service", Path("usr/lib/systemd/system/srcs-exporter@.service")),
+        # The fleet stop's agent and its user: installed, never enabled by the package; a
+        # fleet turns it on per robot (SR-13.13; docs/fleet.md "The agent's unit").
+        (
+            units / "srcs-fleet-agent@.service",
+            Path("usr/lib/systemd/system/srcs-fleet-agent@.service"),
+        ),
         (units / "srcsd.sysusers.conf", Path("usr/lib/sysusers.d/srcsd.conf")),
+        (
+            units / "srcs-fleet-agent.sysusers.conf",
+            Path("usr/lib/sysusers.d/srcs-fleet-agent.conf"),
+        ),
         (units / "srcsd.tmpfiles.conf", Path("usr/lib/tmpfiles.d/srcsd.conf")),
         (units / "60-srcs.rules", Path("usr/lib/udev/rules.d/60-srcs.rules")),
         (REPO / "packaging/lintian-overrides", Path("usr/share/lintian/overrides", PACKAGE)),
@@ -608,7 +620,8 @@ def control(root: Path, version: str, arch: str, glibc: tuple[int, int]) -> str:
         "Description: safety supervisor for robots with the SRCS remote\n"
         " srcsd owns the link to the SRCS receiver (VSC), feeds its watchdog, turns\n"
         " silence into a stop, drives the enable lines of the motion controllers and\n"
-        " records every stop. With srcsctl, srcs-sim and srcs-exporter.\n"
+        " records every stop. With srcsctl, srcs-sim, srcs-exporter and the fleet\n"
+        " stop's agent, srcs-fleet-agent (not enabled until a fleet turns it on).\n"
     )
 
 

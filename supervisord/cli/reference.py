@@ -3,12 +3,11 @@
     python -m supervisord.cli.reference man OUTDIR         # srcsd.8 srcsctl.1 ...
     python -m supervisord.cli.reference completion OUTDIR  # OUTDIR/srcsctl, OUTDIR/zsh/_srcsctl ...
 
-``man`` writes srcsd.8, srcsctl.1, srcs-sim.1, srcs-exporter.8 and the collector's
-srcs-fleet-targets.8 and srcs-fleet-pki.8 (``--only NAME...``: those alone), and with srcsd's
-the configuration file's, srcsd.toml.5, from its JSON Schema
-(:mod:`supervisord.cli.config_page`); ``completion``
-writes one bash file per command, named after it (bash-completion's convention), and zsh's
-``_NAME``.
+``man`` writes srcsd.8, srcsctl.1, srcs-sim.1, srcs-exporter.8, srcs-fleet-agent.8 and the
+collector's srcs-fleet-targets.8 and srcs-fleet-pki.8 (``--only NAME...``: those alone), and
+with srcsd's the configuration file's, srcsd.toml.5, from its JSON Schema
+(:mod:`supervisord.cli.config_page`); ``completion`` writes one bash file per command, named
+after it (bash-completion's convention), and zsh's ``_NAME``.
 
 The package build runs both (docs/srcsctl.md "Man pages and completion"). The options, their
 arguments and help, the commands of ``srcsctl`` and their usage lines come from the very
@@ -283,6 +282,43 @@ COMMANDS: tuple[Command, ...] = (
         ),
         files=(CONFIG_FILE, API_SOCKET, DOCS),
         see_also=("srcsd(8)", "srcsctl(1)", "prometheus(1)"),
+    ),
+    Command(
+        name="srcs-fleet-agent",
+        section=8,
+        build=_parser("fleet_agent"),
+        summary="a robot's end of the fleet stop: the fleet's MQTT broker to srcsd",
+        description=(
+            "srcs-fleet-agent carries the fleet's stops to one srcsd(8), so that the "
+            "supervisor itself keeps no network access. It subscribes, over mutual TLS, to "
+            "the robot's stops at the fleet's MQTT broker (to all, to its groups, to itself), "
+            "refuses a replayed or stale message, passes each fresh one to srcsd as "
+            "fleet_stop or fleet_release, and publishes srcsd's acknowledgement: the state "
+            "after the stop, every output's read-back, the stop record's number and the time "
+            "from the stop's arrival to the outputs off. Nothing it passes on can re-arm the "
+            "robot or turn an output on.",
+            "It runs as its own service, srcs-fleet-agent@NAME, as the user srcs-fleet, which "
+            "the robot's configuration names in [fleet] agent_user. The package installs it "
+            "disabled: a fleet enables it per robot (systemctl enable --now "
+            "srcs-fleet-agent@NAME) once /etc/srcs/fleet-NAME.env and the certificates are "
+            "in place.",
+        ),
+        exit_status=(
+            ("0", "stopped by SIGTERM or SIGINT"),
+            ("2", "bad arguments"),
+            (
+                "78",
+                "a configuration, certificate or key it cannot read (the unit does not restart it)",
+            ),
+        ),
+        files=(
+            CONFIG_FILE,
+            ("/etc/srcs/fleet-NAME.env", "the fleet, the robot, its groups and the broker"),
+            ("/etc/srcs/fleet/", "ca.pem, the fleet's CA, and the robot's ROBOT.pem and ROBOT.key"),
+            API_SOCKET,
+            DOCS,
+        ),
+        see_also=("srcsd(8)", "srcsctl(1)", "mosquitto(8)"),
     ),
     Command(
         name="srcs-fleet-targets",

@@ -128,9 +128,11 @@ def test_the_command_line_writes_the_files_the_package_build_installs(
     """``man OUTDIR`` writes one page per command named NAME.SECTION, and ``completion
     OUTDIR`` one bash file named after each command (bash-completion loads it by that name)
     and zsh's ``zsh/_NAME``; no page for srcs-ros2, which has no argparse parser. The
-    collector's two tools have theirs (packaging/build_collector_deb.py, SR-13.10)."""
+    collector's two tools have theirs (packaging/build_collector_deb.py, SR-13.10), and the
+    fleet stop's agent its own, in the robot's package (SR-13.13)."""
     assert sorted(p.name for p in man_dir.iterdir()) == [
         "srcs-exporter.8",
+        "srcs-fleet-agent.8",
         "srcs-fleet-pki.8",
         "srcs-fleet-targets.8",
         "srcs-sim.1",
@@ -140,6 +142,7 @@ def test_the_command_line_writes_the_files_the_package_build_installs(
     ]
     names = [
         "srcs-exporter",
+        "srcs-fleet-agent",
         "srcs-fleet-pki",
         "srcs-fleet-targets",
         "srcs-sim",

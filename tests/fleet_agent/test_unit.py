@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-UNIT = Path(__file__).resolve().parents[2] / "packaging/fleet-agent/srcs-fleet-agent@.service"
+UNIT = Path(__file__).resolve().parents[2] / "units/srcs-fleet-agent@.service"
 
 
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")

@@ -43,6 +43,7 @@ for unit in /srv/units/*.service; do
 done
 printf '#!/bin/sh\n' >/opt/srcsd/bin/srcsd
 cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-exporter
+cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-fleet-agent
 chmod 0755 /opt/srcsd/bin/*
 systemctl --version | head -n 1
 cd /tmp/units
