@@ -44,7 +44,6 @@ from tests.fleet.pki import BROKER_ADDRESS, CONSOLE, OTHER_CA
 from tests.fleet.robots import Robot, poll
 
 HERE = Path(__file__).resolve().parent
-REPO = HERE.parent.parent
 REQUIRED = 5
 """The robot whose config requires the fleet's console (SR-8.21)."""
 REQUIRED_MS = 2000
@@ -91,17 +90,10 @@ class Fleet:
     keepalive: subprocess.Popen[bytes] | None = None
     facts: list[str] = field(default_factory=list)
 
-    @property
-    def packaged(self) -> bool:
-        return (self.layer / "opt/srcsd/bin/srcs-fleet-agent").exists()
-
     def python(self) -> tuple[list[str], dict[str, str]]:
-        """The robot package's interpreter (its srcsctl's), or, before the package ships the
-        MQTT client, the source tree's environment."""
+        """The robot package's interpreter, its srcsctl's (the console's own code)."""
         env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8"}
-        if self.packaged:
-            return [str(self.layer / "opt/srcsd/bin/python3")], env
-        return [str(REPO / ".venv/bin/python")], {**env, "PYTHONPATH": str(REPO)}
+        return [str(self.layer / "opt/srcsd/bin/python3")], env
 
     def tls(self, name: str) -> list[str]:
         return ["--cafile", str(self.pki / "ca.pem"), "--cert", str(self.pki / f"{name}.pem"),
@@ -476,10 +468,6 @@ def scenarios(fleet: Fleet, layer: Path, pki: Path) -> None:
     """robot-5 started again with the console required, the console's keepalive running,
     every robot in RUN; then each scenario in turn."""
     t0 = time.monotonic()
-    fleet.say(
-        "fleet stop: the agent and the console are "
-        + ("the package's" if fleet.packaged else "the source tree's (the package ships none)")
-    )
     fleet.start_keepalive()
     required = fleet.robot(REQUIRED)
     required.kill()
