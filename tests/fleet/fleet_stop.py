@@ -342,15 +342,17 @@ def replay(fleet: Fleet) -> None:
     for what, answer, reason in (("the copy", again, "replayed"), ("2 min old", stale, "stale")):
         if not answer or answer.get("result") != "refused" or answer.get("reason") != reason:
             problems.append(f"{what}: {answer}")
-    if robot.drive() != "1" or len(robot.own_records()) != before:
+    running, written = robot.drive() == "1", len(robot.own_records()) - before
+    if not running or written:
         problems.append(f"{robot.name} stopped or wrote a record")
     fleet.result(
         "fleet_replay_refused",
         not problems,
         f"{robot.name}: the console's stop stopped it; the same bytes again: "
         f"{(again or {}).get('result')} {(again or {}).get('reason')}; a copy 120 s old with a"
-        f" new nonce: {(stale or {}).get('result')} {(stale or {}).get('reason')}; still in"
-        " RUN, no record" + (f"; {'; '.join(problems)}" if problems else ""),
+        f" new nonce: {(stale or {}).get('result')} {(stale or {}).get('reason')};"
+        f" {robot.name} still in RUN: {running}, records written: {written}"
+        + (f"; {'; '.join(problems)}" if problems else ""),
     )
 
 
