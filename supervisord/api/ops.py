@@ -204,24 +204,30 @@ class StopTest(_Request):
 
 
 @dataclass(frozen=True, slots=True)
-class FleetStopRequest(_Request):
-    """A fleet console's stop, sent by the robot's fleet agent (SR-8.19): ``fleet_stop:SENDER``
-    until ``fleet_release``; the reply, sent once the outputs are set, says what they read
-    back (SR-8.20). Only from a user of ``[fleet] agent_users``."""
+class _FleetOrder(_Request):
+    """What a fleet console says about its stop ``stop_id``, passed on by the robot's fleet
+    agent (SR-8.19): the console's name, ``sender``, is its own claim. One shape for the stop
+    and its release, read and written once (requests.py, :func:`request_json`)."""
 
-    OP = "fleet_stop"
     stop_id: str
     sender: str
 
 
 @dataclass(frozen=True, slots=True)
-class FleetReleaseRequest(_Request):
+class FleetStopRequest(_FleetOrder):
+    """A fleet console's stop, sent by the robot's fleet agent (SR-8.19): ``fleet_stop:SENDER``
+    until ``fleet_release``; the reply, sent once the outputs are set, says what they read
+    back (SR-8.20). Only from a user of ``[fleet] agent_users``."""
+
+    OP = "fleet_stop"
+
+
+@dataclass(frozen=True, slots=True)
+class FleetReleaseRequest(_FleetOrder):
     """The console withdrew its stop ``stop_id`` (SR-8.19): the robot stays STOPPED until the
     operator's takeover on the remote."""
 
     OP = "fleet_release"
-    stop_id: str
-    sender: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,10 +302,7 @@ def request_json(request: ApiRequest) -> JsonDict:
             obj["confirm"] = True
         case StopTest(steps=steps):
             obj["steps"] = [{"source": source, "seq": seq} for source, seq in steps]
-        case (
-            FleetStopRequest(stop_id=stop_id, sender=sender)
-            | FleetReleaseRequest(stop_id=stop_id, sender=sender)
-        ):
+        case _FleetOrder(stop_id=stop_id, sender=sender):
             obj["stop_id"], obj["sender"] = stop_id, sender
         case FleetKeepaliveRequest(sender=sender):
             obj["sender"] = sender

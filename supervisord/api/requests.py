@@ -15,7 +15,7 @@ from __future__ import annotations
 import enum
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Final
 
 from supervisord import strict
@@ -359,12 +359,15 @@ def _fleet_text(f: _Fields, name: str) -> str:
     return value
 
 
-def _fleet_stop(f: _Fields) -> ApiRequest:
-    return FleetStopRequest(_fleet_text(f, "stop_id"), _fleet_text(f, "sender"), id=f.id)
+def _fleet_order(
+    kind: type[FleetStopRequest | FleetReleaseRequest],
+) -> Callable[[_Fields], ApiRequest]:
+    """The parser of a fleet console's stop or its release: the same two fields."""
 
+    def parse(f: _Fields) -> ApiRequest:
+        return kind(_fleet_text(f, "stop_id"), _fleet_text(f, "sender"), id=f.id)
 
-def _fleet_release(f: _Fields) -> ApiRequest:
-    return FleetReleaseRequest(_fleet_text(f, "stop_id"), _fleet_text(f, "sender"), id=f.id)
+    return parse
 
 
 def _fleet_keepalive(f: _Fields) -> ApiRequest:
@@ -386,8 +389,8 @@ _PARSERS = {
     "commission": _commission,
     "prooftest": _prooftest,
     "stoptest": _stoptest,
-    "fleet_stop": _fleet_stop,
-    "fleet_release": _fleet_release,
+    "fleet_stop": _fleet_order(FleetStopRequest),
+    "fleet_release": _fleet_order(FleetReleaseRequest),
     "fleet_keepalive": _fleet_keepalive,
 }
 OPS: Final = tuple(_PARSERS)

@@ -1,7 +1,10 @@
-"""The agent's unit (docs/fleet.md "The fleet stop"): systemd accepts it."""
+"""The agent's unit and its user (docs/fleet.md "The agent's unit"): systemd accepts the unit,
+and systemd-sysusers makes the user it runs as, from units/, whose files the robot's package
+installs (SR-13.13)."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -9,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-UNIT = Path(__file__).resolve().parents[2] / "units/srcs-fleet-agent@.service"
+UNITS = Path(__file__).resolve().parents[2] / "units"
+UNIT = UNITS / "srcs-fleet-agent@.service"
+SYSUSERS = UNITS / "srcs-fleet-agent.sysusers.conf"
 
 
 @pytest.mark.skipif(shutil.which("systemd-analyze") is None, reason="needs systemd-analyze")
@@ -34,3 +39,29 @@ def test_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
     )
     assert result.returncode == 0, result.stderr
     assert result.stderr.strip() == "", result.stderr
+
+
+@pytest.mark.skipif(shutil.which("systemd-sysusers") is None, reason="needs systemd-sysusers")
+def test_sysusers_makes_the_user_the_unit_runs_as(tmp_path: Path) -> None:
+    """systemd-sysusers, run on the file as the postinst runs it but into an empty root, makes
+    the unit's User= and Group=, with no login shell; the unit adds srcsd's group, the API
+    socket's, and no other."""
+    (tmp_path / "etc").mkdir()
+    subprocess.run(
+        ["systemd-sysusers", f"--root={tmp_path}", str(SYSUSERS)],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
+    users = {
+        line.split(":")[0]: line.split(":")
+        for line in (tmp_path / "etc/passwd").read_text().splitlines()
+    }
+    groups = {line.split(":")[0] for line in (tmp_path / "etc/group").read_text().splitlines()}
+    unit = UNIT.read_text()
+    (user,) = re.findall(r"^User=(\S+)$", unit, re.MULTILINE)
+    (group,) = re.findall(r"^Group=(\S+)$", unit, re.MULTILINE)
+    assert user in users, users
+    assert users[user][6] == "/usr/sbin/nologin"
+    assert group in groups, groups
+    assert re.findall(r"^SupplementaryGroups=(.*)$", unit, re.MULTILINE) == ["srcsd"]

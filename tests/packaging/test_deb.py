@@ -25,7 +25,7 @@ import pytest
 from supervisord.config import toml
 
 ROOT = Path(__file__).resolve().parents[2]
-LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter")
+LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter", "srcs-fleet-agent")
 PYTHONS = ("3.10", "3.11", "3.12", "3.13", "3.14")
 SITE = "opt/srcsd/lib/python3/site-packages"
 DOC = "usr/share/doc/srcs-supervisord"
@@ -143,7 +143,9 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
     expected = {
         "/usr/lib/systemd/system/srcsd@.service",
         "/usr/lib/systemd/system/srcs-exporter@.service",
+        "/usr/lib/systemd/system/srcs-fleet-agent@.service",
         "/usr/lib/sysusers.d/srcsd.conf",
+        "/usr/lib/sysusers.d/srcs-fleet-agent.conf",
         "/usr/lib/tmpfiles.d/srcsd.conf",
         "/usr/lib/udev/rules.d/60-srcs.rules",
         "/opt/srcsd/pyvenv.cfg",
@@ -166,7 +168,9 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         "/usr/share/man/man1/srcsctl.1.gz",
         "/usr/share/man/man1/srcs-sim.1.gz",
         "/usr/share/man/man8/srcs-exporter.8.gz",
+        "/usr/share/man/man8/srcs-fleet-agent.8.gz",
         "/usr/sbin/srcsd",
+        "/usr/sbin/srcs-fleet-agent",
         "/usr/bin/srcsctl",
     }
     expected |= {f"/opt/srcsd/bin/{name}" for name in LAUNCHERS}
@@ -205,6 +209,75 @@ def test_the_unit_runs_the_packaged_program(unpacked: Path) -> None:
     (command,) = re.findall(r"^ExecStart=(\S+)", unit, re.MULTILINE)
     assert command == "/opt/srcsd/bin/srcsd"
     assert (unpacked / command.lstrip("/")).stat().st_mode & 0o111
+
+
+def test_the_fleet_agent_ships_with_its_unit_and_user_and_is_not_enabled(
+    unpacked: Path,
+) -> None:
+    """SR-13.13, SR-0.2: the fleet stop's agent is in the package with its unit and its user
+    as units/ has them; the unit runs the packaged launcher as the user the sysusers file
+    makes; postinst makes that user and enables or starts no agent (a fleet turns it on), an
+    upgrade stops and restarts running agents with the supervisors, a purge removes the
+    user and the instances' enable links."""
+    systemd = unpacked / "usr/lib/systemd/system/srcs-fleet-agent@.service"
+    sysusers = unpacked / "usr/lib/sysusers.d/srcs-fleet-agent.conf"
+    assert systemd.read_bytes() == (ROOT / "units/srcs-fleet-agent@.service").read_bytes()
+    assert sysusers.read_bytes() == (ROOT / "units/srcs-fleet-agent.sysusers.conf").read_bytes()
+    unit = systemd.read_text()
+    (command,) = re.findall(r"^ExecStart=(\S+)", unit, re.MULTILINE)
+    assert command == "/opt/srcsd/bin/srcs-fleet-agent"
+    assert (unpacked / command.lstrip("/")).stat().st_mode & 0o111
+    (user,) = re.findall(r"^User=(\S+)", unit, re.MULTILINE)
+    assert re.search(rf"^u {user}\s", sysusers.read_text(), re.MULTILINE)
+    postinst = (unpacked / "DEBIAN/postinst").read_text()
+    assert "systemd-sysusers srcs-fleet-agent.conf" in postinst
+    # The agent's name is in no systemctl call of postinst; the only `systemctl enable` is
+    # the first install's hint, for srcsd.
+    assert not [line for line in postinst.splitlines() if re.search(r"systemctl.*fleet", line)]
+    enables = [line.strip() for line in postinst.splitlines() if "systemctl enable" in line]
+    assert enables == ["systemctl enable --now srcsd@ROBOT   # starts STOPPED: the operator's "
+                       "takeover re-arms it"]  # fmt: skip
+    assert "'srcs-fleet-agent@*.service'" in (unpacked / "DEBIAN/prerm").read_text()
+    postrm = (unpacked / "DEBIAN/postrm").read_text()
+    assert "*.wants/srcs-fleet-agent@*.service" in postrm
+    assert re.search(r"^    for user in .*\bsrcs-fleet\b", postrm, re.MULTILINE)
+
+
+def test_the_packaged_agent_reaches_a_real_broker_with_its_own_mqtt_client(
+    unpacked: Path, tmp_path: Path
+) -> None:
+    """SR-13.13: the package carries the agent's MQTT client, paho-mqtt, pure Python (one copy
+    serves every Python); the packaged srcs-fleet-agent, run from the unpacked tree with its
+    own environment only, connects to a real mosquitto with the fleet's mutual TLS and ACL and
+    announces its robot online, as on a robot."""
+    from tests.fleet_agent.agents import agent_command, wait_online  # noqa: PLC0415
+    from tests.fleet_agent.broker import running_broker  # noqa: PLC0415
+
+    site = unpacked / SITE
+    (info,) = site.glob("paho_mqtt-*.dist-info")
+    assert info.name == "paho_mqtt-2.1.0.dist-info"
+    assert "Tag: py3-none-any" in (info / "WHEEL").read_text()
+    assert (site / "paho/mqtt/client.py").is_file()
+    assert not list((site / "paho").rglob("*.so"))
+    with running_broker(tmp_path / "broker") as broker:
+        command = agent_command(broker, "robot-a", tmp_path / "no-srcsd.sock")
+        assert command[1:3] == ["-m", "supervisord.cli.fleet_agent"]
+        launcher = str(unpacked / "opt/srcsd/bin/srcs-fleet-agent")
+        log = (tmp_path / "agent.log").open("wb")
+        agent = subprocess.Popen(
+            [launcher, *command[3:]],
+            env=_packaged_env(),
+            cwd=tmp_path,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
+        log.close()
+        try:
+            wait_online(broker, {"robot-a"})
+        finally:
+            agent.terminate()
+            code = agent.wait(10)
+        assert code == 0, (tmp_path / "agent.log").read_text()
 
 
 def test_no_conffiles_and_nothing_in_etc(unpacked: Path, listing: dict[str, str]) -> None:

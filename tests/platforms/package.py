@@ -8,7 +8,9 @@ architecture given, as docs/install.md tells an administrator:
    package); postinst runs ``systemd-sysusers`` and ``systemd-tmpfiles`` in the
    root (no systemd runs there; its ``systemctl`` and ``udevadm`` calls are skipped as in an
    image build). ``policy-rc.d`` keeps every service down. Checked: the package installed,
-   ``srcsd --version``, the users and groups, the directories and their owners,
+   ``srcsd --version``, the users and groups, the directories and their owners, the fleet
+   stop's agent (its user ``srcs-fleet``, ``srcs-fleet-agent --version``, its MQTT client
+   paho-mqtt imported by the root's own Python, no instance enabled: a fleet turns it on),
    ``import gpiod`` in the package's environment (its one compiled module used by srcsd),
    and ``srcsd --check-config --portable`` of every example config the package ships
    (``/usr/share/doc/srcs-supervisord/examples/*.toml``: their clients' user ``robot`` is the
@@ -21,7 +23,7 @@ architecture given, as docs/install.md tells an administrator:
    natively only (``RECIPE_NATIVE_ONLY``).
 3. ``apt-get remove``: the program is gone, the stop record, the config and the users stay
    (SR-7.4). ``apt-get purge``: nothing the package installed remains, nor the record, the
-   users and groups; the administrator's config in ``/etc/srcs`` stays.
+   users and groups (``srcs-fleet`` too); the administrator's config in ``/etc/srcs`` stays.
 
 A root whose ``python3`` the package's ``Depends`` exclude (today Debian 13's 3.13 and
 unstable's 3.14: the package carries compiled modules for 3.11 and 3.12 only) is a different
@@ -70,6 +72,12 @@ echo "== said"; grep '^srcs-supervisord: ' /tmp/apt.log || true
 echo "== version"; srcsd --version
 echo "== users"; getent passwd srcsd | cut -d: -f1,7
 for group in srcsd srcs-dev srcs-admin srcs-operator; do getent group "$group" | cut -d: -f1; done
+echo "== fleet agent"
+getent passwd srcs-fleet | cut -d: -f1,7
+srcs-fleet-agent --version
+/opt/srcsd/bin/python3 -c 'import paho.mqtt.client, supervisord.fleet_agent.mqtt_edge as edge
+print("paho", paho.mqtt.__version__)'
+ls /etc/systemd/system/*.wants/ 2>/dev/null | grep -c '^srcs-fleet-agent@' || true
 echo "== dirs"; stat -c '%n %U:%G %a' /etc/srcs /var/lib/srcsd /var/log/srcsd
 echo "== gpiod"
 /opt/srcsd/bin/python3 -c 'import gpiod, sys; print(gpiod.__version__, sys.version.split()[0])'
@@ -109,10 +117,11 @@ done </srv/job/files
 for path in /opt/srcsd /usr/share/doc/srcs-supervisord /var/lib/srcsd /var/log/srcsd; do
     [ -e "$path" ] && echo "file $path"
 done
-for name in srcsd srcs-dev srcs-admin srcs-operator; do
+for name in srcsd srcs-fleet srcs-dev srcs-admin srcs-operator; do
     getent group "$name" >/dev/null && echo "group $name"
 done
 getent passwd srcsd >/dev/null && echo "user srcsd"
+getent passwd srcs-fleet >/dev/null && echo "user srcs-fleet"
 echo "== etc"; ls -A /etc/srcs 2>/dev/null || echo "(no /etc/srcs)"
 true
 """
@@ -270,6 +279,18 @@ def main(argv: list[str]) -> int:
         == ["srcsd:/usr/sbin/nologin", "srcsd", "srcs-dev", "srcs-admin", "srcs-operator"],
         "sysusers: user srcsd (nologin), groups srcsd, srcs-dev, srcs-admin, srcs-operator",
         parts["users"],
+    )
+    report.check(
+        parts["fleet agent"]
+        == [
+            "srcs-fleet:/usr/sbin/nologin",
+            f"srcs-fleet-agent {version}",
+            "paho 2.1.0",
+            "0",
+        ],
+        "the fleet agent: its user (nologin), --version, paho-mqtt imported by the root's "
+        "Python, no instance enabled",
+        parts["fleet agent"],
     )
     report.check(
         parts["dirs"]
