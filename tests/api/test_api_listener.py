@@ -11,12 +11,12 @@ import pytest
 
 from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
-from supervisord.api.status import LoopStatus
+from supervisord.daemon import answer
 from supervisord.daemon.api_listener import ApiListener
-from supervisord.daemon.listener import Answer, Asks, CheckOff, Look, Send, Snapshot
+from supervisord.daemon.listener import Asks, Snapshot
 from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.stoptimes import StopTimes
-from supervisord.protocol.messages import Joystick
+from supervisord.protocol.messages import Joystick, Message
 from supervisord.safety.config import ClientSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
@@ -40,33 +40,29 @@ class Judged(Loop):
         # What the loop shows the listener: a fixed status, no stops measured.
         self.stop_times = StopTimes()
 
-    def feed(self, event: Event) -> Decision:
+    # What answers the listener's asks (``supervisord.daemon.answer.Answers``), served by
+    # the daemon's own ``answer.serve``: the asks' order and the kind of each answer are the
+    # daemon's code, not a copy of it.
+
+    def decide(self, event: Event) -> Decision:
         self.events.append(event)
         decision = self.core.handle(event)
         self.decisions.append(decision)
         self.listener.decided(decision)
         return decision
 
-    def snapshot(self, now: int) -> LoopStatus:
-        """What the loop says about itself: a fixed one, there being no daemon behind."""
-        return LOOP
+    def look(self, now: int) -> Snapshot:
+        """What the loop says about itself: a fixed status, there being no daemon behind."""
+        return Snapshot(LOOP, self.stop_times)
+
+    def check_off(self, now: int) -> OffCheck:
+        return OffCheck((), now, 0)  # no outputs behind
+
+    def send(self, frames: tuple[Message, ...], now: int) -> None:
+        """No VSC behind: nothing to send."""
 
     def serve(self, work: Asks | None) -> None:
-        """Answer what the listener asks, in order, as the daemon's loop does."""
-        answer: Answer = None
-        while work is not None:
-            try:
-                asked = work.send(answer)
-            except StopIteration:
-                return
-            if isinstance(asked, Look):
-                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
-            elif isinstance(asked, CheckOff):
-                answer = OffCheck((), asked.now, 0)  # no outputs behind
-            elif isinstance(asked, Send):
-                answer = None  # no VSC behind
-            else:
-                answer = self.feed(asked)
+        answer.serve(work, self)
 
     def turn(self, timeout: float = 0.0) -> list[Result]:
         self.sync()
