@@ -257,3 +257,32 @@ def test_each_request_is_answered_before_the_next_is_taken(
     assert "client_estop:nav" in seen[0]
     assert seen[1] == seen[0]  # the status is the e-stop's state, before the hold
     assert any(name.startswith("client_hold") for name in seen[2] - seen[1])
+
+
+class Unanswered(Judged):
+    """A loop that answers a look with the wrong kind (a planted bug in the loop's answering):
+    what the listener does then is its own, typed, not an assertion in the loop."""
+
+    def look(self, now: int) -> Snapshot:
+        return OffCheck((), now, 0)  # type: ignore[return-value]  # the planted wrong answer
+
+
+def test_a_status_the_loop_did_not_answer_is_refused_unavailable_and_the_loop_goes_on(
+    tmp_path: Path, peers: Callable[[], Peer]
+) -> None:
+    """SR-6, SR-8: a ``status`` whose look the loop answered with something else is refused
+    ``unavailable`` to its client (the listener narrows each answer to its kind: no assert on
+    the asks' path); the connection and the next request go on."""
+    loop = Unanswered(ServerConfig(tmp_path / "api.sock", max_clients=3, max_output=4096))
+    try:
+        asker = peers()
+        reply = asker.ask(loop, {"op": "status", "id": 4})
+        assert (reply["ok"], reply["code"], reply["op"], reply["id"]) == (
+            False,
+            "unavailable",
+            "status",
+            4,
+        )
+        assert asker.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
+    finally:
+        loop.close()
