@@ -56,6 +56,8 @@ class Face:
 
 
 def test_each_ask_is_answered_with_its_kind_in_order_before_the_work_goes_on() -> None:
+    """SR-6, SR-8: an event is decided (its decision the answer), a look answered with the
+    snapshot, an off check with the check (SR-8.20), a send with nothing, in the work's order."""
     face, got = Face(), []
     tick = Tick(START_NS + 10 * MS)
 
@@ -90,6 +92,7 @@ def test_each_ask_is_answered_with_its_kind_in_order_before_the_work_goes_on() -
 
 
 def test_no_work_is_nothing_asked() -> None:
+    """SR-9.4: no work, or work that asks nothing, asks nothing of the loop."""
     face = Face()
     answer.serve(None, face)
 

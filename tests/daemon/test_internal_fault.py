@@ -27,12 +27,15 @@ class Mute(Exception):
 
 
 def test_a_late_wake_says_how_late_in_milliseconds() -> None:
+    """SR-2: a wake past ``OVERRUN_NS`` after the core's deadline is an internal fault."""
     deadline = 5_000 * NS_PER_MS
     now = deadline + OVERRUN_NS + 3 * NS_PER_MS
     assert late(now, deadline) == InternalFault(now, "loop woke 253 ms late")
 
 
 def test_a_turn_that_raised_is_counted_logged_and_said(caplog: pytest.LogCaptureFixture) -> None:
+    """SR-2: a turn that raised is counted for ``status``, logged with its trace, and said by
+    its type and text; an error whose text cannot be made is said by its type."""
     counters = Counters()
     caplog.set_level(logging.ERROR, logger="srcsd")
     try:
