@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 from supervisord.api.framing import ApiError, ErrorCode
+from supervisord.api.ops import RequestId
 from supervisord.api.pushes import RecordPush
 from supervisord.api.replies import CommissionReply, StatusReply, StopTestReply
 from supervisord.api.requests import (
@@ -45,11 +46,11 @@ from supervisord.api.views import (
     state_push,
     state_report,
 )
+from supervisord.daemon.answer import check_off, look
 from supervisord.daemon.availability import estop_available
 from supervisord.daemon.commission import Commissioning
 from supervisord.daemon.fleet_ack import FleetAcks
-from supervisord.daemon.listener import Asks, CheckOff, Listener, Look, Send, Snapshot
-from supervisord.daemon.offcheck import OffCheck
+from supervisord.daemon.listener import Asks, Listener, Send, Snapshot
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, RemoteStatus, VscHeartbeat
 from supervisord.record.format import stoptest_report
@@ -131,9 +132,7 @@ class ApiListener(Listener):
             return  # Denied was answered by the server; Accepted and Closed need no reply
         request = result.request
         if isinstance(request, Status):
-            snapshot = yield Look(now)
-            assert isinstance(snapshot, Snapshot)
-            self.server.reply(result, self.status(request, now, snapshot))
+            yield from self._status(result, request, now)
             return
         if isinstance(request, Commission):
             self._begin_commissioning(result, now)
@@ -149,14 +148,7 @@ class ApiListener(Listener):
         if refusal is not None:
             self.server.reply_error(result, refusal_error(request, refusal))
         elif isinstance(request, FleetStopRequest) and isinstance(decision, Decision):
-            # SR-8.20: the acknowledgement is sent after the stop is applied (the loop set the
-            # outputs when it answered the event), with what they read back now.
-            ack = self._fleet.repeated(request)
-            if ack is None:
-                check = yield CheckOff(now)
-                assert isinstance(check, OffCheck)
-                ack = self._fleet.acknowledge(request, decision, now, check)
-            self.server.reply(result, ack)
+            yield from self._fleet_stop(result, request, decision, now)
         else:
             if isinstance(request, Heartbeat):
                 self._beats[result.client.connection] = now
@@ -166,12 +158,33 @@ class ApiListener(Listener):
         if isinstance(request, Subscribe) and Topic.STATE in request.topics and self.last:
             self.server.send(result.client.connection, state_push(self.last))
 
-    def status(self, request: Status, now: int, snapshot: Snapshot) -> StatusReply:
+    def _status(self, result: Received, request: Status, now: int) -> Asks:
+        """A ``status``: a look at the loop, then the reply built from it."""
+        snapshot, last = (yield from look(now)), self.last
+        if snapshot is None or last is None:  # the loop applied no decision yet
+            self.server.reply_error(result, _unanswered(request.OP, request.id))
+        else:
+            self.server.reply(result, self.status(request, now, snapshot, last))
+
+    def _fleet_stop(
+        self, result: Received, request: FleetStopRequest, decision: Decision, now: int
+    ) -> Asks:
+        """SR-8.20: the acknowledgement is sent after the stop is applied (the loop set the
+        outputs when it answered the event), with what they read back now."""
+        ack = self._fleet.repeated(request)
+        if ack is None:
+            check = yield from check_off(now)
+            if check is None:
+                self.server.reply_error(result, _unanswered(request.OP, request.id))
+                return
+            ack = self._fleet.acknowledge(request, decision, now, check)
+        self.server.reply(result, ack)
+
+    def status(self, request: Status, now: int, snapshot: Snapshot, last: Decision) -> StatusReply:
         """The ``status`` reply (docs/api.md "status"), the one place it is built: the last
         decision, the loop's ``snapshot`` and what the listener saw itself (the clients, the
         remote's last status, the time in the current state). Names passed the server's
-        check: nothing here is input the listener cannot trust."""
-        assert self.last is not None
+        check: nothing here is input the listener cannot trust. ``last``: the last decision."""
         every = self.server.clients()
         connected = {c.name: c.connection for c in every if c.name is not None}
         clients: list[ClientStatus] = []
@@ -202,24 +215,23 @@ class ApiListener(Listener):
         )
         return StatusReply(
             id=request.id,
-            report=state_report(self.last),
-            estop_available=self.estop_available(now),
+            report=state_report(last),
+            estop_available=self.estop_available(now, last),
             daemon=daemon,
-            rearm=rearm_status(self.last, now, self.rearm_hold_ms),
+            rearm=rearm_status(last, now, self.rearm_hold_ms),
         )
 
-    def estop_available(self, now: int) -> EstopAvailable:
+    def estop_available(self, now: int, last: Decision) -> EstopAvailable:
         """Whether the remote e-stop is available (SR-8.11), from what the listener saw:
         the last decision's causes and proof test, the VSC's last heartbeat and remote status."""
-        assert self.last is not None
         remote, seen = self._remote if self._remote is not None else (None, None)
         return estop_available(
             now,
-            active=(c.cause for c in self.last.causes if c.active),
+            active=(c.cause for c in last.causes if c.active),
             heartbeat=self._heartbeat,
             remote=remote,
             remote_seen=seen,
-            prooftest=self.last.prooftest,
+            prooftest=last.prooftest,
             min_battery=self.min_remote_battery,
         )
 
@@ -227,8 +239,10 @@ class ApiListener(Listener):
         """Judge the presses the client names from the loop's own measurements and record
         the result (SR-12.1); admin rights were checked by the server. The client's part is
         the dialogue and which stops its presses made, never a number."""
-        snapshot = yield Look(now)
-        assert isinstance(snapshot, Snapshot)
+        snapshot = yield from look(now)
+        if snapshot is None:
+            self.server.reply_error(result, _unanswered(request.OP, request.id))
+            return
         judged = snapshot.stop_times.result(request.steps, LIMIT_MS)
         if isinstance(judged, str):
             error = ApiError(ErrorCode.UNAVAILABLE, judged, op=request.OP, request_id=request.id)
@@ -336,3 +350,11 @@ class ApiListener(Listener):
 
     def close(self) -> None:
         self.server.close()
+
+
+def _unanswered(op: str, request_id: RequestId) -> ApiError:
+    """The typed refusal of a request whose ask the loop did not answer with its kind: the
+    client is told, the loop goes on (SR-6, SR-8; no input may raise in the loop)."""
+    return ApiError(
+        ErrorCode.UNAVAILABLE, "the daemon's loop did not answer", op=op, request_id=request_id
+    )

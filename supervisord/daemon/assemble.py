@@ -145,6 +145,6 @@ def build_supervisor(
         backoff=Backoff(config.vsc.reopen.min_ms, config.vsc.reopen.max_ms),
         release=[owned_bus.shutdown] if owned_bus is not None else [],
     )
-    supervisor.sequence_offset = previous.seq if previous is not None else 0
+    supervisor.records.sequence_offset = previous.seq if previous is not None else 0
     supervisor.schedule = schedule(config)
     return supervisor

@@ -20,7 +20,9 @@ its order (SR-6).
 
 from __future__ import annotations
 
+import contextlib
 import logging
+from collections.abc import Callable, Sequence
 
 from supervisord.api.status import LinkStatus
 from supervisord.clock import Clock
@@ -47,9 +49,15 @@ class LinkPort:
     the loop's :class:`~supervisord.daemon.timings.Timings`, handed at construction)."""
 
     def __init__(
-        self, link: Link, clock: Clock, timings: Timings, backoff: Backoff | None = None
+        self,
+        link: Link,
+        clock: Clock,
+        timings: Timings,
+        backoff: Backoff | None = None,
+        release: Sequence[Callable[[], object]] = (),
     ) -> None:
         self.link = link
+        self.release = tuple(release)  # what was opened for the link (a CAN bus it owns)
         self.clock = clock
         self.timings = timings
         self.backoff = backoff or Backoff()
@@ -147,6 +155,14 @@ class LinkPort:
                 timings.last_user_heartbeat_ns = sent
                 break
         return None
+
+    def close(self) -> None:
+        """Close the link, then release what was opened for it, each release best effort:
+        one that fails leaves the others to run (SR-6.6: the exit goes on)."""
+        self.link.close()
+        for release in self.release:
+            with contextlib.suppress(Exception):
+                release()
 
     def status(self, now: int) -> LinkStatus:
         """The link as ``srcsctl status`` shows it at ``now`` (docs/api.md "status")."""

@@ -4,7 +4,7 @@ The loop tells the listener what it needs to know (every decision applied, every
 message, every finished stop record) and asks it for its descriptors and deadline; the work
 the listener then has that needs the loop (a safety input fed to the core, a look at the
 loop's status and stop times, frames for the VSC) comes back as :data:`Asks`, a generator the
-loop answers one ask at a time (``Supervisor._serve_listener``), so the listener holds
+loop answers one ask at a time (``daemon/answer.py``'s ``serve``), so the listener holds
 nothing of the loop's and never calls into it, and each request is answered with the decision
 of the moment it was fed (SR-6, SR-8; docs/api.md "status").
 """
@@ -71,7 +71,7 @@ Answer = Decision | Snapshot | OffCheck | None
 Asks = Generator[Ask, Answer, None]
 """A listener's work that needs the loop: the loop takes each ask in turn and sends back its
 answer before the work goes on, so the listener never calls into the loop and every answer
-(a refusal, a status) is the one of the moment asked (``Supervisor._serve_listener``)."""
+(a refusal, a status) is the one of the moment asked (``daemon/answer.py``'s ``serve``)."""
 
 
 class Listener:

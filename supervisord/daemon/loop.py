@@ -1,38 +1,21 @@
-"""The one loop of ``srcsd``: it owns every piece of state and every safety duty.
+"""The one loop of ``srcsd``: the turn's order and the apply order; its parts do the rest.
 
-It waits on the link's descriptor, the client socket, a signal pipe and the earliest deadline
-(the safety core's, the outputs' periodic duties, a link reopen, the systemd watchdog), feeds
-what happened to the safety core, and applies each decision at once: outputs first, then the
-frames to the VSC (SR-6). Every turn serves the stop path first: the link to the
-VSC, then the core's timers (user heartbeat, link-loss and client deadlines), and only then a
-bounded number of client descriptors (:data:`MAX_CLIENTS_PER_TURN`, fewer when the link has
-more to read or a deadline has come), so no client can push the VSC's next frame or the user
-heartbeat back (SR-10.1, ``docs/safety.md`` "The stop path first").
+A turn waits on the link, the client socket, the sink, a wake pair and the earliest deadline
+(:mod:`~supervisord.daemon.deadlines`), then serves the stop path first: the link to the VSC,
+the core's and the outputs' timers, the sink's news, and only then at most
+:data:`MAX_CLIENTS_PER_TURN` client descriptors, fewer when the link has more to read or a
+deadline has come (SR-10.1, ``docs/safety.md`` "The stop path first"). Each decision is
+applied at once: outputs first, then the frames to the VSC, then the records, then the pushes
+(SR-6). The user heartbeat, the outputs and the link are served only by this loop, so if it
+hangs, the heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 
-Records, journal entries and log lines leave the loop through the :class:`~supervisord.daemon.
-sink.Sink` that it never waits for (a lane each: its record thread writes and fsyncs, SR-7.7);
-a record is pushed to subscribers once the sink says it is on disk. Every input the core is
-given also goes into the flight recorder's ring, and each stop's window leaves through the
-sink's flight lane (:mod:`~supervisord.daemon.flight`, SR-7.10 to SR-7.12). The user
-heartbeat, the outputs and the link are served only by this loop, so if it hangs, the
-heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
-
-The loop keeps the turn's order and the apply order; parts with narrow faces do the rest, each
-told what it needs as arguments and answering with values, none calling back into the loop
-(``docs/safety.md`` "The loop's parts"): the wait (:mod:`~supervisord.daemon.waiter`: epoll,
-its watches, the wake pair, the clients' order), the link port
-(:mod:`~supervisord.daemon.link_port`: open with a backoff, receive, send, its counters), the
-record path (:mod:`~supervisord.daemon.record_path`: the sink and its lanes, the records it
-holds, the flight ring; it hands back the records finished, which the loop pushes), the
-output bank (:mod:`~supervisord.daemon.output_bank`: acquire with a backoff, apply levels with
-the reflex's writes and the steady path's test, read back, all off), the service manager's
-face (:mod:`~supervisord.daemon.service_manager`: READY, STATUS, WATCHDOG, STOPPING), the
-status it shows (:mod:`~supervisord.daemon.loop_status`: assembled from the parts' own), the
-refusal log (:mod:`~supervisord.daemon.refusal_log`: the record budget's refusals counted,
-logged once a second) and the stop request (:mod:`~supervisord.daemon.stop_request`: the
-first signal's reason and exit status). The client API's listener
-(:mod:`~supervisord.daemon.listener`) returns what it needs of the loop as asks (an event to
-feed, a look at the loop, frames to send), which the loop answers one at a time.
+The parts, each told what it needs as arguments and answering with values, none calling back
+into the loop, are listed in ``docs/safety.md`` "The loop's parts": the wait (``waiter``), the
+link port, the record path (sink, lanes, flight ring: SR-7.7, SR-7.10), the output bank, the
+service manager's face, the status (``loop_status``), the refusal log, the stop request, the
+deadlines, the internal fault (``internal_fault``) and the answering of the client API
+listener's asks (:mod:`~supervisord.daemon.answer`, which this loop answers as its
+``Answers``: :meth:`Supervisor.decide`, ``look``, ``check_off``, ``send``).
 """
 
 from __future__ import annotations
@@ -40,19 +23,21 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import logging
-import select
 from collections.abc import Callable, Mapping, Sequence
 
 from supervisord.api.status import LoopStatus
 from supervisord.clock import MONOTONIC, Clock
-from supervisord.daemon import heap, signals
+from supervisord.daemon import answer, heap, signals
+from supervisord.daemon.deadlines import next_deadline, stop_path_waits
 from supervisord.daemon.flight import FlightSettings
+from supervisord.daemon.internal_fault import OVERRUN_NS, failed, late
 from supervisord.daemon.link_port import LinkPort
-from supervisord.daemon.listener import Answer, Asks, CheckOff, Listener, Look, Send, Snapshot
+from supervisord.daemon.listener import Asks, Listener, Snapshot
 from supervisord.daemon.loop_status import Counters, loop_status
 from supervisord.daemon.maintenance import Schedule
 from supervisord.daemon.notify import Notifier
-from supervisord.daemon.offcheck import OffCheck, check_off
+from supervisord.daemon.offcheck import OffCheck
+from supervisord.daemon.offcheck import check_off as checked_off
 from supervisord.daemon.output_bank import OutputBank, readback_event
 from supervisord.daemon.record_path import RecordPath
 from supervisord.daemon.refusal_log import RefusalLog
@@ -69,30 +54,22 @@ from supervisord.record.jsonl import RecordWriter
 from supervisord.record.stop import StopRecord
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
-from supervisord.safety.decision import Decision, RefusalReason
-from supervisord.safety.events import (
-    Event,
-    InternalFault,
-    LinkBroken,
-    Shutdown,
-    Tick,
-    VscReceived,
-)
+from supervisord.safety.decision import Decision
+from supervisord.safety.events import Event, LinkBroken, Shutdown, Tick, VscReceived
 from supervisord.safety.transitions import State
-from supervisord.timebase import NS_PER_MS
 
 __all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
 
 log = logging.getLogger("srcsd")
 
-POLL_NS = 2 * NS_PER_MS  # a link without a descriptor (python-can "virtual") is polled
-OVERRUN_NS = 250 * NS_PER_MS  # woke this late after the core's deadline: the loop is failing
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 
 
 class Supervisor:
-    """The daemon's state and loop. ``run`` returns the process exit status."""
+    """The daemon's state and loop. ``run`` returns the process exit status. It answers the
+    listener's asks itself (:class:`~supervisord.daemon.answer.Answers`: :meth:`decide`,
+    :meth:`look`, :meth:`check_off`, :meth:`send`)."""
 
     steady_path = True
     """Apply a decision that changes nothing the full path would act on without it (the
@@ -118,12 +95,10 @@ class Supervisor:
         flight: FlightSettings | None = FlightSettings(),  # noqa: B008 -- frozen
     ) -> None:
         self.safety = safety
-        self.link = link
         self.listener = listener or Listener()
         # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
         self.service = ServiceManager(notifier or Notifier({}))
         self.clock = clock
-        self.wall_clock = wall_clock
         # The record path: the sink and its lanes, the records it holds, the flight ring, and
         # each record's and stop window's journal copy (SR-7.4, SR-7.7, SR-7.10, SR-13.12).
         self.records = RecordPath(
@@ -136,18 +111,18 @@ class Supervisor:
         )
         self.counters = Counters()
         self.timings = Timings()
-        # The link: open with its backoff, receive, send, its counters (SR-2, SR-5.1).
-        self.port = LinkPort(link, clock, self.timings, backoff)
-        # Each stop's outputs' times to off (SR-12.1), a category-1 output judged after its delay.
-        self.stop_times = StopTimes(delays={o.name: o.off_delay_ms for o in safety.outputs})
+        # The link: open with its backoff, receive, send, close and release, its counters
+        # (SR-2, SR-5.1).
+        self.port = LinkPort(link, clock, self.timings, backoff, release or ())
         self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
         # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
-        # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5).
-        self.bank = OutputBank(outputs, clock, self.stop_times)
+        # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5); and each stop's
+        # outputs' times to off (SR-12.1), a category-1 output judged after its delay.
+        delays = {o.name: o.off_delay_ms for o in safety.outputs}
+        self.bank = OutputBank(outputs, clock, StopTimes(delays=delays))
         # Whether the start locked the memory (SR-9.6): set by srcsd, ``None`` when no start
         # said (a loop built by a test).
         self.memory_locked: bool | None = None
-        self._release = release or []
         self.core: SafetyCore | None = None
         self.decision: Decision | None = None
         # Whether the loop was asked to end, and the first signal that asked (SR-6.6, SR-7.14).
@@ -157,20 +132,15 @@ class Supervisor:
         self.waiter = Waiter()
         # The refusals under the record budget: counted, logged once a second (SR-8.5).
         self.refusals = RefusalLog()
-        self._started_ns: int | None = None  # for ``status``: uptime
 
     @property
-    def sequence_offset(self) -> int:
-        """Added to the core's record numbers: the record continues across restarts."""
-        return self.records.sequence_offset
-
-    @sequence_offset.setter
-    def sequence_offset(self, offset: int) -> None:
-        self.records.sequence_offset = offset
+    def link(self) -> Link:
+        """The link to the VSC (its port's), as srcsd names it in its start-up line."""
+        return self.port.link
 
     @property
     def outputs(self) -> dict[str, Output]:
-        """The outputs by name (the bank's)."""
+        """The outputs by name (the bank's), as srcsd counts them in its start-up line."""
         return self.bank.outputs
 
     @property
@@ -184,11 +154,10 @@ class Supervisor:
 
     def snapshot(self, now: int) -> LoopStatus:
         """What ``status`` says about the daemon itself at ``now`` (the loop's clock), from its
-        parts' own status (:func:`~supervisord.daemon.loop_status.loop_status`). The listener is
-        shown it when it asks (:class:`Look`), and builds the ``status`` reply with it."""
+        parts' own status (:func:`~supervisord.daemon.loop_status.loop_status`)."""
         return loop_status(
             now,
-            started_ns=self._started_ns,
+            started_ns=self.counters.started_ns,
             safety=self.safety,
             port=self.port,
             bank=self.bank,
@@ -211,20 +180,20 @@ class Supervisor:
         Once acquired (off), the fault's condition clears; its stop waits for a re-arm (SR-4).
         """
         now = self.clock()
-        self._started_ns = self.port.since_ns = now
-        self.schedule.start(self.wall_clock(), now)  # the passes read from the record
+        self.counters.started_ns = self.port.since_ns = now
+        self.schedule.start(self.records.wall_clock(), now)  # the passes read from the record
         sink_fd = self.records.start()
         events = self.bank.open(now)
-        self.core = SafetyCore(self.safety, now)
+        self.core = core = SafetyCore(self.safety, now)
         self.records.began(now)  # a flight window can start from here
-        self._apply(self.core.decision)  # the startup decision, with the first record
+        self._apply(core.decision)  # the startup decision, with the first record
         for event in events:
-            self._apply(self._feed(event))
-        self._apply(self._feed(self.port.open(now)))
+            self.decide(event)
+        self.decide(self.port.open(now))
         self.waiter.start(sink_fd)
-        assert self.decision is not None
-        self.service.ready(now, self.decision)  # the startup decision applied: outputs off
-        return self.decision
+        decision = self.decision or core.decision  # the last applied (never None here)
+        self.service.ready(now, decision)  # the startup decision applied: outputs off
+        return decision
 
     def request_stop(self, signum: int | None = None) -> None:
         """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop).
@@ -233,20 +202,20 @@ class Supervisor:
         self.waiter.wake()
 
     def shutdown(self) -> None:
-        """All outputs off, then release the link; drain the record (every queued record
-        written and fsynced, and pushed to subscribers, within the sink's deadline), then the
-        socket (SIGTERM path)."""
+        """All outputs off, then release the link; then the stop's record; drain the record
+        (every queued record written and fsynced, and pushed to subscribers, within the sink's
+        deadline), then the socket (SIGTERM path)."""
         self.service.stopping()
         self.bank.all_off(self.clock(), close=True)
-        self.link.close()
-        for release in self._release:
+        self.port.close()
+        # Then the ``shutdown:REASON`` stop's record, after the outputs (SR-7.14): REASON is
+        # the signal that asked for the exit, ``requested`` without one, ``error`` when
+        # ``run`` raised. The core makes it, so its ``seq`` continues the file's and a replay
+        # makes it again; the outputs and the link are closed by now, so the decision switches
+        # and sends nothing. No core (its start failed): no sequence to continue.
+        if self.core is not None:
             with contextlib.suppress(Exception):
-                release()
-        # Then the stop's record, after the outputs (SR-7.14): the core makes it, so its
-        # ``seq`` continues the file's and a replay makes it again; the outputs and the link
-        # are closed by now, so the decision switches and sends nothing.
-        with contextlib.suppress(Exception):
-            self._record_shutdown(self.clock())
+                self.decide(Shutdown(self.clock(), self.stop.reason()))
         # The records first, with a deadline well inside the unit's stop timeout, then
         # pushed; then journal copies and log lines, best effort (SR-7.7).
         with contextlib.suppress(Exception):  # the sockets and the link are closed whatever
@@ -255,15 +224,6 @@ class Supervisor:
         self.listener.close()
         self.waiter.close()
         self.service.close()
-
-    def _record_shutdown(self, now: int) -> None:
-        """The ``shutdown:REASON`` stop (SR-7.14): REASON is the signal that asked for the
-        exit (``SIGTERM``), ``requested`` for :meth:`request_stop` without one, or ``error``
-        when an exception ends :meth:`run` (its start failed). Every exit
-        is recorded, in STOPPED and HOLD too (a cause raised, or a stop)."""
-        if self.core is None:
-            return  # the core never started: there is no sequence to continue
-        self._apply(self._feed(Shutdown(now, self.stop.reason())))
 
     def run(self) -> int:
         """Start, loop until a stopping signal, shut down. Every signal that would end the
@@ -292,7 +252,7 @@ class Supervisor:
                 signals.restore(previous)
         return self.stop.exit_status()
 
-    # ----------------------------------------------------------------- the loop
+    # ----------------------------------------------------------------- the turn
 
     def step(self) -> None:
         """Wait for the next input or deadline, then serve, in this order: the link to the
@@ -300,21 +260,22 @@ class Supervisor:
         :data:`MAX_CLIENTS_PER_TURN` client descriptors (SR-10.1; docs/safety.md "The stop
         path first"). Each input is stamped with the clock read when it was read."""
         before = self.clock()
-        self.records.rebase(
-            self.core, before
-        )  # before the wait: never between an input and its outputs
-        link = self.link
+        # Before the wait: never between an input and its outputs.
+        self.records.rebase(self.core, before)
+        link = self.port.link
         link_fd = link.fileno() if link.is_open else None  # once, for the deadline and the watch
-        timeout = max(0.0, (self._next_deadline(before, link_fd) - before) / 1e9)
+        core_deadline = self.decision.next_deadline if self.decision else before
+        deadline = next_deadline(
+            before, core_deadline, link_fd, self.port, self.bank, self.service, self.listener
+        )
         waiter = self.waiter
         waiter.watch(link_fd, self.listener.descriptors(before))
-        ready = waiter.wait(timeout)
+        ready = waiter.wait(max(0.0, (deadline - before) / 1e9))
         now = self.clock()
         try:
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
-                late = (now - core_deadline) // NS_PER_MS
-                self._apply(self._feed(InternalFault(now, f"loop woke {late} ms late")))
+                self.decide(late(now, core_deadline))
             if not ready:  # a deadline's turn: nothing to sort (SR-9.4)
                 received, sink_ready, clients = False, False, None
             elif len(ready) == 1 and ready[0][0] == waiter.link_fd:  # a frame's turn: the same
@@ -337,7 +298,7 @@ class Supervisor:
                 self._serve_clients(clients)
             work = self.listener.settle(self.clock())
             if work is not None:  # the usual turn has none: no call (SR-9.4)
-                self._serve_listener(work)
+                answer.serve(work, self)
         except Exception as error:
             self._internal_fault(self.clock(), error)
 
@@ -351,72 +312,49 @@ class Supervisor:
         first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
             readable, writable = waiter.readiness(fd, mask)
-            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
+            self._serve(listener.handle(fd, readable, writable, self.clock()))
         for served, (fd, mask) in enumerate(ordered):
             if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
                 return  # the rest stay ready: the next turn serves them
             waiter.cursor = fd
             readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self._serve_listener(listener.handle(fd, readable, writable, self.clock()))
+            self._serve(listener.handle(fd, readable, writable, self.clock()))
 
     def _stop_path_waits(self) -> bool:
-        """Whether the link has bytes to read or the core's deadline has come."""
-        if self.decision is not None and self.clock() >= self.decision.next_deadline:
-            return True
-        fd = self.link.fileno() if self.link.is_open else None
-        if fd is None:
-            return False
-        readable, _, _ = select.select([fd], [], [], 0)
-        return bool(readable)
+        core_deadline = self.decision.next_deadline if self.decision is not None else None
+        return stop_path_waits(self.clock, core_deadline, self.port.link)
 
-    def _next_deadline(self, now: int, link_fd: int | None) -> int:
-        """The earliest deadline of the loop's, at ``now`` (the clock read before the wait),
-        with the link's descriptor as read then (``None``: closed, or polled)."""
-        deadline = self.decision.next_deadline if self.decision else now
-        bank = self.bank
-        if bank.ticking or bank.acquiring:  # the usual bank has neither: no call (SR-9.4)
-            deadline = bank.next_deadline(deadline)
-        if link_fd is None:
-            if not self.link.is_open:
-                deadline = min(deadline, self.port.next_attempt)
-            else:
-                deadline = min(deadline, now + POLL_NS)
-        watchdog = self.service.next_watchdog
-        if watchdog is not None and watchdog < deadline:
-            deadline = watchdog
-        listener_deadline = self.listener.next_deadline()
-        if listener_deadline is not None and listener_deadline < deadline:
-            deadline = listener_deadline
-        return deadline
+    def _serve(self, work: Asks | None) -> None:
+        answer.serve(work, self)
 
     def _due(self, now: int) -> None:
+        """Whatever is due at ``now``, in this order: the core's deadline, the outputs' duties,
+        the listener's, a link reopen, the systemd watchdog."""
         if self.decision is not None and now >= self.decision.next_deadline:
-            assert self.core is not None
             # A stop at a deadline (a link or client timeout) started at the deadline, not
             # when the loop woke: its stop-to-off counts the wake-up too (SR-9.2).
             self._apply(self._feed(Tick(now)), since=self.decision.next_deadline)
         bank = self.bank
         if bank.ticking or bank.acquiring:
             for event in bank.due(now):  # each applied before the next duty (SR-6)
-                self._apply(self._feed(event))
+                self.decide(event)
         listener_deadline = self.listener.next_deadline()
         if listener_deadline is not None and now >= listener_deadline:
-            self._serve_listener(self.listener.due(now))
-        if self.waiter.link_fd is None and not self.link.is_open and now >= self.port.next_attempt:
+            answer.serve(self.listener.due(now), self)
+        port = self.port
+        if self.waiter.link_fd is None and not port.link.is_open and now >= port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
-            self._apply(self._feed(self.port.open(now)))
+            self.decide(port.open(now))
         service = self.service
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)
-
-    # ----------------------------------------------------------------- the link
 
     def _receive(self) -> None:
         """What the link brought, each message fed and applied in its order."""
         got = self.port.receive()
         if isinstance(got, LinkBroken):
-            self._apply(self._feed(got))
+            self.decide(got)
             return
         now, received = got
         heartbeat = False
@@ -443,10 +381,32 @@ class Supervisor:
             # for nothing (SR-9).
             self.port.heard(now)
 
-    def _send(self, frames: tuple[Message, ...], now: int) -> None:
+    # ----------------------------------------------------------------- the listener's asks
+
+    def decide(self, event: Event) -> Decision:
+        """``event`` fed to the core and its decision applied at once (SR-6): the answer to an
+        event the listener asks, and the loop's own way to feed one."""
+        decision = self._feed(event)
+        self._apply(decision)
+        return decision
+
+    def look(self, now: int) -> Snapshot:
+        """The loop at ``now`` for the listener: its status and the stops' measured times."""
+        return Snapshot(self.snapshot(now), self.bank.stop_times)
+
+    def check_off(self, now: int) -> OffCheck:
+        """SR-8.20: every output off written off again and read back, for a fleet stop's
+        acknowledgement; a read-back that disagrees goes to the core as any (SR-6)."""
+        checked = checked_off(self.bank.outputs, self.clock, self.records.sequence_offset)
+        for readback in checked.faults:
+            self.decide(readback_event(readback, checked.checked_ns))
+        return checked
+
+    def send(self, frames: tuple[Message, ...], now: int) -> None:
+        """``frames`` to the VSC; a link that breaks on them is fed as broken."""
         broken = self.port.send(frames, now)
         if broken is not None:
-            self._apply(self._feed(broken))
+            self.decide(broken)
 
     # ----------------------------------------------------------------- decisions
 
@@ -459,37 +419,6 @@ class Supervisor:
             flight.inputs.append(event)
             flight.count += 1
         return self.core.handle(event)
-
-    def _serve_listener(self, work: Asks | None) -> None:
-        """Answer what the listener asks, in its order: an event fed and applied at once (its
-        decision the answer: SR-6), a look at the loop, the outputs' off checked, frames sent to
-        the VSC."""
-        if work is None:
-            return
-        answer: Answer = None
-        while True:
-            try:
-                asked = work.send(answer)
-            except StopIteration:
-                return
-            if isinstance(asked, Look):
-                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
-            elif isinstance(asked, CheckOff):
-                answer = self._check_off()
-            elif isinstance(asked, Send):
-                answer = None
-                self._send(asked.frames, asked.now)
-            else:
-                answer = self._feed(asked)
-                self._apply(answer)
-
-    def _check_off(self) -> OffCheck:
-        """SR-8.20: every output off written off again and read back, for a fleet stop's
-        acknowledgement; a read-back that disagrees goes to the core as any (SR-6)."""
-        checked = check_off(self.outputs, self.clock, self.sequence_offset)
-        for readback in checked.faults:
-            self._apply(self._feed(readback_event(readback, checked.checked_ns)))
-        return checked
 
     def _apply(self, decision: Decision, since: int | None = None) -> None:
         """Outputs first, then frames, then records and status (SR-6).
@@ -522,7 +451,8 @@ class Supervisor:
         # The usual decision switches nothing and has no read-backs: no list is made for it
         # (SR-9.4); ``pending`` holds the decisions of read-backs, in order, when there are.
         pending: list[Decision] | None = None
-        fed, bank, times = 0, self.bank, self.stop_times
+        fed, bank = 0, self.bank
+        times = bank.stop_times
         while True:
             previous = self.decision
             stopping = (
@@ -532,8 +462,8 @@ class Supervisor:
             )
             if decision.state is not State.STOPPED:
                 times.ended()
-            elif stopping:
-                self._stop_began(decision)
+            elif stopping:  # time each output that is on from its stop record (SR-12.1)
+                times.began(decision.records, self.records.sequence_offset, bank.on)
             readbacks, off_ns = bank.apply(decision, stopping)  # outputs first (SR-6)
             self._finish(decision)
             if off_ns is not None:
@@ -550,21 +480,12 @@ class Supervisor:
                 return
             decision = pending.pop(0)
 
-    def _stop_began(self, decision: Decision) -> None:
-        """A change into STOPPED: time each output that is on from its stop record (SR-12.1)."""
-        for record in decision.records:
-            if record.state is State.STOPPED and record.previous is not State.STOPPED:
-                # Those on, or off already by the reflex ahead of this decision (SR-9.5).
-                on = self.bank.on()
-                self.stop_times.stopped(record, self.sequence_offset + record.sequence, on)
-                return
-
     def _finish(self, decision: Decision) -> None:
         if decision is self.decision:
             return
         self.decision = decision
         if decision.frames:
-            self._send(decision.frames, decision.now)
+            self.send(decision.frames, decision.now)
         if decision.records:
             write = self.records.write
             for record in decision.records:
@@ -573,11 +494,8 @@ class Supervisor:
                 finished = write(record)
                 if finished:
                     self._recorded(finished)
-        for refusal in decision.refusals:
-            if refusal.reason is RefusalReason.RATE_LIMITED:
-                self.refusals.refused(decision.now)  # counted, logged once a second
-            else:
-                log.info("refused: %s", refusal.message)
+        if decision.refusals:  # the rate-limited counted, logged once a second (SR-8.5)
+            self.refusals.decided(decision)
         self.listener.decided(decision)
         service = self.service
         if decision.causes is not service.causes or decision.state is not service.state:
@@ -594,8 +512,7 @@ class Supervisor:
 
     def _internal_fault(self, now: int, error: Exception) -> None:
         """The loop failed: outputs off directly, then the ``internal`` cause (SR-2)."""
-        self.counters.internal_faults += 1
-        log.exception("internal fault in the main loop")
+        fault = failed(now, error, self.counters)  # counted and logged
         self.bank.all_off(now)  # outside a decision
         with contextlib.suppress(Exception):
-            self._apply(self._feed(InternalFault(now, f"{type(error).__name__}: {error}")))
+            self.decide(fault)

@@ -34,6 +34,7 @@ class Counters:
     port's, the records' its record path's, the refusals' the refusal log's)."""
 
     internal_faults: int = 0  # the loop failed and stopped with the ``internal`` cause (SR-2)
+    started_ns: int | None = None  # when the loop started, for the uptime (``None``: not yet)
 
 
 def loop_status(

@@ -14,7 +14,7 @@ No clock of its own: the loop passes its readings (SR-2.11).
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -80,6 +80,18 @@ class StopTimes:
         )
         self._stops.append(stop)
         self._open = stop
+
+    def began(
+        self, records: Iterable[Record], offset: int, on: Callable[[], Iterable[str]]
+    ) -> None:
+        """A decision changed into STOPPED with ``records``: the first change into STOPPED
+        among them is the stop, numbered ``offset`` + its sequence in the file, timing the
+        outputs ``on()`` says are on, or off already by the reflex ahead of the decision
+        (SR-9.5, SR-12.1); asked only when there is such a record."""
+        for record in records:
+            if record.state is State.STOPPED and record.previous is not State.STOPPED:
+                self.stopped(record, offset + record.sequence, on())
+                return
 
     def waiting(self, name: str) -> bool:
         """Whether an off write to ``name`` is to be timed (cheap: called per off write)."""

@@ -11,12 +11,12 @@ import pytest
 
 from supervisord.api.replies import StatusReply, read_reply
 from supervisord.api.server import Result, ServerConfig
-from supervisord.api.status import LoopStatus
+from supervisord.daemon import answer
 from supervisord.daemon.api_listener import ApiListener
-from supervisord.daemon.listener import Answer, Asks, CheckOff, Look, Send, Snapshot
+from supervisord.daemon.listener import Asks, Snapshot
 from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.stoptimes import StopTimes
-from supervisord.protocol.messages import Joystick
+from supervisord.protocol.messages import Joystick, Message
 from supervisord.safety.config import ClientSpec, SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
@@ -40,33 +40,29 @@ class Judged(Loop):
         # What the loop shows the listener: a fixed status, no stops measured.
         self.stop_times = StopTimes()
 
-    def feed(self, event: Event) -> Decision:
+    # What answers the listener's asks (``supervisord.daemon.answer.Answers``), served by
+    # the daemon's own ``answer.serve``: the asks' order and the kind of each answer are the
+    # daemon's code, not a copy of it.
+
+    def decide(self, event: Event) -> Decision:
         self.events.append(event)
         decision = self.core.handle(event)
         self.decisions.append(decision)
         self.listener.decided(decision)
         return decision
 
-    def snapshot(self, now: int) -> LoopStatus:
-        """What the loop says about itself: a fixed one, there being no daemon behind."""
-        return LOOP
+    def look(self, now: int) -> Snapshot:
+        """What the loop says about itself: a fixed status, there being no daemon behind."""
+        return Snapshot(LOOP, self.stop_times)
+
+    def check_off(self, now: int) -> OffCheck:
+        return OffCheck((), now, 0)  # no outputs behind
+
+    def send(self, frames: tuple[Message, ...], now: int) -> None:
+        """No VSC behind: nothing to send."""
 
     def serve(self, work: Asks | None) -> None:
-        """Answer what the listener asks, in order, as the daemon's loop does."""
-        answer: Answer = None
-        while work is not None:
-            try:
-                asked = work.send(answer)
-            except StopIteration:
-                return
-            if isinstance(asked, Look):
-                answer = Snapshot(self.snapshot(asked.now), self.stop_times)
-            elif isinstance(asked, CheckOff):
-                answer = OffCheck((), asked.now, 0)  # no outputs behind
-            elif isinstance(asked, Send):
-                answer = None  # no VSC behind
-            else:
-                answer = self.feed(asked)
+        answer.serve(work, self)
 
     def turn(self, timeout: float = 0.0) -> list[Result]:
         self.sync()
@@ -261,3 +257,32 @@ def test_each_request_is_answered_before_the_next_is_taken(
     assert "client_estop:nav" in seen[0]
     assert seen[1] == seen[0]  # the status is the e-stop's state, before the hold
     assert any(name.startswith("client_hold") for name in seen[2] - seen[1])
+
+
+class Unanswered(Judged):
+    """A loop that answers a look with the wrong kind (a planted bug in the loop's answering):
+    what the listener does then is its own, typed, not an assertion in the loop."""
+
+    def look(self, now: int) -> Snapshot:
+        return OffCheck((), now, 0)  # type: ignore[return-value]  # the planted wrong answer
+
+
+def test_a_status_the_loop_did_not_answer_is_refused_unavailable_and_the_loop_goes_on(
+    tmp_path: Path, peers: Callable[[], Peer]
+) -> None:
+    """SR-6, SR-8: a ``status`` whose look the loop answered with something else is refused
+    ``unavailable`` to its client (the listener narrows each answer to its kind: no assert on
+    the asks' path); the connection and the next request go on."""
+    loop = Unanswered(ServerConfig(tmp_path / "api.sock", max_clients=3, max_output=4096))
+    try:
+        asker = peers()
+        reply = asker.ask(loop, {"op": "status", "id": 4})
+        assert (reply["ok"], reply["code"], reply["op"], reply["id"]) == (
+            False,
+            "unavailable",
+            "status",
+            4,
+        )
+        assert asker.ask(loop, {"op": "hello", "name": "nav"})["ok"] is True
+    finally:
+        loop.close()

@@ -158,3 +158,28 @@ def test_a_link_that_keeps_failing_to_open_is_logged_once_then_one_failure_in_50
         "memory memory: cannot open: No such device (retrying)"
     ] * 3  # the 1st, the 50th and the 100th
     assert port.status(0).open_failures == FAILURES_LOGGED_EVERY * 2
+
+
+def test_closing_closes_the_link_then_runs_every_release_though_one_fails() -> None:
+    """SR-6.6: the shutdown closes the link, then releases what was opened for it (the CAN bus
+    a link owns), each release best effort: one that raises leaves the next to run and the
+    exit to go on. Mutants caught: a release run before the link is closed, the suppression
+    dropped, the releases stopped at the first failure."""
+    vsc, clock = MemoryPort(), Clock()
+    seen: list[str] = []
+
+    def failing() -> None:
+        seen.append(f"first, link open: {port.link.is_open}")
+        raise OSError("the bus is gone")
+
+    port = LinkPort(
+        MemoryLink(vsc),
+        clock,
+        Timings(),
+        Backoff(100, 400),
+        [failing, lambda: seen.append("second")],
+    )
+    assert port.open(0) == LinkOpened(0)
+    port.close()
+    assert not port.link.is_open
+    assert seen == ["first, link open: False", "second"]

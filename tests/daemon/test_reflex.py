@@ -41,7 +41,7 @@ def test_a_stop_by_the_reflex_is_timed_and_read_back_as_the_full_steps(
     assert level(tmp, "drive") == "0"
     assert "output_fault:lamp" in active(supervisor)
     assert supervisor.timings.stop_to_off.count == observed + 1
-    stop = supervisor.stop_times._open
+    stop = supervisor.bank.stop_times._open
     assert stop is not None
     assert set(stop.off_ns) == {"drive", "lamp"}  # both were on when the stop began
     assert stop.off_ns["drive"] is not None  # its verified off write, timed

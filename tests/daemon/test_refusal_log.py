@@ -3,11 +3,15 @@ once a second on the loop's clock, never a line per refusal."""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import pytest
 
 from supervisord.daemon.refusal_log import LIMIT_LOG_NS, RefusalLog
+from supervisord.safety.config import SafetyConfig
+from supervisord.safety.core import SafetyCore
+from supervisord.safety.decision import Refusal, RefusalReason
 from supervisord.timebase import NS_PER_MS
 
 MS = NS_PER_MS
@@ -49,3 +53,32 @@ def test_a_refusal_after_a_quiet_spell_is_logged_at_once(
         _lines(caplog) == ["1 client requests refused: record budget exceeded (docs/safety.md)"] * 2
     )
     assert refusals.count == 2
+
+
+def test_a_decisions_refusals_are_counted_when_rate_limited_and_logged_otherwise(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """SR-8.5, SR-4: of an applied decision's refusals, the ``rate_limited`` are counted (and
+    logged as a count, at the decision's time), any other is logged as it is, a line each.
+    Mutants caught: the reason's test inverted, the decision's time not passed, the other
+    refusals not logged."""
+    caplog.set_level(logging.INFO, logger="srcsd")
+    core = SafetyCore(SafetyConfig(), START)
+    decision = dataclasses.replace(
+        core.decision,
+        now=START + LIMIT_LOG_NS,
+        refusals=(
+            Refusal(RefusalReason.RATE_LIMITED, "", None),
+            Refusal(RefusalReason.NOT_STOPPED, "", None),
+            Refusal(RefusalReason.RATE_LIMITED, "", None),
+        ),
+    )
+    refusals = RefusalLog()
+    refusals.refused(START)  # a line now; the next may go out a second later
+    refusals.decided(decision)
+    assert refusals.count == 3  # the third counted, for the next line
+    assert _lines(caplog) == [
+        "1 client requests refused: record budget exceeded (docs/safety.md)",
+        "1 client requests refused: record budget exceeded (docs/safety.md)",  # its second
+        f"refused: {RefusalReason.NOT_STOPPED.value}",
+    ]

@@ -122,3 +122,27 @@ def test_only_a_press_of_the_named_estop_in_run_is_a_stop_test() -> None:
     judged = times.result([("wired", 53)], LIMIT_MS)
     assert not isinstance(judged, str)
     assert judged.passed
+
+
+def test_a_stopping_decision_times_the_outputs_on_from_its_first_record_into_stopped() -> None:
+    """SR-12.1, SR-9.5: of a decision's records, the first change into STOPPED is the stop,
+    numbered in the file (``offset`` + its sequence); the outputs on are asked only then. A
+    decision with no such record (a record in STOPPED already) times nothing. Mutants caught:
+    the offset dropped, the first record taken whatever it is, ``on`` asked up front, a
+    second change into STOPPED timed over the first."""
+    asked: list[str] = []
+
+    def on() -> list[str]:
+        asked.append("on")
+        return ["drive"]
+
+    times = StopTimes()
+    still = _stop(3, previous=State.STOPPED)  # STOPPED to STOPPED: no stop begins
+    times.began([still], 40, on)
+    assert asked == []
+    assert not times.waiting("drive")
+    times.began([still, _stop(4), _stop(5)], 40, on)
+    assert asked == ["on"]
+    assert times.find(44) is not None
+    assert times.find(45) is None
+    assert times.waiting("drive")
