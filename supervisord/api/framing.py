@@ -154,6 +154,11 @@ class LineReader:
             self.flooded = True
 
 
+_ENCODER: Final = json.JSONEncoder(ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+"""The one encoder of the server's lines: ``json.dumps`` with these options would build an
+encoder per line (SR-9.4). It holds no state between lines."""
+
+
 def encode(obj: Mapping[str, object]) -> bytes:
     """One reply or push as its line: compact UTF-8 JSON and a newline.
 
@@ -161,7 +166,7 @@ def encode(obj: Mapping[str, object]) -> bytes:
     written escaped (:func:`supervisord.protocol.text.clean`): a reply is never lost to its text.
     Raises ``ValueError`` (our own mistake) for a value JSON cannot hold (NaN, an object)."""
     try:
-        text = json.dumps(obj, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+        text = _ENCODER.encode(obj)
     except TypeError as e:
         raise ValueError(f"not plain JSON: {e}") from e
     try:

@@ -93,7 +93,7 @@ from supervisord.api.framing import (
 )
 from supervisord.api.names import NAME_WAIT_NS, UserNames
 from supervisord.api.pushes import Push
-from supervisord.api.replies import Reply
+from supervisord.api.replies import OkReply, Reply
 from supervisord.api.requests import (
     ADMIN_REQUESTS,
     NAMED_REQUESTS,
@@ -315,6 +315,8 @@ class _Connection:
         "sock",
         "taken",
         "topics",
+        "turn",
+        "writing",
     )
 
     def __init__(self, sock: socket.socket, info: ClientInfo, protocol: ServerConnection) -> None:
@@ -328,7 +330,9 @@ class _Connection:
         self.slot = False  # an e-stop slot: estop and status only, never reported to the core
         self.operator = False  # came through the operator socket (SR-8.14)
         self.last_ns = 0  # when it was accepted or last sent a request (e-stop slots expire)
-        self.taken = 0  # requests handled in this turn (the read budget)
+        self.taken = 0  # requests handled in turn ``turn`` (the read budget)
+        self.turn = 0  # the server's turn ``taken`` counts in: an older one counts as 0
+        self.writing = False  # whether the loop watches it for writing (output waits)
 
     @property
     def naming(self) -> bool:
@@ -376,6 +380,17 @@ class ApiServer:
         self._closed = False
         self._share = config.requests_per_call  # requests per connection in this turn
         self._turn_left = config.requests_per_turn
+        self._turn = 0  # counts descriptors() calls with connections: a connection's
+        # ``taken`` of an older turn is 0, so a turn renews no connection one by one (SR-9.4)
+        # What the loop watches while connections are open, kept until a descriptor comes or
+        # goes, starts or stops waiting to write, or the listening sockets' pause changes: the
+        # same list turn after turn, which the loop compares and leaves alone (SR-9.4).
+        self._watched: list[tuple[int, bool]] | None = None
+        self._watched_paused = False
+        # Whether a connection may have a deadline (an e-stop slot, or a name awaited): false
+        # only once a look found none, so a turn of named clients asks none (SR-9.4).
+        self._timed = False
+        self._topics: frozenset[Topic] = frozenset()  # the topics some connection wants
         # accept failed for lack of a resource: the listening sockets unwatched until then
         # (SR-10.4); the failures not yet said, and when the last line said them
         self._accept_paused_until: int | None = None
@@ -431,10 +446,16 @@ class ApiServer:
         paused = self._accept_paused_until
         if paused is not None and now >= paused:
             self._accept_paused_until = paused = None  # the short deadline passed: try again
+        watched = self._watched
+        if watched is not None and self._watched_paused is (paused is not None):
+            return watched  # nothing came, went or began or ended waiting to write
         # While paused the listening sockets are not watched: their backlog keeps them
         # readable, and a watched readable socket that cannot be accepted is a spin (SR-10.4).
         watched = self._sockets_watched() if paused is None else [(self._names_fd, False)]
-        watched += [(fd, bool(conn.protocol.outgoing)) for fd, conn in self._by_fd.items()]
+        for fd, conn in self._by_fd.items():
+            conn.writing = bool(conn.protocol.outgoing)
+            watched.append((fd, conn.writing))
+        self._watched, self._watched_paused = watched, paused is not None
         return watched
 
     def _sockets_watched(self) -> list[tuple[int, bool]]:
@@ -447,14 +468,17 @@ class ApiServer:
     def next_deadline(self) -> int | None:
         """When :meth:`due` has work: an idle e-stop slot to close or paused accepts to try
         again (both in :meth:`descriptors`) or a name waited for long enough, if any."""
-        if not self._connections:
-            return self._accept_paused_until  # None, the usual case, asked twice a turn (SR-9.4)
+        if not self._connections or not self._timed:
+            # None, the usual case, asked twice a turn (SR-9.4): no connection, or none that
+            # is an e-stop slot or awaits its name.
+            return self._accept_paused_until
         idle = self.config.slot_idle_ms * NS_PER_MS
         ends = [
             end
             for c in self._connections.values()
             if (end := c.last_ns + idle if c.slot else c.naming_until) is not None
         ]
+        self._timed = bool(ends)  # none: not looked for again until a connection may have one
         if self._accept_paused_until is not None:
             ends.append(self._accept_paused_until)
         return min(ends) if ends else None
@@ -565,6 +589,8 @@ class ApiServer:
         conn = self._by_fd.get(fd)
         if conn is None:
             return
+        if conn.turn != self._turn:  # its first read in this turn: its share is whole
+            conn.turn, conn.taken = self._turn, 0
         allowed = min(self._share - conn.taken, self._turn_left)
         if allowed <= 0 or len(conn.deferred) >= MAX_DEFERRED:
             return  # its share of this turn is used: the rest waits in the socket
@@ -615,6 +641,8 @@ class ApiServer:
         malformed = received.place.malformed
         if malformed is not None:  # honoured, but what was wrong is said (SR-8.13)
             line = server_line(honoured_error(malformed, received.request))
+        elif reply is None and received.request.id is None:
+            line = _ok_line(received.request.OP)  # a heartbeat's, mostly: made once (SR-9.4)
         else:
             line = server_line(reply if reply is not None else ok_reply(received.request))
         self._answer(conn, received.place, line)
@@ -644,8 +672,13 @@ class ApiServer:
 
     def subscribed(self, topic: Topic) -> bool:
         """Whether any connection wants ``topic`` (so a push is worth building)."""
-        connections = self._connections  # none is the usual case, asked per input (SR-9.4)
-        return bool(connections) and any(topic in c.topics for c in connections.values())
+        # Asked per input (SR-9.4): the topics are gathered when a subscription comes or a
+        # connection goes, not looked up connection by connection.
+        return topic in self._topics
+
+    def _gather_topics(self) -> None:
+        """The topics some open connection wants (:meth:`subscribed`)."""
+        self._topics = frozenset().union(*(c.topics for c in self._connections.values()))
 
     def clients(self) -> tuple[ClientInfo, ...]:
         """The open connections, oldest first."""
@@ -711,9 +744,11 @@ class ApiServer:
         even = config.requests_per_turn // max(1, len(self._connections))
         self._share = max(1, min(config.requests_per_call, even))
         self._turn_left = max(config.requests_per_turn, len(self._connections))
+        self._turn += 1  # every connection's ``taken`` is 0 from here (``on_readable``)
+        if not self._timed:
+            return  # no e-stop slot is open (SR-9.4: no look at each connection)
         idle = config.slot_idle_ms * NS_PER_MS
         for conn in list(self._connections.values()):
-            conn.taken = 0
             if conn.slot and now - conn.last_ns >= idle:
                 self._refuse_slot(conn, "an e-stop slot left idle is closed")
 
@@ -736,12 +771,14 @@ class ApiServer:
         conn.last_ns = now
         if name is None:
             conn.naming_until = now + NAME_WAIT_NS
+            self._timed = True
         conn.operator = operator
         # Each socket's own count: the operator socket's is outside max_clients and the
         # client socket's e-stop slots (SR-8.14), so no robot program can fill it.
         held = sum(not c.slot and c.operator is operator for c in self._connections.values())
         self._connections[number] = conn
         self._by_fd[sock.fileno()] = conn
+        self._watched = None  # a descriptor more to watch
         if held < (self.config.operator_max_clients if operator else self.config.max_clients):
             self._results.append(Accepted(conn.info))
             return
@@ -749,6 +786,7 @@ class ApiServer:
         # reserve, so the operator's stop gets through (docs/safety.md "The client socket
         # cannot shut out a stop"; on the operator socket, SR-8.17).
         conn.accepted, conn.slot = False, True
+        self._timed = True  # its idle end (next_deadline, _new_turn)
         slots = [
             c
             for c in self._connections.values()
@@ -823,6 +861,7 @@ class ApiServer:
             return None
         if isinstance(request, Subscribe):
             conn.topics = request.topics
+            self._gather_topics()
         return Received(conn.info, request, waiting.place)
 
     def _check(self, conn: _Connection, request: ApiRequest) -> ApiError | None:
@@ -873,11 +912,19 @@ class ApiServer:
         try:
             sent = conn.sock.send(conn.protocol.outgoing, socket.MSG_NOSIGNAL)
         except (BlockingIOError, InterruptedError):
+            self._watch_writing(conn)
             return
         except OSError:
             self._end(conn, CloseReason.BROKEN)
             return
         conn.protocol.sent(sent)
+        self._watch_writing(conn)
+
+    def _watch_writing(self, conn: _Connection) -> None:
+        """The loop watches ``conn`` for writing exactly while output waits for it: a change
+        makes :meth:`descriptors` build its list again."""
+        if bool(conn.protocol.outgoing) is not conn.writing:
+            self._watched = None
 
     def _end(self, conn: _Connection, reason: CloseReason) -> None:
         """Shut the connection down now (dropping its output) and queue its end, once."""
@@ -886,12 +933,27 @@ class ApiServer:
         conn.dead = True
         self._connections.pop(conn.info.connection, None)
         self._by_fd.pop(conn.sock.fileno(), None)
+        self._watched = None  # a descriptor fewer to watch
+        if conn.topics:
+            self._gather_topics()
         conn.protocol.clear()
         with contextlib.suppress(OSError):
             conn.sock.shutdown(socket.SHUT_RDWR)
         self._ended.append(conn.sock)
         if conn.accepted:
             self._results.append(Closed(conn.info, reason))
+
+
+_OK_LINES: dict[str, bytes] = {}
+
+
+def _ok_line(op: str) -> bytes:
+    """The plain ok of a request ``op`` without an id, as :func:`server_line` writes it: each
+    op's line made once (at most one per op, a fixed set: the parser knows no other)."""
+    line = _OK_LINES.get(op)
+    if line is None:
+        line = _OK_LINES[op] = server_line(OkReply(op))
+    return line
 
 
 # -- the socket file -----------------------------------------------------------------------

@@ -142,7 +142,7 @@ class ApiListener(Listener):
             return
         refusal = (
             next((r for r in decision.refusals if r.trigger == event), None)
-            if isinstance(decision, Decision)
+            if isinstance(decision, Decision) and decision.refusals  # mostly none (SR-9.4)
             else None
         )
         if refusal is not None:

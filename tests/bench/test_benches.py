@@ -16,6 +16,7 @@ from bench import (
     client_input,
     core_input_cost,
     fleet_ack,
+    heartbeat_cost,
     heartbeat_jitter,
     idle_cost,
     input_instructions,
@@ -184,6 +185,15 @@ def test_core_input_cost_times_a_steady_vsc_and_client_heartbeat(
     assert "round 1 after" in out
     assert "after  median of rounds: VSC heartbeat" in out
     assert out.count("load average") == 2
+
+
+def test_heartbeat_cost_serves_each_kind_of_turn() -> None:
+    """SR-9.4: the heartbeat bench drives srcsd's loop through its three kinds of turn (a VSC
+    frame alone, with named clients connected, a client's heartbeat answered ok: the bench
+    checks the hellos' replies and reads each heartbeat's) and gives each a CPU time."""
+    times = heartbeat_cost.measure(turns=20, clients=2)
+    assert len(times) == 3
+    assert all(time > 0 for time in times)
 
 
 @pytest.mark.parametrize("model", input_instructions.MODELS)
