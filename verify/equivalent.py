@@ -43,11 +43,6 @@ _LATER_EQUAL = (
     "to the candidate: the same value, and earliest is all the function returns"
 )
 
-_PROOF_SETTLED = (
-    "_only_heartbeat_due runs only from cheap, after it has declined unless the proof test is "
-    "OFF or PASSED, where ProofTest.next_deadline is None: the comparison is never evaluated"
-)
-
 _ALWAYS = (
     "ALWAYS is read only by Reflex.off (now >= since), and every now the core is given is a "
     "reading of the daemon's clock, time.monotonic_ns(): Linux's CLOCK_MONOTONIC, which is "
@@ -85,6 +80,13 @@ _WORDS_SINCE = (
 _KEPT = (
     "a bound on memory only: exhausted and free_at read the limit newest times of a window, "
     "which every bound of at least one limit keeps (KEPT * limit >= limit)"
+)
+
+_VIEW_NOW = (
+    "every place that asks the view a question sets its now first (SafetyCore.reflex's "
+    "_view.at(now), canonical's at(now, last_stop_raised_ns), the decision's "
+    "next_deadline(self._view.at(now)), the cheap path's view.now = now before its first "
+    "question): the start value is never read"
 )
 
 EQUIVALENT: tuple[Equivalent, ...] = (
@@ -158,39 +160,13 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     Equivalent(
         "cheap.py",
         "cheap",
-        'raise AssertionError("a heartbeat of an unchanged mode changed the link")',
+        'raise AssertionError("a heartbeat of an unchanged mode asked a takeover")',
         "pass",
-        "unreachable: VscLink.unchanged_by, checked just before, passes only a heartbeat of the "
+        "unreachable: take_vsc_heartbeat asks a takeover only for a heartbeat that begins one, "
+        "and VscLink.unchanged_by, checked just before, passes only a heartbeat of the "
         "last one's mode (no takeover: that needs another mode before Operational), in time "
         "(not silent before) and after a heartbeat since the link opened (which set "
         "remote_linked from that same mode: no relink)",
-    ),
-    Equivalent(
-        "cheap.py",
-        "cheap",
-        "if heard.takeover or heard.silent_before or heard.relinked:",
-        "if heard.takeover and heard.silent_before and heard.relinked:",
-        "the three are false for every heartbeat that reaches this line (the argument of the "
-        "raise below it, unreachable): the condition is false with and as with or",
-    ),
-    Equivalent(
-        "cheap.py",
-        "cheap",
-        "proof.heartbeat(message.mode, message.estop, now)",
-        "pass",
-        "a no-op where it stands. cheap reaches it only when proof.phase is OFF or PASSED "
-        "(SETTLED_PROOF, its first test). ProofTest.heartbeat's three branches need WITHHOLDING, "
-        "RESUMED or FAILED, so in OFF and PASSED all it can do is its first statement, which "
-        "sets _heard_ns only while it is None. It is not None in either phase. PASSED: set "
-        "only by _cleared, which only heartbeat calls, after that first statement; _heard_ns "
-        "goes back to None only in restart (and __init__), which set WAITING. OFF: the phase of "
-        "policy off and no other (restart returns at once under off; advance, never called "
-        "under off, and abort move nothing from OFF); restart never clears _heard_ns there, and "
-        "the first VSC heartbeat a core applies takes the full step (cheap needs "
-        "VscLink.unchanged_by, false while VscLink.last_ns is None, as at the start), whose "
-        "_on_vsc calls heartbeat and sets it. (Under off nothing but a snapshot reads it "
-        "anyway: canonical returns the phase alone, next_deadline and advance read it only "
-        "while WAITING.)",
     ),
     Equivalent(
         "cheap.py",
@@ -211,20 +187,6 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "them: so the earliest is the same machine time, now + IDLE_NS being later still, and "
         "both give one number (the bounded exploration of takeover, clients, can and "
         "battery_hold gives the digests of the tree on the mutant, decisions included)",
-    ),
-    Equivalent(
-        "cheap.py",
-        "_only_heartbeat_due",
-        "and (proof_due is None or proof_due > now)",
-        "and (proof_due is None or proof_due <= now)",
-        _PROOF_SETTLED,
-    ),
-    Equivalent(
-        "cheap.py",
-        "_only_heartbeat_due",
-        "and (proof_due is None or proof_due > now)",
-        "and (proof_due is None or proof_due >= now)",
-        _PROOF_SETTLED,
     ),
     Equivalent(
         "core.py",
@@ -313,24 +275,10 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         _LATER_EQUAL + " (the same line for the clients', the link's and the outputs' deadlines)",
     ),
     Equivalent(
-        "deadline.py",
-        _DEADLINE,
-        "if stale is not None and now < stale < earliest:  # SR-8.12: the report is too old",
-        "if stale is not None and now < stale <= earliest:  # SR-8.12: the report is too old",
-        _LATER_EQUAL,
-    ),
-    Equivalent(
         "outputs.py",
         "Outputs.next_deadline",
         "if now < due and (earliest is None or due < earliest):",
         "if now < due and (earliest is None or due <= earliest):",
-        _LATER_EQUAL,
-    ),
-    Equivalent(
-        "deadline.py",
-        _DEADLINE,
-        "if later is not None and now < later < earliest:",
-        "if later is not None and now < later <= earliest:",
         _LATER_EQUAL,
     ),
     Equivalent(
@@ -418,5 +366,17 @@ EQUIVALENT: tuple[Equivalent, ...] = (
     ),
     Equivalent(
         "reflex.py", "", "ALWAYS: Final = -(1 << 62)", "ALWAYS: Final = -(1 << 63)", _ALWAYS
+    ),
+    Equivalent("view.py", "View.__init__", "self.now = 0", "self.now = 1", _VIEW_NOW),
+    Equivalent("view.py", "View.__init__", "self.now = 0", "self.now = -1", _VIEW_NOW),
+    Equivalent(
+        "daemon/refusal_log.py",
+        "RefusalLog.__init__",
+        "self._next_log = 0  # the loop's clock at which the next line may go out",
+        "self._next_log = -1  # the loop's clock at which the next line may go out",
+        "read only by refused's now >= self._next_log, and every now it is given is a reading "
+        "of the loop's clock, time.monotonic_ns(), never negative (as for ALWAYS above): now >= "
+        "-1 and now >= 0 agree for each such now (0 itself is pinned by "
+        "test_the_first_refusal_is_logged_at_once_whatever_the_clock_reads, which kills the 1)",
     ),
 )

@@ -1,4 +1,5 @@
-"""Mutation testing of the safety core (docs/verification.md "Mutation testing"; ``./dev mutate``).
+"""Mutation testing of the safety core and of the daemon's parts (docs/verification.md "Mutation
+testing"; ``./dev mutate``, ``./dev mutate --daemon``).
 
 One change at a time in the core's modules, made in the source text so that everything else
 stays as written: a comparison operator (its boundary twin, ``<`` and ``<=``, and its negation,
@@ -10,7 +11,8 @@ f-strings and the slice that truncates a text) and ``canonical`` (the exploratio
 state, not the product's behaviour).
 
 Each mutant runs the tests of ``tests/safety`` that execute its line (the exhaustive
-exploration's bounded run among them), fastest first, stopping at the first failure, in a
+exploration's bounded run among them; for a part of the daemon, those of ``tests/daemon`` and
+``tests/api``), fastest first, stopping at the first failure, in a
 process forked from this one with the mutated module served in place of the file: a mutant is
 *killed* when a test fails (or it runs past its time), and *survives* otherwise. A survivor is
 either killed by a new test or listed in ``verify/equivalent.py`` with the argument for why no
@@ -40,7 +42,8 @@ from typing import Any
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGE = ROOT / "supervisord" / "safety"
+SUPERVISORD = ROOT / "supervisord"
+PACKAGE = SUPERVISORD / "safety"
 TARGETS = (
     "core.py",
     "prooftest.py",
@@ -66,8 +69,32 @@ TARGETS = (
     "deadline.py",
     "finish.py",
     "reflex.py",
+    "face.py",
+    "view.py",
 )
 SUITE = "tests/safety"
+DAEMON_TARGETS = tuple(
+    f"daemon/{name}"
+    for name in (
+        "timings.py",
+        "refusal_log.py",
+        "stop_request.py",
+        "loop_status.py",
+        "service_manager.py",
+        "waiter.py",
+        "listener.py",
+        "link_port.py",
+        "record_path.py",
+        "output_bank.py",
+    )
+)
+"""The parts the daemon's loop composes (``--daemon``), named by their path under supervisord/:
+a name alone is one of the safety core's, in supervisord/safety (so ``verify/equivalent.py``
+names the core's as it always has, and ``daemon/reflex.py`` is not ``reflex.py``)."""
+DAEMON_SUITES = ("tests/daemon", "tests/api")
+"""The tests of the daemon's parts (the listener's are in tests/api). A test that runs the
+real srcsd as a process of its own executes no line in the runner's process, so the trace
+gives it no mutant: a part is judged by the tests that run it in process."""
 SKIPPED_FUNCTIONS = frozenset({"canonical"})
 SKIPPED_NAMES = frozenset({"__all__", "_NOT_CANONICAL", "RATE_SLACK_NS"})  # canonical's alone
 
@@ -102,7 +129,7 @@ _TEXT = {
 class Mutant:
     """One change: bytes ``start`` to ``end`` of ``file`` become ``replacement``."""
 
-    file: str  # the module's file name, in supervisord/safety
+    file: str  # the module's file: a name in supervisord/safety, or a path under supervisord/
     line: int
     start: int
     end: int
@@ -120,7 +147,7 @@ class Mutant:
         return self.file, self.where, self.original_line.strip(), self.mutated_line.strip()
 
     def source(self) -> str:
-        data = (PACKAGE / self.file).read_bytes()
+        data = path_of(self.file).read_bytes()
         return (data[: self.start] + self.replacement.encode() + data[self.end :]).decode()
 
 
@@ -322,11 +349,43 @@ def _keeps(target: ast.expr) -> bool:
     return isinstance(target, ast.Attribute | ast.Subscript)
 
 
+def path_of(file: str) -> Path:
+    """The file of a module as the runner names it (``core.py``, ``daemon/listener.py``)."""
+    return SUPERVISORD / file if "/" in file else PACKAGE / file
+
+
+def module_of(file: str) -> str:
+    """The module's import name (``supervisord.safety.core``, ``supervisord.daemon.listener``)."""
+    name = file.removesuffix(".py").replace("/", ".")
+    return f"supervisord.{name}" if "/" in file else f"supervisord.safety.{name}"
+
+
+@dataclass(frozen=True)
+class Scope:
+    """What one run traces: its modules and the tests that judge them."""
+
+    targets: tuple[str, ...]
+    suites: tuple[str, ...]
+    name: str  # of its trace in the cache
+
+    @staticmethod
+    def of(files: Sequence[str]) -> Scope:
+        """The scope of ``files``: the safety core's, or the daemon's parts' (not both)."""
+        daemon = {"/" in file for file in files}
+        if len(daemon) > 1:
+            raise SystemExit("name modules of the safety core or of the daemon, not both")
+        # A module named beyond the list is traced too: a line no trace sees is a survivor.
+        if daemon == {True}:
+            return Scope(tuple(dict.fromkeys([*DAEMON_TARGETS, *files])), DAEMON_SUITES, "daemon")
+        return Scope(tuple(dict.fromkeys([*TARGETS, *files])), (SUITE,), "safety")
+
+
 def mutants(files: Sequence[str] = TARGETS) -> list[Mutant]:
-    """Every mutant of ``files`` (names in supervisord/safety), in source order."""
+    """Every mutant of ``files`` (names in supervisord/safety, paths under supervisord/), in
+    source order."""
     found: list[Mutant] = []
     for file in files:
-        data = (PACKAGE / file).read_bytes()
+        data = path_of(file).read_bytes()
         finder = _Finder(file, data)
         finder.visit(ast.parse(data))
         found += sorted(finder.found, key=lambda m: (m.start, m.what))
@@ -360,11 +419,14 @@ def _cache_dir() -> Path:
     return base / "srcs-mutate"
 
 
-def _fingerprint() -> str:
-    digest = hashlib.sha256()
-    sources = [*PACKAGE.glob("*.py"), *(ROOT / SUITE).glob("*.py"), *(ROOT / "verify").glob("*.py")]
+def _fingerprint(scope: Scope) -> str:
+    digest = hashlib.sha256(" ".join(scope.targets).encode())
+    packages = {path_of(file).parent for file in scope.targets} | {PACKAGE}
+    sources = [p for package in sorted(packages) for p in package.glob("*.py")]
+    sources += [p for suite in scope.suites for p in (ROOT / suite).glob("*.py")]
+    sources += (ROOT / "verify").glob("*.py")
     for path in sorted(p for p in sources if p.name not in ("mutate.py", "equivalent.py")):
-        digest.update(path.name.encode() + path.read_bytes())
+        digest.update(str(path.relative_to(ROOT)).encode() + path.read_bytes())
     return digest.hexdigest()[:16]
 
 
@@ -403,13 +465,13 @@ def _forked(body: Callable[[], int], timeout: float) -> int | None:
         time.sleep(0.02)
 
 
-def _clear_caches() -> None:
+def _clear_caches(targets: Sequence[str]) -> None:
     """Empty the memo of every cached function of the targets (``reflex.prepare``). A call the
     memo answers runs none of the function's lines, so without this the trace would give them
     to the first test that made the call alone, and a mutant of them would run against that
     test only, not against the tests that read its result later."""
-    for file in TARGETS:
-        module = sys.modules.get(f"supervisord.safety.{file.removesuffix('.py')}")
+    for file in targets:
+        module = sys.modules.get(module_of(file))
         if module is None:
             continue  # not imported yet: nothing cached
         for value in vars(module).values():
@@ -421,8 +483,9 @@ def _clear_caches() -> None:
 class _Tracer:
     """A pytest plugin recording which lines of the targets each test executes, and its time."""
 
-    def __init__(self) -> None:
-        self.files = {str(PACKAGE / f): f for f in TARGETS}
+    def __init__(self, targets: Sequence[str]) -> None:
+        self.targets = targets
+        self.files = {str(path_of(f)): f for f in targets}
         self.lines: set[tuple[str, int]] = set()
         self.by_test: dict[str, dict[str, Any]] = {}
 
@@ -440,7 +503,7 @@ class _Tracer:
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_call(self, item: pytest.Item) -> Iterator[None]:
-        _clear_caches()
+        _clear_caches(self.targets)
         self.lines = set()
         started = time.perf_counter()
         sys.settrace(self._trace)
@@ -454,9 +517,10 @@ class _Tracer:
             }
 
 
-def coverage() -> dict[str, dict[str, Any]]:
-    """For every test of the suite: its time and the target lines it executes (cached)."""
-    cache = _cache_dir() / f"coverage-{_fingerprint()}.json"
+def coverage(scope: Scope) -> dict[str, dict[str, Any]]:
+    """For every test of the scope's suites: its time and the target lines it executes
+    (cached)."""
+    cache = _cache_dir() / f"coverage-{scope.name}-{_fingerprint(scope)}.json"
     if cache.exists():
         loaded: dict[str, dict[str, Any]] = json.loads(cache.read_text())
         return loaded
@@ -464,11 +528,11 @@ def coverage() -> dict[str, dict[str, Any]]:
     out = cache.with_suffix(".partial")
 
     def plain() -> int:
-        return int(pytest.main([SUITE, "-q", "-p", "no:cacheprovider"]))
+        return int(pytest.main([*scope.suites, "-q", "-p", "no:cacheprovider"]))
 
     def traced() -> int:
-        tracer = _Tracer()
-        pytest.main([SUITE, "-q", "-p", "no:cacheprovider"], plugins=[tracer])
+        tracer = _Tracer(scope.targets)
+        pytest.main([*scope.suites, "-q", "-p", "no:cacheprovider"], plugins=[tracer])
         out.write_text(json.dumps(tracer.by_test))
         return 0
 
@@ -488,13 +552,13 @@ def coverage() -> dict[str, dict[str, Any]]:
 def _start(mutant: Mutant, tests: list[str]) -> int:
     """The pid of a child running ``tests`` against ``mutant``: the mutated module served in
     place of its file, stopping at the first failure."""
-    module = f"supervisord.safety.{mutant.file.removesuffix('.py')}"
+    module = module_of(mutant.file)
     source = mutant.source()
     storage = _cache_dir() / "hypothesis"
 
     def body() -> int:
         os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = str(storage)
-        sys.meta_path.insert(0, _MutantLoader(module, source, str(PACKAGE / mutant.file)))
+        sys.meta_path.insert(0, _MutantLoader(module, source, str(path_of(mutant.file))))
         return int(pytest.main([*tests, "-x", "-q", "-p", "no:cacheprovider"]))
 
     return _spawn(body)
@@ -505,12 +569,12 @@ CHECKER_TESTS = ("rejects_each_broken_core", "counterexample_is_a_regression_tes
 
 
 def _run_all(
-    found: list[Mutant], equivalent: set[tuple[str, str, str, str]], jobs: int
+    found: list[Mutant], equivalent: set[tuple[str, str, str, str]], jobs: int, scope: Scope
 ) -> dict[str, list[Mutant]]:
     """Run every mutant of ``found`` against the tests that execute its line, ``jobs`` at a
     time; each outcome (``killed``, ``timeout``, ``survived``, ``equivalent``, ``listed but
     killed``) with its mutants. The outcomes are also kept, as they come, for ``--survivors``."""
-    tests = coverage()
+    tests = coverage(scope)
     by_line: dict[tuple[str, int], list[str]] = {}
     for nodeid, seen in tests.items():
         for file, line in seen["lines"]:
@@ -569,7 +633,15 @@ def _run_all(
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="./dev mutate", description=__doc__)
-    parser.add_argument("files", nargs="*", help=f"modules (default: {' '.join(TARGETS)})")
+    parser.add_argument(
+        "files",
+        nargs="*",
+        help=f"modules: of the safety core by name, of the daemon by path (daemon/listener.py); "
+        f"default: {' '.join(TARGETS)}",
+    )
+    parser.add_argument(
+        "--daemon", action="store_true", help=f"the daemon's parts: {' '.join(DAEMON_TARGETS)}"
+    )
     parser.add_argument("--list", action="store_true", help="list the mutants and stop")
     parser.add_argument("--match", help="only the mutants whose changed line contains this text")
     parser.add_argument("--survivors", action="store_true", help="only the last run's survivors")
@@ -577,7 +649,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from verify.equivalent import EQUIVALENT  # noqa: PLC0415 -- a data file, read when run
 
-    found = mutants(args.files or TARGETS)
+    files = args.files or (DAEMON_TARGETS if args.daemon else TARGETS)
+    scope = Scope.of(files)
+    found = mutants(files)
     if args.match:
         found = [m for m in found if args.match in m.mutated_line]
     if args.survivors:
@@ -592,7 +666,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     os.chdir(ROOT)
     sys.path.insert(0, str(ROOT))
     started = time.perf_counter()
-    outcomes = _run_all(found, {e.key for e in EQUIVALENT}, args.jobs)
+    outcomes = _run_all(found, {e.key for e in EQUIVALENT}, args.jobs, scope)
     count = {k: len(outcomes.get(k, [])) for k in ("killed", "timeout", "survived", "equivalent")}
     killed = count["killed"] + count["timeout"]
     print(
@@ -601,7 +675,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{killed}/{len(found) - count['equivalent']} of the mutants not equivalent; "
         f"{time.perf_counter() - started:.0f} s"
     )
-    every = {m.key for m in mutants()}
+    every = {m.key for m in mutants([*TARGETS, *DAEMON_TARGETS])}
     stale = [e for e in EQUIVALENT if e.key not in every]
     for entry in stale:
         print(f"stale entry in verify/equivalent.py (no such mutant any more): {entry.key}")

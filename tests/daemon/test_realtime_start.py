@@ -14,7 +14,6 @@ from __future__ import annotations
 import os
 import re
 import resource
-import shutil
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ from supervisord.daemon.service_manager_absent import Part
 from supervisord.sim.process import SimProcess
 from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
 from supervisord.threads import LOOP_NAME
+from tests.daemon.fifo import needs_fifo
 from tests.daemon.test_unit_realtime import UNIT, settings
 
 THREAD_NAMES = {"srcsd-names", "srcsd-record", "srcsd-journal", "srcsd-log", "srcsd-flight"}
@@ -42,22 +42,9 @@ JOURNAL_CONFIG = MINIMAL_CONFIG.replace("journal = false", "journal = true")
 """With the journal's copy of each record: its lane starts where a journal runs."""
 
 
-def _realtime_here() -> str | None:
-    """Why SCHED_FIFO cannot be given here (``None``: it can)."""
-    if os.geteuid() != 0:
-        return "needs root: SCHED_FIFO, and a memory lock limit that binds root"
-    for tool in ("chrt", "setpriv", "prlimit"):
-        if shutil.which(tool) is None:
-            return f"needs {tool} (util-linux)"
-    probe = subprocess.run(
-        ["chrt", "-f", "10", "true"], capture_output=True, check=False, timeout=30
-    )
-    if probe.returncode != 0:
-        return "this kernel gives no SCHED_FIFO here (CONFIG_RT_GROUP_SCHED without a budget)"
-    return None
-
-
-needs_realtime = pytest.mark.skipif(_realtime_here() is not None, reason=str(_realtime_here()))
+needs_realtime = needs_fifo(
+    "SCHED_FIFO, and a memory lock limit that binds root", "chrt", "setpriv", "prlimit"
+)
 
 
 def tasks(pid: int) -> list[tuple[str, int]]:

@@ -82,3 +82,14 @@ def test_a_decisions_refusals_are_counted_when_rate_limited_and_logged_otherwise
         "1 client requests refused: record budget exceeded (docs/safety.md)",  # its second
         f"refused: {RefusalReason.NOT_STOPPED.value}",
     ]
+
+
+def test_the_first_refusal_is_logged_at_once_whatever_the_clock_reads(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """SR-8.5: no line was written before the first refusal, so it is logged at once, also at
+    the clock's zero (the loop's clock is ``time.monotonic_ns()``, which starts at a boot)."""
+    refusals = RefusalLog()
+    caplog.set_level(logging.WARNING, logger="srcsd")
+    refusals.refused(0)
+    assert _lines(caplog) == ["1 client requests refused: record budget exceeded (docs/safety.md)"]

@@ -157,3 +157,16 @@ def test_a_watchdog_answered_off_is_said_once_with_its_fix(
         service.decided(_decision(State.STOPPED))  # answered 1: commissioned
         service.decided(_decision(State.STOPPED, off))
         assert len(caplog.records) == 2
+
+
+def test_a_watchdog_answered_off_in_the_first_decision_is_said(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """SR-8.18: nothing was said before the first decision, so a first decision that already
+    has the VSC's answer (key 85 off) says it."""
+    service = ServiceManager(Notifier({}), srcsctl="srcsctl -R robot-a")
+    off = _cause(CauseKind.VSC_WATCHDOG_OFF, key85="0")
+    with caplog.at_level(logging.WARNING, logger="srcsd"):
+        service.decided(_decision(State.STOPPED, off))
+    assert len(caplog.records) == 1
+    assert "srcsctl -R robot-a" in caplog.records[0].getMessage()

@@ -11,16 +11,12 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import shutil
 import socket
-import subprocess
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-
-import pytest
 
 from supervisord.config import load_config
 from supervisord.config.realtime import LockMode
@@ -37,6 +33,7 @@ from supervisord.daemon.service_manager_absent import (
 from supervisord.sim.process import SimProcess
 from supervisord.testkit.daemon import MINIMAL_CONFIG, SrcsdProcess
 from supervisord.tooling.children import spawn, terminate, wait_started
+from tests.daemon.fifo import needs_fifo
 
 MANAGER_VARIABLES = (
     "NOTIFY_SOCKET",
@@ -114,21 +111,6 @@ def test_started_by_hand_it_says_each_missing_part_once(tmp_path: Path) -> None:
     assert "Traceback" not in text
 
 
-def _tools() -> str | None:
-    """Why the unit-like start cannot be made here (``None``: it can)."""
-    if os.geteuid() != 0:
-        return "needs root: SCHED_FIFO and a private mount of /run, as systemd gives them"
-    for tool in ("unshare", "chrt", "setpriv"):
-        if shutil.which(tool) is None:
-            return f"needs {tool} (util-linux)"
-    probe = subprocess.run(
-        ["chrt", "-f", "10", "true"], capture_output=True, check=False, timeout=30
-    )
-    if probe.returncode != 0:
-        return "this kernel gives no SCHED_FIFO here (CONFIG_RT_GROUP_SCHED without a budget)"
-    return None
-
-
 UNIT_LIKE = (
     "mount -t tmpfs -o size=1m,mode=0755 srcs-test /run && mkdir /run/udev && "
     '"$0" -c "import socket; socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)'
@@ -140,7 +122,9 @@ runs (its control socket in a /run of the daemon's own: the host's is left as it
 step execs, so the daemon keeps the PID the test started."""
 
 
-@pytest.mark.skipif(_tools() is not None, reason=str(_tools()))
+@needs_fifo(
+    "SCHED_FIFO and a private mount of /run, as systemd gives them", "unshare", "chrt", "setpriv"
+)
 def test_started_as_the_unit_starts_it_it_says_none(tmp_path: Path) -> None:
     """SR-0.4: with what the unit gives (the watchdog's socket and period, INVOCATION_ID,
     RUNTIME_DIRECTORY, SCHED_FIFO, no new privileges, udev running) the start says none of

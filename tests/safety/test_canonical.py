@@ -142,3 +142,14 @@ def test_the_battery_clocks_limits_are_whole_units_of_the_exploration() -> None:
     for name, limits in battery.items():
         assert all(limit % UNIT_NS == 0 for limit in limits), (name, limits)
     region(list(rig.core.canonical(rig.now + 10 * MS)[1]))  # raises for a limit not whole
+
+
+def test_the_view_asked_for_the_form_carries_the_latest_stop_raised() -> None:
+    """SR-4.3, SR-2.11: the view the canonical form is asked about carries when the latest stop
+    was raised (the link's form orders the takeover's run against it); a view asked at a time
+    alone carries none, so that no step's question reads a stale one."""
+    view = SafetyCore(ROBOT, START_NS)._view
+    at = view.at(START_NS + 5 * MS, START_NS + 2 * MS)
+    assert (at.now, at.last_stop_raised_ns) == (START_NS + 5 * MS, START_NS + 2 * MS)
+    at = view.at(START_NS + 6 * MS)
+    assert (at.now, at.last_stop_raised_ns) == (START_NS + 6 * MS, None)

@@ -6,8 +6,10 @@ from __future__ import annotations
 import pytest
 
 from supervisord.safety import Decision, State
+from supervisord.safety.prooftest import Phase
 from supervisord.safety.reflex import NOTHING
 from tests.safety.rig import LOCAL, MS, OPERATIONAL, PAUSE, Rig
+from tests.safety.test_prooftest import Vsc
 from tests.safety.test_stop_category import BRAKES_MS, CATEGORY_1, FANS_MS
 
 REMOTE_ESTOP = 0x01
@@ -127,3 +129,18 @@ def test_the_reflex_steps_aside_at_the_nanosecond_the_vscs_timeout_falls_due() -
     assert rig.last.next_deadline == timeout
     rig.now = timeout
     assert rig.core.reflex(rig.now) is None
+
+
+def test_the_reflex_steps_aside_at_the_user_heartbeat_while_a_proof_test_runs() -> None:
+    """SR-9.5, SR-5.3: at the user heartbeat's deadline while the proof test waits for the
+    VSC's bits to clear (RESUMED: time moves it between its deadlines, none of which has
+    come), the core gives no reflex (``None``): the full step alone decides at such a time."""
+    vsc = Vsc()
+    for _ in range(300):  # 3 s of VSC heartbeats, 10 ms apart: the withholding, the trip
+        vsc.beat(10)
+        if vsc.core._proof.phase is Phase.RESUMED:
+            break
+    assert vsc.core._proof.phase is Phase.RESUMED
+    now = vsc.proof.next_deadline
+    assert not vsc.core._proof.due_by(vsc.core._view.at(now))  # the beat's deadline alone
+    assert vsc.core.reflex(now) is None
