@@ -379,4 +379,23 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "-1 and now >= 0 agree for each such now (0 itself is pinned by "
         "test_the_first_refusal_is_logged_at_once_whatever_the_clock_reads, which kills the 1)",
     ),
+    Equivalent(
+        "daemon/waiter.py",
+        "Waiter.__init__",
+        "self.cursor = -1  # the last client descriptor served: the next turn starts after it",
+        "self.cursor = -2  # the last client descriptor served: the next turn starts after it",
+        "read only by order's item[0] > cursor and item[0] <= cursor, where item[0] is a ready "
+        "client's descriptor, never negative (epoll reports only open descriptors, and the loop "
+        "sets cursor only to one it served, loop.py): every such descriptor is greater than "
+        "-1 and than -2 alike, so both split the ready clients the same (the 0 is killed by "
+        "test_descriptor_0_is_a_client_like_any_other_in_the_first_turn)",
+    ),
+    Equivalent(
+        "daemon/waiter.py",
+        "Waiter.watch",
+        "wanted[api_fd] = select.EPOLLIN | (select.EPOLLOUT if wants_write else 0)",
+        "wanted[api_fd] = select.EPOLLIN | (select.EPOLLOUT if wants_write else 1)",
+        "EPOLLIN is 1 (the Linux ABI, <sys/epoll.h>: EPOLLIN = 0x001, on every architecture), "
+        "so EPOLLIN | 1 is EPOLLIN | 0: the same events are registered and recorded",
+    ),
 )

@@ -183,3 +183,39 @@ def test_closing_closes_the_link_then_runs_every_release_though_one_fails() -> N
     port.close()
     assert not port.link.is_open
     assert seen == ["first, link open: False", "second"]
+
+
+def test_the_failures_logged_are_the_first_then_the_50th_and_every_50th_after(
+    rig: tuple[LinkPort, MemoryPort, Clock], caplog: pytest.LogCaptureFixture
+) -> None:
+    """Which failures are logged, by their number (the count above would not tell a line at
+    the 2nd from one at the 1st, nor 1 in 49 or 51 from 1 in 50): the 1st, the 50th, the
+    100th."""
+    port, vsc, _ = rig
+    vsc.unplug()
+    logged = []
+    with caplog.at_level(logging.WARNING, logger="srcsd"):
+        for attempt in range(1, 101):
+            before = len(caplog.records)
+            port.open(attempt * 500 * MS)
+            if len(caplog.records) > before:
+                logged.append(attempt)
+    assert logged == [1, 50, 100]
+    assert FAILURES_LOGGED_EVERY == 50  # as the docstring and docs say
+
+
+def test_a_read_of_rejected_frames_alone_hands_on_no_message(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    """SR-2.1: a read that brought only frames that failed their check hands on none of them
+    and counts none as a message (the usual read's shortcut is taken only when every item is
+    a message)."""
+    port, vsc, clock = rig
+    assert port.open(0) == LinkOpened(0)
+    bad = bytearray(encode_frame(RUN))
+    bad[-1] ^= 0xFF
+    vsc.write(bytes(bad))
+    clock.at(3 * MS)
+    assert port.receive() == (3 * MS, [])
+    assert port.messages == 0
+    assert port.rejections["bad_checksum"] == 1

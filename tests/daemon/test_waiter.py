@@ -5,7 +5,10 @@ the link before the clients and a bounded share for them, is checked on the real
 
 from __future__ import annotations
 
+import select
+import signal
 import socket
+import threading
 from collections.abc import Iterator
 
 import pytest
@@ -119,3 +122,81 @@ def test_urgent_clients_come_first_and_the_others_in_their_turn(waiter: Waiter) 
     assert waiter.order(ready, frozenset({9})) == ([(9, 1)], [(7, 1), (4, 1), (5, 1)])
     waiter.cursor = 9
     assert waiter.order(ready, frozenset())[1][0] == (4, 1)
+
+
+def test_a_real_signal_whose_handler_wakes_ends_the_wait_with_the_wake_byte(
+    waiter: Waiter, pairs: list[Pair]
+) -> None:
+    """A stopping signal ends the loop's wait at once (docs/safety.md "The stop path first"):
+    its handler's byte is what the wait returns, and nothing else (a wake that wrote nothing
+    would leave the wait to its timeout, retried by Python across the signal, PEP 475)."""
+    waiter.start(pairs[0].fd)
+    waiter.watch(None, [])
+    previous = signal.signal(signal.SIGALRM, lambda _signum, _frame: waiter.wake())
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        ready = waiter.wait(WAIT_S)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert len(ready) == 1  # the wake pair's byte ended it
+    assert waiter.sort(ready) == (False, False, [])
+    assert waiter.wait(0) == []  # drained
+
+
+def test_the_drain_never_blocks_the_loop_and_reads_64_bytes_a_turn(
+    waiter: Waiter, pairs: list[Pair]
+) -> None:
+    """SR-9.4: sorting a ready list whose wake byte is already read returns at once (the wake
+    pair's read end is non-blocking), and a turn's drain is one bounded read of 64 bytes:
+    more wakes than that end the next wait at once too, so none is lost."""
+    waiter.start(pairs[0].fd)
+    waiter.watch(None, [])
+    for _ in range(65):
+        waiter.wake()
+    ready = waiter.wait(WAIT_S)
+    assert waiter.sort(ready) == (False, False, [])
+    left = waiter.wait(0)
+    assert left == ready  # one byte of the 65 is left for the next turn
+    assert waiter.sort(left) == (False, False, [])
+    assert waiter.wait(0) == []
+    for _ in range(64):
+        waiter.wake()
+    ready = waiter.wait(WAIT_S)
+    waiter.sort(ready)
+    assert waiter.wait(0) == []  # 64 bytes: one read drains them all
+    # The same list sorted again, its byte read: a blocking read would hang the loop here.
+    done = threading.Event()
+
+    def sort_again() -> None:
+        waiter.sort(ready)
+        done.set()
+
+    sorter = threading.Thread(target=sort_again, daemon=True)
+    sorter.start()
+    finished = done.wait(WAIT_S)
+    if not finished:
+        waiter.wake()  # release the blocked read, so the thread ends
+    sorter.join(WAIT_S)
+    assert finished, "sort blocked on the drained wake pair"
+
+
+def test_a_client_that_comes_to_want_a_write_is_watched_for_it_and_back(
+    waiter: Waiter, pairs: list[Pair]
+) -> None:
+    """A listener's client with a reply to send is watched for room to write from the next
+    turn, and no longer once sent (the change is made to the epoll set, not only recorded)."""
+    client = pairs[0]
+    waiter.watch(None, [(client.fd, False)])
+    assert waiter.wait(0) == []  # nothing to read; a write not wanted
+    waiter.watch(None, [(client.fd, True)])
+    assert waiter.wait(WAIT_S) == [(client.fd, select.EPOLLOUT)]
+    waiter.watch(None, [(client.fd, False)])
+    assert waiter.wait(0) == []
+
+
+def test_descriptor_0_is_a_client_like_any_other_in_the_first_turn(waiter: Waiter) -> None:
+    """SR-10.1: a daemon started with its standard input closed may accept a client on
+    descriptor 0; before any client is served it comes first, in descriptor order."""
+    ready = [(6, 1), (0, 1), (3, 1)]
+    assert waiter.order(ready, frozenset()) == ([], [(0, 1), (3, 1), (6, 1)])
