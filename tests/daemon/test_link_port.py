@@ -219,3 +219,20 @@ def test_a_read_of_rejected_frames_alone_hands_on_no_message(
     assert port.receive() == (3 * MS, [])
     assert port.messages == 0
     assert port.rejections["bad_checksum"] == 1
+
+
+def test_a_new_ports_counters_start_at_zero() -> None:
+    """SR-8.18: ``srcsctl status`` counts from the start: one failed open is one failure, a
+    read of two messages is two. (The port is made here, not by the fixture: ``./dev
+    mutate`` traces a test's body only.)"""
+    vsc, clock = MemoryPort(), Clock()
+    port = LinkPort(MemoryLink(vsc), clock, Timings(), Backoff(100, 400))
+    assert (port.failures, port.messages) == (0, 0)
+    vsc.unplug()
+    port.open(0)
+    vsc.replug()
+    port.open(100 * MS)
+    vsc.send(RUN)
+    vsc.send(RUN)
+    port.receive()
+    assert (port.status(0).open_failures, port.messages) == (1, 2)
