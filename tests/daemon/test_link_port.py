@@ -226,13 +226,15 @@ def test_a_new_ports_counters_start_at_zero() -> None:
     read of two messages is two. (The port is made here, not by the fixture: ``./dev
     mutate`` traces a test's body only.)"""
     vsc, clock = MemoryPort(), Clock()
-    port = LinkPort(MemoryLink(vsc), clock, Timings(), Backoff(100, 400))
-    assert (port.failures, port.messages) == (0, 0)
+    port = LinkPort(MemoryLink(vsc), clock, Timings(), Backoff(250, 400))
+    assert (port.opens, port.failures, port.messages) == (0, 0, 0)
     vsc.unplug()
     port.open(0)
+    assert port.next_attempt == 250 * MS  # the backoff handed in, not a default one
     vsc.replug()
-    port.open(100 * MS)
+    port.open(250 * MS)
     vsc.send(RUN)
     vsc.send(RUN)
     port.receive()
-    assert (port.status(0).open_failures, port.messages) == (1, 2)
+    status = port.status(0)
+    assert (status.opens, status.open_failures, port.messages) == (1, 1, 2)
