@@ -238,3 +238,20 @@ def test_a_new_ports_counters_start_at_zero() -> None:
     port.receive()
     status = port.status(0)
     assert (status.opens, status.open_failures, port.messages) == (1, 1, 2)
+
+
+def test_the_log_says_when_the_link_opened_and_why_it_broke(
+    rig: tuple[LinkPort, MemoryPort, Clock], caplog: pytest.LogCaptureFixture
+) -> None:
+    """The operator's log holds each open and each break with its reason (the counters in
+    status say how many; the log says when)."""
+    port, vsc, clock = rig
+    with caplog.at_level(logging.INFO, logger="srcsd"):
+        port.open(0)
+        vsc.unplug()
+        clock.at(50 * MS)
+        port.receive()
+    assert [r.getMessage() for r in caplog.records] == [
+        "memory memory: open",
+        "memory memory: broken: device gone",
+    ]
