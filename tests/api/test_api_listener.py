@@ -85,19 +85,6 @@ def judged(tmp_path: Path) -> Iterator[Judged]:
     loop.close()
 
 
-@pytest.fixture
-def peers(tmp_path: Path) -> Iterator[Callable[[], Peer]]:
-    made: list[Peer] = []
-
-    def make() -> Peer:
-        made.append(Peer(tmp_path / "api.sock"))
-        return made[-1]
-
-    yield make
-    for peer in made:
-        peer.close()
-
-
 def test_hello_rules_are_the_cores_and_keep_their_codes(
     judged: Judged, peers: Callable[[], Peer]
 ) -> None:

@@ -143,19 +143,6 @@ def loop(tmp_path: Path) -> Iterator[Loop]:
     the_loop.close()
 
 
-@pytest.fixture
-def peers(tmp_path: Path) -> Iterator[Callable[[], Peer]]:
-    made: list[Peer] = []
-
-    def make() -> Peer:
-        made.append(Peer(tmp_path / "api.sock"))
-        return made[-1]
-
-    yield make
-    for peer in made:
-        peer.close()
-
-
 def test_a_heartbeat_builds_no_json_decoder_or_encoder(
     loop: Loop, peers: Callable[[], Peer], monkeypatch: pytest.MonkeyPatch
 ) -> None:
