@@ -1,7 +1,7 @@
 """srcs-fleet-agent: a robot's end of the fleet stop (docs/fleet.md "The fleet stop").
 
 Subscribes to the robot's stops at the fleet's MQTT broker (mutual TLS), forwards each fresh
-one to the supervisor as ``fleet_stop`` and publishes the supervisor's acknowledgement
+one to the supervisor as a fleet_stop request and publishes the supervisor's acknowledgement
 (SR-13.13, SR-13.14, SR-13.15). Exit status: 0 after SIGTERM or SIGINT, 2 for bad arguments,
 78 for a config or certificate it cannot read (the unit does not restart then).
 """
