@@ -43,6 +43,10 @@ class Waiter:
         self._watched_api: list[tuple[int, bool]] | None = None  # the listener's, last turn
         self.link_fd: int | None = None
         self._wake_r, self._wake_w = socket.socketpair()
+        # A handler's write never blocks: on a full pair (a flood of signals, none drained
+        # during the shutdown) it is dropped, since one pending byte already ends the wait
+        # (SR-6.6, SR-7.14).
+        self._wake_w.setblocking(False)
         self.cursor = -1  # the last client descriptor served: the next turn starts after it
 
     def start(self, sink_fd: int) -> None:
@@ -53,7 +57,7 @@ class Waiter:
             self._tags[fd] = tag
 
     def wake(self) -> None:
-        """End the current wait (from a signal handler: one byte, never raises)."""
+        """End the current wait (from a signal handler: one byte, never blocks or raises)."""
         with contextlib.suppress(OSError):
             self._wake_w.send(b"\0")
 

@@ -5,6 +5,7 @@ the link before the clients and a bounded share for them, is checked on the real
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import signal
@@ -180,6 +181,37 @@ def test_the_drain_never_blocks_the_loop_and_reads_64_bytes_a_turn(
         waiter.wake()  # release the blocked read, so the thread ends
     sorter.join(WAIT_S)
     assert finished, "sort blocked on the drained wake pair"
+
+
+def test_a_flood_of_wakes_never_blocks_the_signal_handler(
+    waiter: Waiter, pairs: list[Pair]
+) -> None:
+    """SR-6.6, SR-7.14: a handler's wake never blocks, however many come before the loop
+    drains them (the shutdown drains none): a blocking write on a full wake pair would hold
+    the main thread inside the handler, and with it the shutdown's record drain, until the
+    unit's stop timeout kills it. One pending byte is enough to end a wait; the rest are
+    dropped, so the wait still ends at once after the flood."""
+    waiter.start(pairs[0].fd)
+    waiter.watch(None, [])
+    wakes = 100_000  # far past a socket pair's buffer (a few hundred one-byte sends)
+    done = threading.Event()
+
+    def flood() -> None:
+        for _ in range(wakes):
+            waiter.wake()
+        done.set()
+
+    flooder = threading.Thread(target=flood, daemon=True)
+    flooder.start()
+    finished = done.wait(30.0)  # the flood takes well under a second unblocked
+    if not finished:
+        while flooder.is_alive():  # release the blocked send, so the thread ends
+            with contextlib.suppress(BlockingIOError):
+                waiter.wait(0)
+                waiter._wake_r.recv(1 << 16)
+            flooder.join(0.01)
+    assert finished, "a wake blocked on the full wake pair"
+    assert len(waiter.wait(WAIT_S)) == 1  # the flood's bytes still end the next wait
 
 
 def test_a_client_that_comes_to_want_a_write_is_watched_for_it_and_back(
