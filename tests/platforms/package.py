@@ -25,10 +25,9 @@ architecture given, as docs/install.md tells an administrator:
    (SR-7.4). ``apt-get purge``: nothing the package installed remains, nor the record, the
    users and groups (``srcs-fleet`` too); the administrator's config in ``/etc/srcs`` stays.
 
-A root whose ``python3`` the package's ``Depends`` exclude (today Debian 13's 3.13 and
-unstable's 3.14: the package carries compiled modules for 3.11 and 3.12 only) is a different
-scenario: apt must refuse the package, naming python3, and install nothing. The full scenario
-runs there as soon as the package admits that Python, with no change here.
+A root whose ``python3`` the package's ``Depends`` exclude (none of bookworm's, trixie's or
+unstable's today: the package carries its compiled modules for each of their Pythons) is a
+different scenario: apt must refuse the package, naming python3, and install nothing.
 
 usage: python3 -m tests.platforms.package SUITE ARCH DEB
 """
