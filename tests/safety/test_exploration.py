@@ -71,6 +71,7 @@ def test_p24_names_a_fleet_input_that_re_arms() -> None:
     assert {"P2", "P24"} <= found
 
 
+@pytest.mark.timeout(COMPUTE_TIMEOUT_S)
 def test_p17_sees_a_cheap_path_that_ignores_one_machine() -> None:
     """SR-9.4: the cheap path decides as the full step at every explored step (P17); one that
     leaves a machine out of its comparison over the machines' face (here the link: the VSC's
