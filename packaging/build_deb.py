@@ -81,11 +81,16 @@ CHANGELOG = REPO / "packaging/changelog"
 COPYRIGHT = REPO / "packaging/copyright"
 
 LAUNCHER = """#!/bin/sh
-'''exec' "$(dirname -- "$(readlink -f -- "$0")")/python3" "$0" "$@"
+'''[' "${{0#/}}" != "$0" ']' && '[' ! -L "$0" ']' && exec "${{0%/*}}/python3" "$0" "$@"
+exec "$(dirname -- "$(readlink -f -- "$0")")/python3" "$0" "$@"
 ' '''
-# {name}, from the {package} package. The two lines above are shell: they run this file
+# {name}, from the {package} package. The three lines above are shell: they run this file
 # with the python3 beside it (a link to /usr/bin/python3 in this virtual environment), so
-# the tree works wherever it is; for Python they are a string.
+# the tree works wherever it is; for Python they are a string. Run by its own absolute path
+# (the units' ExecStart=), the shell execs at once, with no child: under srcsd@'s SCHED_FIFO
+# a readlink or dirname child's exit, and the read of its output, are wakes of a real-time
+# process from below that the kernel's rtapp monitors flag (SR-9.8, docs/install.md). Only
+# a link (the /usr/sbin ones) or a relative path asks readlink for the real place.
 import sys
 
 from {module} import {function}

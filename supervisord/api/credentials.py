@@ -119,7 +119,17 @@ def caller(
 ) -> Caller:
     """The safety core's view of the peer: uid, pid, login name (``name``: as looked up off
     the loop; ``None``: not known yet, the uid stands in) and admin flag. Reads only the
-    kernel's numbers (``/proc``), never the user database: it cannot wait (SR-10.3)."""
-    admin = is_admin(credentials, process_groups(credentials, proc), admin_gid, own_uid)
+    kernel's numbers (``/proc``), never the user database: it cannot wait (SR-10.3).
+
+    ``/proc/PID/status`` is read only when the groups decide (SR-10.8): not for root or the
+    daemon's own user, not without an admin group, not when the primary group is it. The loop
+    runs SCHED_FIFO, and opening another process's status file can sleep (its memory map's
+    lock, which that process holds while it maps its libraries at start): the kernel's rtapp
+    monitor saw the loop woken from below in that ``openat`` as a root ``srcsctl`` connected."""
+    if credentials.uid in (0, own_uid) or admin_gid in (None, credentials.gid):
+        groups = frozenset({credentials.gid})
+    else:
+        groups = process_groups(credentials, proc)
+    admin = is_admin(credentials, groups, admin_gid, own_uid)
     shown = uid_text(credentials.uid) if name is None else name
     return Caller(credentials.uid, credentials.pid, shown, admin)

@@ -5,8 +5,18 @@ process: Debian's default ``nsswitch.conf`` asks systemd's userdb service for a 
 ``/etc/passwd`` does not have (a ``DynamicUser=`` service, a container's uid), and LDAP or
 sssd may sit behind it. Such a lookup can wait for tens of seconds. The loop never makes it:
 :class:`UserNames` keeps a cache that the loop reads, and one owned thread
-(``srcsd-names``) that makes the lookups the loop asks for and wakes the loop through
-:meth:`UserNames.fileno` when one is done.
+(``srcsd-names``) that makes the lookups the loop asks for.
+
+The thread never wakes the loop (SR-10.7): it is of ordinary priority and the loop
+``SCHED_FIFO``, and a wake of a real-time thread by a lower-priority one makes the loop's
+turn wait on that thread's scheduling (the kernel's rtapp monitors flag each one; the
+system tier saw this thread wake the loop up to 146 times in 15 s when it wrote a byte to a
+socket the loop watched for each finished lookup). A finished lookup is left where the loop
+takes it (:meth:`UserNames.take`) at its own turns: every turn looks, and while a connection
+waits for its name the server asks for a turn every ``NAME_POLL_NS`` (its own deadline, a
+timer the kernel fires in a hard interrupt). Nothing is shared under a lock the loop could
+wait for: the asks go through a :class:`queue.SimpleQueue` (whose ``put`` never blocks) and
+the answers through a deque (``append`` and ``popleft`` are atomic).
 
 The loop's side never waits: :meth:`UserNames.name` answers from the cache or says "not
 yet" (``None``) and queues the lookup. A name older than ``ttl_ns`` is still answered (a
@@ -18,17 +28,19 @@ thread: the lookups queued behind it wait, and the server gives each connection 
 from __future__ import annotations
 
 import collections
-import contextlib
-import socket
-import threading
+import queue
 from collections.abc import Callable
 from typing import Final
 
 from supervisord import threads
-from supervisord.timebase import NS_PER_S
+from supervisord.timebase import NS_PER_MS, NS_PER_S
 
 NAME_WAIT_NS: Final = 2 * NS_PER_S
 """How long a connection waits for its user's name before the uid stands in for it."""
+NAME_POLL_NS: Final = 20 * NS_PER_MS
+"""How often the loop looks for a finished lookup while a connection waits for its name (its
+own deadline: no lookup wakes it, SR-10.7). A new user's first requests but an e-stop wait at
+most a lookup and this long."""
 NAME_TTL_NS: Final = 600 * NS_PER_S
 """How long a looked-up name is used before it is looked up again (still used meanwhile)."""
 CACHE_SIZE: Final = 4096
@@ -59,14 +71,11 @@ class UserNames:
         # The loop's alone: uid -> (name, when it was looked up), oldest first.
         self._cache: collections.OrderedDict[int, tuple[str, int]] = collections.OrderedDict()
         self._asked: set[int] = set()  # queued or being looked up (the loop's view)
-        # Shared with the thread, under the condition's lock.
-        self._cond = threading.Condition()
-        self._queue: collections.deque[int] = collections.deque()
+        # Shared with the thread, with no lock the loop could wait for (SR-10.7): the loop
+        # puts uids (None: end), the thread appends what it found.
+        self._queue: queue.SimpleQueue[int | None] = queue.SimpleQueue()
         self._done: collections.deque[tuple[int, str]] = collections.deque()
         self._closing = False
-        self._wake_r, self._wake_w = socket.socketpair()
-        self._wake_r.setblocking(False)
-        self._wake_w.setblocking(False)
         # A daemon thread: a lookup that never returns must not hold the process at exit.
         # Named, and at ordinary priority: a lookup is never the loop's work (SR-9.7, SR-9.8).
         self._thread = threads.start(self._run, "srcsd-names")
@@ -86,56 +95,44 @@ class UserNames:
         if uid in self._asked or len(self._asked) >= self.max_queued:
             return
         self._asked.add(uid)
-        with self._cond:
-            self._queue.append(uid)
-            self._cond.notify()
+        self._queue.put(uid)  # never blocks; wakes the thread, which is not real-time
+
+    def waiting(self) -> bool:
+        """A lookup is queued, running, or finished and not taken yet."""
+        return bool(self._asked)
 
     def take(self, now: int) -> list[tuple[int, str]]:
-        """The lookups finished since the last call, now in the cache: ``(uid, name)``."""
-        with contextlib.suppress(OSError):  # BlockingIOError: nothing more to drain
-            while self._wake_r.recv(4096):
-                pass
-        with self._cond:
-            done = list(self._done)
-            self._done.clear()
-        for uid, name in done:
+        """The lookups finished since the last call, now in the cache: ``(uid, name)``. Cheap
+        when there are none: the loop calls it every turn."""
+        done = self._done
+        if not done:
+            return []
+        taken: list[tuple[int, str]] = []
+        while done:
+            taken.append(done.popleft())
+        for uid, name in taken:
             self._asked.discard(uid)
             self._cache.pop(uid, None)
             self._cache[uid] = (name, now)
             while len(self._cache) > self.cache_size:
                 self._cache.popitem(last=False)
-        return done
-
-    def fileno(self) -> int:
-        """Readable when :meth:`take` has something."""
-        return self._wake_r.fileno()
+        return taken
 
     def close(self) -> None:
         """Stop the thread once its current lookup returns (never waited for)."""
-        with self._cond:
-            self._closing = True
-            self._cond.notify()
-        self._wake_r.close()
-        with self._cond:
-            self._wake_w.close()
+        self._closing = True
+        self._queue.put(None)
 
     # -- the thread ------------------------------------------------------------------------
 
     def _run(self) -> None:
         while True:
-            with self._cond:
-                while not self._queue and not self._closing:
-                    self._cond.wait()
-                if self._closing:
-                    return
-                uid = self._queue.popleft()
+            uid = self._queue.get()
+            if uid is None or self._closing:
+                return
             try:
                 name = self._lookup(uid)
             except Exception:  # the thread must outlive any failure: the uid stands in
                 name = uid_text(uid)
-            with self._cond:
-                if self._wake_w.fileno() < 0:
-                    return  # closed while the lookup ran
-                self._done.append((uid, name))
-                with contextlib.suppress(OSError):
-                    self._wake_w.send(b"\0")
+            # Left for the loop's next look (SR-10.7): no wake.
+            self._done.append((uid, name))

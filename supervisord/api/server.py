@@ -91,7 +91,7 @@ from supervisord.api.framing import (
     ApiError,
     ErrorCode,
 )
-from supervisord.api.names import NAME_WAIT_NS, UserNames
+from supervisord.api.names import NAME_POLL_NS, NAME_WAIT_NS, UserNames
 from supervisord.api.pushes import Push
 from supervisord.api.replies import OkReply, Reply
 from supervisord.api.requests import (
@@ -413,7 +413,9 @@ class ApiServer:
         # Login names are looked up off the loop (SR-10.3); the users known ahead are asked for
         # now, so their connections never wait. Made once the socket is ours: nothing to undo.
         self._names = names if names is not None else UserNames(user_name)
-        self._names_fd = self._names.fileno()
+        # The next turn that looks for a finished lookup while a connection waits for its
+        # name: the loop's own deadline, as no lookup wakes it (SR-10.7).
+        self._names_look_at: int | None = None
         self._idle_watched = self._sockets_watched()  # what a turn without connections watches
         for uid in (0, self._own_uid, *config.known_uids):
             self._names.ask(uid)
@@ -421,10 +423,17 @@ class ApiServer:
     # -- the loop's side ------------------------------------------------------------------
 
     def descriptors(self, now: int) -> list[tuple[int, bool]]:
-        """``(fd, wants_write)`` for every descriptor to watch now: the listening socket, the
-        name lookups' wake-up and each connection (always for reading). Releases the
+        """``(fd, wants_write)`` for every descriptor to watch now: the listening sockets and
+        each connection (always for reading). Releases the
         descriptors of ended connections, so call it once per turn, before the wait, and watch
         exactly what it returns. ``now``: the loop's clock, as for every method here."""
+        # No lookup wakes the loop (SR-10.7): while one is out and someone is connected (a
+        # connection may wait for that name), the loop looks at its own deadline, every
+        # NAME_POLL_NS, kept across the turns in between (a busy loop still gets there).
+        if not self._names.waiting() or not self._connections:
+            self._names_look_at = None
+        elif self._names_look_at is None:
+            self._names_look_at = now + NAME_POLL_NS
         if (
             not self._connections
             and not self._ended
@@ -451,7 +460,7 @@ class ApiServer:
             return watched  # nothing came, went or began or ended waiting to write
         # While paused the listening sockets are not watched: their backlog keeps them
         # readable, and a watched readable socket that cannot be accepted is a spin (SR-10.4).
-        watched = self._sockets_watched() if paused is None else [(self._names_fd, False)]
+        watched = self._sockets_watched() if paused is None else []
         for fd, conn in self._by_fd.items():
             conn.writing = bool(conn.protocol.outgoing)
             watched.append((fd, conn.writing))
@@ -459,8 +468,8 @@ class ApiServer:
         return watched
 
     def _sockets_watched(self) -> list[tuple[int, bool]]:
-        """The listening sockets' and the name lookups' descriptors, for reading."""
-        watched = [(self._listen_fd, False), (self._names_fd, False)]
+        """The listening sockets' descriptors, for reading."""
+        watched = [(self._listen_fd, False)]
         if self._operator is not None:
             watched.insert(0, (self._operator_fd, False))
         return watched
@@ -468,10 +477,14 @@ class ApiServer:
     def next_deadline(self) -> int | None:
         """When :meth:`due` has work: an idle e-stop slot to close or paused accepts to try
         again (both in :meth:`descriptors`) or a name waited for long enough, if any."""
+        look = self._names_look_at  # set only while someone is connected (SR-10.7)
         if not self._connections or not self._timed:
             # None, the usual case, asked twice a turn (SR-9.4): no connection, or none that
             # is an e-stop slot or awaits its name.
-            return self._accept_paused_until
+            paused = self._accept_paused_until
+            if look is None:
+                return paused
+            return look if paused is None else min(look, paused)
         idle = self.config.slot_idle_ms * NS_PER_MS
         ends = [
             end
@@ -481,11 +494,17 @@ class ApiServer:
         self._timed = bool(ends)  # none: not looked for again until a connection may have one
         if self._accept_paused_until is not None:
             ends.append(self._accept_paused_until)
+        if look is not None:
+            ends.append(look)
         return min(ends) if ends else None
 
     def due(self, now: int) -> None:
         """Connections whose user's name did not come within ``NAME_WAIT_NS`` go on under
-        their uid (SR-10.3): what they sent meanwhile is queued now."""
+        their uid (SR-10.3): what they sent meanwhile is queued now. A name found meanwhile
+        is taken first (SR-10.7)."""
+        if self._names_look_at is not None and now >= self._names_look_at:
+            self._names_look_at = None  # the next turn sets the next look, if still needed
+            self._names_known(now)
         for conn in list(self._connections.values()):
             if conn.naming_until is not None and now >= conn.naming_until:
                 self._named(conn, conn.info.caller.name)
@@ -512,8 +531,6 @@ class ApiServer:
                 self.accept_operators(now)
                 if fd == self._listen_fd:
                     self.accept(now)
-        elif fd == self._names_fd:
-            self._names_known(now)
         else:
             if writable:
                 self.on_writable(fd)
@@ -760,6 +777,8 @@ class ApiServer:
             sock.close()
             return
         # The name from the cache, or not yet: the lookup is made off the loop (SR-10.3).
+        # Lookups finished since the last look are taken first (SR-10.7: none woke the loop).
+        self._names_known(now)
         name = self._names.name(credentials.uid, now)
         who = caller(credentials, self._admin_gid, own_uid=self._own_uid, name=name)
         number = self._next_number

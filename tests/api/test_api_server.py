@@ -12,6 +12,8 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
@@ -753,3 +755,35 @@ def test_a_turn_without_connections_watches_and_budgets_as_a_full_turn(
     assert server.descriptors(loop.clock()) is idle  # the same list: the loop compares it
     late = peers()
     assert late.ask(loop, {"op": "status", "id": 1})["id"] == 1
+
+
+def test_a_caller_whose_groups_decide_nothing_costs_no_proc_read(tmp_path: Path) -> None:
+    """SR-10.8: root, the daemon's own user, a caller whose primary group is the admin group
+    and any caller where no admin group is configured are judged without opening
+    ``/proc/PID/status`` (an open the SCHED_FIFO loop can sleep in). The status file is a FIFO
+    here: a writer waiting on it learns whether anyone opened it."""
+    (tmp_path / "77").mkdir()
+    fifo = tmp_path / "77" / "status"
+    os.mkfifo(fifo)
+    opened = threading.Event()
+
+    def writer() -> None:
+        with fifo.open("w") as handle:  # returns once a reader opened it
+            opened.set()
+            handle.write("Uid:\t1000\t1000\t1000\t1000\nGroups:\t27\n")
+
+    thread = threading.Thread(target=writer, daemon=True)
+    thread.start()
+    try:
+        assert caller(PeerCredentials(77, 0, 0), 27, tmp_path).admin is True
+        time.sleep(0.2)  # a reader's open would have released the writer by now
+        assert not opened.is_set(), "the status file was opened for root"
+        assert caller(PeerCredentials(77, 999, 999), 27, tmp_path, own_uid=999).admin is True
+        assert caller(PeerCredentials(77, 1000, 27), 27, tmp_path).admin is True
+        assert caller(PeerCredentials(77, 1000, 1000), None, tmp_path).admin is False
+        time.sleep(0.2)  # a reader's open would have released the writer by now
+        assert not opened.is_set(), "the status file was opened for a caller it decides nothing for"
+    finally:
+        reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)  # releases the writer
+        thread.join(10)
+        os.close(reader)

@@ -5,13 +5,15 @@ for a connection whose name is not known yet, with a lookup the test holds as lo
 from __future__ import annotations
 
 import os
+import select
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from supervisord.api.names import NAME_WAIT_NS, UserNames
+from supervisord.api.names import NAME_POLL_NS, NAME_WAIT_NS, UserNames
 from supervisord.api.requests import Estop, FleetStopRequest, Heartbeat, Hello
 from supervisord.api.server import Received, ServerConfig
 from supervisord.testkit.wait import wait_until
@@ -132,7 +134,12 @@ def test_a_connection_waiting_for_its_name_is_served_estop_and_the_rest_in_order
         served = [r.request for r in loop.of_type(Received)]
         assert served == [Estop(), Hello(name="nav"), Heartbeat()]
         held.released.set()
-        loop.until(lambda: loop.server.clients()[0].caller.name == f"user{uid}")
+
+        def named() -> bool:
+            clock.advance(NAME_POLL_NS)  # the loop looks at its own deadline (SR-10.7)
+            return loop.server.clients()[0].caller.name == f"user{uid}"
+
+        loop.until(named)
     finally:
         peer.close()
         loop.close()
@@ -158,5 +165,54 @@ def test_a_fleet_stop_is_served_while_the_name_is_looked_up(
         assert [r.request for r in loop.of_type(Received)] == [FleetStopRequest("s-1", "c")]
     finally:
         held.released.set()
+        peer.close()
+        loop.close()
+
+
+class SignalledLookup(HeldLookup):
+    """A held lookup that says when it has returned its answer."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.returned = threading.Event()
+
+    def __call__(self, uid: int) -> str:
+        try:
+            return super().__call__(uid)
+        finally:
+            if self.released.is_set():
+                self.returned.set()
+
+
+def test_a_finished_lookup_wakes_nothing_the_loop_waits_on(tmp_path: Path) -> None:
+    """SR-10.7: the lookup thread (ordinary priority) never wakes the loop (SCHED_FIFO): when
+    the name a connection waits for is found, nothing the loop watches becomes readable; the
+    loop takes the name at its own deadline, ``NAME_POLL_NS`` after its turn, and the
+    connection's hello is served then, not after ``NAME_WAIT_NS``."""
+    lookup = SignalledLookup()
+    clock = ManualClock()
+    loop = Loop(ServerConfig(tmp_path / "api.sock"), clock=clock, names=UserNames(lookup))
+    peer = Peer(tmp_path / "api.sock")
+    try:
+        peer.send(b'{"op":"hello","name":"nav"}\n')
+        loop.until(lambda: bool(loop.server.clients()))
+        for _ in range(5):
+            loop.turn()
+        assert not loop.of_type(Received)  # the hello waits for the name
+        lookup.released.set()
+        assert lookup.returned.wait(30)
+        time.sleep(0.5)  # ample for the thread to hand the name over, however it does
+        watched = [fd for fd, _ in loop.server.descriptors(clock())]
+        readable, _, _ = select.select(watched, [], [], 0)
+        assert readable == [], "a finished lookup made a descriptor of the loop readable"
+        due = loop.server.next_deadline()
+        assert due is not None
+        assert due <= clock() + NAME_POLL_NS
+        clock.advance(NAME_POLL_NS)
+        loop.turn()
+        assert [r.request for r in loop.of_type(Received)] == [Hello(name="nav")]
+        assert loop.of_type(Received)[0].client.caller.name == f"user{os.getuid()}"
+    finally:
+        lookup.released.set()
         peer.close()
         loop.close()
