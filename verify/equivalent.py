@@ -398,4 +398,12 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "EPOLLIN is 1 (the Linux ABI, <sys/epoll.h>: EPOLLIN = 0x001, on every architecture), "
         "so EPOLLIN | 1 is EPOLLIN | 0: the same events are registered and recorded",
     ),
+    Equivalent(
+        "daemon/output_bank.py",
+        "OutputBank.next_deadline",
+        "if output.is_open and (due := output.next_deadline()) is not None and due < deadline:",
+        "if output.is_open and (due := output.next_deadline()) is not None and due <= deadline:",
+        "when due equals deadline, the original keeps deadline and the mutant sets deadline to "
+        "due: the same value, and deadline is all the function returns (as _LATER_EQUAL)",
+    ),
 )

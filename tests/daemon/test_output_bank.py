@@ -7,6 +7,7 @@ safety tests' rig) applied to them; time passed as ``now`` and a clock the test 
 
 from __future__ import annotations
 
+import logging
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,7 +19,9 @@ from supervisord.daemon.output_bank import ACQUIRE_FIRST_MS, OutputBank
 from supervisord.daemon.stoptimes import StopTimes
 from supervisord.outputs.base import OutputFault
 from supervisord.outputs.can_enable import CanEnableOutput
+from supervisord.outputs.gpio import GpioOutput, GpioSpec
 from supervisord.outputs.sim import SimOutput, SimSpec
+from supervisord.protocol.codes import VscMode
 from supervisord.protocol.messages import VscHeartbeat
 from supervisord.safety.events import OutputReadback
 from supervisord.safety.transitions import State
@@ -218,3 +221,194 @@ def test_a_stuck_output_reads_back_its_fault_for_the_core(tmp_path: Path, rig: R
     assert faults == {"drive": OutputFault.MISMATCH, "lights": None}
     assert level(tmp_path, "drive") == "0"
     assert bank.unchanged(running.outputs)
+
+
+# The tests below build the bank in their body: the mutation runner traces a test's body, not
+# its fixtures (docs/verification.md "The daemon's parts").
+
+
+def test_acquisition_is_retried_after_half_a_second_doubling_to_ten_and_logged(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """SR-4, SR-6 (docs/outputs.md): an output that cannot be acquired is tried again after
+    0.5 s, doubling to 10 s (the figures themselves, not the module's names for them); the
+    operator's log says it cannot be acquired (an error, once), each failed retry (debug) and
+    when it is acquired at last (info)."""
+    caplog.set_level(logging.DEBUG, logger="srcsd")
+    clock = FakeClock(START_NS)
+    now = clock()
+    lights = SimOutput(SimSpec(name="lights", path=tmp_path / "later" / "lights"))
+    bank = OutputBank([lights], clock, StopTimes())
+    bank.open(now)
+    errors = [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR]
+    assert len(errors) == 1
+    assert errors[0].startswith("output lights cannot be acquired: ")
+    tries = []
+    for _ in range(7):
+        now = bank.next_deadline(now + 60_000 * MS)
+        assert list(bank.due(now - 1)) == []  # not before its time
+        assert list(bank.due(now)) == []  # tried, still missing
+        tries.append(now)
+    gaps_ms = [(b - a) // MS for a, b in zip([START_NS, *tries], tries, strict=False)]
+    assert gaps_ms == [500, 1_000, 2_000, 4_000, 8_000, 10_000, 10_000]
+    retried = [r.getMessage() for r in caplog.records if r.levelno == logging.DEBUG]
+    assert len([m for m in retried if m.startswith("output lights still cannot be acq")]) == 7
+    (tmp_path / "later").mkdir()
+    now = bank.next_deadline(now + 60_000 * MS)
+    assert list(bank.due(now)) == [OutputReadback(now, "lights", False, False)]
+    infos = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
+    assert "output lights acquired (off)" in infos
+
+
+def test_a_pulsed_output_not_acquired_has_no_duty_until_it_is(tmp_path: Path) -> None:
+    """SR-6: a GPIO output with a pulse (a periodic duty) whose chip is not there cannot be
+    acquired; while it is not, the bank runs no duty of it and asks it for no deadline of its
+    own: ``due`` only retries it (the real line request, on a chip path that does not exist)."""
+    clock = FakeClock(START_NS)
+    chip = tmp_path / "gpiochip9"
+    pulse = GpioOutput(GpioSpec(name="pulse", chip=str(chip), line=3, pulse_period_ms=20))
+    bank = OutputBank([pulse], clock, StopTimes())
+    assert bank.open(clock()) == [OutputReadback(clock(), "pulse", False, None)]
+    retry = clock() + ACQUIRE_FIRST_MS * MS
+    assert bank.next_deadline(retry + 1) == retry
+    assert list(bank.due(retry)) == []  # no duty of an output not open; the retry failed
+    assert not pulse.is_open
+    assert bank.not_acquired() == ("pulse",)
+
+
+def test_an_output_acquired_after_a_complete_apply_makes_the_next_decision_set_every_level(
+    tmp_path: Path,
+) -> None:
+    """SR-6, SR-9.4: an output the core's levels do not name (a ``horn`` beside the core's
+    ``drive`` and ``lights``) can be retried while every level named is set, so the steady
+    test holds; once it is acquired (off), the steady test fails until a decision sets every
+    level again: the bank never relies on every decision naming every output."""
+    clock = FakeClock(START_NS)
+    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
+    horn = SimOutput(SimSpec(name="horn", path=tmp_path / "later" / "horn"))
+    bank = OutputBank([drive, lights, horn], clock, StopTimes())
+    bank.open(clock())
+    running = Rig().bring_up()
+    bank.apply(running, stopping=False)
+    assert bank.unchanged(running.outputs)  # every output named is set: horn is not named
+    (tmp_path / "later").mkdir()
+    acquired = list(bank.due(clock.advance(ms=ACQUIRE_FIRST_MS)))
+    assert [e.output for e in acquired] == ["horn"]
+    assert not bank.unchanged(running.outputs)  # opened since: the next decision sets all
+    assert bank.apply(running, stopping=False) == ([], None)  # levels already right
+    assert bank.unchanged(running.outputs)
+
+
+def test_an_output_acquired_with_a_fault_reads_back_no_level(tmp_path: Path) -> None:
+    """SR-6: a line acquired but stuck on reads back a fault at its acquisition; the core is
+    handed no level for it (``output_fault:drive``), not the level the line shows."""
+    clock = FakeClock(START_NS)
+    drive = sim(tmp_path, "drive")
+    drive.stick(True)
+    bank = OutputBank([drive], clock, StopTimes())
+    assert bank.open(clock()) == [OutputReadback(clock(), "drive", False, None)]
+    assert drive.is_open  # acquired, faulty: held so that it can be released
+    assert bank.not_acquired() == ()
+
+
+def test_an_output_released_is_not_on_as_a_stop_begins(tmp_path: Path) -> None:
+    """SR-9.5, SR-12.1: ``on`` names only outputs held: one written off by the reflex and
+    then released (the shutdown's ``all_off(close=True)``) is no longer on."""
+    rig = Rig()
+    clock = FakeClock(START_NS)
+    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
+    bank = OutputBank([drive, lights], clock, StopTimes())
+    bank.open(clock())
+    rig.bring_up()
+    rig.advance(20)
+    clock.advance_to(rig.now)
+    bank.apply(rig.last, stopping=False)
+    assert bank.on() == ["drive", "lights"]
+    bank.heard(VscHeartbeat(OPERATIONAL, 0, REMOTE_ESTOP), rig.now, rig.core)
+    assert bank.on() == ["drive", "lights"]  # written off early: on as the stop begins
+    bank.all_off(clock(), close=True)
+    assert bank.on() == []
+
+
+def test_a_stop_without_the_reflex_is_off_when_the_decisions_last_write_returned(
+    tmp_path: Path,
+) -> None:
+    """SR-12.1, SR-9.2: a stop the reflex did not write (the decision's own off writes) is
+    timed by those writes: each output's time to off is when its write returned, after it."""
+    rig = Rig()
+    clock = FakeClock(START_NS)
+    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
+    times = StopTimes()
+    bank = OutputBank([drive, lights], clock, times)
+    bank.open(clock())
+    bank.apply(rig.bring_up(), stopping=False)
+    stop = rig.vsc(OPERATIONAL, REMOTE_ESTOP)
+    assert stop.state is State.STOPPED
+    clock.advance_to(stop.now)
+    record = next(r for r in stop.records if r.state is State.STOPPED)
+    times.stopped(record, 1, bank.on())
+    clock.advance(ms=2)
+    readbacks, off_ns = bank.apply(stop, stopping=True)
+    assert sorted(r.name for r in readbacks) == ["drive", "lights"]
+    assert off_ns == clock()
+    measured = times.find(1)
+    assert measured is not None
+    assert measured.off_ns == {"drive": 2 * MS, "lights": 2 * MS}
+
+
+def test_only_an_off_write_times_a_stop(tmp_path: Path) -> None:
+    """SR-12.1: an output switched on again while its stop waits for its off write (driven
+    off outside any decision by the loop's internal fault, then set on by the core's levels)
+    is not counted off, nor faulted, by that on write: its later off write times it."""
+    rig = Rig()
+    clock = FakeClock(START_NS)
+    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
+    times = StopTimes()
+    bank = OutputBank([drive, lights], clock, times)
+    bank.open(clock())
+    running = rig.bring_up()
+    bank.apply(running, stopping=False)
+    stop = rig.vsc(OPERATIONAL, REMOTE_ESTOP)
+    clock.advance_to(stop.now)
+    record = next(r for r in stop.records if r.state is State.STOPPED)
+    times.stopped(record, 1, bank.on())
+    bank.all_off(clock())  # untimed: outside a decision
+    readbacks, _ = bank.apply(running, stopping=False)
+    assert [(r.name, r.requested) for r in readbacks] == [("drive", True), ("lights", True)]
+    clock.advance(ms=5)
+    bank.apply(stop, stopping=True)
+    measured = times.find(1)
+    assert measured is not None
+    assert measured.off_ns == {"drive": 5 * MS, "lights": 5 * MS}
+
+
+def test_a_stop_the_reflex_wrote_in_part_is_off_when_the_decisions_last_write_returned(
+    tmp_path: Path,
+) -> None:
+    """SR-9.5, SR-12.1, SR-9.2: the reflex wrote the motion output off (a heartbeat whose mode
+    is not operational holds: the power output stays on) and the stop's decision applied next
+    switches the power output off too: the stop is off when that later write returned, not
+    the reflex's; each output keeps its own time to off."""
+    rig = Rig()
+    clock = FakeClock(START_NS)
+    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
+    times = StopTimes()
+    bank = OutputBank([drive, lights], clock, times)
+    bank.open(clock())
+    rig.bring_up()
+    rig.advance(20)
+    clock.advance_to(rig.now)
+    bank.apply(rig.last, stopping=False)
+    bank.heard(VscHeartbeat(VscMode.PAUSE.value, 0, 0), rig.now, rig.core)
+    assert (level(tmp_path, "drive"), level(tmp_path, "lights")) == ("0", "1")
+    early_ns = clock()
+    stop = rig.vsc(OPERATIONAL, REMOTE_ESTOP)
+    record = next(r for r in stop.records if r.state is State.STOPPED)
+    times.stopped(record, 1, bank.on())
+    later_ns = clock.advance(ms=3)
+    readbacks, off_ns = bank.apply(stop, stopping=True)
+    assert sorted(r.name for r in readbacks) == ["drive", "lights"]
+    assert off_ns == later_ns
+    measured = times.find(1)
+    assert measured is not None
+    assert measured.off_ns == {"drive": early_ns - stop.now, "lights": later_ns - stop.now}

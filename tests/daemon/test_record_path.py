@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -17,9 +18,9 @@ import pytest
 
 from supervisord import __version__
 from supervisord.daemon.flight import FlightSettings
-from supervisord.daemon.record_path import RecordPath
+from supervisord.daemon.record_path import NOT_RUNNING, RecordPath
 from supervisord.record.flight import windows
-from supervisord.record.jsonl import RecordWriter
+from supervisord.record.jsonl import RecordUsageError, RecordWriter
 from supervisord.record.stop import StopRecord, read_record
 from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
@@ -154,3 +155,48 @@ def test_the_record_is_typed_to_the_edge_its_json_made_on_the_lanes(
     ((_, window),) = windows(tmp_path / "stops.jsonl")
     header = json.loads(window.read_text().splitlines()[0])
     assert header["stop"] == to_json(finished[1])
+
+
+# The tests below build the path in their body: the mutation runner traces a test's body, not
+# its fixtures (docs/verification.md "The daemon's parts").
+
+
+def test_the_drain_at_exit_writes_every_queued_record_and_hands_them_back(
+    tmp_path: Path,
+) -> None:
+    """SR-7.7: at exit, ``drain`` waits for the record file to take every record still queued
+    and returns them all, in order, to push; the file holds each one when it returns (the
+    records are handed in and drained at once, without waiting for the sink first)."""
+    path = _path(tmp_path)
+    path.start()
+    path.began(START)
+    many = _records(200)
+    for record in many:
+        assert path.write(record) == ()
+    finished = path.drain()
+    assert [r.seq for r in finished] == [r.sequence for r in many]
+    lines = (tmp_path / "stops.jsonl").read_text().splitlines()
+    assert [json.loads(line)["seq"] for line in lines] == [r.sequence for r in many]
+    assert (path.record_errors, path.records_dropped) == (0, 0)
+    path.close()
+
+
+def test_a_path_never_started_closes_its_writer(tmp_path: Path) -> None:
+    """SR-7.7: a daemon that ends before its loop started (no sink) still closes the record
+    file: the writer takes no record after ``close``."""
+    writer = RecordWriter(tmp_path / "stops.jsonl")
+    path = RecordPath(SafetyConfig(), writer, wall_clock=lambda: WALL)
+    path.close()
+    with pytest.raises(RecordUsageError, match="is closed"):
+        writer.append({"seq": 1})
+
+
+def test_a_record_not_written_is_logged(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """docs/record.md "A full disk": a record not written is an error line in the log, with
+    why (here: the sink not running), never a stop of its own."""
+    caplog.set_level(logging.ERROR, logger="srcsd")
+    path = _path(tmp_path)
+    path.write(_records(1)[0])
+    lines = [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR]
+    assert lines == [f"stop record not written: {NOT_RUNNING}"]
+    path.close()
