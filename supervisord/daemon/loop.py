@@ -9,24 +9,21 @@ applied at once: outputs first, then the frames to the VSC, then the records, th
 (SR-6). The user heartbeat, the outputs and the link are served only by this loop, so if it
 hangs, the heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 
-The parts (:class:`~supervisord.daemon.parts.Parts`, built there; ``docs/safety.md`` "The
-loop's parts") are each told what they need as arguments and answer with values, none calling
-back into the loop; the loop answers the client API listener's asks as their ``Answers``
-(:mod:`~supervisord.daemon.answer`: :meth:`Supervisor.decide`, ``look``, ``check_off``,
-``send``). The start, the run until a stopping signal and the shutdown are above the loop, in
-:mod:`~supervisord.daemon.lifecycle`.
+The parts are built by :class:`~supervisord.daemon.parts.Parts` (``docs/safety.md`` "The
+loop's parts"), each told what it needs and answering with values, none calling back into the
+loop; the loop answers the client API listener's asks (:mod:`~supervisord.daemon.answer`). The
+start, the run and the shutdown are above it, in :mod:`~supervisord.daemon.lifecycle`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import logging
 from collections.abc import Sequence
 
 from supervisord.daemon import answer
 from supervisord.daemon.deadlines import next_deadline, stop_path_waits
 from supervisord.daemon.internal_fault import OVERRUN_NS, failed, late
-from supervisord.daemon.listener import Asks, Listener, Snapshot
+from supervisord.daemon.listener import Listener, Snapshot
 from supervisord.daemon.loop_status import Counters
 from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.offcheck import check_off as checked_off
@@ -41,8 +38,6 @@ from supervisord.safety.events import Event, LinkBroken, Tick, VscReceived
 from supervisord.safety.transitions import State
 
 __all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
-
-log = logging.getLogger("srcsd")
 
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
@@ -125,25 +120,23 @@ class Supervisor(Parts):
         when the link has bytes waiting or a core deadline has come: those go first
         (docs/safety.md). The listener's urgent descriptors (the operator socket, SR-8.14) come
         before them all, uncounted."""
-        waiter, listener = self.waiter, self.listener
+        waiter, listener, clock = self.waiter, self.listener, self.clock
         first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
             readable, writable = waiter.readiness(fd, mask)
-            self._serve(listener.handle(fd, readable, writable, self.clock()))
+            answer.serve(listener.handle(fd, readable, writable, clock()), self)
         for served, (fd, mask) in enumerate(ordered):
-            if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
+            if served >= MAX_CLIENTS_PER_TURN:
                 return  # the rest stay ready: the next turn serves them
+            if served:
+                decision = self.decision
+                deadline = decision.next_deadline if decision is not None else None
+                if stop_path_waits(clock, deadline, self.port.link):
+                    return
             waiter.cursor = fd
             readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self._serve(listener.handle(fd, readable, writable, self.clock()))
-
-    def _stop_path_waits(self) -> bool:
-        core_deadline = self.decision.next_deadline if self.decision is not None else None
-        return stop_path_waits(self.clock, core_deadline, self.port.link)
-
-    def _serve(self, work: Asks | None) -> None:
-        answer.serve(work, self)
+            answer.serve(listener.handle(fd, readable, writable, clock()), self)
 
     def _due(self, now: int) -> None:
         """Whatever is due at ``now``, in this order: the core's deadline, the outputs' duties,
