@@ -30,7 +30,7 @@ from pathlib import Path
 
 from bench.idle_cost import srcsd_config
 from supervisord.config.loader import load_config
-from supervisord.daemon import heap
+from supervisord.daemon import heap, lifecycle
 from supervisord.daemon.assemble import build_api, build_supervisor
 from supervisord.protocol.framing import encode_frame
 from supervisord.protocol.messages import Axis, Joystick
@@ -59,8 +59,8 @@ def measure(turns: int, clients: int) -> tuple[float, float, float]:
         supervisor = build_supervisor(config, build_api(config), clock=lambda: now[0])
         sockets: list[socket.socket] = []
         try:
-            supervisor.start()
-            heap.settle()  # as Supervisor.run does
+            lifecycle.start(supervisor)
+            heap.settle()  # as lifecycle.run does
             frames = [
                 encode_frame(Joystick(left_y=Axis.from_value(i % 1000 - 500))) for i in range(64)
             ]
@@ -98,7 +98,7 @@ def measure(turns: int, clients: int) -> tuple[float, float, float]:
         finally:
             for client in sockets:
                 client.close()
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
             port.close()
     return a, b, c
 

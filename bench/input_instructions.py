@@ -52,6 +52,7 @@ from pathlib import Path
 
 from bench.bare import HEARTBEAT_NS, BareLoop, open_port
 from bench.rig import GPS_NS, JOYSTICK_NS, REPO, SAMPLE_GGA, table
+from supervisord.daemon import lifecycle
 from supervisord.daemon.loop import Supervisor
 from supervisord.protocol.codes import VscMode
 from supervisord.protocol.framing import FrameDecoder, encode_frame
@@ -168,7 +169,7 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
     call per turn): the driver delivers the next frame there when it comes before the loop's
     own deadline, else moves the clock to that deadline (the timeout rounded up to the
     millisecond, as epoll takes it) and the real wait returns at once. ``settle``: the heap
-    settled after the start, as ``Supervisor.run`` does (``supervisord/daemon/heap.py``); at
+    settled after the start, as ``lifecycle.run`` does (``supervisord/daemon/heap.py``); at
     the end, what a full collection of the garbage collector costs (without valgrind, the
     child alone: ``... child --model srcsd --warm-up 3 --seconds 20 [--unsettled]``)."""
     from supervisord.config.loader import load_config  # noqa: PLC0415
@@ -182,9 +183,9 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
     config = load_config(directory / "robot.toml")
     start = driver.now
     supervisor = build_supervisor(config, build_api(config), clock=driver.clock)
-    supervisor.start()
+    lifecycle.start(supervisor)
     if settle:
-        heap.settle()  # as ``Supervisor.run`` does between the start and the first turn
+        heap.settle()  # as ``lifecycle.run`` does between the start and the first turn
     reader = supervisor.link.fileno()
     assert reader is not None
     wait = supervisor.waiter.wait
@@ -211,7 +212,7 @@ def run_srcsd(directory: Path, driver: Driver, *, settle: bool = True) -> str:
     gc.collect()  # what a full collection costs the loop now (docs/performance.md "The heap")
     print(f"full_collection_ms={(time.perf_counter_ns() - started) / 1e6:.2f}")
     replay_core(supervisor, start, driver.first_measured_input)
-    supervisor.shutdown()
+    lifecycle.shutdown(supervisor)
     return state
 
 

@@ -44,6 +44,7 @@ from types import FrameType, TracebackType
 from bench.bare import HEARTBEAT_NS, REPORT, TimedOutput
 from bench.bare import MODELS as BARE_MODELS
 from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.daemon import lifecycle
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -101,11 +102,11 @@ def run_supervisor(args: argparse.Namespace, output: TimedOutput) -> int:
         listener=listener,
     )
     if args.fsync_delay_ms:
-        slow_disk(args.fsync_delay_ms / 1000, supervisor)
+        slow_disk(args.fsync_delay_ms / 1000)
     if not args.api_socket:
-        return supervisor.run()
+        return lifecycle.run(supervisor)
     turns = TurnStats(supervisor)
-    status = supervisor.run()
+    status = lifecycle.run(supervisor)
     Path(f"{args.record}{TURNS_SUFFIX}").write_text(json.dumps(turns.summary()))
     return status
 
@@ -161,7 +162,7 @@ class TurnStats:
         }
 
 
-def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
+def slow_disk(delay_s: float) -> None:
     """``--slow-disk`` (SR-7.5): every ``os.fsync`` of this child process (the stop
     record's, in the record sink's thread) takes ``delay_s`` longer, as on a slow SD card. It
     sleeps after the real fsync: a sleep releases the GIL as a blocking fsync does, so the
@@ -176,13 +177,13 @@ def slow_disk(delay_s: float, supervisor: Supervisor) -> None:
             time.sleep(delay_s)
 
     os.fsync = fsync  # type: ignore[assignment] # the record writer passes descriptors
-    shutdown = supervisor.shutdown
+    shutdown = lifecycle.shutdown  # the one ``lifecycle.run`` calls, in this child only
 
-    def fast_shutdown() -> None:
+    def fast_shutdown(loop: Supervisor) -> None:
         slow[0] = False
-        shutdown()
+        shutdown(loop)
 
-    supervisor.shutdown = fast_shutdown  # type: ignore[method-assign]
+    lifecycle.shutdown = fast_shutdown
 
 
 def child_main(argv: Sequence[str] | None = None) -> int:

@@ -86,6 +86,8 @@ DAEMON_TARGETS = tuple(
         "link_port.py",
         "record_path.py",
         "output_bank.py",
+        "parts.py",
+        "lifecycle.py",
     )
 )
 """The parts the daemon's loop composes (``--daemon``), named by their path under supervisord/:

@@ -257,6 +257,7 @@ def _serve(path: str, log: logging.Logger) -> int:
         )
         return EXIT_CANNOT_START
     # Imported after the configuration is valid: python-can and gpiod load only when needed.
+    from supervisord.daemon import lifecycle  # noqa: PLC0415
     from supervisord.daemon.assemble import build_api, build_supervisor  # noqa: PLC0415
 
     api = None
@@ -288,7 +289,7 @@ def _serve(path: str, log: logging.Logger) -> int:
     # instead (SR-0.4, docs/containers.md).
     for finding in absent(surroundings(config, memory)):
         log.warning("%s", finding.line())
-    return supervisor.run()
+    return lifecycle.run(supervisor)
 
 
 if __name__ == "__main__":

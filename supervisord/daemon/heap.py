@@ -21,7 +21,7 @@ import gc
 
 def settle() -> int:
     """Collect start-up's garbage and freeze the survivors; the number frozen so far. Called
-    once, between the start and the first turn of the loop (``Supervisor.run``), never in a
+    once, between the start and the first turn of the loop (``lifecycle.run``), never in a
     process that goes on to allocate long-lived objects it will drop (a test runner)."""
     gc.collect()
     gc.freeze()

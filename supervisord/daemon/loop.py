@@ -9,67 +9,45 @@ applied at once: outputs first, then the frames to the VSC, then the records, th
 (SR-6). The user heartbeat, the outputs and the link are served only by this loop, so if it
 hangs, the heartbeat stops and the VSC's key-85 watchdog opens its relays (SR-5).
 
-The parts, each told what it needs as arguments and answering with values, none calling back
-into the loop, are listed in ``docs/safety.md`` "The loop's parts": the wait (``waiter``), the
-link port, the record path (sink, lanes, flight ring: SR-7.7, SR-7.10), the output bank, the
-service manager's face, the status (``loop_status``), the refusal log, the stop request, the
-deadlines, the internal fault (``internal_fault``) and the answering of the client API
-listener's asks (:mod:`~supervisord.daemon.answer`, which this loop answers as its
-``Answers``: :meth:`Supervisor.decide`, ``look``, ``check_off``, ``send``).
+The parts are built by :class:`~supervisord.daemon.parts.Parts` (``docs/safety.md`` "The
+loop's parts"), each told what it needs and answering with values, none calling back into the
+loop; the loop answers the client API listener's asks (:mod:`~supervisord.daemon.answer`). The
+start, the run and the shutdown are above it, in :mod:`~supervisord.daemon.lifecycle`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import datetime as dt
-import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Sequence
 
-from supervisord.api.status import LoopStatus
-from supervisord.clock import MONOTONIC, Clock
-from supervisord.daemon import answer, heap, signals
+from supervisord.daemon import answer
 from supervisord.daemon.deadlines import next_deadline, stop_path_waits
-from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.internal_fault import OVERRUN_NS, failed, late
-from supervisord.daemon.link_port import LinkPort
-from supervisord.daemon.listener import Asks, Listener, Snapshot
-from supervisord.daemon.loop_status import Counters, loop_status
-from supervisord.daemon.maintenance import Schedule
-from supervisord.daemon.notify import Notifier
+from supervisord.daemon.listener import Listener, Snapshot
+from supervisord.daemon.loop_status import Counters
 from supervisord.daemon.offcheck import OffCheck
 from supervisord.daemon.offcheck import check_off as checked_off
-from supervisord.daemon.output_bank import OutputBank, readback_event
-from supervisord.daemon.record_path import RecordPath
-from supervisord.daemon.refusal_log import RefusalLog
-from supervisord.daemon.service_manager import ServiceManager
-from supervisord.daemon.stop_request import StopRequest
-from supervisord.daemon.stoptimes import StopTimes
-from supervisord.daemon.timings import Timings
-from supervisord.daemon.waiter import Waiter
-from supervisord.links.base import Backoff, Link
-from supervisord.outputs.base import Output
+from supervisord.daemon.output_bank import readback_event
+from supervisord.daemon.parts import Parts
 from supervisord.protocol.hid import HidInput
 from supervisord.protocol.messages import Message, VscHeartbeat
-from supervisord.record.jsonl import RecordWriter
 from supervisord.record.stop import StopRecord
-from supervisord.safety.config import SafetyConfig
 from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
-from supervisord.safety.events import Event, LinkBroken, Shutdown, Tick, VscReceived
+from supervisord.safety.events import Event, LinkBroken, Tick, VscReceived
 from supervisord.safety.transitions import State
 
 __all__ = ["MAX_CLIENTS_PER_TURN", "OVERRUN_NS", "Counters", "Listener", "Supervisor"]
-
-log = logging.getLogger("srcsd")
 
 MAX_SETTLE_STEPS = 8  # output read-backs fed back to the core per input, at most
 MAX_CLIENTS_PER_TURN = 4  # client descriptors served per turn, at most (docs/safety.md)
 
 
-class Supervisor:
-    """The daemon's state and loop. ``run`` returns the process exit status. It answers the
-    listener's asks itself (:class:`~supervisord.daemon.answer.Answers`: :meth:`decide`,
-    :meth:`look`, :meth:`check_off`, :meth:`send`)."""
+class Supervisor(Parts):
+    """The daemon's loop over its parts: a turn (:meth:`step`) and the apply order. Of its
+    own it holds the core and the last decision applied. It answers the listener's asks
+    itself (:class:`~supervisord.daemon.answer.Answers`: :meth:`decide`, :meth:`look`,
+    :meth:`check_off`, :meth:`send`)."""
 
     steady_path = True
     """Apply a decision that changes nothing the full path would act on without it (the
@@ -77,180 +55,14 @@ class Supervisor:
     the reference: ``tests/daemon/test_steady_path.py`` switches this off on one of two loops
     fed the same inputs and checks that both do the same (SR-9.4)."""
 
-    def __init__(
-        self,
-        safety: SafetyConfig,
-        link: Link,
-        outputs: list[Output],
-        writer: RecordWriter | None,
-        *,
-        journal: Callable[[Mapping[str, object]], object] | None = None,
-        flight_journal: Callable[[Sequence[tuple[str, str]]], object] | None = None,
-        listener: Listener | None = None,
-        notifier: Notifier | None = None,
-        clock: Clock = MONOTONIC,
-        wall_clock: Callable[[], dt.datetime] = lambda: dt.datetime.now(dt.timezone.utc),
-        backoff: Backoff | None = None,
-        release: list[Callable[[], object]] | None = None,
-        flight: FlightSettings | None = FlightSettings(),  # noqa: B008 -- frozen
-    ) -> None:
-        self.safety = safety
-        self.listener = listener or Listener()
-        # READY, STATUS, WATCHDOG and STOPPING, and when the watchdog is due (SR-0.2, SR-6.5).
-        self.service = ServiceManager(notifier or Notifier({}))
-        self.clock = clock
-        # The record path: the sink and its lanes, the records it holds, the flight ring, and
-        # each record's and stop window's journal copy (SR-7.4, SR-7.7, SR-7.10, SR-13.12).
-        self.records = RecordPath(
-            safety,
-            writer,
-            journal=journal,
-            flight_journal=flight_journal,
-            flight=flight,
-            wall_clock=wall_clock,
-        )
-        self.counters = Counters()
-        self.timings = Timings()
-        # The link: open with its backoff, receive, send, close and release, its counters
-        # (SR-2, SR-5.1).
-        self.port = LinkPort(link, clock, self.timings, backoff, release or ())
-        self.schedule = Schedule({})  # the periodic tests' last passes (SR-12.2)
-        # The outputs: acquire with a backoff, apply levels with the reflex's writes and the
-        # steady path's test, read back, all off (SR-6, SR-9.4, SR-9.5); and each stop's
-        # outputs' times to off (SR-12.1), a category-1 output judged after its delay.
-        delays = {o.name: o.off_delay_ms for o in safety.outputs}
-        self.bank = OutputBank(outputs, clock, StopTimes(delays=delays))
-        # Whether the start locked the memory (SR-9.6): set by srcsd, ``None`` when no start
-        # said (a loop built by a test).
-        self.memory_locked: bool | None = None
-        self.core: SafetyCore | None = None
-        self.decision: Decision | None = None
-        # Whether the loop was asked to end, and the first signal that asked (SR-6.6, SR-7.14).
-        self.stop = StopRequest()
-        # The loop's wait: epoll and what it watches, the wake pair, the clients' order (SR-9.4,
-        # SR-10.1).
-        self.waiter = Waiter()
-        # The refusals under the record budget: counted, logged once a second (SR-8.5).
-        self.refusals = RefusalLog()
+    core: SafetyCore | None = None  # made by the start (lifecycle.start, via begin)
+    decision: Decision | None = None  # the last decision applied
 
-    @property
-    def link(self) -> Link:
-        """The link to the VSC (its port's), as srcsd names it in its start-up line."""
-        return self.port.link
-
-    @property
-    def outputs(self) -> dict[str, Output]:
-        """The outputs by name (the bank's), as srcsd counts them in its start-up line."""
-        return self.bank.outputs
-
-    @property
-    def srcsctl(self) -> str:
-        """How a fix names the command that reaches this daemon (SR-8.18), set by srcsd."""
-        return self.service.srcsctl
-
-    @srcsctl.setter
-    def srcsctl(self, srcsctl: str) -> None:
-        self.service.srcsctl = srcsctl
-
-    def snapshot(self, now: int) -> LoopStatus:
-        """What ``status`` says about the daemon itself at ``now`` (the loop's clock), from its
-        parts' own status (:func:`~supervisord.daemon.loop_status.loop_status`)."""
-        return loop_status(
-            now,
-            started_ns=self.counters.started_ns,
-            safety=self.safety,
-            port=self.port,
-            bank=self.bank,
-            records=self.records,
-            refusals=self.refusals,
-            counters=self.counters,
-            timings=self.timings,
-            schedule=self.schedule,
-            memory_locked=self.memory_locked,
-        )
-
-    # ----------------------------------------------------------------- start and stop
-
-    def start(self) -> Decision:
-        """Outputs off before anything else, then the core, then the link (SR-6).
-
-        Returns the first decision. An output that cannot be acquired (busy, missing, not
-        permitted) is ``output_fault:NAME``: the daemon stays up, STOPPED, says so, and tries
-        again with a backoff, because a supervisor that exits holds nothing and reports nothing.
-        Once acquired (off), the fault's condition clears; its stop waits for a re-arm (SR-4).
-        """
-        now = self.clock()
-        self.counters.started_ns = self.port.since_ns = now
-        self.schedule.start(self.records.wall_clock(), now)  # the passes read from the record
-        sink_fd = self.records.start()
-        events = self.bank.open(now)
-        self.core = core = SafetyCore(self.safety, now)
-        self.records.began(now)  # a flight window can start from here
-        self._apply(core.decision)  # the startup decision, with the first record
-        for event in events:
-            self.decide(event)
-        self.decide(self.port.open(now))
-        self.waiter.start(sink_fd)
-        decision = self.decision or core.decision  # the last applied (never None here)
-        self.service.ready(now, decision)  # the startup decision applied: outputs off
-        return decision
-
-    def request_stop(self, signum: int | None = None) -> None:
-        """Ask the loop to end (from a signal handler: only sets a flag and wakes the loop).
-        The first signal asked for decides the exit status (SR-6.6)."""
-        self.stop.ask(signum)
-        self.waiter.wake()
-
-    def shutdown(self) -> None:
-        """All outputs off, then release the link; then the stop's record; drain the record
-        (every queued record written and fsynced, and pushed to subscribers, within the sink's
-        deadline), then the socket (SIGTERM path)."""
-        self.service.stopping()
-        self.bank.all_off(self.clock(), close=True)
-        self.port.close()
-        # Then the ``shutdown:REASON`` stop's record, after the outputs (SR-7.14): REASON is
-        # the signal that asked for the exit, ``requested`` without one, ``error`` when
-        # ``run`` raised. The core makes it, so its ``seq`` continues the file's and a replay
-        # makes it again; the outputs and the link are closed by now, so the decision switches
-        # and sends nothing. No core (its start failed): no sequence to continue.
-        if self.core is not None:
-            with contextlib.suppress(Exception):
-                self.decide(Shutdown(self.clock(), self.stop.reason()))
-        # The records first, with a deadline well inside the unit's stop timeout, then
-        # pushed; then journal copies and log lines, best effort (SR-7.7).
-        with contextlib.suppress(Exception):  # the sockets and the link are closed whatever
-            self._recorded(self.records.drain())
-        self.records.close()
-        self.listener.close()
-        self.waiter.close()
-        self.service.close()
-
-    def run(self) -> int:
-        """Start, loop until a stopping signal, shut down. Every signal that would end the
-        process ends it this way, outputs off and the record drained, except those with a
-        purpose of their own (SR-6.6, :mod:`~supervisord.daemon.signals`). Exit status 0
-        after SIGTERM or SIGINT, 128 + N after another signal N."""
-        previous = signals.install(self.request_stop)
-        try:
-            self.start()
-            sink = self.records.sink
-            if sink is not None:
-                # Log lines leave the loop through the sink too: a slow stderr or journald
-                # must not hold the loop (SR-7.5).
-                sink.capture_logging(logging.getLogger())
-            heap.settle()  # no full scan of start-up's objects in the loop (SR-9.1, SR-9.4)
-            stop = self.stop
-            while not stop.asked:
-                self.step()
-            stop.log()  # before the shutdown: the sink drains it with the records
-        finally:
-            try:
-                # A second signal during the shutdown changes nothing: the handlers stay
-                # until the outputs are off and the record is drained.
-                self.shutdown()
-            finally:
-                signals.restore(previous)
-        return self.stop.exit_status()
+    def begin(self, core: SafetyCore) -> None:
+        """``core`` decides from now on; its start-up decision applied (the first record, the
+        outputs off: SR-6). Called once, by :func:`~supervisord.daemon.lifecycle.start`."""
+        self.core = core
+        self._apply(core.decision)
 
     # ----------------------------------------------------------------- the turn
 
@@ -293,7 +105,7 @@ class Supervisor:
             if sink_ready:
                 # Only when the sink said so (its socket is readable once a record is
                 # finished): not a system call per turn (SR-9.4).
-                self._recorded(self.records.take_written())
+                self.recorded(self.records.take_written())
             if clients:
                 self._serve_clients(clients)
             work = self.listener.settle(self.clock())
@@ -308,25 +120,23 @@ class Supervisor:
         when the link has bytes waiting or a core deadline has come: those go first
         (docs/safety.md). The listener's urgent descriptors (the operator socket, SR-8.14) come
         before them all, uncounted."""
-        waiter, listener = self.waiter, self.listener
+        waiter, listener, clock = self.waiter, self.listener, self.clock
         first, ordered = waiter.order(ready, listener.urgent())
         for fd, mask in first:
             readable, writable = waiter.readiness(fd, mask)
-            self._serve(listener.handle(fd, readable, writable, self.clock()))
+            answer.serve(listener.handle(fd, readable, writable, clock()), self)
         for served, (fd, mask) in enumerate(ordered):
-            if served >= MAX_CLIENTS_PER_TURN or (served and self._stop_path_waits()):
+            if served >= MAX_CLIENTS_PER_TURN:
                 return  # the rest stay ready: the next turn serves them
+            if served:
+                decision = self.decision
+                deadline = decision.next_deadline if decision is not None else None
+                if stop_path_waits(clock, deadline, self.port.link):
+                    return
             waiter.cursor = fd
             readable, writable = waiter.readiness(fd, mask)
             # The clock read right before the read: the time this client input was read (SR-2).
-            self._serve(listener.handle(fd, readable, writable, self.clock()))
-
-    def _stop_path_waits(self) -> bool:
-        core_deadline = self.decision.next_deadline if self.decision is not None else None
-        return stop_path_waits(self.clock, core_deadline, self.port.link)
-
-    def _serve(self, work: Asks | None) -> None:
-        answer.serve(work, self)
+            answer.serve(listener.handle(fd, readable, writable, clock()), self)
 
     def _due(self, now: int) -> None:
         """Whatever is due at ``now``, in this order: the core's deadline, the outputs' duties,
@@ -493,7 +303,7 @@ class Supervisor:
                 # comes back finished at once, in its place in the order.
                 finished = write(record)
                 if finished:
-                    self._recorded(finished)
+                    self.recorded(finished)
         if decision.refusals:  # the rate-limited counted, logged once a second (SR-8.5)
             self.refusals.decided(decision)
         self.listener.decided(decision)
@@ -503,7 +313,7 @@ class Supervisor:
             # the previous one's (SR-9.4).
             service.decided(decision)
 
-    def _recorded(self, finished: Sequence[StopRecord]) -> None:
+    def recorded(self, finished: Sequence[StopRecord]) -> None:
         """Records finished (on disk, or counted as not written), in record order: a pass
         resets its test's age (SR-12.2), and each is pushed to subscribers (SR-7.4)."""
         for record in finished:

@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from supervisord.api.pushes import RecordPush
 from supervisord.api.views import message_push, message_topic, state_push
 from supervisord.config import load_config
+from supervisord.daemon import lifecycle
 from supervisord.daemon.assemble import build_api, build_supervisor
 from supervisord.daemon.loop import Supervisor
 from supervisord.protocol.codes import MessageType
@@ -130,11 +131,11 @@ def daemon_rig(folder: Path) -> Iterator[Rig]:
         peer = VscPeer(port, clock=clock.seconds)
         config = load_config(folder / "robot.toml")
         supervisor = build_supervisor(config, build_api(config), clock)
-        supervisor.start()
+        lifecycle.start(supervisor)
         try:
             yield Rig(folder, supervisor, peer)
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
 
 
 def check_record(path: Path) -> list[dict[str, object]]:

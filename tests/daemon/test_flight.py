@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from supervisord.cli.replay import run_replay
+from supervisord.daemon import lifecycle
 from supervisord.daemon.flight import FlightSettings
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -55,7 +56,7 @@ def _supervisor(
     try:
         yield supervisor, VscPeer(port, clock=clock.seconds)
     finally:
-        supervisor.shutdown()
+        lifecycle.shutdown(supervisor)
         port.close()
 
 
@@ -83,7 +84,7 @@ def test_a_stop_writes_its_window_beside_the_record_and_it_replays(
     SEQ.jsonl``, starts at least the window's length before the stop, and ``srcsctl
     replay`` reproduces every record in it, the stop's included."""
     supervisor, peer = short
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     serve_for(supervisor, peer, 1.2)
     seq = _stop(supervisor, peer)
@@ -106,7 +107,7 @@ def test_a_stop_soon_after_the_start_replays_from_the_start(tmp_path: Path) -> N
     start (a fresh core with the recorded configuration), and its replay reproduces every
     record from the startup stop on."""
     for supervisor, peer in _supervisor(tmp_path, FlightSettings(window_s=60)):
-        supervisor.start()
+        lifecycle.start(supervisor)
         _arm(supervisor, peer)
         seq = _stop(supervisor, peer)
         window = read_window(window_path(tmp_path / "stops.jsonl", seq))
@@ -120,7 +121,7 @@ def test_the_ring_bound_shortens_the_window_and_it_still_replays(tmp_path: Path)
     """SR-7.10, SR-7.11: with a ring of 16 inputs the snapshots come every 8 inputs, and the
     window holds at most the ring: shorter than its time, still replayable."""
     for supervisor, peer in _supervisor(tmp_path, FlightSettings(window_s=60, max_inputs=16)):
-        supervisor.start()
+        lifecycle.start(supervisor)
         _arm(supervisor, peer)
         serve_for(supervisor, peer, 0.5)
         seq = _stop(supervisor, peer)
@@ -140,7 +141,7 @@ def test_a_snapshot_that_fails_is_counted_and_the_loop_goes_on(
     test): the snapshot fails, is counted in ``flight_errors`` and logged, and the loop runs
     on; the robot still stops, and the next windows come once snapshots work again."""
     supervisor, peer = short
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     assert supervisor.core is not None
     supervisor.core.__dict__["unencodable"] = object()
@@ -177,7 +178,7 @@ def test_a_stops_window_goes_to_the_journal_after_its_file(tmp_path: Path) -> No
     server, sink = _journal_socket(tmp_path)
     with server, sink:
         for supervisor, peer in _supervisor(tmp_path, FlightSettings(window_s=60), sink):
-            supervisor.start()
+            lifecycle.start(supervisor)
             _arm(supervisor, peer)
             seq = _stop(supervisor, peer)
             server.settimeout(30)
@@ -208,7 +209,7 @@ def test_a_stuck_journal_costs_the_windows_copy_never_the_stop(tmp_path: Path) -
 
 
 def _stop_with_the_journal_stuck(supervisor: Supervisor, peer: VscPeer, tmp_path: Path) -> None:
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     peer.mode, peer.estop = VscMode.OPERATIONAL, 1
     run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)

@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from supervisord.daemon import loop
+from supervisord.daemon import lifecycle, loop
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
@@ -81,7 +81,7 @@ def rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, Path]]:
         clock=clock,
     )
     yield supervisor, VscPeer(port, clock=clock.seconds), tmp_path
-    supervisor.shutdown()
+    lifecycle.shutdown(supervisor)
     port.close()
 
 
@@ -158,7 +158,7 @@ def test_start_takeover_estop_silence_unplug(rig: tuple[Supervisor, VscPeer, Pat
     """Outputs start off; a takeover runs them; a remote e-stop, VSC silence and an unplug
     each stop them and are recorded with their cause; the user heartbeat flows meanwhile."""
     supervisor, peer, tmp = rig
-    supervisor.start()
+    lifecycle.start(supervisor)
     assert (level(tmp, "drive"), level(tmp, "lamp")) == ("0", "0")
 
     _arm(supervisor, peer)
@@ -207,14 +207,14 @@ def test_missing_port_at_start_is_not_fatal(tmp_path: Path) -> None:
         backoff=Backoff(first_ms=10, max_ms=20),
     )
     try:
-        decision = supervisor.start()
+        decision = lifecycle.start(supervisor)
         assert "transport_fault" in decision.active_names
         with PtyPort(tmp_path / "vsc") as port:
             peer = VscPeer(port)
             run_until(supervisor, peer, lambda: supervisor.link.is_open)
             assert supervisor.port.failures >= 1
     finally:
-        supervisor.shutdown()
+        lifecycle.shutdown(supervisor)
 
 
 def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_path: Path) -> None:
@@ -240,13 +240,13 @@ def test_an_output_that_cannot_be_acquired_keeps_the_daemon_up_and_stopped(tmp_p
         None,
     )
     try:
-        decision = supervisor.start()
+        decision = lifecycle.start(supervisor)
         assert "output_fault:brake" in decision.active_names
         assert decision.state is State.STOPPED
         assert level(tmp_path, "drive") == "0"
         supervisor.step()  # the loop goes on
     finally:
-        supervisor.shutdown()
+        lifecycle.shutdown(supervisor)
 
 
 def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> None:
@@ -265,7 +265,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
         clock=clock,
     )
     try:
-        assert "output_fault:drive" in supervisor.start().active_names
+        assert "output_fault:drive" in lifecycle.start(supervisor).active_names
         assert supervisor.snapshot(clock()).outputs_not_acquired == ("drive",)
         late.mkdir()  # the device appears
         for _ in range(50):  # 100 ms of the loop's clock a turn: the retry's backoff passes
@@ -282,7 +282,7 @@ def test_an_output_acquired_later_clears_its_fault_condition(tmp_path: Path) -> 
         assert fault.latched
         assert supervisor.decision.state is State.STOPPED
     finally:
-        supervisor.shutdown()
+        lifecycle.shutdown(supervisor)
 
 
 def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscPeer, Path]) -> None:
@@ -291,7 +291,7 @@ def test_outputs_are_off_before_the_stop_is_recorded(rig: tuple[Supervisor, VscP
     supervisor, peer, tmp = rig
     seen: list[tuple[str, str]] = []
     supervisor.records.journal = lambda entry: seen.append((str(entry["to"]), level(tmp, "drive")))
-    supervisor.start()
+    lifecycle.start(supervisor)
     run_until(
         supervisor,
         peer,
@@ -365,13 +365,13 @@ def test_a_record_carries_the_time_its_input_was_read(tmp_path: Path) -> None:
         )
         peer = VscPeer(port, clock=clock.seconds)
         try:
-            supervisor.start()
+            lifecycle.start(supervisor)
             _arm(supervisor, peer)
             link.slow = True
             peer.mode, peer.estop = VscMode.LOCAL, 1
             run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
     stop = next(
         r.data
         for r in read_records(tmp_path / "stops.jsonl")
@@ -429,7 +429,7 @@ def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: 
         )
         peer = VscPeer(port, clock=clock.seconds)
         try:
-            supervisor.start()
+            lifecycle.start(supervisor)
             assert writer.hung.wait(10.0), "the first record never reached the disk"
             _arm(supervisor, peer)
             beats_before = sum(isinstance(m, UserHeartbeat) for m in peer.received)
@@ -443,7 +443,7 @@ def test_a_hung_record_disk_neither_holds_the_loop_nor_loses_a_record(tmp_path: 
             assert beats >= 20, beats
             writer.release.set()
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
     stored = [r for r in read_records(tmp_path / "stops.jsonl") if isinstance(r, StoredRecord)]
     seqs = [r.data["seq"] for r in stored]
     assert seqs == list(range(1, len(seqs) + 1))
@@ -506,7 +506,7 @@ def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_pat
         )
         peer = VscPeer(port)
         try:
-            supervisor.start()
+            lifecycle.start(supervisor)
             turns: list[list[str]] = []
             for _ in range(30):
                 peer.serve()
@@ -515,7 +515,7 @@ def test_each_turn_serves_the_link_first_and_a_bounded_number_of_clients(tmp_pat
                 supervisor.step()
                 turns.append(list(order))
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
     assert (
         max(len([o for o in t if o.startswith("client")]) for t in turns)
         <= loop.MAX_CLIENTS_PER_TURN
@@ -547,7 +547,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
         )
         peer = VscPeer(port, clock=clock.seconds)
         try:
-            supervisor.start()
+            lifecycle.start(supervisor)
             _arm(supervisor, peer)
             peer.mode, peer.estop = VscMode.LOCAL, 1
             run_until(supervisor, peer, lambda: state(supervisor) is State.STOPPED)
@@ -563,7 +563,7 @@ def test_a_full_record_disk_is_counted_and_stops_nothing(tmp_path: Path) -> None
                 "vsc_mode:local",
             }
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
 
 
 def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
@@ -588,7 +588,7 @@ def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
             None,
         )
         try:
-            supervisor.start()
+            lifecycle.start(supervisor)
             assert supervisor.snapshot(0).link.error_frames == 0
             for _ in range(3):
                 vsc_bus.send(can.Message(arbitration_id=0x08, data=bytes(8), is_error_frame=True))
@@ -603,7 +603,7 @@ def test_can_error_frames_show_in_status(tmp_path: Path) -> None:
             text = format_status(status_reply(loop=info))
             assert "3 CAN error frames" in text
         finally:
-            supervisor.shutdown()
+            lifecycle.shutdown(supervisor)
 
 
 def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer, Path]) -> None:
@@ -612,7 +612,7 @@ def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer
     from supervisord.cli.control import format_status  # noqa: PLC0415
 
     supervisor, _peer, _path = rig
-    supervisor.start()
+    lifecycle.start(supervisor)
     info = supervisor.snapshot(0)
     assert info.link.error_frames is None
     assert "error frame" not in format_status(status_reply(loop=info))

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from supervisord.api.server import ApiServer, ServerConfig
+from supervisord.daemon import lifecycle
 from supervisord.daemon.api_listener import ApiListener
 from supervisord.daemon.loop import Supervisor
 from supervisord.links.base import Backoff
@@ -96,7 +97,7 @@ def api_rig(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, ManualClock, 
         clock=clock,
     )
     yield supervisor, VscPeer(port, clock=clock.seconds), clock, sock
-    supervisor.shutdown()
+    lifecycle.shutdown(supervisor)
     port.close()
 
 
@@ -128,7 +129,7 @@ def test_the_whole_loop_runs_on_a_clock_hours_from_the_real_one(
     by the real clock; a client's heartbeat age in ``status`` is the loop's clock too."""
     supervisor, peer, clock, path = api_rig
     assert clock() - START_OFFSET_NS > 0
-    supervisor.start()
+    lifecycle.start(supervisor)
     client = _connect(path)
     client.sendall(b'{"op":"hello","name":"nav","id":1}\n')
     replies: list[dict[str, Any]] = []

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from supervisord.daemon import lifecycle
 from supervisord.daemon.loop import Supervisor
 from supervisord.outputs.sim import SimOutput
 from supervisord.protocol.codes import VscMode
@@ -31,7 +32,7 @@ def test_a_stop_by_the_reflex_is_timed_and_read_back_as_the_full_steps(
     stop-to-off histogram, and its read-backs reach the core: a power output stuck on is
     ``output_fault`` although the full step never writes it again."""
     supervisor, peer, tmp = rig
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     lamp = supervisor.outputs["lamp"]
     assert isinstance(lamp, SimOutput)
@@ -56,7 +57,7 @@ def test_a_failing_reflex_leaves_the_stop_to_the_full_step(
     """SR-9.5, SR-8.7: a reflex that raises is logged and changes nothing else: the full step
     stops the robot, every output off, no internal fault and no output fault."""
     supervisor, peer, tmp = rig
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     assert supervisor.core is not None
 

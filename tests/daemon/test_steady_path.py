@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from supervisord.daemon import lifecycle
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
@@ -96,7 +97,7 @@ def sides(tmp_path: Path) -> Iterator[tuple[Side, Side]]:
     )
     yield pair
     for one in pair:
-        one.supervisor.shutdown()
+        lifecycle.shutdown(one.supervisor)
         one.port.close()
 
 
@@ -139,7 +140,7 @@ def test_the_steady_path_does_what_the_full_path_does(sides: tuple[Side, Side], 
 
     steady.supervisor._apply_full = counted  # type: ignore[method-assign]
     for one in sides:
-        one.supervisor.start()
+        lifecycle.start(one.supervisor)
     now = steady.clock.now
     for _ in range(1200):
         if rng.random() < 0.03:  # the VSC changes what its heartbeats say, or falls silent

@@ -11,6 +11,7 @@ from typing import cast
 import pytest
 
 from supervisord.api.views import histogram_status
+from supervisord.daemon import lifecycle
 from supervisord.daemon.loop import Supervisor
 from supervisord.histogram import (
     HEARTBEAT_BOUNDS_NS,
@@ -112,7 +113,7 @@ def timed(tmp_path: Path) -> Iterator[tuple[Supervisor, VscPeer, ManualClock]]:
         clock=clock,
     )
     yield supervisor, VscPeer(port, clock=clock.seconds), clock
-    supervisor.shutdown()
+    lifecycle.shutdown(supervisor)
     port.close()
 
 
@@ -132,7 +133,7 @@ def test_status_carries_the_heartbeat_periods_the_loop_saw(
     is 50 ms (within the test clock's 1 us rounding, so in the 55 ms bucket and past the
     45 ms one); the user heartbeat (20 Hz by default) is observed at 50 ms too (SR-5.1)."""
     supervisor, peer, _ = timed
-    supervisor.start()
+    lifecycle.start(supervisor)
     serve_for(supervisor, peer, 1.0)
     vsc = _histogram(supervisor, "vsc_heartbeat_period_seconds")
     count = cast(int, vsc["count"])
@@ -154,7 +155,7 @@ def test_heartbeats_read_together_are_one_period_never_a_zero(
     adds one 50 ms period per write: no period of 0, and the periods add up to the time
     between the first and the last read."""
     supervisor, peer, _ = timed
-    supervisor.start()
+    lifecycle.start(supervisor)
     serve_for(supervisor, peer, 0.3)
     before = _histogram(supervisor, "vsc_heartbeat_period_seconds")
     first = supervisor.timings.last_vsc_heartbeat_ns
@@ -179,7 +180,7 @@ def test_a_remote_estop_is_one_stop_to_off_observation(
     stamp to the output write's return: here the write takes 3 ms of the loop's clock, so it
     lands in the 5 ms bucket and not the 2 ms one (SR-6: measured after the write)."""
     supervisor, peer, _ = timed
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     before = _histogram(supervisor, "stop_to_off_seconds")
     peer.mode, peer.estop = VscMode.LOCAL, 1
@@ -199,7 +200,7 @@ def test_a_link_timeout_stop_counts_from_the_deadline(
     """A stop at the VSC link timeout (SR-2.2) is measured from the deadline, so the loop's
     wake-up counts: the 3 ms write gives one observation of at least 3 ms."""
     supervisor, peer, _ = timed
-    supervisor.start()
+    lifecycle.start(supervisor)
     _arm(supervisor, peer)
     before = _histogram(supervisor, "stop_to_off_seconds")
     peer.silent = True
