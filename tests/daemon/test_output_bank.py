@@ -40,6 +40,16 @@ def level(tmp_path: Path, name: str) -> str:
     return (tmp_path / name).read_text().strip()
 
 
+def drive_and_lights(tmp_path: Path) -> tuple[FakeClock, StopTimes, OutputBank]:
+    """A bank of two simulated outputs, ``drive`` and ``lights``, opened on a fake clock, with
+    its stop times: built in the test's body, where the mutation runner traces it."""
+    clock = FakeClock(START_NS)
+    times = StopTimes()
+    bank = OutputBank([sim(tmp_path, "drive"), sim(tmp_path, "lights")], clock, times)
+    bank.open(clock())
+    return clock, times, bank
+
+
 @pytest.fixture
 def rig() -> Rig:
     """The core of a robot with a motion output ``drive`` and a power output ``lights``."""
@@ -124,11 +134,7 @@ def test_the_reflexs_writes_are_the_stopping_decisions_own_and_time_the_stop(
     off before the core is fed it; the steady test fails while those writes wait; the stop's
     decision writes nothing more, takes their read-backs, their times to off go to the stop
     times, and the stop is off when the reflex's last write returned."""
-    clock = FakeClock(START_NS)
-    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
-    times = StopTimes()
-    bank = OutputBank([drive, lights], clock, times)
-    bank.open(clock())
+    clock, times, bank = drive_and_lights(tmp_path)
     rig.bring_up()
     rig.advance(20)
     clock.advance_to(rig.now)
@@ -336,11 +342,7 @@ def test_a_stop_without_the_reflex_is_off_when_the_decisions_last_write_returned
     """SR-12.1, SR-9.2: a stop the reflex did not write (the decision's own off writes) is
     timed by those writes: each output's time to off is when its write returned, after it."""
     rig = Rig()
-    clock = FakeClock(START_NS)
-    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
-    times = StopTimes()
-    bank = OutputBank([drive, lights], clock, times)
-    bank.open(clock())
+    clock, times, bank = drive_and_lights(tmp_path)
     bank.apply(rig.bring_up(), stopping=False)
     stop = rig.vsc(OPERATIONAL, REMOTE_ESTOP)
     assert stop.state is State.STOPPED
@@ -361,11 +363,7 @@ def test_only_an_off_write_times_a_stop(tmp_path: Path) -> None:
     off outside any decision by the loop's internal fault, then set on by the core's levels)
     is not counted off, nor faulted, by that on write: its later off write times it."""
     rig = Rig()
-    clock = FakeClock(START_NS)
-    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
-    times = StopTimes()
-    bank = OutputBank([drive, lights], clock, times)
-    bank.open(clock())
+    clock, times, bank = drive_and_lights(tmp_path)
     running = rig.bring_up()
     bank.apply(running, stopping=False)
     stop = rig.vsc(OPERATIONAL, REMOTE_ESTOP)
@@ -390,11 +388,7 @@ def test_a_stop_the_reflex_wrote_in_part_is_off_when_the_decisions_last_write_re
     switches the power output off too: the stop is off when that later write returned, not
     the reflex's; each output keeps its own time to off."""
     rig = Rig()
-    clock = FakeClock(START_NS)
-    drive, lights = sim(tmp_path, "drive"), sim(tmp_path, "lights")
-    times = StopTimes()
-    bank = OutputBank([drive, lights], clock, times)
-    bank.open(clock())
+    clock, times, bank = drive_and_lights(tmp_path)
     rig.bring_up()
     rig.advance(20)
     clock.advance_to(rig.now)
