@@ -406,4 +406,17 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "when due equals deadline, the original keeps deadline and the mutant sets deadline to "
         "due: the same value, and deadline is all the function returns (as _LATER_EQUAL)",
     ),
+    Equivalent(
+        "daemon/lifecycle.py",
+        "start",
+        "decision = loop.decision or core.decision  # the last applied (never None here)",
+        "decision = loop.decision and core.decision  # the last applied (never None here)",
+        "after loop.begin(core) loop.decision is a Decision (begin applies core.decision, and "
+        "_finish sets loop.decision to it, None before; a Decision is always true), so the "
+        "original gives loop.decision and the mutant core.decision; these are one object: "
+        "every decision the loop applies comes from the core, the last applied is the last "
+        "the core made (Supervisor._apply applies the read-backs' decisions in the order fed, "
+        "to the last), and core.decision is the last it made "
+        "(test_the_start_says_ready_only_with_the_outputs_off_and_the_link_open asserts both)",
+    ),
 )
