@@ -7,6 +7,7 @@ from pathlib import Path
 
 from supervisord.daemon.listener import Listener
 from supervisord.daemon.loop import Supervisor
+from supervisord.daemon.notify import Notifier
 from supervisord.daemon.parts import Parts
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import Output, create_output, parse_output_spec
@@ -63,4 +64,32 @@ def test_the_loop_holds_of_its_own_only_the_core_and_its_last_decision(tmp_path:
     assert set(vars(supervisor)) == set(vars(parts))
     assert (supervisor.core, supervisor.decision) == (None, None)
     supervisor.waiter.close()
+    parts.waiter.close()
+
+
+def test_the_listener_the_notifier_and_the_release_handed_over_are_the_ones_used(
+    tmp_path: Path,
+) -> None:
+    """srcsd's assembly hands over the API's listener, systemd's notifier (SR-0.2) and what
+    the link must release (a CAN bus it owns, SR-6.6): each part holds the very one given,
+    not an empty default in its place."""
+    listener = Listener()
+    notifier = Notifier({})
+    released: list[str] = []
+
+    def release() -> None:
+        released.append("bus")
+
+    parts = Parts(
+        _safety(),
+        SerialLink(str(tmp_path / "vsc")),
+        _outputs(),
+        None,
+        listener=listener,
+        notifier=notifier,
+        release=[release],
+    )
+    assert parts.listener is listener
+    assert parts.service.notifier is notifier
+    assert parts.port.release == (release,)
     parts.waiter.close()
