@@ -21,6 +21,7 @@ import pytest
 from supervisord.api.server import ApiServer, ServerConfig
 from supervisord.daemon import lifecycle
 from supervisord.daemon.api_listener import ApiListener
+from supervisord.daemon.listener import Listener
 from supervisord.daemon.loop import Supervisor
 from supervisord.daemon.maintenance import PeriodicTest
 from supervisord.daemon.notify import Notifier
@@ -28,13 +29,14 @@ from supervisord.links.base import Backoff
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.record.jsonl import RecordWriter
+from supervisord.record.stop import StopRecord
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.transitions import State
 from supervisord.sim.pty import PtyPort
 
 
 def _loop(
-    tmp_path: Path, notifier: Notifier | None = None, listener: ApiListener | None = None
+    tmp_path: Path, notifier: Notifier | None = None, listener: Listener | None = None
 ) -> Supervisor:
     drive = parse_output_spec("drive", {"kind": "sim", "path": str(tmp_path / "drive")})
     return Supervisor(
@@ -155,19 +157,47 @@ def test_the_shutdown_says_stopping_turns_an_output_on_off_releases_it_and_the_a
         raise AssertionError("the API's socket still accepts after the shutdown")
 
 
+class _Subscriber(Listener):
+    """A listener that keeps the records handed to it, as the API pushes them to a
+    subscriber (SR-7.4)."""
+
+    def __init__(self) -> None:
+        self.records: list[StopRecord] = []
+
+    def recorded(self, record: StopRecord) -> None:
+        self.records.append(record)
+
+
+def test_the_records_drained_at_the_shutdown_are_pushed_with_the_shutdown_stop(
+    tmp_path: Path,
+) -> None:
+    """SR-7.4, SR-7.7, SR-7.14: the records the drain at exit finishes, the shutdown's own
+    among them, are handed on to subscribers, not only written to the file."""
+    subscriber = _Subscriber()
+    with PtyPort(tmp_path / "vsc"):
+        supervisor = _loop(tmp_path, listener=subscriber)
+        lifecycle.start(supervisor)
+        lifecycle.request_stop(supervisor, signal.SIGTERM)
+        lifecycle.shutdown(supervisor)
+    assert subscriber.records
+    assert "SIGTERM" in repr(subscriber.records[-1])
+
+
 def _sigterm_once_running(
     supervisor: Supervisor, installed_before: object, seen: dict[str, bool]
 ) -> None:
     """SIGTERM to this process once ``run`` has installed its handler and started (a SIGTERM
     before would end pytest itself), and log lines go through the sink and the heap is
-    frozen (or 10 s passed)."""
+    frozen and the loop has turned (or 10 s passed)."""
     end = time.monotonic() + 10.0
     while time.monotonic() < end:
         if signal.getsignal(signal.SIGTERM) is not installed_before and supervisor.decision:
             root = logging.getLogger().handlers
             seen["captured"] = any(type(h).__name__ == "_QueueHandler" for h in root)
             seen["frozen"] = gc.get_freeze_count() > 0
-            if (seen["captured"] and seen["frozen"]) or time.monotonic() > end - 1.0:
+            # A turn watches the open link in its wait (the start does not).
+            seen["turned"] = supervisor.waiter.link_fd is not None
+            if all(seen.values()) or time.monotonic() > end - 1.0:
                 os.kill(os.getpid(), signal.SIGTERM)
                 return
         time.sleep(0.01)
@@ -194,7 +224,7 @@ def test_sigterm_ends_the_run_with_the_outputs_off_and_the_shutdown_recorded(
         finally:
             sender.join()
             gc.unfreeze()  # a test runner goes on allocating and dropping (heap.settle)
-    assert seen == {"captured": True, "frozen": True}
+    assert seen == {"captured": True, "frozen": True, "turned": True}
     assert "SIGTERM: stopping, every output off" in caplog.text
     assert status == 0
     assert signal.getsignal(signal.SIGTERM) is before
