@@ -419,4 +419,22 @@ EQUIVALENT: tuple[Equivalent, ...] = (
         "to the last), and core.decision is the last it made "
         "(test_the_start_says_ready_only_with_the_outputs_off_and_the_link_open asserts both)",
     ),
+    Equivalent(
+        "daemon/deadlines.py",
+        "next_deadline",
+        "if watchdog is not None and watchdog < deadline:",
+        "if watchdog is not None and watchdog <= deadline:",
+        "when the watchdog's time equals deadline, the original keeps deadline and the mutant "
+        "sets deadline to the watchdog's time: the same value, and deadline is all the "
+        "function returns (as _LATER_EQUAL)",
+    ),
+    Equivalent(
+        "daemon/deadlines.py",
+        "next_deadline",
+        "if listener_deadline is not None and listener_deadline < deadline:",
+        "if listener_deadline is not None and listener_deadline <= deadline:",
+        "when the listener's deadline equals deadline, the original keeps deadline and the "
+        "mutant sets deadline to the listener's: the same value, and deadline is all the "
+        "function returns (as _LATER_EQUAL)",
+    ),
 )

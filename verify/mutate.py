@@ -88,6 +88,9 @@ DAEMON_TARGETS = tuple(
         "output_bank.py",
         "parts.py",
         "lifecycle.py",
+        "deadlines.py",
+        "internal_fault.py",
+        "answer.py",
     )
 )
 """The parts the daemon's loop composes (``--daemon``), named by their path under supervisord/:

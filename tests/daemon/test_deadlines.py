@@ -7,12 +7,15 @@ them: ``tests/daemon/test_loop.py`` (fairness, deadlines, reopen).
 Mutants planted in ``deadlines.py`` and caught here: each of the five sources dropped (the
 bank's, the reopen's, the poll's, the watchdog's, the listener's), ``<`` for the watchdog or
 the listener turned ``>``, the poll's ``now +`` dropped, the clock read with no core deadline,
-``>=`` turned ``>`` at the core's deadline, the link's readiness not asked.
+``>=`` turned ``>`` at the core's deadline, the link's readiness not asked, the question
+waiting for the link (``select``'s timeout 0 turned 1).
 """
 
 from __future__ import annotations
 
 import os
+import threading
+import time
 import tty
 from collections.abc import Iterator
 from pathlib import Path
@@ -152,3 +155,50 @@ def test_the_stop_path_waits_when_the_cores_deadline_has_come_or_the_link_has_by
     assert stop_path_waits(clock, None, link)
     link.close()
     assert not stop_path_waits(clock, None, link)  # closed: nothing to read
+
+
+def _sleeps_in_select_over(tid: int, fd: int) -> bool:
+    """Whether thread ``tid`` of this process sleeps in ``select`` over descriptors up to
+    ``fd`` (the kernel shows a thread's system call and its first argument, here ``nfds``,
+    only while the thread sleeps in it; a running thread shows ``running``)."""
+    try:
+        fields = Path(f"/proc/self/task/{tid}/syscall").read_text().split()
+    except OSError:  # the thread ended
+        return False
+    return len(fields) > 1 and fields[1] == hex(fd + 1)
+
+
+def test_the_stop_paths_question_looks_at_the_link_and_does_not_wait_for_it(
+    pty_link: tuple[SerialLink, int],
+) -> None:
+    """SR-10.1, SR-9.4: asked between two clients, the question looks at the link as it is
+    and returns; it never waits for the VSC's bytes (a wait there holds the clients behind it
+    and the core's deadline). A watcher thread sends the VSC's frame only once the asking
+    thread sleeps in ``select`` over the link: a question that does not wait never sleeps
+    there (a timeout of 0), so the frame is not sent and the answer is no."""
+    link, vsc = pty_link
+    fd = link.fileno()
+    assert fd is not None
+    asker = threading.get_native_id()
+    watching, asked = threading.Event(), threading.Event()
+    sent: list[bool] = []
+
+    def watch() -> None:
+        watching.set()
+        while not asked.is_set():
+            if _sleeps_in_select_over(asker, fd):
+                os.write(vsc, encode_frame(VscHeartbeat(OPERATIONAL)))
+                sent.append(True)
+                return
+            time.sleep(0.0005)
+
+    watcher = threading.Thread(target=watch, name="watcher")
+    watcher.start()
+    watching.wait()
+    try:
+        waits = stop_path_waits(Reads(START_NS), None, link)
+    finally:
+        asked.set()
+        watcher.join()
+    assert sent == []
+    assert not waits
