@@ -12,13 +12,22 @@ in nanoseconds instead of milliseconds.
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import pytest
 
+from supervisord.daemon import lifecycle
 from supervisord.daemon.internal_fault import OVERRUN_NS, failed, late
+from supervisord.daemon.loop import Supervisor
 from supervisord.daemon.loop_status import Counters
+from supervisord.links.base import Backoff
+from supervisord.links.serial_link import SerialLink
+from supervisord.outputs import create_output, parse_output_spec
+from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
 from supervisord.safety.events import InternalFault
+from supervisord.sim.pty import PtyPort
 from supervisord.timebase import NS_PER_MS
+from tests.daemon.test_loop import ManualClock
 
 
 class Mute(Exception):
@@ -50,3 +59,38 @@ def test_a_turn_that_raised_is_counted_logged_and_said(caplog: pytest.LogCapture
     assert line.exc_info[0] is ValueError
     assert failed(8, Mute(), counters) == InternalFault(8, "Mute")  # fail safe: still a fault
     assert counters.internal_faults == 2
+
+
+def _started_loop(tmp_path: Path, clock: ManualClock) -> tuple[Supervisor, PtyPort]:
+    """A real loop on a pty VSC (silent) and a sim output, started on ``clock``."""
+    port = PtyPort(tmp_path / "vsc")
+    supervisor = Supervisor(
+        SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+        SerialLink(str(port.path)),
+        [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+        None,
+        backoff=Backoff(first_ms=20, max_ms=100),
+        clock=clock,
+    )
+    lifecycle.start(supervisor)
+    return supervisor, port
+
+
+@pytest.mark.parametrize(("late_ms", "internal"), [(250, False), (251, True)])
+def test_the_loop_is_at_fault_only_past_250_ms_after_the_cores_deadline(
+    tmp_path: Path, late_ms: int, internal: bool
+) -> None:
+    """SR-2.9 (docs/safety.md "The loop woke more than 250 ms late"): a loop that wakes
+    250 ms after the core's deadline is still on time, one that wakes 251 ms after it has
+    overrun and stops for ``internal``. The loop's manual clock puts the wake exactly there."""
+    clock = ManualClock()
+    supervisor, port = _started_loop(tmp_path, clock)
+    try:
+        assert supervisor.decision is not None
+        assert supervisor.decision.cause("internal") is None
+        clock.now = supervisor.decision.next_deadline + late_ms * NS_PER_MS
+        supervisor.step()
+        assert (supervisor.decision.cause("internal") is not None) is internal
+    finally:
+        lifecycle.shutdown(supervisor)
+        port.close()
