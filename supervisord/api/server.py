@@ -430,7 +430,7 @@ class ApiServer:
         # No lookup wakes the loop (SR-10.7): while one is out and someone is connected (a
         # connection may wait for that name), the loop looks at its own deadline, every
         # NAME_POLL_NS, kept across the turns in between (a busy loop still gets there).
-        if not self._names.waiting() or not self._connections:
+        if not self._connections or not self._names.waiting():  # no call in a turn alone
             self._names_look_at = None
         elif self._names_look_at is None:
             self._names_look_at = now + NAME_POLL_NS
