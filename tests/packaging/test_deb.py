@@ -10,7 +10,6 @@ system tier installs it in its guest, docs/system-tier.md)."""
 from __future__ import annotations
 
 import gzip
-import importlib.util
 import os
 import re
 import shlex
@@ -18,11 +17,11 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 
 from supervisord.config import toml
+from tests.packaging import build_script
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCHERS = ("srcsd", "srcsctl", "srcs-sim", "srcs-exporter", "srcs-fleet-agent")
@@ -542,16 +541,6 @@ def test_changelog_and_maintainer(deb: Path, unpacked: Path) -> None:
     assert "root@" not in maintainer
 
 
-def _build_deb() -> ModuleType:
-    """packaging/build_deb.py as a module, for its copyright check."""
-    spec = importlib.util.spec_from_file_location("build_deb", ROOT / "packaging/build_deb.py")
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_copyright_covers_every_bundled_distribution(unpacked: Path) -> None:
     """SR-0.2: the copyright file is machine-readable (DEP-5), names each distribution bundled
     in the environment in a paragraph with its licence, and gives every licence's text or the
@@ -580,7 +569,7 @@ def test_copyright_covers_every_bundled_distribution(unpacked: Path) -> None:
             assert licence is not None, paragraph
             names = re.split(r" or | and ", licence[1])
             assert licence[2].strip() or set(names) <= texts, paragraph
-    build_deb = _build_deb()
+    build_deb = build_script.build_deb()
     build_deb.check_copyright(site, text)
     without = re.sub(r"\n\nFiles: [^\n]*/wrapt/\*.*?(?=\n\n)", "", text, flags=re.DOTALL)
     assert "Distribution: wrapt" not in without

@@ -11,23 +11,19 @@ child is asked for.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+from tests.packaging import build_script
 
 ROOT = Path(__file__).resolve().parents[2]
 PROBE = "import os, sys\n\ndef main():\n    print(sys.argv[1:], os.getpid())\n    return 0\n"
 
 
 def _launcher_text() -> str:
-    spec = importlib.util.spec_from_file_location("build_deb", ROOT / "packaging/build_deb.py")
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return str(module.LAUNCHER).format(
+    return str(build_script.build_deb().LAUNCHER).format(
         name="probe", package="srcs-supervisord", module="probe", function="main"
     )
 
