@@ -4,7 +4,11 @@ path first").
 
 The flood is a separate process that keeps the socket full: hold/release pairs and every
 other request a client may send, written as fast as the socket takes them, its replies read
-as they come (so the daemon never drops it for unread output). The user heartbeats are read
+as they come. It keeps at most two batches of requests unanswered (about 180 KiB of replies
+and pushes at most), so the daemon never drops it for output it left unread (256 KiB,
+docs/api.md) even when the machine starves the flood itself: the daemon always has a batch
+to read, and what is measured is the daemon under a flood, not a flooder that stopped
+reading. The user heartbeats are read
 on the simulator's side: a second control connection samples the VSC's age of the last user
 heartbeat every few milliseconds, and the VSC's own watchdog bit (``user_timeout``)."""
 
@@ -48,13 +52,14 @@ sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
 sock.connect(sys.argv[1])
 sock.sendall(b'{"op": "hello", "name": "flood"}\n')
 sock.setblocking(False)
+per_batch = batch.count(b"\n")
 out = bytearray()
-sent = replies = 0
+sent, replies, answered, partial = 1, 0, 0, b""
 print("flooding", flush=True)
 while True:
-    if len(out) < 65536:
+    if not out and sent - answered < per_batch:
         out += batch
-    readable, writable, _ = select.select([sock], [sock], [], 0.05)
+    readable, writable, _ = select.select([sock], [sock] if out else [], [], 0.05)
     if writable:
         try:
             n = sock.send(out)
@@ -65,9 +70,12 @@ while True:
     if readable:
         data = sock.recv(1 << 20)
         if not data:
-            print(f"closed after {sent} requests, {replies} replies", flush=True)
+            print(f"closed after {sent} requests, {replies} lines", flush=True)
             break
         replies += data.count(b"\n")
+        lines = (partial + data).split(b"\n")
+        partial = lines.pop()
+        answered += sum(line.startswith(b'{"ok"') for line in lines)  # pushes have "event"
 """
 
 
