@@ -112,7 +112,7 @@ directory."""
 
 def _named(found: list[tuple[str, int]]) -> bool:
     names = [comm for comm, _policy in found]
-    return STARTED_EVERYWHERE <= set(names) and names.count(LOOP_NAME) == 1
+    return set(names) >= STARTED_EVERYWHERE and names.count(LOOP_NAME) == 1
 
 
 def settle(daemon: SrcsdProcess, log: Path) -> None:
@@ -144,7 +144,7 @@ def test_every_thread_is_named_and_only_the_loop_is_real_time(
     assert len(found) == len(listed), listed  # no two threads share a name
     assert found.pop(LOOP_NAME) == os.SCHED_FIFO, found
     assert set(found) <= THREAD_NAMES, found
-    assert STARTED_EVERYWHERE <= set(found), found
+    assert set(found) >= STARTED_EVERYWHERE, found
     assert all(policy == os.SCHED_OTHER for policy in found.values()), found
     text = log.read_text()
     # SCHED_RESET_ON_FORK is or'ed into the policy: still real time (SR-0.4's line).
