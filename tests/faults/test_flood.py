@@ -8,9 +8,9 @@ as they come. It keeps at most two batches of requests unanswered (about 180 KiB
 and pushes at most), so the daemon never drops it for output it left unread (256 KiB,
 docs/api.md) even when the machine starves the flood itself: the daemon always has a batch
 to read, and what is measured is the daemon under a flood, not a flooder that stopped
-reading. The user heartbeats are read
-on the simulator's side: a second control connection samples the VSC's age of the last user
-heartbeat every few milliseconds, and the VSC's own watchdog bit (``user_timeout``)."""
+reading. The user heartbeats are read on the simulator's side: a second control connection
+samples the VSC's age of the last user heartbeat every few milliseconds, and the VSC's own
+watchdog bit (``user_timeout``)."""
 
 from __future__ import annotations
 
@@ -72,9 +72,9 @@ while True:
         if not data:
             print(f"closed after {sent} requests, {replies} lines", flush=True)
             break
-        replies += data.count(b"\n")
         lines = (partial + data).split(b"\n")
         partial = lines.pop()
+        replies += len(lines)
         answered += sum(line.startswith(b'{"ok"') for line in lines)  # pushes have "event"
 """
 
