@@ -59,6 +59,8 @@ STARVED_S = 0.5
 link-loss deadline is 1 s and the proof test's 700 ms (docs/system-tier.md)."""
 ROOT_DEVICE = "/dev/vda"  # the one virtual disk of a boot (tests/system/init, srcs.upper=)
 BUDGET_GROWTH_LIMIT = 3.0  # a boot's budget grows with the starvation up to this factor
+BUDGET_S = 1200  # a scenario boot's guest time
+JUDGED_BUDGET_S = 1800  # judged: the monitors' and the verdicts' cost (docs/system-tier.md)
 
 
 class Starvation:
@@ -299,9 +301,10 @@ def systemd_boot(vm: Vm, suite: str, unit: str = "srcs-system-tier.target") -> s
     a = vm.args
     prep = Path(a.repo, "tests/system/guest/prep")
     chosen = f" srcs.scenarios={a.scenarios}" if a.scenarios and suite == "main" else ""
+    judged = " srcs.judge" if a.judge else ""
     return (
         f"srcs.mode=systemd srcs.prep={prep} systemd.unit={unit} "
-        f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}{chosen}"
+        f"srcs.suite={suite} srcs.repo={a.repo} srcs.python={a.python}{chosen}{judged}"
     )
 
 
@@ -316,6 +319,11 @@ def main() -> int:
     )
     parser.add_argument(
         "--scenarios", help="comma-separated names: only these of the main boot (install runs)"
+    )
+    parser.add_argument(
+        "--judge",
+        action="store_true",
+        help="the kernel has the rtapp monitors: judge every scenario (guest/judge.py)",
     )
     args = parser.parse_args()
     vm = Vm(args)
@@ -350,7 +358,7 @@ def scenario_boot(
 ) -> Boot:
     """A boot whose guest plans scenarios and reports each: every planned one without a result
     counts as failed, and a boot that planned nothing fails as ``suite``."""
-    boot = vm.boot(append, disk=disk, timeout=1200)
+    boot = vm.boot(append, disk=disk, timeout=JUDGED_BUDGET_S if vm.args.judge else BUDGET_S)
     for name in boot.plan:
         outcomes[name] = False
     for result in boot.results:

@@ -12,6 +12,7 @@ usage: scenarios.py                         the suite named by srcs.suite= (main
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import grp
 import itertools
 import json
@@ -37,6 +38,8 @@ from supervisord.protocol.j1939 import CanId
 from supervisord.record.jsonl import BadLine, BadLineReason, RecordWriter, read_records
 from supervisord.safety.core import TAKEOVER_DWELL_NS
 from supervisord.sim.process import SimError, SimProcess
+from tests.system import rv
+from tests.system.guest import judge
 from tests.system.guest.gadget import BOOTLOADER, PRODUCT, REPORT_DESCRIPTOR, Gadget, free_udc
 
 MARKER = Path("/.srcs-system-tier")
@@ -869,6 +872,25 @@ def unit_rttime(unit: str) -> tuple[int, int]:
     return scheduling.soft_us, scheduling.hard_us
 
 
+@contextlib.contextmanager
+def spin_injected(unit: str, *triggers: Path) -> Iterator[None]:
+    """``unit`` with guest/spin's sitecustomize imported at its start (a drop-in that sets
+    PYTHONPATH): armed, but idle until one of its ``triggers`` names the process. The unit
+    is restarted without it afterwards."""
+    shutil.copytree(SPIN_SOURCE, SPIN_DIR, dirs_exist_ok=True)
+    SPIN_DROPIN.parent.mkdir(parents=True, exist_ok=True)
+    SPIN_DROPIN.write_text(f"[Service]\nEnvironment=PYTHONPATH={SPIN_DIR}\n")
+    try:
+        run("systemctl", "daemon-reload")
+        yield
+    finally:
+        for trigger in triggers:
+            trigger.unlink(missing_ok=True)
+        SPIN_DROPIN.unlink(missing_ok=True)
+        subprocess.run(["systemctl", "daemon-reload"], check=False)
+        subprocess.run(["systemctl", "restart", unit], check=False)
+
+
 def realtime_probe(restrict: bool) -> str:
     """A transient unit as root with the srcsd unit's policy, with or without
     RestrictRealtime=yes: its policy, priority, and whether it may raise its priority."""
@@ -894,11 +916,7 @@ def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
     check(free == f"{os.SCHED_FIFO} 10 allowed", f"RestrictRealtime=no probe: {free}")
     # The start limit counts the earlier scenarios' starts (none when run alone: not loaded).
     subprocess.run(["systemctl", "reset-failed", unit], check=False, capture_output=True)
-    shutil.copytree(SPIN_SOURCE, SPIN_DIR, dirs_exist_ok=True)
-    SPIN_DROPIN.parent.mkdir(parents=True, exist_ok=True)
-    SPIN_DROPIN.write_text(f"[Service]\nEnvironment=PYTHONPATH={SPIN_DIR}\n")
-    try:
-        run("systemctl", "daemon-reload")
+    with spin_injected(unit, SPIN_TRIGGER):
         cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
         run("systemctl", "restart", unit)
         pid = main_pid(unit)
@@ -969,11 +987,6 @@ def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
         signal_line = next(
             (line.split(": ", 1)[-1] for line in told.splitlines() if "status=" in line), "?"
         )
-    finally:
-        SPIN_TRIGGER.unlink(missing_ok=True)
-        SPIN_DROPIN.unlink(missing_ok=True)
-        subprocess.run(["systemctl", "daemon-reload"], check=False)
-        subprocess.run(["systemctl", "restart", unit], check=False)
     return "FIFO 10 under RLIMIT_RTTIME; a spinning loop is ended by it, restarted STOPPED", {
         "threads (policy, priority)": threads,
         "RLIMIT_RTTIME at start (guest), for the spin (unit) us": [started, limits],
@@ -982,6 +995,136 @@ def scenario_rttime(bench: Bench) -> tuple[str, Measured]:
         "how it ended": signal_line,
         "longest wait of an ordinary process meanwhile s": round(max(gaps, default=0), 2),
         "gone to restarted and READY s": round(took, 2),
+    }
+
+
+# ------------------------------------------------------------------------ the kernel's judge
+
+ALLOW_LIST = Path(__file__).resolve().parents[3] / "docs" / "system-tier.md"
+RESULT_SHARE = Path("/srcs-out")  # the host's result folder (vm.py)
+SLEEP_TRIGGER = Path("/run/srcs-judge-sleep")  # guest/spin: a relative sleep in the loop
+SYS_PIDFD_OPEN, SYS_PROCESS_MADVISE = 434, 440  # x86_64, the judged kernel's architecture
+MADV_PAGEOUT = 21
+
+
+def judged(name: str) -> rv.Verdict:
+    """The kernel's verdict on the trace since ``judge.arm()``. Every violation is kept whole,
+    with its stack, in the result share (judge-NAME.txt, and the trace as the kernel wrote it
+    in judge-NAME.trace); a trace that lost events, or has
+    lines the judge cannot read, is no verdict and fails (SR-9.8)."""
+    text, lost = judge.take()
+    trace = rv.parse(text)
+    if trace.violations or trace.unreadable:  # the kernel's own lines too, as it wrote them
+        kept = "\n\n".join(violation.text() for violation in trace.violations)
+        (RESULT_SHARE / f"judge-{name}.txt").write_text(kept + "\n")
+        (RESULT_SHARE / f"judge-{name}.trace").write_text(text)
+    check(lost == 0, f"the kernel's trace lost {lost} events: no verdict")
+    check(trace.unreadable == 0, f"{trace.unreadable} lines of the trace unreadable: no verdict")
+    return rv.judge(trace.violations, rv.allow_list(ALLOW_LIST.read_text()))
+
+
+def scenario_judge_sleep(bench: Bench) -> tuple[str, Measured]:
+    """SR-9.8, the judge is live: a relative sleep planted in the real-time loop (guest/spin:
+    libc's nanosleep before every wait) is a ``sleep`` violation by srcsd that no row of the
+    allow-list explains, so the verdict on it fails."""
+    unit = bench.unit
+    with spin_injected(unit, SLEEP_TRIGGER):
+        cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
+        run("systemctl", "restart", unit)
+        pid = main_pid(unit)
+        wait_for("the injection armed", lambda: "srcs-spin: armed" in journal(unit, cursor), 60)
+        judge.arm()
+        SLEEP_TRIGGER.write_text(str(pid))
+        SLEEP_TRIGGER.chmod(0o644)
+        wait_for("the planted sleep", lambda: "srcs-spin: sleeping" in journal(unit, cursor), 60)
+        time.sleep(2.0)
+        verdict = judged("judge_sleep")
+    judge.arm()  # the daemon without the plant is judged as any scenario's is
+    planted = [v for v in verdict.unexplained if v.monitor == "sleep" and v.task == "srcsd"]
+    check(bool(planted), f"the planted sleep was not judged a violation: {verdict.summary()}")
+    in_sleep = [v for v in planted if any("nanosleep" in frame for frame in v.stack)]
+    check(bool(in_sleep), f"no violation in nanosleep: {[v.cause for v in planted]}")
+    return "a relative sleep planted in the loop: sleep violations by srcsd, unexplained", {
+        "sleep violations by srcsd in 2 s": len(planted),
+        "of them in nanosleep": len(in_sleep),
+        "the kernel's path": in_sleep[0].cause,
+        "verdict": verdict.summary(),
+    }
+
+
+def page_out(pid: int) -> tuple[int, int]:
+    """Reclaim the file-backed pages of ``pid``, as memory pressure does (``process_madvise``
+    with MADV_PAGEOUT; pages that other processes map too are left, as the kernel leaves
+    them). Returns (bytes paged out, mappings refused): the kernel refuses a locked mapping."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.syscall.restype = ctypes.c_long
+
+    class Iovec(ctypes.Structure):
+        _fields_ = (("base", ctypes.c_void_p), ("length", ctypes.c_size_t))
+
+    pidfd = libc.syscall(SYS_PIDFD_OPEN, ctypes.c_int(pid), ctypes.c_uint(0))
+    check(pidfd >= 0, f"pidfd_open: {os.strerror(ctypes.get_errno())}")
+    paged, refused = 0, 0
+    try:
+        for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
+            fields = line.split(maxsplit=5)
+            if len(fields) < 6 or not fields[5].startswith("/"):
+                continue
+            start, end = (int(bound, 16) for bound in fields[0].split("-"))
+            iov = Iovec(start, end - start)
+            done = libc.syscall(
+                SYS_PROCESS_MADVISE, ctypes.c_int(pidfd), ctypes.byref(iov), ctypes.c_size_t(1),
+                ctypes.c_int(MADV_PAGEOUT), ctypes.c_uint(0),
+            )  # fmt: skip
+            if done < 0:
+                refused += 1
+            else:
+                paged += done
+    finally:
+        os.close(pidfd)
+    return paged, refused
+
+
+def faults_after_page_out(bench: Bench, lock: str) -> tuple[rv.Verdict, tuple[int, int]]:
+    """srcsd@gpio-a started with ``[realtime] lock_memory = lock``, judged from a fresh arm
+    while its pages are reclaimed twice, a second apart, in RUN."""
+    write_config(bench.instance, f'{GPIO_CONFIG}\n[realtime]\nlock_memory = "{lock}"\n')
+    run("systemctl", "restart", bench.unit)
+    pid = main_pid(bench.unit)
+    if state(bench.instance) != "RUN":
+        bench.to_run()
+    judge.arm()
+    first = page_out(pid)
+    time.sleep(1.0)
+    second = page_out(pid)
+    time.sleep(1.0)
+    check(main_pid(bench.unit) == pid, f"srcsd@gpio-a (lock_memory {lock}) restarted")
+    return judged(f"judge_pagefault-{lock}"), (first[0] + second[0], first[1] + second[1])
+
+
+def scenario_judge_pagefault(bench: Bench) -> tuple[str, Measured]:
+    """SR-9.6, SR-9.8, the judge is live: the loop without its memory lock, its pages taken by
+    reclaim, faults them back: a ``pagefault`` violation by srcsd that no row explains. With
+    the lock (the unit's default) the kernel refuses to reclaim them and the loop does not
+    fault: the lock is what the judge's silence rests on."""
+    try:
+        unlocked, (paged, _) = faults_after_page_out(bench, "off")
+        locked, (kept, refused) = faults_after_page_out(bench, "on")
+    finally:
+        write_config(bench.instance, GPIO_CONFIG)
+        run("systemctl", "restart", bench.unit)
+        judge.arm()  # the bench's own daemon again, judged as any scenario's is
+    faults = [v for v in unlocked.unexplained if v.monitor == "pagefault" and v.task == "srcsd"]
+    check(paged > 0, "no page of the unlocked daemon was reclaimed")
+    check(bool(faults), f"no page fault judged without the lock: {unlocked.summary()}")
+    locked_faults = [v for v in locked.unexplained if v.monitor == "pagefault"]
+    check(not locked_faults, f"the locked loop faulted: {locked.summary()}")
+    return "without its lock the loop faults on reclaimed pages and is judged; locked, not", {
+        "bytes reclaimed from the unlocked daemon": paged,
+        "pagefault violations by srcsd, unlocked": len(faults),
+        "the kernel's path": faults[0].cause,
+        "locked: bytes reclaimed, mappings refused": [kept, refused],
+        "verdict, locked": locked.summary(),
     }
 
 
@@ -2030,6 +2173,11 @@ MAIN: list[tuple[str, Scenario]] = [
     ("usb_latency", scenario_usb_latency),
     ("usb_hid", scenario_usb_hid),
 ]
+# Only on the judged kernel (tests/system/run --judge): the judge shown live, after rttime.
+JUDGE_LIVE: list[tuple[str, Scenario]] = [
+    ("judge_sleep", scenario_judge_sleep),
+    ("judge_pagefault", scenario_judge_pagefault),
+]
 # The reboot boots (vm.py): one disk, the robot installed and brought to RUN, a clean reboot,
 # then the same machine's cold boot to its default target.
 REBOOT_INSTALL: list[tuple[str, Scenario]] = [
@@ -2048,12 +2196,17 @@ def describe(error: BaseException) -> str:
 
 
 def selected() -> list[tuple[str, Scenario]]:
-    """MAIN, or the scenarios named by srcs.scenarios=a,b (vm.py --scenarios, for work on one)."""
+    """MAIN (with JUDGE_LIVE after rttime when judged), or the scenarios named by
+    srcs.scenarios=a,b (vm.py --scenarios, for work on one)."""
+    scenarios = list(MAIN)
+    if judge.wanted():
+        at = next(i for i, (name, _) in enumerate(scenarios) if name == "rttime") + 1
+        scenarios[at:at] = JUDGE_LIVE
     for arg in Path("/proc/cmdline").read_text().split():
         if arg.startswith("srcs.scenarios="):
             names = arg.split("=", 1)[1].split(",")
-            return [(name, scenario) for name, scenario in MAIN if name in names]
-    return MAIN
+            return [(name, scenario) for name, scenario in scenarios if name in names]
+    return scenarios
 
 
 def run_suite(scenarios: list[tuple[str, Scenario]], *, install_package: bool) -> int:
@@ -2065,13 +2218,20 @@ def run_suite(scenarios: list[tuple[str, Scenario]], *, install_package: bool) -
         install()
     bench = Bench()
     failed = 0
+    judging = judge.wanted()  # every scenario judged by the kernel's monitors (SR-9.8)
     try:
         for name, scenario in scenarios:
             log(f"scenario {name}")
             emit("START", {"name": name})  # the host times its starvation from here (vm.py)
             t0 = time.monotonic()
             try:
+                if judging:
+                    judge.arm()
                 detail, measured = scenario(bench)
+                if judging:
+                    verdict = judged(name)
+                    measured["the kernel's judge"] = verdict.summary()
+                    check(verdict.ok, f"the kernel's judge: {verdict.summary()}")
                 measured["scenario s"] = round(time.monotonic() - t0, 1)
                 emit("RESULT", {"name": name, "ok": True, "detail": detail, "measured": measured})
             except Exception as error:  # one scenario's failure is reported

@@ -11,28 +11,50 @@ process's PID, every wait from then on has a timeout of 0: the loop still serves
 outputs and systemd's watchdog, but it never blocks again, as a loop whose next deadline is
 always in the past would. Only RLIMIT_RTTIME can stop that (SR-9).
 
+The ``judge_sleep`` scenario (the kernel's judge, docs/system-tier.md) uses the same wrapper:
+when :data:`SLEEP_TRIGGER` holds this process's PID, every wait first sleeps 2 ms with
+``nanosleep`` (libc's relative sleep on CLOCK_REALTIME, the kind of sleep that gives no
+real-time guarantee; ``time.sleep`` would not do: since 3.11 it sleeps to an absolute
+deadline), which the kernel's ``sleep`` monitor must flag in the real-time loop (SR-9.8).
+
 At start it also asks for a higher SCHED_FIFO priority, once, and prints the answer to
 stderr (the journal): the unit's RestrictRealtime=yes must refuse it.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
 import select
 import sys
 from typing import Any
 
 TRIGGER = "/run/srcs-spin"
+SLEEP_TRIGGER = "/run/srcs-judge-sleep"
 _epoll = select.epoll
 _spinning = False
+_sleeping = False
 
 
-def _told() -> bool:
+class _Timespec(ctypes.Structure):
+    _fields_ = (("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long))
+
+
+_libc = ctypes.CDLL(None, use_errno=True)
+_TWO_MS = _Timespec(0, 2_000_000)
+
+
+def _told(path: str = TRIGGER) -> bool:
     try:
-        with open(TRIGGER) as trigger:
+        with open(path) as trigger:
             return trigger.read().strip() == str(os.getpid())
     except OSError:
         return False
+
+
+def _say(text: str) -> None:
+    print(f"srcs-spin: {text}", file=sys.stderr)
+    sys.stderr.flush()
 
 
 class _SpinningEpoll:
@@ -42,11 +64,15 @@ class _SpinningEpoll:
         self._real = _epoll(*args, **kwargs)
 
     def poll(self, timeout: float | None = None, maxevents: int = -1) -> list[tuple[int, int]]:
-        global _spinning  # noqa: PLW0603 -- one flag for the process
+        global _spinning, _sleeping  # noqa: PLW0603 -- one flag each for the process
         if not _spinning and _told():
             _spinning = True
-            print("srcs-spin: spinning from now on (every wait has timeout 0)", file=sys.stderr)
-            sys.stderr.flush()
+            _say("spinning from now on (every wait has timeout 0)")
+        if not _sleeping and _told(SLEEP_TRIGGER):
+            _sleeping = True
+            _say("sleeping 2 ms with nanosleep before every wait from now on")
+        if _sleeping:
+            _libc.nanosleep(ctypes.byref(_TWO_MS), None)
         return self._real.poll(0 if _spinning else timeout, maxevents)
 
     def __getattr__(self, name: str) -> Any:
