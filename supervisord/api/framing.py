@@ -25,6 +25,26 @@ DEFAULT_SOCKET_PATH: Final = Path("/run/srcsd/api.sock")
 socket"); the client connects there by default."""
 
 
+SOCKET_ADDRESS_MAX_BYTES: Final = 107
+"""The longest path a Unix socket address holds: ``sun_path`` is 108 bytes, the last the NUL."""
+PID_MAX_DIGITS: Final = 7
+"""The most digits a process ID has on Linux: ``pid_max`` is at most 4194304 (2^22)."""
+SOCKET_PATH_MAX_BYTES: Final = SOCKET_ADDRESS_MAX_BYTES - 2 - PID_MAX_DIGITS
+"""The longest socket path the config accepts (``api.socket``, ``api.operator_socket``): the
+server binds :func:`staging_socket_path` first, two dots and a process ID longer, and that name
+must fit a socket address too. A path the check accepts is one the daemon serves at, whatever
+its process ID (SR-8.1, SR-8.14; SR-11.2: never a check that passes and a start that fails with
+"AF_UNIX path too long")."""
+
+
+def staging_socket_path(path: Path, pid: int) -> Path:
+    """The private name the server binds and sets up a socket under before it links it into
+    place at ``path`` (SR-8.3: its mode and group are right before any client can connect):
+    ``api.sock`` gives ``.api.sock.PID`` beside it. At most ``2 + PID_MAX_DIGITS`` bytes
+    longer than ``path``, which :data:`SOCKET_PATH_MAX_BYTES` leaves room for."""
+    return path.with_name(f".{path.name}.{pid}")
+
+
 def operator_socket_path(client_socket: Path) -> Path:
     """The operator socket beside a client socket (SR-8.14, docs/api.md "The operator
     socket"), unless the config names one: ``api.sock`` gives ``api-operator.sock``."""

@@ -90,6 +90,7 @@ from supervisord.api.framing import (
     DEFAULT_SOCKET_PATH,
     ApiError,
     ErrorCode,
+    staging_socket_path,
 )
 from supervisord.api.names import NAME_POLL_NS, NAME_WAIT_NS, UserNames
 from supervisord.api.pushes import Push
@@ -983,8 +984,9 @@ def _listen(path: Path, mode: int, gid: int | None) -> tuple[socket.socket, tupl
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM | socket.SOCK_NONBLOCK)
     # Made under a private name and renamed into place once listening: a client that sees
     # the path can connect at once (no refusal between bind and listen), and the mode and
-    # group are right before anyone can (SR-8: not world-writable).
-    staging = path.with_name(f".{path.name}.{os.getpid()}")
+    # group are right before anyone can (SR-8: not world-writable). The private name is
+    # longer than the path: the config's limit leaves room for it (SR-11.2).
+    staging = staging_socket_path(path, os.getpid())
     made = False
     try:
         with contextlib.suppress(FileNotFoundError):

@@ -6,10 +6,11 @@ its safety values; they read them with :mod:`supervisord.config.client`, which m
 the safety core (SR-8.8). So what they share with the daemon's loader lives here, below the
 schema (:mod:`supervisord.config.schema`, which imports the core for the safety sections'
 choices): the declarations of these keys, the rules each obeys on its own (a relative path
-resolved against the config's directory, a socket's path short enough for a Unix socket
-address, the record's files regular files or nothing yet) and the names of the file's
-sections and of ``[api]``'s keys, so that a misspelt section or key is refused by both alike
-(tests/config/test_client_config.py holds them equal to the schema's).
+resolved against the config's directory, a socket's path short enough that the name the
+daemon binds it under first fits a Unix socket address, the record's files regular files or
+nothing yet) and the names of the file's sections and of ``[api]``'s keys, so that a misspelt
+section or key is refused by both alike (tests/config/test_client_config.py holds them equal
+to the schema's).
 """
 
 from __future__ import annotations
@@ -19,7 +20,13 @@ from pathlib import Path
 from typing import Final
 
 from supervisord import strict
-from supervisord.api.framing import DEFAULT_SOCKET_PATH, operator_socket_path
+from supervisord.api.framing import (
+    DEFAULT_SOCKET_PATH,
+    PID_MAX_DIGITS,
+    SOCKET_ADDRESS_MAX_BYTES,
+    SOCKET_PATH_MAX_BYTES,
+    operator_socket_path,
+)
 from supervisord.record.jsonl import (
     DEFAULT_FLIGHT_MAX_BYTES,
     DEFAULT_KEEP,
@@ -34,7 +41,13 @@ from supervisord.record.jsonl import (
 DEFAULT_RECORD_PATH: Final = "/var/lib/srcsd/stops.jsonl"
 DEFAULT_SOCKET: Final = str(DEFAULT_SOCKET_PATH)
 DEFAULT_OPERATOR_SOCKET: Final = str(operator_socket_path(DEFAULT_SOCKET_PATH))
-SOCKET_PATH_MAX_BYTES: Final = 107  # sun_path holds 108 bytes, the last one the NUL
+SOCKET_PATH_LIMIT: Final = (
+    f"at most {SOCKET_PATH_MAX_BYTES} bytes (a Unix socket address holds "
+    f"{SOCKET_ADDRESS_MAX_BYTES}, and the daemon first binds the socket under a name up to "
+    f"{2 + PID_MAX_DIGITS} bytes longer)"
+)
+"""A socket path's limit and why, as the refusals say it: the check refuses what the start
+could not bind (SR-11.2)."""
 
 RENAMED: Final[Mapping[str, str]] = {"log": "record", "class": "role", "rearm_hold_ms": "hold_ms"}
 """Names an integrator may try from older sketches, and the name this file uses instead."""
@@ -68,7 +81,8 @@ the default socket, another daemon's."""
 API_SOCKET: Final = strict.Text(
     name="socket",
     doc=f"The Unix socket for clients and srcsctl; at most {SOCKET_PATH_MAX_BYTES} bytes "
-    "once resolved against the config file's directory.",
+    "once resolved against the config file's directory (a Unix socket address's "
+    f"{SOCKET_ADDRESS_MAX_BYTES}, less room for the name the daemon binds it under first).",
     default=DEFAULT_SOCKET,
     not_dir=True,
     example=DEFAULT_SOCKET,
@@ -140,14 +154,14 @@ def file_path(fields: strict.Fields, key: strict.Text, base: Path) -> Path:
 
 def api_sockets(fields: strict.Fields, base: Path) -> tuple[Path, Path]:
     """``[api]``'s client socket and operator socket (the one beside the socket when the key
-    is absent), each resolved and no longer than a Unix socket address holds."""
+    is absent), each resolved and short enough that the daemon can bind it: its staging name
+    too must fit a Unix socket address (SR-8.1, SR-8.14, SR-11.2)."""
     socket = file_path(fields, API_SOCKET, base)
     if len(str(socket).encode()) > SOCKET_PATH_MAX_BYTES:
         raise fields.refuse(
             API_SOCKET.name,
             str(socket),
-            f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
-            f'socket address), e.g. "{API_SOCKET.default}"',
+            f'use a path of {SOCKET_PATH_LIMIT}, e.g. "{API_SOCKET.default}"',
         )
     operator = (
         file_path(fields, API_OPERATOR_SOCKET, base)
@@ -158,9 +172,8 @@ def api_sockets(fields: strict.Fields, base: Path) -> tuple[Path, Path]:
         raise fields.refuse(
             API_OPERATOR_SOCKET.name,
             str(operator),
-            f"use a path of at most {SOCKET_PATH_MAX_BYTES} bytes (the limit of a Unix "
-            "socket address); without the key it is the socket's path with -operator "
-            "before its suffix",
+            f"use a path of {SOCKET_PATH_LIMIT}; without the key it is the socket's path "
+            "with -operator before its suffix",
         )
     return socket, operator
 

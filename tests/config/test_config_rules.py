@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from supervisord import strict
+from supervisord.api.framing import SOCKET_PATH_MAX_BYTES
 from supervisord.config import (
     DEFAULT_CAN_BITRATE,
     DEFAULT_SERIAL_PORT,
@@ -586,7 +587,17 @@ def test_record(tmp_path: Path, changes: dict[str, object], key: str, fix: str) 
 
 
 API_CASES: list[Case] = [
-    ({"api.socket": "/run/" + "s" * 103}, "api.socket", "at most 107 bytes"),
+    (
+        {"api.socket": "/run/" + "s" * 94},
+        "api.socket",
+        "at most 98 bytes (a Unix socket address holds 107, and the daemon first binds the "
+        "socket under a name up to 9 bytes longer)",
+    ),
+    (
+        {"api.operator_socket": "/run/" + "o" * 94},
+        "api.operator_socket",
+        "at most 98 bytes",
+    ),
     ({"api.socket": 1}, "api.socket", "non-empty string"),
     ({"api.admin_group": "nobody-here"}, "api.admin_group", "groupadd --system nobody-here"),
     ({"api.admin_group": "bad group"}, "api.admin_group", "use a group name"),
@@ -613,12 +624,15 @@ def test_api(tmp_path: Path, changes: dict[str, object], key: str, fix: str) -> 
 
 
 def test_socket_path_at_the_limit_is_accepted(tmp_path: Path) -> None:
-    """A socket path of exactly 107 bytes fits in sun_path with its NUL (the operator socket
-    named apart: the one beside it would not fit, SR-8.14)."""
-    socket = "/run/" + "s" * 102
-    assert len(socket) == 107
-    changes = {"api.socket": socket, "api.operator_socket": "/run/srcsd/op.sock"}
-    assert load(tmp_path, changes).api.socket == Path(socket)
+    """SR-11.2, SR-8.14: a socket path of exactly 98 bytes is accepted, the name the daemon
+    binds first (two dots and a PID of up to 7 digits more) then fitting sun_path with its NUL
+    (tests/daemon/test_socket_path_limit.py serves at it); the operator socket named apart (the
+    one beside it would not fit), and at the limit too."""
+    socket = "/run/" + "s" * 93
+    operator = "/run/" + "o" * 93
+    assert len(socket) == len(operator) == SOCKET_PATH_MAX_BYTES == 98
+    api = load(tmp_path, {"api.socket": socket, "api.operator_socket": operator}).api
+    assert (api.socket, api.operator_path) == (Path(socket), Path(operator))
 
 
 def test_the_operator_socket_beside_the_socket_is_its_default_and_must_fit(
@@ -629,7 +643,7 @@ def test_the_operator_socket_beside_the_socket_is_its_default_and_must_fit(
     the fix (name one), never served without an operator socket."""
     config = load(tmp_path, {"api.socket": "/run/srcsd/robot-a.sock"})
     assert config.api.operator_path == Path("/run/srcsd/robot-a-operator.sock")
-    error = refused(tmp_path, {"api.socket": "/run/" + "s" * 102})
+    error = refused(tmp_path, {"api.socket": "/run/" + "s" * 93})
     assert error.key.endswith("api.operator_socket")
     assert "operator" in error.fix
 

@@ -24,13 +24,9 @@ from collections.abc import Mapping
 from typing import Final
 
 from supervisord import strict
+from supervisord.api.framing import SOCKET_PATH_MAX_BYTES
 from supervisord.api.server import DEFAULT_MAX_CLIENTS, MAX_CLIENTS_RANGE, MAX_LINE_RANGE
-from supervisord.config.paths import (
-    API_OPERATOR_SOCKET,
-    API_SOCKET,
-    RECORD,
-    SOCKET_PATH_MAX_BYTES,
-)
+from supervisord.config.paths import API_OPERATOR_SOCKET, API_SOCKET, RECORD
 from supervisord.config.periodic import DEFAULT_INTERVAL_DAYS, INTERVAL_RANGE_DAYS
 from supervisord.config.realtime import REALTIME
 from supervisord.outputs.registry import KIND, OFF_DELAY, ROLE
