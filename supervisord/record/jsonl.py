@@ -281,6 +281,7 @@ class RecordWriter:
         self._size = 0  # bytes of acknowledged records in the current file
         self._dirty = False  # a failed write may have left bytes past _size
         self._closed = False
+        self._unsettled: str | None = None  # what the open left to make durable (_settle)
         self._guard("open", self._open_current)
         self._transitions: RecordWriter | None = None
         if keep_transitions:  # SR-7.8: a second series of the same size, for stops alone
@@ -372,6 +373,8 @@ class RecordWriter:
     def _write(self, line: bytes) -> None:
         if self._size > 0 and self._size + len(line) > self.max_bytes:
             self._rotate()
+        if self._unsettled is not None:
+            self._settle()
         fd = self._fd
         assert fd is not None
         view = memoryview(line)
@@ -418,16 +421,28 @@ class RecordWriter:
             if kind is not None:  # it changed between the look and the open
                 raise OSError(errno_codes.EINVAL, f"{kind} is there, not a regular file")
             os.set_blocking(fd, True)
-            # The file's name (new, or renamed by an interrupted rotation) must be durable
-            # before any record goes into it; once per open, so cheap.
-            fsync_dir(self.path.parent)
-            self.repaired_bytes += self._truncate_torn_tail(fd)
+            cut = self._truncate_torn_tail(fd)
+            self.repaired_bytes += cut
             self._size = os.fstat(fd).st_size
         except BaseException:  # whatever stops us, do not leak the descriptor
             os.close(fd)
             raise
         self._fd, self._dirty = fd, False
         self._identity = (info.st_dev, info.st_ino)
+        self._unsettled = "cut" if cut else "name"
+
+    def _settle(self) -> None:
+        """Make the open durable before the first record goes into the file: its name (new,
+        or renamed by an interrupted rotation) and a torn tail's cut. The first append does
+        it, on the lane that writes the records, not the open: the daemon's start opens its
+        record on the real-time loop's thread, which must not wait on the disk (SR-7.5,
+        SR-9.8). Until then nothing in the file needs to be durable: a crash before the
+        first record loses no record, and a torn tail that comes back is cut again."""
+        assert self._fd is not None
+        fsync_dir(self.path.parent)
+        if self._unsettled == "cut":
+            os.fsync(self._fd)
+        self._unsettled = None
 
     @staticmethod
     def _truncate_torn_tail(fd: int) -> int:
@@ -445,8 +460,7 @@ class RecordWriter:
                 keep = start + nl + 1
                 break
             end = start
-        os.ftruncate(fd, keep)
-        os.fsync(fd)
+        os.ftruncate(fd, keep)  # made durable with the first record (_settle)
         return size - keep
 
     def _cut_back(self) -> None:

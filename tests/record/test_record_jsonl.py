@@ -52,8 +52,9 @@ def test_file_mode_is_not_world_readable(tmp_path: Path) -> None:
 def test_fsync_per_record_and_directory_on_create(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """SR-7.2: every append fsyncs the file before returning; creating the file fsyncs the
-    directory."""
+    """SR-7.2: every append fsyncs the file before returning; a created file's directory is
+    fsynced before its first record goes in, by the first append, not by the open, which the
+    daemon's start does on the real-time loop's thread (SR-7.5, SR-9.8)."""
     synced: list[str] = []
     real_fsync = os.fsync
 
@@ -63,7 +64,7 @@ def test_fsync_per_record_and_directory_on_create(
 
     monkeypatch.setattr(os, "fsync", fsync)
     with RecordWriter(tmp_path / "stops.jsonl", keep_transitions=False) as w:
-        assert synced == ["dir"]
+        assert synced == []
         w.append(make_record(0))
         w.append(make_record(1))
     assert synced == ["dir", "file", "file"]
@@ -171,6 +172,37 @@ def test_torn_tail_is_truncated_on_open(tmp_path: Path) -> None:
         w.append(make_record(2))
     assert seqs_in(path) == [0, 2]
     assert not any(isinstance(i, BadLine) for i in read_records(path))
+
+
+def test_a_torn_tails_cut_is_made_durable_by_the_first_append_not_by_the_open(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SR-7.2, SR-7.5, SR-9.8: the open cuts a torn tail and waits on no disk (the daemon's
+    start opens on the real-time loop's thread); the first append makes the directory and the
+    cut durable before its record goes in, then the record."""
+    path = tmp_path / "stops.jsonl"
+    with RecordWriter(path, keep_transitions=False) as w:
+        w.append(make_record(0))
+    path.write_bytes(path.read_bytes() + b'{"seq": 1, "mo')
+    steps: list[str] = []
+    real_fsync, real_write = os.fsync, os.write
+
+    def fsync(fd: int) -> None:
+        steps.append("fsync dir" if os.path.isdir(f"/proc/self/fd/{fd}") else "fsync file")
+        real_fsync(fd)
+
+    def write(fd: int, data: bytes) -> int:
+        steps.append("write")
+        return real_write(fd, data)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "write", write)
+    with RecordWriter(path, keep_transitions=False) as w:
+        assert w.repaired_bytes == 14
+        assert steps == []
+        w.append(make_record(2))
+    assert steps == ["fsync dir", "fsync file", "write", "fsync file"]
+    assert seqs_in(path) == [0, 2]
 
 
 def test_torn_only_line_is_truncated(tmp_path: Path) -> None:
