@@ -49,18 +49,21 @@ class HidLink(Link):
         return self._fd
 
     def receive(self) -> list[Incoming]:
+        """One input report. The loop receives when the node is readable, and hidraw keeps
+        whole reports, one a read, so there is one; the next is the next turn's (the loop's
+        epoll is level-triggered). No read is made to find the queue empty: hidraw marks its
+        reader as sleeping before it tests O_NONBLOCK (the kernel's drivers/hid/hidraw.c),
+        and the kernel's rtapp monitor judges that mark a real-time thread's sleep (SR-9.8)."""
         fd = self._require_open()
-        received: list[Incoming] = []
-        while True:
-            try:
-                report = os.read(fd, REPORT_LIMIT)
-            except BlockingIOError:
-                return received
-            except OSError as error:
-                raise LinkBrokenError(error.strerror or str(error)) from error
-            if not report:
-                raise LinkBrokenError("device gone")
-            received.append(decode_hid_input(report))
+        try:
+            report = os.read(fd, REPORT_LIMIT)
+        except BlockingIOError:
+            return []
+        except OSError as error:
+            raise LinkBrokenError(error.strerror or str(error)) from error
+        if not report:
+            raise LinkBrokenError("device gone")
+        return [decode_hid_input(report)]
 
     def send(self, messages: list[Message]) -> None:
         """Display values and labels as output reports (manual §10.2.2); nothing else exists.

@@ -92,6 +92,34 @@ def test_each_read_is_one_input_report_and_a_wrong_length_is_rejected(node: Path
     assert not link.is_open
 
 
+def test_a_readable_node_is_read_once_and_never_to_find_it_empty(
+    node: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SR-9.8: the loop receives when the node is readable; the link reads the one report and
+    makes no read that finds the queue empty (hidraw marks its reader sleeping before it tests
+    O_NONBLOCK, which the kernel's rtapp monitor judges a real-time thread's sleep)."""
+    link = HidLink(str(node))
+    link.open()
+    feeder = os.open(node, os.O_WRONLY)
+    reads: list[int] = []
+    real_read = os.read
+
+    def read(fd: int, size: int) -> bytes:
+        reads.append(fd)
+        return real_read(fd, size)
+
+    report = HidInput(1, 2, 3, 4, 5, 6, dpad=0, buttons=0, mode=1, estop=0)
+    try:
+        os.write(feeder, encode_hid_input(report))
+        monkeypatch.setattr(os, "read", read)
+        assert link.receive() == [report]
+        assert len(reads) == 1
+    finally:
+        monkeypatch.undo()
+        os.close(feeder)
+        link.close()
+
+
 def test_a_missing_node_is_a_link_error_naming_why(tmp_path: Path) -> None:
     """PR-4.1: a VSC not plugged in (no hidraw node at the configured path) cannot be opened:
     ``LinkError`` with the reason, which the daemon retries with its backoff."""
