@@ -510,6 +510,10 @@ def install_files(root: Path, names: list[str], env: Mapping[str, str], generato
             units / "srcs-fleet-agent@.service",
             Path("usr/lib/systemd/system/srcs-fleet-agent@.service"),
         ),
+        # The kernel judge's counter: installed, never enabled by the package; an integrator
+        # turns it on for a kernel built with the rtapp monitors (SR-9.9;
+        # docs/kernel-judge.md).
+        (units / "srcs-rv.service", Path("usr/lib/systemd/system/srcs-rv.service")),
         (units / "srcsd.sysusers.conf", Path("usr/lib/sysusers.d/srcsd.conf")),
         (
             units / "srcs-fleet-agent.sysusers.conf",

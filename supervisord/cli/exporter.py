@@ -21,6 +21,8 @@ DEFAULT_LISTEN = "127.0.0.1:9817"
 """Loopback by default: the scrape network is a deliberate choice (docs/fleet.md)."""
 EXIT_CONFIG = 78  # sysexits.h EX_CONFIG: systemd's "not configured", not worth a restart
 EXIT_BIND = 1
+DEFAULT_RV_FILE = Path("/run/srcs-rv/violations.json")
+"""supervisord.rv_watch's file (docs/kernel-judge.md), where srcs-rv.service writes it."""
 
 
 def listen_address(text: str) -> tuple[str, int]:
@@ -63,6 +65,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=1.0,
         help="how often to ask srcsd for its counters (default 1; state comes as it changes)",
     )
+    parser.add_argument(
+        "--rv-file",
+        metavar="PATH",
+        type=Path,
+        default=DEFAULT_RV_FILE,
+        help="the kernel judge's totals, as srcs-rv.service writes them, read at each scrape "
+        f"(default {DEFAULT_RV_FILE}; none there: no srcs_rt_* metrics)",
+    )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     return parser
 
@@ -89,12 +99,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Imported here: prometheus-client only when the arguments are good.
     from supervisord.exporter.collector import serve  # noqa: PLC0415
     from supervisord.exporter.follower import Follower  # noqa: PLC0415
+    from supervisord.exporter.judge import JudgeFile  # noqa: PLC0415
     from supervisord.exporter.model import ExporterModel, Family  # noqa: PLC0415
 
     model, lock = ExporterModel(), threading.Lock()
+    judge_file = JudgeFile(args.rv_file)
 
     def families() -> list[Family]:
+        totals, refused = judge_file.read(time.time())  # at each scrape (SR-9.9)
         with lock:
+            model.judge_read(totals, refused)
             return model.families(time.monotonic_ns())
 
     host, port = args.listen

@@ -30,6 +30,7 @@ from supervisord.api.messages import RemoteStatusReport
 from supervisord.api.pushes import Push, RecordPush, RemoteStatusPush, StatePush
 from supervisord.api.replies import StatusReply
 from supervisord.api.status import DaemonStatus, HistogramStatus, Maintenance, StateReport
+from supervisord.exporter.judge import JudgeTotals
 from supervisord.record.counted import counted, trigger
 from supervisord.record.stop import RecordKind, StopRecord
 from supervisord.timebase import NS_PER_S
@@ -247,6 +248,36 @@ SPECS: Final = _specs(
     ),
     Spec("srcs_record_last_seq", G, "the sequence number of the newest record received"),
     Spec("srcs_api_connects", C, "connections this exporter made to srcsd's API socket"),
+    Spec(
+        "srcs_rt_judge_on",
+        G,
+        "1 while the kernel's rtapp monitors judge srcsd's real time (srcs-rv.service, "
+        "SR-9.9); absent on a robot without the judge",
+    ),
+    Spec(
+        "srcs_rt_violations",
+        C,
+        "violations the kernel's rtapp monitors found in srcsd's threads, by monitor and "
+        "thread (srcsd: the loop; other: past the watch's cap of series; SR-9.9)",
+        ("monitor", "thread"),
+    ),
+    Spec(
+        "srcs_rt_last_violation_timestamp_seconds",
+        G,
+        "when the judge last found a violation by srcsd's threads (Unix time; SR-9.9)",
+    ),
+    Spec("srcs_rt_lost_events", C, "events the judge's trace ring overwrote unread (SR-9.9)"),
+    Spec(
+        "srcs_rt_unreadable_lines",
+        C,
+        "lines of the judge's trace srcs-rv could not read (SR-9.9)",
+    ),
+    Spec(
+        "srcs_rt_file_refusals",
+        C,
+        "reads of srcs-rv's file this exporter refused, by reason (seen here; SR-9.9)",
+        ("reason",),
+    ),
     Spec("srcs_daemon_restarts", C, "times srcsd's pid changed between two connections"),
 )
 """Every family the exporter serves (docs/fleet.md lists them; the dashboard test checks its
@@ -367,6 +398,9 @@ class ExporterModel:
         self._cause_labels = _Labels()
         self._reason_labels = _Labels()
         self._output_labels = _Labels()
+        # The kernel's judge, from srcs-rv's file at each scrape (SR-9.9): not the daemon's.
+        self.judge: JudgeTotals | None = None
+        self.judge_refusals: dict[str, int] = {}
 
     # ------------------------------------------------------------------ feeding
 
@@ -512,6 +546,14 @@ class ExporterModel:
             rssi_src=message.rssi_src,
         )
 
+    def judge_read(self, totals: JudgeTotals | None, refused: str | None = None) -> None:
+        """srcs-rv's file as this scrape read it: its totals, ``None`` when there is none (no
+        judge on this robot: no metric), or ``refused`` (the reason) when it was no file the
+        exporter takes: counted, and its last good totals are not served."""
+        self.judge = totals
+        if refused is not None:
+            self.judge_refusals[refused] = self.judge_refusals.get(refused, 0) + 1
+
     # ------------------------------------------------------------------ reading
 
     def families(self, now_ns: int) -> list[Family]:
@@ -524,6 +566,7 @@ class ExporterModel:
 
         put("srcs_up", 1 if self.up else 0)
         self._own(put)
+        self._judge_values(put)
         if self.up:
             self._daemon_values(put)
             self._remote_values(put, now_ns)
@@ -553,6 +596,21 @@ class ExporterModel:
         put("srcs_record_last_seq", self.last_seq)
         put("srcs_api_connects", self.connects)
         put("srcs_daemon_restarts", self.daemon_restarts)
+
+    def _judge_values(self, put: _Put) -> None:
+        for reason, count in sorted(self.judge_refusals.items()):
+            put("srcs_rt_file_refusals", count, reason=reason)
+        judge = self.judge
+        if judge is None:
+            return
+        put("srcs_rt_judge_on", judge.judge_on)
+        for monitor, thread, count in judge.violations:
+            put("srcs_rt_violations", count, monitor=monitor, thread=thread)
+        for monitor, count in judge.overflow:
+            put("srcs_rt_violations", count, monitor=monitor, thread=OVERFLOW)
+        put("srcs_rt_last_violation_timestamp_seconds", judge.last_violation_unix)
+        put("srcs_rt_lost_events", judge.lost_events)
+        put("srcs_rt_unreadable_lines", judge.unreadable_lines)
 
     def _daemon_values(self, put: _Put) -> None:
         if self.state is not None:

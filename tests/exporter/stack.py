@@ -60,8 +60,12 @@ def _answers(url: str) -> bool:
 class Exporter:
     """``python -m supervisord.cli.exporter --socket SOCKET --listen 127.0.0.1:PORT``."""
 
-    def __init__(self, socket_path: Path, log: Path, poll: float = 0.2) -> None:
+    def __init__(
+        self, socket_path: Path, log: Path, poll: float = 0.2, rv_file: Path | None = None
+    ) -> None:
         self.port = free_port()
+        # The kernel judge's file (SR-9.9): the test's own, never the machine's /run.
+        rv_file = rv_file or log.with_name(f"{log.name}.no-rv-file.json")
         self.url = f"http://127.0.0.1:{self.port}/metrics"
         with log.open("ab") as out:
             self.process = subprocess.Popen(
@@ -75,6 +79,8 @@ class Exporter:
                     f"127.0.0.1:{self.port}",
                     "--poll",
                     str(poll),
+                    "--rv-file",
+                    str(rv_file),
                 ],
                 stdin=subprocess.DEVNULL,
                 stdout=out,

@@ -30,7 +30,7 @@ def test_alert_rules_pass_promtool_check() -> None:
         [PROMTOOL, "check", "rules", str(RULES)], check=False, capture_output=True, text=True
     )
     assert result.returncode == 0, result.stdout + result.stderr
-    assert "13 rules found" in result.stdout
+    assert "15 rules found" in result.stdout
 
 
 @needs_promtool
@@ -38,9 +38,11 @@ def test_alert_rules_fire_as_their_unit_tests_say() -> None:
     """promtool's rule unit tests: supervisor down after 1 minute, STOPPED for 30 minutes,
     a flapping link, a record error, a stop slower than 100 ms to switch off, the remote
     e-stop not available for 1 minute in RUN (SR-8.11), a periodic test overdue for an hour
-    (SR-12.2), a daemon without its memory lock for 5 minutes (SR-9.6) each fire (and not
+    (SR-12.2), a daemon without its memory lock for 5 minutes (SR-9.6), the kernel's judge
+    seeing the loop fault and the judge stopped after it judged (SR-9.9) each fire (and not
     before their time; not for stops all under 100 ms, nor for a robot parked STOPPED, nor for
-    tests within their interval, nor for a locked daemon)."""
+    tests within their interval, nor for a locked daemon, nor for a lane's violation, nor for
+    a judge that never came on)."""
     tests = Path(__file__).with_name("rules-test.yml")
     result = subprocess.run(
         [PROMTOOL, "test", "rules", tests.name],

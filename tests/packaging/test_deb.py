@@ -143,6 +143,7 @@ def test_files_are_where_debian_puts_them(listing: dict[str, str]) -> None:
         "/usr/lib/systemd/system/srcsd@.service",
         "/usr/lib/systemd/system/srcs-exporter@.service",
         "/usr/lib/systemd/system/srcs-fleet-agent@.service",
+        "/usr/lib/systemd/system/srcs-rv.service",
         "/usr/lib/sysusers.d/srcsd.conf",
         "/usr/lib/sysusers.d/srcs-fleet-agent.conf",
         "/usr/lib/tmpfiles.d/srcsd.conf",
@@ -240,6 +241,28 @@ def test_the_fleet_agent_ships_with_its_unit_and_user_and_is_not_enabled(
     postrm = (unpacked / "DEBIAN/postrm").read_text()
     assert "*.wants/srcs-fleet-agent@*.service" in postrm
     assert re.search(r"^    for user in .*\bsrcs-fleet\b", postrm, re.MULTILINE)
+
+
+def test_the_kernel_judges_counter_ships_with_its_unit_and_is_not_enabled(
+    unpacked: Path,
+) -> None:
+    """SR-9.9, SR-0.2: srcs-rv.service is in the package as units/ has it; it runs the
+    packaged Python on the packaged module; postinst enables or starts nothing of it (an
+    integrator turns it on for a judged kernel), prerm stops it, a purge removes its enable
+    link and its totals."""
+    systemd = unpacked / "usr/lib/systemd/system/srcs-rv.service"
+    assert systemd.read_bytes() == (ROOT / "units/srcs-rv.service").read_bytes()
+    (command,) = re.findall(r"^ExecStart=(.+)$", systemd.read_text(), re.MULTILINE)
+    assert command == "/opt/srcsd/bin/python3 -I -m supervisord.rv_watch"
+    site = unpacked / "opt/srcsd/lib/python3/site-packages/supervisord"
+    assert (site / "rv_watch.py").is_file()
+    assert (site / "rv_count.py").is_file()
+    postinst = (unpacked / "DEBIAN/postinst").read_text()
+    assert "srcs-rv" not in postinst
+    assert "srcs-rv.service" in (unpacked / "DEBIAN/prerm").read_text()
+    postrm = (unpacked / "DEBIAN/postrm").read_text()
+    assert "*.wants/srcs-rv.service" in postrm
+    assert "/run/srcs-rv" in postrm
 
 
 def test_the_packaged_agent_reaches_a_real_broker_with_its_own_mqtt_client(
