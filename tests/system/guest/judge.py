@@ -44,6 +44,13 @@ def available() -> list[str]:
     return [name for name in MONITORS if any(m.split(":")[-1] == name for m in listed)]
 
 
+def _triggered(trigger: Path) -> bool:
+    """Whether the event already has its stack trigger (``stacktrace:unlimited``); the file
+    lists the available triggers, "stacktrace" among them, in comments when it has none."""
+    lines = trigger.read_text().splitlines()
+    return any(line.startswith("stacktrace") for line in lines)
+
+
 def arm() -> None:
     """Every monitor off and on again, the events with their stack trigger on, the trace empty."""
     missing = set(MONITORS) - set(available())
@@ -56,7 +63,7 @@ def arm() -> None:
     for monitor in MONITORS:
         event = f"events/rv/error_{monitor}"
         _write(f"{event}/enable", "1")
-        if "stacktrace" not in (TRACING / event / "trigger").read_text():
+        if not _triggered(TRACING / event / "trigger"):
             _write(f"{event}/trigger", "stacktrace", append=True)
         _write("rv/enabled_monitors", monitor, append=True)
     _write("rv/monitoring_on", "1")
