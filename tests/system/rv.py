@@ -31,10 +31,13 @@ _EVENT = re.compile(
 _STACK_HEAD = "<stack trace>"
 _FRAME = re.compile(r"^\s*=> (?P<function>[^\s+]+)")
 
-# Frames of the monitors and the trace machinery themselves: above the kernel's real path.
-_OWN_FRAMES = re.compile(
+# Frames of the monitors, the trace machinery and the scheduler's and wait queues' plumbing:
+# above the path that says why the thread slept or was woken.
+_PLUMBING = re.compile(
     r"^(trace_|__trace|event_triggers_|__traceiter_|__bpf_trace|perf_trace_|ltl_|rv_|"
-    r"handle_|__do_trace_|do_trace_|trace_event_|ftrace_|stack_trace_|__ftrace_)"
+    r"handle_|__do_trace_|do_trace_|trace_event_|ftrace_|stack_trace_|__ftrace_|"
+    r"_*schedule|try_to_wake_up|wake_up_q|_*wake_up|\w*wake_function|ep_poll_callback|"
+    r"swake_up)"
 )
 TABLE_HEADING = "### The judge's allow-list"
 
@@ -53,8 +56,8 @@ class Violation:
 
     @property
     def cause(self) -> str:
-        """The first frame below the monitor's own: where the kernel's real path begins."""
-        return next((f for f in self.stack if not _OWN_FRAMES.match(f)), "?")
+        """The first frame below the monitor's and the scheduler's own: what slept or woke."""
+        return next((f for f in self.stack if not _PLUMBING.match(f)), "?")
 
     def by_daemon(self) -> bool:
         return DAEMON_THREADS.fullmatch(self.task) is not None

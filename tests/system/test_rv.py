@@ -9,6 +9,10 @@ from pathlib import Path
 from tests.system.rv import Allowed, Violation, allow_list, judge, parse
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "system-tier.md"
+# Lines the judged kernel wrote in the tier's gpio scenario, as it wrote them (guest/judge.py
+# keeps each scenario's trace in the result folder): the daemon's start under systemd's name for
+# it, a VSC byte's wake from the tty layer's work, and the loop's epoll wait it ended.
+KERNELS_OWN = Path(__file__).resolve().parent / "data" / "judge-gpio-excerpt.trace"
 
 # The shape of the kernel's lines: the event's own format ("%s[%d]: violation detected",
 # error_ltl_monitor_id in kernel/trace/rv/rv_trace.h) after ftrace's task, CPU, flags and time,
@@ -59,7 +63,7 @@ def test_each_violation_is_read_with_its_judged_task_its_context_and_its_stack()
     )
     assert wake.stack[0] == "trace_event_raw_event_error_ltl_monitor_id"
     assert wake.stack[-1] == "kthread"
-    assert wake.cause == "try_to_wake_up"  # below the monitor's own frames
+    assert wake.cause == "n_tty_receive_buf_common"  # below the monitor's and the wake's own
     assert sleep.cause == "do_nanosleep"
     assert (fault.monitor, fault.task, fault.stack, fault.cause) == (
         "pagefault",
@@ -67,6 +71,24 @@ def test_each_violation_is_read_with_its_judged_task_its_context_and_its_stack()
         (),
         "?",
     )
+
+
+def test_the_kernels_own_lines_are_read_and_the_pages_rows_explain_them() -> None:
+    trace = parse(KERNELS_OWN.read_text())
+    assert trace.unreadable == 0
+    start, wake, sleep = trace.violations
+    assert (start.monitor, start.task, start.cause) == ("pagefault", "(srcsd)", "exc_page_fault")
+    assert (wake.monitor, wake.task, wake.context) == ("wakeup", "srcsd", "kworker/u4:1-24")
+    assert wake.cause == "n_tty_receive_buf_common"
+    assert "flush_to_ldisc" in wake.stack
+    assert (sleep.monitor, sleep.cause) == ("sleep", "do_epoll_wait")
+    verdict = judge(trace.violations, allow_list(DOCS.read_text()))
+    assert verdict.ok
+    assert sorted(row.frame for row in verdict.allowed) == [
+        "do_epoll_wait",
+        "n_tty_receive_buf_common",
+    ]
+    assert verdict.others == 1  # before the exec, under systemd's name: not judged
 
 
 def test_a_line_that_is_no_event_no_stack_and_no_comment_is_counted_not_raised() -> None:
