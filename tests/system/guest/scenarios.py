@@ -1005,8 +1005,6 @@ RESULT_SHARE = Path("/srcs-out")  # the host's result folder (vm.py)
 SLEEP_TRIGGER = Path("/run/srcs-judge-sleep")  # guest/spin: a relative sleep in the loop
 SYS_PIDFD_OPEN, SYS_PROCESS_MADVISE = 434, 440  # x86_64, the judged kernel's architecture
 MADV_PAGEOUT = 21
-FIELD_COUNTER = "srcs-rv.service"  # the package's field counter of the same monitors (SR-9.9)
-FIELD_TOTALS = Path("/run/srcs-rv/violations.json")
 
 
 def judged(name: str) -> rv.Verdict:
@@ -1025,26 +1023,10 @@ def judged(name: str) -> rv.Verdict:
     return rv.judge(trace.violations, rv.allow_list(ALLOW_LIST.read_text()))
 
 
-def field_counts() -> dict[str, Any] | None:
-    """srcs-rv's totals (docs/kernel-judge.md), or None before its first write."""
-    try:
-        found = json.loads(FIELD_TOTALS.read_text())
-    except (OSError, ValueError):
-        return None
-    return found if isinstance(found, dict) else None
-
-
-def field_sleeps() -> int:
-    """The loop's sleep violations as srcs-rv counted them (0 until it has)."""
-    counts = field_counts() or {}
-    return int(counts.get("violations", {}).get("sleep", {}).get("srcsd", 0))
-
-
 def scenario_judge_sleep(bench: Bench) -> tuple[str, Measured]:
-    """SR-9.8, SR-9.9, the judge is live: a relative sleep planted in the real-time loop
-    (guest/spin: libc's nanosleep before every wait) is a ``sleep`` violation by srcsd that no
-    row of the allow-list explains, so the verdict on it fails; the package's field counter,
-    srcs-rv, run beside the tier's judge, counts the same sleeps."""
+    """SR-9.8, the judge is live: a relative sleep planted in the real-time loop (guest/spin:
+    libc's nanosleep before every wait) is a ``sleep`` violation by srcsd that no row of the
+    allow-list explains, so the verdict on it fails."""
     unit = bench.unit
     with spin_injected(unit, SLEEP_TRIGGER):
         cursor = run("journalctl", "-n", "0", "--show-cursor", "-q").split("cursor: ")[-1]
@@ -1052,17 +1034,11 @@ def scenario_judge_sleep(bench: Bench) -> tuple[str, Measured]:
         pid = main_pid(unit)
         wait_for("the injection armed", lambda: "srcs-spin: armed" in journal(unit, cursor), 60)
         judge.arm()
-        # The field's counter beside the tier's judge (SR-9.9): its own trace instance.
-        run("systemctl", "start", FIELD_COUNTER)
-        wait_for("srcs-rv's first totals", lambda: field_counts() is not None, 60)
         SLEEP_TRIGGER.write_text(str(pid))
         SLEEP_TRIGGER.chmod(0o644)
         wait_for("the planted sleep", lambda: "srcs-spin: sleeping" in journal(unit, cursor), 60)
         time.sleep(2.0)
         verdict = judged("judge_sleep")
-        wait_for("srcs-rv counts the planted sleeps", lambda: field_sleeps() > 0, 30)
-        counted = field_sleeps()
-        run("systemctl", "stop", FIELD_COUNTER)
     judge.arm()  # the daemon without the plant is judged as any scenario's is
     planted = [v for v in verdict.unexplained if v.monitor == "sleep" and v.task == "srcsd"]
     check(bool(planted), f"the planted sleep was not judged a violation: {verdict.summary()}")
@@ -1070,7 +1046,6 @@ def scenario_judge_sleep(bench: Bench) -> tuple[str, Measured]:
     check(bool(in_sleep), f"no violation in nanosleep: {[v.cause for v in planted]}")
     return "a relative sleep planted in the loop: sleep violations by srcsd, unexplained", {
         "sleep violations by srcsd in 2 s": len(planted),
-        "srcs-rv's count of them (the field's counter)": counted,
         "of them in nanosleep": len(in_sleep),
         "the kernel's path": in_sleep[0].cause,
         "verdict": verdict.summary(),
