@@ -1,10 +1,13 @@
 """The kernel's judge in the guest: arm the rtapp monitors, and read what they found.
 
 Only in a boot with ``srcs.judge`` on its command line (tests/system/run --judge), on the
-judged kernel (tests/system/judge.config). Before each scenario :func:`arm` turns the three
-monitors off and on again: that starts every task's monitor afresh (a monitor that found a
-violation in a task judges it no further until then) and empties the trace. After it,
-:func:`take` reads the ``error_*`` events with their stacks; tests/system/rv.py judges them.
+judged kernel (tests/system/judge.config). :func:`arm` turns the three monitors on once, at the
+boot's start, before any daemon runs; before each scenario :func:`begin` empties the trace, and
+after it :func:`take` reads the ``error_*`` events with their stacks; tests/system/rv.py judges
+them. The monitors are never turned off and on again: a monitor turned on judges a task that
+already runs only once the task has told it every fact it needs (the ``sleep`` monitor's
+rt-mutex and PI-futex facts are set only for a task created while it is on), so a re-armed
+monitor would judge none of the daemons already running.
 The trace buffer is the kernel's ring: :func:`take` also says how many events it overwrote, so
 that a scenario never passes on a trace that lost what it should have judged.
 """
@@ -52,7 +55,7 @@ def _triggered(trigger: Path) -> bool:
 
 
 def arm() -> None:
-    """Every monitor off and on again, the events with their stack trigger on, the trace empty."""
+    """Every monitor on, the events with their stack trigger on, the trace empty: once."""
     missing = set(MONITORS) - set(available())
     if missing:
         raise RuntimeError(f"the kernel has no rtapp monitor {sorted(missing)}: not judged")
@@ -67,8 +70,13 @@ def arm() -> None:
             _write(f"{event}/trigger", "stacktrace", append=True)
         _write("rv/enabled_monitors", monitor, append=True)
     _write("rv/monitoring_on", "1")
-    _write("trace", "")
+    begin()
     _write("tracing_on", "1")
+
+
+def begin() -> None:
+    """The trace emptied: what :func:`take` reads next is what happened from now on."""
+    _write("trace", "")
 
 
 def overwritten() -> int:
