@@ -11,8 +11,12 @@ into the pipe and reads what the watch made of them.
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 from pathlib import Path
+from typing import Any
 
 from supervisord.rv_count import MONITORS
 from supervisord.rv_watch import INSTANCE
@@ -79,3 +83,41 @@ class FakeTracefs:
         if self._pipe is not None:
             os.close(self._pipe)
             self._pipe = None
+
+
+class Watch:
+    """``python -m supervisord.rv_watch`` against a fake tracefs at ``root``, every 0.1 s,
+    writing ``output``; its output in watch.log beside it."""
+
+    def __init__(self, root: Path, output: Path) -> None:
+        self.output = output
+        self.log = output.with_name("watch.log")
+        with self.log.open("ab") as log:
+            self.process = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "supervisord.rv_watch",
+                    *("--tracing", str(root), "--output", str(output), "--period", "0.1"),
+                ],
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=log,
+            )
+
+    def totals(self) -> dict[str, Any] | None:
+        try:
+            content: dict[str, Any] = json.loads(self.output.read_text())
+        except FileNotFoundError:
+            return None
+        return content
+
+    def wait_for(self, what: str, check: Any) -> dict[str, Any]:
+        def seen() -> dict[str, Any] | None:
+            if self.process.poll() is not None:
+                raise AssertionError(self.log.read_text())
+            totals = self.totals()
+            return totals if totals is not None and check(totals) else None
+
+        found: dict[str, Any] = wait_until(seen, 15.0, poll=0.05, what=what)
+        return found

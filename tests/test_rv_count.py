@@ -11,12 +11,12 @@ quadratic: 256).
 from __future__ import annotations
 
 import random
-import time
 from collections.abc import Callable
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.client_input import cpu_ns
 from supervisord.rv_count import MAX_KEYS, MAX_LINE, Event, Lost, ViolationCounter, read_line
 
 
@@ -129,17 +129,6 @@ LONG = 16 * SHORT
 LINEAR_BOUND = 64
 
 
-def cost_ns(action: Callable[[], object], tries: int) -> int:
-    best = None
-    for _ in range(tries):
-        start = time.thread_time_ns()
-        action()
-        took = time.thread_time_ns() - start
-        best = took if best is None else min(best, took)
-    assert best is not None
-    return max(best, 1)
-
-
 def assert_linear(name: str, make: Callable[[int], list[bytes]]) -> None:
     """Feeding ``make(size)`` costs, at ``LONG`` bytes, within ``LINEAR_BOUND`` times its
     cost at ``SHORT``."""
@@ -154,8 +143,8 @@ def assert_linear(name: str, make: Callable[[int], list[bytes]]) -> None:
 
         return feed
 
-    short = cost_ns(action(SHORT), tries=9)
-    long = cost_ns(action(LONG), tries=3)
+    short = max(cpu_ns(action(SHORT), tries=9), 1)
+    long = cpu_ns(action(LONG), tries=3)
     assert long < LINEAR_BOUND * short, f"{name}: {long / short:.0f} times for 16 times the bytes"
 
 

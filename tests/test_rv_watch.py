@@ -4,7 +4,6 @@ the kernel's lines (SR-9.9)."""
 
 from __future__ import annotations
 
-import json
 import shutil
 import stat
 import subprocess
@@ -12,49 +11,12 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from supervisord.rv_watch import EXIT_NO_MONITORS, EXIT_NO_TRACEFS, EXIT_NOT_ARMED
-from supervisord.testkit.wait import wait_until
 from supervisord.tooling.children import terminate
-from tests.fake_tracefs import FakeTracefs, kernel_line
-
-
-class Watch:
-    def __init__(self, root: Path, output: Path) -> None:
-        self.output = output
-        self.log = output.with_name("watch.log")
-        with self.log.open("ab") as log:
-            self.process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "supervisord.rv_watch",
-                    *("--tracing", str(root), "--output", str(output), "--period", "0.1"),
-                ],
-                stdin=subprocess.DEVNULL,
-                stdout=log,
-                stderr=log,
-            )
-
-    def totals(self) -> dict[str, Any] | None:
-        try:
-            content: dict[str, Any] = json.loads(self.output.read_text())
-        except FileNotFoundError:
-            return None
-        return content
-
-    def wait_for(self, what: str, check: Any) -> dict[str, Any]:
-        def seen() -> dict[str, Any] | None:
-            if self.process.poll() is not None:
-                raise AssertionError(self.log.read_text())
-            totals = self.totals()
-            return totals if totals is not None and check(totals) else None
-
-        found: dict[str, Any] = wait_until(seen, 15.0, poll=0.05, what=what)
-        return found
+from tests.fake_tracefs import FakeTracefs, Watch, kernel_line
 
 
 @pytest.fixture

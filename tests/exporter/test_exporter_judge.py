@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -30,7 +28,7 @@ from supervisord.rv_watch import DEFAULT_OUTPUT
 from supervisord.testkit.wait import wait_until
 from supervisord.tooling.children import terminate
 from tests.exporter.stack import PROMETHEUS, Exporter, Prometheus, http_get
-from tests.fake_tracefs import FakeTracefs, kernel_line
+from tests.fake_tracefs import FakeTracefs, Watch, kernel_line
 
 GOOD: dict[str, Any] = {
     "format": 1,
@@ -162,26 +160,6 @@ def test_the_exporters_default_file_is_the_watchs() -> None:
 # -- end to end: the watch, the exporter, Prometheus ---------------------------------------
 
 
-class Watch:
-    """``python -m supervisord.rv_watch`` against the fake tracefs, writing ``output``."""
-
-    def __init__(self, root: Path, output: Path) -> None:
-        self.log = output.with_name("watch.log")
-        with self.log.open("ab") as log:
-            self.process = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "supervisord.rv_watch",
-                    *("--tracing", str(root), "--output", str(output), "--period", "0.1"),
-                ],
-                stdin=subprocess.DEVNULL,
-                stdout=log,
-                stderr=log,
-            )
-        wait_until(output.exists, 15.0, what="the watch's first totals")
-
-
 def scrape(exporter: Exporter) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
     body, _ = http_get(exporter.url, accept="application/openmetrics-text; version=1.0.0")
     families = text_string_to_metric_families(body)  # type: ignore[no-untyped-call]
@@ -200,6 +178,7 @@ def judged(tmp_path: Path) -> Iterator[tuple[FakeTracefs, Path]]:
     output = tmp_path / "run" / "violations.json"
     output.parent.mkdir()
     watch = Watch(tracefs.root, output)
+    watch.wait_for("the watch's first totals", lambda totals: True)
     try:
         yield tracefs, output
     finally:
