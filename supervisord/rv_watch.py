@@ -94,6 +94,12 @@ def _read(path: Path) -> str | None:
         return None
 
 
+def _is_on(text: str | None) -> bool:
+    """A tracefs 0/1 file that reads 1. Linux 7.3's ``rv/monitoring_on`` reads ``1\\n`` and a
+    NUL byte after it, which ``strip()`` keeps: read as text, it was never 1."""
+    return (text or "").replace("\0", "").strip() == "1"
+
+
 def _listed(text: str | None) -> set[str]:
     """Monitor names in ``available_monitors`` or ``enabled_monitors`` (``rtapp:sleep`` or
     ``sleep``: the container's prefix is left out)."""
@@ -148,14 +154,12 @@ class Judge:
     def on(self) -> bool:
         """Whether the judge judges now: ``monitoring_on`` 1, this kernel's monitors enabled,
         their events on in this instance (anyone with root may turn any of them off)."""
-        if (_read(self.root / "rv/monitoring_on") or "").strip() != "1":
+        if not _is_on(_read(self.root / "rv/monitoring_on")):
             return False
         if not set(self.monitors) <= _listed(_read(self.root / "rv/enabled_monitors")):
             return False
         events = self.instance / "events/rv"
-        return all(
-            (_read(events / f"error_{name}/enable") or "").strip() == "1" for name in self.monitors
-        )
+        return all(_is_on(_read(events / f"error_{name}/enable")) for name in self.monitors)
 
     def lost(self) -> int | None:
         """Events the instance's ring overwrote (``overrun`` of every CPU), ``None`` when its

@@ -110,13 +110,14 @@ def test_the_watch_arms_the_judge_counts_the_daemons_violations_and_says_when_it
 
 def test_the_judge_turned_off_by_another_hand_is_said(tracefs: FakeTracefs, tmp_path: Path) -> None:
     """SR-9.9: ``monitoring_on`` 0, or one monitor's event off in the instance, while the
-    watch runs: its next totals say the judge is off; back on, on."""
+    watch runs: its next totals say the judge is off; back on, on, also as Linux 7.3 reads
+    ``monitoring_on`` back (a NUL byte after its newline, seen on the judged kernel)."""
     watch = Watch(tracefs.root, tmp_path / "violations.json")
     try:
         watch.wait_for("the judge on", lambda t: t["judge_on"])
         tracefs.write("rv/monitoring_on", "0\n")
         watch.wait_for("the judge off", lambda t: not t["judge_on"])
-        tracefs.write("rv/monitoring_on", "1\n")
+        tracefs.write("rv/monitoring_on", "1\n\0")
         watch.wait_for("the judge on again", lambda t: t["judge_on"])
         tracefs.write("instances/srcs-rv/events/rv/error_sleep/enable", "0\n")
         watch.wait_for("the judge off", lambda t: not t["judge_on"])
