@@ -44,6 +44,7 @@ done
 printf '#!/bin/sh\n' >/opt/srcsd/bin/srcsd
 cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-exporter
 cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-fleet-agent
+cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/python3
 chmod 0755 /opt/srcsd/bin/*
 systemctl --version | head -n 1
 cd /tmp/units
