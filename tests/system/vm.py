@@ -59,8 +59,8 @@ STARVED_S = 0.5
 link-loss deadline is 1 s and the proof test's 700 ms (docs/system-tier.md)."""
 ROOT_DEVICE = "/dev/vda"  # the one virtual disk of a boot (tests/system/init, srcs.upper=)
 BUDGET_GROWTH_LIMIT = 3.0  # a boot's budget grows with the starvation up to this factor
-BUDGET_S = 1800  # a scenario boot's guest time (docs/system-tier.md "A busy host")
-JUDGED_BUDGET_S = 2700  # judged: the monitors' and the verdicts' cost (docs/system-tier.md)
+BUDGET_S = 2400  # a scenario boot's guest time (docs/system-tier.md "A busy host")
+JUDGED_BUDGET_S = 3000  # judged: the monitors' and the verdicts' cost (docs/system-tier.md)
 
 
 class Starvation:
