@@ -9,8 +9,9 @@ row names a directive the units no longer use.
 
 How: a bullseye root (``roots.base``) with its ``systemd`` package (a cached layer); the units
 are bound read-only into it and copied as instances (``srcsd@platform.service``), and the
-programs their ``ExecStart=`` names are stood in for by empty executables (``verify`` checks
-that they exist; the package, which needs Python 3.11, cannot be installed on Debian 11).
+package's programs their ``ExecStart=`` names (``packaged_programs``) are stood in for by
+empty executables (``verify`` checks that they exist; the package, which needs Python 3.11,
+cannot be installed on Debian 11).
 Nothing is started: ``systemd-analyze verify`` only loads the units.
 
 usage: python3 -m tests.platforms.units
@@ -35,17 +36,18 @@ DIRECTIVE = re.compile(r"^([A-Z]\w+)=", re.MULTILINE)
 ROW = re.compile(r"^\|\s*`(?P<key>[A-Z]\w+)=[^`]*`\s*\|\s*(?P<version>\d+)\s*\|", re.MULTILINE)
 """A row of the table: | `Directive=` (or `Directive=value`) | version | ... |"""
 
+PACKAGE_BIN = "/opt/srcsd/bin/"
+EXEC_START = re.compile(r"^ExecStart=(\S+)", re.MULTILINE)
 VERIFY = r"""
 mkdir -p /tmp/units /opt/srcsd/bin
 for unit in /srv/units/*.service; do
     name=$(basename "$unit")
     cp "$unit" "/tmp/units/${name%@.service}@platform.service"
 done
-printf '#!/bin/sh\n' >/opt/srcsd/bin/srcsd
-cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-exporter
-cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/srcs-fleet-agent
-cp /opt/srcsd/bin/srcsd /opt/srcsd/bin/python3
-chmod 0755 /opt/srcsd/bin/*
+for program in "$@"; do
+    printf '#!/bin/sh\n' >"$program"
+    chmod 0755 "$program"
+done
 systemctl --version | head -n 1
 cd /tmp/units
 SYSTEMD_LOG_COLOR=0 systemd-analyze verify /tmp/units/*.service
@@ -66,6 +68,20 @@ def used() -> set[str]:
     return {key for path in sorted((REPO / "units").glob("*.service")) for key in _keys(path)}
 
 
+def packaged_programs() -> list[str]:
+    """The package's programs that the units start (``ExecStart=/opt/srcsd/bin/...``): each is
+    stood in for by an empty executable, read from the units so that a new unit needs no
+    change here."""
+    return sorted(
+        {
+            program
+            for path in (REPO / "units").glob("*.service")
+            for program in EXEC_START.findall(path.read_text())
+            if program.startswith(PACKAGE_BIN)
+        }
+    )
+
+
 def _keys(path: Path) -> set[str]:
     return set(DIRECTIVE.findall(path.read_text()))
 
@@ -79,7 +95,7 @@ def main() -> int:
         report.fail(f"a {SUITE} root with systemd", str(error))
         return report.end()
     result = enter(
-        ["sh", "-ec", VERIFY],
+        ["sh", "-ec", VERIFY, "verify", *packaged_programs()],
         layers=[systemd, bullseye],
         work=scratch("units"),
         binds=[(REPO / "units", "/srv/units:ro")],
