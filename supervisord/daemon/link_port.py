@@ -7,9 +7,11 @@ its order (SR-6).
 
 - ``open(now)``: ``LinkOpened``, or ``LinkBroken`` with the reason it could not open (the
   backoff then says when to try again, ``next_attempt``; SR-2.5 ``transport_fault``).
-- ``receive()``: the messages read and the clock read right after the read (what was read
-  counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
-  ``LinkBroken``, the link closed and the backoff started.
+- ``receive(events)``: the messages read and the clock read right after the read (what was
+  read counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
+  ``LinkBroken``, the link closed and the backoff started. ``events`` is what epoll said of
+  the link's descriptor: one that hung up with nothing to read is broken without a read
+  (``HUNG_UP``, SR-9.8).
 - ``send(frames, now)``: the frames written at once, in order; ``LinkBroken`` if the write
   broke the link. When a user heartbeat's write returned is its period as the VSC's watchdog
   sees it (SR-5.1, SR-9.3).
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import select
 from collections.abc import Callable, Sequence
 
 from supervisord.api.status import LinkStatus
@@ -39,6 +42,13 @@ log = logging.getLogger("srcsd")
 
 _REJECTIONS = frozenset((Rejection, CanRejection, HidRejection))  # final classes: by type
 FAILURES_LOGGED_EVERY = 50  # a link that keeps failing to open: its first failure, then 1 in 50
+HUNG_UP = "hung up, nothing to read"
+"""Why a link broke whose descriptor hung up with nothing left to read: an unplugged hidraw
+node says ``EPOLLHUP | EPOLLERR`` without ``EPOLLIN`` (the kernel's drivers/hid/hidraw.c), and
+a read then would only find the device gone after hidraw has marked the reader sleeping,
+which the kernel's rtapp monitor judges a real-time thread's sleep (SR-9.8). A tty that hangs
+up (a USB serial unplug) says ``EPOLLIN`` too: it is read, and its read says why."""
+_READ_OR_HANG_UP = select.EPOLLIN | select.EPOLLHUP
 
 Received = list[Message | HidInput]
 """The messages of one read, in the order they arrived."""
@@ -103,8 +113,11 @@ class LinkPort:
         self.backoff.failed(now)
         return LinkBroken(now, reason)
 
-    def receive(self) -> tuple[int, Received] | LinkBroken:
-        """What has arrived, and when it was read; or the break the read found."""
+    def receive(self, events: int = select.EPOLLIN) -> tuple[int, Received] | LinkBroken:
+        """What has arrived, and when it was read; or the break the read found. ``events``:
+        epoll's mask for the link's descriptor (a link polled without one: ``EPOLLIN``)."""
+        if events & _READ_OR_HANG_UP == select.EPOLLHUP:  # hung up, nothing left: no read
+            return self.broken(self.clock(), HUNG_UP)
         try:
             received = self.link.receive()
         except LinkBrokenError as error:

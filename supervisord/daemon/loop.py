@@ -18,6 +18,7 @@ start, the run and the shutdown are above it, in :mod:`~supervisord.daemon.lifec
 from __future__ import annotations
 
 import contextlib
+import select
 from collections.abc import Sequence
 
 from supervisord.daemon import answer
@@ -88,17 +89,19 @@ class Supervisor(Parts):
             core_deadline = self.decision.next_deadline if self.decision else now
             if now - core_deadline > OVERRUN_NS:
                 self.decide(late(now, core_deadline))
+            # The link's epoll mask (0: not ready), handed to the port: a hang-up with nothing
+            # to read is a break without a read (SR-9.8, link_port.HUNG_UP).
             if not ready:  # a deadline's turn: nothing to sort (SR-9.4)
-                received, sink_ready, clients = False, False, None
+                received, sink_ready, clients = 0, False, None
             elif len(ready) == 1 and ready[0][0] == waiter.link_fd:  # a frame's turn: the same
-                received, sink_ready, clients = True, False, None
+                received, sink_ready, clients = ready[0][1], False, None
             else:  # the sink's is taken after the timers
                 received, sink_ready, clients = waiter.sort(ready)
             if received:
-                self._receive()
+                self._receive(received)
             elif waiter.link_fd is None and link.is_open and link.fileno() is None:
-                self._receive()  # a link without a descriptor is polled
-                received = True
+                received = select.EPOLLIN  # a link without a descriptor is polled
+                self._receive(received)
             # The timers at the time the wait returned, or after the read when there was one
             # (its work took time): one clock read fewer on a timer's turn (SR-9.4).
             self._due(self.clock() if received else now)
@@ -160,9 +163,10 @@ class Supervisor(Parts):
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)
 
-    def _receive(self) -> None:
-        """What the link brought, each message fed and applied in its order."""
-        got = self.port.receive()
+    def _receive(self, events: int) -> None:
+        """What the link brought, each message fed and applied in its order (``events``:
+        epoll's mask for the link's descriptor)."""
+        got = self.port.receive(events)
         if isinstance(got, LinkBroken):
             self.decide(got)
             return

@@ -10,8 +10,8 @@ first"):
   same as the last (the usual one) registers nothing: one comparison (SR-9.4).
 - ``wait(timeout)``: epoll's own ``poll``, not the ``selectors`` wrapper, which builds a key per
   ready descriptor on every turn (SR-9.4). A bench may replace it to time the wait from outside.
-- ``sort(ready)``: whether the link and the record sink are ready, and the ready clients; the
-  wake pair (a stopping signal's) is drained here.
+- ``sort(ready)``: the link's events (0: not ready), whether the record sink is ready, and
+  the ready clients; the wake pair (a stopping signal's) is drained here.
 - ``order(ready, urgent)``: the urgent clients (the operator socket, SR-8.14), then the others
   starting after the one served last (``cursor``), so that every client gets its turn
   (SR-10.1).
@@ -83,15 +83,17 @@ class Waiter:
         self.link_fd = link_fd
         self._watched_api = api if isinstance(api, list) else None  # a list compares cheaply
 
-    def sort(self, ready: Ready) -> tuple[bool, bool, Ready]:
-        """Whether the link is ready, whether the sink is, and the ready clients, in the
-        order epoll gave them. The wake pair is drained: its byte only ended the wait."""
+    def sort(self, ready: Ready) -> tuple[int, bool, Ready]:
+        """The link's epoll mask (0: not ready; the link port tells a hang-up by it), whether
+        the sink is ready, and the ready clients, in the order epoll gave them. The wake pair
+        is drained: its byte only ended the wait."""
         link_fd, tags, watched = self.link_fd, self._tags, self.watched
-        link_ready = sink_ready = False
+        link_events = 0
+        sink_ready = False
         clients: Ready = []
         for fd, mask in ready:
             if fd == link_fd:
-                link_ready = True
+                link_events = mask
                 continue
             tag = tags.get(fd)
             if tag == WAKE:
@@ -101,7 +103,7 @@ class Waiter:
                 sink_ready = True
             elif fd in watched:
                 clients.append((fd, mask))
-        return link_ready, sink_ready, clients
+        return link_events, sink_ready, clients
 
     def order(self, ready: Ready, urgent: Collection[int]) -> tuple[Ready, Ready]:
         """The urgent ready clients, and the others in their turn: by descriptor, starting

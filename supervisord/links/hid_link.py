@@ -53,7 +53,10 @@ class HidLink(Link):
         whole reports, one a read, so there is one; the next is the next turn's (the loop's
         epoll is level-triggered). No read is made to find the queue empty: hidraw marks its
         reader as sleeping before it tests O_NONBLOCK (the kernel's drivers/hid/hidraw.c),
-        and the kernel's rtapp monitor judges that mark a real-time thread's sleep (SR-9.8)."""
+        and the kernel's rtapp monitor judges that mark a real-time thread's sleep (SR-9.8).
+        For the same reason an unplugged node, which says it hung up and not that it is
+        readable, is not read: the loop's link port breaks the link without a read
+        (``link_port.HUNG_UP``)."""
         fd = self._require_open()
         try:
             report = os.read(fd, REPORT_LIMIT)

@@ -17,12 +17,14 @@ from typing import Any
 
 import pytest
 
-from supervisord.daemon import lifecycle, loop
+from supervisord.daemon import lifecycle, link_port, loop
 from supervisord.daemon.loop import Listener, Supervisor
 from supervisord.links.base import Backoff
+from supervisord.links.hid_link import HidLink
 from supervisord.links.serial_link import SerialLink
 from supervisord.outputs import create_output, parse_output_spec
 from supervisord.protocol.codes import VscMode
+from supervisord.protocol.hid import HidInput, encode_hid_input
 from supervisord.protocol.messages import UserHeartbeat, VscHeartbeat
 from supervisord.record.jsonl import RecordWriter, StoredRecord, read_records
 from supervisord.safety.config import OutputRole, OutputSpec, SafetyConfig
@@ -616,3 +618,52 @@ def test_a_serial_link_shows_no_error_frame_count(rig: tuple[Supervisor, VscPeer
     info = supervisor.snapshot(0)
     assert info.link.error_frames is None
     assert "error frame" not in format_status(status_reply(loop=info))
+
+
+class _PipeHidLink(HidLink):
+    """The HID link on a pipe's read end, counting its reads. Once its writer is gone and its
+    bytes are read, a pipe says what an unplugged hidraw node says: a hang-up without
+    ``EPOLLIN`` (hidraw adds ``EPOLLERR``), where a read could only find the device gone."""
+
+    def __init__(self, read_end: int) -> None:
+        super().__init__("pipe")
+        self._read_end = read_end
+        self.reads = 0
+
+    def open(self) -> None:
+        self._fd = self._read_end
+
+    def receive(self) -> list[Any]:
+        self.reads += 1
+        return super().receive()
+
+
+def test_a_link_that_hung_up_with_nothing_to_read_is_broken_without_a_read(
+    tmp_path: Path,
+) -> None:
+    """SR-9.8, SR-2: the report still waiting when the device went is read; after it, the
+    hang-up alone breaks the link (``transport_fault``, the reason ``HUNG_UP``) with no read,
+    which on hidraw would mark the real-time loop sleeping before it found the device gone."""
+    read_end, write_end = os.pipe()
+    link = _PipeHidLink(read_end)
+    supervisor = Supervisor(
+        SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
+        link,
+        [create_output(parse_output_spec("drive", {"kind": "sim"}))],
+        None,
+        clock=ManualClock(),
+    )
+    try:
+        lifecycle.start(supervisor)
+        assert link.is_open
+        os.write(write_end, encode_hid_input(HidInput(1, 2, 3, 4, 5, 6, mode=9)))
+        os.close(write_end)
+        supervisor.step()
+        assert (link.reads, supervisor.port.messages) == (1, 1)
+        supervisor.step()
+        assert link.reads == 1
+        assert link.fileno() is None  # closed
+        assert supervisor.port.error == link_port.HUNG_UP
+        assert "transport_fault" in active(supervisor)
+    finally:
+        lifecycle.shutdown(supervisor)
