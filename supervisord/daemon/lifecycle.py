@@ -47,7 +47,9 @@ def start(loop: Supervisor) -> Decision:
     loop.begin(core)  # the startup decision applied, with the first record
     for event in events:
         loop.decide(event)
-    loop.decide(loop.port.open(now))
+    opened = loop.port.open(now)
+    if opened is not None:  # None: a HID link's prepare is under way, the loop asks again
+        loop.decide(opened)
     loop.waiter.start(sink_fd)
     decision = loop.decision or core.decision  # the last applied (never None here)
     loop.service.ready(now, decision)  # the startup decision applied: outputs off

@@ -6,7 +6,10 @@ messages read with the time they were read; the loop feeds them and applies each
 its order (SR-6).
 
 - ``open(now)``: ``LinkOpened``, or ``LinkBroken`` with the reason it could not open (the
-  backoff then says when to try again, ``next_attempt``; SR-2.5 ``transport_fault``).
+  backoff then says when to try again, ``next_attempt``; SR-2.5 ``transport_fault``). A link
+  whose open may sleep in the kernel (``prepares_open``: HID) first has its ``prepare`` run
+  on a thread of its own (``srcsd-open``): ``None`` until it has returned, asked again every
+  ``PREPARE_POLL_NS``, so the loop never waits in the open (SR-9.8).
 - ``receive(events)``: the messages read and the clock read right after the read (what was
   read counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
   ``LinkBroken``, the link closed and the backoff started. ``events`` is what epoll said of
@@ -25,8 +28,10 @@ from __future__ import annotations
 import contextlib
 import logging
 import select
+import threading
 from collections.abc import Callable, Sequence
 
+from supervisord import threads
 from supervisord.api.status import LinkStatus
 from supervisord.clock import Clock
 from supervisord.daemon.timings import Timings
@@ -36,7 +41,7 @@ from supervisord.protocol.hid import HidInput, HidRejection
 from supervisord.protocol.j1939 import CanRejection
 from supervisord.protocol.messages import Message, UserHeartbeat
 from supervisord.safety.events import LinkBroken, LinkOpened
-from supervisord.timebase import seconds_since
+from supervisord.timebase import NS_PER_MS, seconds_since
 
 log = logging.getLogger("srcsd")
 
@@ -49,6 +54,10 @@ a read then would only find the device gone after hidraw has marked the reader s
 which the kernel's rtapp monitor judges a real-time thread's sleep (SR-9.8). A tty that hangs
 up (a USB serial unplug) says ``EPOLLIN`` too: it is read, and its read says why."""
 _READ_OR_HANG_UP = select.EPOLLIN | select.EPOLLHUP
+PREPARE_POLL_NS = 10 * NS_PER_MS
+"""How often the loop looks whether a link's ``prepare`` has returned (usbhid's takes 50 ms
+and more): a look is a thread's ``is_alive``, nothing waits."""
+PREPARE_THREAD = "srcsd-open"
 
 Received = list[Message | HidInput]
 """The messages of one read, in the order they arrived."""
@@ -77,14 +86,22 @@ class LinkPort:
         self.rejections: dict[str, int] = {}  # what arrived and was no message, by reason
         self.since_ns: int | None = None  # when the link last opened or broke (or the start)
         self.error: str | None = None  # why it broke or failed to open, until it opens
+        self._preparing: threading.Thread | None = None  # the link's prepare, under way
 
     @property
     def next_attempt(self) -> int:
         """When a closed link is to be opened again."""
         return self.backoff.next_attempt
 
-    def open(self, now: int) -> LinkOpened | LinkBroken:
-        """Try to open the link at ``now``."""
+    def open(self, now: int) -> LinkOpened | LinkBroken | None:
+        """Try to open the link at ``now``; ``None`` while its ``prepare`` is under way."""
+        if self.link.prepares_open:
+            if self._preparing is None:
+                self._preparing = threads.start(self.link.prepare, PREPARE_THREAD)
+            if self._preparing.is_alive():
+                self.backoff.next_attempt = now + PREPARE_POLL_NS
+                return None
+            self._preparing = None
         try:
             self.link.open()
         except LinkError as error:

@@ -158,7 +158,9 @@ class Supervisor(Parts):
         port = self.port
         if self.waiter.link_fd is None and not port.link.is_open and now >= port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
-            self.decide(port.open(now))
+            opened = port.open(now)
+            if opened is not None:  # None: its prepare is under way (HID)
+                self.decide(opened)
         service = self.service
         if service.next_watchdog is not None and now >= service.next_watchdog:
             service.watchdog(now)

@@ -36,6 +36,16 @@ class Link(abc.ABC):
     def open(self) -> None:
         """Open the port or bus; raises ``LinkError`` (missing, busy, refused)."""
 
+    prepares_open = False
+    """Whether the link's open has work that may sleep in the kernel, which :meth:`prepare`
+    does off the loop (the HID link: usbhid sleeps 50 ms in a node's first open)."""
+
+    def prepare(self) -> None:
+        """The open's sleeping part, done on a thread of its own before :meth:`open`, which
+        then takes what it made (or raises what it met). Called only when
+        :attr:`prepares_open`, never beside another call on the link; never raises."""
+        return  # a link whose open does not sleep has nothing to prepare
+
     @abc.abstractmethod
     def fileno(self) -> int | None:
         """The descriptor to wait on while open: ``receive`` is called when it is readable (a

@@ -7,6 +7,7 @@ link the safety core never leaves STOPPED, and the daemon says so at start.
 from __future__ import annotations
 
 import os
+import threading
 
 from supervisord.links.base import Incoming, Link, LinkBrokenError, LinkError
 from supervisord.links.denied import denied_advice
@@ -24,9 +25,18 @@ NO_REPORT_ID = b"\0"
 class HidLink(Link):
     """A hidraw device: each read is one input report."""
 
+    prepares_open = True
+    """usbhid's open of a device that no program has open sleeps 50 ms (``msleep`` in
+    ``usbhid_open``, the kernel's drivers/hid/usbhid/hid-core.c, to let the device's queue
+    empty), woken by the timer wheel's softirq: a wake from below that the kernel's rtapp
+    monitor flags, and 50 ms the loop could not serve anything. So the node is opened off the
+    loop (:meth:`prepare`, SR-9.8)."""
+
     def __init__(self, path: str) -> None:
         self._path = path
         self._fd: int | None = None
+        self._prepared: int | OSError | None = None  # prepare's descriptor or error
+        self._prepared_lock = threading.Lock()
 
     @property
     def description(self) -> str:
@@ -36,14 +46,32 @@ class HidLink(Link):
     def is_open(self) -> bool:
         return self._fd is not None
 
+    def prepare(self) -> None:
+        """Open the node, for :meth:`open` to take (on the link port's ``srcsd-open``
+        thread, at ordinary priority)."""
+        opened = self._open_node()
+        with self._prepared_lock:
+            self._prepared = opened
+
     def open(self) -> None:
-        if self._fd is None:
-            try:
-                self._fd = os.open(self._path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC)
-            except OSError as error:
-                # A device the daemon may not open names its group and the fix (SR-8.18).
-                reason = (error.strerror or str(error)) + denied_advice(self._path, error)
-                raise LinkError(reason) from error
+        """Take the node :meth:`prepare` opened, or open it here when nothing was prepared."""
+        if self._fd is not None:
+            return
+        with self._prepared_lock:
+            opened, self._prepared = self._prepared, None
+        if opened is None:
+            opened = self._open_node()
+        if isinstance(opened, OSError):
+            # A device the daemon may not open names its group and the fix (SR-8.18).
+            reason = (opened.strerror or str(opened)) + denied_advice(self._path, opened)
+            raise LinkError(reason) from opened
+        self._fd = opened
+
+    def _open_node(self) -> int | OSError:
+        try:
+            return os.open(self._path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC)
+        except OSError as error:
+            return error
 
     def fileno(self) -> int | None:
         return self._fd
@@ -86,8 +114,11 @@ class HidLink(Link):
 
     def close(self) -> None:
         fd, self._fd = self._fd, None
-        if fd is not None:
-            os.close(fd)
+        with self._prepared_lock:  # a prepared node never taken is closed too
+            prepared, self._prepared = self._prepared, None
+        for each in (fd, prepared):
+            if isinstance(each, int):
+                os.close(each)
 
     def _require_open(self) -> int:
         if self._fd is None:

@@ -8,10 +8,17 @@ a pty VSC that is unplugged and replugged, is
 from __future__ import annotations
 
 import logging
+import threading
+import time
 
 import pytest
 
-from supervisord.daemon.link_port import FAILURES_LOGGED_EVERY, LinkPort
+from supervisord.daemon.link_port import (
+    FAILURES_LOGGED_EVERY,
+    PREPARE_POLL_NS,
+    PREPARE_THREAD,
+    LinkPort,
+)
 from supervisord.daemon.timings import Timings
 from supervisord.links.base import Backoff
 from supervisord.links.memory_link import MemoryLink, MemoryPort
@@ -255,3 +262,48 @@ def test_the_log_says_when_the_link_opened_and_why_it_broke(
         "memory memory: open",
         "memory memory: broken: device gone",
     ]
+
+
+class _PreparingLink(MemoryLink):
+    """A memory link whose open has a part to do off the loop: ``prepare`` waits until the
+    test releases it, and says on which thread it ran."""
+
+    prepares_open = True
+
+    def __init__(self, port: MemoryPort) -> None:
+        super().__init__(port)
+        self.release = threading.Event()
+        self.prepared_on: list[str] = []
+
+    def prepare(self) -> None:
+        self.prepared_on.append(threading.current_thread().name)
+        self.release.wait(30)
+
+
+def test_a_link_that_prepares_its_open_is_opened_once_its_prepare_has_returned(
+    rig: tuple[LinkPort, MemoryPort, Clock],
+) -> None:
+    """SR-9.8: the sleeping part of a link's open (a HID node's, 50 ms in usbhid) runs on a
+    thread of its own, ``srcsd-open``, never on the loop: while it runs, ``open`` says so with
+    ``None`` at once and asks again ``PREPARE_POLL_NS`` later, counting no failure; once it has
+    returned, the next ``open`` opens the link. One prepare at a time."""
+    _, vsc, clock = rig
+    link = _PreparingLink(vsc)
+    port = LinkPort(link, clock, Timings(), Backoff(first_ms=100, max_ms=400))
+    assert port.open(0) is None
+    assert port.next_attempt == PREPARE_POLL_NS
+    assert port.open(PREPARE_POLL_NS) is None
+    assert (link.is_open, port.failures, port.opens) == (False, 0, 0)
+    end = time.monotonic() + 10
+    while not link.prepared_on:
+        assert time.monotonic() < end, "prepare never ran"
+        time.sleep(0.001)
+    link.release.set()
+    opened = None
+    while opened is None:
+        assert time.monotonic() < end, "the open never followed the prepare"
+        opened = port.open(2 * PREPARE_POLL_NS)
+        time.sleep(0.001)
+    assert opened == LinkOpened(2 * PREPARE_POLL_NS)
+    assert link.is_open
+    assert link.prepared_on == [PREPARE_THREAD]

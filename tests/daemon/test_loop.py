@@ -630,6 +630,10 @@ class _PipeHidLink(HidLink):
         self._read_end = read_end
         self.reads = 0
 
+    def prepare(self) -> None:
+        """Nothing to prepare (the pipe is open): what stays is the loop's way round a
+        prepare, which it never waits for."""
+
     def open(self) -> None:
         self._fd = self._read_end
 
@@ -641,21 +645,28 @@ class _PipeHidLink(HidLink):
 def test_a_link_that_hung_up_with_nothing_to_read_is_broken_without_a_read(
     tmp_path: Path,
 ) -> None:
-    """SR-9.8, SR-2: the report still waiting when the device went is read; after it, the
-    hang-up alone breaks the link (``transport_fault``, the reason ``HUNG_UP``) with no read,
-    which on hidraw would mark the real-time loop sleeping before it found the device gone."""
+    """SR-9.8, SR-2: the HID link opens once its prepare has returned, the loop turning
+    meanwhile; the report still waiting when the device went is read; after it, the hang-up
+    alone breaks the link (``transport_fault``, the reason ``HUNG_UP``) with no read, which on
+    hidraw would mark the real-time loop sleeping before it found the device gone."""
     read_end, write_end = os.pipe()
     link = _PipeHidLink(read_end)
+    clock = ManualClock()
     supervisor = Supervisor(
         SafetyConfig(outputs=(OutputSpec("drive", OutputRole.MOTION),)),
         link,
         [create_output(parse_output_spec("drive", {"kind": "sim"}))],
         None,
-        clock=ManualClock(),
+        clock=clock,
     )
     try:
         lifecycle.start(supervisor)
-        assert link.is_open
+        end = time.monotonic() + 10
+        while not link.is_open:
+            assert time.monotonic() < end, "the prepared HID link never opened"
+            clock.advance(link_port.PREPARE_POLL_NS)
+            supervisor.step()
+        assert supervisor.port.opens == 1
         os.write(write_end, encode_hid_input(HidInput(1, 2, 3, 4, 5, 6, mode=9)))
         os.close(write_end)
         supervisor.step()

@@ -9,6 +9,7 @@ path by the system tier's ``usb_hid`` scenario (docs/system-tier.md).
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 
 import pytest
@@ -127,3 +128,30 @@ def test_a_missing_node_is_a_link_error_naming_why(tmp_path: Path) -> None:
     with pytest.raises(LinkError, match="No such file"):
         link.open()
     assert not link.is_open
+
+
+def test_a_prepared_node_is_taken_by_the_open_and_closed_if_never_taken(node: Path) -> None:
+    """SR-9.8: ``prepare`` (run off the loop by the link port) opens the node, and ``open``
+    takes that descriptor without opening the node again: here the node is gone by the time
+    of the open, which still succeeds. A prepared descriptor that no open takes is closed by
+    ``close``; a prepare that met an error hands it to the open."""
+    link = HidLink(str(node))
+    assert link.prepares_open
+    link.prepare()
+    node.unlink()
+    link.open()
+    fd = link.fileno()
+    assert fd is not None
+    assert stat.S_ISFIFO(os.fstat(fd).st_mode)  # the node's descriptor, opened before it went
+    link.close()
+    os.mkfifo(node)
+    unused = HidLink(str(node))
+    unused.prepare()
+    before = set(os.listdir("/proc/self/fd"))
+    unused.close()
+    assert len(before - set(os.listdir("/proc/self/fd"))) == 1
+    missing = HidLink(str(node) + "-absent")
+    missing.prepare()
+    with pytest.raises(LinkError, match="No such file"):
+        missing.open()
+    assert not missing.is_open
