@@ -66,6 +66,15 @@ class Waiter:
         wants_write)`` pairs, and nothing else of theirs."""
         if link_fd == self.link_fd and api == self._watched_api:
             return  # the usual turn: the same list as the last, nothing to register (SR-9.4)
+        if self.link_fd is not None and link_fd != self.link_fd:
+            # The link's old descriptor was closed mid-turn (a break), and a client accepted
+            # in the same turn may have its number now: forgotten here, so that a client of
+            # that number is registered as new (the kernel dropped the closed file's watch).
+            # The clients' own descriptors are closed only before a watch, never mid-turn
+            # (the API server releases its ended connections in ``descriptors``).
+            with contextlib.suppress(KeyError, ValueError, OSError):
+                self._epoll.unregister(self.link_fd)
+            self.watched.pop(self.link_fd, None)
         wanted: dict[int, int] = {}
         if link_fd is not None:
             wanted[link_fd] = select.EPOLLIN

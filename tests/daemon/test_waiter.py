@@ -100,6 +100,26 @@ def test_the_usual_turn_registers_nothing_and_a_change_is_followed(
     assert [fd for fd, _ in waiter.wait(WAIT_S)] == [two.fd]
 
 
+def test_a_client_given_the_broken_links_descriptor_number_is_watched(
+    waiter: Waiter, pairs: list[Pair]
+) -> None:
+    """SR-10.1: the link breaks and is closed in a turn, and a client accepted in the same
+    turn gets the lowest free descriptor, the link's number. The next watch must register it
+    as the client it is: the kernel dropped the closed link's watch, and a waiter that still
+    took that number for watched would never see the client's requests."""
+    link, client, _, _ = pairs
+    number = link.fd
+    waiter.watch(number, [])
+    link.near.close()  # the break's close
+    reused = socket.socket(fileno=os.dup2(client.fd, number))  # the accept's new descriptor
+    try:
+        waiter.watch(None, [(number, False)])
+        client.far.send(b"x")
+        assert [fd for fd, _ in waiter.wait(WAIT_S)] == [number]
+    finally:
+        reused.close()
+
+
 def test_readiness_follows_what_is_watched(waiter: Waiter, pairs: list[Pair]) -> None:
     """Writable only where a write is wanted; a hang-up reads as both where watched, so the
     listener reads the end of its connection (as ``selectors`` does)."""
