@@ -12,7 +12,9 @@ its order (SR-6).
   ``PREPARE_POLL_NS``, so the loop never waits in the open (SR-9.8).
 - ``receive(events)``: the messages read and the clock read right after the read (what was
   read counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
-  ``LinkBroken``, the link closed and the backoff started. ``events`` is what epoll said of
+  ``LinkBroken``, the link closed to the loop and the backoff started. What of its release
+  may sleep in the kernel (a tty's close) runs on a thread of its own (``srcsd-close``), and
+  the next ``open`` waits for it as for a ``prepare`` (SR-9.8). ``events`` is what epoll said of
   the link's descriptor: one that hung up with nothing to read is broken without a read
   (``HUNG_UP``, SR-9.8).
 - ``send(frames, now)``: the frames written at once, in order; ``LinkBroken`` if the write
@@ -55,9 +57,13 @@ which the kernel's rtapp monitor judges a real-time thread's sleep (SR-9.8). A t
 up (a USB serial unplug) says ``EPOLLIN`` too: it is read, and its read says why."""
 _READ_OR_HANG_UP = select.EPOLLIN | select.EPOLLHUP
 PREPARE_POLL_NS = 10 * NS_PER_MS
-"""How often the loop looks whether a link's ``prepare`` has returned (usbhid's takes 50 ms
-and more): a look is a thread's ``is_alive``, nothing waits."""
+"""How often the loop looks whether a link's ``prepare`` (usbhid's takes 50 ms and more) or
+its last close has returned: a look is a thread's ``is_alive``, nothing waits."""
 PREPARE_THREAD = "srcsd-open"
+CLOSE_THREAD = "srcsd-close"
+CLOSE_WAIT_S = 1.0
+"""How long the daemon's exit waits for a broken link's close still under way: the exit goes
+on after it (SR-6.6); the kernel releases what is left when the process ends."""
 
 Received = list[Message | HidInput]
 """The messages of one read, in the order they arrived."""
@@ -87,6 +93,7 @@ class LinkPort:
         self.since_ns: int | None = None  # when the link last opened or broke (or the start)
         self.error: str | None = None  # why it broke or failed to open, until it opens
         self._preparing: threading.Thread | None = None  # the link's prepare, under way
+        self._closing: threading.Thread | None = None  # the broken link's close, under way
 
     @property
     def next_attempt(self) -> int:
@@ -94,14 +101,11 @@ class LinkPort:
         return self.backoff.next_attempt
 
     def open(self, now: int) -> LinkOpened | LinkBroken | None:
-        """Try to open the link at ``now``; ``None`` while its ``prepare`` is under way."""
-        if self.link.prepares_open:
-            if self._preparing is None:
-                self._preparing = threads.start(self.link.prepare, PREPARE_THREAD)
-            if self._preparing.is_alive():
-                self.backoff.next_attempt = now + PREPARE_POLL_NS
-                return None
-            self._preparing = None
+        """Try to open the link at ``now``; ``None`` while its last close or its ``prepare``
+        is under way."""
+        if self._under_way():
+            self.backoff.next_attempt = now + PREPARE_POLL_NS
+            return None
         try:
             self.link.open()
         except LinkError as error:
@@ -123,12 +127,32 @@ class LinkPort:
         return LinkOpened(now)
 
     def broken(self, now: int, reason: str) -> LinkBroken:
-        """The world broke the link at ``now``: closed, and reopened after the backoff."""
+        """The world broke the link at ``now``: closed to the loop at once (what may sleep of
+        its release on ``srcsd-close``: the break is decided without waiting for it, SR-9.8),
+        and reopened after the backoff."""
         log.warning("%s: broken: %s", self.link.description, reason)
         self.since_ns, self.error = now, reason
-        self.link.close()
+        release = self.link.detach()
+        if release is not None:
+            self._closing = threads.start(release, CLOSE_THREAD)
         self.backoff.failed(now)
         return LinkBroken(now, reason)
+
+    def _under_way(self) -> bool:
+        """Whether the broken link's close, or the link's ``prepare`` (started here when it
+        prepares its open), is still running. The close comes first: a serial port is opened
+        exclusively, so an open beside the old close would be refused as busy."""
+        if self._closing is not None:
+            if self._closing.is_alive():
+                return True
+            self._closing = None
+        if self.link.prepares_open:
+            if self._preparing is None:
+                self._preparing = threads.start(self.link.prepare, PREPARE_THREAD)
+            if self._preparing.is_alive():
+                return True
+            self._preparing = None
+        return False
 
     def receive(self, events: int = select.EPOLLIN) -> tuple[int, Received] | LinkBroken:
         """What has arrived, and when it was read; or the break the read found. ``events``:
@@ -188,8 +212,11 @@ class LinkPort:
 
     def close(self) -> None:
         """Close the link, then release what was opened for it, each release best effort:
-        one that fails leaves the others to run (SR-6.6: the exit goes on)."""
+        one that fails leaves the others to run (SR-6.6: the exit goes on). A broken link's
+        close still under way is waited for, ``CLOSE_WAIT_S`` at most."""
         self.link.close()
+        if self._closing is not None:
+            self._closing.join(CLOSE_WAIT_S)
         for release in self.release:
             with contextlib.suppress(Exception):
                 release()

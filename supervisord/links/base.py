@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+from collections.abc import Callable
 
 from supervisord.errors import SrcsError
 from supervisord.protocol.framing import Rejection
@@ -67,6 +68,14 @@ class Link(abc.ABC):
     @abc.abstractmethod
     def close(self) -> None:
         """Release the port or bus. Safe to call twice and after a failure."""
+
+    def detach(self) -> Callable[[], None] | None:
+        """Close the link to the loop at once, after a break: not open, no descriptor. What is
+        left to release, when its release may sleep in the kernel, comes back to be called off
+        the loop (the serial link: a tty's close waits for the tty's lock), or ``None`` when
+        all is released here (the default: ``close``)."""
+        self.close()
+        return None
 
     @property
     @abc.abstractmethod

@@ -10,10 +10,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 import pytest
 
 from supervisord.daemon.link_port import (
+    CLOSE_THREAD,
     FAILURES_LOGGED_EVERY,
     PREPARE_POLL_NS,
     PREPARE_THREAD,
@@ -307,3 +309,54 @@ def test_a_link_that_prepares_its_open_is_opened_once_its_prepare_has_returned(
     assert opened == LinkOpened(2 * PREPARE_POLL_NS)
     assert link.is_open
     assert link.prepared_on == [PREPARE_THREAD]
+
+
+class _SlowClosingLink(MemoryLink):
+    """A memory link whose release after a break has a part to do off the loop (a tty's
+    close): it waits until the test lets it go, and says on which thread it ran."""
+
+    def __init__(self, port: MemoryPort) -> None:
+        super().__init__(port)
+        self.let_go = threading.Event()
+        self.released_on: list[str] = []
+
+    def detach(self) -> Callable[[], None]:
+        self.close()
+
+        def release() -> None:
+            self.released_on.append(threading.current_thread().name)
+            self.let_go.wait(30)
+
+        return release
+
+
+def test_a_broken_links_slow_release_runs_off_the_loop_and_the_reopen_waits_for_it() -> None:
+    """SR-9.8: a break is decided at once, while what may sleep of the link's release (a
+    tty's close, which waits for the hang-up's lock) runs on ``srcsd-close``; the next open
+    waits for it, saying ``None`` and asking again ``PREPARE_POLL_NS`` later without counting
+    a failure (a serial port is opened exclusively: beside the old close it would be busy)."""
+    vsc, clock = MemoryPort(), Clock()
+    link = _SlowClosingLink(vsc)
+    port = LinkPort(link, clock, Timings(), Backoff(first_ms=100, max_ms=400))
+    assert port.open(0) == LinkOpened(0)
+    vsc.unplug()
+    clock.at(50 * MS)
+    assert port.receive() == LinkBroken(50 * MS, "device gone")  # the release still held
+    assert not link.is_open
+    end = time.monotonic() + 10
+    while not link.released_on:
+        assert time.monotonic() < end, "the release never ran"
+        time.sleep(0.001)
+    assert link.released_on == [CLOSE_THREAD]
+    vsc.replug()
+    assert port.open(150 * MS) is None
+    assert port.next_attempt == 150 * MS + PREPARE_POLL_NS
+    assert (link.is_open, port.failures, port.opens) == (False, 0, 1)
+    link.let_go.set()
+    opened = None
+    while opened is None:
+        assert time.monotonic() < end, "the open never followed the release"
+        opened = port.open(160 * MS)
+        time.sleep(0.001)
+    assert opened == LinkOpened(160 * MS)
+    assert (port.failures, port.opens) == (0, 2)

@@ -120,6 +120,34 @@ def test_reopening_leaks_no_descriptor(port: PtyPort) -> None:
     assert len(os.listdir("/proc/self/fd")) == before
 
 
+def test_a_detached_port_is_closed_to_the_loop_at_once_and_released_by_what_it_returns(
+    port: PtyPort,
+) -> None:
+    """SR-9.8: after a break the link is closed to the loop at once (not open, no descriptor,
+    a read is a break) while the tty itself stays open until the release it returned runs:
+    the link port runs it off the loop, since a tty's close waits for the tty's lock, which
+    an unplug's hang-up holds. A second detach has nothing left to release."""
+    link = SerialLink(str(port.path))
+    link.open()
+    fd = link.fileno()
+    assert fd is not None
+    release = link.detach()
+    assert release is not None
+    assert (link.is_open, link.fileno()) == (False, None)
+    with pytest.raises(LinkBrokenError, match="not open"):
+        link.receive()
+    assert os.readlink(f"/proc/self/fd/{fd}") == os.path.realpath(port.path)  # still open
+    with pytest.raises(LinkError, match="lock"):
+        SerialLink(str(port.path)).open()  # the old port still holds its exclusive lock
+    release()
+    assert not os.path.exists(f"/proc/self/fd/{fd}") or os.readlink(
+        f"/proc/self/fd/{fd}"
+    ) != os.path.realpath(port.path)
+    assert link.detach() is None
+    link.open()  # the lock went with the close
+    link.close()
+
+
 def test_backoff_doubles_to_its_limit_and_resets() -> None:
     """Reopen attempts wait 100, 200, 400 ms ... up to the limit, and start over after success."""
     backoff = Backoff(first_ms=100, max_ms=500)
