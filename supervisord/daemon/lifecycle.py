@@ -25,6 +25,11 @@ from supervisord.safety.core import SafetyCore
 from supervisord.safety.decision import Decision
 from supervisord.safety.events import Shutdown
 
+START_OPEN_WAIT_S = 1.0
+"""How long the start waits for the link's open, made off the loop (``srcsd-open``, SR-9.8),
+so that READY comes with the link open as a rule; the loop serves nothing yet, and the
+outputs are off. A device whose open takes longer is taken by the loop once it is made."""
+
 __all__ = ["request_stop", "run", "shutdown", "start"]
 
 
@@ -48,7 +53,10 @@ def start(loop: Supervisor) -> Decision:
     for event in events:
         loop.decide(event)
     opened = loop.port.open(now)
-    if opened is not None:  # None: a HID link's prepare is under way, the loop asks again
+    if opened is None:  # the link's prepare is under way: the start waits for it, bounded
+        loop.port.settle(START_OPEN_WAIT_S)
+        opened = loop.port.open(now)
+    if opened is not None:  # None: still under way, the loop asks again
         loop.decide(opened)
     loop.waiter.start(sink_fd)
     decision = loop.decision or core.decision  # the last applied (never None here)

@@ -7,9 +7,9 @@ its order (SR-6).
 
 - ``open(now)``: ``LinkOpened``, or ``LinkBroken`` with the reason it could not open (the
   backoff then says when to try again, ``next_attempt``; SR-2.5 ``transport_fault``). A link
-  whose open may sleep in the kernel (``prepares_open``: HID) first has its ``prepare`` run
-  on a thread of its own (``srcsd-open``): ``None`` until it has returned, asked again every
-  ``PREPARE_POLL_NS``, so the loop never waits in the open (SR-9.8).
+  whose open may sleep in the kernel (``prepares_open``: serial and HID) first has its
+  ``prepare`` run on a thread of its own (``srcsd-open``): ``None`` until it has returned,
+  asked again every ``PREPARE_POLL_NS``, so the loop never waits in the open (SR-9.8).
 - ``receive(events)``: the messages read and the clock read right after the read (what was
   read counts as received then, SR-2), rejections counted by reason and left out (SR-2.1); or
   ``LinkBroken``, the link closed to the loop and the backoff started. What of its release
@@ -62,8 +62,9 @@ its last close has returned: a look is a thread's ``is_alive``, nothing waits.""
 PREPARE_THREAD = "srcsd-open"
 CLOSE_THREAD = "srcsd-close"
 CLOSE_WAIT_S = 1.0
-"""How long the daemon's exit waits for a broken link's close still under way: the exit goes
-on after it (SR-6.6); the kernel releases what is left when the process ends."""
+"""How long the daemon's exit waits for a broken link's close or a ``prepare`` still under
+way: the exit goes on after it (SR-6.6); the kernel releases what is left when the process
+ends."""
 
 Received = list[Message | HidInput]
 """The messages of one read, in the order they arrived."""
@@ -137,6 +138,13 @@ class LinkPort:
             self._closing = threads.start(release, CLOSE_THREAD)
         self.backoff.failed(now)
         return LinkBroken(now, reason)
+
+    def settle(self, timeout_s: float) -> None:
+        """Wait, ``timeout_s`` at most, for the link's close and ``prepare`` under way (at the
+        start, before the loop serves anything, and at the exit)."""
+        for thread in (self._closing, self._preparing):
+            if thread is not None:
+                thread.join(timeout_s)
 
     def _under_way(self) -> bool:
         """Whether the broken link's close, or the link's ``prepare`` (started here when it
@@ -213,10 +221,9 @@ class LinkPort:
     def close(self) -> None:
         """Close the link, then release what was opened for it, each release best effort:
         one that fails leaves the others to run (SR-6.6: the exit goes on). A broken link's
-        close still under way is waited for, ``CLOSE_WAIT_S`` at most."""
+        close or a ``prepare`` still under way is waited for, ``CLOSE_WAIT_S`` at most."""
+        self.settle(CLOSE_WAIT_S)  # first: what a prepare made is closed with the link
         self.link.close()
-        if self._closing is not None:
-            self._closing.join(CLOSE_WAIT_S)
         for release in self.release:
             with contextlib.suppress(Exception):
                 release()

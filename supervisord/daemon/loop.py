@@ -159,7 +159,7 @@ class Supervisor(Parts):
         if self.waiter.link_fd is None and not port.link.is_open and now >= port.next_attempt:
             # (A link watched this turn was open: one that broke in it has just set its backoff.)
             opened = port.open(now)
-            if opened is not None:  # None: its prepare is under way (HID)
+            if opened is not None:  # None: its prepare or last close is under way
                 self.decide(opened)
         service = self.service
         if service.next_watchdog is not None and now >= service.next_watchdog:

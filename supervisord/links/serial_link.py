@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import threading
 from collections.abc import Callable
 
 import serial
@@ -26,10 +27,22 @@ class SerialLink(Link):
     a fresh decoder, so no half frame survives a reconnect.
     """
 
+    prepares_open = True
+    """A tty's open takes the kernel's global ``tty_mutex``, a USB serial port's sends the
+    device its control requests and waits for them (``cdc_acm``), and the emptying of what
+    waited (``tcflush``) waits for the tty's buffer lock, which the work that hands received
+    bytes to the line discipline holds (``flush_to_ldisc``): each a sleep in which an
+    ordinary thread or a softirq wakes the loop, which the judged kernel saw in the
+    reopen after a replug (docs/system-tier.md). So the port is opened off the loop
+    (:meth:`prepare`, SR-9.8). What arrives between the emptying and the loop's first read
+    counts from that read, as every byte does (SR-2.11)."""
+
     def __init__(self, port: str) -> None:
         self._path = port
         self._port: serial.Serial | None = None
         self._fd: int | None = None  # the port's descriptor while open, read once at open
+        self._prepared: serial.Serial | LinkError | None = None  # prepare's port or error
+        self._prepared_lock = threading.Lock()
         self._decoder = FrameDecoder()
         # The user heartbeat goes out 20 times a second with one of two bytes (SR-5.1): its
         # frames are encoded once (SR-9.4). At most 256 entries, one per byte value.
@@ -43,26 +56,43 @@ class SerialLink(Link):
     def is_open(self) -> bool:
         return self._port is not None
 
+    def prepare(self) -> None:
+        """Open the port, for :meth:`open` to take (on the link port's ``srcsd-open`` thread,
+        at ordinary priority)."""
+        opened = self._open_port()
+        with self._prepared_lock:
+            self._prepared = opened
+
     def open(self) -> None:
+        """Take the port :meth:`prepare` opened, or open it here when nothing was prepared."""
         if self._port is not None:
             return
+        with self._prepared_lock:
+            opened, self._prepared = self._prepared, None
+        if opened is None:
+            opened = self._open_port()
+        if isinstance(opened, LinkError):
+            raise opened
+        self._port = opened
+        self._fd = opened.fileno()
+        self._decoder = FrameDecoder()
+
+    def _open_port(self) -> serial.Serial | LinkError:
+        """The port opened and emptied, or why it could not be."""
         try:
             port = serial.Serial(self._path, BAUD, timeout=0, write_timeout=0, exclusive=True)
         except (serial.SerialException, OSError, ValueError) as error:
             # A device the daemon may not open names its group and the fix (SR-8.18).
-            raise LinkError(_short(error) + denied_advice(self._path, error)) from error
+            return _caused(LinkError(_short(error) + denied_advice(self._path, error)), error)
         try:
             # Discard what waited in the port (tcflush TCIFLUSH): a VSC's old heartbeats must
             # never be read as current (SR-2.2, SR-2.11: a heartbeat counts from
             # when it was received). pyserial 3.5 flushes in open too; this does not rely on it.
             port.reset_input_buffer()
         except (serial.SerialException, OSError) as error:
-            with contextlib.suppress(serial.SerialException, OSError):
-                port.close()
-            raise LinkError(_short(error)) from error
-        self._port = port
-        self._fd = port.fileno()
-        self._decoder = FrameDecoder()
+            _close_port(port)
+            return _caused(LinkError(_short(error)), error)
+        return port
 
     def fileno(self) -> int | None:
         return self._fd
@@ -107,8 +137,11 @@ class SerialLink(Link):
 
     def close(self) -> None:
         port, self._port, self._fd = self._port, None, None
-        if port is not None:
-            _close_port(port)
+        with self._prepared_lock:  # a prepared port never taken is closed too
+            prepared, self._prepared = self._prepared, None
+        for each in (port, prepared):
+            if isinstance(each, serial.Serial):
+                _close_port(each)
 
     def detach(self) -> Callable[[], None] | None:
         """Closed to the loop at once; the port's close is returned, to run off the loop
@@ -124,6 +157,12 @@ class SerialLink(Link):
         if self._fd is None:
             raise LinkBrokenError("not open")
         return self._fd
+
+
+def _caused(error: LinkError, cause: BaseException) -> LinkError:
+    """``error`` as raised ``from cause``, to be raised later (by :meth:`SerialLink.open`)."""
+    error.__cause__ = cause
+    return error
 
 
 def _close_port(port: serial.Serial) -> None:

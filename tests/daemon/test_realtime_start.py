@@ -34,7 +34,8 @@ from tests.daemon.test_unit_realtime import UNIT, settings
 THREAD_NAMES = {"srcsd-names", "srcsd-record", "srcsd-journal", "srcsd-log", "srcsd-flight"}
 """Every thread the daemon starts besides its loop (supervisord/daemon/sink.py's lanes and the
 user names' lookup, supervisord/api/names.py), on a serial VSC: a HID link's open adds
-``srcsd-open`` while it runs (supervisord/daemon/link_port.py)."""
+``srcsd-open`` while it runs, and a broken serial port's close ``srcsd-close``
+(supervisord/daemon/link_port.py)."""
 
 SCHED_POLICY_FIELD = 41
 """``policy`` in proc(5)'s ``/proc/PID/stat``: the field's number, counted from 1."""

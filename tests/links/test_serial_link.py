@@ -120,6 +120,33 @@ def test_reopening_leaks_no_descriptor(port: PtyPort) -> None:
     assert len(os.listdir("/proc/self/fd")) == before
 
 
+def test_a_prepared_port_is_taken_by_the_open_and_closed_if_never_taken(port: PtyPort) -> None:
+    """SR-9.8: ``prepare`` opens the port (off the loop: a tty's open waits for the kernel's
+    locks and a USB device's replies), ``open`` takes it; one never taken is closed with the
+    link, and a prepare that failed is raised by the open as its own would be."""
+    link = SerialLink(str(port.path))
+    assert link.prepares_open
+    link.prepare()
+    assert link.fileno() is None  # made, not yet taken
+    with pytest.raises(LinkError, match="lock"):
+        SerialLink(str(port.path)).open()  # the prepared port holds the exclusive lock
+    link.open()
+    assert link.fileno() is not None
+    port.write(encode_frame(VscHeartbeat(9)))
+    assert receive_until(link, 1) == [VscHeartbeat(9)]
+    link.close()
+    link.prepare()
+    link.close()  # never taken: closed all the same
+    other = SerialLink(str(port.path))
+    other.open()  # the lock went with it
+    other.close()
+    port.unplug()
+    link.prepare()
+    with pytest.raises(LinkError, match="No such file"):
+        link.open()
+    assert not link.is_open
+
+
 def test_a_detached_port_is_closed_to_the_loop_at_once_and_released_by_what_it_returns(
     port: PtyPort,
 ) -> None:
