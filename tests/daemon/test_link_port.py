@@ -266,6 +266,15 @@ def test_the_log_says_when_the_link_opened_and_why_it_broke(
     ]
 
 
+def _opened_after(port: LinkPort, now: int, end: float) -> LinkOpened | LinkBroken:
+    """``port.open(now)``, asked until it says more than ``None`` (the link's thread under way
+    has returned), before ``end`` (``time.monotonic``)."""
+    while (opened := port.open(now)) is None:
+        assert time.monotonic() < end, "the open never followed the link's thread"
+        time.sleep(0.001)
+    return opened
+
+
 class _PreparingLink(MemoryLink):
     """A memory link whose open has a part to do off the loop: ``prepare`` waits until the
     test releases it, and says on which thread it ran."""
@@ -301,12 +310,7 @@ def test_a_link_that_prepares_its_open_is_opened_once_its_prepare_has_returned(
         assert time.monotonic() < end, "prepare never ran"
         time.sleep(0.001)
     link.release.set()
-    opened = None
-    while opened is None:
-        assert time.monotonic() < end, "the open never followed the prepare"
-        opened = port.open(2 * PREPARE_POLL_NS)
-        time.sleep(0.001)
-    assert opened == LinkOpened(2 * PREPARE_POLL_NS)
+    assert _opened_after(port, 2 * PREPARE_POLL_NS, end) == LinkOpened(2 * PREPARE_POLL_NS)
     assert link.is_open
     assert link.prepared_on == [PREPARE_THREAD]
 
@@ -353,10 +357,5 @@ def test_a_broken_links_slow_release_runs_off_the_loop_and_the_reopen_waits_for_
     assert port.next_attempt == 150 * MS + PREPARE_POLL_NS
     assert (link.is_open, port.failures, port.opens) == (False, 0, 1)
     link.let_go.set()
-    opened = None
-    while opened is None:
-        assert time.monotonic() < end, "the open never followed the release"
-        opened = port.open(160 * MS)
-        time.sleep(0.001)
-    assert opened == LinkOpened(160 * MS)
+    assert _opened_after(port, 160 * MS, end) == LinkOpened(160 * MS)
     assert (port.failures, port.opens) == (0, 2)
