@@ -35,7 +35,9 @@ class SerialLink(Link):
     ordinary thread or a softirq wakes the loop, which the judged kernel saw in the
     reopen after a replug (docs/system-tier.md). So the port is opened off the loop
     (:meth:`prepare`, SR-9.8). What arrives between the emptying and the loop's first read
-    counts from that read, as every byte does (SR-2.11)."""
+    counts from that read, as every byte does (SR-2.11): once an open, that read may come up to
+    the link port's ``PREPARE_POLL_NS`` (10 ms) after it arrived, and a heartbeat in it is taken
+    for that much fresher, against a link loss of 50 ms at the shortest (``vsc.timeout_ms``)."""
 
     def __init__(self, port: str) -> None:
         self._path = port
