@@ -5,8 +5,10 @@ remote's e-stop, and with ``--wired`` release it, take over again and press the 
 e-stop. For each press it waits (at most ``--timeout``) for the stop record, then for the
 outputs to be off, and finally asks the daemon to judge and record the presses: the numbers
 are the daemon's own (each output's off write, timed from the e-stop frame's read), never
-this program's. Exit 0 passed, 1 failed (or refused), 3 not done (no press in time, another
-stop, no daemon).
+this program's. It says "recorded" only once the daemon pushed the ``stoptest`` record, which
+it does when the record lane has finished with it (SR-7.4): then ``srcsctl log`` shows it.
+Exit 0 passed, 1 failed (or refused), 3 not done (no press in time, another stop, no daemon,
+the record not finished in time).
 """
 
 from __future__ import annotations
@@ -33,6 +35,10 @@ DEFAULT_TIMEOUT_S: Final = 60.0
 OFF_WAIT_S: Final = 5.0
 """After the stop record, how long the outputs get to be off before the daemon judges: far
 beyond any output's off delay; one still on by then fails (SR-12.1)."""
+RECORD_WAIT_S: Final = 10.0
+"""After the verdict, how long its record gets to be finished (written and fsynced, SR-7.5):
+the record lane's queue at its longest is about a minute of the worst client traffic, far
+beyond a robot's; a record not finished by then is "not done" (exit 3)."""
 POLL_S: Final = 0.05
 
 PROMPTS: Final[Mapping[str, str]] = {
@@ -107,7 +113,8 @@ def run_stoptest(
         print(f"stoptest: not done: {why}", file=out, flush=True)
         return EXIT_NOT_DONE
     result = client.stoptest(tuple(steps)).stoptest
-    out.write(report(result))
+    recorded = _wait_recorded(client, result, clock)
+    out.write(report(result, recorded=recorded))
     print(
         "stoptest: release the e-stop"
         + ("s" if wired else "")
@@ -115,6 +122,8 @@ def run_stoptest(
         file=out,
         flush=True,
     )
+    if not recorded:
+        return EXIT_NOT_DONE
     return EXIT_PASSED if result.passed else EXIT_FAILED
 
 
@@ -171,7 +180,21 @@ def _wait_off(client: SupervisorClient, clock: Callable[[], float]) -> None:
         time.sleep(POLL_S)
 
 
-def report(result: StopTestReport) -> str:
+def _wait_recorded(
+    client: SupervisorClient, result: StopTestReport, clock: Callable[[], float]
+) -> bool:
+    """Whether the verdict's ``stoptest`` record was pushed within :data:`RECORD_WAIT_S`:
+    the daemon pushes a record once its lane has finished with it, so the command's
+    "recorded" is what ``srcsctl log`` shows from then on (SR-7.4, SR-12.1)."""
+    deadline = clock() + RECORD_WAIT_S
+    while (left := deadline - clock()) > 0:
+        push = client.next_event(timeout=min(left, 0.5))
+        if isinstance(push, RecordPush) and push.record.stoptest == result:
+            return True
+    return False
+
+
+def report(result: StopTestReport, *, recorded: bool) -> str:
     """The short report: a line per output and press, then the verdict."""
     lines = []
     limit = result.limit_ms
@@ -185,6 +208,7 @@ def report(result: StopTestReport) -> str:
     overall = "PASSED" if result.passed else "FAILED"
     lines.append(
         f"stoptest: {overall}: every output off within {limit} ms of the e-stop's frame "
-        f"({REQUIREMENTS} SR-12.1); recorded"
+        f"({REQUIREMENTS} SR-12.1); "
+        + ("recorded" if recorded else f"its record not finished within {RECORD_WAIT_S:g} s")
     )
     return "\n".join(lines) + "\n"
