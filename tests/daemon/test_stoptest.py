@@ -87,10 +87,11 @@ def test_stoptest_measures_each_press_and_output_and_records_the_verdict(tmp_pat
     the stop after the press, each output off (its file, seen by inotify) within the
     scheduling allowance of the daemon's reading; the verdict is the limit applied to them,
     the exit status says it, and the report has a line per output and press. The command
-    says "recorded" only once the record is on disk: the file holds it when the command ends. The power output
-    is category 1 (SR-1.4): off no earlier than its delay, and judged after it. A stop that the
-    machine's load makes first (the VSC unheard for 200 ms on a busy machine) is no press:
-    the command says "not done" (exit 3) and the scenario runs again, three times at most."""
+    says "recorded" only once the record is on disk: the file holds it when the command
+    ends. The power output is category 1 (SR-1.4): off no earlier than its delay, and judged
+    after it. A stop that the machine's load makes first (the VSC unheard for 200 ms on a
+    busy machine) is no press: the command says "not done" (exit 3) and the scenario runs
+    again, three times at most."""
     cut: list[str] = []
     for attempt in range(3):
         with Robot(tmp_path / str(attempt), outputs=OUTPUTS) as robot:
