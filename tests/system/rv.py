@@ -25,10 +25,11 @@ DAEMON_THREADS = re.compile(r"srcsd(-[\w.-]*)?")  # the loop "srcsd", its lanes 
 
 # "  <...>-415  [000] d..2.  123.456789: error_sleep: srcsd[415]: violation detected"
 _EVENT = re.compile(
-    r"^\s*(?P<context>.+?-\d+)\s+\[\d+\]\s.*?:\s+error_(?P<monitor>\w+):\s+"
+    r"^\s*(?P<context>.+?-\d+)\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S*).*?:\s+error_(?P<monitor>\w+):\s+"
     r"(?P<task>.*)\[(?P<pid>\d+)\]: violation detected\s*$"
 )
-_STACK_HEAD = "<stack trace>"
+# "  <...>-415  [000] d..2.  123.456800: <stack trace>"
+_STACK_HEAD = re.compile(r"^\s*.+?-\d+\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S*).*<stack trace>\s*$")
 _FRAME = re.compile(r"^\s*=> (?P<function>[^\s+]+)")
 
 # Frames of the monitors, the trace machinery and the scheduler's and wait queues' plumbing:
@@ -76,34 +77,51 @@ class Trace:
     unreadable: int = 0
 
 
+def _where(line: re.Match[str]) -> tuple[str, str]:
+    """The CPU and the context (ftrace's hardirq/softirq flag: ``.``, ``s``, ``h``, ``H``,
+    ``Z``) a line was written in."""
+    flags = line["flags"]
+    return line["cpu"], flags[2] if len(flags) > 2 else "?"
+
+
 def parse(text: str) -> Trace:
-    """The violations in ``text``, each with the stack that the trigger wrote right after it
-    (the guest has one CPU, so an event's stack is the next stack in the trace)."""
+    """The violations in ``text``, in the order of their events, each with the stack its
+    trigger wrote after it. The stack comes in the event's own context, but an interrupt may
+    come in between with an event and a stack of its own (the loop's ``sleep`` event, then a
+    hard interrupt's ``wakeup`` and its stack, then the loop's stack): so a stack goes to the
+    last event still without one on its CPU and in its context. A stack with no such event is
+    an unreadable line; an event that never gets one keeps none (its cause is ``?``)."""
     trace = Trace()
-    current: Violation | None = None
-    frames: list[str] = []
-
-    def close() -> None:
-        if current is not None:
-            trace.violations.append(replace(current, stack=tuple(frames)))
-
+    events: list[Violation] = []
+    stacks: dict[int, list[str]] = {}
+    waiting: dict[tuple[str, str], int] = {}  # where -> the index of its event without a stack
+    frames: list[str] | None = None  # the stack being read, if its event was found
     for line in text.splitlines():
         if not line.strip() or line.startswith("#"):
             continue
         frame = _FRAME.match(line)
         if frame is not None:
-            frames.append(frame["function"])
+            if frames is not None:
+                frames.append(frame["function"])
             continue
-        if line.rstrip().endswith(_STACK_HEAD):
+        head = _STACK_HEAD.match(line)
+        if head is not None:
+            index = waiting.pop(_where(head), None)
+            frames = None if index is None else stacks.setdefault(index, [])
+            trace.unreadable += index is None
             continue
+        frames = None
         event = _EVENT.match(line)
         if event is None or event["monitor"] not in MONITORS:
             trace.unreadable += 1
             continue
-        close()
-        frames = []
-        current = Violation(event["monitor"], event["task"], int(event["pid"]), event["context"])
-    close()
+        waiting[_where(event)] = len(events)
+        events.append(
+            Violation(event["monitor"], event["task"], int(event["pid"]), event["context"])
+        )
+    trace.violations = [
+        replace(event, stack=tuple(stacks.get(index, ()))) for index, event in enumerate(events)
+    ]
     return trace
 
 

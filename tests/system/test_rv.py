@@ -152,3 +152,32 @@ def test_the_pages_allow_list_is_read_and_every_row_names_a_frame() -> None:
     written = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
     assert len(rows) == len(written) - 1  # every row but the header is read
     assert all(row.frame and " " not in row.frame for row in rows)
+
+
+# Lines the judged kernel wrote in the tier's rttime scenario: the loop's sleep event, then,
+# before that event's stack, a hard interrupt's own event and stack (a 9p reply waking a task),
+# then the loop's stack. Each stack is written in the context of its event.
+INTERRUPTED = Path(__file__).resolve().parent / "data" / "judge-rttime-interrupted.trace"
+
+
+def test_an_event_interrupted_before_its_stack_gets_its_own_stack() -> None:
+    trace = parse(INTERRUPTED.read_text())
+    assert trace.unreadable == 0
+    sleep, irq_wake = trace.violations  # in the order of their events
+    assert (sleep.monitor, sleep.task, sleep.cause) == ("sleep", "srcsd", "do_epoll_wait")
+    assert sleep.stack[-1] == "entry_SYSCALL_64_after_hwframe"
+    assert "p9_client_cb" not in sleep.stack
+    assert (irq_wake.monitor, irq_wake.task, irq_wake.cause) == ("wakeup", "python", "p9_client_cb")
+    assert irq_wake.stack.count("trace_event_raw_event_error_ltl_monitor_id") == 2  # it
+    # interrupted the sleep's event on its way to the stack: those frames are its own
+    verdict = judge(trace.violations, allow_list(DOCS.read_text()))
+    assert verdict.ok, verdict.summary()
+
+
+def test_a_stack_without_its_event_is_unreadable_and_an_event_without_one_has_none() -> None:
+    lines = INTERRUPTED.read_text().splitlines(keepends=True)
+    sleep_event = next(i for i, line in enumerate(lines) if "error_sleep" in line)
+    trace = parse("".join(lines[:sleep_event] + lines[sleep_event + 1 :]))
+    assert trace.unreadable == 1  # the loop's stack, whose event is gone
+    (irq_wake,) = trace.violations
+    assert irq_wake.cause == "p9_client_cb"
