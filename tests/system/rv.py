@@ -25,11 +25,13 @@ DAEMON_THREADS = re.compile(r"srcsd(-[\w.-]*)?")  # the loop "srcsd", its lanes 
 
 # "  <...>-415  [000] d..2.  123.456789: error_sleep: srcsd[415]: violation detected"
 _EVENT = re.compile(
-    r"^\s*(?P<context>.+?-\d+)\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S*).*?:\s+error_(?P<monitor>\w+):\s+"
+    r"^\s*(?P<context>.+?-\d+)\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S+)\s.*?:\s+error_(?P<monitor>\w+):\s+"
     r"(?P<task>.*)\[(?P<pid>\d+)\]: violation detected\s*$"
 )
 # "  <...>-415  [000] d..2.  123.456800: <stack trace>"
-_STACK_HEAD = re.compile(r"^\s*.+?-\d+\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S*).*<stack trace>\s*$")
+# (the flags end at a space: a flags field that could also be the text after it would make a
+# line that is neither event nor stack cost the square of its length)
+_STACK_HEAD = re.compile(r"^\s*.+?-\d+\s+\[(?P<cpu>\d+)\]\s+(?P<flags>\S+)\s.*<stack trace>\s*$")
 _FRAME = re.compile(r"^\s*=> (?P<function>[^\s+]+)")
 
 # Frames of the monitors, the trace machinery and the scheduler's and wait queues' plumbing:
